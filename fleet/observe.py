@@ -1,0 +1,34 @@
+"""Observations of the physics world in the skills' terms (the narrow interface of robots.skills)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fleet.physics.world import World
+from robots.skills.interface import ArmObservation, PartObservation
+
+
+def arm_observation(world: World, arm_name: str) -> ArmObservation:
+    """Joint state of one arm now, split into arm and gripper joints."""
+    arm = world.arms[arm_name]
+    q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
+    return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:])
+
+
+def part_observations(world: World) -> dict[int, PartObservation]:
+    """Every active part's pose, velocity and size, by part id."""
+    out = {}
+    for part in world.parts:
+        if part.part_id is None:
+            continue
+        info = world.part_info(part.part_id)
+        out[info.part_id] = PartObservation(
+            info.part_id, info.position, info.quaternion_wxyz, info.velocity,
+            info.width_m, info.height_m, tuple(part.part_type.size_m),
+        )
+    return out
+
+
+def base_transform(world: World, arm_name: str) -> np.ndarray:
+    """4x4 transform of an arm's base in the world."""
+    return world.arms[arm_name].base_pose.to_transformation_matrix()

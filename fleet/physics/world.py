@@ -1,0 +1,299 @@
+"""The physics world: a physics-only SAPIEN scene built from a scene file.
+
+One world serves `fleet trials`, the sim server and the PettingZoo env. It
+needs no render device: no visual shapes are added. Time advances by control
+ticks of `scene.substeps` physics steps; drive targets are set once per tick.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import sapien
+
+from fleet.physics.arm import SimArm, yaw_pose
+from fleet.physics.parts import FeederClock, SimPart, build_part, park
+from robots.registry import get_robot
+from scenes.schema import Scene, Station
+
+BELT_DEPTH_M = 0.04
+WALL_M = 0.008
+FLOOR_TOP_M = 0.0
+
+
+@dataclass(frozen=True)
+class PartInfo:
+    """What the world tells about one active part (world frame, quaternion wxyz)."""
+
+    part_id: int
+    feeder: str
+    type_index: int
+    position: np.ndarray
+    quaternion_wxyz: np.ndarray
+    velocity: np.ndarray
+    width_m: float
+    height_m: float
+
+
+@dataclass
+class WorldState:
+    """Everything needed to put a world back exactly: PhysX bodies, drive targets, pool and feeder clocks."""
+
+    physx: bytes
+    tick: int
+    drive_targets: dict[str, np.ndarray]
+    drive_velocity_targets: dict[str, np.ndarray]
+    part_ids: list[int | None]
+    feeders: list[dict]
+    next_part_id: int
+    events: list[tuple] = field(default_factory=list)
+
+
+def configure_physx(scene: Scene) -> None:
+    """Global PhysX settings for a world: gravity, determinism, solver iterations for friction grasps."""
+    sapien.physx.set_scene_config(
+        gravity=np.array(scene.gravity_m_per_s2, dtype=np.float32),
+        enable_enhanced_determinism=True,
+        enable_pcm=True,
+        enable_tgs=True,
+    )
+    sapien.physx.set_body_config(solver_position_iterations=20, solver_velocity_iterations=2)
+    sapien.physx.set_shape_config(contact_offset=0.004, rest_offset=0.0)
+
+
+class World:
+    """A cell in SAPIEN: arms by id, the conveyor, stations and a pool of parts per feeder."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene_model = scene
+        configure_physx(scene)
+        self.physx = sapien.physx.PhysxCpuSystem()
+        self.scene = sapien.Scene([self.physx])
+        self.scene.set_timestep(1.0 / scene.physics_hz)
+        self.substeps = scene.substeps
+        self.control_dt_s = 1.0 / scene.control_hz
+        self.tick = 0
+        self.events: list[tuple] = []
+        self._build_floor()
+        self.belt = self._build_conveyor()
+        for station in scene.stations:
+            self._build_station(station)
+        self.arms: dict[str, SimArm] = {}
+        for i, arm in enumerate(scene.arms):
+            spec = get_robot(arm.model)
+            self.arms[arm.name] = SimArm(self.scene, spec, arm.name, yaw_pose(arm.base.xyz, arm.base.yaw_rad), i)
+        self._arm_of_body = {
+            link: name for name, a in self.arms.items() for link in a.articulation.get_links()
+        }
+        self.parts: list[SimPart] = []
+        self.feeders: list[FeederClock] = []
+        self.next_part_id = 0
+        seeds = np.random.SeedSequence(scene.seed).spawn(max(1, len(scene.feeders)))
+        for feeder, seed in zip(scene.feeders, seeds):
+            clock = FeederClock(feeder, np.random.default_rng(seed))
+            for _ in range(feeder.capacity):
+                for t_index, part_type in enumerate(feeder.parts):
+                    slot = len(self.parts)
+                    entity, body = build_part(self.scene, part_type, slot, f"{feeder.name}_{slot}")
+                    self.parts.append(SimPart(slot, feeder.name, t_index, part_type, entity, body))
+                    clock.slots.append(slot)
+            clock.start()
+            self.feeders.append(clock)
+
+    # --- building -----------------------------------------------------------------
+    def _static_boxes(self, name: str, boxes: list[tuple[list[float], list[float]]], pose: sapien.Pose, friction: float = 0.8) -> sapien.Entity:
+        material = sapien.physx.PhysxMaterial(friction, friction, 0.0)
+        builder = self.scene.create_actor_builder()
+        for centre, half in boxes:
+            builder.add_box_collision(pose=sapien.Pose(centre), half_size=half, material=material)
+        builder.set_name(name)
+        entity = builder.build_static()
+        entity.set_pose(pose)
+        return entity
+
+    def _build_floor(self) -> None:
+        self._static_boxes("floor", [([0, 0, -0.05], [20, 20, 0.05])], sapien.Pose())
+
+    def _build_conveyor(self) -> sapien.physx.PhysxRigidDynamicComponent | None:
+        """The belt: a kinematic slab that moves at belt speed within each tick and is set back each tick."""
+        c = self.scene_model.conveyor
+        if c is None:
+            return None
+        self._belt_home = yaw_pose(c.pose.xyz, c.pose.yaw_rad)
+        builder = self.scene.create_actor_builder()
+        material = sapien.physx.PhysxMaterial(0.9, 0.9, 0.0)
+        builder.add_box_collision(
+            pose=sapien.Pose([c.length_m / 2, 0, -BELT_DEPTH_M / 2]),
+            half_size=[c.length_m / 2, c.width_m / 2, BELT_DEPTH_M / 2], material=material,
+        )
+        builder.set_name("conveyor_belt")
+        entity = builder.build_kinematic()
+        entity.set_pose(self._belt_home)
+        self._belt_entity = entity
+        self._belt_step = np.array(c.direction) * c.speed_m_per_s * self.scene.get_timestep()
+        return entity.find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+
+    def _build_station(self, s: Station) -> None:
+        sx, sy, sz = s.size_m
+        floor = ([0, 0, WALL_M / 2], [sx / 2, sy / 2, WALL_M / 2])
+        if s.kind == "fixture":
+            boxes = [([0, 0, sz / 2], [sx / 2, sy / 2, sz / 2])]
+        else:
+            h = sz if s.kind == "bin" else min(sz, 0.02)
+            boxes = [
+                floor,
+                ([sx / 2 - WALL_M / 2, 0, h / 2], [WALL_M / 2, sy / 2, h / 2]),
+                ([-sx / 2 + WALL_M / 2, 0, h / 2], [WALL_M / 2, sy / 2, h / 2]),
+                ([0, sy / 2 - WALL_M / 2, h / 2], [sx / 2, WALL_M / 2, h / 2]),
+                ([0, -sy / 2 + WALL_M / 2, h / 2], [sx / 2, WALL_M / 2, h / 2]),
+            ]
+        self._static_boxes(s.name, boxes, yaw_pose(s.pose.xyz, s.pose.yaw_rad))
+
+    # --- time ---------------------------------------------------------------------
+    @property
+    def sim_time_s(self) -> float:
+        return self.tick * self.control_dt_s
+
+    def step(self, ticks: int = 1) -> None:
+        """Advance `ticks` control ticks: release due parts, then the physics steps with the belt running."""
+        for _ in range(ticks):
+            self._release_due_parts()
+            if self.belt is not None:
+                self._belt_entity.set_pose(self._belt_home)
+                home = self._belt_home.p
+                for k in range(1, self.substeps + 1):
+                    self.belt.set_kinematic_target(sapien.Pose(home + self._belt_step * k, self._belt_home.q))
+                    self.scene.step()
+            else:
+                for _ in range(self.substeps):
+                    self.scene.step()
+            self.tick += 1
+
+    # --- parts --------------------------------------------------------------------
+    def _release_due_parts(self) -> None:
+        t = self.sim_time_s
+        for clock in self.feeders:
+            while clock.next_time_s <= t:
+                self._spawn(clock)
+                clock.advance()
+
+    def _spawn(self, clock: FeederClock) -> None:
+        feeder = clock.feeder
+        type_index = int(clock.rng.integers(len(feeder.parts)))
+        lateral = float(clock.rng.uniform(-1, 1)) * feeder.lateral_jitter_m
+        yaw = float(clock.rng.uniform(-math.pi, math.pi))
+        free = [s for s in clock.slots if self.parts[s].part_id is None and self.parts[s].type_index == type_index]
+        if not free:
+            clock.skipped_full += 1
+            self.events.append(("feeder_full", feeder.name, self.tick))
+            return
+        part = self.parts[free[0]]
+        h = part.height_m
+        if feeder.into == "conveyor":
+            c = self.scene_model.conveyor
+            x, y, z = c.point_at(0.06, lateral)
+        else:
+            st = self.scene_model.station(feeder.into)
+            x, y, z = st.pose.xyz
+            z += WALL_M + 0.01
+        part.entity.set_pose(yaw_pose((x, y, z + h / 2 + 0.001), yaw))
+        part.body.set_kinematic(False)
+        part.body.set_linear_velocity([0.0, 0.0, 0.0])
+        part.body.set_angular_velocity([0.0, 0.0, 0.0])
+        part.part_id = self.next_part_id
+        self.next_part_id += 1
+        clock.spawned += 1
+        self.events.append(("part_spawned", part.part_id, feeder.name, type_index, self.tick))
+
+    def spawn_now(self, feeder_name: str) -> int:
+        """Release one part from a feeder at once (trials and tests); returns its id."""
+        clock = next((c for c in self.feeders if c.feeder.name == feeder_name), None)
+        if clock is None:
+            raise KeyError(f"no feeder {feeder_name!r}; feeders: {', '.join(c.feeder.name for c in self.feeders)}")
+        before = self.next_part_id
+        self._spawn(clock)
+        if self.next_part_id == before:
+            raise RuntimeError(f"feeder {feeder_name!r} has no free part left in its pool")
+        return before
+
+    def retire_part(self, part_id: int) -> None:
+        """Take a finished or lost part off the stage, back into its pool."""
+        part = self._part(part_id)
+        park(part.entity, part.body, part.slot)
+        part.part_id = None
+        self.events.append(("part_retired", part_id, self.tick))
+
+    def _part(self, part_id: int) -> SimPart:
+        for p in self.parts:
+            if p.part_id == part_id:
+                return p
+        raise KeyError(f"no active part {part_id}")
+
+    def part_info(self, part_id: int) -> PartInfo:
+        p = self._part(part_id)
+        pose = p.entity.pose
+        return PartInfo(
+            p.part_id, p.feeder, p.type_index, np.asarray(pose.p, float), np.asarray(pose.q, float),
+            np.asarray(p.body.linear_velocity, float), p.width_m, p.height_m,
+        )
+
+    def active_parts(self) -> list[PartInfo]:
+        return [self.part_info(p.part_id) for p in self.parts if p.part_id is not None]
+
+    def belt_velocity(self) -> np.ndarray:
+        c = self.scene_model.conveyor
+        if c is None:
+            return np.zeros(3)
+        return np.array(c.direction) * c.speed_m_per_s
+
+    # --- contacts -----------------------------------------------------------------
+    def inter_arm_contacts(self) -> list[tuple[str, str]]:
+        """Pairs of arms whose links touch now, as the physics sees it."""
+        pairs = []
+        for contact in self.physx.get_contacts():
+            a = self._arm_of_body.get(contact.bodies[0])
+            b = self._arm_of_body.get(contact.bodies[1])
+            if a and b and a != b and any(pt.impulse.any() or pt.separation < 0 for pt in contact.points):
+                pairs.append(tuple(sorted((a, b))))
+        return sorted(set(pairs))
+
+    # --- state --------------------------------------------------------------------
+    def pack_state(self) -> WorldState:
+        """A snapshot of the whole world; `restore_state` on this or a fresh world of the same scene puts it back."""
+        return WorldState(
+            physx=self.physx.pack(),
+            tick=self.tick,
+            drive_targets={n: a.drive_targets() for n, a in self.arms.items()},
+            drive_velocity_targets={n: a.drive_velocity_targets() for n, a in self.arms.items()},
+            part_ids=[p.part_id for p in self.parts],
+            feeders=[
+                {"rng": copy.deepcopy(c.rng.bit_generator.state), "next_time_s": c.next_time_s,
+                 "schedule_index": c.schedule_index, "spawned": c.spawned, "skipped_full": c.skipped_full}
+                for c in self.feeders
+            ],
+            next_part_id=self.next_part_id,
+            events=list(self.events),
+        )
+
+    def restore_state(self, state: WorldState) -> None:
+        for part, part_id in zip(self.parts, state.part_ids):
+            part.part_id = part_id
+            part.body.set_kinematic(part_id is None)
+        self.physx.unpack(state.physx)
+        for name, arm in self.arms.items():
+            targets, vel = state.drive_targets[name], state.drive_velocity_targets[name]
+            for j, t, v in zip(arm.joints, targets, vel):
+                j.set_drive_target(float(t))
+                j.set_drive_velocity_target(float(v))
+        for clock, saved in zip(self.feeders, state.feeders):
+            clock.rng.bit_generator.state = copy.deepcopy(saved["rng"])
+            clock.next_time_s = saved["next_time_s"]
+            clock.schedule_index = saved["schedule_index"]
+            clock.spawned = saved["spawned"]
+            clock.skipped_full = saved["skipped_full"]
+        self.tick = state.tick
+        self.next_part_id = state.next_part_id
+        self.events = list(state.events)

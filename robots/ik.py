@@ -1,0 +1,119 @@
+"""Damped-least-squares inverse kinematics with joint limits (Pinocchio), for full poses or position + approach axis.
+
+IK never returns a silent wrong answer: the result says whether it converged
+and carries the residual position and angle errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from robots.kinematics import KinematicModel
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """Outcome of an IK solve: full configuration, success flag and residuals (metres, radians)."""
+
+    q: np.ndarray
+    success: bool
+    position_error_m: float
+    angle_error_rad: float
+    iterations: int
+
+
+@dataclass(frozen=True)
+class IKOptions:
+    """Tolerances and step control of the solver."""
+
+    tolerance_m: float = 1e-4
+    tolerance_rad: float = 1e-3
+    max_iterations: int = 150
+    damping: float = 1e-2
+    max_step_rad: float = 0.3
+    restarts: int = 4
+    seed: int = 0
+
+
+def _axis_error(current_axis: np.ndarray, target_axis: np.ndarray) -> np.ndarray:
+    """Rotation vector turning `current_axis` onto `target_axis` (both unit vectors, base frame)."""
+    w = np.cross(current_axis, target_axis)
+    s, c = np.linalg.norm(w), float(np.dot(current_axis, target_axis))
+    if s < 1e-12:
+        if c > 0:
+            return np.zeros(3)
+        perp = np.cross(current_axis, [1.0, 0.0, 0.0])
+        if np.linalg.norm(perp) < 1e-6:
+            perp = np.cross(current_axis, [0.0, 1.0, 0.0])
+        return perp / np.linalg.norm(perp) * np.pi
+    return w / s * np.arctan2(s, c)
+
+
+def _solve_once(
+    km: KinematicModel,
+    target: np.ndarray,
+    q0: np.ndarray,
+    axis_tool: np.ndarray | None,
+    opts: IKOptions,
+) -> IKResult:
+    q = km.clamp(q0.copy())
+    cols = km.arm_q_index  # revolute/prismatic joints: idx_v == idx_q
+    p_t, r_t = target[:3, 3], target[:3, :3]
+    pos_err = ang_err = np.inf
+    for it in range(1, opts.max_iterations + 1):
+        pose = km.frame_pose(q)
+        p, r = pose[:3, 3], pose[:3, :3]
+        e_pos = p_t - p
+        jac = km.frame_jacobian(q)[:, cols]
+        if axis_tool is None:
+            e_rot = pin.log3(r_t @ r.T)
+            j = jac
+        else:
+            a = r @ axis_tool
+            e_rot = _axis_error(a, r_t @ axis_tool)
+            proj = np.eye(3) - np.outer(a, a)  # rotation about the approach axis is free
+            e_rot = proj @ e_rot
+            j = np.vstack([jac[:3], proj @ jac[3:]])
+        pos_err, ang_err = float(np.linalg.norm(e_pos)), float(np.linalg.norm(e_rot))
+        if pos_err < opts.tolerance_m and ang_err < opts.tolerance_rad:
+            return IKResult(q, True, pos_err, ang_err, it)
+        e = np.concatenate([e_pos, e_rot])
+        jjt = j @ j.T + (opts.damping**2) * np.eye(6)
+        dq = j.T @ np.linalg.solve(jjt, e)
+        dq = np.clip(dq, -opts.max_step_rad, opts.max_step_rad)
+        q[cols] += dq
+        q = km.clamp(q)
+    return IKResult(q, False, pos_err, ang_err, opts.max_iterations)
+
+
+def solve_ik(
+    km: KinematicModel,
+    transform_target_to_base: np.ndarray,
+    q_start: np.ndarray,
+    *,
+    approach_axis_only: bool = False,
+    options: IKOptions = IKOptions(),
+) -> IKResult:
+    """Joint configuration putting the tool at a target pose in the base frame.
+
+    With `approach_axis_only`, only the target's position and the direction of
+    the tool's approach axis are matched (rotation about that axis is free), as
+    a 5-DoF arm needs. Starts from `q_start`, then from seeded random
+    configurations; returns the best attempt, flagged unsuccessful if none converged.
+    """
+    axis = np.asarray(km.spec.approach_axis_tool, dtype=float) if approach_axis_only else None
+    best = _solve_once(km, transform_target_to_base, q_start, axis, options)
+    rng = np.random.default_rng(options.seed)
+    for _ in range(options.restarts):
+        if best.success:
+            break
+        q_seed = q_start.copy()
+        cols = km.arm_q_index
+        q_seed[cols] = rng.uniform(km.lower[cols], km.upper[cols])
+        attempt = _solve_once(km, transform_target_to_base, q_seed, axis, options)
+        if attempt.success or attempt.position_error_m < best.position_error_m:
+            best = attempt
+    return best

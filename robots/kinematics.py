@@ -1,0 +1,80 @@
+"""Kinematics of one arm model with Pinocchio: frame poses and Jacobians, in the arm's base frame.
+
+Poses are 4x4 homogeneous matrices `transform_frame_to_base`; multiply by the
+arm's `transform_base_to_world` to get world poses. Joint vectors `q` cover all
+of the model's joints in URDF order (arm joints then gripper joints for the
+registered robots); `arm_q` helpers pick out the arm joints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from robots.spec import RobotSpec
+
+
+class KinematicModel:
+    """Pinocchio model and data of one robot, with name lookups that list valid names on error."""
+
+    def __init__(self, spec: RobotSpec) -> None:
+        self.spec = spec
+        self.model: pin.Model = pin.buildModelFromXML(spec.urdf_text())
+        self.data: pin.Data = self.model.createData()
+        self.tool_frame_id = self.frame_id(spec.tool_frame)
+        self.arm_q_index = np.array([self._q_index(j) for j in spec.arm_joints])
+        self.gripper_q_index = np.array([self._q_index(j) for j in spec.gripper_joints])
+        self.lower = self.model.lowerPositionLimit.copy()
+        self.upper = self.model.upperPositionLimit.copy()
+        self.velocity_limit = self.model.velocityLimit.copy()
+
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    def joint_names(self) -> list[str]:
+        """Names of the joints in q order."""
+        return [self.model.names[i] for i in range(1, self.model.njoints)]
+
+    def frame_names(self) -> list[str]:
+        return [f.name for f in self.model.frames]
+
+    def frame_id(self, name: str) -> int:
+        if not self.model.existFrame(name):
+            raise KeyError(f"no frame {name!r} in {self.spec.uid}; frames: {', '.join(self.frame_names())}")
+        return self.model.getFrameId(name)
+
+    def _q_index(self, joint_name: str) -> int:
+        if not self.model.existJointName(joint_name):
+            raise KeyError(f"no joint {joint_name!r} in {self.spec.uid}; joints: {', '.join(self.joint_names())}")
+        return self.model.joints[self.model.getJointId(joint_name)].idx_q
+
+    def full_q(self, arm_q: np.ndarray, gripper_q: np.ndarray | None = None) -> np.ndarray:
+        """A full configuration from arm joints (and gripper joints, else their closed values)."""
+        q = pin.neutral(self.model)
+        q[self.arm_q_index] = arm_q
+        q[self.gripper_q_index] = self.spec.gripper_closed if gripper_q is None else gripper_q
+        return q
+
+    def frame_pose(self, q: np.ndarray, frame: str | int | None = None) -> np.ndarray:
+        """4x4 pose of a frame (default: the tool) in the base frame."""
+        fid = self.tool_frame_id if frame is None else (frame if isinstance(frame, int) else self.frame_id(frame))
+        pin.forwardKinematics(self.model, self.data, q)
+        return pin.updateFramePlacement(self.model, self.data, fid).homogeneous
+
+    def link_poses(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """4x4 base-frame pose of every body (link) frame, by link name."""
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return {
+            f.name: self.data.oMf[i].homogeneous
+            for i, f in enumerate(self.model.frames)
+            if f.type == pin.FrameType.BODY
+        }
+
+    def frame_jacobian(self, q: np.ndarray, frame: str | int | None = None) -> np.ndarray:
+        """6 x nv Jacobian of a frame, expressed in a frame at the frame's origin aligned with the base (linear; angular)."""
+        fid = self.tool_frame_id if frame is None else (frame if isinstance(frame, int) else self.frame_id(frame))
+        return pin.computeFrameJacobian(self.model, self.data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+
+    def clamp(self, q: np.ndarray) -> np.ndarray:
+        return np.clip(q, self.lower, self.upper)

@@ -1,0 +1,136 @@
+"""The robot registry: `openclaw` always; `so101` and `panda` from the `models` extra (example-robot-data)."""
+
+from __future__ import annotations
+
+from importlib import metadata
+from pathlib import Path
+
+from robots.spec import DriveGains, RobotSpec
+
+_REGISTRY: dict[str, RobotSpec] = {}
+MODELS_EXTRA_HINT = "pip install 'clawfleet[models]'"
+
+
+class UnknownRobotError(KeyError):
+    """Asked for a robot uid that is not registered; the message lists the valid ones."""
+
+    def __str__(self) -> str:  # KeyError quotes its message; this reads as a sentence
+        return str(self.args[0])
+
+
+class MissingModelsError(RuntimeError):
+    """The robot's description ships with an optional extra that is not installed."""
+
+
+def register(spec: RobotSpec) -> RobotSpec:
+    """Add a robot declaration under its uid (a second one with the same uid is an error)."""
+    if spec.uid in _REGISTRY:
+        raise ValueError(f"robot {spec.uid!r} is registered already")
+    _REGISTRY[spec.uid] = spec
+    return spec
+
+
+def robot_names() -> list[str]:
+    return sorted(_REGISTRY)
+
+
+def get_robot(uid: str) -> RobotSpec:
+    """The declaration of `uid`; raises with the valid names, or with the extra to install."""
+    try:
+        spec = _REGISTRY[uid]
+    except KeyError:
+        raise UnknownRobotError(f"unknown robot {uid!r}; valid robots: {', '.join(robot_names())}") from None
+    spec.urdf_path()  # fails early, naming the extra, when the description is not installed
+    return spec
+
+
+def is_available(uid: str) -> bool:
+    """True when the robot's description files are installed."""
+    try:
+        get_robot(uid)
+    except MissingModelsError:
+        return False
+    return True
+
+
+def _openclaw_urdf() -> Path:
+    return Path(__file__).parent / "descriptions" / "openclaw.urdf"
+
+
+def _example_robot_data(relative: str) -> Path:
+    """A file of example-robot-data, or an error naming the extra that installs it."""
+    try:
+        dist = metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        raise MissingModelsError(f"this robot needs example-robot-data: {MODELS_EXTRA_HINT}") from None
+    path = Path(str(dist.locate_file(f"cmeel.prefix/share/example-robot-data/robots/{relative}")))
+    if not path.is_file():
+        raise MissingModelsError(f"example-robot-data is installed but lacks {relative}: {MODELS_EXTRA_HINT}")
+    return path
+
+
+OPENCLAW = register(
+    RobotSpec(
+        uid="openclaw",
+        summary="clawfleet's own 6-DoF claw arm with a parallel two-finger claw; primitive collision shapes",
+        urdf_path=_openclaw_urdf,
+        arm_joints=("shoulder_pan", "shoulder_lift", "elbow", "forearm_roll", "wrist_pitch", "wrist_roll"),
+        gripper_joints=("finger_left", "finger_right"),
+        tool_frame="tool_link",
+        home_q=(0.0, -0.2, 1.9, 0.0, 1.44, 0.0),
+        gripper_open=(0.035, 0.035),
+        gripper_closed=(0.002, 0.002),
+        grasp_width_m=(0.02, 0.06),
+        reach_m=0.62,
+        arm_gains=DriveGains(stiffness=2000.0, damping=120.0, force_limit=60.0),
+        gripper_gains=DriveGains(stiffness=1500.0, damping=40.0, force_limit=25.0),
+        finger_links=("finger_left_link", "finger_right_link"),
+        finger_friction=1.5,
+        width_per_gripper_unit_m=2.0,
+        fingertip_below_tool_m=0.03,
+        keyframes={"upright": (0.0,) * 6},
+    )
+)
+
+SO101 = register(
+    RobotSpec(
+        uid="so101",
+        summary="SO-101, the open 3D-printed 5-DoF arm with a jaw gripper (example-robot-data)",
+        urdf_path=lambda: _example_robot_data("so_arm_description/urdf/so101.urdf"),
+        arm_joints=("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"),
+        gripper_joints=("gripper",),
+        tool_frame="gripper_frame_link",
+        home_q=(0.0, -0.5, 0.5, 1.2, 0.0),
+        gripper_open=(1.2,),
+        gripper_closed=(-0.15,),
+        grasp_width_m=(0.015, 0.05),
+        reach_m=0.36,
+        arm_gains=DriveGains(stiffness=400.0, damping=20.0, force_limit=10.0),
+        gripper_gains=DriveGains(stiffness=50.0, damping=2.0, force_limit=3.0),
+        finger_links=("gripper_link", "moving_jaw_so101_v1_link"),
+        package_prefix="package://example-robot-data/robots/",
+        needs_extra="models",
+    )
+)
+
+PANDA = register(
+    RobotSpec(
+        uid="panda",
+        summary="Franka Emika Panda, 7-DoF with a parallel gripper (example-robot-data)",
+        urdf_path=lambda: _example_robot_data("panda_description/urdf/panda.urdf"),
+        arm_joints=tuple(f"panda_joint{i}" for i in range(1, 8)),
+        gripper_joints=("panda_finger_joint1", "panda_finger_joint2"),
+        tool_frame="panda_hand_tcp",
+        home_q=(0.0, -0.3, 0.0, -2.2, 0.0, 2.0, 0.785),
+        gripper_open=(0.04, 0.04),
+        gripper_closed=(0.0, 0.0),
+        grasp_width_m=(0.01, 0.08),
+        reach_m=0.85,
+        arm_gains=DriveGains(stiffness=3000.0, damping=200.0, force_limit=87.0),
+        gripper_gains=DriveGains(stiffness=2000.0, damping=60.0, force_limit=40.0),
+        finger_links=("panda_leftfinger", "panda_rightfinger"),
+        width_per_gripper_unit_m=2.0,
+        package_prefix="package://example-robot-data/robots/",
+        needs_extra="models",
+    )
+)

@@ -1,0 +1,53 @@
+"""The narrow interface between a skill and the world: observations in, commands out.
+
+The same dataclasses travel over the bus later, so a skill runs unchanged in
+process or behind Zenoh. World frame, metres, seconds, quaternions wxyz.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ArmObservation:
+    """What an arm reports each control tick: its joints and gripper joints, at a sim time."""
+
+    time_s: float
+    q: np.ndarray
+    dq: np.ndarray
+    gripper_q: np.ndarray
+
+
+@dataclass(frozen=True)
+class PartObservation:
+    """One part as the line sees it: pose, velocity and its size across and up."""
+
+    part_id: int
+    position: np.ndarray
+    quaternion_wxyz: np.ndarray
+    velocity: np.ndarray
+    width_m: float
+    height_m: float
+    size_m: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class ArmCommand:
+    """Joint position and velocity targets for the arm joints, and the gripper's opening in [0, 1]."""
+
+    q: np.ndarray
+    dq: np.ndarray
+    gripper_opening: float
+
+
+@dataclass(frozen=True)
+class PickPlaceTask:
+    """Pick part `part_id` from a surface at `surface_z_m` and set it down with its bottom at `place_xyz`."""
+
+    part_id: int
+    surface_z_m: float
+    place_xyz: tuple[float, float, float]
+    surface_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)

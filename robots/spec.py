@@ -1,0 +1,74 @@
+"""A robot declared as plain facts: URDF, joints, tool frame, keyframes, gripper and drive gains."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class DriveGains:
+    """PD drive of a joint group: stiffness (N*m/rad or N/m), damping, and the force/torque limit."""
+
+    stiffness: float
+    damping: float
+    force_limit: float
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Everything the project needs to know of an arm model; registered by `uid`.
+
+    The gripper is commanded as an opening in [0, 1] (0 closed, 1 open),
+    mapped linearly onto each gripper joint between `gripper_closed` and `gripper_open`.
+    """
+
+    uid: str
+    summary: str
+    urdf_path: Callable[[], Path]
+    arm_joints: tuple[str, ...]
+    gripper_joints: tuple[str, ...]
+    tool_frame: str
+    home_q: tuple[float, ...]
+    gripper_open: tuple[float, ...]
+    gripper_closed: tuple[float, ...]
+    grasp_width_m: tuple[float, float]
+    reach_m: float
+    arm_gains: DriveGains
+    gripper_gains: DriveGains
+    finger_links: tuple[str, ...]
+    finger_friction: float = 1.2
+    approach_axis_tool: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    closing_axis_tool: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    width_per_gripper_unit_m: float | None = None
+    fingertip_below_tool_m: float = 0.0
+    package_prefix: str | None = None
+    keyframes: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    needs_extra: str | None = None
+
+    @property
+    def arm_dof(self) -> int:
+        return len(self.arm_joints)
+
+    def gripper_targets(self, opening: float) -> tuple[float, ...]:
+        """Joint targets of the gripper for a normalised opening (clamped to [0, 1])."""
+        a = min(max(opening, 0.0), 1.0)
+        return tuple(c + a * (o - c) for c, o in zip(self.gripper_closed, self.gripper_open))
+
+    def opening_for_width(self, width_m: float) -> float:
+        """The normalised opening that spaces the fingers `width_m` apart (fully open if unknown)."""
+        if self.width_per_gripper_unit_m is None:
+            return 1.0
+        c, o = self.gripper_closed[0], self.gripper_open[0]
+        return (width_m / self.width_per_gripper_unit_m - c) / (o - c)
+
+    def urdf_text(self) -> str:
+        """The URDF with package URIs resolved and <mimic> removed: every joint is driven on its own."""
+        path = self.urdf_path()
+        text = path.read_text()
+        if self.package_prefix is not None:
+            root = path.parents[2]
+            text = text.replace(self.package_prefix, str(root) + "/")
+        return re.sub(r"<mimic[^>]*/>", "", text)

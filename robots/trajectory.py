@@ -1,0 +1,51 @@
+"""Time-parametrised joint trajectories: quintic segments timed from the joints' velocity limits."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+QUINTIC_PEAK_SPEED = 1.875  # peak / mean speed of the 10t^3 - 15t^4 + 6t^5 profile
+
+
+@dataclass(frozen=True)
+class JointSegment:
+    """A rest-to-rest move from `q_start` to `q_end`, starting at `t0_s` and lasting `duration_s`."""
+
+    q_start: np.ndarray
+    q_end: np.ndarray
+    t0_s: float
+    duration_s: float
+
+    @classmethod
+    def timed(
+        cls,
+        q_start: np.ndarray,
+        q_end: np.ndarray,
+        t0_s: float,
+        velocity_limit: np.ndarray,
+        speed_fraction: float = 0.6,
+        min_duration_s: float = 0.25,
+    ) -> "JointSegment":
+        """A segment as fast as `speed_fraction` of every joint's velocity limit allows."""
+        delta = np.abs(np.asarray(q_end) - np.asarray(q_start))
+        needed = float(np.max(delta * QUINTIC_PEAK_SPEED / (velocity_limit * speed_fraction))) if delta.size else 0.0
+        return cls(np.asarray(q_start, float), np.asarray(q_end, float), t0_s, max(min_duration_s, needed))
+
+    @property
+    def t_end_s(self) -> float:
+        return self.t0_s + self.duration_s
+
+    def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Position and velocity at time `t_s` (held at the ends)."""
+        tau = min(max((t_s - self.t0_s) / self.duration_s, 0.0), 1.0)
+        s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+        ds = 30 * tau**2 * (1 - tau) ** 2 / self.duration_s
+        if tau >= 1.0:
+            ds = 0.0
+        delta = self.q_end - self.q_start
+        return self.q_start + s * delta, ds * delta
+
+    def done(self, t_s: float) -> bool:
+        return t_s >= self.t_end_s

@@ -1,0 +1,160 @@
+"""Loading scene files: YAML -> validated `Scene`, with errors that name the file and the field.
+
+`scenes/` imports no robot code: what it must know of robots (which model
+names exist and how far each reaches) is passed in by the caller as `RobotFacts`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import yaml
+from pydantic import ValidationError
+
+from scenes.schema import Arm, Scene, Station
+
+MIN_BASE_SEPARATION_M = 0.25
+BUNDLED_DIR = Path(str(resources.files("scenes") / "bundled"))
+
+
+@dataclass(frozen=True)
+class RobotFacts:
+    """What scene validation needs of a robot model: its horizontal reach from the base, in metres."""
+
+    reach_m: float
+
+
+class SceneError(ValueError):
+    """A scene that cannot be used: names the file, the field path and the reason, on one line."""
+
+    def __init__(self, file: str, field: str, reason: str) -> None:
+        self.file, self.field, self.reason = file, field, reason
+        super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
+
+
+def bundled_scene_names() -> list[str]:
+    """Names of the scenes shipped with clawfleet (runnable by name)."""
+    return sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml"))
+
+
+def resolve_scene_path(name_or_path: str | Path) -> Path:
+    """A bundled scene's file for a name, or the given path; error lists the bundled names."""
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        if not path.is_file():
+            raise SceneError(str(path), "", "no such file")
+        return path
+    bundled = BUNDLED_DIR / f"{name_or_path}.yaml"
+    if bundled.is_file():
+        return bundled
+    raise SceneError(str(name_or_path), "", f"no such scene; bundled scenes: {', '.join(bundled_scene_names())}")
+
+
+def load_scene(
+    name_or_path: str | Path,
+    *,
+    arms: int | None = None,
+    robots: Mapping[str, RobotFacts] | None = None,
+) -> Scene:
+    """Read, validate and expand a scene. `arms` sets an arm row's count; `robots` enables model and reach checks."""
+    path = resolve_scene_path(name_or_path)
+    label = str(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else ""
+        raise SceneError(label, where, f"not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    if not isinstance(data, dict):
+        raise SceneError(label, "", "a scene file must hold a mapping of fields at its top level")
+    try:
+        scene = Scene.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = ".".join(str(p) for p in err["loc"]) or "(top level)"
+        raise SceneError(label, field, err["msg"]) from None
+    scene = expand_arm_row(scene, arms, label)
+    check_scene(scene, label, robots)
+    return scene
+
+
+def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> Scene:
+    """Turn an `arm_row` into named arms `arm_i`, each with a bin `bin_i` beside it, colours taken in turn."""
+    row = scene.arm_row
+    if row is None:
+        if count is not None and count != len(scene.arms):
+            raise SceneError(label, "arms", f"this scene has a fixed set of {len(scene.arms)} arms; --arms does not apply")
+        return scene
+    n = row.count if count is None else count
+    if not 1 <= n <= row.max_count:
+        raise SceneError(label, "arm_row.count", f"{n} arms asked for; this scene takes 1 to {row.max_count}")
+    yaw = scene.conveyor.pose.yaw_rad if scene.conveyor else 0.0
+    along = (math.cos(yaw), math.sin(yaw))
+    away = (math.sin(yaw), -math.cos(yaw))  # to the belt's right, where the arms stand
+    colours = [p.colour for f in scene.feeders for p in f.parts] or ["#3070d0"]
+    arms, stations = list(scene.arms), list(scene.stations)
+    x0, y0, z0 = row.first_xyz
+    for i in range(n):
+        bx, by = x0 + along[0] * row.spacing_m * i, y0 + along[1] * row.spacing_m * i
+        base_yaw_deg = math.degrees(math.atan2(-away[1], -away[0]))  # facing the belt
+        arms.append(Arm(name=f"arm_{i}", model=row.model, base={"xyz": (bx, by, z0), "yaw_deg": base_yaw_deg}))
+        bin_xy = (bx + away[0] * row.bin_offset_m, by + away[1] * row.bin_offset_m)
+        stations.append(
+            Station(
+                name=f"bin_{i}",
+                kind="bin",
+                pose={"xyz": (bin_xy[0], bin_xy[1], z0), "yaw_deg": 0.0},
+                accepts_colour=colours[i % len(colours)],
+            )
+        )
+    return scene.model_copy(update={"arms": arms, "stations": stations, "arm_row": None})
+
+
+def _unique(label: str, field: str, names: list[str]) -> None:
+    seen: set[str] = set()
+    for i, n in enumerate(names):
+        if n in seen:
+            raise SceneError(label, f"{field}.{i}.name", f"duplicate name {n!r}")
+        seen.add(n)
+
+
+def _horizontal_distance(a: tuple[float, float, float], b: tuple[float, float, float]) -> float:
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, RobotFacts] | None = None) -> None:
+    """Checks that need the whole scene: names, references, overlaps, models and reach."""
+    _unique(label, "arms", [a.name for a in scene.arms])
+    _unique(label, "stations", [s.name for s in scene.stations])
+    _unique(label, "feeders", [f.name for f in scene.feeders])
+    station_names = {s.name for s in scene.stations}
+    for i, f in enumerate(scene.feeders):
+        if f.into == "conveyor" and scene.conveyor is None:
+            raise SceneError(label, f"feeders.{i}.into", "feeds the conveyor, but the scene has none")
+        if f.into != "conveyor" and f.into not in station_names:
+            raise SceneError(label, f"feeders.{i}.into", f"no station {f.into!r}; stations: {', '.join(sorted(station_names))}")
+    for i, a in enumerate(scene.arms):
+        for j in range(i):
+            d = _horizontal_distance(a.base.xyz, scene.arms[j].base.xyz)
+            if d < MIN_BASE_SEPARATION_M:
+                raise SceneError(
+                    label, f"arms.{i}.base.xyz",
+                    f"arm {a.name!r} stands {d:.3f} m from {scene.arms[j].name!r}; bases need {MIN_BASE_SEPARATION_M} m",
+                )
+    if robots is None:
+        return
+    for i, a in enumerate(scene.arms):
+        if a.model not in robots:
+            raise SceneError(label, f"arms.{i}.model", f"unknown robot model {a.model!r}; valid models: {', '.join(sorted(robots))}")
+    for i, s in enumerate(scene.stations):
+        if not any(_horizontal_distance(s.pose.xyz, a.base.xyz) <= robots[a.model].reach_m for a in scene.arms):
+            raise SceneError(label, f"stations.{i}.pose", f"station {s.name!r} is out of every arm's reach")
+    if scene.conveyor is not None:
+        c = scene.conveyor
+        samples = [c.point_at(c.length_m * k / 50) for k in range(51)]
+        if not any(_horizontal_distance(p, a.base.xyz) <= robots[a.model].reach_m for p in samples for a in scene.arms):
+            raise SceneError(label, "conveyor.pose", "no stretch of the conveyor is within any arm's reach")

@@ -1,0 +1,181 @@
+"""The scene file format: pydantic models for a cell (pure data, no physics, no robots).
+
+Every model forbids unknown fields, so a typo in a scene file is an error that
+names the field rather than a silently ignored key. Units are in the field
+names: metres, seconds, kilograms, degrees for yaw in files.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
+Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
+Vec3 = tuple[float, float, float]
+
+
+class Strict(BaseModel):
+    """Base for every scene model: unknown fields are errors; models are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Pose2D(Strict):
+    """A placement on the floor: position in metres (world frame) and yaw about +z in degrees."""
+
+    xyz: Vec3
+    yaw_deg: float = Field(0.0, ge=-360, le=360)
+
+    @property
+    def yaw_rad(self) -> float:
+        return math.radians(self.yaw_deg)
+
+
+class Conveyor(Strict):
+    """A straight belt; parts ride along its local +x at `speed_m_per_s`. `pose` is the belt's start, top centre line."""
+
+    pose: Pose2D
+    length_m: float = Field(gt=0.2, le=20.0)
+    width_m: float = Field(gt=0.05, le=1.0)
+    speed_m_per_s: float = Field(ge=0.0, le=0.5)
+
+    def point_at(self, s_m: float, lateral_m: float = 0.0) -> tuple[float, float, float]:
+        """World point on the belt's top surface, `s_m` along it and `lateral_m` to its left."""
+        c, s = math.cos(self.pose.yaw_rad), math.sin(self.pose.yaw_rad)
+        x0, y0, z0 = self.pose.xyz
+        return (x0 + c * s_m - s * lateral_m, y0 + s * s_m + c * lateral_m, z0)
+
+    @property
+    def direction(self) -> tuple[float, float, float]:
+        return (math.cos(self.pose.yaw_rad), math.sin(self.pose.yaw_rad), 0.0)
+
+
+Colour = Annotated[str, Field(pattern=r"^#[0-9a-fA-F]{6}$")]
+
+
+class PartType(Strict):
+    """A kind of part: a box (size x, y, z) or a cylinder (diameter, diameter, height), in metres."""
+
+    kind: Literal["box", "cylinder"]
+    size_m: Vec3
+    mass_kg: float = Field(gt=0.005, le=1.0)
+    colour: Colour = "#3070d0"
+    friction: float = Field(0.8, ge=0.05, le=2.0)
+
+    @field_validator("size_m")
+    @classmethod
+    def _positive_sizes(cls, v: Vec3) -> Vec3:
+        if any(not (0.005 <= s <= 0.2) for s in v):
+            raise ValueError("every size must lie between 0.005 and 0.2 m")
+        return v
+
+    @model_validator(mode="after")
+    def _round_cylinder(self) -> "PartType":
+        if self.kind == "cylinder" and self.size_m[0] != self.size_m[1]:
+            raise ValueError("a cylinder's size_m is [diameter, diameter, height]: the first two must be equal")
+        return self
+
+    @property
+    def rgb(self) -> tuple[float, float, float]:
+        h = self.colour.lstrip("#")
+        return tuple(int(h[i : i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
+
+
+class Arrival(Strict):
+    """When a feeder releases parts: a Poisson rate, or a fixed schedule of times, in sim seconds."""
+
+    rate_per_min: float | None = Field(None, gt=0, le=600)
+    schedule_s: list[Annotated[float, Field(ge=0)]] | None = None
+    first_at_s: float = Field(1.0, ge=0)
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> "Arrival":
+        if (self.rate_per_min is None) == (self.schedule_s is None):
+            raise ValueError("give exactly one of rate_per_min or schedule_s")
+        return self
+
+
+class Feeder(Strict):
+    """A source of parts: onto the conveyor's start, or into a station (a bin of parts to pick)."""
+
+    name: Name
+    parts: list[PartType] = Field(min_length=1)
+    arrival: Arrival
+    into: Name = "conveyor"
+    lateral_jitter_m: float = Field(0.0, ge=0, le=0.2)
+    capacity: int = Field(8, ge=1, le=64)
+
+
+class Station(Strict):
+    """A place on the line: a bin (walled box), an assembly fixture (low plate) or an output tray."""
+
+    name: Name
+    kind: Literal["bin", "fixture", "tray"]
+    pose: Pose2D
+    size_m: Vec3 = (0.16, 0.16, 0.05)
+    accepts_colour: Colour | None = None
+
+
+class Arm(Strict):
+    """One arm: its id (used everywhere: bus key, env agent, monitor node), model uid and base placement."""
+
+    name: Name
+    model: Name = "openclaw"
+    base: Pose2D
+
+
+class ArmRow(Strict):
+    """A row of identical arms along the conveyor, each with its own bin; `--arms N` changes `count`."""
+
+    model: Name = "openclaw"
+    count: int = Field(ge=1, le=12)
+    first_xyz: Vec3
+    spacing_m: float = Field(gt=0.2, le=3.0)
+    bin_offset_m: float = Field(0.3, gt=0.0, le=1.0)
+    max_count: int = Field(12, ge=1, le=12)
+
+
+class Scene(Strict):
+    """A whole cell."""
+
+    name: Name
+    description: str = ""
+    physics_hz: float = Field(500.0, ge=60, le=5000)
+    control_hz: float = Field(100.0, ge=1, le=500)
+    gravity_m_per_s2: Vec3 = (0.0, 0.0, -9.81)
+    seed: int = Field(0, ge=0)
+    conveyor: Conveyor | None = None
+    feeders: list[Feeder] = []
+    stations: list[Station] = []
+    arms: list[Arm] = []
+    arm_row: ArmRow | None = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Scene":
+        if self.control_hz > self.physics_hz:
+            raise ValueError("control_hz must not exceed physics_hz")
+        ratio = self.physics_hz / self.control_hz
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise ValueError("physics_hz must be a whole multiple of control_hz")
+        if not self.arms and self.arm_row is None:
+            raise ValueError("a scene needs at least one arm (arms or arm_row)")
+        return self
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control tick."""
+        return round(self.physics_hz / self.control_hz)
+
+    def station(self, name: str) -> Station:
+        for s in self.stations:
+            if s.name == name:
+                return s
+        raise KeyError(f"no station {name!r}; stations: {', '.join(s.name for s in self.stations) or 'none'}")
+
+
+def is_valid_name(name: str) -> bool:
+    return re.match(NAME_PATTERN, name) is not None
