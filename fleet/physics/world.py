@@ -60,7 +60,7 @@ def configure_physx(scene: Scene) -> None:
         enable_pcm=True,
         enable_tgs=True,
     )
-    sapien.physx.set_body_config(solver_position_iterations=20, solver_velocity_iterations=2)
+    sapien.physx.set_body_config(solver_position_iterations=20, solver_velocity_iterations=2, sleep_threshold=0.0)
     sapien.physx.set_shape_config(contact_offset=0.004, rest_offset=0.0)
 
 
@@ -278,7 +278,25 @@ class World:
             events=list(self.events),
         )
 
+    def observable_state(self) -> np.ndarray:
+        """Every observable quantity as one vector: arm joints, velocities and targets, part and belt poses and velocities.
+
+        A restored world matches an uninterrupted one on this exactly; the packed PhysX
+        bytes may differ in solver bookkeeping that no observation depends on.
+        """
+        chunks = []
+        for arm in self.arms.values():
+            chunks += [arm.qpos(), arm.qvel(), arm.drive_targets(), arm.drive_velocity_targets()]
+        for part in self.parts:
+            pose = part.entity.pose
+            chunks += [pose.p, pose.q, part.body.linear_velocity, part.body.angular_velocity]
+        if self.belt is not None:
+            chunks += [self._belt_entity.pose.p]
+        chunks.append([self.tick, self.next_part_id])
+        return np.concatenate([np.asarray(c, dtype=np.float64).ravel() for c in chunks])
+
     def restore_state(self, state: WorldState) -> None:
+        """Put back a snapshot from `pack_state` (of this world or another built from the same scene)."""
         for part, part_id in zip(self.parts, state.part_ids):
             part.part_id = part_id
             part.body.set_kinematic(part_id is None)

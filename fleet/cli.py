@@ -1,0 +1,152 @@
+"""The `fleet` command line: check, scenes, robots, trials and benchmarks.
+
+Errors a user can cause (a bad scene, an unknown robot, a missing extra) end
+with one readable line on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from robots.registry import MissingModelsError, UnknownRobotError, get_robot, is_available, robot_names
+from scenes.loader import RobotFacts, SceneError, bundled_scene_names, load_scene
+
+USER_ERRORS = (SceneError, UnknownRobotError, MissingModelsError)
+out = Console()
+err = Console(stderr=True)
+
+
+def robot_facts() -> dict[str, RobotFacts]:
+    """What scene validation needs of every registered robot."""
+    from robots.registry import _REGISTRY
+
+    return {uid: RobotFacts(spec.reach_m) for uid, spec in _REGISTRY.items()}
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    load_scene(args.file, arms=args.arms, robots=robot_facts())
+    print("ok")
+    return 0
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    table = Table("scene", "arms", "description")
+    for name in bundled_scene_names():
+        scene = load_scene(name, robots=robot_facts())
+        table.add_row(name, str(len(scene.arms)), scene.description)
+    out.print(table)
+    return 0
+
+
+def cmd_robots(args: argparse.Namespace) -> int:
+    from robots.registry import _REGISTRY
+
+    table = Table("robot", "arm DoF", "gripper DoF", "reach (m)", "available", "summary")
+    for uid in robot_names():
+        spec = _REGISTRY[uid]
+        available = "yes" if is_available(uid) else f"needs the '{spec.needs_extra}' extra"
+        table.add_row(uid, str(spec.arm_dof), str(len(spec.gripper_joints)), f"{spec.reach_m:.2f}", available, spec.summary)
+    out.print(table)
+    return 0
+
+
+def cmd_trials(args: argparse.Namespace) -> int:
+    from fleet.trials import run_trials
+
+    get_robot(args.robot)
+    if args.trials < 1:
+        raise SystemExit("fleet: error: --trials must be at least 1")
+    failures: list[str] = []
+    with Progress(
+        TextColumn(f"{args.robot} trials"), BarColumn(), MofNCompleteColumn(),
+        TextColumn("{task.fields[ok]} ok"), TimeElapsedColumn(), console=err, transient=False,
+    ) as progress:
+        bar = progress.add_task("trials", total=args.trials, ok=0)
+        ok = 0
+
+        def on_result(result) -> None:
+            nonlocal ok
+            ok += result.success
+            if not result.success:
+                failures.append(f"seed {result.seed}: {result.phase}: {result.reason}")
+            progress.update(bar, advance=1, ok=ok)
+
+        results = run_trials(args.robot, args.trials, args.seed, on_result)
+    successes = sum(r.success for r in results)
+    summary = {"robot": args.robot, "trials": len(results), "successes": successes, "success_rate": successes / len(results)}
+    for line in failures:
+        err.print(f"  failed: {line}")
+    out.print(f"{args.robot}: {successes}/{len(results)} picks placed, success rate {summary['success_rate']:.2f}")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from fleet.bench_physics import bench_physics
+
+    table = Table("arms", "parts on belt", "physics steps/s", "sim s per wall s")
+    rows = []
+    for n in args.arms:
+        row = bench_physics(n, args.seconds)
+        rows.append(row)
+        table.add_row(str(n), str(row.parts_active), f"{row.steps_per_s:,.0f}", f"{row.steps_per_s / 500:.1f}")
+    out.print(table)
+    if args.json:
+        print(json.dumps([{"arms": r.arms, "steps_per_s": round(r.steps_per_s, 1)} for r in rows]))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("check", help="validate a scene file: prints ok, or one line naming file, field and reason")
+    p.add_argument("file", help="scene file path or bundled scene name")
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("scenes", help="list the bundled scenes")
+    p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser("robots", help="list the registered robot models")
+    p.set_defaults(func=cmd_robots)
+
+    p = sub.add_parser("trials", help="seeded pick-and-place trials: conveyor to bin, friction grasps")
+    p.add_argument("--robot", default="openclaw")
+    p.add_argument("--trials", type=int, default=50)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true", help="last stdout line: one JSON object")
+    p.set_defaults(func=cmd_trials)
+
+    p = sub.add_parser("bench", help="benchmarks")
+    bench = p.add_subparsers(dest="bench", required=True)
+    b = bench.add_parser("physics", help="raw physics steps/s of the sorting line (no controllers)")
+    b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
+    b.add_argument("--seconds", type=float, default=4.0, help="sim seconds timed per row")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except USER_ERRORS as exc:
+        print(f"fleet: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fleet: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

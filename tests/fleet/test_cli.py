@@ -1,0 +1,53 @@
+"""The `fleet` command as a user runs it: real subprocesses, exit codes and one-line errors."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from scenes import bundled_scene_names
+
+
+def fleet(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("name", bundled_scene_names())
+def test_check_prints_ok_for_bundled_scenes(name):
+    result = fleet("check", name)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "ok"
+
+
+def test_check_broken_scene_is_one_line_exit_2(tmp_path):
+    path = tmp_path / "cell.yaml"
+    path.write_text("name: cell\narms:\n  - {name: arm_0, model: openclaw, base: {xyz: [0, 0]}}\n")
+    result = fleet("check", str(path))
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert str(path) in lines[0] and "arms.0.base.xyz" in lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_unknown_robot_exits_2_listing_valid_names():
+    result = fleet("trials", "--robot", "ur99", "--trials", "1")
+    assert result.returncode == 2
+    assert "openclaw" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_robots_and_scenes_list():
+    robots = fleet("robots")
+    assert robots.returncode == 0 and "openclaw" in robots.stdout
+    scenes = fleet("scenes")
+    assert scenes.returncode == 0 and "sorting_line" in scenes.stdout
+
+
+def test_trials_json_last_line():
+    result = fleet("trials", "--robot", "openclaw", "--trials", "2", "--seed", "7", "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert set(summary) == {"robot", "trials", "successes", "success_rate"}
+    assert summary["trials"] == 2 and summary["robot"] == "openclaw"
+    assert summary["successes"] == 2

@@ -1,0 +1,83 @@
+"""Scene validation: every bundled scene passes; each kind of mistake names the file, the field and the reason."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fleet.cli import robot_facts
+from scenes import SceneError, bundled_scene_names, load_scene
+from scenes.loader import BUNDLED_DIR
+
+
+@pytest.mark.parametrize("name", bundled_scene_names())
+def test_bundled_scenes_are_valid(name):
+    scene = load_scene(name, robots=robot_facts())
+    assert scene.arms and all(a.name.startswith("arm_") for a in scene.arms)
+
+
+@pytest.mark.parametrize("n", [1, 6, 12])
+def test_sorting_line_takes_one_to_twelve_arms(n):
+    scene = load_scene("sorting_line", arms=n, robots=robot_facts())
+    assert [a.name for a in scene.arms] == [f"arm_{i}" for i in range(n)]
+    assert len([s for s in scene.stations if s.kind == "bin"]) == n
+
+
+def test_sorting_line_refuses_thirteen_arms():
+    with pytest.raises(SceneError, match="arm_row.count"):
+        load_scene("sorting_line", arms=13)
+
+
+def broken(tmp_path: Path, edit) -> Path:
+    data = yaml.safe_load((BUNDLED_DIR / "assembly_line.yaml").read_text())
+    edit(data)
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def set_(keys, value):
+    def edit(d):
+        for k in keys[:-1]:
+            d = d[k]
+        d[keys[-1]] = value
+    return edit
+
+
+CASES = [
+    ("unknown field", lambda d: d.update(conveyer={}), "conveyer", "Extra inputs"),
+    ("missing field", lambda d: d["conveyor"].pop("length_m"), "conveyor.length_m", "Field required"),
+    ("out of range", set_(["physics_hz"], 5), "physics_hz", "greater than or equal"),
+    ("negative speed", set_(["conveyor", "speed_m_per_s"], -1), "conveyor.speed_m_per_s", "greater than or equal"),
+    ("unknown model", set_(["arms", 1, "model"], "ur99"), "arms.1.model", "valid models: openclaw"),
+    ("bases overlap", set_(["arms", 1, "base", "xyz"], [-0.25, -0.35, 0.0]), "arms.1.base.xyz", "bases need"),
+    ("station unreachable", set_(["stations", 2, "pose", "xyz"], [3.0, 3.0, 0.0]), "stations.2.pose", "out of every arm's reach"),
+    ("conveyor unreachable", set_(["conveyor", "pose", "xyz"], [-1.0, 3.0, 0.08]), "conveyor.pose", "no stretch of the conveyor"),
+    ("duplicate arm", set_(["arms", 1, "name"], "arm_0"), "arms.1.name", "duplicate"),
+    ("feeder into nothing", set_(["feeders", 1, "into"], "nowhere"), "feeders.1.into", "no station"),
+    ("control above physics", set_(["control_hz"], 499), "(top level)", "whole multiple"),
+]
+
+
+@pytest.mark.parametrize("label, edit, field, reason", CASES, ids=[c[0] for c in CASES])
+def test_errors_name_file_field_and_reason(tmp_path, label, edit, field, reason):
+    path = broken(tmp_path, edit)
+    with pytest.raises(SceneError) as info:
+        load_scene(path, robots=robot_facts())
+    message = str(info.value)
+    assert message.startswith(str(path))
+    assert info.value.field == field, message
+    assert reason in message
+    assert "\n" not in message
+
+
+def test_yaml_syntax_error_names_the_line(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("name: x\narms: [\n")
+    with pytest.raises(SceneError, match="line"):
+        load_scene(path)
+
+
+def test_unknown_scene_name_lists_bundled_ones():
+    with pytest.raises(SceneError, match="assembly_line"):
+        load_scene("no_such_scene")
