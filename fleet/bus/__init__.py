@@ -1,0 +1,1 @@
+"""The Zenoh bus: sessions, key names, typed messages and their codec."""

@@ -1,0 +1,63 @@
+"""Encoding and checked decoding of bus messages: a bad payload is dropped, counted and logged once.
+
+MessagePack through msgspec: typed decoding into the dataclasses of
+`fleet.bus.messages`, about a tenth of JSON's size for joint vectors, and a
+decode error instead of a half-filled message.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Generic, TypeVar
+
+import msgspec
+
+from fleet.bus.messages import PROTOCOL_VERSION
+
+T = TypeVar("T")
+log = logging.getLogger("clawfleet.bus")
+_ENCODER = msgspec.msgpack.Encoder()
+
+
+def encode(message: object) -> bytes:
+    """The wire bytes of a message dataclass."""
+    return _ENCODER.encode(message)
+
+
+@dataclass
+class DropCounter:
+    """Counts dropped payloads by key and reason; logs the first of each kind only."""
+
+    counts: Counter = field(default_factory=Counter)
+
+    def drop(self, key: str, reason: str) -> None:
+        first = (key, reason) not in self.counts
+        self.counts[(key, reason)] += 1
+        if first:
+            log.warning("dropped a message on %s: %s (further ones are counted, not logged)", key, reason)
+
+    @property
+    def total(self) -> int:
+        return sum(self.counts.values())
+
+
+class Decoder(Generic[T]):
+    """Decodes one message type; `decode` returns None (and counts the drop) for anything malformed."""
+
+    def __init__(self, message_type: type[T], drops: DropCounter) -> None:
+        self.message_type = message_type
+        self._decoder = msgspec.msgpack.Decoder(message_type)
+        self.drops = drops
+
+    def decode(self, key: str, payload: bytes) -> T | None:
+        try:
+            message = self._decoder.decode(payload)
+        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+            self.drops.drop(key, f"malformed {self.message_type.__name__}: {str(exc)[:120]}")
+            return None
+        if message.version != PROTOCOL_VERSION:  # type: ignore[attr-defined]
+            self.drops.drop(key, f"protocol version {message.version}, expected {PROTOCOL_VERSION}")  # type: ignore[attr-defined]
+            return None
+        return message

@@ -1,0 +1,64 @@
+"""The one naming scheme for key expressions: `clawfleet/<run>/...`, with `<arm>` the arm's id everywhere."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from scenes.schema import is_valid_name
+
+ROOT = "clawfleet"
+
+
+@dataclass(frozen=True)
+class Keys:
+    """Key expressions of one run; a run id keeps several lines on one Zenoh network apart."""
+
+    run: str
+
+    def __post_init__(self) -> None:
+        if not is_valid_name(self.run):
+            raise ValueError(f"run id {self.run!r} must be lower-case letters, digits and _ (starting with a letter)")
+
+    def _arm(self, arm: str, leaf: str) -> str:
+        if not is_valid_name(arm):
+            raise ValueError(f"arm id {arm!r} is not a valid id")
+        return f"{ROOT}/{self.run}/arm/{arm}/{leaf}"
+
+    def arm_state(self, arm: str) -> str:
+        return self._arm(arm, "state")
+
+    def arm_cmd(self, arm: str) -> str:
+        return self._arm(arm, "cmd")
+
+    def arm_status(self, arm: str) -> str:
+        return self._arm(arm, "status")
+
+    def arm_assign(self, arm: str) -> str:
+        return self._arm(arm, "assign")
+
+    def all_arms(self, leaf: str) -> str:
+        """Wildcard over every arm's `leaf` (state, cmd, status or assign)."""
+        return f"{ROOT}/{self.run}/arm/*/{leaf}"
+
+    @property
+    def parts(self) -> str:
+        return f"{ROOT}/{self.run}/world/parts"
+
+    @property
+    def events(self) -> str:
+        return f"{ROOT}/{self.run}/world/events"
+
+    @property
+    def estop(self) -> str:
+        return f"{ROOT}/{self.run}/estop"
+
+    def coord(self, leaf: str) -> str:
+        return f"{ROOT}/{self.run}/coord/{leaf}"
+
+    @staticmethod
+    def arm_of(key: str) -> str:
+        """The arm id in an arm key (`clawfleet/<run>/arm/<arm>/<leaf>`)."""
+        parts = key.split("/")
+        if len(parts) != 5 or parts[2] != "arm":
+            raise ValueError(f"{key!r} is not an arm key")
+        return parts[3]

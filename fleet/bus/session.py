@@ -1,0 +1,95 @@
+"""The one place that opens Zenoh sessions: peer mode, no multicast scouting, loopback endpoints by default.
+
+Every fleet program takes the same flags (`--listen`, `--connect`,
+`--zenoh-config`) through `add_bus_arguments`, and opens its session with
+`open_session(BusEndpoints.from_args(args))` in a `with` block, so the session
+is always closed and its port freed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import socket
+from collections import deque
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import zenoh
+
+LOOPBACK = "127.0.0.1"
+
+
+def free_loopback_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((LOOPBACK, 0))
+        return s.getsockname()[1]
+
+
+def loopback_endpoint(port: int) -> str:
+    return f"tcp/{LOOPBACK}:{port}"
+
+
+@dataclass(frozen=True)
+class BusEndpoints:
+    """Where a session listens and whom it connects to; an optional Zenoh config file underneath."""
+
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    config_file: str | None = None
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> "BusEndpoints":
+        return cls(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config)
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """The bus flags every fleet program shares."""
+    group = parser.add_argument_group("bus (Zenoh)")
+    group.add_argument("--listen", action="append", metavar="ENDPOINT", help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    group.add_argument("--connect", action="append", metavar="ENDPOINT", help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+    group.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file; --listen/--connect override its endpoints")
+
+
+def make_config(endpoints: BusEndpoints) -> zenoh.Config:
+    """A Zenoh config: peer mode, multicast scouting off, and only the given endpoints (loopback if none)."""
+    config = zenoh.Config.from_file(endpoints.config_file) if endpoints.config_file else zenoh.Config()
+    config.insert_json5("mode", json.dumps("peer"))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    listen = list(endpoints.listen)
+    if not listen and not endpoints.config_file:
+        listen = [loopback_endpoint(0)]  # an OS-chosen port, never every interface
+    if listen:
+        config.insert_json5("listen/endpoints", json.dumps(listen))
+    if endpoints.connect or not endpoints.config_file:
+        config.insert_json5("connect/endpoints", json.dumps(list(endpoints.connect)))
+    return config
+
+
+@contextlib.contextmanager
+def open_session(endpoints: BusEndpoints) -> Iterator[zenoh.Session]:
+    """An open Zenoh session, closed on leaving the block (also on errors)."""
+    session = zenoh.open(make_config(endpoints))
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+@dataclass
+class Inbox:
+    """A subscriber callback that only queues raw payloads; the owner's loop drains them."""
+
+    items: deque = field(default_factory=deque)
+
+    def __call__(self, sample: zenoh.Sample) -> None:
+        self.items.append((str(sample.key_expr), sample.payload.to_bytes()))  # deque.append is thread-safe
+
+    def drain(self) -> list[tuple[str, bytes]]:
+        """Everything queued so far, oldest first."""
+        out = []
+        while self.items:
+            out.append(self.items.popleft())
+        return out
