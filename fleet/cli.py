@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from robots.registry import MissingModelsError, UnknownRobotError, get_robot, is_available, robot_names
+from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
 from scenes.loader import RobotFacts, SceneError, bundled_scene_names, load_scene
 
 USER_ERRORS = (SceneError, UnknownRobotError, MissingModelsError)
@@ -25,9 +25,7 @@ err = Console(stderr=True)
 
 def robot_facts() -> dict[str, RobotFacts]:
     """What scene validation needs of every registered robot."""
-    from robots.registry import _REGISTRY
-
-    return {uid: RobotFacts(spec.reach_m) for uid, spec in _REGISTRY.items()}
+    return {spec.uid: RobotFacts(spec.reach_m) for spec in declared_robots()}
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -46,11 +44,9 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def cmd_robots(args: argparse.Namespace) -> int:
-    from robots.registry import _REGISTRY
-
     table = Table("robot", "arm DoF", "gripper DoF", "reach (m)", "available", "summary")
-    for uid in robot_names():
-        spec = _REGISTRY[uid]
+    for spec in declared_robots():
+        uid = spec.uid
         available = "yes" if is_available(uid) else f"needs the '{spec.needs_extra}' extra"
         table.add_row(uid, str(spec.arm_dof), str(len(spec.gripper_joints)), f"{spec.reach_m:.2f}", available, spec.summary)
     out.print(table)

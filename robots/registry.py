@@ -34,6 +34,11 @@ def robot_names() -> list[str]:
     return sorted(_REGISTRY)
 
 
+def declared_robots() -> list[RobotSpec]:
+    """Every registered declaration, installed or not, by uid."""
+    return [_REGISTRY[uid] for uid in robot_names()]
+
+
 def get_robot(uid: str) -> RobotSpec:
     """The declaration of `uid`; raises with the valid names, or with the extra to install."""
     try:

@@ -32,3 +32,10 @@ def test_gripper_opening_maps_onto_the_finger_joints():
     width = 0.04
     opening = spec.opening_for_width(width)
     assert abs(sum(spec.gripper_targets(opening)) - width) < 1e-9
+
+
+def test_a_missing_description_names_the_extra_to_install():
+    from robots.registry import MissingModelsError, _example_robot_data
+
+    with pytest.raises(MissingModelsError, match=r"clawfleet\[models\]"):
+        _example_robot_data("no_such_description/urdf/none.urdf")
