@@ -18,13 +18,9 @@ def arm_observation(world: World, arm_name: str) -> ArmObservation:
 def part_observations(world: World) -> dict[int, PartObservation]:
     """Every active part's pose, velocity and size, by part id."""
     out = {}
-    for part in world.parts:
-        if part.part_id is None:
-            continue
-        info = world.part_info(part.part_id)
+    for info in world.active_parts():
         out[info.part_id] = PartObservation(
-            info.part_id, info.position, info.quaternion_wxyz, info.velocity,
-            info.width_m, info.height_m, tuple(part.part_type.size_m),
+            info.part_id, info.position, info.quaternion_wxyz, info.velocity, info.width_m, info.height_m, info.size_m,
         )
     return out
 

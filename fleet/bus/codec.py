@@ -13,12 +13,24 @@ from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
 import msgspec
+import numpy as np
 
 from fleet.bus.messages import PROTOCOL_VERSION
 
 T = TypeVar("T")
 log = logging.getLogger("clawfleet.bus")
-_ENCODER = msgspec.msgpack.Encoder()
+
+
+def _numpy_hook(obj: object) -> object:
+    """Encode numpy scalars and arrays as plain numbers and lists."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise NotImplementedError(f"cannot encode {type(obj).__name__} on the bus")
+
+
+_ENCODER = msgspec.msgpack.Encoder(enc_hook=_numpy_hook)
 
 
 def encode(message: object) -> bytes:

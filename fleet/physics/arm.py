@@ -97,6 +97,11 @@ class SimArm:
     def drive_velocity_targets(self) -> np.ndarray:
         return np.array([j.get_drive_velocity_target()[0] for j in self.joints], dtype=float)
 
+    def joint_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper position limits of the arm + gripper joints."""
+        limits = self.articulation.get_qlimits()[self.qpos_index]
+        return limits[:, 0].astype(float), limits[:, 1].astype(float)
+
     def tool_pose_world(self) -> sapien.Pose:
         return self.tool_link.entity_pose
 

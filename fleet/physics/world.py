@@ -36,6 +36,7 @@ class PartInfo:
     velocity: np.ndarray
     width_m: float
     height_m: float
+    size_m: tuple[float, float, float]
 
 
 @dataclass
@@ -237,7 +238,7 @@ class World:
         pose = p.entity.pose
         return PartInfo(
             p.part_id, p.feeder, p.type_index, np.asarray(pose.p, float), np.asarray(pose.q, float),
-            np.asarray(p.body.linear_velocity, float), p.width_m, p.height_m,
+            np.asarray(p.body.linear_velocity, float), p.width_m, p.height_m, tuple(p.part_type.size_m),
         )
 
     def active_parts(self) -> list[PartInfo]:
