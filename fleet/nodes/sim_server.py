@@ -61,6 +61,7 @@ class SimServer:
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
         self.first_command_timeout_s = first_command_timeout_s
         self.links = {name: ArmLink(name) for name in world.arms}
+        self._limits = {name: arm.joint_limits() for name, arm in world.arms.items()}
         self.drops = DropCounter()
         self.stats = SimStats()
         self.estop = False
@@ -155,7 +156,7 @@ class SimServer:
                 arm.set_targets(hold[:n], np.zeros(n), arm.drive_targets()[n:])
                 continue
             cmd = link.last_cmd
-            lower, upper = arm.joint_limits()
+            lower, upper = self._limits[name]
             q = np.asarray(cmd.q)
             clamped = np.clip(q, lower[:n], upper[:n])
             if np.any(clamped != q):

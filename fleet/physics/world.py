@@ -234,7 +234,10 @@ class World:
         raise KeyError(f"no active part {part_id}")
 
     def part_info(self, part_id: int) -> PartInfo:
-        p = self._part(part_id)
+        return self._info(self._part(part_id))
+
+    @staticmethod
+    def _info(p: SimPart) -> PartInfo:
         pose = p.entity.pose
         return PartInfo(
             p.part_id, p.feeder, p.type_index, np.asarray(pose.p, float), np.asarray(pose.q, float),
@@ -242,7 +245,7 @@ class World:
         )
 
     def active_parts(self) -> list[PartInfo]:
-        return [self.part_info(p.part_id) for p in self.parts if p.part_id is not None]
+        return [self._info(p) for p in self.parts if p.part_id is not None]
 
     def belt_velocity(self) -> np.ndarray:
         c = self.scene_model.conveyor
