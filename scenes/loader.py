@@ -108,7 +108,7 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
                 name=f"bin_{i}",
                 kind="bin",
                 pose={"xyz": (bin_xy[0], bin_xy[1], z0), "yaw_deg": 0.0},
-                accepts_colour=colours[i % len(colours)],
+                accepts_colour=colours[i % len(colours)] if n >= len(colours) else colours[i::n],
             )
         )
     return scene.model_copy(update={"arms": arms, "stations": stations, "arm_row": None})
@@ -137,6 +137,24 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
             raise SceneError(label, f"feeders.{i}.into", "feeds the conveyor, but the scene has none")
         if f.into != "conveyor" and f.into not in station_names:
             raise SceneError(label, f"feeders.{i}.into", f"no station {f.into!r}; stations: {', '.join(sorted(station_names))}")
+    for i, f in enumerate(scene.feeders):
+        for k, stop in enumerate(f.route):
+            if stop not in station_names:
+                raise SceneError(label, f"feeders.{i}.route.{k}", f"no station {stop!r}; stations: {', '.join(sorted(station_names))}")
+        if not f.route:
+            for t, part in enumerate(f.parts):
+                if not scene.route(f.name, t):
+                    raise SceneError(
+                        label, f"feeders.{i}.route",
+                        f"empty, and no station accepts colour {part.colour} of parts.{t}: give a route or a station's accepts_colour",
+                    )
+    feeder_names = {f.name for f in scene.feeders}
+    for i, s in enumerate(scene.stations):
+        for k, name in enumerate(s.assembles):
+            if name not in feeder_names:
+                raise SceneError(label, f"stations.{i}.assembles.{k}", f"no feeder {name!r}; feeders: {', '.join(sorted(feeder_names))}")
+            if s.name not in scene.feeder(name).route:
+                raise SceneError(label, f"stations.{i}.assembles.{k}", f"feeder {name!r} never visits {s.name!r}: add it to that feeder's route")
     for i, a in enumerate(scene.arms):
         for j in range(i):
             d = _horizontal_distance(a.base.xyz, scene.arms[j].base.xyz)

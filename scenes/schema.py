@@ -108,6 +108,9 @@ class Feeder(Strict):
     into: Name = "conveyor"
     lateral_jitter_m: float = Field(0.0, ge=0, le=0.2)
     capacity: int = Field(8, ge=1, le=64)
+    route: list[Name] = []
+    """Stations a part visits in order after its source; the last is its destination. Empty: the
+    station that accepts the part's colour."""
 
 
 class Station(Strict):
@@ -117,7 +120,15 @@ class Station(Strict):
     kind: Literal["bin", "fixture", "tray"]
     pose: Pose2D
     size_m: Vec3 = (0.16, 0.16, 0.05)
-    accepts_colour: Colour | None = None
+    accepts_colour: Colour | list[Colour] | None = None
+    assembles: list[Name] = []
+    """Feeders whose parts are stacked here, bottom first; the bottom part moves on only when the stack is whole."""
+
+    @property
+    def colours(self) -> list[str]:
+        """The part colours this station accepts (lower case), none if it takes any."""
+        c = self.accepts_colour
+        return [] if c is None else [x.lower() for x in ([c] if isinstance(c, str) else c)]
 
 
 class Arm(Strict):
@@ -169,6 +180,24 @@ class Scene(Strict):
     def substeps(self) -> int:
         """Physics steps per control tick."""
         return round(self.physics_hz / self.control_hz)
+
+    def feeder(self, name: str) -> Feeder:
+        for f in self.feeders:
+            if f.name == name:
+                return f
+        raise KeyError(f"no feeder {name!r}; feeders: {', '.join(f.name for f in self.feeders) or 'none'}")
+
+    def route(self, feeder_name: str, type_index: int) -> list[str]:
+        """The stations a part of this feeder and type visits after its source, in order."""
+        feeder = self.feeder(feeder_name)
+        if feeder.route:
+            return list(feeder.route)
+        colour = feeder.parts[type_index].colour.lower()
+        return [s.name for s in self.stations if colour in s.colours][:1]
+
+    def source_names(self) -> set[str]:
+        """Where feeders put parts: `conveyor` and the stations fed directly."""
+        return {f.into for f in self.feeders}
 
     def station(self, name: str) -> Station:
         for s in self.stations:
