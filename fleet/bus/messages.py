@@ -21,7 +21,15 @@ class Message(msgspec.Struct, frozen=True, array_like=True):
 
 
 class ArmState(Message, frozen=True, array_like=True):
-    """Sim -> controller, every control tick: one arm's joints, gripper and tool pose."""
+    """Sim -> controller and coordinator, every control tick: one arm's joints, gripper and tool pose.
+
+    `task_id`, `skill` and `progress` echo the command applied last, so the coordinator
+    learns what each arm does in step with the sim clock. `assign_seq` is the newest
+    assignment the coordinator had published to this arm when this tick began: a controller
+    acts on this state only once it has that assignment (lockstep; 0 in realtime).
+    `held` is true while the arm is held (e-stop, watchdog, lost controller); `lost` once
+    its controller went silent in lockstep.
+    """
 
     arm: str
     tick: int
@@ -32,17 +40,25 @@ class ArmState(Message, frozen=True, array_like=True):
     tool_position: Floats
     tool_quaternion_wxyz: Floats
     held: bool = False
+    lost: bool = False
+    task_id: int | None = None
+    skill: str = "idle"
+    progress: float = 0.0
+    assign_seq: int = 0
     version: int = PROTOCOL_VERSION
 
 
 class ArmCommandMsg(Message, frozen=True, array_like=True):
-    """Controller -> sim: joint targets answering the state of `tick`."""
+    """Controller -> sim: joint targets answering the state of `tick`, and what the skill is doing."""
 
     arm: str
     tick: int
     q: Floats
     dq: Floats
     gripper_opening: float
+    task_id: int | None = None
+    skill: str = "idle"
+    progress: float = 0.0
     version: int = PROTOCOL_VERSION
 
 
@@ -55,6 +71,8 @@ class ArmStatus(Message, frozen=True, array_like=True):
     skill: str
     task_id: int | None
     progress: float
+    busy_s: float = 0.0
+    failure: str = ""
     version: int = PROTOCOL_VERSION
 
 
@@ -74,9 +92,13 @@ class PartsState(Message, frozen=True, array_like=True):
 
 
 class Assignment(Message, frozen=True, array_like=True):
-    """Coordinator -> controller: pick `part_id` from a surface and place it; `task_id` None cancels."""
+    """Coordinator -> controller: pick `part_id` from a surface and place it; `task_id` None cancels.
+
+    `seq` counts this arm's assignments from 1; states name the newest one (`ArmState.assign_seq`).
+    """
 
     arm: str
+    seq: int
     task_id: int | None
     part_id: int
     surface_z_m: float
@@ -86,12 +108,32 @@ class Assignment(Message, frozen=True, array_like=True):
 
 
 class LineEvent(Message, frozen=True, array_like=True):
-    """Sim or controller -> coordinator: a part arrived, was placed, or was lost."""
+    """Sim -> coordinator: a part `arrived` (detail: feeder), came to rest `at_station` (detail: station),
+    was `lost` (detail: why) or `retired` from a sink station (detail: station)."""
 
     kind: str
     part_id: int
     tick: int
     detail: str = ""
+    version: int = PROTOCOL_VERSION
+
+
+class CoordTick(Message, frozen=True, array_like=True):
+    """Coordinator -> sim, lockstep only: decisions for `tick` are out; `assign_seqs` per arm, in scene order."""
+
+    tick: int
+    assign_seqs: tuple[int, ...]
+    version: int = PROTOCOL_VERSION
+
+
+class Progress(Message, frozen=True, array_like=True):
+    """Coordinator -> launcher and monitor, a few times a second: the line's running totals."""
+
+    sim_time_s: float
+    parts_spawned: int
+    parts_completed: int
+    parts_missed: int
+    busy_arms: int
     version: int = PROTOCOL_VERSION
 
 
@@ -103,4 +145,4 @@ class EStop(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
-MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, LineEvent, EStop)
+MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, LineEvent, CoordTick, Progress, EStop)

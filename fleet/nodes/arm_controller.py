@@ -2,7 +2,10 @@
 
 It sees its arm only through `ArmState` messages and the parts through
 `PartsState`, takes work from `Assignment`, and answers every state with a
-command stamped with that state's tick. It never imports the simulator.
+command stamped with that state's tick, which also says what the skill is
+doing. A state naming an assignment this controller has not received yet
+(`assign_seq`, lockstep) waits for it, so work starts on the same tick in every
+run. It never imports the simulator.
 
     python -m fleet.nodes.arm_controller --scene pick_cell --arm arm_0 --run demo --connect tcp/127.0.0.1:7447
 """
@@ -11,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import time
 
@@ -22,6 +24,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmCommandMsg, ArmState, ArmStatus, Assignment, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.nodes.lifecycle import StopFlag, write_report
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
@@ -29,6 +32,7 @@ from robots.skills.pick_place import PickPlaceSkill
 from scenes.loader import load_scene
 
 HEARTBEAT_TICKS = 10
+ASSIGNMENT_WAIT_S = 0.5
 
 
 def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
@@ -73,6 +77,9 @@ class ArmController:
         self.task_id: int | None = None
         self.hold_q: np.ndarray | None = None
         self.seq = 0
+        self.assign_seq: int | None = None  # newest assignment received; None until the first state
+        self.busy_s = 0.0
+        self.missed_assignments = 0
 
     def close(self) -> None:
         for sub in self._subs:
@@ -88,37 +95,79 @@ class ArmController:
                 latest = msg
         return latest
 
+    def _take_assignments(self) -> None:
+        for key, payload in self._inboxes["assign"].drain():
+            msg = self._decoders["assign"].decode(key, payload)
+            if msg is None or msg.arm != self.arm:
+                continue
+            if self.assign_seq is not None and msg.seq <= self.assign_seq:
+                continue
+            self.assign_seq = msg.seq
+            if msg.task_id is None:  # cancelled: stop where we are
+                self.pending = None
+                if self.skill.active:
+                    self.skill.cancel("cancelled by the coordinator")
+            else:
+                self.pending = msg
+
+    def _await_assignment(self, seq: int) -> None:
+        """Lockstep: the state says assignment `seq` was out before this tick; wait until it is here."""
+        deadline = time.monotonic() + ASSIGNMENT_WAIT_S
+        while (self.assign_seq or 0) < seq and time.monotonic() < deadline:
+            time.sleep(0.0001)
+            self._take_assignments()
+        if (self.assign_seq or 0) < seq:
+            self.missed_assignments += 1
+            self.assign_seq = seq
+
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when a command was sent."""
-        assign = self._latest("assign")
-        if assign is not None:
-            self.pending = assign
         parts = self._latest("parts")
         if parts is not None:
             self.parts = parts_from_message(parts)
         state = self._latest("state")
+        self._take_assignments()
         if state is None:
             return False
+        if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
+            self.assign_seq = max(self.assign_seq or 0, state.assign_seq)
+        elif state.assign_seq > self.assign_seq:
+            self._await_assignment(state.assign_seq)
         n = self.spec.arm_dof
         obs = ArmObservation(state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q))
         if self.hold_q is None:
             self.hold_q = obs.q.copy()
-        if self.pending is not None and not self.skill.active and self.pending.part_id in self.parts:
+        if self.pending is not None and not self.skill.active:
             a, self.pending = self.pending, None
             task = PickPlaceTask(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
             self.task_id = a.task_id
-            self.skill.start(task, obs, self.parts[a.part_id])
+            part = self.parts.get(a.part_id)
+            if part is None:
+                self.skill.reject(f"part {a.part_id} is not on the line")
+            else:
+                self.skill.start(task, obs, part)
         if self.skill.active:
             cmd = self.skill.step(obs, self.parts, self.dt)
             q, dq, opening = cmd.q, cmd.dq, cmd.gripper_opening
             self.hold_q = q
+            self.busy_s += self.dt
         else:
             q, dq, opening = self.hold_q, np.zeros(n), 1.0
-        self._cmd_pub.put(encode(ArmCommandMsg(self.arm, state.tick, tuple(map(float, q)), tuple(map(float, dq)), float(opening))))
+        phase, progress = self.skill.phase.value, float(self.skill.progress)
+        self._cmd_pub.put(encode(ArmCommandMsg(
+            self.arm, state.tick, tuple(map(float, q)), tuple(map(float, dq)), float(opening), self.task_id, phase, progress,
+        )))
         if state.tick % HEARTBEAT_TICKS == 0:
-            self.seq += 1
-            self._status_pub.put(encode(ArmStatus(self.arm, self.seq, state.sim_time_s, self.skill.phase.value, self.task_id, self.skill.progress)))
+            self.send_heartbeat(state.sim_time_s)
         return True
+
+    def send_heartbeat(self, sim_time_s: float) -> None:
+        """The status the coordinator watches for liveness, with what the arm is doing."""
+        self.seq += 1
+        self._status_pub.put(encode(ArmStatus(
+            self.arm, self.seq, sim_time_s, self.skill.phase.value, self.task_id, float(self.skill.progress),
+            self.busy_s, self.skill.failure_reason,
+        )))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -127,22 +176,41 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arms", type=int, default=None)
     parser.add_argument("--arm", required=True)
     parser.add_argument("--run", required=True)
+    parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
+    parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
-    stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
-    parent = os.getppid()
+    stop = StopFlag()
+    if args.rt:
+        request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
         controller = ArmController(session, Keys(args.run), args.arm, args.scene, args.arms)
+        last_beat = time.monotonic()
         try:
-            while not stop and os.getppid() == parent:
-                if not controller.poll():
+            while not stop.should_stop():
+                if controller.poll():
+                    last_beat = time.monotonic()
+                else:
+                    if time.monotonic() - last_beat > 0.2:  # held by the sim or waiting: still alive
+                        controller.send_heartbeat(-1.0)
+                        last_beat = time.monotonic()
                     time.sleep(0.0002)
-        except KeyboardInterrupt:
-            pass
         finally:
             controller.close()
+            write_report(args.report, {
+                "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
+                "missed_assignments": controller.missed_assignments, "stopped_by": stop.reason,
+            })
     return 0
+
+
+def request_realtime_priority() -> None:
+    """SCHED_FIFO at a middle priority where the OS allows it; one warning where it does not."""
+    try:
+        priority = (os.sched_get_priority_min(os.SCHED_FIFO) + os.sched_get_priority_max(os.SCHED_FIFO)) // 2
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, PermissionError, OSError) as exc:
+        print(f"arm_controller: warning: real-time priority refused ({exc}); running at normal priority", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -4,11 +4,19 @@ Each arm's latest valid command is held (zero-order hold). A command older than
 the watchdog limit (sim time) makes the arm hold still; so does the e-stop.
 Joint targets outside the limits are clamped and counted. In `lockstep` the
 server waits each tick for every live controller's command to that tick; one
-silent past the timeout is marked lost, its arm held, and the run goes on.
+silent past the timeout is marked lost, its arm held, and the run goes on; a
+lost controller that answers again rejoins. With a coordinator in lockstep, every
+`coord_period_ticks` the server also waits for the coordinator's `CoordTick`, so
+its decisions land on the same tick in every run.
+
+    python -m fleet.nodes.sim_server --scene assembly_line --run demo --listen tcp/127.0.0.1:7447 --duration 60
 """
 
 from __future__ import annotations
 
+import argparse
+import math
+import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -18,9 +26,14 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, ArmState, EStop, PartsState
-from fleet.bus.session import Inbox
+from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, PartsState
+from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.line_watch import LineWatcher
+from fleet.nodes.lifecycle import StopFlag, write_report
 from fleet.physics.world import World
+from scenes.loader import SceneError, load_scene
+
+COORD_RATE_HZ = 10.0
 
 
 @dataclass
@@ -35,10 +48,17 @@ class ArmLink:
 
 @dataclass
 class SimStats:
+    """What the server counts over a run; `report` turns it into the run summary's sim part."""
+
     clamped: Counter = field(default_factory=Counter)
     watchdog_holds: Counter = field(default_factory=Counter)
     lost: list[str] = field(default_factory=list)
+    rejoined: list[str] = field(default_factory=list)
     ticks: int = 0
+    contact_ticks: int = 0
+    contact_pairs: set = field(default_factory=set)
+    round_trip_ms: list[float] = field(default_factory=list)
+    coordinator_lost: bool = False
 
 
 class SimServer:
@@ -54,6 +74,8 @@ class SimServer:
         watchdog_s: float = 0.1,
         lockstep_timeout_s: float = 1.0,
         first_command_timeout_s: float = 30.0,
+        coordinator: bool = False,
+        count_contacts: bool = True,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
@@ -67,18 +89,29 @@ class SimServer:
         self.estop = False
         self._cmd_decoder = Decoder(ArmCommandMsg, self.drops)
         self._estop_decoder = Decoder(EStop, self.drops)
-        self._cmd_inbox, self._estop_inbox = Inbox(), Inbox()
+        self._coord_decoder = Decoder(CoordTick, self.drops)
+        self._cmd_inbox, self._estop_inbox, self._coord_inbox = Inbox(), Inbox(), Inbox()
         self._subs = [
             session.declare_subscriber(keys.all_arms("cmd"), self._cmd_inbox),
             session.declare_subscriber(keys.estop, self._estop_inbox),
+            session.declare_subscriber(keys.coord("tick"), self._coord_inbox),
         ]
         self._state_pubs = {name: session.declare_publisher(keys.arm_state(name)) for name in world.arms}
         self._parts_pub = session.declare_publisher(keys.parts)
+        self._events_pub = session.declare_publisher(keys.events)
+        self.watcher = LineWatcher(world.scene_model)
+        self.events_published = Counter()
+        self.count_contacts = count_contacts
+        self.coordinator = coordinator and mode == "lockstep"
+        self.coord_period_ticks = max(1, round(world.scene_model.control_hz / COORD_RATE_HZ))
+        self._coord_tick = -1
+        self.assign_seqs = {name: 0 for name in world.arms}
+        self._published_at: dict[int, float] = {}
 
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
-        for pub in [*self._state_pubs.values(), self._parts_pub]:
+        for pub in [*self._state_pubs.values(), self._parts_pub, self._events_pub]:
             pub.undeclare()
 
     # --- inputs ---------------------------------------------------------------------
@@ -101,6 +134,22 @@ class SimServer:
                 continue
             if link.last_cmd is None or msg.tick >= link.last_cmd.tick:
                 link.last_cmd, link.last_cmd_time_s = msg, self.world.sim_time_s
+                sent = self._published_at.get(msg.tick)
+                if sent is not None:
+                    self.stats.round_trip_ms.append((time.monotonic() - sent) * 1e3)
+                if link.lost and msg.tick >= self.world.tick - 1:
+                    link.lost = False
+                    self.stats.rejoined.append(link.name)
+        for key, payload in self._coord_inbox.drain():
+            msg = self._coord_decoder.decode(key, payload)
+            if msg is None:
+                continue
+            if len(msg.assign_seqs) != len(self.links):
+                self.drops.drop(key, f"coordinator tick with {len(msg.assign_seqs)} arms, the scene has {len(self.links)}")
+                continue
+            self._coord_tick = max(self._coord_tick, msg.tick)
+            for name, seq in zip(self.links, msg.assign_seqs):
+                self.assign_seqs[name] = max(self.assign_seqs[name], seq)
 
     def _wait_for_commands(self) -> None:
         """Lockstep: until every live arm answered this tick's state, or its timeout passed."""
@@ -108,15 +157,19 @@ class SimServer:
         first = tick == 0
         deadline = time.monotonic() + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
         republish_at = time.monotonic() + 0.05
+        want_coord = self.coordinator and not self.stats.coordinator_lost and tick % self.coord_period_ticks == 0
         while True:
             self._take_inputs()
             waiting = [l for l in self.links.values() if not l.lost and (l.last_cmd is None or l.last_cmd.tick < tick)]
-            if not waiting:
+            coord_waiting = want_coord and self._coord_tick < tick
+            if not waiting and not coord_waiting:
                 return
             if time.monotonic() > deadline:
                 for link in waiting:
                     link.lost = True
                     self.stats.lost.append(link.name)
+                if coord_waiting:
+                    self.stats.coordinator_lost = True
                 return
             if time.monotonic() > republish_at:  # a controller that joined late, or a lost sample
                 self.publish_state()
@@ -124,14 +177,30 @@ class SimServer:
             time.sleep(0.0001)
 
     # --- one tick -------------------------------------------------------------------
+    def _held(self, link: ArmLink) -> bool:
+        stale = link.last_cmd is None or self.world.sim_time_s - link.last_cmd_time_s > self.watchdog_s + 1e-9
+        return self.estop or link.lost or stale
+
+    def publish_events(self) -> None:
+        """This tick's line events (parts arrived, resting at a station, lost, retired), before the states."""
+        for e in self.watcher.update(self.world, self.world.active_parts()):
+            self.events_published[e.kind] += 1
+            self._events_pub.put(encode(LineEvent(e.kind, e.part_id, e.tick, e.detail)))
+
     def publish_state(self) -> None:
         w = self.world
+        self._published_at[w.tick] = time.monotonic()
+        self._published_at.pop(w.tick - 256, None)
         for name, arm in w.arms.items():
             q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
             tool = arm.tool_pose_world()
+            link = self.links[name]
+            cmd = link.last_cmd
             msg = ArmState(
                 name, w.tick, w.sim_time_s, tuple(q[:n].tolist()), tuple(dq[:n].tolist()), tuple(q[n:].tolist()),
-                tuple(map(float, tool.p)), tuple(map(float, tool.q)),
+                tuple(map(float, tool.p)), tuple(map(float, tool.q)), self._held(link), link.lost,
+                cmd.task_id if cmd else None, cmd.skill if cmd else "idle", cmd.progress if cmd else 0.0,
+                self.assign_seqs[name],
             )
             self._state_pubs[name].put(encode(msg))
         parts = w.active_parts()
@@ -149,7 +218,7 @@ class SimServer:
             arm = self.world.arms[name]
             n = arm.spec.arm_dof
             stale = link.last_cmd is None or now - link.last_cmd_time_s > self.watchdog_s + 1e-9
-            if self.estop or link.lost or stale:
+            if self._held(link):
                 if stale and not (self.estop or link.lost):
                     self.stats.watchdog_holds[name] += 1
                 hold = arm.qpos()
@@ -164,7 +233,8 @@ class SimServer:
             arm.set_targets(clamped, np.asarray(cmd.dq), arm.spec.gripper_targets(cmd.gripper_opening))
 
     def tick(self) -> None:
-        """Publish states, gather commands (waiting in lockstep), apply them, step physics."""
+        """Publish events and states, gather commands (waiting in lockstep), apply them, step physics."""
+        self.publish_events()
         self.publish_state()
         if self.mode == "lockstep":
             self._wait_for_commands()
@@ -173,13 +243,83 @@ class SimServer:
         self._apply_commands()
         self.world.step()
         self.stats.ticks += 1
+        if self.count_contacts:
+            pairs = self.world.inter_arm_contacts()
+            if pairs:
+                self.stats.contact_ticks += 1
+                self.stats.contact_pairs.update(pairs)
 
-    def run_ticks(self, ticks: int, speed: float = 1.0) -> None:
-        """Run `ticks` ticks; in realtime mode paced by the wall clock at `speed` x real time."""
+    def run_ticks(self, ticks: int, speed: float = 1.0, stop: StopFlag | None = None) -> None:
+        """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at `speed` x real time."""
         start_wall, start_sim = time.monotonic(), self.world.sim_time_s
         for _ in range(ticks):
+            if stop is not None and stop.should_stop():
+                return
             self.tick()
             if self.mode == "realtime":
                 ahead = (self.world.sim_time_s - start_sim) / speed - (time.monotonic() - start_wall)
                 if ahead > 0:
                     time.sleep(ahead)
+
+    def report(self) -> dict:
+        """The sim's part of the run summary."""
+        rtt = np.asarray(self.stats.round_trip_ms)
+        return {
+            "ticks": self.stats.ticks,
+            "sim_seconds": round(self.world.sim_time_s, 6),
+            "parts_spawned": sum(c.spawned for c in self.world.feeders),
+            "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
+            "events": dict(sorted(self.events_published.items())),
+            "inter_arm_contacts": self.stats.contact_ticks,
+            "contact_pairs": sorted("-".join(p) for p in self.stats.contact_pairs),
+            "latency_p50_ms": round(float(np.percentile(rtt, 50)), 3) if rtt.size else None,
+            "latency_p99_ms": round(float(np.percentile(rtt, 99)), 3) if rtt.size else None,
+            "dropped_messages": self.drops.total,
+            "clamped_commands": dict(self.stats.clamped),
+            "watchdog_holds": dict(self.stats.watchdog_holds),
+            "arms_lost": list(self.stats.lost),
+            "arms_rejoined": list(self.stats.rejoined),
+            "coordinator_lost": self.stats.coordinator_lost,
+        }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fleet-sim-server", description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="assembly_line")
+    parser.add_argument("--arms", type=int, default=None)
+    parser.add_argument("--run", required=True)
+    parser.add_argument("--duration", type=float, default=120.0, help="sim seconds")
+    parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--coordinator", action="store_true", help="lockstep: wait for the coordinator's tick")
+    parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
+    parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
+    add_bus_arguments(parser)
+    args = parser.parse_args(argv)
+    stop = StopFlag()
+    try:
+        scene = load_scene(args.scene, arms=args.arms)
+    except SceneError as exc:
+        print(f"sim_server: {exc}", file=sys.stderr)
+        return 2
+    if args.seed is not None:
+        scene = scene.model_copy(update={"seed": args.seed})
+    world = World(scene)
+    ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
+    with open_session(BusEndpoints.from_args(args)) as session:
+        server = SimServer(
+            world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator,
+            lockstep_timeout_s=args.lockstep_timeout,
+        )
+        try:
+            server.run_ticks(ticks, args.speed, stop)
+        finally:
+            report = server.report() | {"stopped_by": stop.reason or "duration"}
+            server.close()
+            write_report(args.report, report)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

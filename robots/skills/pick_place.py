@@ -143,6 +143,14 @@ class PickPlaceSkill:
         self.segment = seg
         self._enter(Phase.APPROACH, obs.time_s)
 
+    def reject(self, reason: str) -> None:
+        """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
+        self._fail(reason)
+
+    def cancel(self, reason: str) -> None:
+        """Stop the current task where the arm is; it holds its last target with the claw as it is."""
+        self._fail(reason)
+
     def _enter(self, phase: Phase, time_s: float) -> None:
         self.phase, self.phase_t0 = phase, time_s
 

@@ -5,17 +5,22 @@ import pytest
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
-    ArmCommandMsg, ArmState, ArmStatus, Assignment, EStop, LineEvent, MESSAGE_TYPES, PartsState,
+    ArmCommandMsg, ArmState, ArmStatus, Assignment, CoordTick, EStop, LineEvent, MESSAGE_TYPES, PartsState, Progress,
 )
 
 EXAMPLES = [
     ArmState("arm_0", 12, 0.12, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), True),
+    ArmState("arm_1", 13, 0.13, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), False, True, 4, "lift", 0.5, 3),
     ArmCommandMsg("arm_1", 12, (0.2,) * 6, (0.01,) * 6, 0.5),
+    ArmCommandMsg("arm_1", 12, (0.2,) * 6, (0.01,) * 6, 0.5, 4, "descend", 0.25),
     ArmStatus("arm_2", 7, 3.5, "descend", 4, 0.25),
+    ArmStatus("arm_2", 8, 3.6, "failed", 4, 0.25, 2.5, "the claw closed on nothing"),
     PartsState(3, 0.03, (1, 2), ("bases", "tops"), (0, 0), (0.0,) * 6, (1.0, 0, 0, 0) * 2, (0.05, 0, 0) * 2, (0.05, 0.05, 0.03) * 2),
-    Assignment("arm_0", 9, 17, 0.08, (0.3, -0.5, 0.04), (0.05, 0.0, 0.0)),
-    Assignment("arm_0", None, 17, 0.08, (0.3, -0.5, 0.04), (0.0, 0.0, 0.0)),
-    LineEvent("part_placed", 17, 400, "fixture_0"),
+    Assignment("arm_0", 1, 9, 17, 0.08, (0.3, -0.5, 0.04), (0.05, 0.0, 0.0)),
+    Assignment("arm_0", 2, None, 17, 0.08, (0.3, -0.5, 0.04), (0.0, 0.0, 0.0)),
+    LineEvent("at_station", 17, 400, "fixture_0"),
+    CoordTick(400, (3, 0, 1)),
+    Progress(4.0, 3, 1, 0, 2),
     EStop(True, "monitor"),
 ]
 

@@ -13,13 +13,12 @@ import time
 
 import pytest
 
-from fleet.bus.codec import encode
+from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import Assignment
-from fleet.bus.session import BusEndpoints, free_loopback_port, loopback_endpoint, open_session
+from fleet.bus.messages import Assignment, LineEvent
+from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.nodes.sim_server import SimServer
 from fleet.physics.world import WALL_M, World
-from fleet.trials import part_in_bin
 from scenes import load_scene
 
 
@@ -40,6 +39,8 @@ def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
     keys = Keys("t")
     with open_session(BusEndpoints(listen=(endpoint,))) as session:
         server = SimServer(world, session, keys, mode="lockstep", lockstep_timeout_s=1.0)
+        events = Inbox()
+        events_sub = session.declare_subscriber(keys.events, events)
         proc = start_controller(endpoint)
         try:
             part_id = world.spawn_now("trial_parts")
@@ -47,14 +48,19 @@ def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
             assert server.stats.lost == []
             station = world.scene_model.station("bin_0")
             session.put(keys.arm_assign("arm_0"), encode(Assignment(
-                "arm_0", 1, part_id, world.scene_model.conveyor.pose.xyz[2],
+                "arm_0", 1, 1, part_id, world.scene_model.conveyor.pose.xyz[2],
                 (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M), tuple(world.belt_velocity()),
             )))
             for _ in range(25):
                 session.put(keys.arm_cmd("arm_0"), os.urandom(24))
                 server.run_ticks(50)
-            server.run_ticks(200)
-            assert part_in_bin(world, part_id, "bin_0"), world.part_info(part_id)
+            server.run_ticks(250)
+            decoder = Decoder(LineEvent, DropCounter())
+            seen = [decoder.decode(k, p) for k, p in events.drain()]
+            said = [(e.kind, e.part_id, e.detail) for e in seen]
+            assert ("arrived", part_id, "trial_parts") in said
+            assert ("at_station", part_id, "bin_0") in said  # it came to rest in the bin
+            assert ("retired", part_id, "bin_0") in said  # and the bin, a sink, was cleared
             assert server.stats.lost == []
             assert server.drops.total >= 25
             os.kill(proc.pid, signal.SIGKILL)
@@ -68,4 +74,5 @@ def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
             if proc.poll() is None:
                 proc.kill()
             proc.wait(timeout=5)
+            events_sub.undeclare()
             server.close()

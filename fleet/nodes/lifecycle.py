@@ -1,0 +1,51 @@
+"""What every node process does the same way: stop on SIGTERM/SIGINT, die with its parent, report at exit.
+
+A node started by `fleet run` must never outlive the launcher, even when the
+launcher is killed with SIGKILL: on Linux the kernel sends the node SIGTERM when
+its parent dies (prctl PR_SET_PDEATHSIG); elsewhere `should_stop` notices the
+parent change within one loop.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+
+PR_SET_PDEATHSIG = 1
+
+
+class StopFlag:
+    """Set by SIGTERM or SIGINT (and by the parent's death); loops poll `should_stop`."""
+
+    def __init__(self, watch_parent: bool = True) -> None:
+        self.reason = ""
+        self._parent = os.getppid() if watch_parent else None
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(sig, self._on_signal)
+        if watch_parent and sys.platform.startswith("linux"):
+            try:
+                ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+            except (OSError, AttributeError):
+                pass
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.reason = signal.Signals(signum).name
+
+    def should_stop(self) -> bool:
+        if not self.reason and self._parent is not None and os.getppid() != self._parent:
+            self.reason = "parent exited"
+        return bool(self.reason)
+
+
+def write_report(path: str | None, report: dict) -> None:
+    """Write a node's end-of-run figures as JSON, atomically (a reader never sees half a file)."""
+    if not path:
+        return
+    target = Path(path)
+    tmp = target.with_suffix(target.suffix + ".tmp")
+    tmp.write_text(json.dumps(report, indent=1, sort_keys=True))
+    os.replace(tmp, target)
