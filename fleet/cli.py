@@ -1,4 +1,4 @@
-"""The `fleet` command line: check, scenes, robots, trials and benchmarks.
+"""The `fleet` command line: run, check, scenes, robots, trials and benchmarks.
 
 Errors a user can cause (a bad scene, an unknown robot, a missing extra) end
 with one readable line on stderr and exit status 2, never a traceback.
@@ -10,11 +10,13 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from fleet.bus.session import add_bus_arguments
 from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
 from scenes.loader import RobotFacts, SceneError, bundled_scene_names, load_scene
 
@@ -85,6 +87,65 @@ def cmd_trials(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    from fleet.launcher import Launcher, RunOptions
+
+    if args.duration <= 0:
+        raise SystemExit("fleet: error: --duration must be positive")
+    if args.speed <= 0:
+        raise SystemExit("fleet: error: --speed must be positive")
+    options = RunOptions(
+        scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
+        respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs,
+        listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
+    )
+    with Progress(
+        TextColumn("[bold]{task.fields[scene]}"), BarColumn(), TextColumn("sim {task.completed:.1f}/{task.total:.0f} s"),
+        TextColumn("parts {task.fields[done]}/{task.fields[spawned]} done, {task.fields[rate]:.1f}/min"),
+        TimeElapsedColumn(), console=err, transient=False,
+    ) as progress:
+        bar = progress.add_task("run", total=args.duration, scene=args.scene, done=0, spawned=0, rate=0.0)
+
+        def on_progress(p) -> None:
+            rate = p.parts_completed / (p.sim_time_s / 60) if p.sim_time_s > 0 else 0.0
+            progress.update(bar, completed=p.sim_time_s, done=p.parts_completed, spawned=p.parts_spawned, rate=rate)
+
+        with Launcher(options, on_progress) as launcher:
+            summary = launcher.run()
+            if args.keep_logs:
+                err.print(f"logs and reports kept in {launcher.dir}")
+        progress.update(bar, completed=summary["sim_seconds"], done=summary["parts_completed"], spawned=summary["parts_spawned"])
+    print_run_summary(summary)
+    if args.summary:
+        Path(args.summary).write_text(json.dumps(summary, indent=1) + "\n")
+    if args.json:
+        print(json.dumps(summary))
+    if summary["status"] == "error":
+        print(f"fleet: error: {summary['error']}", file=sys.stderr)
+        return 1
+    return 130 if summary["status"] == "interrupted" else 0
+
+
+def print_run_summary(s: dict) -> None:
+    table = Table("figure", "value", title=f"{s['scene']}: {s['arms']} arms, {s['mode']}, seed {s['seed']} ({s['status']})")
+    rows = [
+        ("sim / wall seconds", f"{s['sim_seconds']:.1f} / {s['wall_seconds']:.1f}"),
+        ("parts spawned / completed", f"{s['parts_spawned']} / {s['parts_completed']}"),
+        ("missed / failed / on the line", f"{s['parts_missed']} / {s['parts_failed']} / {s['parts_in_progress']}"),
+        ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
+        ("utilisation", ", ".join(f"{a} {u:.0%}" for a, u in s["utilisation"].items()) or "-"),
+        ("inter-arm contacts (ticks)", str(s["inter_arm_contacts"])),
+        ("min separation (m)", "-" if s["min_separation_m"] is None else f"{s['min_separation_m']:.3f}"),
+        ("grants denied", str(s["grants_denied"])),
+        ("round trip p50 / p99 (ms)", f"{s['latency_p50_ms']} / {s['latency_p99_ms']}"),
+        ("dropped messages", str(s["dropped_messages"])),
+        ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
+    ]
+    for row in rows:
+        table.add_row(*row)
+    out.print(table)
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from fleet.bench_physics import bench_physics
 
@@ -103,6 +164,22 @@ def cmd_bench(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
     sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("run", help="run the line: sim server, coordinator and one controller per arm as processes")
+    p.add_argument("scene", nargs="?", default="assembly_line", help="bundled scene name or scene file (default assembly_line)")
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument("--duration", type=float, default=120.0, help="sim seconds to run (default 120)")
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
+    p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
+    p.add_argument("--respawn", action="store_true", help="restart a controller that dies")
+    p.add_argument("--rt", action="store_true", help="controllers ask for real-time scheduling")
+    p.add_argument("--run-id", default="line", help="keeps several lines on one Zenoh network apart")
+    p.add_argument("--summary", metavar="FILE", help="also write the summary JSON here")
+    p.add_argument("--keep-logs", action="store_true", help="keep each process's log and report (the path is printed)")
+    p.add_argument("--json", action="store_true", help="last stdout line: the summary as one JSON object")
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("check", help="validate a scene file: prints ok, or one line naming file, field and reason")
     p.add_argument("file", help="scene file path or bundled scene name")

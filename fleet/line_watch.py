@@ -33,6 +33,7 @@ class Event:
     part_id: int
     tick: int
     detail: str
+    type_index: int = 0
 
 
 @dataclass
@@ -77,7 +78,7 @@ class LineWatcher:
 
     def update(self, world: World, parts: list[PartInfo]) -> list[Event]:
         tick, now = world.tick, world.sim_time_s
-        events = [Event("arrived", e[1], tick, e[2]) for e in self._new_world_events(world) if e[0] == "part_spawned"]
+        events = [Event("arrived", e[1], tick, e[2], e[3]) for e in self._new_world_events(world) if e[0] == "part_spawned"]
         retire: list[tuple[int, str]] = []
         active = {p.part_id for p in parts}
         for pid in [pid for pid in self._watch if pid not in active]:

@@ -13,6 +13,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+FLOOR_M = 0.008
+"""Thickness of bin and tray floors and walls (metres)."""
 NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
 Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
 Vec3 = tuple[float, float, float]
@@ -123,6 +125,11 @@ class Station(Strict):
     accepts_colour: Colour | list[Colour] | None = None
     assembles: list[Name] = []
     """Feeders whose parts are stacked here, bottom first; the bottom part moves on only when the stack is whole."""
+
+    @property
+    def surface_z_m(self) -> float:
+        """Height of the surface a part rests on here: a fixture's top, a bin's or tray's floor."""
+        return self.pose.xyz[2] + (self.size_m[2] if self.kind == "fixture" else FLOOR_M)
 
     @property
     def colours(self) -> list[str]:

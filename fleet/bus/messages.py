@@ -45,6 +45,7 @@ class ArmState(Message, frozen=True, array_like=True):
     skill: str = "idle"
     progress: float = 0.0
     assign_seq: int = 0
+    failure: str = ""
     version: int = PROTOCOL_VERSION
 
 
@@ -59,6 +60,7 @@ class ArmCommandMsg(Message, frozen=True, array_like=True):
     task_id: int | None = None
     skill: str = "idle"
     progress: float = 0.0
+    failure: str = ""
     version: int = PROTOCOL_VERSION
 
 
@@ -115,6 +117,7 @@ class LineEvent(Message, frozen=True, array_like=True):
     part_id: int
     tick: int
     detail: str = ""
+    type_index: int = 0
     version: int = PROTOCOL_VERSION
 
 

@@ -156,6 +156,7 @@ class ArmController:
         phase, progress = self.skill.phase.value, float(self.skill.progress)
         self._cmd_pub.put(encode(ArmCommandMsg(
             self.arm, state.tick, tuple(map(float, q)), tuple(map(float, dq)), float(opening), self.task_id, phase, progress,
+            self.skill.failure_reason if phase == "failed" else "",
         )))
         if state.tick % HEARTBEAT_TICKS == 0:
             self.send_heartbeat(state.sim_time_s)

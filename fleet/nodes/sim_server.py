@@ -76,12 +76,14 @@ class SimServer:
         first_command_timeout_s: float = 30.0,
         coordinator: bool = False,
         count_contacts: bool = True,
+        stop: StopFlag | None = None,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
         self.world, self.session, self.keys, self.mode = world, session, keys, mode
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
         self.first_command_timeout_s = first_command_timeout_s
+        self.stop = stop
         self.links = {name: ArmLink(name) for name in world.arms}
         self._limits = {name: arm.joint_limits() for name, arm in world.arms.items()}
         self.drops = DropCounter()
@@ -164,6 +166,8 @@ class SimServer:
             coord_waiting = want_coord and self._coord_tick < tick
             if not waiting and not coord_waiting:
                 return
+            if self.stop is not None and self.stop.should_stop():
+                return
             if time.monotonic() > deadline:
                 for link in waiting:
                     link.lost = True
@@ -185,7 +189,7 @@ class SimServer:
         """This tick's line events (parts arrived, resting at a station, lost, retired), before the states."""
         for e in self.watcher.update(self.world, self.world.active_parts()):
             self.events_published[e.kind] += 1
-            self._events_pub.put(encode(LineEvent(e.kind, e.part_id, e.tick, e.detail)))
+            self._events_pub.put(encode(LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)))
 
     def publish_state(self) -> None:
         w = self.world
@@ -200,7 +204,7 @@ class SimServer:
                 name, w.tick, w.sim_time_s, tuple(q[:n].tolist()), tuple(dq[:n].tolist()), tuple(q[n:].tolist()),
                 tuple(map(float, tool.p)), tuple(map(float, tool.q)), self._held(link), link.lost,
                 cmd.task_id if cmd else None, cmd.skill if cmd else "idle", cmd.progress if cmd else 0.0,
-                self.assign_seqs[name],
+                self.assign_seqs[name], cmd.failure if cmd else "",
             )
             self._state_pubs[name].put(encode(msg))
         parts = w.active_parts()
@@ -256,6 +260,8 @@ class SimServer:
             if stop is not None and stop.should_stop():
                 return
             self.tick()
+            if stop is not None and stop.should_stop():
+                return
             if self.mode == "realtime":
                 ahead = (self.world.sim_time_s - start_sim) / speed - (time.monotonic() - start_wall)
                 if ahead > 0:
@@ -310,7 +316,7 @@ def main(argv: list[str] | None = None) -> int:
     with open_session(BusEndpoints.from_args(args)) as session:
         server = SimServer(
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator,
-            lockstep_timeout_s=args.lockstep_timeout,
+            lockstep_timeout_s=args.lockstep_timeout, stop=stop,
         )
         try:
             server.run_ticks(ticks, args.speed, stop)

@@ -17,10 +17,10 @@ import sapien
 from fleet.physics.arm import SimArm, yaw_pose
 from fleet.physics.parts import FeederClock, SimPart, build_part, park
 from robots.registry import get_robot
-from scenes.schema import Scene, Station
+from scenes.schema import FLOOR_M, Scene, Station
 
 BELT_DEPTH_M = 0.04
-WALL_M = 0.008
+WALL_M = FLOOR_M
 FLOOR_TOP_M = 0.0
 
 

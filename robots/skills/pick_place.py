@@ -15,11 +15,11 @@ from enum import Enum
 
 import numpy as np
 
-from robots.frames import rotation_from_wxyz, top_down_rotation, transform, wrap_angle
-from robots.ik import IKOptions, solve_ik
+from robots.frames import rotation_from_wxyz, wrap_angle
 from robots.kinematics import KinematicModel
 from robots.skills.interface import ArmCommand, ArmObservation, PartObservation, PickPlaceTask
 from robots.spec import RobotSpec
+from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment
 
 
@@ -78,10 +78,7 @@ class PickPlaceSkill:
     ) -> None:
         self.spec, self.timing = spec, timing
         self.km = model or KinematicModel(spec)
-        self.base_to_world = np.asarray(transform_base_to_world, float)
-        self.world_to_base = np.linalg.inv(self.base_to_world)
-        self.approach_axis_only = spec.arm_dof < 6
-        self.ik_options = IKOptions(restarts=2)
+        self.top_down = TopDownIK(spec, transform_base_to_world, self.km)
         self.phase = Phase.IDLE
         self.failure_reason = ""
         self.task: PickPlaceTask | None = None
@@ -89,16 +86,10 @@ class PickPlaceSkill:
 
     # --- geometry -------------------------------------------------------------------
     def _ik(self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray) -> tuple[np.ndarray, bool]:
-        target = self.world_to_base @ transform(position_world, top_down_rotation(yaw_world))
-        full = self.km.full_q(q_start)
-        result = solve_ik(self.km, target, full, approach_axis_only=self.approach_axis_only, options=self.ik_options)
-        return result.q[self.km.arm_q_index], result.success
+        return self.top_down.solve(position_world, yaw_world, q_start)
 
     def _natural_yaw(self, position_world: np.ndarray) -> float:
-        """The tool yaw the arm reaches with least wrist roll: facing along the line from its base."""
-        p_base = self.world_to_base @ np.append(position_world, 1.0)
-        base_yaw = math.atan2(self.base_to_world[1, 0], self.base_to_world[0, 0])
-        return wrap_angle(base_yaw + math.atan2(p_base[1], p_base[0]) + math.pi)
+        return self.top_down.natural_yaw(position_world)
 
     def _grasp_yaw(self, part: PartObservation) -> float:
         """A yaw that closes the fingers across the part's narrow side, nearest the natural yaw."""

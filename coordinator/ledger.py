@@ -1,0 +1,187 @@
+"""The task ledger: line events in, tasks out, every part accounted for at the end.
+
+Pure bookkeeping on sim time: the coordinator node feeds it the sim's line events
+(`arrived`, `at_station`, `lost`) and each arm's skill report, and asks it for
+the tasks that are ready. A part's route comes from the scene; an assembly
+fixture (`Station.assembles`) takes its layers bottom first and lets the bottom
+part move on only once the stack is whole.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
+from scenes.schema import Scene
+
+HELD = "held"
+INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
+MAX_ATTEMPTS = 3
+HOLDING_PHASES = ("lift", "transfer", "lower", "release")
+PLACED_GRACE_S = 3.0
+
+
+class Ledger:
+    """Parts and tasks of one run; all times are sim seconds."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.parts: dict[int, PartRecord] = {}
+        self.tasks: dict[int, Task] = {}
+        self.stacks: dict[str, list[int]] = {s.name: [] for s in scene.stations if s.assembles}
+        self._next_task_id = 1
+        self._open_by_part: dict[int, int] = {}
+        self._finished_at: dict[int, float] = {}  # task id -> when its arm said the skill was done
+
+    # --- line events ------------------------------------------------------------------
+    def arrived(self, part_id: int, feeder: str, type_index: int, now_s: float) -> None:
+        f = self.scene.feeder(feeder)
+        self.parts[part_id] = PartRecord(
+            part_id, feeder, type_index, float(f.parts[type_index].size_m[2]), self.scene.route(feeder, type_index),
+            now_s, location=CONVEYOR if f.into == CONVEYOR else INCOMING,
+        )
+
+    def at_station(self, part_id: int, station: str, now_s: float) -> None:
+        part = self.parts.get(part_id)
+        if part is None or part.fate != PartFate.ON_LINE:
+            return
+        self._leave_stack(part)
+        part.location = station
+        task = self._open_task(part_id)
+        if station == part.next_station:
+            part.hop += 1
+            if task is not None and task.target == station:
+                self._close(task, TaskState.DONE, "")
+            if station in self.stacks and part.feeder in self.scene.station(station).assembles:
+                self.stacks[station].append(part_id)
+            if part.next_station is None:
+                part.fate = PartFate.COMPLETED
+
+    def lost(self, part_id: int, reason: str, now_s: float) -> None:
+        part = self.parts.get(part_id)
+        if part is None:
+            return
+        self._leave_stack(part)
+        task = self._open_task(part_id)
+        if task is not None:
+            self._close(task, TaskState.FAILED, f"part lost: {reason}")
+        if part.fate == PartFate.ON_LINE:
+            part.fate, part.reason = PartFate.MISSED, reason
+
+    def _leave_stack(self, part: PartRecord) -> None:
+        stack = self.stacks.get(part.location)
+        if stack and part.part_id in stack:
+            if stack[0] == part.part_id:
+                stack.clear()  # the assembly moved on (or fell) as one
+            else:
+                stack.remove(part.part_id)
+
+    # --- arms -----------------------------------------------------------------------
+    def arm_report(self, arm: str, task_id: int | None, skill: str, now_s: float, failure: str = "") -> None:
+        """What an arm's skill says it is doing (echoed by the sim each tick)."""
+        task = self.tasks.get(task_id) if task_id is not None else None
+        if task is None or task.arm != arm or task.state not in OPEN_STATES:
+            return
+        part = self.parts[task.part_id]
+        if skill in HOLDING_PHASES and part.location != HELD:
+            self._leave_stack(part)
+            part.location = HELD
+        if task.state == TaskState.ASSIGNED and skill not in ("idle", "done", "failed"):
+            task.state = TaskState.ACTIVE
+        if skill == "failed":
+            self._fail_attempt(task, failure or "the arm's skill failed")
+        elif skill == "done":
+            first = self._finished_at.setdefault(task.task_id, now_s)
+            if now_s - first > PLACED_GRACE_S:
+                self._fail_attempt(task, f"placed, but never seen resting at {task.target}")
+
+    def arm_lost(self, arm: str, now_s: float) -> list[int]:
+        """Put a lost arm's tasks back; a part already in its claw is given up. Returns the task ids."""
+        ids = []
+        for task in self.tasks.values():
+            if task.arm == arm and task.state in OPEN_STATES:
+                ids.append(task.task_id)
+                part = self.parts[task.part_id]
+                self._close(task, TaskState.FAILED, f"arm {arm} lost")
+                if part.location == HELD and part.fate == PartFate.ON_LINE:
+                    part.fate, part.reason = PartFate.FAILED, f"in the claw of lost arm {arm}"
+        return ids
+
+    def _fail_attempt(self, task: Task, reason: str) -> None:
+        part = self.parts[task.part_id]
+        self._close(task, TaskState.FAILED, reason)
+        part.attempts += 1
+        if part.attempts >= MAX_ATTEMPTS and part.fate == PartFate.ON_LINE:
+            part.fate, part.reason = PartFate.FAILED, f"{MAX_ATTEMPTS} attempts failed; last: {reason}"
+
+    def _close(self, task: Task, state: TaskState, reason: str) -> None:
+        task.state, task.reason = state, reason
+        self._open_by_part.pop(task.part_id, None)
+
+    def _open_task(self, part_id: int) -> Task | None:
+        tid = self._open_by_part.get(part_id)
+        return self.tasks[tid] if tid is not None else None
+
+    # --- tasks ----------------------------------------------------------------------
+    def refresh(self, now_s: float) -> list[Task]:
+        """Create a task for every part that is ready for its next hop; returns the pending tasks."""
+        for part in self.parts.values():
+            if part.fate != PartFate.ON_LINE or part.part_id in self._open_by_part or part.location in (HELD, INCOMING):
+                continue
+            target = part.next_station
+            if target is None or not self._ready(part, target):
+                continue
+            task = Task(self._next_task_id, part.part_id, part.location, target, now_s)
+            self._next_task_id += 1
+            self.tasks[task.task_id] = task
+            self._open_by_part[part.part_id] = task.task_id
+        return [t for t in self.tasks.values() if t.state == TaskState.PENDING]
+
+    def _ready(self, part: PartRecord, target: str) -> bool:
+        """Precedence: an assembly layer needs the layers below it; a stack's bottom leaves only when whole."""
+        here = self.stacks.get(part.location)
+        if here is not None and part.part_id in here:
+            if here[0] != part.part_id or len(here) < len(self.scene.station(part.location).assembles):
+                return False
+        stack = self.stacks.get(target)
+        if stack is not None and part.feeder in self.scene.station(target).assembles:
+            layer = self.scene.station(target).assembles.index(part.feeder)
+            if len(stack) != layer:
+                return False
+            if any(t.target == target and t.state in OPEN_STATES for t in self.tasks.values()):
+                return False  # one layer on its way at a time
+        return True
+
+    def assign(self, task_id: int, arm: str, now_s: float) -> Task:
+        task = self.tasks[task_id]
+        task.state, task.arm, task.assigned_s = TaskState.ASSIGNED, arm, now_s
+        return task
+
+    def place_height_m(self, target: str) -> float:
+        """Where a part's bottom goes at `target`: the station's surface, on top of any stack there."""
+        z = self.scene.station(target).surface_z_m
+        return z + sum(self.parts[p].height_m for p in self.stacks.get(target, []))
+
+    def busy_stations(self) -> set[str]:
+        """Stations some assigned or running task picks from or places at (one arm at a time there)."""
+        return {s for t in self.tasks.values() if t.state in (TaskState.ASSIGNED, TaskState.ACTIVE) for s in t.stations}
+
+    # --- accounting -----------------------------------------------------------------
+    def totals(self) -> dict:
+        fates = Counter(p.fate.value for p in self.parts.values())
+        return {
+            "parts_spawned": len(self.parts),
+            "parts_completed": fates[PartFate.COMPLETED.value],
+            "parts_missed": fates[PartFate.MISSED.value],
+            "parts_failed": fates[PartFate.FAILED.value],
+            "parts_in_progress": fates[PartFate.ON_LINE.value],
+            "tasks_done": sum(t.state == TaskState.DONE for t in self.tasks.values()),
+            "tasks_failed": sum(t.state == TaskState.FAILED for t in self.tasks.values()),
+        }
+
+    def unfinished(self) -> list[dict]:
+        """Each part not completed, with its fate and why: nothing is silently dropped from a summary."""
+        return [
+            {"part_id": p.part_id, "fate": p.fate.value, "location": p.location, "reason": p.reason}
+            for p in self.parts.values() if p.fate != PartFate.COMPLETED
+        ]

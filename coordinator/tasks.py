@@ -1,0 +1,66 @@
+"""The records the coordinator keeps: parts on the line and the pick-and-place tasks made from them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+CONVEYOR = "conveyor"
+
+
+class TaskState(str, Enum):
+    PENDING = "pending"  # ready to be given to an arm
+    ASSIGNED = "assigned"  # sent to an arm, not yet seen running
+    ACTIVE = "active"  # the arm's skill runs it
+    DONE = "done"  # the part came to rest at the target
+    FAILED = "failed"  # the skill failed or the arm was lost; the part may get a new task
+
+
+OPEN_STATES = (TaskState.PENDING, TaskState.ASSIGNED, TaskState.ACTIVE)
+
+
+class PartFate(str, Enum):
+    ON_LINE = "on_line"  # still travelling its route
+    COMPLETED = "completed"  # reached its route's last station
+    MISSED = "missed"  # left the line (fell, ran off the belt) before completing
+    FAILED = "failed"  # gave up on it: retries exhausted, or stuck in a lost arm's claw
+
+
+@dataclass
+class PartRecord:
+    """One part: where it is (`conveyor`, a station, or `held` by an arm) and how far along its route."""
+
+    part_id: int
+    feeder: str
+    type_index: int
+    height_m: float
+    route: list[str]
+    arrived_s: float
+    location: str = CONVEYOR
+    hop: int = 0
+    attempts: int = 0
+    fate: PartFate = PartFate.ON_LINE
+    reason: str = ""
+
+    @property
+    def next_station(self) -> str | None:
+        return self.route[self.hop] if self.hop < len(self.route) else None
+
+
+@dataclass
+class Task:
+    """Move `part_id` from `source` (conveyor or a station) to station `target`."""
+
+    task_id: int
+    part_id: int
+    source: str
+    target: str
+    created_s: float
+    state: TaskState = TaskState.PENDING
+    arm: str | None = None
+    assigned_s: float | None = None
+    reason: str = ""
+    stations: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)

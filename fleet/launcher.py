@@ -1,0 +1,265 @@
+"""`fleet run`: start the sim server, the coordinator and one controller per arm as OS processes, and stop them all.
+
+The sim server listens on a loopback endpoint; every other node connects to it.
+Nodes run in their own process groups (a Ctrl-C reaches only the launcher, which
+then stops them in order), die with the launcher even if it is killed, and
+write their end-of-run figures to JSON files that the launcher merges into one
+summary. A dead controller is reported and, with `respawn`, started again; a
+dead sim server or coordinator ends the run with one clear message.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fleet.bus.codec import Decoder, DropCounter
+from fleet.bus.keys import Keys
+from fleet.bus.messages import Progress
+from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
+from scenes.loader import load_scene
+
+STOP_GRACE_S = 1.5
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """What `fleet run` was asked for."""
+
+    scene: str = "assembly_line"
+    arms: int | None = None
+    duration_s: float = 120.0
+    mode: str = "lockstep"
+    speed: float = 1.0
+    seed: int | None = None
+    respawn: bool = False
+    realtime_priority: bool = False
+    run_id: str = "line"
+    listen: str | None = None
+    connect: tuple[str, ...] = ()
+    zenoh_config: str | None = None
+    keep_logs: bool = False
+
+
+@dataclass
+class Node:
+    """One child process of the run."""
+
+    role: str
+    name: str
+    argv: list[str]
+    report: Path
+    log: Path
+    proc: subprocess.Popen | None = None
+    exit_code: int | None = None
+    history: list[dict] = field(default_factory=list)  # earlier incarnations (respawned controllers)
+
+    def start(self) -> None:
+        with open(self.log, "ab") as log:
+            self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+        self.exit_code = None
+
+    def poll(self) -> int | None:
+        if self.proc is not None and self.exit_code is None:
+            self.exit_code = self.proc.poll()
+        return self.exit_code
+
+    @property
+    def alive(self) -> bool:
+        return self.proc is not None and self.poll() is None
+
+    def signal(self, sig: int) -> None:
+        if self.alive:
+            try:
+                os.killpg(self.proc.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def log_tail(self, lines: int = 3) -> str:
+        try:
+            text = self.log.read_text(errors="replace").strip().splitlines()
+        except OSError:
+            return ""
+        return " | ".join(line.strip() for line in text[-lines:])
+
+    def record(self) -> dict:
+        return {"role": self.role, "name": self.name, "pid": self.proc.pid if self.proc else None, "exit_code": self.poll()}
+
+
+class RunError(RuntimeError):
+    """The run could not go on (a node crashed); the message is one line for the user."""
+
+
+class Launcher:
+    """Use as a context manager: `with Launcher(options) as run: summary = run.run()`; leaving stops every node."""
+
+    def __init__(self, options: RunOptions, on_progress: Callable[[Progress], None] | None = None) -> None:
+        self.options = options
+        self.scene = load_scene(options.scene, arms=options.arms)
+        self.seed = self.scene.seed if options.seed is None else options.seed
+        self.on_progress = on_progress
+        self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
+        self.endpoint = options.listen or loopback_endpoint(free_loopback_port())
+        self.nodes: list[Node] = []
+        self.respawns = 0
+        self.interrupted = ""
+        self.keep_dir = options.keep_logs
+
+    # --- processes ------------------------------------------------------------------
+    def _bus_args(self, listen: bool) -> list[str]:
+        o = self.options
+        args = ["--listen", self.endpoint] if listen else ["--connect", self.endpoint]
+        for ep in o.connect:
+            args += ["--connect", ep]
+        if o.zenoh_config:
+            args += ["--zenoh-config", o.zenoh_config]
+        return args
+
+    def _node(self, role: str, name: str, module: str, extra: list[str], listen: bool = False) -> Node:
+        o = self.options
+        argv = [sys.executable, "-m", module, "--scene", o.scene, "--run", o.run_id, *self._bus_args(listen), *extra]
+        if o.arms is not None:
+            argv += ["--arms", str(o.arms)]
+        report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
+        return Node(role, name, [*argv, "--report", str(report)], report, log)
+
+    def plan(self) -> list[Node]:
+        o = self.options
+        sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--seed", str(self.seed), "--coordinator"]
+        nodes = [
+            self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=True),
+            self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode]),
+        ]
+        for arm in self.scene.arms:
+            extra = ["--arm", arm.name] + (["--rt"] if o.realtime_priority else [])
+            nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
+        return nodes
+
+    def __enter__(self) -> "Launcher":
+        self.nodes = self.plan()
+        for node in self.nodes:
+            node.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop_all()
+        if not self.keep_dir:
+            shutil.rmtree(self.dir, ignore_errors=True)
+
+    def stop_all(self) -> None:
+        """SIGTERM every node (the sim first, so it writes its figures), SIGKILL what is left after a grace period."""
+        for node in self.nodes:
+            node.signal(signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE_S
+        while any(n.alive for n in self.nodes) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        for node in self.nodes:
+            if node.alive:
+                node.signal(signal.SIGKILL)
+                node.proc.wait(timeout=5)
+            elif node.proc is not None:
+                node.proc.wait(timeout=5)
+
+    # --- the run --------------------------------------------------------------------
+    def run(self) -> dict:
+        """Run until the sim's duration ends, a node crashes or the launcher is told to stop; then the summary."""
+        started = time.monotonic()
+        previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        error = ""
+        try:
+            with open_session(BusEndpoints(connect=(self.endpoint,))) as session:
+                inbox = Inbox()
+                sub = session.declare_subscriber(Keys(self.options.run_id).coord("progress"), inbox)
+                decoder = Decoder(Progress, DropCounter())
+                try:
+                    error = self._supervise(inbox, decoder)
+                finally:
+                    sub.undeclare()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+            self.stop_all()
+        if error:
+            self.keep_dir = True
+        return self.summary(time.monotonic() - started, error)
+
+    def _on_signal(self, signum: int, _frame: object) -> None:
+        self.interrupted = signal.Signals(signum).name
+
+    def _supervise(self, inbox: Inbox, decoder: Decoder) -> str:
+        sim, coordinator = self.nodes[0], self.nodes[1]
+        while not self.interrupted:
+            for key, payload in inbox.drain():
+                msg = decoder.decode(key, payload)
+                if msg is not None and self.on_progress is not None:
+                    self.on_progress(msg)
+            code = sim.poll()
+            if code is not None:
+                return "" if code == 0 else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
+            code = coordinator.poll()
+            if code is not None:
+                return f"the coordinator crashed (exit {code}): {coordinator.log_tail() or 'no output'}; logs in {self.dir}"
+            for node in self.nodes[2:]:
+                if node.poll() is not None and self.options.respawn:
+                    node.history.append(node.record())
+                    node.start()
+                    self.respawns += 1
+            time.sleep(0.02)
+        return ""
+
+    # --- the summary ----------------------------------------------------------------
+    def _read(self, node: Node) -> dict:
+        try:
+            return json.loads(node.report.read_text())
+        except (OSError, ValueError):
+            return {}
+
+    def summary(self, wall_s: float, error: str) -> dict:
+        sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
+        controllers = [self._read(n) for n in self.nodes[2:]]
+        sim_s = sim.get("sim_seconds", 0.0)
+        completed = coord.get("parts_completed", 0)
+        processes = [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes]
+        status = "error" if error else ("interrupted" if self.interrupted else "ok")
+        return {
+            "scene": self.scene.name,
+            "arms": len(self.scene.arms),
+            "arm_ids": [a.name for a in self.scene.arms],
+            "mode": self.options.mode,
+            "seed": self.seed,
+            "allocator": coord.get("allocator"),
+            "status": status,
+            "error": error,
+            "stopped_by": self.interrupted or sim.get("stopped_by", ""),
+            "sim_seconds": sim_s,
+            "wall_seconds": round(wall_s, 3),
+            "parts_spawned": sim.get("parts_spawned", 0),
+            "parts_completed": completed,
+            "parts_missed": coord.get("parts_missed", 0),
+            "parts_failed": coord.get("parts_failed", 0),
+            "parts_in_progress": coord.get("parts_in_progress", 0),
+            "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
+            "utilisation": coord.get("utilisation", {}),
+            "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
+            "contact_pairs": sim.get("contact_pairs", []),
+            "min_separation_m": coord.get("min_separation_m"),
+            "grants_denied": coord.get("grants_denied", 0),
+            "latency_p50_ms": sim.get("latency_p50_ms"),
+            "latency_p99_ms": sim.get("latency_p99_ms"),
+            "dropped_messages": sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
+            + sum(c.get("dropped_messages", 0) for c in controllers),
+            "arms_lost": sim.get("arms_lost", []),
+            "arm_events": coord.get("arm_events", []),
+            "respawns": self.respawns,
+            "unfinished_parts": coord.get("unfinished_parts", []),
+            "processes": processes,
+        }

@@ -1,0 +1,276 @@
+"""The coordinator process: the ledger and allocator of `coordinator/` behind the bus.
+
+It listens to the sim's line events, part poses and arm states (whose skill echo
+says what each arm does, in step with the sim clock) and to the controllers'
+heartbeats; every `1 / COORD_RATE_HZ` of sim time it refreshes the tasks,
+allocates them and publishes assignments. In lockstep it then answers the sim
+with a `CoordTick`, so its decisions land on the same tick in every run. An arm
+whose heartbeats stop for `heartbeat_timeout_s` (wall clock) is lost: its tasks
+go back to the pool. It never imports the simulator.
+
+    python -m fleet.nodes.coordinator_node --scene assembly_line --run demo --connect tcp/127.0.0.1:7447
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import Counter
+
+import numpy as np
+import zenoh
+
+from coordinator.allocation import Allocator, ArmView, CachedReach, NearestFreeArm, PartView
+from coordinator.ledger import Ledger
+from coordinator.tasks import CONVEYOR, Task
+from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, PartsState, Progress
+from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.nodes.lifecycle import StopFlag, write_report
+from robots.frames import yaw_transform
+from robots.ik import IKOptions
+from robots.registry import get_robot
+from robots.top_down import TopDownIK
+from scenes.loader import SceneError, load_scene
+from scenes.schema import Scene
+
+COORD_RATE_HZ = 10.0
+PROGRESS_PERIOD_S = 0.5
+IDLE_SKILLS = ("idle", "done", "failed")
+REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot for an unlucky start
+
+
+class CoordinatorNode:
+    """Feed it with `poll()` in a loop; `report()` gives the coordinator's part of the run summary."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        keys: Keys,
+        scene: Scene,
+        *,
+        lockstep: bool = True,
+        allocator: Allocator | None = None,
+        heartbeat_timeout_s: float = 0.75,
+    ) -> None:
+        self.scene, self.keys, self.lockstep = scene, keys, lockstep
+        self.ledger = Ledger(scene)
+        self.allocator = allocator or NearestFreeArm(scene)
+        self.heartbeat_timeout_s = heartbeat_timeout_s
+        self.arm_names = [a.name for a in scene.arms]
+        self.reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK)) for a in scene.arms}
+        self.bases = {a.name: a.base.xyz for a in scene.arms}
+        self.period_ticks = max(1, round(scene.control_hz / COORD_RATE_HZ))
+        self.drops = DropCounter()
+        self._decoders = {
+            "events": Decoder(LineEvent, self.drops), "parts": Decoder(PartsState, self.drops),
+            "state": Decoder(ArmState, self.drops), "status": Decoder(ArmStatus, self.drops),
+        }
+        self._inbox = Inbox()  # one queue for everything: messages are handled in arrival order
+        self._subs = [
+            session.declare_subscriber(k, self._inbox)
+            for k in (keys.events, keys.parts, keys.all_arms("state"), keys.all_arms("status"))
+        ]
+        self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
+        self._subs.append(session.declare_subscriber(keys.all_arms("status"), self._on_heartbeat_arrival))
+        self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
+        self._tick_pub = session.declare_publisher(keys.coord("tick"))
+        self._progress_pub = session.declare_publisher(keys.coord("progress"))
+        self.assign_seq = {a: 0 for a in self.arm_names}
+        self.skill = {a: "idle" for a in self.arm_names}
+        self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
+        self.heartbeat_at: dict[str, float] = {}
+        self.lost: dict[str, float] = {}
+        self.losses: list[dict] = []
+        self.active_ticks = Counter()
+        self.ticks_seen = Counter()
+        self.parts: dict[int, PartView] = {}
+        self.sim_time_s = 0.0
+        self.last_decision_tick = -10**9
+        self.decisions = 0
+        self._progress_at = 0.0
+
+    def close(self) -> None:
+        for sub in self._subs:
+            sub.undeclare()
+        for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub]:
+            pub.undeclare()
+
+    def _on_heartbeat_arrival(self, sample: zenoh.Sample) -> None:
+        """Only stamps the arrival time: a coordinator busy planning must not mistake queued heartbeats for silence."""
+        try:
+            self._heard_at[Keys.arm_of(str(sample.key_expr))] = time.monotonic()
+        except ValueError:
+            pass
+
+    # --- inputs ---------------------------------------------------------------------
+    def poll(self) -> bool:
+        """Handle everything queued, in order. True if anything was."""
+        items = self._inbox.drain()
+        for key, payload in items:
+            leaf = key.rsplit("/", 1)[-1]
+            msg = self._decoders[leaf].decode(key, payload) if leaf in self._decoders else None
+            if msg is None:
+                continue
+            if leaf == "events":
+                self._on_event(msg)
+            elif leaf == "state":
+                self._on_state(msg)
+            elif leaf == "status":
+                self._on_status(msg)
+            else:
+                self._on_parts(msg)
+        self._check_heartbeats()
+        if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
+            self.publish_progress()
+        return bool(items)
+
+    def _on_event(self, e: LineEvent) -> None:
+        now = e.tick / self.scene.control_hz
+        if e.kind == "arrived":
+            self.ledger.arrived(e.part_id, e.detail, e.type_index, now)
+        elif e.kind == "at_station":
+            self.ledger.at_station(e.part_id, e.detail, now)
+        elif e.kind == "lost":
+            self.ledger.lost(e.part_id, e.detail, now)
+
+    def _on_state(self, s: ArmState) -> None:
+        if s.arm not in self.skill:
+            return
+        self.skill[s.arm] = s.skill
+        self.ticks_seen[s.arm] += 1
+        if s.skill not in IDLE_SKILLS:
+            self.active_ticks[s.arm] += 1
+        if s.lost and s.arm not in self.lost:
+            self._arm_lost(s.arm, "the sim stopped hearing its controller")
+        self.ledger.arm_report(s.arm, s.task_id, s.skill, s.sim_time_s, s.failure)
+
+    def _on_status(self, s: ArmStatus) -> None:
+        if s.arm not in self.skill:
+            return
+        self.heartbeat_at[s.arm] = self._heard_at.get(s.arm, time.monotonic())
+        if s.arm in self.lost:  # a respawned controller rejoined
+            del self.lost[s.arm]
+            self.losses.append({"arm": s.arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
+
+    def _on_parts(self, p: PartsState) -> None:
+        self.sim_time_s = p.sim_time_s
+        self.parts = {
+            pid: PartView(np.array(p.positions[3 * i : 3 * i + 3]), np.array(p.velocities[3 * i : 3 * i + 3]))
+            for i, pid in enumerate(p.part_ids)
+        }
+        due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - self.last_decision_tick >= self.period_ticks
+        if due:
+            self.decide(p.tick)
+
+    def _check_heartbeats(self) -> None:
+        now = time.monotonic()
+        for arm in self.heartbeat_at:
+            at = self._heard_at.get(arm, self.heartbeat_at[arm])
+            if arm not in self.lost and now - at > self.heartbeat_timeout_s:
+                self._arm_lost(arm, f"no heartbeat for {self.heartbeat_timeout_s} s")
+
+    def _arm_lost(self, arm: str, why: str) -> None:
+        self.lost[arm] = self.sim_time_s
+        returned = self.ledger.arm_lost(arm, self.sim_time_s)
+        self.losses.append({"arm": arm, "event": "lost", "why": why, "sim_time_s": round(self.sim_time_s, 3), "tasks_returned": returned})
+        print(f"coordinator: arm {arm} lost ({why}); {len(returned)} task(s) back in the pool", file=sys.stderr, flush=True)
+
+    # --- decisions ------------------------------------------------------------------
+    def arm_views(self) -> list[ArmView]:
+        open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
+        return [
+            ArmView(a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a])
+            for a in self.arm_names
+        ]
+
+    def busy_stations(self) -> set[str]:
+        """Stations in use: by open tasks, and by arms still moving away from their last task's stations."""
+        busy = self.ledger.busy_stations()
+        for arm, stations in self.last_stations.items():
+            if self.skill[arm] not in IDLE_SKILLS and arm not in self.lost:
+                busy.update(stations)
+        return busy
+
+    def decide(self, tick: int) -> None:
+        """Refresh tasks, allocate, publish assignments (and the lockstep barrier's answer)."""
+        now = tick / self.scene.control_hz
+        self.last_decision_tick = tick
+        self.decisions += 1
+        pending = self.ledger.refresh(now)
+        if pending:
+            for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
+                self._send(self.ledger.assign(task_id, arm, now), arm)
+        if self.lockstep:
+            self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
+
+    def _send(self, task: Task, arm: str) -> None:
+        part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]
+        station = self.scene.station(task.target)
+        velocity = self._belt_velocity() if task.source == CONVEYOR else (0.0, 0.0, 0.0)
+        place = (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target))
+        self.assign_seq[arm] += 1
+        self.last_stations[arm] = task.stations
+        self._assign_pubs[arm].put(encode(Assignment(
+            arm, self.assign_seq[arm], task.task_id, task.part_id, float(part.position[2] - rec.height_m / 2), place, velocity,
+        )))
+
+    def _belt_velocity(self) -> tuple[float, float, float]:
+        c = self.scene.conveyor
+        return tuple(d * c.speed_m_per_s for d in c.direction) if c else (0.0, 0.0, 0.0)
+
+    def publish_progress(self) -> None:
+        self._progress_at = time.monotonic()
+        t = self.ledger.totals()
+        busy = sum(s not in IDLE_SKILLS for s in self.skill.values())
+        self._progress_pub.put(encode(Progress(self.sim_time_s, t["parts_spawned"], t["parts_completed"], t["parts_missed"], busy)))
+
+    def report(self) -> dict:
+        return self.ledger.totals() | {
+            "allocator": self.allocator.name,
+            "utilisation": {a: round(self.active_ticks[a] / self.ticks_seen[a], 4) if self.ticks_seen[a] else 0.0 for a in self.arm_names},
+            "arm_events": self.losses,
+            "unfinished_parts": self.ledger.unfinished(),
+            "tasks": [
+                {"task_id": t.task_id, "part_id": t.part_id, "source": t.source, "target": t.target, "state": t.state.value,
+                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "reason": t.reason}
+                for t in self.ledger.tasks.values()
+            ],
+            "decisions": self.decisions,
+            "grants_denied": 0,
+            "dropped_messages": self.drops.total,
+        }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fleet-coordinator", description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="assembly_line")
+    parser.add_argument("--arms", type=int, default=None)
+    parser.add_argument("--run", required=True)
+    parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
+    add_bus_arguments(parser)
+    args = parser.parse_args(argv)
+    stop = StopFlag()
+    try:
+        scene = load_scene(args.scene, arms=args.arms)
+    except SceneError as exc:
+        print(f"coordinator: {exc}", file=sys.stderr)
+        return 2
+    with open_session(BusEndpoints.from_args(args)) as session:
+        node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep")
+        try:
+            while not stop.should_stop():
+                if not node.poll():
+                    time.sleep(0.0002)
+        finally:
+            node.publish_progress()
+            node.close()
+            write_report(args.report, node.report() | {"stopped_by": stop.reason})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
