@@ -248,7 +248,7 @@ class Launcher:
             "parts_failed": coord.get("parts_failed", 0),
             "parts_in_progress": coord.get("parts_in_progress", 0),
             "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
-            "utilisation": coord.get("utilisation", {}),
+            "utilisation": sim.get("utilisation", {}),
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
             "min_separation_m": coord.get("min_separation_m"),

@@ -102,7 +102,10 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
         bx, by = x0 + along[0] * row.spacing_m * i, y0 + along[1] * row.spacing_m * i
         base_yaw_deg = math.degrees(math.atan2(-away[1], -away[0]))  # facing the belt
         arms.append(Arm(name=f"arm_{i}", model=row.model, base={"xyz": (bx, by, z0), "yaw_deg": base_yaw_deg}))
-        bin_xy = (bx + away[0] * row.bin_offset_m, by + away[1] * row.bin_offset_m)
+        bin_xy = (
+            bx + away[0] * row.bin_offset_m + along[0] * row.bin_along_m,
+            by + away[1] * row.bin_offset_m + along[1] * row.bin_along_m,
+        )
         stations.append(
             Station(
                 name=f"bin_{i}",

@@ -153,7 +153,10 @@ class ArmRow(Strict):
     count: int = Field(ge=1, le=12)
     first_xyz: Vec3
     spacing_m: float = Field(gt=0.2, le=3.0)
-    bin_offset_m: float = Field(0.3, gt=0.0, le=1.0)
+    bin_offset_m: float = Field(0.15, ge=0.0, le=1.0)
+    """How far each bin stands behind its arm's base, away from the belt."""
+    bin_along_m: float = Field(0.27, ge=-1.0, le=1.0)
+    """How far each bin stands beside its arm's base, downstream along the belt."""
     max_count: int = Field(12, ge=1, le=12)
 
 

@@ -66,7 +66,7 @@ class Decoder(Generic[T]):
     def decode(self, key: str, payload: bytes) -> T | None:
         try:
             message = self._decoder.decode(payload)
-        except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+        except (msgspec.MsgspecError, UnicodeDecodeError, ValueError, OverflowError) as exc:  # bad UTF-8 is not a DecodeError
             self.drops.drop(key, f"malformed {self.message_type.__name__}: {str(exc)[:120]}")
             return None
         if message.version != PROTOCOL_VERSION:  # type: ignore[attr-defined]

@@ -75,6 +75,7 @@ class ArmStatus(Message, frozen=True, array_like=True):
     progress: float
     busy_s: float = 0.0
     failure: str = ""
+    incarnation: int = 0  # differs each time a controller starts: a restart is a loss and a rejoin
     version: int = PROTOCOL_VERSION
 
 

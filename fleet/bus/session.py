@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import json
 import socket
+import threading
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -80,12 +81,23 @@ def open_session(endpoints: BusEndpoints) -> Iterator[zenoh.Session]:
 
 @dataclass
 class Inbox:
-    """A subscriber callback that only queues raw payloads; the owner's loop drains them."""
+    """A subscriber callback that only queues raw payloads and wakes the owner; the owner's loop drains them.
+
+    Several inboxes may share one `wake` event, so a node sleeps until any of them has work
+    instead of polling.
+    """
 
     items: deque = field(default_factory=deque)
+    wake: threading.Event = field(default_factory=threading.Event)
 
     def __call__(self, sample: zenoh.Sample) -> None:
         self.items.append((str(sample.key_expr), sample.payload.to_bytes()))  # deque.append is thread-safe
+        self.wake.set()
+
+    def wait(self, timeout_s: float) -> None:
+        """Sleep until something arrives in this inbox (or any sharing its event), at most `timeout_s`."""
+        self.wake.wait(timeout_s)
+        self.wake.clear()
 
     def drain(self) -> list[tuple[str, bytes]]:
         """Everything queued so far, oldest first."""

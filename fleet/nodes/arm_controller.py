@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 import time
 
 import numpy as np
@@ -64,7 +65,8 @@ class ArmController:
             "state": Decoder(ArmState, self.drops), "parts": Decoder(PartsState, self.drops),
             "assign": Decoder(Assignment, self.drops),
         }
-        self._inboxes = {"state": Inbox(), "parts": Inbox(), "assign": Inbox()}
+        self.wake = threading.Event()
+        self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign")}
         self._subs = [
             session.declare_subscriber(keys.arm_state(arm), self._inboxes["state"]),
             session.declare_subscriber(keys.parts, self._inboxes["parts"]),
@@ -80,6 +82,7 @@ class ArmController:
         self.assign_seq: int | None = None  # newest assignment received; None until the first state
         self.busy_s = 0.0
         self.missed_assignments = 0
+        self.incarnation = int.from_bytes(os.urandom(4), "little")
 
     def close(self) -> None:
         for sub in self._subs:
@@ -114,7 +117,7 @@ class ArmController:
         """Lockstep: the state says assignment `seq` was out before this tick; wait until it is here."""
         deadline = time.monotonic() + ASSIGNMENT_WAIT_S
         while (self.assign_seq or 0) < seq and time.monotonic() < deadline:
-            time.sleep(0.0001)
+            self._inboxes["assign"].wait(0.01)
             self._take_assignments()
         if (self.assign_seq or 0) < seq:
             self.missed_assignments += 1
@@ -122,11 +125,16 @@ class ArmController:
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when a command was sent."""
-        parts = self._latest("parts")
-        if parts is not None:
-            self.parts = parts_from_message(parts)
         state = self._latest("state")
         self._take_assignments()
+        if self.skill.active or self.pending is not None:  # only a task needs the parts: skip decoding otherwise
+            parts = self._latest("parts")
+            if parts is not None:
+                self.parts = parts_from_message(parts)
+        else:
+            raw = self._inboxes["parts"].drain()
+            if raw:
+                self._inboxes["parts"].items.append(raw[-1])  # keep the newest for when a task comes
         if state is None:
             return False
         if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
@@ -167,7 +175,7 @@ class ArmController:
         self.seq += 1
         self._status_pub.put(encode(ArmStatus(
             self.arm, self.seq, sim_time_s, self.skill.phase.value, self.task_id, float(self.skill.progress),
-            self.busy_s, self.skill.failure_reason,
+            self.busy_s, self.skill.failure_reason, self.incarnation,
         )))
 
 
@@ -195,7 +203,8 @@ def main(argv: list[str] | None = None) -> int:
                     if time.monotonic() - last_beat > 0.2:  # held by the sim or waiting: still alive
                         controller.send_heartbeat(-1.0)
                         last_beat = time.monotonic()
-                    time.sleep(0.0002)
+                    controller.wake.wait(0.05)
+                    controller.wake.clear()
         finally:
             controller.close()
             write_report(args.report, {

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections import Counter
 
 import numpy as np
 import zenoh
@@ -80,12 +79,12 @@ class CoordinatorNode:
         self._progress_pub = session.declare_publisher(keys.coord("progress"))
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.skill = {a: "idle" for a in self.arm_names}
+        self.last_tick = {a: -1 for a in self.arm_names}
+        self.incarnation: dict[str, int] = {}
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
         self.heartbeat_at: dict[str, float] = {}
         self.lost: dict[str, float] = {}
         self.losses: list[dict] = []
-        self.active_ticks = Counter()
-        self.ticks_seen = Counter()
         self.parts: dict[int, PartView] = {}
         self.sim_time_s = 0.0
         self.last_decision_tick = -10**9
@@ -97,6 +96,10 @@ class CoordinatorNode:
             sub.undeclare()
         for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub]:
             pub.undeclare()
+
+    def wait(self, timeout_s: float) -> None:
+        """Sleep until a message arrives (heartbeat checks still run every `timeout_s`)."""
+        self._inbox.wait(timeout_s)
 
     def _on_heartbeat_arrival(self, sample: zenoh.Sample) -> None:
         """Only stamps the arrival time: a coordinator busy planning must not mistake queued heartbeats for silence."""
@@ -137,20 +140,24 @@ class CoordinatorNode:
             self.ledger.lost(e.part_id, e.detail, now)
 
     def _on_state(self, s: ArmState) -> None:
-        if s.arm not in self.skill:
-            return
+        if s.arm not in self.skill or s.tick <= self.last_tick[s.arm]:
+            return  # the sim republishes a state while it waits: count each tick once
+        self.last_tick[s.arm] = s.tick
         self.skill[s.arm] = s.skill
-        self.ticks_seen[s.arm] += 1
-        if s.skill not in IDLE_SKILLS:
-            self.active_ticks[s.arm] += 1
         if s.lost and s.arm not in self.lost:
-            self._arm_lost(s.arm, "the sim stopped hearing its controller")
+            self._arm_lost(s.arm, "the sim stopped hearing its controller", time.monotonic() - self._heard_at.get(s.arm, 0.0))
         self.ledger.arm_report(s.arm, s.task_id, s.skill, s.sim_time_s, s.failure)
 
     def _on_status(self, s: ArmStatus) -> None:
         if s.arm not in self.skill:
             return
+        previous = self.heartbeat_at.get(s.arm)
         self.heartbeat_at[s.arm] = self._heard_at.get(s.arm, time.monotonic())
+        known = self.incarnation.setdefault(s.arm, s.incarnation)
+        if known != s.incarnation:  # restarted faster than the heartbeat timeout: still a loss
+            self.incarnation[s.arm] = s.incarnation
+            if s.arm not in self.lost:
+                self._arm_lost(s.arm, "its controller restarted", self.heartbeat_at[s.arm] - (previous or 0.0))
         if s.arm in self.lost:  # a respawned controller rejoined
             del self.lost[s.arm]
             self.losses.append({"arm": s.arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
@@ -170,12 +177,15 @@ class CoordinatorNode:
         for arm in self.heartbeat_at:
             at = self._heard_at.get(arm, self.heartbeat_at[arm])
             if arm not in self.lost and now - at > self.heartbeat_timeout_s:
-                self._arm_lost(arm, f"no heartbeat for {self.heartbeat_timeout_s} s")
+                self._arm_lost(arm, f"no heartbeat for {self.heartbeat_timeout_s} s", silent_for_s=now - at)
 
-    def _arm_lost(self, arm: str, why: str) -> None:
+    def _arm_lost(self, arm: str, why: str, silent_for_s: float) -> None:
         self.lost[arm] = self.sim_time_s
         returned = self.ledger.arm_lost(arm, self.sim_time_s)
-        self.losses.append({"arm": arm, "event": "lost", "why": why, "sim_time_s": round(self.sim_time_s, 3), "tasks_returned": returned})
+        self.losses.append({
+            "arm": arm, "event": "lost", "why": why, "sim_time_s": round(self.sim_time_s, 3),
+            "silent_for_s": round(silent_for_s, 3), "tasks_returned": returned,
+        })
         print(f"coordinator: arm {arm} lost ({why}); {len(returned)} task(s) back in the pool", file=sys.stderr, flush=True)
 
     # --- decisions ------------------------------------------------------------------
@@ -230,7 +240,6 @@ class CoordinatorNode:
     def report(self) -> dict:
         return self.ledger.totals() | {
             "allocator": self.allocator.name,
-            "utilisation": {a: round(self.active_ticks[a] / self.ticks_seen[a], 4) if self.ticks_seen[a] else 0.0 for a in self.arm_names},
             "arm_events": self.losses,
             "unfinished_parts": self.ledger.unfinished(),
             "tasks": [
@@ -264,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             while not stop.should_stop():
                 if not node.poll():
-                    time.sleep(0.0002)
+                    node.wait(0.05)
         finally:
             node.publish_progress()
             node.close()

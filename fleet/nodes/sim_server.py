@@ -34,6 +34,7 @@ from fleet.physics.world import World
 from scenes.loader import SceneError, load_scene
 
 COORD_RATE_HZ = 10.0
+IDLE_SKILLS = ("idle", "done", "failed")
 
 
 @dataclass
@@ -59,6 +60,8 @@ class SimStats:
     contact_pairs: set = field(default_factory=set)
     round_trip_ms: list[float] = field(default_factory=list)
     coordinator_lost: bool = False
+    wall_s: Counter = field(default_factory=Counter)  # where the server's wall time went, by stage
+    busy_ticks: Counter = field(default_factory=Counter)  # ticks each arm's applied command came from a running skill
 
 
 class SimServer:
@@ -92,7 +95,8 @@ class SimServer:
         self._cmd_decoder = Decoder(ArmCommandMsg, self.drops)
         self._estop_decoder = Decoder(EStop, self.drops)
         self._coord_decoder = Decoder(CoordTick, self.drops)
-        self._cmd_inbox, self._estop_inbox, self._coord_inbox = Inbox(), Inbox(), Inbox()
+        self._cmd_inbox = Inbox()
+        self._estop_inbox, self._coord_inbox = Inbox(wake=self._cmd_inbox.wake), Inbox(wake=self._cmd_inbox.wake)
         self._subs = [
             session.declare_subscriber(keys.all_arms("cmd"), self._cmd_inbox),
             session.declare_subscriber(keys.estop, self._estop_inbox),
@@ -178,7 +182,7 @@ class SimServer:
             if time.monotonic() > republish_at:  # a controller that joined late, or a lost sample
                 self.publish_state()
                 republish_at = time.monotonic() + 0.05
-            time.sleep(0.0001)
+            self._cmd_inbox.wait(0.01)
 
     # --- one tick -------------------------------------------------------------------
     def _held(self, link: ArmLink) -> bool:
@@ -229,6 +233,8 @@ class SimServer:
                 arm.set_targets(hold[:n], np.zeros(n), arm.drive_targets()[n:])
                 continue
             cmd = link.last_cmd
+            if cmd.skill not in IDLE_SKILLS:
+                self.stats.busy_ticks[name] += 1
             lower, upper = self._limits[name]
             q = np.asarray(cmd.q)
             clamped = np.clip(q, lower[:n], upper[:n])
@@ -238,20 +244,30 @@ class SimServer:
 
     def tick(self) -> None:
         """Publish events and states, gather commands (waiting in lockstep), apply them, step physics."""
+        clock = self.stats.wall_s
+        t0 = time.perf_counter()
         self.publish_events()
         self.publish_state()
+        t1 = time.perf_counter()
         if self.mode == "lockstep":
             self._wait_for_commands()
         else:
             self._take_inputs()
+        t2 = time.perf_counter()
         self._apply_commands()
         self.world.step()
+        t3 = time.perf_counter()
         self.stats.ticks += 1
         if self.count_contacts:
             pairs = self.world.inter_arm_contacts()
             if pairs:
                 self.stats.contact_ticks += 1
                 self.stats.contact_pairs.update(pairs)
+        t4 = time.perf_counter()
+        clock["publish"] += t1 - t0
+        clock["wait"] += t2 - t1
+        clock["physics"] += t3 - t2
+        clock["contacts"] += t4 - t3
 
     def run_ticks(self, ticks: int, speed: float = 1.0, stop: StopFlag | None = None) -> None:
         """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at `speed` x real time."""
@@ -276,6 +292,7 @@ class SimServer:
             "parts_spawned": sum(c.spawned for c in self.world.feeders),
             "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
             "events": dict(sorted(self.events_published.items())),
+            "utilisation": {a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0 for a in self.links},
             "inter_arm_contacts": self.stats.contact_ticks,
             "contact_pairs": sorted("-".join(p) for p in self.stats.contact_pairs),
             "latency_p50_ms": round(float(np.percentile(rtt, 50)), 3) if rtt.size else None,
@@ -286,6 +303,7 @@ class SimServer:
             "arms_lost": list(self.stats.lost),
             "arms_rejoined": list(self.stats.rejoined),
             "coordinator_lost": self.stats.coordinator_lost,
+            "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
         }
 
 

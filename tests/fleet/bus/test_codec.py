@@ -53,6 +53,25 @@ def test_malformed_payloads_are_dropped_and_counted(payload):
     assert drops.total == 1
 
 
+def test_invalid_utf8_in_a_string_field_is_dropped():
+    """msgspec raises UnicodeDecodeError (not a DecodeError) for this one; a bus must not crash on it."""
+    payload = b"\x95\xa5arm_\xc3\x28\x01\x90\x90\xcb" + b"\x00" * 8
+    drops = DropCounter()
+    assert Decoder(ArmCommandMsg, drops).decode("k", payload) is None
+    assert drops.total == 1
+
+
+def test_random_bytes_never_raise():
+    import os
+
+    drops = DropCounter()
+    decoders = [Decoder(t, drops) for t in MESSAGE_TYPES]
+    for _ in range(2000):
+        payload = os.urandom(int.from_bytes(os.urandom(1), "little") % 64)
+        for d in decoders:
+            d.decode("k", payload)  # returns a message or None; never raises
+
+
 def test_wrong_version_is_dropped():
     drops = DropCounter()
     old = msgspec.structs.replace(EXAMPLES[1], version=99)

@@ -1,0 +1,138 @@
+"""`fleet run` with real processes on loopback Zenoh: parts get done, runs repeat for a seed, faults are survived.
+
+Every test checks that no process of the run is left and that the sim's port is free again.
+"""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from fleet.bus.keys import Keys
+from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
+from fleet.launcher import Launcher, RunOptions
+
+QUICK_LINE = str(Path(__file__).parent / "scenes_data" / "quick_line.yaml")
+WALL_FIGURES = ("wall_seconds", "latency_p50_ms", "latency_p99_ms", "processes")
+
+
+def assert_nothing_left(summary: dict, endpoint: str) -> None:
+    for p in summary["processes"]:
+        with pytest.raises(ProcessLookupError):
+            os.kill(p["pid"], 0)
+    port = int(endpoint.rsplit(":", 1)[1])
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # closed connections may linger in TIME_WAIT
+        s.bind(("127.0.0.1", port))  # fails with EADDRINUSE if anything still listens there
+        s.listen()
+
+
+def run_line(on_progress=None, **options) -> tuple[dict, Launcher]:
+    with Launcher(RunOptions(scene=QUICK_LINE, **options), on_progress) as launcher:
+        summary = launcher.run()
+    return summary, launcher
+
+
+def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
+    first, launcher = run_line(duration_s=18.0, seed=5)
+    assert_nothing_left(first, launcher.endpoint)
+    assert first["status"] == "ok" and first["sim_seconds"] == pytest.approx(18.0)
+    assert first["parts_completed"] >= 2, first["unfinished_parts"]
+    assert first["inter_arm_contacts"] == 0
+    assert first["dropped_messages"] == 0
+    assert {p["role"] for p in first["processes"]} == {"sim", "coordinator", "controller"}
+    assert all(p["exit_code"] == 0 for p in first["processes"])
+    second, launcher = run_line(duration_s=18.0, seed=5)
+    assert_nothing_left(second, launcher.endpoint)
+    strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
+    assert strip(first) == strip(second)
+
+
+def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawned():
+    killed = []
+
+    def kill_arm_0(progress):
+        if not killed and progress.sim_time_s > 3.0:
+            node = next(n for n in launcher_ref[0].nodes if n.name == "arm_0")
+            killed.append((node.proc.pid, time.monotonic()))
+            os.kill(node.proc.pid, signal.SIGKILL)
+
+    launcher_ref = []
+    options = RunOptions(scene=QUICK_LINE, duration_s=16.0, seed=5, respawn=True)
+    with Launcher(options, kill_arm_0) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert killed and summary["status"] == "ok"
+    assert summary["respawns"] == 1
+    dead = [p for p in summary["processes"] if p["pid"] == killed[0][0]]
+    assert dead == [{"role": "controller", "name": "arm_0", "pid": killed[0][0], "exit_code": -9}]
+    events = [e for e in summary["arm_events"] if e["arm"] == "arm_0"]
+    assert events, (summary["arm_events"], summary["arms_lost"], killed)
+    assert events[0]["event"] == "lost" and events[0]["silent_for_s"] < 1.0
+    assert events[-1]["event"] == "rejoined"
+    assert summary["parts_completed"] >= 1
+
+
+def test_a_crashed_coordinator_ends_the_run_with_one_clear_message():
+    def kill_coordinator(progress):
+        if progress.sim_time_s > 1.0 and launcher_ref[0].nodes[1].alive:
+            os.kill(launcher_ref[0].nodes[1].proc.pid, signal.SIGKILL)
+
+    launcher_ref = []
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), kill_coordinator) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert summary["status"] == "error"
+    assert summary["error"].startswith("the coordinator crashed (exit -9)")
+    assert "\n" not in summary["error"]
+
+
+def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp_path):
+    endpoint = loopback_endpoint(free_loopback_port())
+    summary_file = tmp_path / "summary.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "fleet", "run", QUICK_LINE, "--duration", "600", "--listen", endpoint,
+         "--run-id", "garbage", "--summary", str(summary_file)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )
+    try:
+        keys = Keys("garbage")
+        sent = 0
+        with open_session(BusEndpoints(connect=(endpoint,))) as session:
+            progress = Inbox()
+            sub = session.declare_subscriber(keys.coord("progress"), progress)
+            running_by = time.monotonic() + 60
+            while not progress.items and time.monotonic() < running_by:  # wait for the line to run
+                progress.wait(0.1)
+            sub.undeclare()
+            assert progress.items, "the line never reported progress"
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and sent < 200:
+                for arm in ("arm_0", "arm_1"):
+                    session.put(keys.arm_cmd(arm), os.urandom(int.from_bytes(os.urandom(1), "little") % 64))
+                    sent += 1
+                time.sleep(0.02)
+            time.sleep(3.0)  # the line keeps running after the garbage
+            assert proc.poll() is None, proc.stderr.read().decode()[-2000:] if proc.poll() is not None else ""
+        start = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=10)
+        stopped_in_s = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    summary = json.loads(summary_file.read_text())
+    assert code == 130 and summary["status"] == "interrupted"
+    assert stopped_in_s < 2.5
+    assert summary["dropped_messages"] >= sent
+    assert summary["sim_seconds"] > 0
+    assert_nothing_left(summary, endpoint)
