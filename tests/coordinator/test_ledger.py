@@ -1,0 +1,91 @@
+"""The task ledger on the assembly line: precedence, retries, lost arms and parts, every part accounted for."""
+
+from coordinator.ledger import MAX_ATTEMPTS, Ledger
+from coordinator.tasks import TaskState
+from scenes import load_scene
+
+
+def ledger() -> Ledger:
+    return Ledger(load_scene("assembly_line"))
+
+
+def only(tasks):
+    assert len(tasks) == 1, tasks
+    return tasks[0]
+
+
+def test_a_top_waits_for_its_base_and_the_base_ships_only_with_its_top():
+    lg = ledger()
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.arrived(1, "tops", 0, 2.0)
+    base_task = only(lg.refresh(2.0))  # the top is still falling into its bin: no task yet
+    assert (base_task.part_id, base_task.source, base_task.target) == (0, "conveyor", "fixture_0")
+    lg.at_station(1, "tops_bin", 2.5)
+    assert only(lg.refresh(2.5)) is base_task  # no top before the base sits on the fixture
+    lg.assign(base_task.task_id, "arm_0", 3.0)
+    lg.arm_report("arm_0", base_task.task_id, "approach", 3.1)
+    lg.at_station(0, "fixture_0", 9.0)
+    assert base_task.state == TaskState.DONE
+    top_task = only(lg.refresh(9.0))
+    assert (top_task.part_id, top_task.source, top_task.target) == (1, "tops_bin", "fixture_0")
+    assert lg.place_height_m("fixture_0") == 0.04 + 0.03  # on top of the base
+    lg.assign(top_task.task_id, "arm_1", 9.0)
+    lg.at_station(1, "fixture_0", 14.0)
+    ship = only(lg.refresh(14.0))
+    assert (ship.part_id, ship.source, ship.target) == (0, "fixture_0", "output_tray")
+    lg.assign(ship.task_id, "arm_2", 14.0)
+    lg.arm_report("arm_2", ship.task_id, "lift", 15.0)
+    lg.at_station(0, "output_tray", 19.0)
+    lg.at_station(1, "output_tray", 19.0)  # the top rode along
+    totals = lg.totals()
+    assert totals["parts_completed"] == 2 and totals["parts_in_progress"] == 0
+    assert lg.stacks["fixture_0"] == []
+
+
+def test_a_failed_grasp_is_retried_then_given_up_with_the_reason():
+    lg = ledger()
+    lg.arrived(0, "bases", 0, 1.0)
+    for attempt in range(MAX_ATTEMPTS):
+        task = only(lg.refresh(2.0 + attempt))
+        lg.assign(task.task_id, "arm_0", 2.0 + attempt)
+        lg.arm_report("arm_0", task.task_id, "failed", 2.5 + attempt, "the claw closed on nothing")
+        assert task.state == TaskState.FAILED
+    assert lg.refresh(10.0) == []
+    assert lg.unfinished() == [{"part_id": 0, "fate": "failed", "location": "conveyor",
+                                "reason": f"{MAX_ATTEMPTS} attempts failed; last: the claw closed on nothing"}]
+
+
+def test_a_lost_arms_task_goes_back_to_the_pool_unless_the_part_is_in_its_claw():
+    lg = Ledger(load_scene("sorting_line"))
+    lg.arrived(0, "mixed", 0, 1.0)
+    lg.arrived(1, "mixed", 1, 1.5)
+    first, second = lg.refresh(2.0)
+    assert (first.target, second.target) == ("bin_0", "bin_1")  # by colour
+    lg.assign(first.task_id, "arm_0", 2.0)
+    lg.arm_report("arm_0", first.task_id, "approach", 2.1)
+    assert lg.arm_lost("arm_0", 3.0) == [first.task_id]
+    again = [t for t in lg.refresh(3.0) if t.part_id == 0]
+    assert len(again) == 1 and again[0].task_id != first.task_id  # a new task for the same part
+    lg.assign(second.task_id, "arm_1", 3.0)
+    lg.arm_report("arm_1", second.task_id, "transfer", 4.0)
+    lg.arm_lost("arm_1", 5.0)
+    assert lg.parts[1].fate.value == "failed" and "lost arm arm_1" in lg.parts[1].reason
+
+
+def test_a_part_that_falls_is_missed_and_every_part_is_accounted_for():
+    lg = ledger()
+    for pid in range(3):
+        lg.arrived(pid, "bases", 0, float(pid))
+    lg.lost(1, "fell to the floor", 5.0)
+    t = lg.totals()
+    assert t["parts_spawned"] == 3 and t["parts_missed"] == 1 and t["parts_in_progress"] == 2
+    assert t["parts_completed"] + t["parts_missed"] + t["parts_failed"] + t["parts_in_progress"] == t["parts_spawned"]
+
+
+def test_one_station_serves_one_task_at_a_time():
+    lg = ledger()
+    lg.arrived(0, "bases", 0, 1.0)
+    task = only(lg.refresh(1.0))
+    assert lg.busy_stations() == set()
+    lg.assign(task.task_id, "arm_0", 1.0)
+    assert lg.busy_stations() == {"fixture_0"}
