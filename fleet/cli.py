@@ -161,6 +161,39 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_bus(args: argparse.Namespace) -> int:
+    from fleet.bench_runtime import bench_bus
+
+    table = Table("arms", "ticks", "round trip p50 (ms)", "p99 (ms)", "lockstep ticks/s")
+    rows = []
+    for n in args.arms:
+        row = bench_bus(n, args.ticks)
+        rows.append(row)
+        table.add_row(str(n), str(row.ticks), f"{row.p50_ms:.2f}", f"{row.p99_ms:.2f}", f"{row.ticks_per_s:,.0f}")
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ for r in rows]))
+    return 0
+
+
+def cmd_bench_run(args: argparse.Namespace) -> int:
+    from fleet.bench_runtime import bench_run
+
+    table = Table("arms", "sim s", "wall s", "sim s per wall s", "wall / raw physics", "parts done", "contacts", "p99 (ms)")
+    rows = []
+    for n in args.arms:
+        row = bench_run(n, args.seconds)
+        rows.append(row)
+        table.add_row(
+            str(n), f"{row.sim_seconds:.0f}", f"{row.wall_seconds:.1f}", f"{row.realtime_factor:.2f}",
+            f"{row.ratio_to_physics:.2f}", str(row.parts_completed), str(row.contacts), f"{row.p99_ms}",
+        )
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ | {"realtime_factor": r.realtime_factor, "ratio_to_physics": r.ratio_to_physics} for r in rows]))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -206,6 +239,16 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seconds", type=float, default=4.0, help="sim seconds timed per row")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
+    b = bench.add_parser("bus", help="lockstep state-to-command round trip over Zenoh, idle controller processes")
+    b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
+    b.add_argument("--ticks", type=int, default=1500)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_bus)
+    b = bench.add_parser("run", help="whole lockstep lines (all processes) against raw physics of the same scene")
+    b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
+    b.add_argument("--seconds", type=float, default=20.0, help="sim seconds per run")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_run)
     return parser
 
 
@@ -216,6 +259,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except USER_ERRORS as exc:
         print(f"fleet: error: {exc}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:  # a run that could not start (the launcher's RunError), a failed benchmark
+        print(f"fleet: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("fleet: interrupted", file=sys.stderr)
         return 130

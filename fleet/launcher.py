@@ -25,7 +25,7 @@ from pathlib import Path
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress
-from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
+from fleet.bus.session import BusEndpoints, Inbox, open_session
 from scenes.loader import load_scene
 
 STOP_GRACE_S = 1.5
@@ -108,7 +108,7 @@ class Launcher:
         self.seed = self.scene.seed if options.seed is None else options.seed
         self.on_progress = on_progress
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
-        self.endpoint = options.listen or loopback_endpoint(free_loopback_port())
+        self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.respawns = 0
         self.interrupted = ""
@@ -117,7 +117,7 @@ class Launcher:
     # --- processes ------------------------------------------------------------------
     def _bus_args(self, listen: bool) -> list[str]:
         o = self.options
-        args = ["--listen", self.endpoint] if listen else ["--connect", self.endpoint]
+        args = ["--listen", self.endpoint] if listen else (["--connect", self.endpoint] if self.endpoint else [])
         for ep in o.connect:
             args += ["--connect", ep]
         if o.zenoh_config:
@@ -132,23 +132,49 @@ class Launcher:
         report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
         return Node(role, name, [*argv, "--report", str(report)], report, log)
 
-    def plan(self) -> list[Node]:
+    def sim_node(self) -> Node:
         o = self.options
         sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--seed", str(self.seed), "--coordinator"]
-        nodes = [
-            self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=True),
-            self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode]),
-        ]
+        if not o.listen:
+            sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
+        return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
+
+    def client_nodes(self) -> list[Node]:
+        """The coordinator and one controller per arm, connecting to the sim's endpoint."""
+        o = self.options
+        nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode])]
         for arm in self.scene.arms:
             extra = ["--arm", arm.name] + (["--rt"] if o.realtime_priority else [])
             nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
         return nodes
 
     def __enter__(self) -> "Launcher":
-        self.nodes = self.plan()
-        for node in self.nodes:
-            node.start()
+        try:
+            sim = self.sim_node()
+            self.nodes = [sim]
+            sim.start()
+            if not self.endpoint:
+                self.endpoint = self._await_endpoint(sim)
+            self.nodes += self.client_nodes()
+            for node in self.nodes[1:]:
+                node.start()
+        except BaseException:
+            self.__exit__()
+            raise
         return self
+
+    def _await_endpoint(self, sim: Node, timeout_s: float = 60.0) -> str:
+        """The endpoint the sim server listens on, once it has bound it."""
+        path = self.dir / "endpoint"
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if path.exists():
+                return path.read_text().strip()
+            if sim.poll() is not None:
+                self.keep_dir = True
+                raise RunError(f"the sim server exited while starting (exit {sim.exit_code}): {sim.log_tail() or 'no output'}; logs in {self.dir}")
+            time.sleep(0.02)
+        raise RunError(f"the sim server did not start listening within {timeout_s:.0f} s; logs in {self.dir}")
 
     def __exit__(self, *exc: object) -> None:
         self.stop_all()
@@ -242,6 +268,7 @@ class Launcher:
             "stopped_by": self.interrupted or sim.get("stopped_by", ""),
             "sim_seconds": sim_s,
             "wall_seconds": round(wall_s, 3),
+            "loop_wall_seconds": sim.get("loop_wall_seconds"),
             "parts_spawned": sim.get("parts_spawned", 0),
             "parts_completed": completed,
             "parts_missed": coord.get("parts_missed", 0),

@@ -18,7 +18,7 @@ from robots.registry import get_robot
 from robots.skills.interface import PickPlaceTask
 from robots.skills.pick_place import Phase, PickPlaceSkill
 from scenes.loader import load_scene
-from scenes.schema import Scene
+from scenes.schema import Arrival, Scene
 
 TRIAL_SCENE = "pick_cell"
 REFERENCE_REACH_M = 0.62
@@ -50,7 +50,8 @@ def trial_scene(robot: str, seed: int) -> Scene:
     conveyor = scene.conveyor.model_copy(update={"pose": scaled(scene.conveyor.pose), "width_m": scene.conveyor.width_m * max(k, 0.7)})
     stations = [s.model_copy(update={"pose": scaled(s.pose)}) for s in scene.stations]
     arms = [a.model_copy(update={"model": robot}) for a in scene.arms]
-    return scene.model_copy(update={"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms})
+    feeders = [f.model_copy(update={"arrival": Arrival(schedule_s=[])}) for f in scene.feeders]  # one part, spawned by the trial
+    return scene.model_copy(update={"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms, "feeders": feeders})
 
 
 def part_in_bin(world: World, part_id: int, bin_name: str) -> bool:

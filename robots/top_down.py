@@ -58,5 +58,8 @@ class TopDownIK:
         return q
 
     def reachable(self, position_world: np.ndarray) -> bool:
-        """True when the tool can point straight down at this spot."""
+        """True when the tool can point straight down at this spot (beyond the spec's reach: no IK needed)."""
+        p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
+        if math.hypot(p[0], p[1]) > self.spec.reach_m:
+            return False
         return self.solve(position_world, None, self.aimed_home(position_world))[1]

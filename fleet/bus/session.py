@@ -79,6 +79,22 @@ def open_session(endpoints: BusEndpoints) -> Iterator[zenoh.Session]:
         session.close()
 
 
+def open_listening_session(endpoints: BusEndpoints, attempts: int = 5) -> tuple[zenoh.Session, str]:
+    """A session listening on a free loopback port it picked itself, and that endpoint.
+
+    A port found free can be taken (by another program's outgoing connection) before Zenoh
+    binds it; on such a clash another port is tried.
+    """
+    for attempt in range(attempts):
+        endpoint = loopback_endpoint(free_loopback_port())
+        try:
+            return zenoh.open(make_config(BusEndpoints((endpoint,), endpoints.connect, endpoints.config_file))), endpoint
+        except zenoh.ZError as exc:
+            if "already in use" not in str(exc) or attempt == attempts - 1:
+                raise
+    raise AssertionError("unreachable")
+
+
 @dataclass
 class Inbox:
     """A subscriber callback that only queues raw payloads and wakes the owner; the owner's loop drains them.

@@ -41,11 +41,15 @@ class StopFlag:
         return bool(self.reason)
 
 
-def write_report(path: str | None, report: dict) -> None:
-    """Write a node's end-of-run figures as JSON, atomically (a reader never sees half a file)."""
-    if not path:
-        return
+def write_text_atomically(path: str, text: str) -> None:
+    """Write a file so that a reader never sees half of it."""
     target = Path(path)
     tmp = target.with_suffix(target.suffix + ".tmp")
-    tmp.write_text(json.dumps(report, indent=1, sort_keys=True))
+    tmp.write_text(text)
     os.replace(tmp, target)
+
+
+def write_report(path: str | None, report: dict) -> None:
+    """Write a node's end-of-run figures as JSON."""
+    if path:
+        write_text_atomically(path, json.dumps(report, indent=1, sort_keys=True))

@@ -15,6 +15,7 @@ its decisions land on the same tick in every run.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 import time
@@ -27,9 +28,9 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, PartsState
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
-from fleet.nodes.lifecycle import StopFlag, write_report
+from fleet.nodes.lifecycle import StopFlag, write_report, write_text_atomically
 from fleet.physics.world import World
 from scenes.loader import SceneError, load_scene
 
@@ -265,7 +266,7 @@ class SimServer:
                 self.stats.contact_pairs.update(pairs)
         t4 = time.perf_counter()
         clock["publish"] += t1 - t0
-        clock["wait"] += t2 - t1
+        clock["wait" if self.stats.ticks > 1 else "startup"] += t2 - t1  # tick 0 waits for every process to start
         clock["physics"] += t3 - t2
         clock["contacts"] += t4 - t3
 
@@ -304,6 +305,7 @@ class SimServer:
             "arms_rejoined": list(self.stats.rejoined),
             "coordinator_lost": self.stats.coordinator_lost,
             "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
+            "loop_wall_seconds": round(sum(v for k, v in self.stats.wall_s.items() if k != "startup"), 3),
         }
 
 
@@ -319,6 +321,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--coordinator", action="store_true", help="lockstep: wait for the coordinator's tick")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
+    parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
     stop = StopFlag()
@@ -331,7 +334,13 @@ def main(argv: list[str] | None = None) -> int:
         scene = scene.model_copy(update={"seed": args.seed})
     world = World(scene)
     ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
-    with open_session(BusEndpoints.from_args(args)) as session:
+    endpoints = BusEndpoints.from_args(args)
+    if args.endpoint_file:
+        session, endpoint = open_listening_session(endpoints)
+        write_text_atomically(args.endpoint_file, endpoint)
+    else:
+        session = zenoh.open(make_config(endpoints))
+    with contextlib.closing(session):
         server = SimServer(
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator,
             lockstep_timeout_s=args.lockstep_timeout, stop=stop,

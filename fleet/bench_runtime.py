@@ -1,0 +1,113 @@
+"""`fleet bench bus` and `fleet bench run`: what the bus and the process split cost, against raw physics.
+
+- bus: a sim server (in this process) and one real controller process per arm, in lockstep, no
+  coordinator and no tasks, so the round trip is the bus and the processes alone.
+- run: whole `fleet run` lines on the sorting line (sim, coordinator and controllers as processes,
+  parts being picked), timed against stepping the same scene for the same sim time with no
+  processes at all (raw physics, with the feeders running).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleet.bus.keys import Keys
+from fleet.bus.session import BusEndpoints, open_listening_session
+from fleet.launcher import Launcher, RunOptions
+from fleet.nodes.sim_server import SimServer
+from fleet.physics.world import World
+from scenes.loader import load_scene
+
+SCENE = "sorting_line"
+
+
+@dataclass(frozen=True)
+class BusRow:
+    arms: int
+    ticks: int
+    p50_ms: float
+    p99_ms: float
+    ticks_per_s: float
+
+
+def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
+    """Round trips state -> command for `arms` idle controller processes in lockstep."""
+    world = World(load_scene(SCENE, arms=arms))
+    keys = Keys("benchbus")
+    session, endpoint = open_listening_session(BusEndpoints())
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "fleet.nodes.arm_controller", "--scene", SCENE, "--arms", str(arms),
+             "--arm", name, "--run", keys.run, "--connect", endpoint],
+            stdin=subprocess.DEVNULL,
+        )
+        for name in world.arms
+    ]
+    try:
+        with contextlib.closing(session):
+            server = SimServer(world, session, keys, mode="lockstep", count_contacts=False)
+            try:
+                server.run_ticks(50)  # every controller up and answering
+                server.stats.round_trip_ms.clear()
+                start = time.perf_counter()
+                server.run_ticks(ticks)
+                wall = time.perf_counter() - start
+                rtt = np.asarray(server.stats.round_trip_ms)
+            finally:
+                server.close()
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+    return BusRow(arms, ticks, float(np.percentile(rtt, 50)), float(np.percentile(rtt, 99)), ticks / wall)
+
+
+@dataclass(frozen=True)
+class RunRow:
+    arms: int
+    sim_seconds: float
+    wall_seconds: float  # the sim's loop, from its first tick to its last (process start-up excluded)
+    raw_physics_seconds: float
+    parts_completed: int
+    contacts: int
+    p99_ms: float | None
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_seconds / self.wall_seconds
+
+    @property
+    def ratio_to_physics(self) -> float:
+        return self.wall_seconds / self.raw_physics_seconds
+
+
+def raw_physics_seconds(arms: int, sim_seconds: float) -> float:
+    """Wall time to step the scene for `sim_seconds` in process, feeders running, nobody moving."""
+    world = World(load_scene(SCENE, arms=arms))
+    ticks = round(sim_seconds * world.scene_model.control_hz)
+    start = time.perf_counter()
+    world.step(ticks)
+    return time.perf_counter() - start
+
+
+def bench_run(arms: int, sim_seconds: float = 20.0) -> RunRow:
+    """One lockstep `fleet run` of the sorting line, and raw physics for the same sim time."""
+    with Launcher(RunOptions(scene=SCENE, arms=arms, duration_s=sim_seconds, run_id="benchrun")) as launcher:
+        summary = launcher.run()
+    if summary["status"] != "ok":
+        raise RuntimeError(f"the benchmark run failed: {summary['error']}")
+    return RunRow(
+        arms, summary["sim_seconds"], summary["loop_wall_seconds"], raw_physics_seconds(arms, sim_seconds),
+        summary["parts_completed"], summary["inter_arm_contacts"], summary["latency_p99_ms"],
+    )
