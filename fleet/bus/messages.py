@@ -123,7 +123,7 @@ class LineEvent(Message, frozen=True, array_like=True):
 
 
 class CoordTick(Message, frozen=True, array_like=True):
-    """Coordinator -> sim, lockstep only: decisions for `tick` are out; `assign_seqs` per arm, in scene order."""
+    """Coordinator -> sim: decisions for `tick` are out; `assign_seqs` per arm, in scene order (used in lockstep)."""
 
     tick: int
     assign_seqs: tuple[int, ...]

@@ -213,8 +213,7 @@ class CoordinatorNode:
         if pending:
             for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
                 self._send(self.ledger.assign(task_id, arm, now), arm)
-        if self.lockstep:
-            self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
+        self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
 
     def _send(self, task: Task, arm: str) -> None:
         part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]

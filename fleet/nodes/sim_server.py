@@ -109,7 +109,7 @@ class SimServer:
         self.watcher = LineWatcher(world.scene_model)
         self.events_published = Counter()
         self.count_contacts = count_contacts
-        self.coordinator = coordinator and mode == "lockstep"
+        self.coordinator = coordinator
         self.coord_period_ticks = max(1, round(world.scene_model.control_hz / COORD_RATE_HZ))
         self._coord_tick = -1
         self.assign_seqs = {name: 0 for name in world.arms}
@@ -155,6 +155,8 @@ class SimServer:
                 self.drops.drop(key, f"coordinator tick with {len(msg.assign_seqs)} arms, the scene has {len(self.links)}")
                 continue
             self._coord_tick = max(self._coord_tick, msg.tick)
+            if self.mode != "lockstep":
+                continue  # realtime: controllers act on assignments as they arrive
             for name, seq in zip(self.links, msg.assign_seqs):
                 self.assign_seqs[name] = max(self.assign_seqs[name], seq)
 
@@ -164,7 +166,8 @@ class SimServer:
         first = tick == 0
         deadline = time.monotonic() + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
         republish_at = time.monotonic() + 0.05
-        want_coord = self.coordinator and not self.stats.coordinator_lost and tick % self.coord_period_ticks == 0
+        coord_tick = tick % self.coord_period_ticks == 0 if self.mode == "lockstep" else tick == 0
+        want_coord = self.coordinator and not self.stats.coordinator_lost and coord_tick
         while True:
             self._take_inputs()
             waiting = [l for l in self.links.values() if not l.lost and (l.last_cmd is None or l.last_cmd.tick < tick)]
@@ -250,7 +253,7 @@ class SimServer:
         self.publish_events()
         self.publish_state()
         t1 = time.perf_counter()
-        if self.mode == "lockstep":
+        if self.mode == "lockstep" or self.world.tick == 0:  # realtime too waits once, for every process to start
             self._wait_for_commands()
         else:
             self._take_inputs()
@@ -280,9 +283,12 @@ class SimServer:
             if stop is not None and stop.should_stop():
                 return
             if self.mode == "realtime":
+                if self.world.tick == 1:  # the clock starts once every process answered tick 0
+                    start_wall, start_sim = time.monotonic(), self.world.sim_time_s
                 ahead = (self.world.sim_time_s - start_sim) / speed - (time.monotonic() - start_wall)
                 if ahead > 0:
                     time.sleep(ahead)
+                    self.stats.wall_s["pacing"] += ahead
 
     def report(self) -> dict:
         """The sim's part of the run summary."""
@@ -318,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--speed", type=float, default=1.0)
     parser.add_argument("--seed", type=int, default=None)
-    parser.add_argument("--coordinator", action="store_true", help="lockstep: wait for the coordinator's tick")
+    parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")

@@ -136,3 +136,11 @@ def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp
     assert summary["dropped_messages"] >= sent
     assert summary["sim_seconds"] > 0
     assert_nothing_left(summary, endpoint)
+
+
+def test_realtime_mode_paces_the_sim_on_the_wall_clock():
+    summary, launcher = run_line(duration_s=6.0, mode="realtime", speed=2.0)
+    assert_nothing_left(summary, launcher.endpoint)
+    assert summary["status"] == "ok" and summary["mode"] == "realtime"
+    assert 2.7 < summary["loop_wall_seconds"] < 4.5  # 6 sim s at 2x real time: 3 s of wall clock
+    assert summary["inter_arm_contacts"] == 0

@@ -19,7 +19,7 @@ from fleet.bus.messages import Assignment, LineEvent
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.nodes.sim_server import SimServer
 from fleet.physics.world import WALL_M, World
-from scenes import load_scene
+from fleet.trials import trial_scene
 
 
 def start_controller(endpoint: str) -> subprocess.Popen:
@@ -35,7 +35,7 @@ def test_controller_process_never_imports_the_simulator():
 
 def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
     endpoint = loopback_endpoint(free_loopback_port())
-    world = World(load_scene("pick_cell"))
+    world = World(trial_scene("openclaw", 0))  # pick_cell with its feeder off: only the part we spawn
     keys = Keys("t")
     with open_session(BusEndpoints(listen=(endpoint,))) as session:
         server = SimServer(world, session, keys, mode="lockstep", lockstep_timeout_s=1.0)
