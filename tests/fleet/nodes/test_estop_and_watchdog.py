@@ -21,7 +21,7 @@ def test_estop_watchdog_and_clamping():
     world = World(load_scene("handover"))
     keys = Keys("e")
     with open_session(BusEndpoints()) as session:
-        server = SimServer(world, session, keys, mode="realtime", watchdog_s=0.1)
+        server = SimServer(world, session, keys, mode="realtime", watchdog_s=0.1, first_command_timeout_s=0.5)
         try:
             home = np.array(world.arms["arm_0"].spec.home_q)
             goal = home + 0.4
@@ -44,6 +44,7 @@ def test_estop_watchdog_and_clamping():
             server.run_ticks(30, speed=100.0)
             assert not server.estop
             assert server.stats.watchdog_holds["arm_0"] > 0, "the last command went stale: held by the watchdog"
-            assert server.stats.watchdog_holds["arm_1"] > 0, "an arm never commanded is held"
+            assert server.stats.lost == ["arm_1"], "an arm that never answered at the start is lost, and held"
+            assert world.arms["arm_1"].qvel().max() < 1e-3
         finally:
             server.close()
