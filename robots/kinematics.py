@@ -71,6 +71,11 @@ class KinematicModel:
             if f.type == pin.FrameType.BODY
         }
 
+    def frame_poses(self, q: np.ndarray, frame_ids: list[int]) -> list[np.ndarray]:
+        """4x4 base-frame poses of the given frames, from one forward-kinematics pass."""
+        pin.forwardKinematics(self.model, self.data, q)
+        return [pin.updateFramePlacement(self.model, self.data, fid).homogeneous for fid in frame_ids]
+
     def frame_jacobian(self, q: np.ndarray, frame: str | int | None = None) -> np.ndarray:
         """6 x nv Jacobian of a frame, expressed in a frame at the frame's origin aligned with the base (linear; angular)."""
         fid = self.tool_frame_id if frame is None else (frame if isinstance(frame, int) else self.frame_id(frame))

@@ -1,0 +1,125 @@
+"""Arms as python-fcl geometry: each link's URDF collision shapes, placed by Pinocchio forward kinematics.
+
+Primitives become FCL primitives (a URDF cylinder's axis is z, as FCL's); meshes
+become BVH models. One broadphase manager per arm lets the cell ask, for any set
+of configurations, how far apart the arms are.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import fcl
+import numpy as np
+
+from robots.kinematics import KinematicModel
+from robots.spec import RobotSpec
+
+
+@dataclass(frozen=True)
+class LinkShape:
+    """One collision shape of a link: its FCL geometry and where it sits in the link frame."""
+
+    link: str
+    geometry: fcl.CollisionGeometry
+    transform_shape_to_link: np.ndarray
+
+
+def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def _origin(element: ET.Element | None) -> np.ndarray:
+    T = np.eye(4)
+    if element is not None:
+        T[:3, 3] = [float(v) for v in element.get("xyz", "0 0 0").split()]
+        T[:3, :3] = _rpy_matrix(*[float(v) for v in element.get("rpy", "0 0 0").split()])
+    return T
+
+
+def _mesh_geometry(filename: str, scale: list[float]) -> fcl.CollisionGeometry:
+    import trimesh
+
+    mesh = trimesh.load(Path(filename.removeprefix("file://")), force="mesh")
+    bvh = fcl.BVHModel()
+    bvh.beginModel(len(mesh.vertices), len(mesh.faces))
+    bvh.addSubModel(np.asarray(mesh.vertices) * np.asarray(scale), np.asarray(mesh.faces))
+    bvh.endModel()
+    return bvh
+
+
+def _geometry(element: ET.Element, inflate_m: float) -> fcl.CollisionGeometry | None:
+    """An FCL geometry for a URDF <geometry> element, grown by `inflate_m` on every side (primitives)."""
+    shape = next(iter(element), None)
+    if shape is None:
+        return None
+    if shape.tag == "box":
+        sx, sy, sz = (float(v) + 2 * inflate_m for v in shape.get("size").split())
+        return fcl.Box(sx, sy, sz)
+    if shape.tag == "cylinder":
+        return fcl.Cylinder(float(shape.get("radius")) + inflate_m, float(shape.get("length")) + 2 * inflate_m)
+    if shape.tag == "sphere":
+        return fcl.Sphere(float(shape.get("radius")) + inflate_m)
+    if shape.tag == "mesh":
+        scale = [float(v) for v in shape.get("scale", "1 1 1").split()]
+        return _mesh_geometry(shape.get("filename"), scale)
+    raise ValueError(f"unsupported URDF collision geometry <{shape.tag}>")
+
+
+def link_shapes(spec: RobotSpec, inflate_m: float = 0.0) -> list[LinkShape]:
+    """Every collision shape of the robot's URDF, by link."""
+    root = ET.fromstring(spec.urdf_text())
+    shapes = []
+    for link in root.iter("link"):
+        for collision in link.findall("collision"):
+            geometry = _geometry(collision.find("geometry"), inflate_m)
+            if geometry is not None:
+                shapes.append(LinkShape(link.get("name"), geometry, _origin(collision.find("origin"))))
+    return shapes
+
+
+def _transform(T: np.ndarray) -> fcl.Transform:
+    return fcl.Transform(T[:3, :3], T[:3, 3])
+
+
+class ArmGeometry:
+    """One arm's collision objects in the world; `place(q)` moves them to a configuration."""
+
+    def __init__(self, name: str, spec: RobotSpec, transform_base_to_world: np.ndarray, model: KinematicModel | None = None) -> None:
+        self.name, self.spec = name, spec
+        self.km = model or KinematicModel(spec)
+        self.base_to_world = np.asarray(transform_base_to_world, float)
+        self.shapes = link_shapes(spec)
+        self._frame_ids = [self.km.frame_id(s.link) for s in self.shapes]
+        self.objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
+        self.manager = fcl.DynamicAABBTreeCollisionManager()
+        self.manager.registerObjects(self.objects)
+        self.manager.setup()
+        self.q: np.ndarray | None = None
+        self.place(np.asarray(spec.home_q, float))
+
+    def place(self, q_arm: np.ndarray) -> None:
+        """Put every link where forward kinematics says it is for these arm joints (gripper closed)."""
+        q_arm = np.asarray(q_arm, float)
+        if self.q is not None and np.array_equal(q_arm, self.q):
+            return
+        poses = self.km.frame_poses(self.km.full_q(q_arm), self._frame_ids)
+        for obj, shape, pose in zip(self.objects, self.shapes, poses):
+            obj.setTransform(_transform(self.base_to_world @ pose @ shape.transform_shape_to_link))
+        self.manager.update()
+        self.q = q_arm.copy()
+
+
+def separation_m(a: ArmGeometry, b: ArmGeometry) -> float:
+    """The smallest distance between two arms as placed (<= 0 when they touch)."""
+    data = fcl.DistanceData()
+    a.manager.distance(b.manager, data, fcl.defaultDistanceCallback)
+    return float(data.result.min_distance)

@@ -1,0 +1,141 @@
+"""The collision guard: motion grants checked with python-fcl, and the cell's minimum separation.
+
+An arm asks for a grant before a motion segment, with its joint path and time
+window. The guard samples the path densely enough that no point of any arm moves
+more than `step_m` between samples (a joint turning by dq moves a point at most
+reach * |dq|), places every other arm where its own granted path (or its current
+state) puts it at that time, and measures separations with FCL. The answer:
+
+- `grant`: clear by the margin everywhere; the path is recorded for later checks;
+- `wait`: it would come too close to another arm's granted motion; ask again later;
+- `deny`: it would come too close to an arm that is not going to move (no grant):
+  waiting does not help, the asker must plan something else.
+
+Grants never wait on anything, and every granted path ends at a known time, so
+waits cannot form a cycle: the classic crossing case resolves in request order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from coordinator.geometry import ArmGeometry, separation_m
+
+DEFAULT_MARGIN_M = 0.02
+
+
+@dataclass(frozen=True)
+class TimedPath:
+    """A joint-space segment: `q_from` at `t_start_s` to `q_to` at `t_end_s`, straight in joint space."""
+
+    arm: str
+    q_from: tuple[float, ...]
+    q_to: tuple[float, ...]
+    t_start_s: float
+    t_end_s: float
+
+    def at(self, t_s: float) -> np.ndarray:
+        span = self.t_end_s - self.t_start_s
+        u = 1.0 if span <= 0 else min(max((t_s - self.t_start_s) / span, 0.0), 1.0)
+        return (1 - u) * np.asarray(self.q_from) + u * np.asarray(self.q_to)
+
+    @property
+    def joint_travel_rad(self) -> float:
+        return float(np.abs(np.asarray(self.q_to) - np.asarray(self.q_from)).sum())
+
+
+@dataclass(frozen=True)
+class Verdict:
+    decision: str  # grant | wait | deny
+    conflict_arm: str | None
+    min_separation_m: float
+    at_time_s: float | None = None
+
+    @property
+    def granted(self) -> bool:
+        return self.decision == "grant"
+
+
+class CollisionGuard:
+    """Grants motion to arms of one cell; `set_state` keeps each arm's current joints up to date."""
+
+    def __init__(self, arms: dict[str, ArmGeometry], margin_m: float = DEFAULT_MARGIN_M, step_m: float | None = None) -> None:
+        self.arms = arms
+        self.margin_m = margin_m
+        self.step_m = step_m if step_m is not None else margin_m / 2
+        self.state = {name: np.asarray(g.spec.home_q, float) for name, g in arms.items()}
+        self.grants: dict[str, TimedPath] = {}
+        self.denied = 0
+        self.waits = 0
+
+    def set_state(self, arm: str, q: np.ndarray) -> None:
+        self.state[arm] = np.asarray(q, float)
+
+    def release(self, arm: str) -> None:
+        self.grants.pop(arm, None)
+
+    def expire(self, now_s: float) -> None:
+        """Forget grants whose time window has passed."""
+        for arm in [a for a, p in self.grants.items() if p.t_end_s < now_s]:
+            del self.grants[arm]
+
+    # --- queries --------------------------------------------------------------------
+    def min_separation(self, configurations: dict[str, np.ndarray] | None = None) -> tuple[float, tuple[str, str] | None]:
+        """The smallest distance between any two arms (at their current states unless given)."""
+        configurations = configurations or self.state
+        for name, q in configurations.items():
+            self.arms[name].place(q)
+        best, pair = math.inf, None
+        names = list(configurations)
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                d = separation_m(self.arms[a], self.arms[b])
+                if d < best:
+                    best, pair = d, (a, b)
+        return best, pair
+
+    def _where(self, arm: str, t_s: float) -> np.ndarray:
+        path = self.grants.get(arm)
+        return path.at(t_s) if path is not None and path.t_start_s <= t_s + 1e-9 else self.state[arm]
+
+    def sample_times(self, path: TimedPath) -> np.ndarray:
+        """Times along the path's window dense enough for every arm moving in it."""
+        travel = path.joint_travel_rad * self.arms[path.arm].spec.reach_m
+        for other, p in self.grants.items():
+            if other != path.arm and p.t_end_s > path.t_start_s and p.t_start_s < path.t_end_s:
+                overlap = (min(p.t_end_s, path.t_end_s) - max(p.t_start_s, path.t_start_s)) / max(p.t_end_s - p.t_start_s, 1e-9)
+                travel = max(travel, p.joint_travel_rad * overlap * self.arms[other].spec.reach_m)
+        n = max(2, int(math.ceil(travel / self.step_m)) + 1)
+        return np.linspace(path.t_start_s, path.t_end_s, n)
+
+    def check(self, path: TimedPath) -> Verdict:
+        """Would this path keep `margin_m` from every other arm? (Does not record anything.)"""
+        me = self.arms[path.arm]
+        closest, closest_arm, when = math.inf, None, None
+        for t in self.sample_times(path):
+            me.place(path.at(t))
+            for other, geometry in self.arms.items():
+                if other == path.arm:
+                    continue
+                geometry.place(self._where(other, t))
+                d = separation_m(me, geometry)
+                if d < closest:
+                    closest, closest_arm, when = d, other, float(t)
+        if closest >= self.margin_m:
+            return Verdict("grant", None, closest)
+        other_moves = closest_arm in self.grants and self.grants[closest_arm].t_end_s >= (when or 0.0)
+        return Verdict("wait" if other_moves else "deny", closest_arm, closest, when)
+
+    def request(self, path: TimedPath) -> Verdict:
+        """Check a path and, if it is clear, grant it (replacing the arm's earlier grant)."""
+        verdict = self.check(path)
+        if verdict.granted:
+            self.grants[path.arm] = path
+        elif verdict.decision == "deny":
+            self.denied += 1
+        else:
+            self.waits += 1
+        return verdict

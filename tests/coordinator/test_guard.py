@@ -1,0 +1,79 @@
+"""The FCL collision guard on two OpenClaw arms facing each other across a gap."""
+
+import numpy as np
+import pytest
+
+from coordinator.geometry import ArmGeometry, separation_m
+from coordinator.guard import CollisionGuard, TimedPath
+from robots.frames import yaw_transform
+from robots.registry import get_robot
+
+HOME = np.array(get_robot("openclaw").home_q)
+REACH_OUT = np.array([0.0, 1.0, 0.6, 0.0, 0.5, 0.0])  # shoulder forward: the claw far out in front
+
+
+def two_arms(gap_m: float = 0.7) -> dict[str, ArmGeometry]:
+    spec = get_robot("openclaw")
+    return {
+        "arm_0": ArmGeometry("arm_0", spec, yaw_transform((0.0, 0.0, 0.0), 0.0)),
+        "arm_1": ArmGeometry("arm_1", spec, yaw_transform((gap_m, 0.0, 0.0), np.pi)),  # facing arm_0
+    }
+
+
+def test_folded_arms_are_clear_and_two_reaching_arms_touch():
+    arms = two_arms()
+    arms["arm_0"].place(HOME)
+    arms["arm_1"].place(HOME)
+    assert separation_m(arms["arm_0"], arms["arm_1"]) > 0.1
+    arms["arm_0"].place(REACH_OUT)
+    arms["arm_1"].place(REACH_OUT)
+    assert separation_m(arms["arm_0"], arms["arm_1"]) <= 0.0
+
+
+def test_the_margin_is_respected():
+    guard = CollisionGuard(two_arms(), margin_m=0.02)
+    d, pair = guard.min_separation({"arm_0": HOME, "arm_1": HOME})
+    assert pair == ("arm_0", "arm_1")
+    wide = CollisionGuard(two_arms(), margin_m=d + 0.01)  # a margin wider than the gap: even a still pose is too close
+    verdict = wide.check(TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0))
+    assert verdict.decision == "deny" and verdict.conflict_arm == "arm_1"
+    assert guard.check(TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0)).granted
+
+
+def test_a_thin_link_passing_through_between_two_coarse_samples_is_caught():
+    """arm_0 swings its base round through arm_1's outstretched claw: both ends are clear, the middle is not."""
+    arms = two_arms(gap_m=0.75)
+    guard = CollisionGuard(arms)
+    reach = np.array([0.0, 1.1, 0.3, 0.0, 0.4, 0.0])
+    guard.set_state("arm_1", reach)
+    start, end = reach.copy(), reach.copy()
+    start[0], end[0] = -1.2, 1.2  # sweeping through the line between the bases
+    for q in (start, end):
+        assert guard.min_separation({"arm_0": q, "arm_1": reach})[0] > 0.02, "both ends alone are clear"
+    coarse = CollisionGuard(arms, step_m=10.0)  # two samples: start and end
+    assert coarse.check(TimedPath("arm_0", tuple(start), tuple(end), 0.0, 2.0)).granted, "coarse sampling misses it"
+    verdict = guard.check(TimedPath("arm_0", tuple(start), tuple(end), 0.0, 2.0))
+    assert verdict.decision == "deny" and verdict.conflict_arm == "arm_1"
+
+
+def test_the_crossing_case_resolves_without_deadlock():
+    """Both arms want to reach into the shared middle at once: one is granted, the other waits, then goes."""
+    guard = CollisionGuard(two_arms(gap_m=1.0))  # one arm reaching out is clear of the other folded; both reaching touch
+    out_0 = TimedPath("arm_0", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)
+    back_0 = TimedPath("arm_0", tuple(REACH_OUT), tuple(HOME), 1.0, 2.0)
+    out_1 = TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)
+    assert guard.request(out_0).granted
+    verdict = guard.request(out_1)
+    assert verdict.decision == "wait" and verdict.conflict_arm == "arm_0"
+    assert guard.request(back_0).granted  # arm_0 does its work and leaves the middle by t = 2 s
+    guard.set_state("arm_0", HOME)
+    later = TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 2.5, 3.5)
+    guard.expire(2.5)
+    assert guard.request(later).granted  # arm_1 goes once arm_0's grant is over
+    assert guard.waits == 1 and guard.denied == 0
+
+
+def test_free_paths_of_both_arms_are_granted_at_once():
+    guard = CollisionGuard(two_arms(gap_m=2.0))  # too far apart to meet
+    assert guard.request(TimedPath("arm_0", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)).granted
+    assert guard.request(TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)).granted
