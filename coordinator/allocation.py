@@ -1,4 +1,4 @@
-"""Who does which task: the allocator interface, reach and zone rules, and the nearest-free-arm allocator.
+"""Who does which task: the allocator interface, the rules every allocator obeys, and three allocators (optimal, auction, greedy).
 
 An allocator sees the pending tasks, the arms (free or not) and where the parts
 are, and returns (task id, arm) pairs. Every allocator obeys the same rules:
@@ -11,13 +11,14 @@ spot of belt.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from coordinator.tasks import CONVEYOR, Task
+from robots.skills.pick_place import PickPlaceTiming
 from robots.top_down import TopDownIK
 from scenes.schema import Scene
 
@@ -30,27 +31,32 @@ GRID_M = 0.01
 
 
 class CachedReach:
-    """Whether an arm can point its claw straight down at a spot, by Pinocchio IK, cached on a 1 cm grid."""
+    """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK, cached on a 1 cm grid."""
 
     def __init__(self, top_down: TopDownIK) -> None:
         self.top_down = top_down
-        self._cache: dict[tuple[int, int, int], bool] = {}
+        self.velocity_limit = top_down.km.velocity_limit[top_down.km.arm_q_index]
+        self._cache: dict[tuple[int, int, int], np.ndarray | None] = {}
 
-    def __call__(self, point) -> bool:
+    def joints(self, point) -> np.ndarray | None:
         key = tuple(int(round(float(v) / GRID_M)) for v in point[:3])
         if key not in self._cache:
-            self._cache[key] = self.top_down.reachable(np.array(key, float) * GRID_M)
+            self._cache[key] = self.top_down.joints_for(np.array(key, float) * GRID_M)
         return self._cache[key]
+
+    def __call__(self, point) -> bool:
+        return self.joints(point) is not None
 
 
 @dataclass(frozen=True)
 class ArmView:
-    """What an allocator knows of an arm: where it stands, whether it can take work, and what it can reach."""
+    """What an allocator knows of an arm: where it stands, whether it can take work, what it reaches, its joints now."""
 
     name: str
     base_xyz: tuple[float, float, float]
     free: bool
-    reach: Callable[[np.ndarray], bool] = field(compare=False, repr=False)
+    reach: CachedReach = field(compare=False, repr=False)
+    q: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -113,10 +119,50 @@ class Eligibility:
         return horizontal_distance_m(arm.base_xyz, self.pick_point(task, part))
 
 
-class NearestFreeArm:
-    """Oldest task first, each to the nearest free arm that can serve it: the simple baseline."""
+def assign_min_cost(cost: np.ndarray) -> list[tuple[int, int]]:
+    """Rows to columns at least total cost (scipy's LAP solver); infinite entries are never chosen."""
+    if cost.size == 0:
+        return []
+    finite = np.isfinite(cost)
+    if not finite.any():
+        return []
+    big = (np.abs(cost[finite]).max() + 1.0) * (min(cost.shape) + 1)
+    rows, cols = linear_sum_assignment(np.where(finite, cost, big))
+    return [(int(r), int(c)) for r, c in zip(rows, cols) if finite[r, c]]
 
-    name = "nearest"
+
+class TimeCost:
+    """Estimated seconds for an arm to finish a task from where it stands: joint travel at the skill's speeds
+    (Pinocchio IK for the pick and place poses, velocity limits for the time) plus the fixed primitives."""
+
+    def __init__(self, rules: Eligibility, timing: PickPlaceTiming = PickPlaceTiming()) -> None:
+        self.rules, self.t = rules, timing
+        self.fixed_s = timing.descend_s + timing.close_s + timing.lift_s + timing.lower_s + timing.release_s + timing.retreat_s
+
+    def __call__(self, arm: ArmView, task: Task, part: PartView) -> float:
+        if not self.rules.can_serve(arm, task, part):
+            return math.inf
+        station = self.rules.scene.station(task.target)
+        q_pick = arm.reach.joints(self.rules.pick_point(task, part) + [0.0, 0.0, HOVER_M])
+        q_place = arm.reach.joints(np.array([*station.pose.xyz[:2], station.surface_z_m + HOVER_M]))
+        if q_pick is None or q_place is None:
+            return math.inf
+        v = arm.reach.velocity_limit
+        q_now = np.asarray(arm.q, float) if arm.q else q_pick
+        approach = float(np.max(np.abs(q_pick - q_now) / (v * self.t.approach_speed)))
+        transfer = float(np.max(np.abs(q_place - q_pick) / (v * self.t.transfer_speed)))
+        return approach + transfer + self.fixed_s
+
+
+def _candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:
+    """Pending tasks whose part is seen and whose stations are free, oldest first."""
+    return [t for t in sorted(tasks, key=lambda t: (t.created_s, t.task_id)) if t.part_id in parts and not busy_stations.intersection(t.stations)]
+
+
+class GreedyNearest:
+    """The baseline: oldest task first, each to the nearest free arm that can serve it."""
+
+    name = "greedy"
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
@@ -126,9 +172,9 @@ class NearestFreeArm:
         free = [a for a in arms if a.free]
         busy = set(busy_stations)
         out = []
-        for task in sorted(tasks, key=lambda t: (t.created_s, t.task_id)):
-            part = parts.get(task.part_id)
-            if part is None or busy.intersection(task.stations):
+        for task in _candidates(tasks, parts, busy_stations):
+            part = parts[task.part_id]
+            if busy.intersection(task.stations):
                 continue
             options = [a for a in free if rules.can_serve(a, task, part)]
             if not options:
@@ -138,3 +184,68 @@ class NearestFreeArm:
             free.remove(arm)
             busy.update(task.stations)
         return out
+
+
+class OptimalAssignment:
+    """All pending tasks against all free arms at once, least total estimated time (`linear_sum_assignment`)."""
+
+    name = "optimal"
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+
+    def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
+        rules = Eligibility(self.scene, arms)
+        cost_of = TimeCost(rules)
+        free = [a for a in arms if a.free]
+        pending = _candidates(tasks, parts, busy_stations)
+        if not free or not pending:
+            return []
+        cost = np.array([[cost_of(a, t, parts[t.part_id]) for a in free] for t in pending])
+        chosen = sorted(assign_min_cost(cost), key=lambda rc: (cost[rc], rc))
+        busy, out = set(busy_stations), []
+        for r, c in chosen:  # two tasks for one station in the same round: the cheaper goes first
+            if busy.intersection(pending[r].stations):
+                continue
+            busy.update(pending[r].stations)
+            out.append((pending[r].task_id, free[c].name))
+        return out
+
+
+class Auction:
+    """Tasks auctioned one at a time, oldest first; every free arm bids its estimated time, the lowest bid wins
+    (as Open-RMF's dispatcher does with fleet adapters' bids)."""
+
+    name = "auction"
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+
+    def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
+        rules = Eligibility(self.scene, arms)
+        cost_of = TimeCost(rules)
+        free = [a for a in arms if a.free]
+        busy, out = set(busy_stations), []
+        for task in _candidates(tasks, parts, busy_stations):
+            if not free:
+                break
+            if busy.intersection(task.stations):
+                continue
+            bids = [(cost_of(a, task, parts[task.part_id]), a.name, a) for a in free]
+            best = min(bids, key=lambda b: (b[0], b[1]))
+            if not math.isfinite(best[0]):
+                continue
+            out.append((task.task_id, best[2].name))
+            free.remove(best[2])
+            busy.update(task.stations)
+        return out
+
+
+ALLOCATORS: dict[str, type] = {"optimal": OptimalAssignment, "auction": Auction, "greedy": GreedyNearest}
+
+
+def make_allocator(name: str, scene: Scene) -> Allocator:
+    """An allocator by name; an unknown name is an error that lists the valid ones."""
+    if name not in ALLOCATORS:
+        raise ValueError(f"unknown allocator {name!r}; valid allocators: {', '.join(ALLOCATORS)}")
+    return ALLOCATORS[name](scene)

@@ -96,7 +96,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SystemExit("fleet: error: --speed must be positive")
     options = RunOptions(
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
-        respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs,
+        respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
         listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
     )
     with Progress(
@@ -206,6 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
     p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
     p.add_argument("--respawn", action="store_true", help="restart a controller that dies")
+    p.add_argument("--allocator", choices=("optimal", "auction", "greedy"), default="optimal", help="how tasks go to arms (default optimal)")
     p.add_argument("--rt", action="store_true", help="controllers ask for real-time scheduling")
     p.add_argument("--run-id", default="line", help="keeps several lines on one Zenoh network apart")
     p.add_argument("--summary", metavar="FILE", help="also write the summary JSON here")

@@ -48,6 +48,7 @@ class RunOptions:
     connect: tuple[str, ...] = ()
     zenoh_config: str | None = None
     keep_logs: bool = False
+    allocator: str = "optimal"
 
 
 @dataclass
@@ -142,7 +143,7 @@ class Launcher:
     def client_nodes(self) -> list[Node]:
         """The coordinator and one controller per arm, connecting to the sim's endpoint."""
         o = self.options
-        nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode])]
+        nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode, "--allocator", o.allocator])]
         for arm in self.scene.arms:
             extra = ["--arm", arm.name] + (["--rt"] if o.realtime_priority else [])
             nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
@@ -279,6 +280,7 @@ class Launcher:
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
             "min_separation_m": coord.get("min_separation_m"),
+            "closest_pair": coord.get("closest_pair"),
             "grants_denied": coord.get("grants_denied", 0),
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),

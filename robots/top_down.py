@@ -59,7 +59,12 @@ class TopDownIK:
 
     def reachable(self, position_world: np.ndarray) -> bool:
         """True when the tool can point straight down at this spot (beyond the spec's reach: no IK needed)."""
+        return self.joints_for(position_world) is not None
+
+    def joints_for(self, position_world: np.ndarray) -> np.ndarray | None:
+        """Arm joints pointing the claw straight down at this spot, or None if it is out of reach."""
         p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
         if math.hypot(p[0], p[1]) > self.spec.reach_m:
-            return False
-        return self.solve(position_world, None, self.aimed_home(position_world))[1]
+            return None
+        q, ok = self.solve(position_world, None, self.aimed_home(position_world))
+        return q if ok else None

@@ -14,13 +14,16 @@ go back to the pool. It never imports the simulator.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 
 import numpy as np
 import zenoh
 
-from coordinator.allocation import Allocator, ArmView, CachedReach, NearestFreeArm, PartView
+from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, PartView, make_allocator
+from coordinator.geometry import ArmGeometry
+from coordinator.guard import CollisionGuard
 from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, Task
 from fleet.bus.codec import Decoder, DropCounter, encode
@@ -56,9 +59,14 @@ class CoordinatorNode:
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
         self.ledger = Ledger(scene)
-        self.allocator = allocator or NearestFreeArm(scene)
+        self.allocator = allocator or make_allocator("optimal", scene)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.arm_names = [a.name for a in scene.arms]
+        self.guard = CollisionGuard({
+            a.name: ArmGeometry(a.name, get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)) for a in scene.arms
+        })
+        self.min_separation_m = math.inf
+        self.closest_pair: tuple[str, str] | None = None
         self.reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK)) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.period_ticks = max(1, round(scene.control_hz / COORD_RATE_HZ))
@@ -144,6 +152,7 @@ class CoordinatorNode:
             return  # the sim republishes a state while it waits: count each tick once
         self.last_tick[s.arm] = s.tick
         self.skill[s.arm] = s.skill
+        self.guard.set_state(s.arm, np.asarray(s.q))
         if s.lost and s.arm not in self.lost:
             self._arm_lost(s.arm, "the sim stopped hearing its controller", time.monotonic() - self._heard_at.get(s.arm, 0.0))
         self.ledger.arm_report(s.arm, s.task_id, s.skill, s.sim_time_s, s.failure)
@@ -192,7 +201,10 @@ class CoordinatorNode:
     def arm_views(self) -> list[ArmView]:
         open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
         return [
-            ArmView(a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a])
+            ArmView(
+                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a],
+                tuple(self.guard.state[a].tolist()),
+            )
             for a in self.arm_names
         ]
 
@@ -209,6 +221,10 @@ class CoordinatorNode:
         now = tick / self.scene.control_hz
         self.last_decision_tick = tick
         self.decisions += 1
+        if len(self.arm_names) > 1:  # the cell's closest approach, sampled at the decision rate
+            d, pair = self.guard.min_separation()
+            if d < self.min_separation_m:
+                self.min_separation_m, self.closest_pair = d, pair
         pending = self.ledger.refresh(now)
         if pending:
             for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
@@ -247,7 +263,9 @@ class CoordinatorNode:
                 for t in self.ledger.tasks.values()
             ],
             "decisions": self.decisions,
-            "grants_denied": 0,
+            "grants_denied": self.guard.denied,
+            "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
+            "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "dropped_messages": self.drops.total,
         }
 
@@ -258,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arms", type=int, default=None)
     parser.add_argument("--run", required=True)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
@@ -268,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"coordinator: {exc}", file=sys.stderr)
         return 2
     with open_session(BusEndpoints.from_args(args)) as session:
-        node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep")
+        node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep", allocator=make_allocator(args.allocator, scene))
         try:
             while not stop.should_stop():
                 if not node.poll():

@@ -1,0 +1,70 @@
+"""Allocation: the optimal assignment equals brute force; every allocator obeys reach and one-task-per-station."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from coordinator.allocation import ALLOCATORS, ArmView, CachedReach, PartView, assign_min_cost, make_allocator
+from coordinator.ledger import Ledger
+from robots.frames import yaw_transform
+from robots.registry import get_robot
+from robots.top_down import TopDownIK
+from scenes import load_scene
+
+
+def brute_force(cost: np.ndarray) -> float:
+    """Least total cost over every way to match rows to distinct columns, skipping infinite pairs."""
+    rows, cols = cost.shape
+    best = (0, 0.0)  # (pairs matched, cost): more pairs first, then less cost
+    for k in range(min(rows, cols), 0, -1):
+        for rs in itertools.combinations(range(rows), k):
+            for cs in itertools.permutations(range(cols), k):
+                c = sum(cost[r, q] for r, q in zip(rs, cs))
+                if np.isfinite(c) and (k, -c) > (best[0], -best[1]):
+                    best = (k, c)
+        if best[0] == k:
+            break
+    return best[1]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_optimal_assignment_equals_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    rows, cols = rng.integers(1, 5, size=2)
+    cost = rng.uniform(1, 20, size=(rows, cols))
+    cost[rng.random((rows, cols)) < 0.25] = np.inf  # infeasible pairs
+    pairs = assign_min_cost(cost)
+    assert len({r for r, _ in pairs}) == len(pairs) == len({c for _, c in pairs})
+    assert all(np.isfinite(cost[r, c]) for r, c in pairs)
+    assert sum(cost[r, c] for r, c in pairs) == pytest.approx(brute_force(cost))
+
+
+def test_unknown_allocator_lists_the_valid_ones():
+    with pytest.raises(ValueError, match="valid allocators: optimal, auction, greedy"):
+        make_allocator("fastest", load_scene("assembly_line"))
+
+
+@pytest.fixture(scope="module")
+def sorting_cell():
+    scene = load_scene("sorting_line", arms=3)
+    reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))) for a in scene.arms}
+    return scene, reach
+
+
+@pytest.mark.parametrize("name", list(ALLOCATORS))
+def test_each_allocator_gives_each_part_to_the_arm_whose_bin_takes_its_colour(name, sorting_cell):
+    scene, reach = sorting_cell
+    ledger = Ledger(scene)
+    home = tuple(get_robot("openclaw").home_q)
+    arms = [ArmView(a.name, a.base.xyz, True, reach[a.name], home) for a in scene.arms]
+    parts = {}
+    for pid, (i, colour) in enumerate([(0, 0), (1, 1), (2, 2)]):  # a part in front of each arm, of that arm's colour
+        x = scene.arms[i].base.xyz[0] - 0.09  # 1.5 s upstream at 6 cm/s
+        parts[pid] = PartView(np.array([x, 0.0, 0.095]), np.array([0.06, 0.0, 0.0]))
+        ledger.arrived(pid, "mixed", colour, 1.0)
+    pending = ledger.refresh(1.0)
+    got = dict(make_allocator(name, scene).allocate(pending, arms, parts, set()))
+    assert {ledger.tasks[t].part_id: arm for t, arm in got.items()} == {0: "arm_0", 1: "arm_1", 2: "arm_2"}
+    busy = make_allocator(name, scene).allocate(pending, arms, parts, {"bin_1"})
+    assert all(ledger.tasks[t].target != "bin_1" for t, _ in busy)  # a busy station takes no second task
