@@ -26,6 +26,7 @@ class LinkShape:
     link: str
     geometry: fcl.CollisionGeometry
     transform_shape_to_link: np.ndarray
+    radius_m: float  # a sphere about the shape's origin holding all of it
 
 
 def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
@@ -45,29 +46,32 @@ def _origin(element: ET.Element | None) -> np.ndarray:
     return T
 
 
-def _mesh_geometry(filename: str, scale: list[float]) -> fcl.CollisionGeometry:
+def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeometry, float]:
     import trimesh
 
     mesh = trimesh.load(Path(filename.removeprefix("file://")), force="mesh")
+    vertices = np.asarray(mesh.vertices) * np.asarray(scale)
     bvh = fcl.BVHModel()
-    bvh.beginModel(len(mesh.vertices), len(mesh.faces))
-    bvh.addSubModel(np.asarray(mesh.vertices) * np.asarray(scale), np.asarray(mesh.faces))
+    bvh.beginModel(len(vertices), len(mesh.faces))
+    bvh.addSubModel(vertices, np.asarray(mesh.faces))
     bvh.endModel()
-    return bvh
+    return bvh, float(np.linalg.norm(vertices, axis=1).max())
 
 
-def _geometry(element: ET.Element, inflate_m: float) -> fcl.CollisionGeometry | None:
-    """An FCL geometry for a URDF <geometry> element, grown by `inflate_m` on every side (primitives)."""
+def _geometry(element: ET.Element, inflate_m: float) -> tuple[fcl.CollisionGeometry, float] | None:
+    """An FCL geometry for a URDF <geometry> element (grown by `inflate_m` on every side), and its radius."""
     shape = next(iter(element), None)
     if shape is None:
         return None
     if shape.tag == "box":
         sx, sy, sz = (float(v) + 2 * inflate_m for v in shape.get("size").split())
-        return fcl.Box(sx, sy, sz)
+        return fcl.Box(sx, sy, sz), 0.5 * math.sqrt(sx * sx + sy * sy + sz * sz)
     if shape.tag == "cylinder":
-        return fcl.Cylinder(float(shape.get("radius")) + inflate_m, float(shape.get("length")) + 2 * inflate_m)
+        r, length = float(shape.get("radius")) + inflate_m, float(shape.get("length")) + 2 * inflate_m
+        return fcl.Cylinder(r, length), math.hypot(r, length / 2)
     if shape.tag == "sphere":
-        return fcl.Sphere(float(shape.get("radius")) + inflate_m)
+        r = float(shape.get("radius")) + inflate_m
+        return fcl.Sphere(r), r
     if shape.tag == "mesh":
         scale = [float(v) for v in shape.get("scale", "1 1 1").split()]
         return _mesh_geometry(shape.get("filename"), scale)
@@ -80,9 +84,9 @@ def link_shapes(spec: RobotSpec, inflate_m: float = 0.0) -> list[LinkShape]:
     shapes = []
     for link in root.iter("link"):
         for collision in link.findall("collision"):
-            geometry = _geometry(collision.find("geometry"), inflate_m)
-            if geometry is not None:
-                shapes.append(LinkShape(link.get("name"), geometry, _origin(collision.find("origin"))))
+            found = _geometry(collision.find("geometry"), inflate_m)
+            if found is not None:
+                shapes.append(LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1]))
     return shapes
 
 
@@ -104,7 +108,19 @@ class ArmGeometry:
         self.manager.registerObjects(self.objects)
         self.manager.setup()
         self.q: np.ndarray | None = None
+        self.reach_bound_m = self._reach_bound_m()
         self.place(np.asarray(spec.home_q, float))
+
+    def _reach_bound_m(self, samples: int = 300, seed: int = 0) -> float:
+        """A radius about the base holding every link in any configuration: over random configurations,
+        the farthest shape origin plus that shape's radius, and 5 cm to spare for configurations not drawn."""
+        rng = np.random.default_rng(seed)
+        lower, upper = self.km.lower[self.km.arm_q_index], self.km.upper[self.km.arm_q_index]
+        far = 0.0
+        for _ in range(samples):
+            poses = self.km.frame_poses(self.km.full_q(rng.uniform(lower, upper)), self._frame_ids)
+            far = max(far, max(float(np.linalg.norm((p @ s.transform_shape_to_link)[:3, 3])) + s.radius_m for p, s in zip(poses, self.shapes)))
+        return far + 0.05
 
     def place(self, q_arm: np.ndarray) -> None:
         """Put every link where forward kinematics says it is for these arm joints (gripper closed)."""

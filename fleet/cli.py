@@ -194,6 +194,32 @@ def cmd_bench_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_collision(args: argparse.Namespace) -> int:
+    from coordinator.bench import bench_collision
+
+    table = Table("arms", "full-cell separation (ms)", "with every arm moved (ms)", "grant check, 2 s path (ms)", "samples")
+    rows = [bench_collision(n) for n in args.arms]
+    for r in rows:
+        table.add_row(str(r.arms), f"{r.separation_ms:.3f}", f"{r.place_and_separation_ms:.3f}", f"{r.grant_ms:.2f}", str(r.grant_samples))
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ for r in rows]))
+    return 0
+
+
+def cmd_bench_allocation(args: argparse.Namespace) -> int:
+    from coordinator.bench import bench_allocation
+
+    table = Table("pending tasks", "arms", "optimal assignment (ms)")
+    rows = [bench_allocation(n, args.arms) for n in args.tasks]
+    for r in rows:
+        table.add_row(str(r.tasks), str(r.arms), f"{r.solve_ms:.3f}")
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ for r in rows]))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -250,6 +276,15 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seconds", type=float, default=20.0, help="sim seconds per run")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_run)
+    b = bench.add_parser("collision", help="FCL guard: full-cell separation and one grant check")
+    b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_collision)
+    b = bench.add_parser("allocation", help="optimal assignment for many pending tasks")
+    b.add_argument("--tasks", type=int, nargs="+", default=[10, 100, 1000])
+    b.add_argument("--arms", type=int, default=8)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_allocation)
     return parser
 
 
