@@ -111,3 +111,33 @@ def bench_run(arms: int, sim_seconds: float = 20.0) -> RunRow:
         arms, summary["sim_seconds"], summary["loop_wall_seconds"], raw_physics_seconds(arms, sim_seconds),
         summary["parts_completed"], summary["inter_arm_contacts"], summary["latency_p99_ms"],
     )
+
+
+@dataclass(frozen=True)
+class LineRow:
+    scene: str
+    arms: int
+    allocator: str
+    throughput_per_min: float
+    parts_completed: int
+    parts_spawned: int
+    contacts: int
+    min_separation_m: float | None
+    grants_denied: int
+
+
+def bench_lines(cases: list[tuple[str, int | None]], allocators: list[str], sim_seconds: float, seed: int = 0) -> list[LineRow]:
+    """Lockstep runs of each (scene, arms) with each allocator; figures are per sim time, so load does not move them."""
+    rows = []
+    for scene, arms in cases:
+        for allocator in allocators:
+            options = RunOptions(scene=scene, arms=arms, duration_s=sim_seconds, seed=seed, allocator=allocator, run_id="benchlines")
+            with Launcher(options) as launcher:
+                s = launcher.run()
+            if s["status"] != "ok":
+                raise RuntimeError(f"{scene} with {allocator}: {s['error']}")
+            rows.append(LineRow(
+                s["scene"], s["arms"], allocator, s["throughput_per_min"], s["parts_completed"], s["parts_spawned"],
+                s["inter_arm_contacts"], s["min_separation_m"], s["grants_denied"],
+            ))
+    return rows

@@ -220,6 +220,21 @@ def cmd_bench_allocation(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_lines(args: argparse.Namespace) -> int:
+    from fleet.bench_runtime import bench_lines
+
+    cases = [(c.split(":")[0], int(c.split(":")[1]) if ":" in c else None) for c in args.cases]
+    table = Table("scene", "arms", "allocator", "throughput (/min)", "completed / spawned", "contacts", "min separation (m)", "grants denied")
+    rows = bench_lines(cases, args.allocators, args.seconds, args.seed)
+    for r in rows:
+        sep = "-" if r.min_separation_m is None else f"{r.min_separation_m:.3f}"
+        table.add_row(r.scene, str(r.arms), r.allocator, f"{r.throughput_per_min:.2f}", f"{r.parts_completed} / {r.parts_spawned}", str(r.contacts), sep, str(r.grants_denied))
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ for r in rows]))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -285,6 +300,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--arms", type=int, default=8)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_allocation)
+    b = bench.add_parser("lines", help="throughput, contacts and separation of whole runs per scene and allocator")
+    b.add_argument("--cases", nargs="+", default=["assembly_line", "handover", "pick_cell", "sorting_line:2", "sorting_line:4", "sorting_line:6"],
+                   help="SCENE or SCENE:ARMS")
+    b.add_argument("--allocators", nargs="+", default=["optimal", "auction", "greedy"], choices=("optimal", "auction", "greedy"))
+    b.add_argument("--seconds", type=float, default=120.0, help="sim seconds per run")
+    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_lines)
     return parser
 
 

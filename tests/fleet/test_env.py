@@ -1,0 +1,45 @@
+"""The PettingZoo env passes PettingZoo's own conformance tests, unmodified, and repeats for a seed."""
+
+import numpy as np
+import pytest
+from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test
+
+import fleet.env
+from fleet.env import env, parallel_env
+
+
+def test_parallel_api():
+    parallel_api_test(parallel_env(n_arms=2, max_cycles=60), num_cycles=100)
+
+
+def test_aec_api():
+    api_test(env(n_arms=2, max_cycles=60), num_cycles=100)
+
+
+def test_parallel_seed():
+    parallel_seed_test(lambda: parallel_env(n_arms=2, max_cycles=40), num_cycles=60)
+
+
+def test_max_cycles():
+    max_cycles_test(fleet.env)
+
+
+def test_agents_are_the_arm_ids_and_a_seed_repeats_an_episode():
+    a, b = parallel_env(n_arms=3, max_cycles=30), parallel_env(n_arms=3, max_cycles=30)
+    assert a.possible_agents == ["arm_0", "arm_1", "arm_2"]
+    rng = np.random.default_rng(1)
+    obs_a, _ = a.reset(seed=7)
+    obs_b, _ = b.reset(seed=7)
+    while a.agents:
+        actions = {x: rng.uniform(-1, 1, a.action_space(x).shape).astype(np.float32) for x in a.agents}
+        obs_a, rew_a, *_ = a.step(actions)
+        obs_b, rew_b, *_ = b.step(actions)
+        assert all(np.array_equal(obs_a[x], obs_b[x]) for x in obs_a) and rew_a == rew_b
+    assert a.state().shape == b.state().shape
+
+
+def test_unknown_options_are_refused_with_the_valid_ones():
+    with pytest.raises(ValueError, match="valid: reach"):
+        parallel_env(task="juggle")
+    with pytest.raises(ValueError, match="distributed=True"):
+        parallel_env(distributed=True)
