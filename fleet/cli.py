@@ -235,6 +235,19 @@ def cmd_bench_lines(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_env(args: argparse.Namespace) -> int:
+    from fleet.env.bench import bench_env
+
+    table = Table("arms", "task", "agent-steps/s", "env steps/s", "env time / raw physics")
+    rows = [bench_env(n, args.task, args.steps) for n in args.arms]
+    for r in rows:
+        table.add_row(str(r.arms), r.task, f"{r.agent_steps_per_s:,.0f}", f"{r.steps / r.env_s:,.0f}", f"{r.ratio_to_physics:.2f}")
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ | {"agent_steps_per_s": r.agent_steps_per_s, "ratio_to_physics": r.ratio_to_physics} for r in rows]))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -308,6 +321,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_lines)
+    b = bench.add_parser("env", help="PettingZoo env: agent-steps/s and env time against raw physics")
+    b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
+    b.add_argument("--task", default="reach")
+    b.add_argument("--steps", type=int, default=400)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_env)
     return parser
 
 
