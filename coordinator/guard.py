@@ -100,21 +100,40 @@ class CollisionGuard:
         configurations = configurations or self.state
         for name, q in configurations.items():
             self.arms[name].place(q)
-        names = list(configurations)
-        pairs = []
-        for i, a in enumerate(names):
-            for b in names[i + 1 :]:
-                ga, gb = self.arms[a], self.arms[b]
-                gap = float(np.linalg.norm(ga.base_to_world[:3, 3] - gb.base_to_world[:3, 3])) - _bound_m(ga) - _bound_m(gb)
-                pairs.append((gap, a, b))
         best, pair = math.inf, None
-        for gap, a, b in sorted(pairs):
+        for gap, a, b in self._pairs_by_gap():
+            if a not in configurations or b not in configurations:
+                continue
             if gap >= best:
                 break
             d = separation_m(self.arms[a], self.arms[b])
             if d < best:
                 best, pair = d, (a, b)
         return best, pair
+
+    def nearest_other_m(self) -> dict[str, float]:
+        """Each arm's distance to its nearest other arm, at the current states; every pair measured once."""
+        for name, q in self.state.items():
+            self.arms[name].place(q)
+        out = {name: math.inf for name in self.arms}
+        for gap, a, b in self._pairs_by_gap():
+            if gap >= max(out[a], out[b]):
+                continue  # cannot be nearer than what both already have
+            d = separation_m(self.arms[a], self.arms[b])
+            out[a], out[b] = min(out[a], d), min(out[b], d)
+        return out
+
+    def _pairs_by_gap(self) -> list[tuple[float, str, str]]:
+        """Every pair of arms with a lower bound on their distance (bases apart minus both reach bounds), nearest first."""
+        if not hasattr(self, "_pairs"):
+            names = list(self.arms)
+            pairs = []
+            for i, a in enumerate(names):
+                for b in names[i + 1 :]:
+                    ga, gb = self.arms[a], self.arms[b]
+                    pairs.append((float(np.linalg.norm(ga.base_to_world[:3, 3] - gb.base_to_world[:3, 3])) - _bound_m(ga) - _bound_m(gb), a, b))
+            self._pairs = sorted(pairs)
+        return self._pairs
 
     def _where(self, arm: str, t_s: float) -> np.ndarray:
         path = self.grants.get(arm)

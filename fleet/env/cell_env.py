@@ -35,7 +35,7 @@ SUCCESS_M = 0.03
 OBS_LIMIT = 100.0  # joint velocities are clipped here; positions and angles never come near
 TARGET_ORBIT_M = 0.05
 TARGET_RAD_PER_S = 0.5
-PHYSICS_HZ_FOR_TASK = {"reach": 200.0}  # reaching needs no grasp-grade contact resolution
+PHYSICS_HZ_FOR_TASK = {"reach": 100.0}  # reaching needs no grasp-grade contact resolution
 
 
 class CellParallelEnv(ParallelEnv):
@@ -164,12 +164,7 @@ class CellParallelEnv(ParallelEnv):
             return {a: math.inf for a in self.possible_agents}
         for a in self.possible_agents:
             self.guard.set_state(a, self.world.arms[a].qpos()[: self._dof[a]])
-        out = {}
-        for a in self.possible_agents:
-            others = {b: self.guard.state[b] for b in self.possible_agents}
-            d = min(self.guard.min_separation({a: others[a], b: others[b]})[0] for b in self.possible_agents if b != a)
-            out[a] = d
-        return out
+        return self.guard.nearest_other_m()
 
     def _observe(self, separation: dict[str, float] | None = None) -> dict[str, np.ndarray]:
         separation = separation or self._separations()
