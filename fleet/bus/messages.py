@@ -26,7 +26,8 @@ class ArmState(Message, frozen=True, array_like=True):
     `task_id`, `skill` and `progress` echo the command applied last, so the coordinator
     learns what each arm does in step with the sim clock. `assign_seq` is the newest
     assignment the coordinator had published to this arm when this tick began: a controller
-    acts on this state only once it has that assignment (lockstep; 0 in realtime).
+    acts on an assignment at the first state announcing it (lockstep with a coordinator; -1
+    otherwise: act on arrival).
     `held` is true while the arm is held (e-stop, watchdog, lost controller); `lost` once
     its controller went silent in lockstep.
     """
@@ -91,6 +92,7 @@ class PartsState(Message, frozen=True, array_like=True):
     quaternions_wxyz: Floats
     velocities: Floats
     sizes_m: Floats
+    events_published: int = 0  # line events the sim had published up to this tick: a reader knows if one is still on its way
     version: int = PROTOCOL_VERSION
 
 

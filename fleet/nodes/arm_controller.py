@@ -75,6 +75,8 @@ class ArmController:
         self._cmd_pub = session.declare_publisher(keys.arm_cmd(arm))
         self._status_pub = session.declare_publisher(keys.arm_status(arm))
         self.parts: dict[int, PartObservation] = {}
+        self.parts_tick = -1
+        self.received: list[Assignment] = []  # assignments in, not yet acted on
         self.pending: Assignment | None = None
         self.task_id: int | None = None
         self.hold_q: np.ndarray | None = None
@@ -99,6 +101,7 @@ class ArmController:
         return latest
 
     def _take_assignments(self) -> None:
+        """Queue what arrived; `_apply_assignments` acts on it when a state says its time has come."""
         for key, payload in self._inboxes["assign"].drain():
             msg = self._decoders["assign"].decode(key, payload)
             if msg is None or msg.arm != self.arm:
@@ -106,12 +109,29 @@ class ArmController:
             if self.assign_seq is not None and msg.seq <= self.assign_seq:
                 continue
             self.assign_seq = msg.seq
+            self.received.append(msg)
+
+    def _apply_assignments(self, announced_seq: int) -> None:
+        """Act on received assignments up to `announced_seq`; on all of them when the sim announces none (-1)."""
+        while self.received and (announced_seq < 0 or self.received[0].seq <= announced_seq):
+            msg = self.received.pop(0)
             if msg.task_id is None:  # cancelled: stop where we are
                 self.pending = None
                 if self.skill.active:
                     self.skill.cancel("cancelled by the coordinator")
             else:
                 self.pending = msg
+
+    def _parts_for_tick(self, tick: int) -> None:
+        """The parts as of `tick`: they travel apart from the arm's state, so wait (briefly) for that tick's message."""
+        deadline = time.monotonic() + ASSIGNMENT_WAIT_S
+        while True:
+            parts = self._latest("parts")
+            if parts is not None:
+                self.parts, self.parts_tick = parts_from_message(parts), parts.tick
+            if self.parts_tick >= tick or time.monotonic() > deadline:
+                return
+            self._inboxes["parts"].wait(0.01)
 
     def _await_assignment(self, seq: int) -> None:
         """Lockstep: the state says assignment `seq` was out before this tick; wait until it is here."""
@@ -127,20 +147,19 @@ class ArmController:
         """Handle what arrived; answer the newest state if there is one. True when a command was sent."""
         state = self._latest("state")
         self._take_assignments()
+        if state is None:
+            return False
+        if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
+            self.assign_seq = max(0, state.assign_seq)
+        elif state.assign_seq > self.assign_seq:
+            self._await_assignment(state.assign_seq)
+        self._apply_assignments(state.assign_seq)
         if self.skill.active or self.pending is not None:  # only a task needs the parts: skip decoding otherwise
-            parts = self._latest("parts")
-            if parts is not None:
-                self.parts = parts_from_message(parts)
+            self._parts_for_tick(state.tick)
         else:
             raw = self._inboxes["parts"].drain()
             if raw:
                 self._inboxes["parts"].items.append(raw[-1])  # keep the newest for when a task comes
-        if state is None:
-            return False
-        if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
-            self.assign_seq = max(self.assign_seq or 0, state.assign_seq)
-        elif state.assign_seq > self.assign_seq:
-            self._await_assignment(state.assign_seq)
         n = self.spec.arm_dof
         obs = ArmObservation(state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q))
         if self.hold_q is None:

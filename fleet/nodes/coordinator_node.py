@@ -41,7 +41,8 @@ from scenes.schema import Scene
 COORD_RATE_HZ = 10.0
 PROGRESS_PERIOD_S = 0.5
 IDLE_SKILLS = ("idle", "done", "failed")
-REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot for an unlucky start
+REACH_IK = IKOptions(restarts=8)
+DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
 
 
 class CoordinatorNode:
@@ -98,6 +99,8 @@ class CoordinatorNode:
         self.last_decision_tick = -10**9
         self.decisions = 0
         self._progress_at = 0.0
+        self.events_seen = 0
+        self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
 
     def close(self) -> None:
         for sub in self._subs:
@@ -134,11 +137,13 @@ class CoordinatorNode:
             else:
                 self._on_parts(msg)
         self._check_heartbeats()
+        self._decide_when_complete()
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)
 
     def _on_event(self, e: LineEvent) -> None:
+        self.events_seen += 1
         now = e.tick / self.scene.control_hz
         if e.kind == "arrived":
             self.ledger.arrived(e.part_id, e.detail, e.type_index, now)
@@ -179,7 +184,21 @@ class CoordinatorNode:
         }
         due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - self.last_decision_tick >= self.period_ticks
         if due:
-            self.decide(p.tick)
+            self._due = (p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
+
+    def _decide_when_complete(self) -> None:
+        """Decide for the due tick once every live arm's state of that tick and every event before it are in.
+
+        Samples on different keys may arrive in either order; waiting for them is what makes
+        a lockstep run repeat exactly.
+        """
+        if self._due is None:
+            return
+        tick, events, deadline = self._due
+        complete = self.events_seen >= events and all(self.last_tick[a] >= tick for a in self.arm_names if a not in self.lost)
+        if complete or time.monotonic() > deadline:
+            self._due = None
+            self.decide(tick)
 
     def _check_heartbeats(self) -> None:
         now = time.monotonic()

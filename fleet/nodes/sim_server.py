@@ -212,7 +212,7 @@ class SimServer:
                 name, w.tick, w.sim_time_s, tuple(q[:n].tolist()), tuple(dq[:n].tolist()), tuple(q[n:].tolist()),
                 tuple(map(float, tool.p)), tuple(map(float, tool.q)), self._held(link), link.lost,
                 cmd.task_id if cmd else None, cmd.skill if cmd else "idle", cmd.progress if cmd else 0.0,
-                self.assign_seqs[name], cmd.failure if cmd else "",
+                self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1, cmd.failure if cmd else "",
             )
             self._state_pubs[name].put(encode(msg))
         parts = w.active_parts()
@@ -221,7 +221,7 @@ class SimServer:
             tuple(p.type_index for p in parts),
             tuple(float(v) for p in parts for v in p.position), tuple(float(v) for p in parts for v in p.quaternion_wxyz),
             tuple(float(v) for p in parts for v in p.velocity),
-            tuple(float(v) for p in parts for v in p.size_m),
+            tuple(float(v) for p in parts for v in p.size_m), sum(self.events_published.values()),
         )))
 
     def _apply_commands(self) -> None:
