@@ -28,8 +28,9 @@ def start_controller(endpoint: str) -> subprocess.Popen:
     )
 
 
-def test_controller_process_never_imports_the_simulator():
-    code = "import sys, fleet.nodes.arm_controller; assert 'sapien' not in sys.modules"
+@pytest.mark.parametrize("node", ["fleet.nodes.arm_controller", "fleet.nodes.coordinator_node"])
+def test_controller_and_coordinator_processes_never_import_the_simulator(node):
+    code = f"import sys, {node}; assert 'sapien' not in sys.modules"
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
