@@ -7,7 +7,9 @@ guard (python-fcl), contacts from the physics. Episodes end by truncation at
 first snapshot and draws the targets from the seed, so a seed repeats an episode.
 
 Implemented so far: task `reach` (each arm's claw to its own moving target) with
-action mode `joint_delta` (joint target steps plus a gripper command).
+action modes `joint_delta` (joint target steps) and `ee_delta` (a Cartesian step
+of the claw in the world frame, turned into joint steps by damped least squares
+on Pinocchio's Jacobian), each plus a gripper command.
 """
 
 from __future__ import annotations
@@ -24,13 +26,16 @@ from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
 from fleet.physics.render import require_render
 from fleet.physics.world import World
 from robots.frames import yaw_transform
+from robots.kinematics import KinematicModel
 from scenes.loader import load_scene
 from scenes.schema import Arrival
 
 TASKS = ("reach",)
-ACTION_MODES = ("joint_delta",)
+ACTION_MODES = ("joint_delta", "ee_delta")
 RENDER_MODES = ("rgb_array",)
 MAX_DELTA_RAD = 0.05  # per step at full action
+MAX_EE_STEP_M = 0.01  # ee_delta: the claw's step per control tick at full action
+EE_DAMPING = 1e-3
 SUCCESS_M = 0.03
 OBS_LIMIT = 100.0  # joint velocities are clipped here; positions and angles never come near
 TARGET_ORBIT_M = 0.05
@@ -79,6 +84,8 @@ class CellParallelEnv(ParallelEnv):
             a.name: ArmGeometry(a.name, self.world.arms[a.name].spec, yaw_transform(a.base.xyz, a.base.yaw_rad)) for a in self.scene.arms
         })
         self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
+        self._kinematics = {a: KinematicModel(self.world.arms[a].spec) for a in self.possible_agents}
+        self._base_rotation = {a.name: yaw_transform(a.base.xyz, a.base.yaw_rad)[:3, :3] for a in self.scene.arms}
         self._limits = {a: self.world.arms[a].joint_limits() for a in self.possible_agents}
         self._bases = {a.name: a for a in self.scene.arms}
         self.np_random = np.random.default_rng()
@@ -93,7 +100,8 @@ class CellParallelEnv(ParallelEnv):
 
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent: str) -> gymnasium.spaces.Box:
-        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self._dof[agent] + 1,), dtype=np.float32)
+        size = (3 if self.action_mode == "ee_delta" else self._dof[agent]) + 1
+        return gymnasium.spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
 
     # --- episode ------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -120,11 +128,11 @@ class CellParallelEnv(ParallelEnv):
 
     def step(self, actions: dict[str, np.ndarray]):
         for a in self.agents:
-            action = np.clip(np.asarray(actions.get(a, np.zeros(self._dof[a] + 1)), float), -1.0, 1.0)
+            action = np.clip(np.asarray(actions.get(a, np.zeros(self.action_space(a).shape)), float), -1.0, 1.0)
             lower, upper = self._limits[a]
             n = self._dof[a]
-            self._targets_q[a] = np.clip(self._targets_q[a] + action[:n] * MAX_DELTA_RAD, lower[:n], upper[:n])
-            self._opening[a] = (action[n] + 1.0) / 2.0
+            self._targets_q[a] = np.clip(self._targets_q[a] + self._joint_step(a, action[:-1]), lower[:n], upper[:n])
+            self._opening[a] = (action[-1] + 1.0) / 2.0
             arm = self.world.arms[a]
             arm.set_targets(self._targets_q[a], np.zeros(n), arm.spec.gripper_targets(self._opening[a]))
         self.world.step()
@@ -153,6 +161,15 @@ class CellParallelEnv(ParallelEnv):
         if done:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
+
+    def _joint_step(self, agent: str, action: np.ndarray) -> np.ndarray:
+        """Joint target change for one action: direct, or from a claw step by damped least squares."""
+        if self.action_mode == "joint_delta":
+            return action * MAX_DELTA_RAD
+        km = self._kinematics[agent]
+        step_base = self._base_rotation[agent].T @ (action * MAX_EE_STEP_M)  # world -> base frame
+        jacobian = km.frame_jacobian(km.full_q(self._targets_q[agent]))[:3, km.arm_q_index]
+        return jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + EE_DAMPING * np.eye(3), step_base)
 
     # --- observations -----------------------------------------------------------------
     def _tool(self, agent: str) -> np.ndarray:

@@ -8,16 +8,34 @@ import fleet.env
 from fleet.env import env, parallel_env
 
 
-def test_parallel_api():
-    parallel_api_test(parallel_env(n_arms=2, max_cycles=60), num_cycles=100)
+MODES = ["joint_delta", "ee_delta"]
 
 
-def test_aec_api():
-    api_test(env(n_arms=2, max_cycles=60), num_cycles=100)
+@pytest.mark.parametrize("mode", MODES)
+def test_parallel_api(mode):
+    parallel_api_test(parallel_env(n_arms=2, max_cycles=60, action_mode=mode), num_cycles=100)
 
 
-def test_parallel_seed():
-    parallel_seed_test(lambda: parallel_env(n_arms=2, max_cycles=40), num_cycles=60)
+@pytest.mark.parametrize("mode", MODES)
+def test_aec_api(mode):
+    api_test(env(n_arms=2, max_cycles=60, action_mode=mode), num_cycles=100)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_parallel_seed(mode):
+    parallel_seed_test(lambda: parallel_env(n_arms=2, max_cycles=40, action_mode=mode), num_cycles=60)
+
+
+def test_ee_delta_moves_the_claw_the_way_it_is_told():
+    penv = parallel_env(n_arms=1, max_cycles=100, action_mode="ee_delta")
+    penv.reset(seed=0)
+    start = penv._tool("arm_0").copy()
+    up = np.array([0.0, 0.0, 1.0, 1.0], np.float32)  # claw up at full speed, gripper open
+    for _ in range(10):
+        penv.step({"arm_0": up})
+    moved = penv._tool("arm_0") - start
+    assert moved[2] > 0.06  # about 10 steps x 1 cm, less the drives' lag
+    assert np.linalg.norm(moved[:2]) < 0.02
 
 
 def test_max_cycles():
