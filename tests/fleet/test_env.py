@@ -2,28 +2,17 @@
 
 import numpy as np
 import pytest
-from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test
+from pettingzoo.test import max_cycles_test
 
 import fleet.env
-from fleet.env import env, parallel_env
+from fleet.env import conformance, parallel_env
+from fleet.env.cell_env import ACTION_MODES, TASKS
 
 
-MODES = ["joint_delta", "ee_delta"]
-
-
-@pytest.mark.parametrize("mode", MODES)
-def test_parallel_api(mode):
-    parallel_api_test(parallel_env(n_arms=2, max_cycles=60, action_mode=mode), num_cycles=100)
-
-
-@pytest.mark.parametrize("mode", MODES)
-def test_aec_api(mode):
-    api_test(env(n_arms=2, max_cycles=60, action_mode=mode), num_cycles=100)
-
-
-@pytest.mark.parametrize("mode", MODES)
-def test_parallel_seed(mode):
-    parallel_seed_test(lambda: parallel_env(n_arms=2, max_cycles=40, action_mode=mode), num_cycles=60)
+@pytest.mark.parametrize("task", TASKS)
+@pytest.mark.parametrize("mode", ACTION_MODES)
+def test_pettingzoo_parallel_aec_and_seed_tests_pass(task, mode):
+    conformance.check(task, mode)
 
 
 def test_ee_delta_moves_the_claw_the_way_it_is_told():
