@@ -11,6 +11,7 @@ spot of belt.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -159,6 +160,28 @@ def _candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: se
     return [t for t in sorted(tasks, key=lambda t: (t.created_s, t.task_id)) if t.part_id in parts and not busy_stations.intersection(t.stations)]
 
 
+def one_task_at_a_time(
+    tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str],
+    score: Callable[[ArmView, Task, PartView], float],
+) -> list[tuple[int, str]]:
+    """Oldest task first, each to the free arm with the lowest score (infinite: cannot serve); one task per station."""
+    free = [a for a in arms if a.free]
+    busy, out = set(busy_stations), []
+    for task in _candidates(tasks, parts, busy_stations):
+        if not free:
+            break
+        if busy.intersection(task.stations):
+            continue
+        part = parts[task.part_id]
+        value, _, arm = min(((score(a, task, part), a.name, a) for a in free), key=lambda b: (b[0], b[1]))
+        if not math.isfinite(value):
+            continue
+        out.append((task.task_id, arm.name))
+        free.remove(arm)
+        busy.update(task.stations)
+    return out
+
+
 class GreedyNearest:
     """The baseline: oldest task first, each to the nearest free arm that can serve it."""
 
@@ -169,21 +192,11 @@ class GreedyNearest:
 
     def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
         rules = Eligibility(self.scene, arms)
-        free = [a for a in arms if a.free]
-        busy = set(busy_stations)
-        out = []
-        for task in _candidates(tasks, parts, busy_stations):
-            part = parts[task.part_id]
-            if busy.intersection(task.stations):
-                continue
-            options = [a for a in free if rules.can_serve(a, task, part)]
-            if not options:
-                continue
-            arm = min(options, key=lambda a: (rules.cost_m(a, task, part), a.name))
-            out.append((task.task_id, arm.name))
-            free.remove(arm)
-            busy.update(task.stations)
-        return out
+
+        def distance(arm: ArmView, task: Task, part: PartView) -> float:
+            return rules.cost_m(arm, task, part) if rules.can_serve(arm, task, part) else math.inf
+
+        return one_task_at_a_time(tasks, arms, parts, busy_stations, distance)
 
 
 class OptimalAssignment:
@@ -222,23 +235,7 @@ class Auction:
         self.scene = scene
 
     def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
-        rules = Eligibility(self.scene, arms)
-        cost_of = TimeCost(rules)
-        free = [a for a in arms if a.free]
-        busy, out = set(busy_stations), []
-        for task in _candidates(tasks, parts, busy_stations):
-            if not free:
-                break
-            if busy.intersection(task.stations):
-                continue
-            bids = [(cost_of(a, task, parts[task.part_id]), a.name, a) for a in free]
-            best = min(bids, key=lambda b: (b[0], b[1]))
-            if not math.isfinite(best[0]):
-                continue
-            out.append((task.task_id, best[2].name))
-            free.remove(best[2])
-            busy.update(task.stations)
-        return out
+        return one_task_at_a_time(tasks, arms, parts, busy_stations, TimeCost(Eligibility(self.scene, arms)))
 
 
 ALLOCATORS: dict[str, type] = {"optimal": OptimalAssignment, "auction": Auction, "greedy": GreedyNearest}

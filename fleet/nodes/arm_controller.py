@@ -25,12 +25,12 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmCommandMsg, ArmState, ArmStatus, Assignment, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.nodes.lifecycle import StopFlag, write_report
+from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
 from robots.skills.pick_place import PickPlaceSkill
-from scenes.loader import load_scene
+from scenes.schema import Scene
 
 HEARTBEAT_TICKS = 10
 ASSIGNMENT_WAIT_S = 0.5
@@ -51,8 +51,7 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
 class ArmController:
     """One arm's bridge (skill state machine) and cerebellum (its joint targets) on the bus."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene_name: str, arms: int | None = None) -> None:
-        scene = load_scene(scene_name, arms=arms)
+    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene) -> None:
         decl = next((a for a in scene.arms if a.name == arm), None)
         if decl is None:
             raise SystemExit(f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}")
@@ -200,19 +199,20 @@ class ArmController:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-arm-controller", description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", required=True)
-    parser.add_argument("--arms", type=int, default=None)
+    add_scene_arguments(parser)
     parser.add_argument("--arm", required=True)
-    parser.add_argument("--run", required=True)
     parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
     stop = StopFlag()
+    scene = load_node_scene(args, "arm_controller")
+    if scene is None:
+        return 2
     if args.rt:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
-        controller = ArmController(session, Keys(args.run), args.arm, args.scene, args.arms)
+        controller = ArmController(session, Keys(args.run), args.arm, scene)
         last_beat = time.monotonic()
         try:
             while not stop.should_stop():

@@ -30,12 +30,11 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, PartsState, Progress
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.nodes.lifecycle import StopFlag, write_report
+from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
 from robots.frames import yaw_transform
 from robots.ik import IKOptions
 from robots.registry import get_robot
 from robots.top_down import TopDownIK
-from scenes.loader import SceneError, load_scene
 from scenes.schema import Scene
 
 COORD_RATE_HZ = 10.0
@@ -291,19 +290,15 @@ class CoordinatorNode:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-coordinator", description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="assembly_line")
-    parser.add_argument("--arms", type=int, default=None)
-    parser.add_argument("--run", required=True)
+    add_scene_arguments(parser)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
     stop = StopFlag()
-    try:
-        scene = load_scene(args.scene, arms=args.arms)
-    except SceneError as exc:
-        print(f"coordinator: {exc}", file=sys.stderr)
+    scene = load_node_scene(args, "coordinator")
+    if scene is None:
         return 2
     with open_session(BusEndpoints.from_args(args)) as session:
         node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep", allocator=make_allocator(args.allocator, scene))

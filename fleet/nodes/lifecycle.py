@@ -8,12 +8,16 @@ parent change within one loop.
 
 from __future__ import annotations
 
+import argparse
 import ctypes
 import json
 import os
 import signal
 import sys
 from pathlib import Path
+
+from scenes.loader import SceneError, load_scene
+from scenes.schema import Scene
 
 PR_SET_PDEATHSIG = 1
 
@@ -39,6 +43,22 @@ class StopFlag:
         if not self.reason and self._parent is not None and os.getppid() != self._parent:
             self.reason = "parent exited"
         return bool(self.reason)
+
+
+def add_scene_arguments(parser: argparse.ArgumentParser, run_required: bool = True) -> None:
+    """The scene and run flags every node takes."""
+    parser.add_argument("--scene", default="assembly_line", help="bundled scene name or scene file")
+    parser.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    parser.add_argument("--run", required=run_required, help="run id: keeps several lines on one Zenoh network apart")
+
+
+def load_node_scene(args: argparse.Namespace, prog: str) -> Scene | None:
+    """The node's scene, or None after printing one line naming the file, field and reason."""
+    try:
+        return load_scene(args.scene, arms=args.arms)
+    except SceneError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return None
 
 
 def write_text_atomically(path: str, text: str) -> None:

@@ -30,9 +30,8 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
-from fleet.nodes.lifecycle import StopFlag, write_report, write_text_atomically
+from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report, write_text_atomically
 from fleet.physics.world import World
-from scenes.loader import SceneError, load_scene
 
 COORD_RATE_HZ = 10.0
 IDLE_SKILLS = ("idle", "done", "failed")
@@ -317,9 +316,7 @@ class SimServer:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-sim-server", description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="assembly_line")
-    parser.add_argument("--arms", type=int, default=None)
-    parser.add_argument("--run", required=True)
+    add_scene_arguments(parser)
     parser.add_argument("--duration", type=float, default=120.0, help="sim seconds")
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--speed", type=float, default=1.0)
@@ -331,10 +328,8 @@ def main(argv: list[str] | None = None) -> int:
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
     stop = StopFlag()
-    try:
-        scene = load_scene(args.scene, arms=args.arms)
-    except SceneError as exc:
-        print(f"sim_server: {exc}", file=sys.stderr)
+    scene = load_node_scene(args, "sim_server")
+    if scene is None:
         return 2
     if args.seed is not None:
         scene = scene.model_copy(update={"seed": args.seed})
