@@ -94,6 +94,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SystemExit("fleet: error: --duration must be positive")
     if args.speed <= 0:
         raise SystemExit("fleet: error: --speed must be positive")
+    load_scene(args.scene, arms=args.arms, robots=robot_facts())  # a bad scene: one line, before anything starts
     options = RunOptions(
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
         respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,

@@ -51,3 +51,16 @@ def test_trials_json_last_line():
     assert set(summary) == {"robot", "trials", "successes", "success_rate"}
     assert summary["trials"] == 2 and summary["robot"] == "openclaw"
     assert summary["successes"] == 2
+
+
+@pytest.mark.parametrize("args, says", [
+    (["run", "no_such_scene"], "no such scene"),
+    (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
+    (["run", "--allocator", "fastest"], "invalid choice"),
+])
+def test_run_refuses_bad_input_with_one_line_and_starts_nothing(args, says):
+    result = fleet(*args)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert says in lines[-1] and "Traceback" not in result.stderr
+    assert "sim" not in result.stderr.split("error")[0]  # no progress bar: nothing was started
