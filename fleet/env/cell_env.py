@@ -139,14 +139,13 @@ class CellParallelEnv(ParallelEnv):
         self.cycles += 1
         touching = {name for pair in self.world.inter_arm_contacts() for name in pair}
         separation = self._separations()
+        tools = self._tools()
         rewards, infos = {}, {}
-        successes = {}
-        for a in self.agents:
-            distance = float(np.linalg.norm(self._tool(a) - self.target(a)))
-            successes[a] = distance < SUCCESS_M
+        distances = {a: float(np.linalg.norm(tools[a] - self.target(a))) for a in self.agents}
+        successes = {a: d < SUCCESS_M for a, d in distances.items()}
         team = sum(successes.values()) / max(1, len(self.agents))
         for a in self.agents:
-            distance = float(np.linalg.norm(self._tool(a) - self.target(a)))
+            distance = distances[a]
             action = np.asarray(actions.get(a, 0.0), float)
             near_miss = separation[a] < DEFAULT_MARGIN_M
             rewards[a] = float(
@@ -157,7 +156,7 @@ class CellParallelEnv(ParallelEnv):
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}
         truncations = {a: done for a in self.agents}
-        observations = self._observe(separation)
+        observations = self._observe(separation, tools)
         if done:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
@@ -183,9 +182,13 @@ class CellParallelEnv(ParallelEnv):
             self.guard.set_state(a, self.world.arms[a].qpos()[: self._dof[a]])
         return self.guard.nearest_other_m()
 
-    def _observe(self, separation: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+    def _tools(self) -> dict[str, np.ndarray]:
+        """Every arm's claw position now (world frame)."""
+        return {a: self._tool(a) for a in self.possible_agents}
+
+    def _observe(self, separation: dict[str, float] | None = None, tools: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
         separation = separation or self._separations()
-        tools = {a: self._tool(a) for a in self.possible_agents}
+        tools = tools or self._tools()
         out = {}
         for a in self.agents:
             arm = self.world.arms[a]

@@ -31,7 +31,7 @@ from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEv
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report, write_text_atomically
-from fleet.physics.world import World
+from fleet.physics.world import PartInfo, World
 
 COORD_RATE_HZ = 10.0
 IDLE_SKILLS = ("idle", "done", "failed")
@@ -188,17 +188,25 @@ class SimServer:
             self._cmd_inbox.wait(0.01)
 
     # --- one tick -------------------------------------------------------------------
-    def _held(self, link: ArmLink) -> bool:
-        stale = link.last_cmd is None or self.world.sim_time_s - link.last_cmd_time_s > self.watchdog_s + 1e-9
-        return self.estop or link.lost or stale
+    def _stale(self, link: ArmLink) -> bool:
+        """No command, or the newest is older than the watchdog limit (sim time)."""
+        return link.last_cmd is None or self.world.sim_time_s - link.last_cmd_time_s > self.watchdog_s + 1e-9
 
-    def publish_events(self) -> None:
-        """This tick's line events (parts arrived, resting at a station, lost, retired), before the states."""
-        for e in self.watcher.update(self.world, self.world.active_parts()):
+    def _held(self, link: ArmLink) -> bool:
+        return self.estop or link.lost or self._stale(link)
+
+    def publish_events(self, parts: list[PartInfo]) -> bool:
+        """This tick's line events (parts arrived, resting at a station, lost, retired), before the states.
+        True when some part left the stage (lost or retired), so `parts` is out of date."""
+        left = False
+        for e in self.watcher.update(self.world, parts):
             self.events_published[e.kind] += 1
             self._events_pub.put(encode(LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)))
+            left = left or e.kind in ("lost", "retired")
+        return left
 
-    def publish_state(self) -> None:
+    def publish_state(self, parts: list[PartInfo] | None = None) -> None:
+        """Every arm's state, then the parts (`parts`: the tick's active parts, if already at hand)."""
         w = self.world
         self._published_at[w.tick] = time.monotonic()
         self._published_at.pop(w.tick - 256, None)
@@ -214,7 +222,7 @@ class SimServer:
                 self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1, cmd.failure if cmd else "",
             )
             self._state_pubs[name].put(encode(msg))
-        parts = w.active_parts()
+        parts = w.active_parts() if parts is None else parts
         self._parts_pub.put(encode(PartsState(
             w.tick, w.sim_time_s, tuple(p.part_id for p in parts), tuple(p.feeder for p in parts),
             tuple(p.type_index for p in parts),
@@ -224,13 +232,11 @@ class SimServer:
         )))
 
     def _apply_commands(self) -> None:
-        now = self.world.sim_time_s
         for name, link in self.links.items():
             arm = self.world.arms[name]
             n = arm.spec.arm_dof
-            stale = link.last_cmd is None or now - link.last_cmd_time_s > self.watchdog_s + 1e-9
             if self._held(link):
-                if stale and not (self.estop or link.lost):
+                if not (self.estop or link.lost):  # held for no other reason than a stale command
                     self.stats.watchdog_holds[name] += 1
                 hold = arm.qpos()
                 arm.set_targets(hold[:n], np.zeros(n), arm.drive_targets()[n:])
@@ -249,8 +255,10 @@ class SimServer:
         """Publish events and states, gather commands (waiting in lockstep), apply them, step physics."""
         clock = self.stats.wall_s
         t0 = time.perf_counter()
-        self.publish_events()
-        self.publish_state()
+        parts = self.world.active_parts()
+        if self.publish_events(parts):
+            parts = self.world.active_parts()  # parts lost or retired just now are off the stage
+        self.publish_state(parts)
         t1 = time.perf_counter()
         if self.mode == "lockstep" or self.world.tick == 0:  # realtime too waits once, for every process to start
             self._wait_for_commands()
