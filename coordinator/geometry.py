@@ -139,3 +139,11 @@ def separation_m(a: ArmGeometry, b: ArmGeometry) -> float:
     data = fcl.DistanceData()
     a.manager.distance(b.manager, data, fcl.defaultDistanceCallback)
     return float(data.result.min_distance)
+
+
+def closest_points(a: ArmGeometry, b: ArmGeometry) -> tuple[float, np.ndarray, np.ndarray]:
+    """The distance between two arms as placed and the nearest point of each (world frame, metres)."""
+    data = fcl.DistanceData(request=fcl.DistanceRequest(enable_nearest_points=True))
+    a.manager.distance(b.manager, data, fcl.defaultDistanceCallback)
+    p_a, p_b = data.result.nearest_points
+    return float(data.result.min_distance), np.asarray(p_a, float), np.asarray(p_b, float)

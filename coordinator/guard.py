@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, separation_m
+from coordinator.geometry import ArmGeometry, closest_points, separation_m
 
 DEFAULT_MARGIN_M = 0.02
 
@@ -52,6 +52,17 @@ class TimedPath:
     @property
     def joint_travel_rad(self) -> float:
         return float(np.abs(np.asarray(self.q_to) - np.asarray(self.q_from)).sum())
+
+
+@dataclass(frozen=True)
+class NearestPair:
+    """Two arms, their distance and closest points (world frame): `a`'s nearest other arm is `b` or the reverse."""
+
+    a: str
+    b: str
+    distance_m: float
+    point_a: np.ndarray
+    point_b: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -122,6 +133,18 @@ class CollisionGuard:
             d = separation_m(self.arms[a], self.arms[b])
             out[a], out[b] = min(out[a], d), min(out[b], d)
         return out
+
+    def nearest_pairs(self) -> list[NearestPair]:
+        """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among them."""
+        nearest = self.nearest_other_m()
+        out: dict[tuple[str, str], NearestPair] = {}
+        for gap, a, b in self._pairs_by_gap():
+            if (a, b) in out or gap > max(nearest[a], nearest[b]) + 1e-9:
+                continue
+            d, p_a, p_b = closest_points(self.arms[a], self.arms[b])
+            if abs(d - nearest[a]) < 1e-9 or abs(d - nearest[b]) < 1e-9:
+                out[(a, b)] = NearestPair(a, b, d, p_a, p_b)
+        return sorted(out.values(), key=lambda p: p.distance_m)
 
     def _pairs_by_gap(self) -> list[tuple[float, str, str]]:
         """Every pair of arms with a lower bound on their distance (bases apart minus both reach bounds), nearest first."""

@@ -17,6 +17,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from fleet.bus.session import add_bus_arguments
+from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
 from scenes.loader import RobotFacts, SceneError, bundled_scene_names, load_scene
 
@@ -99,7 +100,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
         respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
         listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
+        monitor=args.monitor, monitor_host=args.host, monitor_port=args.port,
     )
+    if args.monitor:
+        warning = exposure_warning(args.host)
+        if warning:
+            err.print(warning, style="bold yellow", markup=False, highlight=False)
     with Progress(
         TextColumn("[bold]{task.fields[scene]}"), BarColumn(), TextColumn("sim {task.completed:.1f}/{task.total:.0f} s"),
         TextColumn("parts {task.fields[done]}/{task.fields[spawned]} done, {task.fields[rate]:.1f}/min"),
@@ -111,7 +117,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             rate = p.parts_completed / (p.sim_time_s / 60) if p.sim_time_s > 0 else 0.0
             progress.update(bar, completed=p.sim_time_s, done=p.parts_completed, spawned=p.parts_spawned, rate=rate)
 
-        with Launcher(options, on_progress) as launcher:
+        with Launcher(options, on_progress, on_message=lambda text: progress.console.print(text, markup=False, highlight=False)) as launcher:
+            progress.console.print(f"bus: {launcher.endpoint} (watch it: fleet monitor --connect {launcher.endpoint} --run {args.run_id})", markup=False, highlight=False)
             summary = launcher.run()
             if args.keep_logs:
                 err.print(f"logs and reports kept in {launcher.dir}")
@@ -125,6 +132,19 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"fleet: error: {summary['error']}", file=sys.stderr)
         return 1
     return 130 if summary["status"] == "interrupted" else 0
+
+
+def cmd_monitor(args: argparse.Namespace) -> int:
+    from fleet.nodes import monitor_node
+
+    if not args.connect:
+        raise SystemExit("fleet: error: fleet monitor needs --connect ENDPOINT (fleet run prints its bus endpoint; or start it with --listen)")
+    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port)]
+    for ep in args.connect:
+        argv += ["--connect", ep]
+    if args.zenoh_config:
+        argv += ["--zenoh-config", args.zenoh_config]
+    return monitor_node.main(argv)
 
 
 def print_run_summary(s: dict) -> None:
@@ -267,8 +287,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary", metavar="FILE", help="also write the summary JSON here")
     p.add_argument("--keep-logs", action="store_true", help="keep each process's log and report (the path is printed)")
     p.add_argument("--json", action="store_true", help="last stdout line: the summary as one JSON object")
+    p.add_argument("--monitor", action="store_true", help="serve the browser monitor (Viser) of this run; see --host/--port")
+    add_monitor_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("monitor", help="watch and control a running line in the browser (attaches over the bus)")
+    p.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    add_monitor_arguments(p)
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_monitor)
 
     p = sub.add_parser("check", help="validate a scene file: prints ok, or one line naming file, field and reason")
     p.add_argument("file", help="scene file path or bundled scene name")

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import Progress
+from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
 from scenes.loader import load_scene
 
@@ -49,6 +49,9 @@ class RunOptions:
     zenoh_config: str | None = None
     keep_logs: bool = False
     allocator: str = "optimal"
+    monitor: bool = False
+    monitor_host: str = "127.0.0.1"
+    monitor_port: int = 8080
 
 
 @dataclass
@@ -103,8 +106,15 @@ class RunError(RuntimeError):
 class Launcher:
     """Use as a context manager: `with Launcher(options) as run: summary = run.run()`; leaving stops every node."""
 
-    def __init__(self, options: RunOptions, on_progress: Callable[[Progress], None] | None = None) -> None:
+    def __init__(
+        self, options: RunOptions, on_progress: Callable[[Progress], None] | None = None,
+        on_message: Callable[[str], None] | None = None,
+    ) -> None:
         self.options = options
+        self.on_message = on_message or (lambda text: print(text, file=sys.stderr, flush=True))
+        self.monitor_url = ""
+        self.respawn_requests: list[dict] = []
+        self.arms_lost: tuple[str, ...] = ()
         self.scene = load_scene(options.scene, arms=options.arms)
         self.seed = self.scene.seed if options.seed is None else options.seed
         self.on_progress = on_progress
@@ -149,6 +159,16 @@ class Launcher:
             nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
         return nodes
 
+    def monitor_node(self) -> Node:
+        """The browser monitor, attached over the bus like any other client (no scene flags: it asks the sim)."""
+        o = self.options
+        report, log = self.dir / "monitor.json", self.dir / "monitor.log"
+        argv = [
+            sys.executable, "-m", "fleet.nodes.monitor_node", "--run", o.run_id, *self._bus_args(False),
+            "--host", o.monitor_host, "--port", str(o.monitor_port), "--url-file", str(self.dir / "monitor_url"), "--report", str(report),
+        ]
+        return Node("monitor", "monitor", argv, report, log)
+
     def __enter__(self) -> "Launcher":
         try:
             sim = self.sim_node()
@@ -157,6 +177,8 @@ class Launcher:
             if not self.endpoint:
                 self.endpoint = self._await_endpoint(sim)
             self.nodes += self.client_nodes()
+            if self.options.monitor:
+                self.nodes.append(self.monitor_node())
             for node in self.nodes[1:]:
                 node.start()
         except BaseException:
@@ -204,13 +226,17 @@ class Launcher:
         error = ""
         try:
             with open_session(BusEndpoints(connect=(self.endpoint,))) as session:
-                inbox = Inbox()
-                sub = session.declare_subscriber(Keys(self.options.run_id).coord("progress"), inbox)
-                decoder = Decoder(Progress, DropCounter())
+                keys, inbox, drops = Keys(self.options.run_id), Inbox(), DropCounter()
+                subs = [session.declare_subscriber(k, inbox) for k in (keys.coord("progress"), keys.respawn, keys.sim_status)]
+                self._decoders = {
+                    keys.coord("progress"): Decoder(Progress, drops), keys.respawn: Decoder(RespawnRequest, drops),
+                    keys.sim_status: Decoder(SimStatus, drops),
+                }
                 try:
-                    error = self._supervise(inbox, decoder)
+                    error = self._supervise(inbox)
                 finally:
-                    sub.undeclare()
+                    for sub in subs:
+                        sub.undeclare()
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
@@ -222,13 +248,55 @@ class Launcher:
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.interrupted = signal.Signals(signum).name
 
-    def _supervise(self, inbox: Inbox, decoder: Decoder) -> str:
+    def _on_bus(self, inbox: Inbox) -> None:
+        for key, payload in inbox.drain():
+            decoder = self._decoders.get(key)
+            msg = decoder.decode(key, payload) if decoder else None
+            if isinstance(msg, Progress) and self.on_progress is not None:
+                self.on_progress(msg)
+            elif isinstance(msg, SimStatus):
+                self.arms_lost = msg.arms_lost
+            elif isinstance(msg, RespawnRequest):
+                self.respawn_on_request(msg)
+
+    def respawn_on_request(self, request: RespawnRequest) -> bool:
+        """Start an arm's controller again if it died or the sim lost it; refuse (with the reason) otherwise."""
+        node = next((n for n in self.nodes if n.role == "controller" and n.name == request.arm), None)
+        if node is None:
+            why = f"no arm {request.arm!r} (arms: {', '.join(a.name for a in self.scene.arms)})"
+        elif node.alive and request.arm not in self.arms_lost:
+            why = "its controller is alive and heard"
+        else:
+            why = ""
+        self.respawn_requests.append({"arm": request.arm, "source": request.source, "done": not why, "reason": why})
+        if why:
+            self.on_message(f"respawn of {request.arm} refused: {why}")
+            return False
+        if node.alive:  # alive but silent: a hung controller is replaced
+            node.signal(signal.SIGKILL)
+            node.proc.wait(timeout=5)
+        node.history.append(node.record())
+        node.start()
+        self.respawns += 1
+        self.on_message(f"respawned {request.arm}'s controller (asked by {request.source})")
+        return True
+
+    def _check_monitor(self) -> None:
+        monitor = next((n for n in self.nodes if n.role == "monitor"), None)
+        if monitor is None:
+            return
+        if not self.monitor_url and (self.dir / "monitor_url").exists():
+            self.monitor_url = (self.dir / "monitor_url").read_text().strip()
+            self.on_message(f"monitor: {self.monitor_url}")
+        if monitor.poll() is not None and not getattr(self, "_monitor_gone", False):
+            self._monitor_gone = True
+            self.on_message(f"the monitor exited (exit {monitor.exit_code}): {monitor.log_tail() or 'no output'}; the line goes on")
+
+    def _supervise(self, inbox: Inbox) -> str:
         sim, coordinator = self.nodes[0], self.nodes[1]
         while not self.interrupted:
-            for key, payload in inbox.drain():
-                msg = decoder.decode(key, payload)
-                if msg is not None and self.on_progress is not None:
-                    self.on_progress(msg)
+            self._on_bus(inbox)
+            self._check_monitor()
             code = sim.poll()
             if code is not None:
                 return "" if code == 0 else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
@@ -236,7 +304,7 @@ class Launcher:
             if code is not None:
                 return f"the coordinator crashed (exit {code}): {coordinator.log_tail() or 'no output'}; logs in {self.dir}"
             for node in self.nodes[2:]:
-                if node.poll() is not None and self.options.respawn:
+                if node.role == "controller" and node.poll() is not None and self.options.respawn:
                     node.history.append(node.record())
                     node.start()
                     self.respawns += 1
@@ -252,7 +320,8 @@ class Launcher:
 
     def summary(self, wall_s: float, error: str) -> dict:
         sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
-        controllers = [self._read(n) for n in self.nodes[2:]]
+        controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
+        monitor = next((self._read(n) for n in self.nodes if n.role == "monitor"), None)
         sim_s = sim.get("sim_seconds", 0.0)
         completed = coord.get("parts_completed", 0)
         processes = [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes]
@@ -289,6 +358,8 @@ class Launcher:
             "arms_lost": sim.get("arms_lost", []),
             "arm_events": coord.get("arm_events", []),
             "respawns": self.respawns,
+            "respawn_requests": self.respawn_requests,
+            "monitor": None if monitor is None else {"url": self.monitor_url} | monitor,
             "unfinished_parts": coord.get("unfinished_parts", []),
             "processes": processes,
         }

@@ -49,6 +49,25 @@ class Keys:
         return f"{ROOT}/{self.run}/world/events"
 
     @property
+    def control(self) -> str:
+        """Pause/resume and speed (`SimControl`)."""
+        return f"{ROOT}/{self.run}/world/control"
+
+    @property
+    def sim_status(self) -> str:
+        return f"{ROOT}/{self.run}/world/status"
+
+    @property
+    def scene(self) -> str:
+        """A queryable: the sim answers with the scene it runs, as JSON (so a monitor needs only an endpoint)."""
+        return f"{ROOT}/{self.run}/world/scene"
+
+    @property
+    def respawn(self) -> str:
+        """Requests to the launcher to start a controller again (`RespawnRequest`)."""
+        return f"{ROOT}/{self.run}/launcher/respawn"
+
+    @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"
 

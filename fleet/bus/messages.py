@@ -140,6 +140,9 @@ class Progress(Message, frozen=True, array_like=True):
     parts_completed: int
     parts_missed: int
     busy_arms: int
+    parts_failed: int = 0
+    grants_denied: int = 0
+    min_separation_m: float = -1.0  # the cell's closest approach so far; -1 before the first measure
     version: int = PROTOCOL_VERSION
 
 
@@ -151,4 +154,59 @@ class EStop(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
-MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, LineEvent, CoordTick, Progress, EStop)
+class SimControl(Message, frozen=True, array_like=True):
+    """Anyone -> sim: pause or resume the clock, or change the realtime speed factor (None leaves a setting as it is)."""
+
+    source: str
+    paused: bool | None = None
+    speed: float | None = None
+    version: int = PROTOCOL_VERSION
+
+
+class SimStatus(Message, frozen=True, array_like=True):
+    """Sim -> monitor and anyone, a few times a second of wall time: the clock's settings and running figures.
+
+    `utilisation` is per arm in scene order (fraction of ticks a skill was running);
+    `latency_p99_ms` is over the latest round trips; `contact_pairs` are the arm pairs
+    touching at the latest tick with a contact (`"arm_0-arm_1"`), at `last_contact_s`.
+    """
+
+    tick: int
+    sim_time_s: float
+    mode: str
+    paused: bool
+    estop: bool
+    speed: float
+    utilisation: Floats
+    latency_p99_ms: float
+    contact_ticks: int
+    contact_pairs: tuple[str, ...] = ()
+    last_contact_s: float = -1.0
+    arms_lost: tuple[str, ...] = ()
+    dropped_messages: int = 0
+    version: int = PROTOCOL_VERSION
+
+
+class Separations(Message, frozen=True, array_like=True):
+    """Coordinator -> monitor, at its decision rate: each arm's nearest other arm, the distance and the
+    closest points (world frame, flattened: a then b, 6 floats a pair), and the guard's margin."""
+
+    sim_time_s: float
+    arms_a: tuple[str, ...]
+    arms_b: tuple[str, ...]
+    distances_m: Floats
+    points: Floats
+    margin_m: float
+    version: int = PROTOCOL_VERSION
+
+
+class RespawnRequest(Message, frozen=True, array_like=True):
+    """Anyone -> launcher: start `arm`'s controller again if it died or went silent."""
+
+    arm: str
+    source: str
+    version: int = PROTOCOL_VERSION
+
+
+MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, LineEvent, CoordTick, Progress, EStop,
+                 SimControl, SimStatus, Separations, RespawnRequest)

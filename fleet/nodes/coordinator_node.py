@@ -28,7 +28,7 @@ from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, Task
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, PartsState, Progress
+from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, PartsState, Progress, Separations
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
 from robots.frames import yaw_transform
@@ -85,6 +85,7 @@ class CoordinatorNode:
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
         self._tick_pub = session.declare_publisher(keys.coord("tick"))
         self._progress_pub = session.declare_publisher(keys.coord("progress"))
+        self._separation_pub = session.declare_publisher(keys.coord("separation"))
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.skill = {a: "idle" for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
@@ -104,7 +105,7 @@ class CoordinatorNode:
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
-        for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub]:
+        for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub, self._separation_pub]:
             pub.undeclare()
 
     def wait(self, timeout_s: float) -> None:
@@ -239,15 +240,23 @@ class CoordinatorNode:
         now = tick / self.scene.control_hz
         self.last_decision_tick = tick
         self.decisions += 1
-        if len(self.arm_names) > 1:  # the cell's closest approach, sampled at the decision rate
-            d, pair = self.guard.min_separation()
-            if d < self.min_separation_m:
-                self.min_separation_m, self.closest_pair = d, pair
+        if len(self.arm_names) > 1:
+            self.watch_separations(now)
         pending = self.ledger.refresh(now)
         if pending:
             for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
                 self._send(self.ledger.assign(task_id, arm, now), arm)
         self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
+
+    def watch_separations(self, now_s: float) -> None:
+        """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour goes to the monitor."""
+        pairs = self.guard.nearest_pairs()
+        if pairs and pairs[0].distance_m < self.min_separation_m:
+            self.min_separation_m, self.closest_pair = pairs[0].distance_m, (pairs[0].a, pairs[0].b)
+        self._separation_pub.put(encode(Separations(
+            now_s, tuple(p.a for p in pairs), tuple(p.b for p in pairs), tuple(p.distance_m for p in pairs),
+            tuple(float(v) for p in pairs for v in (*p.point_a, *p.point_b)), self.guard.margin_m,
+        )))
 
     def _send(self, task: Task, arm: str) -> None:
         part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]
@@ -268,7 +277,11 @@ class CoordinatorNode:
         self._progress_at = time.monotonic()
         t = self.ledger.totals()
         busy = sum(s not in IDLE_SKILLS for s in self.skill.values())
-        self._progress_pub.put(encode(Progress(self.sim_time_s, t["parts_spawned"], t["parts_completed"], t["parts_missed"], busy)))
+        closest = self.min_separation_m if math.isfinite(self.min_separation_m) else -1.0
+        self._progress_pub.put(encode(Progress(
+            self.sim_time_s, t["parts_spawned"], t["parts_completed"], t["parts_missed"], busy,
+            t.get("parts_failed", 0), self.guard.denied, closest,
+        )))
 
     def report(self) -> dict:
         return self.ledger.totals() | {

@@ -19,7 +19,7 @@ import contextlib
 import math
 import sys
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,13 +27,14 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, PartsState
+from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, PartsState, SimControl, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report, write_text_atomically
 from fleet.physics.world import PartInfo, World
 
 COORD_RATE_HZ = 10.0
+STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 IDLE_SKILLS = ("idle", "done", "failed")
 
 
@@ -62,6 +63,9 @@ class SimStats:
     coordinator_lost: bool = False
     wall_s: Counter = field(default_factory=Counter)  # where the server's wall time went, by stage
     busy_ticks: Counter = field(default_factory=Counter)  # ticks each arm's applied command came from a running skill
+    recent_round_trip_ms: deque = field(default_factory=lambda: deque(maxlen=1000))
+    last_contact_pairs: tuple[str, ...] = ()
+    last_contact_s: float = -1.0
 
 
 class SimServer:
@@ -80,6 +84,7 @@ class SimServer:
         coordinator: bool = False,
         count_contacts: bool = True,
         stop: StopFlag | None = None,
+        speed: float = 1.0,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
@@ -92,16 +97,25 @@ class SimServer:
         self.drops = DropCounter()
         self.stats = SimStats()
         self.estop = False
+        self.paused = False
+        self.speed = speed
+        self._status_at = 0.0
+        self._control_decoder = Decoder(SimControl, self.drops)
         self._cmd_decoder = Decoder(ArmCommandMsg, self.drops)
         self._estop_decoder = Decoder(EStop, self.drops)
         self._coord_decoder = Decoder(CoordTick, self.drops)
         self._cmd_inbox = Inbox()
         self._estop_inbox, self._coord_inbox = Inbox(wake=self._cmd_inbox.wake), Inbox(wake=self._cmd_inbox.wake)
+        self._control_inbox = Inbox(wake=self._cmd_inbox.wake)
         self._subs = [
             session.declare_subscriber(keys.all_arms("cmd"), self._cmd_inbox),
             session.declare_subscriber(keys.estop, self._estop_inbox),
             session.declare_subscriber(keys.coord("tick"), self._coord_inbox),
+            session.declare_subscriber(keys.control, self._control_inbox),
         ]
+        scene_json = world.scene_model.model_dump_json().encode()
+        self._scene_queryable = session.declare_queryable(keys.scene, lambda query: query.reply(keys.scene, scene_json))
+        self._status_pub = session.declare_publisher(keys.sim_status)
         self._state_pubs = {name: session.declare_publisher(keys.arm_state(name)) for name in world.arms}
         self._parts_pub = session.declare_publisher(keys.parts)
         self._events_pub = session.declare_publisher(keys.events)
@@ -117,7 +131,8 @@ class SimServer:
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
-        for pub in [*self._state_pubs.values(), self._parts_pub, self._events_pub]:
+        self._scene_queryable.undeclare()
+        for pub in [*self._state_pubs.values(), self._parts_pub, self._events_pub, self._status_pub]:
             pub.undeclare()
 
     # --- inputs ---------------------------------------------------------------------
@@ -126,6 +141,17 @@ class SimServer:
             msg = self._estop_decoder.decode(key, payload)
             if msg is not None:
                 self.estop = msg.engaged
+        for key, payload in self._control_inbox.drain():
+            msg = self._control_decoder.decode(key, payload)
+            if msg is None:
+                continue
+            if msg.speed is not None and not (math.isfinite(msg.speed) and 0.01 <= msg.speed <= 100.0):
+                self.drops.drop(key, "speed factor outside 0.01..100")
+                continue
+            if msg.paused is not None:
+                self.paused = msg.paused
+            if msg.speed is not None:
+                self.speed = msg.speed
         for key, payload in self._cmd_inbox.drain():
             msg = self._cmd_decoder.decode(key, payload)
             if msg is None:
@@ -142,7 +168,9 @@ class SimServer:
                 link.last_cmd, link.last_cmd_time_s = msg, self.world.sim_time_s
                 sent = self._published_at.get(msg.tick)
                 if sent is not None:
-                    self.stats.round_trip_ms.append((time.monotonic() - sent) * 1e3)
+                    rtt_ms = (time.monotonic() - sent) * 1e3
+                    self.stats.round_trip_ms.append(rtt_ms)
+                    self.stats.recent_round_trip_ms.append(rtt_ms)
                 if link.lost and msg.tick >= self.world.tick - 1:
                     link.lost = False
                     self.stats.rejoined.append(link.name)
@@ -274,28 +302,60 @@ class SimServer:
             if pairs:
                 self.stats.contact_ticks += 1
                 self.stats.contact_pairs.update(pairs)
+                self.stats.last_contact_pairs = tuple(sorted("-".join(p) for p in pairs))
+                self.stats.last_contact_s = self.world.sim_time_s
         t4 = time.perf_counter()
         clock["publish"] += t1 - t0
         clock["wait" if self.stats.ticks > 1 else "startup"] += t2 - t1  # tick 0 waits for every process to start
         clock["physics"] += t3 - t2
         clock["contacts"] += t4 - t3
 
-    def run_ticks(self, ticks: int, speed: float = 1.0, stop: StopFlag | None = None) -> None:
-        """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at `speed` x real time."""
-        start_wall, start_sim = time.monotonic(), self.world.sim_time_s
-        for _ in range(ticks):
+    def run_ticks(self, ticks: int, speed: float | None = None, stop: StopFlag | None = None) -> None:
+        """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at the speed factor.
+
+        A pause (`SimControl`) stops the clock between ticks; the pacing restarts from where it stood."""
+        stop = stop or self.stop
+        if speed is not None:
+            self.speed = speed
+        start_wall, start_sim, speed_then = time.monotonic(), self.world.sim_time_s, self.speed
+        done = 0
+        while done < ticks:
             if stop is not None and stop.should_stop():
                 return
+            self.publish_status()
+            if self.paused:
+                self._take_inputs()
+                self._cmd_inbox.wait(0.05)
+                start_wall, start_sim = time.monotonic(), self.world.sim_time_s
+                continue
             self.tick()
+            done += 1
             if stop is not None and stop.should_stop():
                 return
             if self.mode == "realtime":
-                if self.world.tick == 1:  # the clock starts once every process answered tick 0
-                    start_wall, start_sim = time.monotonic(), self.world.sim_time_s
-                ahead = (self.world.sim_time_s - start_sim) / speed - (time.monotonic() - start_wall)
+                if self.world.tick == 1 or self.speed != speed_then:  # the clock starts once every process answered tick 0
+                    start_wall, start_sim, speed_then = time.monotonic(), self.world.sim_time_s, self.speed
+                ahead = (self.world.sim_time_s - start_sim) / self.speed - (time.monotonic() - start_wall)
                 if ahead > 0:
                     time.sleep(ahead)
                     self.stats.wall_s["pacing"] += ahead
+        self.publish_status(force=True)
+
+    def publish_status(self, force: bool = False) -> None:
+        """The clock's settings and running figures, every `STATUS_PERIOD_S` of wall time."""
+        now = time.monotonic()
+        if not force and now - self._status_at < STATUS_PERIOD_S:
+            return
+        self._status_at = now
+        st, ticks = self.stats, max(self.stats.ticks, 1)
+        recent = st.recent_round_trip_ms
+        self._status_pub.put(encode(SimStatus(
+            self.world.tick, self.world.sim_time_s, self.mode, self.paused, self.estop, self.speed,
+            tuple(st.busy_ticks[a] / ticks for a in self.links),
+            float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
+            st.contact_ticks, st.last_contact_pairs, st.last_contact_s,
+            tuple(l.name for l in self.links.values() if l.lost), self.drops.total,
+        )))
 
     def report(self) -> dict:
         """The sim's part of the run summary."""
@@ -352,10 +412,10 @@ def main(argv: list[str] | None = None) -> int:
     with contextlib.closing(session):
         server = SimServer(
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator,
-            lockstep_timeout_s=args.lockstep_timeout, stop=stop,
+            lockstep_timeout_s=args.lockstep_timeout, stop=stop, speed=args.speed,
         )
         try:
-            server.run_ticks(ticks, args.speed, stop)
+            server.run_ticks(ticks)
         finally:
             report = server.report() | {"stopped_by": stop.reason or "duration"}
             server.close()

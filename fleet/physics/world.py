@@ -17,10 +17,9 @@ import sapien
 from fleet.physics.arm import SimArm, yaw_pose
 from fleet.physics.parts import FeederClock, SimPart, build_part, park
 from robots.registry import get_robot
-from scenes.schema import FLOOR_M, Scene, Station
+from scenes.schema import Scene, Station
+from scenes.shapes import WALL_M, belt_box, station_boxes
 
-BELT_DEPTH_M = 0.04
-WALL_M = FLOOR_M
 FLOOR_TOP_M = 0.0
 
 
@@ -126,10 +125,8 @@ class World:
         self._belt_home = yaw_pose(c.pose.xyz, c.pose.yaw_rad)
         builder = self.scene.create_actor_builder()
         material = sapien.physx.PhysxMaterial(0.9, 0.9, 0.0)
-        builder.add_box_collision(
-            pose=sapien.Pose([c.length_m / 2, 0, -BELT_DEPTH_M / 2]),
-            half_size=[c.length_m / 2, c.width_m / 2, BELT_DEPTH_M / 2], material=material,
-        )
+        centre, half = belt_box(c)
+        builder.add_box_collision(pose=sapien.Pose(centre), half_size=half, material=material)
         builder.set_name("conveyor_belt")
         entity = builder.build_kinematic()
         entity.set_pose(self._belt_home)
@@ -138,19 +135,7 @@ class World:
         return entity.find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
 
     def _build_station(self, s: Station) -> None:
-        sx, sy, sz = s.size_m
-        floor = ([0, 0, WALL_M / 2], [sx / 2, sy / 2, WALL_M / 2])
-        if s.kind == "fixture":
-            boxes = [([0, 0, sz / 2], [sx / 2, sy / 2, sz / 2])]
-        else:
-            h = sz if s.kind == "bin" else min(sz, 0.02)
-            boxes = [
-                floor,
-                ([sx / 2 - WALL_M / 2, 0, h / 2], [WALL_M / 2, sy / 2, h / 2]),
-                ([-sx / 2 + WALL_M / 2, 0, h / 2], [WALL_M / 2, sy / 2, h / 2]),
-                ([0, sy / 2 - WALL_M / 2, h / 2], [sx / 2, WALL_M / 2, h / 2]),
-                ([0, -sy / 2 + WALL_M / 2, h / 2], [sx / 2, WALL_M / 2, h / 2]),
-            ]
+        boxes = station_boxes(s)
         self._static_boxes(s.name, boxes, yaw_pose(s.pose.xyz, s.pose.yaw_rad))
 
     # --- time ---------------------------------------------------------------------

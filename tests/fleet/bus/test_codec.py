@@ -6,6 +6,7 @@ import pytest
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
     ArmCommandMsg, ArmState, ArmStatus, Assignment, CoordTick, EStop, LineEvent, MESSAGE_TYPES, PartsState, Progress,
+    RespawnRequest, Separations, SimControl, SimStatus,
 )
 
 EXAMPLES = [
@@ -21,7 +22,14 @@ EXAMPLES = [
     LineEvent("at_station", 17, 400, "fixture_0"),
     CoordTick(400, (3, 0, 1)),
     Progress(4.0, 3, 1, 0, 2),
+    Progress(4.0, 3, 1, 0, 2, 1, 3, 0.08),
     EStop(True, "monitor"),
+    SimControl("monitor", paused=True),
+    SimControl("monitor", speed=2.0),
+    SimStatus(300, 3.0, "lockstep", False, False, 1.0, (0.5, 0.25), 1.8, 0),
+    SimStatus(300, 3.0, "realtime", True, True, 2.0, (0.5,), 1.8, 4, ("arm_0-arm_1",), 2.9, ("arm_1",), 3),
+    Separations(3.0, ("arm_0",), ("arm_1",), (0.1,), (0.0, 0.0, 0.2, 0.1, 0.0, 0.2), 0.02),
+    RespawnRequest("arm_1", "monitor"),
 ]
 
 

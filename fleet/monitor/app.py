@@ -1,0 +1,91 @@
+"""The monitor: a Viser server drawing one line, fed from the bus at `rate_hz`, with controls that publish on it."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import viser
+import zenoh
+
+from fleet.bus.keys import Keys
+from fleet.monitor.cell_view import CellView
+from fleet.monitor.controls import LineControls
+from fleet.monitor.feed import LiveFeed
+from fleet.monitor.options import DEFAULT_HOST, DEFAULT_PORT
+from fleet.monitor.panel import Panel
+from fleet.nodes.lifecycle import StopFlag
+from scenes.schema import Scene
+
+
+
+class SceneUnavailable(RuntimeError):
+    """No sim answered the scene query in time."""
+
+
+def fetch_scene(session: zenoh.Session, keys: Keys, timeout_s: float = 10.0) -> Scene:
+    """The scene the running sim serves (`Keys.scene`), asked until it answers or `timeout_s` passes."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for reply in session.get(keys.scene, timeout=min(1.0, max(deadline - time.monotonic(), 0.1))):
+            if reply.ok is not None:
+                return Scene.model_validate_json(reply.ok.payload.to_bytes())
+        time.sleep(0.1)
+    raise SceneUnavailable(f"no sim of run {keys.run!r} answered on {keys.scene} within {timeout_s:.0f} s")
+
+
+class Monitor:
+    """Use in a `with` block: the Viser server, the bus subscribers and publishers are released on leaving."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, scene: Scene, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
+        self.host = host
+        self.server = viser.ViserServer(host=host, port=port, label=f"clawfleet · {scene.name}", verbose=False)
+        try:
+            self.feed = LiveFeed(session, keys)
+            self.controls = LineControls(session, keys)
+            self.view = CellView(self.server, scene)
+            self.panel = Panel(self.server, scene, self.controls)
+        except BaseException:
+            self.server.stop()
+            raise
+        self.frames = 0
+
+    @property
+    def port(self) -> int:
+        return self.server.get_port()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}"
+
+    def __enter__(self) -> "Monitor":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.feed.close()
+        self.controls.close()
+        self.server.stop()
+
+    def frame(self) -> None:
+        """Redraw from everything heard since the last frame."""
+        snap = self.feed.take()
+        with self.server.atomic():
+            self.view.show(snap)
+            self.panel.show(snap)
+        self.frames += 1
+
+    def run(self, stop: StopFlag, rate_hz: float = 30.0) -> None:
+        period = 1.0 / rate_hz
+        while not stop.should_stop():
+            started = time.monotonic()
+            self.frame()
+            time.sleep(max(0.0, period - (time.monotonic() - started)))
+
+
+def print_url(monitor: Monitor, requested_port: int) -> None:
+    if requested_port not in (0, monitor.port):
+        print(f"monitor: port {requested_port} is taken, serving on {monitor.port}", file=sys.stderr)
+    print(f"monitor: {monitor.url}", file=sys.stderr, flush=True)
