@@ -22,7 +22,7 @@ from robots.spec import RobotSpec
 from scenes.schema import Scene, Station
 from scenes.shapes import belt_box, station_boxes
 
-STATION_RGB = {"fixture": (150, 150, 160), "bin": (170, 120, 70), "tray": (90, 150, 90)}
+STATION_RGB = {"fixture": (150, 150, 160), "bin": (110, 130, 165), "tray": (90, 150, 90)}  # none orange like the arms
 BELT_RGB = (60, 60, 66)
 ARM_RGB = [(230, 90, 60), (60, 160, 230), (120, 200, 80), (200, 120, 220), (240, 190, 60), (80, 200, 190)]
 NEAR_RGB, SAFE_RGB, CLOSE_RGB = (230, 30, 30), (40, 180, 80), (240, 160, 30)

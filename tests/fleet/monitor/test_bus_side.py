@@ -1,0 +1,116 @@
+"""The monitor's bus side with a real sim server and Zenoh on loopback: the scene is served, status and
+separations arrive, the page's controls pause, resume and re-speed the sim, and bad payloads are counted."""
+
+import socket
+import threading
+import time
+
+import pytest
+
+from fleet.bus.codec import encode
+from fleet.bus.keys import Keys
+from fleet.bus.messages import SimStatus
+from fleet.bus.session import BusEndpoints, open_session
+from fleet.monitor.app import Monitor, SceneUnavailable, fetch_scene
+from fleet.monitor.controls import LineControls
+from fleet.monitor.feed import LiveFeed
+from fleet.monitor.options import exposure_warning
+from fleet.nodes.sim_server import SimServer
+from fleet.physics.world import World
+from scenes import load_scene
+
+
+def wait_for(condition, timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+@pytest.fixture
+def realtime_sim():
+    """A realtime sim server of the handover cell (no controllers: arms held) ticking in a thread."""
+    keys = Keys("mon")
+    with open_session(BusEndpoints()) as session:
+        server = SimServer(World(load_scene("handover")), session, keys, mode="realtime", first_command_timeout_s=0.2, speed=1.0)
+        stop = threading.Event()
+
+        class Stop:
+            reason = ""
+
+            def should_stop(self) -> bool:
+                return stop.is_set()
+
+        thread = threading.Thread(target=server.run_ticks, args=(10**6,), kwargs={"stop": Stop()}, daemon=True)
+        thread.start()
+        try:
+            yield server, session, keys
+        finally:
+            stop.set()
+            thread.join(timeout=5)
+            server.close()
+
+
+def test_the_sim_serves_its_scene_and_status_and_obeys_pause_resume_and_speed(realtime_sim):
+    server, session, keys = realtime_sim
+    assert fetch_scene(session, keys).name == "handover"
+    with LiveFeed(session, keys) as feed:
+        controls = LineControls(session, keys, source="test")
+        try:
+            assert wait_for(lambda: feed.take().status is not None and len(feed.snapshot.arms) == 2)
+            assert feed.snapshot.status.mode == "realtime" and not feed.snapshot.status.paused
+            controls.pause(True)
+            assert wait_for(lambda: feed.take().status.paused)
+            tick = server.world.tick
+            time.sleep(0.3)
+            assert server.world.tick == tick, "paused: the clock stands still"
+            controls.set_speed(3.0)
+            controls.pause(False)
+            assert wait_for(lambda: not feed.take().status.paused and feed.snapshot.status.speed == 3.0)
+            t0, w0 = server.world.sim_time_s, time.monotonic()
+            time.sleep(0.6)
+            rate = (server.world.sim_time_s - t0) / (time.monotonic() - w0)
+            assert 2.0 < rate < 3.6, f"sim seconds per wall second at speed 3: {rate:.2f}"
+            with pytest.raises(ValueError, match="outside"):
+                controls.set_speed(0.0)
+            controls.emergency_stop(True)
+            assert wait_for(lambda: feed.take().status.estop)
+            assert controls.sent == ["pause", "speed 3", "resume", "estop"]
+        finally:
+            controls.close()
+
+
+def test_garbage_on_the_monitor_keys_is_dropped_and_counted(realtime_sim):
+    _, session, keys = realtime_sim
+    with LiveFeed(session, keys) as feed:
+        time.sleep(0.1)
+        session.put(keys.sim_status, b"\x93garbage")
+        session.put(keys.coord("separation"), b"")
+        assert wait_for(lambda: feed.take() is not None and feed.drops.total >= 2)
+        session.put(keys.sim_status, encode(SimStatus(1, 0.01, "lockstep", False, False, 1.0, (0.0, 0.0), 0.0, 0)))
+        assert wait_for(lambda: feed.take().status is not None)
+
+
+def test_no_sim_means_a_clear_error_not_a_hang():
+    with open_session(BusEndpoints()) as session:
+        with pytest.raises(SceneUnavailable, match="no sim of run 'nobody'"):
+            fetch_scene(session, Keys("nobody"), timeout_s=0.5)
+
+
+def test_the_monitor_frees_its_port():
+    with open_session(BusEndpoints()) as session:
+        with Monitor(session, Keys("mon"), load_scene("assembly_line"), port=0) as monitor:
+            port = monitor.port
+            monitor.frame()
+            with socket.create_connection(("127.0.0.1", port), timeout=2):
+                pass
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        s.bind(("127.0.0.1", port))
+
+
+def test_only_loopback_is_quiet():
+    assert exposure_warning("127.0.0.1") is None and exposure_warning("localhost") is None
+    assert "whoever can reach" in exposure_warning("0.0.0.0")
