@@ -10,8 +10,12 @@
 from __future__ import annotations
 
 import contextlib
+import os
+import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 
@@ -141,3 +145,67 @@ def bench_lines(cases: list[tuple[str, int | None]], allocators: list[str], sim_
                 s["inter_arm_contacts"], s["min_separation_m"], s["grants_denied"],
             ))
     return rows
+
+
+@dataclass(frozen=True)
+class MonitorRow:
+    variant: str
+    loop_wall_seconds: float  # median over the repeats
+    ratio_to_plain: float
+    monitor_frames_per_s: float | None
+
+
+MONITOR_VARIANTS = ("no monitor", "monitor, no page open", "monitor + headless chromium")
+
+
+def _browse(url: str) -> subprocess.Popen:
+    """A headless Chromium showing `url` (software WebGL), as a viewer would (no sandbox: CI runs as root)."""
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        raise RuntimeError("the browser variant needs chromium (apt-get install chromium)")
+    profile = tempfile.mkdtemp(prefix="clawfleet-chromium-")
+    return subprocess.Popen(
+        [chromium, "--headless=new", "--enable-unsafe-swiftshader", "--no-first-run", "--no-sandbox", f"--user-data-dir={profile}",
+         "--window-size=1280,800", "--remote-debugging-port=0", url],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )
+
+
+def _monitored_run(scene: str, arms: int | None, sim_seconds: float, variant: str) -> dict:
+    browsers: list[subprocess.Popen] = []
+
+    def on_message(text: str) -> None:
+        if variant == MONITOR_VARIANTS[2] and text.startswith("monitor: http"):
+            browsers.append(_browse(text.split(" ", 1)[1]))
+
+    options = RunOptions(scene=scene, arms=arms, duration_s=sim_seconds, run_id="benchmonitor", monitor=variant != MONITOR_VARIANTS[0], monitor_port=0)
+    try:
+        with Launcher(options, on_message=on_message) as launcher:
+            summary = launcher.run()
+    finally:
+        for b in browsers:
+            os.killpg(b.pid, signal.SIGKILL)
+            b.wait()
+    if summary["status"] != "ok":
+        raise RuntimeError(f"the benchmark run failed: {summary['error']}")
+    if variant == MONITOR_VARIANTS[2] and not summary["monitor"].get("most_pages_open"):
+        raise RuntimeError("the headless chromium never opened the monitor's page")
+    return summary
+
+
+def bench_monitor(scene: str = "sorting_line", arms: int | None = 4, sim_seconds: float = 30.0, repeats: int = 3, browser: bool = True) -> list[MonitorRow]:
+    """Lockstep runs without and with the monitor (and a browser on it), interleaved; the sim loop's wall time compared."""
+    variants = MONITOR_VARIANTS if browser else MONITOR_VARIANTS[:2]
+    walls: dict[str, list[float]] = {v: [] for v in variants}
+    fps: dict[str, list[float]] = {v: [] for v in variants}
+    for _ in range(repeats):
+        for v in variants:
+            s = _monitored_run(scene, arms, sim_seconds, v)
+            walls[v].append(s["loop_wall_seconds"])
+            if s["monitor"]:
+                fps[v].append(s["monitor"]["frames_per_s"])
+    plain = float(np.median(walls[variants[0]]))
+    return [
+        MonitorRow(v, float(np.median(walls[v])), float(np.median(walls[v])) / plain, float(np.median(fps[v])) if fps[v] else None)
+        for v in variants
+    ]

@@ -215,6 +215,19 @@ def cmd_bench_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_monitor(args: argparse.Namespace) -> int:
+    from fleet.bench_runtime import bench_monitor
+
+    rows = bench_monitor(args.scene, args.arms, args.seconds, args.repeats, browser=not args.no_browser)
+    table = Table("variant", "sim loop wall s (median)", "ratio to no monitor", "monitor frames/s")
+    for r in rows:
+        table.add_row(r.variant, f"{r.loop_wall_seconds:.2f}", f"{r.ratio_to_plain:.3f}", "-" if r.monitor_frames_per_s is None else f"{r.monitor_frames_per_s:.1f}")
+    out.print(table)
+    if args.json:
+        print(json.dumps([r.__dict__ for r in rows]))
+    return 0
+
+
 def cmd_bench_collision(args: argparse.Namespace) -> int:
     from coordinator.bench import bench_collision
 
@@ -333,6 +346,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seconds", type=float, default=20.0, help="sim seconds per run")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_run)
+    b = bench.add_parser("monitor", help="lockstep runs without and with the browser monitor: what watching costs")
+    b.add_argument("--scene", default="sorting_line")
+    b.add_argument("--arms", type=int, default=4)
+    b.add_argument("--seconds", type=float, default=30.0, help="sim seconds per run")
+    b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--no-browser", action="store_true", help="skip the variant with a headless chromium on the page")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_monitor)
     b = bench.add_parser("collision", help="FCL guard: full-cell separation and one grant check")
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--json", action="store_true")

@@ -155,7 +155,7 @@ class Launcher:
         o = self.options
         nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode, "--allocator", o.allocator])]
         for arm in self.scene.arms:
-            extra = ["--arm", arm.name] + (["--rt"] if o.realtime_priority else [])
+            extra = ["--arm", arm.name, "--grants"] + (["--rt"] if o.realtime_priority else [])
             nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
         return nodes
 
@@ -351,6 +351,8 @@ class Launcher:
             "min_separation_m": coord.get("min_separation_m"),
             "closest_pair": coord.get("closest_pair"),
             "grants_denied": coord.get("grants_denied", 0),
+            "grants_given": coord.get("grants_given", 0),
+            "grant_waits": coord.get("grant_waits", 0),
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),
             "dropped_messages": sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)

@@ -60,6 +60,7 @@ class Decoder(Generic[T]):
 
     def __init__(self, message_type: type[T], drops: DropCounter) -> None:
         self.message_type = message_type
+        self.type_name = getattr(message_type, "__name__", None) or " | ".join(t.__name__ for t in message_type.__args__)
         self._decoder = msgspec.msgpack.Decoder(message_type)
         self.drops = drops
 
@@ -67,7 +68,7 @@ class Decoder(Generic[T]):
         try:
             message = self._decoder.decode(payload)
         except (msgspec.MsgspecError, UnicodeDecodeError, ValueError, OverflowError) as exc:  # bad UTF-8 is not a DecodeError
-            self.drops.drop(key, f"malformed {self.message_type.__name__}: {str(exc)[:120]}")
+            self.drops.drop(key, f"malformed {self.type_name}: {str(exc)[:120]}")
             return None
         if message.version != PROTOCOL_VERSION:  # type: ignore[attr-defined]
             self.drops.drop(key, f"protocol version {message.version}, expected {PROTOCOL_VERSION}")  # type: ignore[attr-defined]

@@ -58,6 +58,11 @@ class Keys:
         return f"{ROOT}/{self.run}/world/status"
 
     @property
+    def view(self) -> str:
+        """Every arm and part in one message, a few times per sim second (`LineView`), for monitors."""
+        return f"{ROOT}/{self.run}/world/view"
+
+    @property
     def scene(self) -> str:
         """A queryable: the sim answers with the scene it runs, as JSON (so a monitor needs only an endpoint)."""
         return f"{ROOT}/{self.run}/world/scene"

@@ -47,6 +47,9 @@ class ArmState(Message, frozen=True, array_like=True):
     progress: float = 0.0
     assign_seq: int = 0
     failure: str = ""
+    request_seq: int = 0  # echo of the command's motion request (see ArmCommandMsg)
+    request_q_to: Floats = ()
+    request_duration_s: float = 0.0
     version: int = PROTOCOL_VERSION
 
 
@@ -62,6 +65,9 @@ class ArmCommandMsg(Message, frozen=True, array_like=True):
     skill: str = "idle"
     progress: float = 0.0
     failure: str = ""
+    request_seq: int = 0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
+    request_q_to: Floats = ()
+    request_duration_s: float = 0.0
     version: int = PROTOCOL_VERSION
 
 
@@ -96,10 +102,11 @@ class PartsState(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
-class Assignment(Message, frozen=True, array_like=True):
+class Assignment(Message, frozen=True, array_like=True, tag="assign"):
     """Coordinator -> controller: pick `part_id` from a surface and place it; `task_id` None cancels.
 
-    `seq` counts this arm's assignments from 1; states name the newest one (`ArmState.assign_seq`).
+    `seq` counts this arm's orders (assignments and grants) from 1; states name the newest one
+    (`ArmState.assign_seq`).
     """
 
     arm: str
@@ -110,6 +117,23 @@ class Assignment(Message, frozen=True, array_like=True):
     place_xyz: Floats
     surface_velocity: Floats
     version: int = PROTOCOL_VERSION
+
+
+class MotionGrant(Message, frozen=True, array_like=True, tag="grant"):
+    """Coordinator -> controller, on the assign key in the same `seq` count: the answer to motion request
+    `request_seq`: `grant` (move now), or `deny` naming the arm in the way. A `wait` is not sent: the request
+    stays with the coordinator, checked again at each decision."""
+
+    arm: str
+    seq: int
+    request_seq: int
+    decision: str
+    conflict_arm: str = ""
+    min_separation_m: float = -1.0
+    version: int = PROTOCOL_VERSION
+
+
+ArmOrder = Assignment | MotionGrant
 
 
 class LineEvent(Message, frozen=True, array_like=True):
@@ -200,6 +224,17 @@ class Separations(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
+class LineView(Message, frozen=True, array_like=True):
+    """Sim -> monitors, every few ticks: every arm's state and the parts in one message (a viewer's decimated feed,
+    so watching costs the line one message per `view_every_ticks` instead of one per arm per tick)."""
+
+    tick: int
+    sim_time_s: float
+    arms: tuple[ArmState, ...]
+    parts: PartsState
+    version: int = PROTOCOL_VERSION
+
+
 class RespawnRequest(Message, frozen=True, array_like=True):
     """Anyone -> launcher: start `arm`'s controller again if it died or went silent."""
 
@@ -208,5 +243,5 @@ class RespawnRequest(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
-MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, LineEvent, CoordTick, Progress, EStop,
-                 SimControl, SimStatus, Separations, RespawnRequest)
+MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, MotionGrant, LineEvent, CoordTick, Progress, EStop,
+                 SimControl, SimStatus, Separations, LineView, RespawnRequest)

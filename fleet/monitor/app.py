@@ -12,7 +12,7 @@ from fleet.bus.keys import Keys
 from fleet.monitor.cell_view import CellView
 from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
-from fleet.monitor.options import DEFAULT_HOST, DEFAULT_PORT
+from fleet.monitor.options import DEFAULT_HOST, DEFAULT_PORT, DEFAULT_RATE_HZ
 from fleet.monitor.panel import Panel
 from fleet.nodes.lifecycle import StopFlag
 from scenes.schema import Scene
@@ -41,7 +41,7 @@ class Monitor:
         self.host = host
         self.server = viser.ViserServer(host=host, port=port, label=f"clawfleet · {scene.name}", verbose=False)
         try:
-            self.feed = LiveFeed(session, keys)
+            self.feed = LiveFeed(session, keys, [a.name for a in scene.arms])
             self.controls = LineControls(session, keys)
             self.view = CellView(self.server, scene)
             self.panel = Panel(self.server, scene, self.controls)
@@ -49,6 +49,15 @@ class Monitor:
             self.server.stop()
             raise
         self.frames = 0
+        self.most_pages_open = 0
+        self.started_at: float | None = None
+
+    @property
+    def frames_per_s(self) -> float:
+        """Redraws per wall second since `run` began."""
+        if self.started_at is None:
+            return 0.0
+        return self.frames / max(time.monotonic() - self.started_at, 1e-9)
 
     @property
     def port(self) -> int:
@@ -76,13 +85,17 @@ class Monitor:
             self.view.show(snap)
             self.panel.show(snap)
         self.frames += 1
+        if self.frames % 30 == 0:
+            self.most_pages_open = max(self.most_pages_open, len(self.server.get_clients()))
 
-    def run(self, stop: StopFlag, rate_hz: float = 30.0) -> None:
+    def run(self, stop: StopFlag, rate_hz: float = DEFAULT_RATE_HZ) -> None:
+        """Redraw at `rate_hz` on a fixed schedule (a late frame is not made up for) until `stop`."""
         period = 1.0 / rate_hz
+        due = self.started_at = time.monotonic()
         while not stop.should_stop():
-            started = time.monotonic()
             self.frame()
-            time.sleep(max(0.0, period - (time.monotonic() - started)))
+            due = max(due + period, time.monotonic())
+            time.sleep(max(0.0, due - time.monotonic()))
 
 
 def print_url(monitor: Monitor, requested_port: int) -> None:

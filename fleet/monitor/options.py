@@ -6,6 +6,7 @@ import argparse
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
+DEFAULT_RATE_HZ = 20.0  # page updates per second: smooth enough to the eye, cheap for the line
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 

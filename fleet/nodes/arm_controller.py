@@ -23,7 +23,7 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, ArmState, ArmStatus, Assignment, PartsState
+from fleet.bus.messages import ArmCommandMsg, ArmOrder, ArmState, ArmStatus, Assignment, MotionGrant, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
 from robots.frames import yaw_transform
@@ -51,18 +51,18 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
 class ArmController:
     """One arm's bridge (skill state machine) and cerebellum (its joint targets) on the bus."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene) -> None:
+    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene, *, grants: bool = False) -> None:
         decl = next((a for a in scene.arms if a.name == arm), None)
         if decl is None:
             raise SystemExit(f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}")
         self.arm, self.keys, self.session = arm, keys, session
         self.spec = get_robot(decl.model)
         self.dt = 1.0 / scene.control_hz
-        self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad))
+        self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad), grants_required=grants)
         self.drops = DropCounter()
         self._decoders = {
             "state": Decoder(ArmState, self.drops), "parts": Decoder(PartsState, self.drops),
-            "assign": Decoder(Assignment, self.drops),
+            "assign": Decoder(ArmOrder, self.drops),
         }
         self.wake = threading.Event()
         self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign")}
@@ -75,8 +75,9 @@ class ArmController:
         self._status_pub = session.declare_publisher(keys.arm_status(arm))
         self.parts: dict[int, PartObservation] = {}
         self.parts_tick = -1
-        self.received: list[Assignment] = []  # assignments in, not yet acted on
+        self.received: list[Assignment | MotionGrant] = []  # orders in, not yet acted on
         self.pending: Assignment | None = None
+        self.grants: list[MotionGrant] = []  # answers to motion requests, handed to the skill at the next step
         self.task_id: int | None = None
         self.hold_q: np.ndarray | None = None
         self.seq = 0
@@ -114,7 +115,9 @@ class ArmController:
         """Act on received assignments up to `announced_seq`; on all of them when the sim announces none (-1)."""
         while self.received and (announced_seq < 0 or self.received[0].seq <= announced_seq):
             msg = self.received.pop(0)
-            if msg.task_id is None:  # cancelled: stop where we are
+            if isinstance(msg, MotionGrant):
+                self.grants.append(msg)
+            elif msg.task_id is None:  # cancelled: stop where we are
                 self.pending = None
                 if self.skill.active:
                     self.skill.cancel("cancelled by the coordinator")
@@ -172,6 +175,9 @@ class ArmController:
                 self.skill.reject(f"part {a.part_id} is not on the line")
             else:
                 self.skill.start(task, obs, part)
+        for g in self.grants:
+            self.skill.on_grant(g.request_seq, g.decision, g.conflict_arm, obs.time_s)
+        self.grants.clear()
         if self.skill.active:
             cmd = self.skill.step(obs, self.parts, self.dt)
             q, dq, opening = cmd.q, cmd.dq, cmd.gripper_opening
@@ -180,9 +186,11 @@ class ArmController:
         else:
             q, dq, opening = self.hold_q, np.zeros(n), 1.0
         phase, progress = self.skill.phase.value, float(self.skill.progress)
+        request = self.skill.request if self.skill.active else None
         self._cmd_pub.put(encode(ArmCommandMsg(
             self.arm, state.tick, tuple(map(float, q)), tuple(map(float, dq)), float(opening), self.task_id, phase, progress,
             self.skill.failure_reason if phase == "failed" else "",
+            request.seq if request else 0, request.q_to if request else (), request.duration_s if request else 0.0,
         )))
         if state.tick % HEARTBEAT_TICKS == 0:
             self.send_heartbeat(state.sim_time_s)
@@ -201,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-arm-controller", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
     parser.add_argument("--arm", required=True)
+    parser.add_argument("--grants", action="store_true", help="ask the coordinator for a motion grant before each free move")
     parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
@@ -212,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.rt:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
-        controller = ArmController(session, Keys(args.run), args.arm, scene)
+        controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants)
         last_beat = time.monotonic()
         try:
             while not stop.should_stop():
@@ -228,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
             controller.close()
             write_report(args.report, {
                 "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
-                "missed_assignments": controller.missed_assignments, "stopped_by": stop.reason,
+                "missed_assignments": controller.missed_assignments, "grants_denied": controller.skill.denials, "stopped_by": stop.reason,
             })
     return 0
 

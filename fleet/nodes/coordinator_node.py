@@ -23,12 +23,12 @@ import zenoh
 
 from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, PartView, make_allocator
 from coordinator.geometry import ArmGeometry
-from coordinator.guard import CollisionGuard
+from coordinator.guard import CollisionGuard, TimedPath
 from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, Task
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, PartsState, Progress, Separations
+from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, MotionGrant, PartsState, Progress, Separations
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
 from robots.frames import yaw_transform
@@ -92,6 +92,9 @@ class CoordinatorNode:
         self.incarnation: dict[str, int] = {}
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
         self.heartbeat_at: dict[str, float] = {}
+        self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
+        self.request_seq: dict[str, int] = {a: 0 for a in self.arm_names}
+        self.grants_given = 0
         self.lost: dict[str, float] = {}
         self.losses: list[dict] = []
         self.parts: dict[int, PartView] = {}
@@ -158,6 +161,9 @@ class CoordinatorNode:
         self.last_tick[s.arm] = s.tick
         self.skill[s.arm] = s.skill
         self.guard.set_state(s.arm, np.asarray(s.q))
+        if s.request_seq > self.request_seq[s.arm] and len(s.request_q_to) == len(s.q):
+            self.request_seq[s.arm] = s.request_seq
+            self.requests[s.arm] = TimedPath(s.arm, s.q, s.request_q_to, s.sim_time_s, s.sim_time_s + s.request_duration_s)
         if s.lost and s.arm not in self.lost:
             self._arm_lost(s.arm, "the sim stopped hearing its controller", time.monotonic() - self._heard_at.get(s.arm, 0.0))
         self.ledger.arm_report(s.arm, s.task_id, s.skill, s.sim_time_s, s.failure)
@@ -209,6 +215,8 @@ class CoordinatorNode:
 
     def _arm_lost(self, arm: str, why: str, silent_for_s: float) -> None:
         self.lost[arm] = self.sim_time_s
+        self.requests.pop(arm, None)
+        self.guard.release(arm)  # its granted path is void: it holds still where it is
         returned = self.ledger.arm_lost(arm, self.sim_time_s)
         self.losses.append({
             "arm": arm, "event": "lost", "why": why, "sim_time_s": round(self.sim_time_s, 3),
@@ -242,11 +250,34 @@ class CoordinatorNode:
         self.decisions += 1
         if len(self.arm_names) > 1:
             self.watch_separations(now)
+        self.answer_motion_requests(now)
         pending = self.ledger.refresh(now)
         if pending:
             for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
                 self._send(self.ledger.assign(task_id, arm, now), arm)
         self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
+
+    def answer_motion_requests(self, now_s: float) -> None:
+        """Check every waiting request with the guard, arms in scene order (one global order: no cycle of waits).
+
+        A grant starts now, for the duration asked; `deny` (an arm that is not moving is in the way) goes back
+        to the arm; `wait` (an arm with a granted move is in the way) stays here until that move is over.
+        """
+        self.guard.expire(now_s)
+        for arm in [a for a in self.arm_names if a in self.requests]:
+            asked = self.requests[arm]
+            path = TimedPath(arm, asked.q_from, asked.q_to, now_s, now_s + (asked.t_end_s - asked.t_start_s))
+            self.guard.set_state(arm, np.asarray(asked.q_from))
+            verdict = self.guard.request(path)
+            if verdict.decision == "wait":
+                continue
+            del self.requests[arm]
+            self.grants_given += verdict.granted
+            self.assign_seq[arm] += 1
+            self._assign_pubs[arm].put(encode(MotionGrant(
+                arm, self.assign_seq[arm], self.request_seq[arm], verdict.decision, verdict.conflict_arm or "",
+                verdict.min_separation_m if math.isfinite(verdict.min_separation_m) else -1.0,
+            )))
 
     def watch_separations(self, now_s: float) -> None:
         """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour goes to the monitor."""
@@ -295,6 +326,8 @@ class CoordinatorNode:
             ],
             "decisions": self.decisions,
             "grants_denied": self.guard.denied,
+            "grants_given": self.grants_given,
+            "grant_waits": self.guard.waits,
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "dropped_messages": self.drops.total,

@@ -27,7 +27,7 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, PartsState, SimControl, SimStatus
+from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, LineView, PartsState, SimControl, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report, write_text_atomically
@@ -35,6 +35,8 @@ from fleet.physics.world import PartInfo, World
 
 COORD_RATE_HZ = 10.0
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
+HOLD_STILL_RAD_PER_S = 0.02  # a held arm slower than this on every joint is at rest: its hold position is latched
+VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
 IDLE_SKILLS = ("idle", "done", "failed")
 
 
@@ -46,6 +48,7 @@ class ArmLink:
     last_cmd: ArmCommandMsg | None = None
     last_cmd_time_s: float = -np.inf
     lost: bool = False
+    hold_q: np.ndarray | None = None  # where a held arm came to rest (kept until released)
 
 
 @dataclass
@@ -116,6 +119,8 @@ class SimServer:
         scene_json = world.scene_model.model_dump_json().encode()
         self._scene_queryable = session.declare_queryable(keys.scene, lambda query: query.reply(keys.scene, scene_json))
         self._status_pub = session.declare_publisher(keys.sim_status)
+        self._view_pub = session.declare_publisher(keys.view)
+        self.view_every_ticks = max(1, round(world.scene_model.control_hz / VIEW_RATE_HZ))
         self._state_pubs = {name: session.declare_publisher(keys.arm_state(name)) for name in world.arms}
         self._parts_pub = session.declare_publisher(keys.parts)
         self._events_pub = session.declare_publisher(keys.events)
@@ -132,7 +137,7 @@ class SimServer:
         for sub in self._subs:
             sub.undeclare()
         self._scene_queryable.undeclare()
-        for pub in [*self._state_pubs.values(), self._parts_pub, self._events_pub, self._status_pub]:
+        for pub in [*self._state_pubs.values(), self._parts_pub, self._events_pub, self._status_pub, self._view_pub]:
             pub.undeclare()
 
     # --- inputs ---------------------------------------------------------------------
@@ -161,7 +166,8 @@ class SimServer:
                 self.drops.drop(key, "command for an unknown arm or on another arm's key")
                 continue
             n = self.world.arms[link.name].spec.arm_dof
-            if len(msg.q) != n or len(msg.dq) != n or not np.all(np.isfinite(msg.q + msg.dq + (msg.gripper_opening,))):
+            values = msg.q + msg.dq + msg.request_q_to + (msg.gripper_opening, msg.request_duration_s)
+            if len(msg.q) != n or len(msg.dq) != n or len(msg.request_q_to) not in (0, n) or not np.all(np.isfinite(values)):
                 self.drops.drop(key, f"command with wrong length or non-finite values (arm has {n} joints)")
                 continue
             if link.last_cmd is None or msg.tick >= link.last_cmd.tick:
@@ -238,6 +244,7 @@ class SimServer:
         w = self.world
         self._published_at[w.tick] = time.monotonic()
         self._published_at.pop(w.tick - 256, None)
+        states = []
         for name, arm in w.arms.items():
             q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
             tool = arm.tool_pose_world()
@@ -248,16 +255,21 @@ class SimServer:
                 tuple(map(float, tool.p)), tuple(map(float, tool.q)), self._held(link), link.lost,
                 cmd.task_id if cmd else None, cmd.skill if cmd else "idle", cmd.progress if cmd else 0.0,
                 self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1, cmd.failure if cmd else "",
+                cmd.request_seq if cmd else 0, cmd.request_q_to if cmd else (), cmd.request_duration_s if cmd else 0.0,
             )
             self._state_pubs[name].put(encode(msg))
+            states.append(msg)
         parts = w.active_parts() if parts is None else parts
-        self._parts_pub.put(encode(PartsState(
+        parts_msg = PartsState(
             w.tick, w.sim_time_s, tuple(p.part_id for p in parts), tuple(p.feeder for p in parts),
             tuple(p.type_index for p in parts),
             tuple(float(v) for p in parts for v in p.position), tuple(float(v) for p in parts for v in p.quaternion_wxyz),
             tuple(float(v) for p in parts for v in p.velocity),
             tuple(float(v) for p in parts for v in p.size_m), sum(self.events_published.values()),
-        )))
+        )
+        self._parts_pub.put(encode(parts_msg))
+        if w.tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching:  # built only while watched
+            self._view_pub.put(encode(LineView(w.tick, w.sim_time_s, tuple(states), parts_msg)))
 
     def _apply_commands(self) -> None:
         for name, link in self.links.items():
@@ -266,9 +278,11 @@ class SimServer:
             if self._held(link):
                 if not (self.estop or link.lost):  # held for no other reason than a stale command
                     self.stats.watchdog_holds[name] += 1
-                hold = arm.qpos()
-                arm.set_targets(hold[:n], np.zeros(n), arm.drive_targets()[n:])
+                if link.hold_q is None or np.abs(arm.qvel()[:n]).max() > HOLD_STILL_RAD_PER_S:
+                    link.hold_q = arm.qpos()[:n].copy()  # braking: hold where it is; once still, latched (no creep)
+                arm.set_targets(link.hold_q, np.zeros(n), arm.drive_targets()[n:])
                 continue
+            link.hold_q = None
             cmd = link.last_cmd
             if cmd.skill not in IDLE_SKILLS:
                 self.stats.busy_ticks[name] += 1

@@ -5,10 +5,17 @@ while tracking it, close, lift, transfer, lower, release, retreat. The grasp
 is a friction grasp made by the physics: this code only moves the joints and
 commands the gripper opening. It sees the world only through
 `ArmObservation` / `PartObservation` and answers an `ArmCommand`.
+
+With `grants_required`, each free joint-space move (approach, transfer, home) is first
+asked for: the skill holds still with a `MotionRequest` out until `on_grant` answers. A
+denied approach ends the task failed (the coordinator may give it again); a denied
+transfer or return home, with a part in the claw or none, is asked for again. An approach
+kept waiting past `REPLAN_AFTER_S` is planned again from where the part is by then.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from enum import Enum
@@ -38,6 +45,8 @@ class Phase(str, Enum):
     FAILED = "failed"
 
 
+SEGMENT_PHASES = (Phase.APPROACH, Phase.TRANSFER, Phase.HOME)  # free joint-space moves: the ones that need a grant
+REPLAN_AFTER_S = 0.3
 ORDER = [Phase.APPROACH, Phase.DESCEND, Phase.CLOSE, Phase.LIFT, Phase.TRANSFER, Phase.LOWER, Phase.RELEASE, Phase.RETREAT, Phase.HOME]
 
 
@@ -60,6 +69,17 @@ class PickPlaceTiming:
     place_drop_m: float = 0.008
 
 
+@dataclass(frozen=True)
+class MotionRequest:
+    """A joint-space move the skill wants to make: from `q_from` to `q_to` in `duration_s`, asked at `asked_at_s`."""
+
+    seq: int
+    q_from: tuple[float, ...]
+    q_to: tuple[float, ...]
+    duration_s: float
+    asked_at_s: float
+
+
 def _quintic(tau: float) -> float:
     tau = min(max(tau, 0.0), 1.0)
     return tau**3 * (10 - 15 * tau + 6 * tau**2)
@@ -75,8 +95,13 @@ class PickPlaceSkill:
         *,
         timing: PickPlaceTiming = PickPlaceTiming(),
         model: KinematicModel | None = None,
+        grants_required: bool = False,
     ) -> None:
         self.spec, self.timing = spec, timing
+        self.grants_required = grants_required
+        self.request: MotionRequest | None = None
+        self._request_seq = 0
+        self.denials = 0
         self.km = model or KinematicModel(spec)
         self.top_down = TopDownIK(spec, transform_base_to_world, self.km)
         self.phase = Phase.IDLE
@@ -119,7 +144,11 @@ class PickPlaceSkill:
         width = part.width_m + t.pregrasp_clearance_m
         self.pregrasp_opening = min(1.0, self.spec.opening_for_width(width))
         self.part_height = part.height_m
-        # Where will the part be when the claw arrives above it? Two passes refine the travel time.
+        self._plan_approach(obs, part)
+
+    def _plan_approach(self, obs: ArmObservation, part: PartObservation) -> None:
+        """The move above where the part will be when the claw gets there (two passes refine the travel time)."""
+        t = self.timing
         lead = t.descend_s
         seg = None
         for _ in range(2):
@@ -131,8 +160,47 @@ class PickPlaceSkill:
                 return
             seg = JointSegment.timed(self.q_cmd, q_hover, obs.time_s, self.km.velocity_limit[self.km.arm_q_index], t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
-        self.segment = seg
-        self._enter(Phase.APPROACH, obs.time_s)
+        self._begin_segment(seg, Phase.APPROACH, obs.time_s)
+
+    # --- motion grants --------------------------------------------------------------
+    def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
+        """Enter a free move; with grants required, ask for it first and hold still until answered."""
+        self.segment = segment
+        self._enter(phase, time_s)
+        self.request = None
+        if self.grants_required:
+            self._ask(time_s)
+
+    def _ask(self, time_s: float) -> None:
+        self._request_seq += 1
+        seg = self.segment
+        self.request = MotionRequest(
+            self._request_seq, tuple(map(float, self.q_cmd)), tuple(map(float, seg.q_end)), float(seg.duration_s), time_s,
+        )
+
+    def on_grant(self, request_seq: int, decision: str, conflict_arm: str, time_s: float) -> None:
+        """The coordinator's answer to request `request_seq` (stale answers are ignored): grant, or deny naming the arm."""
+        if self.request is None or request_seq != self.request.seq or not self.active:
+            return
+        if decision == "grant":
+            self.segment = dataclasses.replace(self.segment, q_start=np.asarray(self.request.q_from), t0_s=time_s)
+            self.phase_t0 = time_s
+            self.request = None
+            return
+        self.denials += 1
+        if self.phase == Phase.APPROACH:  # nothing in hand: give the task back, the coordinator decides again
+            self.request = None
+            self._fail(f"motion denied: the approach would pass within the margin of {conflict_arm or 'another arm'}")
+        else:  # a part in the claw, or on the way home: ask again
+            self._ask(time_s)
+
+    def _waiting(self, obs: ArmObservation, part: PartObservation | None, opening: float) -> ArmCommand | None:
+        """While a request is out: hold still (re-planning a long-kept approach). None once free to move."""
+        if self.request is None:
+            return None
+        if self.phase == Phase.APPROACH and part is not None and obs.time_s - self.request.asked_at_s > REPLAN_AFTER_S:
+            self._plan_approach(obs, part)  # the part moved on: a fresh plan, asked for again
+        return ArmCommand(self.q_cmd, np.zeros_like(self.q_cmd), opening)
 
     def reject(self, reason: str) -> None:
         """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
@@ -147,6 +215,7 @@ class PickPlaceSkill:
 
     def _fail(self, reason: str) -> None:
         self.phase, self.failure_reason = Phase.FAILED, reason
+        self.request = None
 
     @property
     def progress(self) -> float:
@@ -178,6 +247,11 @@ class PickPlaceSkill:
         if not self.active:
             return ArmCommand(self.q_cmd if hasattr(self, "q_cmd") else obs.q, np.zeros_like(obs.q), 1.0)
         part = parts.get(self.task.part_id)
+        if self.phase in SEGMENT_PHASES:
+            opening = {Phase.APPROACH: self.pregrasp_opening, Phase.TRANSFER: 0.0, Phase.HOME: 1.0}[self.phase]
+            held = self._waiting(obs, part, opening)
+            if held is not None:
+                return held
         if self.phase == Phase.APPROACH:
             q, dq = self.segment.sample(now)
             self.q_cmd = q
@@ -216,8 +290,9 @@ class PickPlaceSkill:
                 if not ok:
                     self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
                     return ArmCommand(q, np.zeros_like(q), 0.0)
-                self.segment = JointSegment.timed(q, q_above, now, self.km.velocity_limit[self.km.arm_q_index], t.transfer_speed)
-                self._enter(Phase.TRANSFER, now)
+                self._begin_segment(
+                    JointSegment.timed(q, q_above, now, self.km.velocity_limit[self.km.arm_q_index], t.transfer_speed), Phase.TRANSFER, now,
+                )
             return ArmCommand(q, dq, 0.0)
         if self.phase == Phase.TRANSFER:
             q, dq = self.segment.sample(now)
@@ -242,8 +317,9 @@ class PickPlaceSkill:
             q, dq = self._track(np.array([place[0], place[1], z]), self.place_yaw, dt)
             if elapsed >= t.retreat_s:
                 home = np.asarray(self.spec.home_q, float)
-                self.segment = JointSegment.timed(q, home, now, self.km.velocity_limit[self.km.arm_q_index], t.approach_speed)
-                self._enter(Phase.HOME, now)
+                self._begin_segment(
+                    JointSegment.timed(q, home, now, self.km.velocity_limit[self.km.arm_q_index], t.approach_speed), Phase.HOME, now,
+                )
             return ArmCommand(q, dq, self.pregrasp_opening)
         # HOME
         q, dq = self.segment.sample(now)

@@ -144,3 +144,36 @@ def test_realtime_mode_paces_the_sim_on_the_wall_clock():
     assert summary["status"] == "ok" and summary["mode"] == "realtime"
     assert 2.7 < summary["loop_wall_seconds"] < 4.5  # 6 sim s at 2x real time: 3 s of wall clock
     assert summary["inter_arm_contacts"] == 0
+
+
+def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_for_a_live_one():
+    """What the monitor's Respawn button sends: the launcher obeys it only for a controller that died or went silent."""
+    from fleet.bus.codec import encode
+    from fleet.bus.messages import RespawnRequest
+
+    steps, messages = [], []
+    launcher_ref = []
+
+    def drive(progress):
+        launcher = launcher_ref[0]
+        arm_0 = next(n for n in launcher.nodes if n.name == "arm_0")
+        if not steps and progress.sim_time_s > 2.0:
+            steps.append("asked for a live one")
+            session.put(keys.respawn, encode(RespawnRequest("arm_0", "test")))
+        elif len(steps) == 1 and launcher.respawn_requests:
+            steps.append("killed")
+            os.kill(arm_0.proc.pid, signal.SIGKILL)
+            arm_0.proc.wait()
+            session.put(keys.respawn, encode(RespawnRequest("arm_0", "test")))
+
+    keys = Keys("line")
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=10.0, seed=5), drive, on_message=messages.append) as launcher:
+        launcher_ref.append(launcher)
+        with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
+            summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert steps == ["asked for a live one", "killed"]
+    assert [(r["done"], r["reason"]) for r in summary["respawn_requests"]] == [(False, "its controller is alive and heard"), (True, "")]
+    assert summary["respawns"] == 1
+    assert any("refused" in m for m in messages) and any("respawned arm_0" in m for m in messages)
+    assert [p["exit_code"] for p in summary["processes"] if p["name"] == "arm_0"] == [-9, 0]

@@ -6,7 +6,7 @@ import pytest
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
     ArmCommandMsg, ArmState, ArmStatus, Assignment, CoordTick, EStop, LineEvent, MESSAGE_TYPES, PartsState, Progress,
-    RespawnRequest, Separations, SimControl, SimStatus,
+    LineView, MotionGrant, RespawnRequest, Separations, SimControl, SimStatus,
 )
 
 EXAMPLES = [
@@ -30,6 +30,10 @@ EXAMPLES = [
     SimStatus(300, 3.0, "realtime", True, True, 2.0, (0.5,), 1.8, 4, ("arm_0-arm_1",), 2.9, ("arm_1",), 3),
     Separations(3.0, ("arm_0",), ("arm_1",), (0.1,), (0.0, 0.0, 0.2, 0.1, 0.0, 0.2), 0.02),
     RespawnRequest("arm_1", "monitor"),
+    MotionGrant("arm_0", 3, 2, "grant"),
+    MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
+    LineView(3, 0.03, (ArmState("arm_0", 3, 0.03, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0)),),
+             PartsState(3, 0.03, (1,), ("bases",), (0,), (0.0,) * 3, (1.0, 0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0.03))),
 ]
 
 
@@ -87,3 +91,14 @@ def test_wrong_version_is_dropped():
     assert decoder.decode("k", encode(old)) is None
     assert decoder.decode("k", encode(old)) is None
     assert drops.total == 2 and len(drops.counts) == 1
+
+
+def test_orders_on_one_key_decode_to_their_own_type():
+    from fleet.bus.messages import ArmOrder
+
+    decoder = Decoder(ArmOrder, DropCounter())
+    grant = MotionGrant("arm_0", 3, 2, "grant")
+    assignment = Assignment("arm_0", 2, 9, 17, 0.08, (0.3, -0.5, 0.04), (0.05, 0.0, 0.0))
+    assert decoder.decode("k", encode(grant)) == grant
+    assert decoder.decode("k", encode(assignment)) == assignment
+    assert decoder.decode("k", encode(Progress(4.0, 3, 1, 0, 2))) is None and decoder.drops.total == 1

@@ -56,7 +56,7 @@ def realtime_sim():
 def test_the_sim_serves_its_scene_and_status_and_obeys_pause_resume_and_speed(realtime_sim):
     server, session, keys = realtime_sim
     assert fetch_scene(session, keys).name == "handover"
-    with LiveFeed(session, keys) as feed:
+    with LiveFeed(session, keys, ["arm_0", "arm_1"]) as feed:
         controls = LineControls(session, keys, source="test")
         try:
             assert wait_for(lambda: feed.take().status is not None and len(feed.snapshot.arms) == 2)
@@ -84,7 +84,7 @@ def test_the_sim_serves_its_scene_and_status_and_obeys_pause_resume_and_speed(re
 
 def test_garbage_on_the_monitor_keys_is_dropped_and_counted(realtime_sim):
     _, session, keys = realtime_sim
-    with LiveFeed(session, keys) as feed:
+    with LiveFeed(session, keys, ["arm_0", "arm_1"]) as feed:
         time.sleep(0.1)
         session.put(keys.sim_status, b"\x93garbage")
         session.put(keys.coord("separation"), b"")
