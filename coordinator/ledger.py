@@ -157,6 +157,13 @@ class Ledger:
         task.state, task.arm, task.assigned_s = TaskState.ASSIGNED, arm, now_s
         return task
 
+    def requeue(self, task_id: int, reason: str) -> Task:
+        """An assigned task its arm cannot meet goes back to the pool (not a failed attempt: nothing was tried)."""
+        task = self.tasks[task_id]
+        task.state, task.arm, task.assigned_s, task.reason = TaskState.PENDING, None, None, reason
+        task.reassignments += 1
+        return task
+
     def place_height_m(self, target: str) -> float:
         """Where a part's bottom goes at `target`: the station's surface, on top of any stack there."""
         z = self.scene.station(target).surface_z_m

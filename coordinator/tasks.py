@@ -61,6 +61,8 @@ class Task:
     assigned_s: float | None = None
     reason: str = ""
     stations: tuple[str, ...] = field(default=())
+    deadline_s: float | None = None  # belt tasks: when the part rides out of every arm's reach
+    reassignments: int = 0
 
     def __post_init__(self) -> None:
         self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)

@@ -128,6 +128,7 @@ class LineRow:
     contacts: int
     min_separation_m: float | None
     grants_denied: int
+    grants_given: int = 0
 
 
 def bench_lines(cases: list[tuple[str, int | None]], allocators: list[str], sim_seconds: float, seed: int = 0) -> list[LineRow]:
@@ -142,7 +143,7 @@ def bench_lines(cases: list[tuple[str, int | None]], allocators: list[str], sim_
                 raise RuntimeError(f"{scene} with {allocator}: {s['error']}")
             rows.append(LineRow(
                 s["scene"], s["arms"], allocator, s["throughput_per_min"], s["parts_completed"], s["parts_spawned"],
-                s["inter_arm_contacts"], s["min_separation_m"], s["grants_denied"],
+                s["inter_arm_contacts"], s["min_separation_m"], s["grants_denied"], s["grants_given"],
             ))
     return rows
 

@@ -353,6 +353,8 @@ class Launcher:
             "grants_denied": coord.get("grants_denied", 0),
             "grants_given": coord.get("grants_given", 0),
             "grant_waits": coord.get("grant_waits", 0),
+            "tasks_reassigned": coord.get("tasks_reassigned", 0),
+            "grant_requests_open": coord.get("grant_requests_open", {}),
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),
             "dropped_messages": sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)

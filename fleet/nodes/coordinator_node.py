@@ -21,11 +21,12 @@ import time
 import numpy as np
 import zenoh
 
-from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, PartView, make_allocator
+from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, Eligibility, PartView, make_allocator
+from coordinator.deadlines import belt_deadline_s, cannot_make_it
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, TimedPath
 from coordinator.ledger import Ledger
-from coordinator.tasks import CONVEYOR, Task
+from coordinator.tasks import CONVEYOR, Task, TaskState
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, MotionGrant, PartsState, Progress, Separations
@@ -95,6 +96,8 @@ class CoordinatorNode:
         self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
         self.request_seq: dict[str, int] = {a: 0 for a in self.arm_names}
         self.grants_given = 0
+        self.reassigned = 0
+        self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.lost: dict[str, float] = {}
         self.losses: list[dict] = []
         self.parts: dict[int, PartView] = {}
@@ -251,11 +254,41 @@ class CoordinatorNode:
         if len(self.arm_names) > 1:
             self.watch_separations(now)
         self.answer_motion_requests(now)
+        self.reassign_late_tasks(now)
         pending = self.ledger.refresh(now)
+        for task in pending:
+            if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
+                self.deadline_known.add(task.task_id)
+                task.deadline_s = belt_deadline_s(self.parts[task.part_id], self.arm_views(), now, self._time_to_belt_end_s(task.part_id))
         if pending:
             for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
                 self._send(self.ledger.assign(task_id, arm, now), arm)
         self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
+
+    def _time_to_belt_end_s(self, part_id: int) -> float:
+        """How long until the part rides off the belt's end."""
+        c, part = self.scene.conveyor, self.parts[part_id]
+        if c is None or c.speed_m_per_s <= 0:
+            return 0.0
+        along = float(np.dot(part.position[:2] - np.asarray(c.pose.xyz[:2]), np.asarray(c.direction[:2])))
+        return max(0.0, (c.length_m - along) / c.speed_m_per_s)
+
+    def reassign_late_tasks(self, now_s: float) -> None:
+        """A belt task whose arm has not started moving for it, and can no longer meet the part, goes back to the
+        pool (its arm is told to drop it), so an arm further down the belt can still take it before its deadline."""
+        views = {v.name: v for v in self.arm_views()}
+        rules = Eligibility(self.scene, list(views.values()))
+        for task in list(self.ledger.tasks.values()):
+            arm = task.arm
+            not_started = task.state == TaskState.ASSIGNED or (task.state == TaskState.ACTIVE and self.skill.get(arm) == "approach" and arm in self.requests)
+            part = self.parts.get(task.part_id)
+            if arm is None or part is None or not not_started or not cannot_make_it(rules, views[arm], task, part):
+                continue
+            self.ledger.requeue(task.task_id, f"{arm} could no longer meet the part")
+            self.requests.pop(arm, None)
+            self.reassigned += 1
+            self.assign_seq[arm] += 1
+            self._assign_pubs[arm].put(encode(Assignment(arm, self.assign_seq[arm], None, task.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))))
 
     def answer_motion_requests(self, now_s: float) -> None:
         """Check every waiting request with the guard, arms in scene order (one global order: no cycle of waits).
@@ -321,13 +354,16 @@ class CoordinatorNode:
             "unfinished_parts": self.ledger.unfinished(),
             "tasks": [
                 {"task_id": t.task_id, "part_id": t.part_id, "source": t.source, "target": t.target, "state": t.state.value,
-                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "reason": t.reason}
+                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "deadline_s": t.deadline_s,
+                 "reassignments": t.reassignments, "reason": t.reason}
                 for t in self.ledger.tasks.values()
             ],
             "decisions": self.decisions,
             "grants_denied": self.guard.denied,
             "grants_given": self.grants_given,
+            "tasks_reassigned": self.reassigned,
             "grant_waits": self.guard.waits,
+            "grant_requests_open": {a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items()},
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "dropped_messages": self.drops.total,

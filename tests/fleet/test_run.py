@@ -45,6 +45,8 @@ def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
     assert first["status"] == "ok" and first["sim_seconds"] == pytest.approx(18.0)
     assert first["parts_completed"] >= 2, first["unfinished_parts"]
     assert first["inter_arm_contacts"] == 0
+    assert first["grants_given"] > 0, "every free move went through the collision guard"
+    assert all(waited < 1.0 for waited in first["grant_requests_open"].values()), "nobody left waiting for a grant"
     assert first["dropped_messages"] == 0
     assert {p["role"] for p in first["processes"]} == {"sim", "coordinator", "controller"}
     assert all(p["exit_code"] == 0 for p in first["processes"])

@@ -1,0 +1,72 @@
+"""A skill that must ask before each free move: it holds until granted, gives an approach back when denied,
+asks again for a transfer it cannot abandon, and re-plans an approach kept waiting while the part moves on."""
+
+import numpy as np
+
+from robots.frames import yaw_transform
+from robots.registry import get_robot
+from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
+from robots.skills.pick_place import REPLAN_AFTER_S, Phase, PickPlaceSkill
+
+SPEC = get_robot("openclaw")
+BASE = yaw_transform((0.0, -0.35, 0.0), np.pi / 2)
+DT = 0.01
+
+
+def obs(skill_or_q, t: float) -> ArmObservation:
+    q = np.asarray(skill_or_q, float)
+    return ArmObservation(t, q, np.zeros_like(q), np.array(SPEC.gripper_open))
+
+
+def part_at(x: float, t: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> PartObservation:
+    position = np.array([x + velocity[0] * t, 0.0, 0.095])
+    return PartObservation(7, position, np.array([1.0, 0, 0, 0]), np.array(velocity), 0.05, 0.03, (0.05, 0.05, 0.03))
+
+
+def started(velocity=(0.0, 0.0, 0.0)) -> PickPlaceSkill:
+    skill = PickPlaceSkill(SPEC, BASE, grants_required=True)
+    task = PickPlaceTask(7, 0.08, (0.3, -0.55, 0.04), velocity)
+    skill.start(task, obs(SPEC.home_q, 0.0), part_at(0.0, 0.0, velocity))
+    return skill
+
+
+def test_the_approach_waits_for_its_grant_then_moves():
+    skill = started()
+    assert skill.phase == Phase.APPROACH and skill.request is not None
+    request = skill.request
+    assert np.allclose(request.q_from, SPEC.home_q) and request.duration_s > 0
+    for k in range(20):  # no answer yet: holds still
+        cmd = skill.step(obs(SPEC.home_q, k * DT), {7: part_at(0.0)}, DT)
+        assert np.allclose(cmd.q, SPEC.home_q) and not np.any(cmd.dq)
+    skill.on_grant(request.seq + 5, "grant", "", 0.2)  # a stale or foreign answer changes nothing
+    assert skill.request is request
+    skill.on_grant(request.seq, "grant", "", 0.2)
+    assert skill.request is None
+    cmd = skill.step(obs(SPEC.home_q, 0.2 + 10 * DT), {7: part_at(0.0)}, DT)
+    assert np.abs(np.asarray(cmd.q) - SPEC.home_q).max() > 1e-3, "granted: the arm moves along the segment"
+
+
+def test_a_denied_approach_gives_the_task_back_with_the_arm_in_the_way():
+    skill = started()
+    skill.on_grant(skill.request.seq, "deny", "arm_1", 0.1)
+    assert skill.phase == Phase.FAILED and "arm_1" in skill.failure_reason and skill.denials == 1
+
+
+def test_a_denied_transfer_is_asked_for_again():
+    skill = started()
+    skill.on_grant(skill.request.seq, "grant", "", 0.0)
+    skill.phase = Phase.TRANSFER  # as after a lift with a part in the claw
+    skill._begin_segment(skill.segment, Phase.TRANSFER, 1.0)
+    first = skill.request.seq
+    skill.on_grant(first, "deny", "arm_2", 1.1)
+    assert skill.phase == Phase.TRANSFER and skill.request.seq == first + 1
+
+
+def test_an_approach_kept_waiting_is_planned_again_from_where_the_part_has_gone():
+    belt = (0.05, 0.0, 0.0)
+    skill = started(belt)
+    first = skill.request
+    later = REPLAN_AFTER_S + 0.05
+    skill.step(obs(SPEC.home_q, later), {7: part_at(0.0, later, belt)}, DT)
+    assert skill.request.seq == first.seq + 1, "a fresh request for a fresh plan"
+    assert not np.allclose(skill.request.q_to, first.q_to), "aimed where the part is now"
