@@ -14,3 +14,15 @@ def test_random_rollout_runs():
     )
     assert result.returncode == 0, result.stderr
     assert "episode 0: mean return per arm" in result.stdout
+
+
+def test_ippo_training_runs_and_writes_its_curve(tmp_path):
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLES / "train_ippo_reach.py"), "--iterations", "2", "--steps", "64", "--max-cycles", "20",
+         "--curve", str(tmp_path / "curve")],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "random policy:" in result.stdout
+    assert (tmp_path / "curve.csv").read_text().startswith("iteration,wall_s,agent_steps,mean_return")
+    assert (tmp_path / "curve.png").stat().st_size > 1000
