@@ -7,24 +7,30 @@ import numpy as np
 
 from coordinator.allocation import ArmView, Eligibility, PartView
 from coordinator.tasks import CONVEYOR, Task
+from scenes.schema import Conveyor
 
-SCAN_STEP_S = 0.5
+SCAN_STEP_M = 0.02
 
 
-def belt_deadline_s(part: PartView, arms: list[ArmView], now_s: float, horizon_s: float) -> float | None:
-    """Sim time after which no arm can reach the part riding on (None if no arm reaches its path within
-    `horizon_s`, e.g. before it rides off the belt's end; a part at rest has no deadline).
-
-    Walks the part's path backwards from the horizon in `SCAN_STEP_S` steps and stops at the first point
-    some arm reaches: only the few points past the last arm's reach cost an IK check.
-    """
-    if not np.any(part.velocity):
-        return None
-    for k in range(int(max(horizon_s, 0.0) / SCAN_STEP_S), -1, -1):
-        t = k * SCAN_STEP_S
-        if any(Eligibility.in_reach(a, part.position + part.velocity * t) for a in arms):
-            return now_s + t
+def last_reach_along_belt_m(conveyor: Conveyor, arms: list[ArmView], part_z_m: float) -> float | None:
+    """How far along the belt (m from its start) the last point some arm reaches lies, on the centre line at
+    a part's height; None if no arm reaches the belt. Scans back from the belt's end, once per cell: each
+    miss costs an IK solve, so the per-task deadline below is then a division."""
+    for k in range(int(conveyor.length_m / SCAN_STEP_M), -1, -1):
+        s = k * SCAN_STEP_M
+        x, y, _ = conveyor.point_at(s)
+        if any(Eligibility.in_reach(a, (x, y, part_z_m)) for a in arms):
+            return s
     return None
+
+
+def belt_deadline_s(conveyor: Conveyor, last_reach_m: float | None, part: PartView, now_s: float) -> float | None:
+    """Sim time at which the riding part passes the last reachable point (None: no arm reaches the belt,
+    or the belt stands still)."""
+    if last_reach_m is None or conveyor.speed_m_per_s <= 0:
+        return None
+    along = float(np.dot(part.position[:2] - np.asarray(conveyor.pose.xyz[:2]), np.asarray(conveyor.direction[:2])))
+    return now_s + max(0.0, last_reach_m - along) / conveyor.speed_m_per_s
 
 
 def cannot_make_it(rules: Eligibility, arm: ArmView, task: Task, part: PartView) -> bool:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.geometry import ArmGeometry, closest_points, separation_m
+from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
 
 DEFAULT_MARGIN_M = 0.02
 
@@ -36,7 +37,8 @@ def _bound_m(arm: ArmGeometry) -> float:
 
 @dataclass(frozen=True)
 class TimedPath:
-    """A joint-space segment: `q_from` at `t_start_s` to `q_to` at `t_end_s`, straight in joint space."""
+    """A joint-space segment: `q_from` at `t_start_s` to `q_to` at `t_end_s`, straight in joint space, timed as the
+    skills move (rest to rest, quintic), so the guard places each arm where it really is at each instant."""
 
     arm: str
     q_from: tuple[float, ...]
@@ -45,8 +47,9 @@ class TimedPath:
     t_end_s: float
 
     def at(self, t_s: float) -> np.ndarray:
+        """Where the arm is at `t_s`: the skills' rest-to-rest quintic time law along the joint-space line."""
         span = self.t_end_s - self.t_start_s
-        u = 1.0 if span <= 0 else min(max((t_s - self.t_start_s) / span, 0.0), 1.0)
+        u = 1.0 if span <= 0 else quintic((t_s - self.t_start_s) / span)
         return (1 - u) * np.asarray(self.q_from) + u * np.asarray(self.q_to)
 
     @property
@@ -165,7 +168,7 @@ class CollisionGuard:
     def closing_speed_m_per_s(self, path: TimedPath) -> float:
         """An upper bound on how fast any point of the asking arm and of the arms moving with it can approach."""
         def speed(p: TimedPath) -> float:
-            return p.joint_travel_rad * self.arms[p.arm].spec.reach_m / max(p.t_end_s - p.t_start_s, 1e-9)
+            return QUINTIC_PEAK_SPEED * p.joint_travel_rad * self.arms[p.arm].spec.reach_m / max(p.t_end_s - p.t_start_s, 1e-9)
 
         others = [p for a, p in self.grants.items() if a != path.arm and p.t_end_s > path.t_start_s and p.t_start_s < path.t_end_s]
         return speed(path) + max((speed(p) for p in others), default=0.0)

@@ -139,7 +139,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
     if not args.connect:
         raise SystemExit("fleet: error: fleet monitor needs --connect ENDPOINT (fleet run prints its bus endpoint; or start it with --listen)")
-    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port)]
+    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
     for ep in args.connect:
         argv += ["--connect", ep]
     if args.zenoh_config:
@@ -307,6 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("monitor", help="watch and control a running line in the browser (attaches over the bus)")
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_monitor_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_monitor)

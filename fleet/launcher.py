@@ -155,7 +155,8 @@ class Launcher:
         o = self.options
         nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode, "--allocator", o.allocator])]
         for arm in self.scene.arms:
-            extra = ["--arm", arm.name, "--grants"] + (["--rt"] if o.realtime_priority else [])
+            grants = ["--grants"] if len(self.scene.arms) > 1 else []  # a lone arm has nobody to ask about
+            extra = ["--arm", arm.name, *grants] + (["--rt"] if o.realtime_priority else [])
             nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
         return nodes
 

@@ -9,6 +9,12 @@ import numpy as np
 QUINTIC_PEAK_SPEED = 1.875  # peak / mean speed of the 10t^3 - 15t^4 + 6t^5 profile
 
 
+def quintic(tau: float) -> float:
+    """The rest-to-rest time law 10t^3 - 15t^4 + 6t^5 (0 to 1 as `tau` goes 0 to 1, clamped)."""
+    tau = min(max(tau, 0.0), 1.0)
+    return tau**3 * (10 - 15 * tau + 6 * tau**2)
+
+
 @dataclass(frozen=True)
 class JointSegment:
     """A rest-to-rest move from `q_start` to `q_end`, starting at `t0_s` and lasting `duration_s`."""
@@ -40,7 +46,7 @@ class JointSegment:
     def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity at time `t_s` (held at the ends)."""
         tau = min(max((t_s - self.t0_s) / self.duration_s, 0.0), 1.0)
-        s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+        s = quintic(tau)
         ds = 30 * tau**2 * (1 - tau) ** 2 / self.duration_s
         if tau >= 1.0:
             ds = 0.0

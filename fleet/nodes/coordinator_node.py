@@ -22,7 +22,7 @@ import numpy as np
 import zenoh
 
 from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, Eligibility, PartView, make_allocator
-from coordinator.deadlines import belt_deadline_s, cannot_make_it
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, TimedPath
 from coordinator.ledger import Ledger
@@ -107,6 +107,8 @@ class CoordinatorNode:
         self._progress_at = 0.0
         self.events_seen = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
+        conveyor = scene.conveyor  # the belt's last reachable point, worked out once before the run starts
+        self.last_reach_along_belt_m = last_reach_along_belt_m(conveyor, self.arm_views(), conveyor.pose.xyz[2] + 0.015) if conveyor else None
 
     def close(self) -> None:
         for sub in self._subs:
@@ -259,19 +261,11 @@ class CoordinatorNode:
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)
-                task.deadline_s = belt_deadline_s(self.parts[task.part_id], self.arm_views(), now, self._time_to_belt_end_s(task.part_id))
+                task.deadline_s = belt_deadline_s(self.scene.conveyor, self.last_reach_along_belt_m, self.parts[task.part_id], now)
         if pending:
             for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
                 self._send(self.ledger.assign(task_id, arm, now), arm)
         self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
-
-    def _time_to_belt_end_s(self, part_id: int) -> float:
-        """How long until the part rides off the belt's end."""
-        c, part = self.scene.conveyor, self.parts[part_id]
-        if c is None or c.speed_m_per_s <= 0:
-            return 0.0
-        along = float(np.dot(part.position[:2] - np.asarray(c.pose.xyz[:2]), np.asarray(c.direction[:2])))
-        return max(0.0, (c.length_m - along) / c.speed_m_per_s)
 
     def reassign_late_tasks(self, now_s: float) -> None:
         """A belt task whose arm has not started moving for it, and can no longer meet the part, goes back to the
@@ -299,7 +293,8 @@ class CoordinatorNode:
         self.guard.expire(now_s)
         for arm in [a for a in self.arm_names if a in self.requests]:
             asked = self.requests[arm]
-            path = TimedPath(arm, asked.q_from, asked.q_to, now_s, now_s + (asked.t_end_s - asked.t_start_s))
+            start = now_s + 1.0 / self.scene.control_hz  # the arm hears the grant with the next tick's state and starts then
+            path = TimedPath(arm, asked.q_from, asked.q_to, start, start + (asked.t_end_s - asked.t_start_s))
             self.guard.set_state(arm, np.asarray(asked.q_from))
             verdict = self.guard.request(path)
             if verdict.decision == "wait":

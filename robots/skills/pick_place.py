@@ -27,7 +27,7 @@ from robots.kinematics import KinematicModel
 from robots.skills.interface import ArmCommand, ArmObservation, PartObservation, PickPlaceTask
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
-from robots.trajectory import JointSegment
+from robots.trajectory import JointSegment, quintic
 
 
 class Phase(str, Enum):
@@ -78,11 +78,6 @@ class MotionRequest:
     q_to: tuple[float, ...]
     duration_s: float
     asked_at_s: float
-
-
-def _quintic(tau: float) -> float:
-    tau = min(max(tau, 0.0), 1.0)
-    return tau**3 * (10 - 15 * tau + 6 * tau**2)
 
 
 class PickPlaceSkill:
@@ -264,7 +259,7 @@ class PickPlaceSkill:
                 return ArmCommand(self.q_cmd, np.zeros_like(self.q_cmd), 1.0)
             aim = part.position + self.velocity * t.track_lead_s
             if self.phase == Phase.DESCEND:
-                z = self.grasp_z + t.hover_m * (1 - _quintic(elapsed / t.descend_s))
+                z = self.grasp_z + t.hover_m * (1 - quintic(elapsed / t.descend_s))
                 opening = self.pregrasp_opening
                 if elapsed >= t.descend_s:
                     self._enter(Phase.CLOSE, now)
@@ -277,7 +272,7 @@ class PickPlaceSkill:
             return ArmCommand(q, dq, opening)
         if self.phase == Phase.LIFT:
             xy = self.lift_xy + self.velocity[:2] * min(elapsed, 0.15)
-            z = self.grasp_z + t.lift_m * _quintic(elapsed / t.lift_s)
+            z = self.grasp_z + t.lift_m * quintic(elapsed / t.lift_s)
             q, dq = self._track(np.array([xy[0], xy[1], z]), self.grasp_yaw, dt)
             if elapsed >= t.lift_s:
                 if self._gripper_opening(obs) < 0.03:
@@ -303,7 +298,7 @@ class PickPlaceSkill:
         place = np.asarray(self.task.place_xyz, float)
         release_z = place[2] + self.tool_above_bottom_m + t.place_drop_m
         if self.phase == Phase.LOWER:
-            z = release_z + t.hover_m * (1 - _quintic(elapsed / t.lower_s))
+            z = release_z + t.hover_m * (1 - quintic(elapsed / t.lower_s))
             q, dq = self._track(np.array([place[0], place[1], z]), self.place_yaw, dt)
             if elapsed >= t.lower_s:
                 self._enter(Phase.RELEASE, now)
@@ -313,7 +308,7 @@ class PickPlaceSkill:
                 self._enter(Phase.RETREAT, now)
             return ArmCommand(self.q_cmd, np.zeros_like(self.q_cmd), self.pregrasp_opening)
         if self.phase == Phase.RETREAT:
-            z = release_z + t.hover_m * _quintic(elapsed / t.retreat_s)
+            z = release_z + t.hover_m * quintic(elapsed / t.retreat_s)
             q, dq = self._track(np.array([place[0], place[1], z]), self.place_yaw, dt)
             if elapsed >= t.retreat_s:
                 home = np.asarray(self.spec.home_q, float)

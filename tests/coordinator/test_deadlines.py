@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView
-from coordinator.deadlines import belt_deadline_s, cannot_make_it
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.ledger import Ledger
 from coordinator.tasks import TaskState
 from robots.frames import yaw_transform
@@ -27,15 +27,18 @@ def cell():
     return scene, arms
 
 
-def test_the_deadline_is_when_the_part_rides_out_of_the_last_arms_reach(cell):
+def test_the_deadline_is_when_the_part_rides_past_the_last_point_an_arm_reaches(cell):
     scene, arms = cell
-    start = PartView(np.array([scene.arms[0].base.xyz[0] - 0.6, 0.0, 0.095]), BELT)
-    deadline = belt_deadline_s(start, arms, now_s=10.0, horizon_s=60.0)
-    assert deadline is not None and deadline > 10.0
-    gone = start.position + BELT * (deadline - 10.0 + 0.5)
-    assert not any(Eligibility.in_reach(a, gone) for a in arms), "half a second later nobody reaches it"
-    assert Eligibility.in_reach(arms[-1], start.position + BELT * (deadline - 10.0)), "the last arm still does at the deadline"
-    assert belt_deadline_s(PartView(start.position, np.zeros(3)), arms, 10.0, 60.0) is None, "a part at rest has no deadline"
+    belt, z = scene.conveyor, scene.conveyor.pose.xyz[2] + 0.015
+    last = last_reach_along_belt_m(belt, arms, z)
+    assert last is not None and 0 < last < belt.length_m
+    end = np.array(belt.point_at(last + 0.05))
+    end[2] = z
+    assert not any(Eligibility.in_reach(a, end) for a in arms), "5 cm further nobody reaches the belt"
+    start = PartView(np.array([*belt.point_at(0.1)[:2], z]), BELT)
+    deadline = belt_deadline_s(belt, last, start, now_s=10.0)
+    assert deadline == pytest.approx(10.0 + (last - 0.1) / belt.speed_m_per_s)
+    assert belt_deadline_s(belt, None, start, 10.0) is None, "a belt no arm reaches gives no deadline"
 
 
 def test_a_task_whose_arm_fell_behind_the_part_can_be_taken_by_the_next_arm(cell):

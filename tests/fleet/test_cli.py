@@ -64,3 +64,17 @@ def test_run_refuses_bad_input_with_one_line_and_starts_nothing(args, says):
     lines = result.stderr.strip().splitlines()
     assert says in lines[-1] and "Traceback" not in result.stderr
     assert "sim" not in result.stderr.split("error")[0]  # no progress bar: nothing was started
+
+
+def test_monitor_needs_an_endpoint_and_says_so_in_one_line():
+    result = fleet("monitor")
+    assert result.returncode != 0
+    assert result.stderr.strip().count("\n") == 0 and "--connect" in result.stderr
+
+
+def test_monitor_with_nobody_to_watch_fails_cleanly():
+    from fleet.bus.session import free_loopback_port, loopback_endpoint
+
+    result = fleet("monitor", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2", timeout=120)
+    assert result.returncode == 1
+    assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
