@@ -42,15 +42,15 @@ def wait_http(url: str, timeout_s: float) -> None:
 
 
 def arm_orange_pixels(png: Path) -> int:
-    """Pixels of the arms' orange links in the 3D view (not the panel, not the notice); the page may
-    draw the scene faded for a while, so any clearly orange hue counts, not only the full colour."""
+    """Warm-tinted pixels in the 3D view (panel and notice masked): the arms' orange links. Software WebGL
+    sometimes draws the whole scene washed out (pale, nearly grey), so any warm tint counts; the floor
+    grid, the belt, shadows and labels are neutral grey, and the scene's axes add at most a few hundred."""
     from PIL import Image
 
     rgb = np.asarray(Image.open(png).convert("RGB")).astype(int)
     view = rgb[:, :PANEL_X].copy()
     view[: NOTICE[1], : NOTICE[0]] = 255
-    r, g, b = view[..., 0], view[..., 1], view[..., 2]
-    return int(((r > 150) & (r - g > 15) & (g - b > 15) & (r - b > 50)).sum())
+    return int((view[..., 0] - view[..., 2] >= 6).sum())
 
 
 def states_after(session, keys: Keys, arms: list[str], seconds: float) -> dict[str, list[ArmState]]:
@@ -94,10 +94,10 @@ def test_the_page_draws_the_arms_and_its_emergency_stop_holds_every_arm(tmp_path
                 while True:  # the scene streams in after the canvas appears
                     page.screenshot(path=str(shot))
                     orange = arm_orange_pixels(shot)
-                    if orange > 1000 or time.monotonic() > deadline:
+                    if orange > 2000 or time.monotonic() > deadline:
                         break
                     time.sleep(1.0)
-                assert orange > 1000, f"only {orange} arm-coloured pixels: the arms are not drawn (screenshot {shot})"
+                assert orange > 2000, f"only {orange} arm-coloured pixels: the arms are not drawn (screenshot {shot})"
                 moving = states_after(session, keys, arms, 0.5)
                 assert all(moving[a] for a in arms), "every arm publishes its state"
                 assert not any(s.held for a in arms for s in moving[a]), "nobody held before the e-stop"
