@@ -300,6 +300,8 @@ class Launcher:
             self._check_monitor()
             code = sim.poll()
             if code is not None:
+                if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
+                    return f"the sim stopped: the coordinator did not answer within the lockstep timeout; logs in {self.dir}"
                 return "" if code == 0 else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
             code = coordinator.poll()
             if code is not None:

@@ -346,6 +346,8 @@ class SimServer:
             done += 1
             if stop is not None and stop.should_stop():
                 return
+            if self.stats.coordinator_lost and self.mode == "lockstep":
+                return  # its decisions would never be announced again: end the run rather than stall it
             if self.mode == "realtime":
                 if self.world.tick == 1 or self.speed != speed_then:  # the clock starts once every process answered tick 0
                     start_wall, start_sim, speed_then = time.monotonic(), self.world.sim_time_s, self.speed
@@ -431,7 +433,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             server.run_ticks(ticks)
         finally:
-            report = server.report() | {"stopped_by": stop.reason or "duration"}
+            lost = "the coordinator did not answer within the lockstep timeout" if server.stats.coordinator_lost and args.mode == "lockstep" else ""
+            report = server.report() | {"stopped_by": stop.reason or lost or "duration"}
             server.close()
             write_report(args.report, report)
     return 0

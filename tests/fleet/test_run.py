@@ -82,6 +82,25 @@ def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawne
     assert summary["parts_completed"] >= 1
 
 
+def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_of_stalling_it():
+    stopped = []
+
+    def freeze_coordinator(progress):
+        coordinator = launcher_ref[0].nodes[1]
+        if not stopped and progress.sim_time_s > 1.0:
+            stopped.append(coordinator.proc.pid)
+            os.kill(coordinator.proc.pid, signal.SIGSTOP)  # alive, silent: the sim gives up on it after 1 s
+
+    launcher_ref = []
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), freeze_coordinator) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert stopped and summary["status"] == "error"
+    assert summary["error"].startswith("the sim stopped: the coordinator did not answer") and "\n" not in summary["error"]
+    assert summary["sim_seconds"] < 10.0
+
+
 def test_a_crashed_coordinator_ends_the_run_with_one_clear_message():
     def kill_coordinator(progress):
         if progress.sim_time_s > 1.0 and launcher_ref[0].nodes[1].alive:
