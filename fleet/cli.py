@@ -167,6 +167,14 @@ def print_run_summary(s: dict) -> None:
     out.print(table)
 
 
+def print_bench(table: Table, rows: list, as_json: bool) -> int:
+    """A benchmark's table, and with `--json` its rows as one JSON line (the last on stdout)."""
+    out.print(table)
+    if as_json:
+        print(json.dumps([r.__dict__ for r in rows]))
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from fleet.bench_physics import bench_physics
 
@@ -191,10 +199,7 @@ def cmd_bench_bus(args: argparse.Namespace) -> int:
         row = bench_bus(n, args.ticks)
         rows.append(row)
         table.add_row(str(n), str(row.ticks), f"{row.p50_ms:.2f}", f"{row.p99_ms:.2f}", f"{row.ticks_per_s:,.0f}")
-    out.print(table)
-    if args.json:
-        print(json.dumps([r.__dict__ for r in rows]))
-    return 0
+    return print_bench(table, rows, args.json)
 
 
 def cmd_bench_run(args: argparse.Namespace) -> int:
@@ -222,10 +227,7 @@ def cmd_bench_monitor(args: argparse.Namespace) -> int:
     table = Table("variant", "sim loop wall s (median)", "ratio to no monitor", "monitor frames/s")
     for r in rows:
         table.add_row(r.variant, f"{r.loop_wall_seconds:.2f}", f"{r.ratio_to_plain:.3f}", "-" if r.monitor_frames_per_s is None else f"{r.monitor_frames_per_s:.1f}")
-    out.print(table)
-    if args.json:
-        print(json.dumps([r.__dict__ for r in rows]))
-    return 0
+    return print_bench(table, rows, args.json)
 
 
 def cmd_bench_collision(args: argparse.Namespace) -> int:
@@ -235,10 +237,7 @@ def cmd_bench_collision(args: argparse.Namespace) -> int:
     rows = [bench_collision(n) for n in args.arms]
     for r in rows:
         table.add_row(str(r.arms), f"{r.separation_ms:.3f}", f"{r.place_and_separation_ms:.3f}", f"{r.grant_ms:.2f}", str(r.grant_samples))
-    out.print(table)
-    if args.json:
-        print(json.dumps([r.__dict__ for r in rows]))
-    return 0
+    return print_bench(table, rows, args.json)
 
 
 def cmd_bench_allocation(args: argparse.Namespace) -> int:
@@ -248,10 +247,7 @@ def cmd_bench_allocation(args: argparse.Namespace) -> int:
     rows = [bench_allocation(n, args.arms) for n in args.tasks]
     for r in rows:
         table.add_row(str(r.tasks), str(r.arms), f"{r.solve_ms:.3f}")
-    out.print(table)
-    if args.json:
-        print(json.dumps([r.__dict__ for r in rows]))
-    return 0
+    return print_bench(table, rows, args.json)
 
 
 def cmd_bench_lines(args: argparse.Namespace) -> int:
@@ -263,10 +259,7 @@ def cmd_bench_lines(args: argparse.Namespace) -> int:
     for r in rows:
         sep = "-" if r.min_separation_m is None else f"{r.min_separation_m:.3f}"
         table.add_row(r.scene, str(r.arms), r.allocator, f"{r.throughput_per_min:.2f}", f"{r.parts_completed} / {r.parts_spawned}", str(r.contacts), sep, f"{r.grants_given} / {r.grants_denied}")
-    out.print(table)
-    if args.json:
-        print(json.dumps([r.__dict__ for r in rows]))
-    return 0
+    return print_bench(table, rows, args.json)
 
 
 def cmd_bench_env(args: argparse.Namespace) -> int:

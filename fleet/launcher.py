@@ -113,6 +113,7 @@ class Launcher:
         self.options = options
         self.on_message = on_message or (lambda text: print(text, file=sys.stderr, flush=True))
         self.monitor_url = ""
+        self.monitor_gone = False
         self.respawn_requests: list[dict] = []
         self.arms_lost: tuple[str, ...] = ()
         self.scene = load_scene(options.scene, arms=options.arms)
@@ -289,8 +290,8 @@ class Launcher:
         if not self.monitor_url and (self.dir / "monitor_url").exists():
             self.monitor_url = (self.dir / "monitor_url").read_text().strip()
             self.on_message(f"monitor: {self.monitor_url}")
-        if monitor.poll() is not None and not getattr(self, "_monitor_gone", False):
-            self._monitor_gone = True
+        if monitor.poll() is not None and not self.monitor_gone:
+            self.monitor_gone = True
             self.on_message(f"the monitor exited (exit {monitor.exit_code}): {monitor.log_tail() or 'no output'}; the line goes on")
 
     def _supervise(self, inbox: Inbox) -> str:

@@ -178,7 +178,7 @@ class PickPlaceSkill:
         if self.request is None or request_seq != self.request.seq or not self.active:
             return
         if decision == "grant":
-            self.segment = dataclasses.replace(self.segment, q_start=np.asarray(self.request.q_from), t0_s=time_s)
+            self.segment = dataclasses.replace(self.segment, t0_s=time_s)  # the arm held still: the planned move, from now
             self.phase_t0 = time_s
             self.request = None
             return
