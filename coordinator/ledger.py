@@ -76,6 +76,16 @@ class Ledger:
             else:
                 stack.remove(part.part_id)
 
+    def on_event(self, kind: str, part_id: int, detail: str, type_index: int, now_s: float) -> None:
+        """One line event as the sim reports it (`arrived`: detail is the feeder; `at_station`: the station;
+        `lost`: why); other kinds (`retired`) change nothing here."""
+        if kind == "arrived":
+            self.arrived(part_id, detail, type_index, now_s)
+        elif kind == "at_station":
+            self.at_station(part_id, detail, now_s)
+        elif kind == "lost":
+            self.lost(part_id, detail, now_s)
+
     # --- arms -----------------------------------------------------------------------
     def arm_report(self, arm: str, task_id: int | None, skill: str, now_s: float, failure: str = "") -> None:
         """What an arm's skill says it is doing (echoed by the sim each tick)."""

@@ -209,6 +209,12 @@ class Scene(Strict):
         """Where feeders put parts: `conveyor` and the stations fed directly."""
         return {f.into for f in self.feeders}
 
+    def arm(self, name: str) -> Arm:
+        for a in self.arms:
+            if a.name == name:
+                return a
+        raise KeyError(f"no arm {name!r}; arms: {', '.join(a.name for a in self.arms) or 'none'}")
+
     def station(self, name: str) -> Station:
         for s in self.stations:
             if s.name == name:

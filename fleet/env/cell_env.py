@@ -1,15 +1,12 @@
 """The line as a PettingZoo parallel environment: one agent per arm, the same ids as on the bus.
 
 The world is the same SAPIEN world `fleet run` uses (`fleet.physics.world.World`),
-stepped in process; minimum separations come from the coordinator's collision
-guard (python-fcl), contacts from the physics. Episodes end by truncation at
-`max_cycles`; arms never leave mid-episode. `reset(seed)` puts back the world's
-first snapshot and draws the targets from the seed, so a seed repeats an episode.
-
-Implemented so far: task `reach` (each arm's claw to its own moving target) with
-action modes `joint_delta` (joint target steps) and `ee_delta` (a Cartesian step
-of the claw in the world frame, turned into joint steps by damped least squares
-on Pinocchio's Jacobian), each plus a gripper command.
+stepped in process (or, with `distributed=True`, with each arm's action turned into
+joint targets by its own process over Zenoh); minimum separations come from the
+coordinator's collision guard (python-fcl), contacts from the physics, tasks in
+`task` mode from the coordinator's ledger and eligibility rules. Episodes end by
+truncation at `max_cycles`; arms never leave mid-episode. `reset(seed)` puts back
+the world's first snapshot and draws the episode from the seed, so a seed repeats it.
 """
 
 from __future__ import annotations
@@ -23,24 +20,21 @@ from pettingzoo import ParallelEnv
 
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
+from fleet.env.task_mode import SLOT_FEATURES, SLOTS, TaskChooser
+from fleet.env.tasks import TASKS, EnvTask, make_task
 from fleet.physics.render import require_render
 from fleet.physics.world import World
 from robots.frames import yaw_transform
-from robots.kinematics import KinematicModel
+from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 from scenes.loader import load_scene
-from scenes.schema import Arrival
 
-TASKS = ("reach",)
-ACTION_MODES = ("joint_delta", "ee_delta")
-RENDER_MODES = ("rgb_array",)
-MAX_DELTA_RAD = 0.05  # per step at full action
-MAX_EE_STEP_M = 0.01  # ee_delta: the claw's step per control tick at full action
-EE_DAMPING = 1e-3
-SUCCESS_M = 0.03
+ACTION_MODES = (*CONTINUOUS_MODES, "task")
+TASK_MODE_TASKS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
+RENDER_MODES = ("human", "rgb_array")
 OBS_LIMIT = 100.0  # joint velocities are clipped here; positions and angles never come near
-TARGET_ORBIT_M = 0.05
-TARGET_RAD_PER_S = 0.5
-PHYSICS_HZ_FOR_TASK = {"reach": 100.0}  # reaching needs no grasp-grade contact resolution
+SEPARATION_CAP_M = 10.0
+NEAR_MISS_PENALTY, CONTACT_PENALTY, LIMIT_PENALTY, EFFORT_WEIGHT, TEAM_WEIGHT = 0.5, 1.0, 0.1, 0.01, 0.1
+DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
 class CellParallelEnv(ParallelEnv):
@@ -50,58 +44,69 @@ class CellParallelEnv(ParallelEnv):
 
     def __init__(
         self,
-        scene: str = "sorting_line",
-        n_arms: int | None = 2,
+        scene: str | None = None,
+        n_arms: int | None = None,
         task: str = "reach",
         action_mode: str = "joint_delta",
         control_hz: float = 20.0,
         max_cycles: int = 200,
         render_mode: str | None = None,
         distributed: bool = False,
+        monitor_port: int = 8080,
     ) -> None:
-        for name, value, valid in (("task", task, TASKS), ("action_mode", action_mode, ACTION_MODES)):
-            if value not in valid:
-                raise ValueError(f"{name} {value!r} is not available; valid: {', '.join(valid)}")
-        if render_mode is not None and render_mode not in RENDER_MODES:
-            raise ValueError(f"render_mode {render_mode!r}: valid render modes are {', '.join(RENDER_MODES)} (the browser monitor is not there yet)")
+        check_options(task, action_mode, render_mode, max_cycles, control_hz)
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
-        if distributed:
-            raise ValueError("distributed=True (actions through Zenoh) is not available yet; use distributed=False")
-        if max_cycles < 1:
-            raise ValueError("max_cycles must be at least 1")
-        base = load_scene(scene, arms=n_arms)
-        physics_hz = max(PHYSICS_HZ_FOR_TASK[task], control_hz)
-        physics_hz = control_hz * max(1, round(physics_hz / control_hz))
-        feeders = [f.model_copy(update={"arrival": Arrival(schedule_s=[])}) for f in base.feeders]  # reach: no parts
-        self.scene = base.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz, "feeders": feeders})
+        scene = scene or DEFAULT_SCENE.get(task, "sorting_line")
+        base = load_scene(scene, arms=n_arms)  # None: the scene's own count; a fixed-arm scene refuses another
+        self.possible_agents = [a.name for a in base.arms]
+        self.task_model: EnvTask = make_task(task, self.possible_agents)
+        self.task_model.check(base)
+        prepared = self.task_model.prepare(base)
         self.task, self.action_mode, self.max_cycles, self.render_mode = task, action_mode, max_cycles, render_mode
+        if action_mode == "task":  # skills run at the scene's control rate; an env step is one decision
+            self.scene = prepared
+            self.ticks_per_step = max(1, round(prepared.control_hz / control_hz))
+        else:
+            physics_hz = control_hz * max(1, round(max(self.task_model.physics_hz, control_hz) / control_hz))
+            self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
+            self.ticks_per_step = 1
         self.world = World(self.scene)
         self._start = self.world.pack_state()
-        self.possible_agents = list(self.world.arms)
         self.agents: list[str] = []
-        self.guard = CollisionGuard({
-            a.name: ArmGeometry(a.name, self.world.arms[a.name].spec, yaw_transform(a.base.xyz, a.base.yaw_rad)) for a in self.scene.arms
-        })
+        placements = {a.name: yaw_transform(a.base.xyz, a.base.yaw_rad) for a in self.scene.arms}
+        self.guard = CollisionGuard({a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents})
         self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
-        self._kinematics = {a: KinematicModel(self.world.arms[a].spec) for a in self.possible_agents}
-        self._base_rotation = {a.name: yaw_transform(a.base.xyz, a.base.yaw_rad)[:3, :3] for a in self.scene.arms}
-        self._limits = {a: self.world.arms[a].joint_limits() for a in self.possible_agents}
-        self._bases = {a.name: a for a in self.scene.arms}
+        self.translators = {} if action_mode == "task" else {
+            a: ActionTranslator(self.world.arms[a].spec, placements[a], action_mode) for a in self.possible_agents
+        }
+        self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "task" else None
+        self.actuator = None
+        if distributed:
+            from fleet.env.distributed import RemoteActuators  # the bus only when asked for
+
+            self.actuator = RemoteActuators(self.scene, action_mode)
+        self.monitor = None
+        self.monitor_port = monitor_port
         self.np_random = np.random.default_rng()
         self.cycles = 0
+        self._options: dict = {}
 
     # --- spaces -----------------------------------------------------------------------
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
         n, others = self._dof[agent], len(self.possible_agents) - 1
-        size = n + n + 1 + 3 + 3 + 3 * others + 1
+        if self.action_mode == "task":
+            size = n + n + 1 + 2 + 3 + 3 * others + 1 + SLOTS * SLOT_FEATURES
+        else:
+            size = n + n + 1 + 3 + 3 + 3 * others + 1
         return gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
 
     @functools.lru_cache(maxsize=None)
-    def action_space(self, agent: str) -> gymnasium.spaces.Box:
-        size = (3 if self.action_mode == "ee_delta" else self._dof[agent]) + 1
-        return gymnasium.spaces.Box(-1.0, 1.0, shape=(size,), dtype=np.float32)
+    def action_space(self, agent: str) -> gymnasium.spaces.Space:
+        if self.action_mode == "task":
+            return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
+        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self.translators[agent].action_size,), dtype=np.float32)
 
     # --- episode ------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -110,70 +115,91 @@ class CellParallelEnv(ParallelEnv):
         self.world.restore_state(self._start)
         self.agents = list(self.possible_agents)
         self.cycles = 0
-        self._targets_q = {a: self.world.arms[a].qpos()[: self._dof[a]].copy() for a in self.agents}
-        self._opening = {a: 1.0 for a in self.agents}
-        self._centres, self._phases = {}, {}
-        for a in self.agents:
-            arm = self._bases[a]
-            forward, side, up = self.np_random.uniform([0.25, -0.15, 0.12], [0.45, 0.15, 0.30])
-            c, s = math.cos(arm.base.yaw_rad), math.sin(arm.base.yaw_rad)
-            self._centres[a] = np.array([arm.base.xyz[0] + c * forward - s * side, arm.base.xyz[1] + s * forward + c * side, up])
-            self._phases[a] = float(self.np_random.uniform(0, 2 * math.pi))
+        self._counted = (0, 0)
+        self.task_model.home_tool = self._tools()
+        self.task_model.reset(self.world, self.np_random)
+        for a, translator in self.translators.items():
+            translator.reset(self.world.arms[a].qpos()[: self._dof[a]])
+        if self.actuator is not None:
+            self.actuator.reset({a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents})
+        if self.chooser is not None:
+            self.chooser.reset(self.task_model.book.ledger)
+            self.chooser.pending()
+        self._options = self.chooser.choices() if self.chooser else {}
+        if self.render_mode == "human":
+            self.render()
         return self._observe(), {a: {"success": False, "collision": False} for a in self.agents}
 
-    def target(self, agent: str) -> np.ndarray:
-        """Where `agent`'s target is now (it circles its centre)."""
-        angle = self._phases[agent] + TARGET_RAD_PER_S * self.world.sim_time_s
-        return self._centres[agent] + TARGET_ORBIT_M * np.array([math.cos(angle), math.sin(angle), 0.0])
-
     def step(self, actions: dict[str, np.ndarray]):
-        for a in self.agents:
-            action = np.clip(np.asarray(actions.get(a, np.zeros(self.action_space(a).shape)), float), -1.0, 1.0)
-            lower, upper = self._limits[a]
-            n = self._dof[a]
-            self._targets_q[a] = np.clip(self._targets_q[a] + self._joint_step(a, action[:-1]), lower[:n], upper[:n])
-            self._opening[a] = (action[-1] + 1.0) / 2.0
-            arm = self.world.arms[a]
-            arm.set_targets(self._targets_q[a], np.zeros(n), arm.spec.gripper_targets(self._opening[a]))
-        self.world.step()
+        limit_hits = self._act(actions)
+        for _ in range(self.ticks_per_step):
+            if self.chooser is not None:
+                self.chooser.command()
+            self.world.step()
+            self.task_model.on_tick(self.world)
+            if self.chooser is not None:
+                self.chooser.report()
         self.cycles += 1
         touching = {name for pair in self.world.inter_arm_contacts() for name in pair}
-        separation = self._separations()
-        tools = self._tools()
-        rewards, infos = {}, {}
-        distances = {a: float(np.linalg.norm(tools[a] - self.target(a))) for a in self.agents}
-        successes = {a: d < SUCCESS_M for a, d in distances.items()}
+        separation, tools = self._separations(), self._tools()
+        rewards, successes = self._task_rewards(tools)
         team = sum(successes.values()) / max(1, len(self.agents))
+        infos = {}
         for a in self.agents:
-            distance = distances[a]
-            action = np.asarray(actions.get(a, 0.0), float)
             near_miss = separation[a] < DEFAULT_MARGIN_M
+            effort = 0.0 if self.chooser else EFFORT_WEIGHT * float(np.sum(np.asarray(actions.get(a, 0.0), float) ** 2))
             rewards[a] = float(
-                -distance + (1.0 if successes[a] else 0.0) + 0.1 * team
-                - (0.5 if near_miss else 0.0) - (1.0 if a in touching else 0.0) - 0.01 * float(np.sum(action**2))
+                rewards[a] + TEAM_WEIGHT * team - (NEAR_MISS_PENALTY if near_miss else 0.0)
+                - (CONTACT_PENALTY if a in touching else 0.0) - (LIMIT_PENALTY if limit_hits.get(a) else 0.0) - effort
             )
-            infos[a] = {"success": successes[a], "collision": a in touching, "near_miss": near_miss, "distance_m": distance}
+            infos[a] = {"success": successes[a], "collision": a in touching, "near_miss": near_miss,
+                        "separation_m": min(separation[a], SEPARATION_CAP_M), "joint_limit": bool(limit_hits.get(a))}
+            if self.chooser is None:
+                infos[a]["distance_m"] = float(np.linalg.norm(tools[a] - self.task_model.target(a, self.world)))
+        if self.chooser is not None:
+            for a, what in self._choice_results.items():
+                infos[a]["choice"] = what
+            self._options = self.chooser.choices()
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}
         truncations = {a: done for a in self.agents}
         observations = self._observe(separation, tools)
         if done:
             self.agents = []
+        if self.render_mode == "human":
+            self.render()
         return observations, rewards, terminations, truncations, infos
 
-    def _joint_step(self, agent: str, action: np.ndarray) -> np.ndarray:
-        """Joint target change for one action: direct, or from a claw step by damped least squares."""
-        if self.action_mode == "joint_delta":
-            return action * MAX_DELTA_RAD
-        km = self._kinematics[agent]
-        step_base = self._base_rotation[agent].T @ (action * MAX_EE_STEP_M)  # world -> base frame
-        jacobian = km.frame_jacobian(km.full_q(self._targets_q[agent]))[:3, km.arm_q_index]
-        return jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + EE_DAMPING * np.eye(3), step_base)
+    def _act(self, actions: dict) -> dict[str, bool]:
+        """Apply this step's actions; returns which arms pushed a joint target against its limit."""
+        if self.chooser is not None:
+            self._choice_results = self.chooser.choose(actions, self._options)
+            return {}
+        raw = {a: np.asarray(actions.get(a, np.zeros(self.action_space(a).shape)), float) for a in self.agents}
+        targets = self.actuator.translate(raw) if self.actuator is not None else {a: self.translators[a].apply(raw[a]) for a in self.agents}
+        hits = {}
+        for a in self.agents:
+            arm, t = self.world.arms[a], targets[a]
+            arm.set_targets(t.q, np.zeros(self._dof[a]), arm.spec.gripper_targets(t.gripper_opening))
+            tr = self.translators[a]
+            hits[a] = bool(np.any(t.q <= tr.lower + 1e-9) or np.any(t.q >= tr.upper - 1e-9))
+        return hits
+
+    def _task_rewards(self, tools: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
+        if self.chooser is None:
+            return self.task_model.progress(self.world, tools)
+        book = self.task_model.book
+        gained = book.completed - self._counted[0] - (book.missed - self._counted[1])
+        self._counted = (book.completed, book.missed)
+        rewards, successes = {}, {}
+        for a in self.agents:
+            outcomes, self.chooser.outcomes[a] = self.chooser.outcomes[a], []
+            own = sum(1.0 if o == "done" else -1.0 for o in outcomes)
+            rewards[a] = own + 5.0 * gained
+            successes[a] = "done" in outcomes
+        return rewards, successes
 
     # --- observations -----------------------------------------------------------------
-    def _tool(self, agent: str) -> np.ndarray:
-        return np.asarray(self.world.arms[agent].tool_pose_world().p, float)
-
     def _separations(self) -> dict[str, float]:
         """Each arm's distance to its nearest other arm (python-fcl, the coordinator's guard)."""
         if len(self.possible_agents) < 2:
@@ -184,7 +210,7 @@ class CellParallelEnv(ParallelEnv):
 
     def _tools(self) -> dict[str, np.ndarray]:
         """Every arm's claw position now (world frame)."""
-        return {a: self._tool(a) for a in self.possible_agents}
+        return {a: np.asarray(self.world.arms[a].tool_pose_world().p, float) for a in self.possible_agents}
 
     def _observe(self, separation: dict[str, float] | None = None, tools: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
         separation = separation or self._separations()
@@ -194,23 +220,65 @@ class CellParallelEnv(ParallelEnv):
             arm = self.world.arms[a]
             q, dq, n = arm.qpos(), arm.qvel(), self._dof[a]
             others = [tools[b] for b in self.possible_agents if b != a]
-            out[a] = np.concatenate([
-                q[:n], dq[:n], [self._opening[a]], tools[a], self.target(a), *others, [min(separation[a], 10.0)],
-            ]).clip(-OBS_LIMIT, OBS_LIMIT).astype(np.float32)
+            if self.chooser is not None:
+                skill = self.chooser.skills[a]
+                own = [q[:n], dq[:n], [self._opening(a)], [float(self.chooser.task_of[a] is None and not skill.active), skill.progress], tools[a]]
+                extra = [self.chooser.features(self._options.get(a, []))]
+            else:
+                own = [q[:n], dq[:n], [self.translators[a].opening], tools[a], self.task_model.target(a, self.world)]
+                extra = []
+            out[a] = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra]).clip(-OBS_LIMIT, OBS_LIMIT).astype(np.float32)
         return out
 
+    def _opening(self, agent: str) -> float:
+        arm = self.world.arms[agent]
+        spec = arm.spec
+        g = arm.qpos()[spec.arm_dof :]
+        return float((np.mean(g) - spec.gripper_closed[0]) / (spec.gripper_open[0] - spec.gripper_closed[0]))
+
     def state(self) -> np.ndarray:
-        """Everything for a centralised critic: every arm's joints, velocities, tool and target."""
+        """Everything for a centralised critic: every arm's joints, velocities, tool and target, and the parts' positions."""
         chunks = []
         for a in self.possible_agents:
             arm = self.world.arms[a]
-            chunks += [arm.qpos(), arm.qvel(), self._tool(a), self.target(a) if self._centres else np.zeros(3)]
+            target = self.task_model.target(a, self.world) if self.agents or self.cycles else np.zeros(3)
+            chunks += [arm.qpos(), arm.qvel(), np.asarray(arm.tool_pose_world().p, float), target]
         return np.concatenate(chunks).astype(np.float32)
 
+    # --- watching ---------------------------------------------------------------------
     def render(self):
         if self.render_mode is None:
             return None
-        require_render()
+        if self.render_mode == "rgb_array":
+            require_render()
+            return None
+        if self.monitor is None:
+            from fleet.env.watch import EnvMonitor  # viser only when someone watches
+
+            self.monitor = EnvMonitor(self.scene, self.world, port=self.monitor_port)
+            print(f"clawfleet env: watch at {self.monitor.url}", flush=True)
+        self.monitor.update(self.world, self._tools())
+        return None
 
     def close(self) -> None:
-        pass
+        if self.monitor is not None:
+            self.monitor.close()
+            self.monitor = None
+        if self.actuator is not None:
+            self.actuator.close()
+            self.actuator = None
+
+
+def check_options(task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float) -> None:
+    """Refuse impossible settings up front, each with what is valid."""
+    for name, value, valid in (("task", task, tuple(TASKS)), ("action_mode", action_mode, ACTION_MODES)):
+        if value not in valid:
+            raise ValueError(f"{name} {value!r} is not available; valid: {', '.join(valid)}")
+    if action_mode == "task" and task not in TASK_MODE_TASKS:
+        raise ValueError(f"action_mode 'task' chooses among the line's pending tasks; task {task!r} has none to choose (valid with 'task': {', '.join(TASK_MODE_TASKS)})")
+    if render_mode is not None and render_mode not in RENDER_MODES:
+        raise ValueError(f"render_mode {render_mode!r}: valid render modes are {', '.join(RENDER_MODES)}")
+    if max_cycles < 1:
+        raise ValueError("max_cycles must be at least 1")
+    if not control_hz > 0:
+        raise ValueError("control_hz must be positive")

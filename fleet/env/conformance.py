@@ -8,35 +8,44 @@ package lets anyone check a scene or setting of their own the same way.
 
 from __future__ import annotations
 
+import functools
 import sys
+import types
 import warnings
 
-from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test
 
 from fleet.env import env, parallel_env
-from fleet.env.cell_env import ACTION_MODES, TASKS
+from fleet.env.cell_env import ACTION_MODES, TASK_MODE_TASKS
+from fleet.env.tasks import TASKS
+
+CONFIGURATIONS = [(t, m) for t in TASKS for m in ACTION_MODES if m != "task" or t in TASK_MODE_TASKS]
 
 
-def check(task: str, action_mode: str, n_arms: int = 2, cycles: int = 60, **kwargs) -> None:
-    """Run PettingZoo's parallel, AEC and seed tests for one configuration; raises on a failure."""
+def check(task: str, action_mode: str, n_arms: int | None = 2, cycles: int = 40, **kwargs) -> None:
+    """Run PettingZoo's parallel, AEC, seed and max-cycles tests for one configuration; raises on a failure."""
+    n_arms = 2 if task == "handover" else n_arms
     options = dict(task=task, action_mode=action_mode, n_arms=n_arms, max_cycles=cycles, **kwargs)
     parallel_api_test(parallel_env(**options), num_cycles=cycles)
     api_test(env(**options), num_cycles=cycles)
     parallel_seed_test(lambda: parallel_env(**options), num_cycles=cycles)
+    without_cycles = {k: v for k, v in options.items() if k != "max_cycles"}
+    max_cycles_test(types.SimpleNamespace(
+        parallel_env=functools.partial(parallel_env, **without_cycles), env=functools.partial(env, **without_cycles),
+    ))
 
 
 def main() -> int:
     failed = 0
-    for task in TASKS:
-        for mode in ACTION_MODES:
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    check(task, mode)
-                print(f"{task} / {mode}: ok")
-            except Exception as exc:  # report every configuration, then fail
-                failed += 1
-                print(f"{task} / {mode}: FAILED: {exc}")
+    for task, mode in CONFIGURATIONS:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                check(task, mode)
+            print(f"{task} / {mode}: ok", flush=True)
+        except Exception as exc:  # report every configuration, then fail
+            failed += 1
+            print(f"{task} / {mode}: FAILED: {type(exc).__name__}: {exc}", flush=True)
     return 1 if failed else 0
 
 

@@ -152,13 +152,7 @@ class CoordinatorNode:
 
     def _on_event(self, e: LineEvent) -> None:
         self.events_seen += 1
-        now = e.tick / self.scene.control_hz
-        if e.kind == "arrived":
-            self.ledger.arrived(e.part_id, e.detail, e.type_index, now)
-        elif e.kind == "at_station":
-            self.ledger.at_station(e.part_id, e.detail, now)
-        elif e.kind == "lost":
-            self.ledger.lost(e.part_id, e.detail, now)
+        self.ledger.on_event(e.kind, e.part_id, e.detail, e.type_index, e.tick / self.scene.control_hz)
 
     def _on_state(self, s: ArmState) -> None:
         if s.arm not in self.skill or s.tick <= self.last_tick[s.arm]:

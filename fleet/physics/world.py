@@ -176,29 +176,43 @@ class World:
             clock.skipped_full += 1
             self.events.append(("feeder_full", feeder.name, self.tick))
             return
-        part = self.parts[free[0]]
-        h = part.height_m
         if feeder.into == "conveyor":
-            c = self.scene_model.conveyor
-            x, y, z = c.point_at(0.06, lateral)
+            x, y, z = self.scene_model.conveyor.point_at(0.06, lateral)
         else:
-            st = self.scene_model.station(feeder.into)
-            x, y, z = st.pose.xyz
+            x, y, z = self.scene_model.station(feeder.into).pose.xyz
             z += WALL_M + 0.01
-        part.entity.set_pose(yaw_pose((x, y, z + h / 2 + 0.001), yaw))
+        self._put(self.parts[free[0]], (x, y, z), yaw)
+        clock.spawned += 1
+
+    def _put(self, part: SimPart, surface_xyz: tuple[float, float, float], yaw_rad: float) -> int:
+        """Set a pooled part down, bottom on `surface_xyz`, give it the next id and log its spawn."""
+        x, y, z = surface_xyz
+        part.entity.set_pose(yaw_pose((x, y, z + part.height_m / 2 + 0.001), yaw_rad))
         part.body.set_kinematic(False)
         part.body.set_linear_velocity([0.0, 0.0, 0.0])
         part.body.set_angular_velocity([0.0, 0.0, 0.0])
         part.part_id = self.next_part_id
         self.next_part_id += 1
-        clock.spawned += 1
-        self.events.append(("part_spawned", part.part_id, feeder.name, type_index, self.tick))
+        self.events.append(("part_spawned", part.part_id, part.feeder, part.type_index, self.tick))
+        return part.part_id
 
-    def spawn_now(self, feeder_name: str) -> int:
-        """Release one part from a feeder at once (trials and tests); returns its id."""
+    def place_part(self, feeder_name: str, type_index: int, surface_xyz: tuple[float, float, float], yaw_rad: float = 0.0) -> int:
+        """Set a free part of a feeder's pool down at a chosen spot (the env's tasks); returns its id."""
+        clock = self._clock(feeder_name)
+        free = [s for s in clock.slots if self.parts[s].part_id is None and self.parts[s].type_index == type_index]
+        if not free:
+            raise RuntimeError(f"feeder {feeder_name!r} has no free part of type {type_index} left in its pool")
+        return self._put(self.parts[free[0]], surface_xyz, yaw_rad)
+
+    def _clock(self, feeder_name: str) -> FeederClock:
         clock = next((c for c in self.feeders if c.feeder.name == feeder_name), None)
         if clock is None:
             raise KeyError(f"no feeder {feeder_name!r}; feeders: {', '.join(c.feeder.name for c in self.feeders)}")
+        return clock
+
+    def spawn_now(self, feeder_name: str) -> int:
+        """Release one part from a feeder at once (trials and tests); returns its id."""
+        clock = self._clock(feeder_name)
         before = self.next_part_id
         self._spawn(clock)
         if self.next_part_id == before:

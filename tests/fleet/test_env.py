@@ -6,23 +6,21 @@ from pettingzoo.test import max_cycles_test
 
 import fleet.env
 from fleet.env import conformance, parallel_env
-from fleet.env.cell_env import ACTION_MODES, TASKS
 
 
-@pytest.mark.parametrize("task", TASKS)
-@pytest.mark.parametrize("mode", ACTION_MODES)
-def test_pettingzoo_parallel_aec_and_seed_tests_pass(task, mode):
+@pytest.mark.parametrize(("task", "mode"), conformance.CONFIGURATIONS)
+def test_pettingzoo_parallel_aec_seed_and_max_cycles_tests_pass(task, mode):
     conformance.check(task, mode)
 
 
 def test_ee_delta_moves_the_claw_the_way_it_is_told():
     penv = parallel_env(n_arms=1, max_cycles=100, action_mode="ee_delta")
     penv.reset(seed=0)
-    start = penv._tool("arm_0").copy()
+    start = penv._tools()["arm_0"]
     up = np.array([0.0, 0.0, 1.0, 1.0], np.float32)  # claw up at full speed, gripper open
     for _ in range(10):
         penv.step({"arm_0": up})
-    moved = penv._tool("arm_0") - start
+    moved = penv._tools()["arm_0"] - start
     assert moved[2] > 0.06  # about 10 steps x 1 cm, less the drives' lag
     assert np.linalg.norm(moved[:2]) < 0.02
 
@@ -46,7 +44,9 @@ def test_agents_are_the_arm_ids_and_a_seed_repeats_an_episode():
 
 
 def test_unknown_options_are_refused_with_the_valid_ones():
-    with pytest.raises(ValueError, match="valid: reach"):
+    with pytest.raises(ValueError, match="valid: reach, pick_place, handover, line"):
         parallel_env(task="juggle")
-    with pytest.raises(ValueError, match="distributed=True"):
-        parallel_env(distributed=True)
+    with pytest.raises(ValueError, match="valid with 'task': handover, line"):
+        parallel_env(task="reach", action_mode="task")
+    with pytest.raises(ValueError, match="exactly 2 arms"):
+        parallel_env(task="handover", scene="sorting_line", n_arms=3)

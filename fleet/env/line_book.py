@@ -1,0 +1,30 @@
+"""The line's bookkeeping in process: the sim's watcher turns part poses into events, the coordinator's ledger
+keeps parts and tasks. The same two pieces `fleet run` uses, without the bus between them."""
+
+from __future__ import annotations
+
+from coordinator.ledger import Ledger
+from fleet.line_watch import LineWatcher
+from fleet.physics.world import World
+from scenes.schema import Scene
+
+
+class LineBook:
+    """Call `update(world)` after every control tick; `completed` and `missed` count parts so far."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.watcher = LineWatcher(scene)
+        self.ledger = Ledger(scene)
+
+    def update(self, world: World) -> None:
+        for e in self.watcher.update(world, world.active_parts()):
+            self.ledger.on_event(e.kind, e.part_id, e.detail, e.type_index, world.sim_time_s)
+
+    @property
+    def completed(self) -> int:
+        return self.ledger.totals()["parts_completed"]
+
+    @property
+    def missed(self) -> int:
+        totals = self.ledger.totals()
+        return totals["parts_missed"] + totals["parts_failed"]

@@ -1,0 +1,158 @@
+"""The `task` action mode: each free arm chooses which pending task of the line it takes next, and the
+pick-and-place skill does the work. A policy learns allocation on the same choices the coordinator's
+allocators make (`allocator_actions` turns an allocator's answer into env actions, for comparison).
+
+The tasks, their eligibility (reach, belt stretches, one task per station) and their time estimates
+are the coordinator's own (`Ledger`, `Eligibility`, `TimeCost`): one implementation, in process.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, _candidates
+from coordinator.ledger import Ledger
+from coordinator.tasks import CONVEYOR, OPEN_STATES, Task, TaskState
+from fleet.observe import arm_observation, base_transform, part_observations
+from fleet.physics.world import World
+from robots.frames import yaw_transform
+from robots.ik import IKOptions
+from robots.skills.interface import PickPlaceTask
+from robots.skills.pick_place import PickPlaceSkill
+from robots.top_down import TopDownIK
+from scenes.schema import Scene
+
+SLOTS = 4  # the first SLOTS tasks an arm can serve, oldest first, are its choices
+SLOT_FEATURES = 8  # valid, pick point xyz, place point xyz, estimated seconds / 10
+REACH_IK = IKOptions(restarts=8)
+WAIT = 0  # action 0: take nothing new this step
+
+
+class TaskChooser:
+    """Runs the skills of the arms and turns each free arm's choice into an assignment on the ledger."""
+
+    def __init__(self, scene: Scene, world: World, agents: list[str]) -> None:
+        self.scene, self.agents = scene, agents
+        self.reach = {
+            a.name: CachedReach(TopDownIK(world.arms[a.name].spec, yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK))
+            for a in scene.arms
+        }
+        self.bases = {a.name: a.base.xyz for a in scene.arms}
+        self.world = world
+
+    def reset(self, ledger: Ledger) -> None:
+        self.ledger = ledger
+        self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a)) for a in self.agents}
+        self.task_of: dict[str, int | None] = {a: None for a in self.agents}
+        self.outcomes: dict[str, list[str]] = {a: [] for a in self.agents}
+
+    # --- what each arm sees ---------------------------------------------------------
+    def parts(self) -> dict[int, PartView]:
+        return {p.part_id: PartView(p.position, p.velocity) for p in self.world.active_parts()}
+
+    def arm_views(self) -> list[ArmView]:
+        return [
+            ArmView(a, self.bases[a], self.task_of[a] is None and not self.skills[a].active, self.reach[a],
+                    tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()))
+            for a in self.agents
+        ]
+
+    def pending(self) -> list[Task]:
+        return self.ledger.refresh(self.world.sim_time_s)
+
+    def choices(self) -> dict[str, list[tuple[Task, float]]]:
+        """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
+        views, parts = self.arm_views(), self.parts()
+        cost = TimeCost(Eligibility(self.scene, views))
+        open_tasks = _candidates(self.pending(), parts, self.ledger.busy_stations())
+        out = {}
+        for view in views:
+            scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks] if view.free else []
+            out[view.name] = [(t, s) for t, s in scored if math.isfinite(s)][:SLOTS]
+        return out
+
+    def features(self, options: list[tuple[Task, float]]) -> np.ndarray:
+        """The choice slots as numbers: valid, pick point, place point, estimated seconds / 10."""
+        out = np.zeros((SLOTS, SLOT_FEATURES))
+        parts = {p.part_id: p.position for p in self.world.active_parts()}
+        for i, (task, seconds) in enumerate(options):
+            station = self.scene.station(task.target)
+            out[i] = [1.0, *parts[task.part_id], station.pose.xyz[0], station.pose.xyz[1], station.surface_z_m, seconds / 10.0]
+        return out.ravel()
+
+    # --- acting ---------------------------------------------------------------------
+    def choose(self, actions: dict[str, int], options: dict[str, list[tuple[Task, float]]]) -> dict[str, str]:
+        """Start each free arm's chosen task, arms in id order; a task or station already taken this step is refused.
+        Returns, per arm, what became of its choice (`took`, `waited`, `refused: ...`)."""
+        busy = self.ledger.busy_stations()
+        out = {}
+        for agent in self.agents:
+            k = int(actions.get(agent, WAIT))
+            if k == WAIT or not options[agent]:
+                out[agent] = "waited"
+                continue
+            if k > len(options[agent]):
+                out[agent] = f"refused: slot {k} is empty ({len(options[agent])} choices)"
+                continue
+            task = options[agent][k - 1][0]
+            if task.state != TaskState.PENDING or busy.intersection(task.stations):
+                out[agent] = f"refused: task {task.task_id} was taken by an arm before it"
+                continue
+            self._start(agent, task)
+            busy.update(task.stations)
+            out[agent] = "took"
+        return out
+
+    def _start(self, agent: str, task: Task) -> None:
+        self.ledger.assign(task.task_id, agent, self.world.sim_time_s)
+        part = self.world.part_info(task.part_id)
+        record = self.ledger.parts[task.part_id]
+        station = self.scene.station(task.target)
+        velocity = tuple(self.world.belt_velocity()) if task.source == CONVEYOR else (0.0, 0.0, 0.0)
+        job = PickPlaceTask(
+            task.part_id, float(part.position[2] - record.height_m / 2),
+            (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target)), velocity,
+        )
+        parts = part_observations(self.world)
+        self.skills[agent].start(job, arm_observation(self.world, agent), parts[task.part_id])
+        self.task_of[agent] = task.task_id
+
+    def command(self) -> None:
+        """Before a tick: every working arm's skill sets its joint targets."""
+        parts = part_observations(self.world)
+        for agent in self.agents:
+            skill = self.skills[agent]
+            if skill.active:
+                arm = self.world.arms[agent]
+                cmd = skill.step(arm_observation(self.world, agent), parts, self.world.control_dt_s)
+                arm.set_targets(cmd.q, cmd.dq, arm.spec.gripper_targets(cmd.gripper_opening))
+
+    def report(self) -> None:
+        """After a tick: each arm's skill phase goes to the ledger; a closed task frees its arm."""
+        now = self.world.sim_time_s
+        for agent in self.agents:
+            task_id = self.task_of[agent]
+            if task_id is None:
+                continue
+            skill = self.skills[agent]
+            task = self.ledger.tasks[task_id]
+            if task.state in OPEN_STATES:
+                self.ledger.arm_report(agent, task_id, skill.phase.value, now, skill.failure_reason)
+                if task.state not in OPEN_STATES:
+                    self.outcomes[agent].append(task.state.value)
+            if task.state not in OPEN_STATES and not skill.active:  # the skill finishes its retreat and way home first
+                self.task_of[agent] = None
+
+
+def allocator_actions(chooser: TaskChooser, allocator: Allocator, options: dict[str, list[tuple[Task, float]]]) -> dict[str, int]:
+    """What the coordinator's allocator would choose now, as `task`-mode actions (a task outside an arm's slots: wait)."""
+    views, parts = chooser.arm_views(), chooser.parts()
+    pairs = allocator.allocate(chooser.pending(), views, parts, chooser.ledger.busy_stations())
+    actions = {a: WAIT for a in chooser.agents}
+    for task_id, arm in pairs:
+        ids = [t.task_id for t, _ in options.get(arm, [])]
+        if task_id in ids:
+            actions[arm] = ids.index(task_id) + 1
+    return actions
