@@ -36,8 +36,16 @@ class Keys:
     def arm_assign(self, arm: str) -> str:
         return self._arm(arm, "assign")
 
+    def env_action(self, arm: str) -> str:
+        """PettingZoo env -> the arm's process (`EnvAction`)."""
+        return self._arm(arm, "env_action")
+
+    def env_targets(self, arm: str) -> str:
+        """The arm's process -> PettingZoo env (`EnvTargets`)."""
+        return self._arm(arm, "env_targets")
+
     def all_arms(self, leaf: str) -> str:
-        """Wildcard over every arm's `leaf` (state, cmd, status or assign)."""
+        """Wildcard over every arm's `leaf` (state, cmd, status, assign, env_action or env_targets)."""
         return f"{ROOT}/{self.run}/arm/*/{leaf}"
 
     @property

@@ -243,5 +243,34 @@ class RespawnRequest(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
+def separations_from_pairs(sim_time_s: float, pairs: list, margin_m: float) -> Separations:
+    """A `Separations` message from the guard's nearest pairs (objects with a, b, distance_m, point_a, point_b)."""
+    return Separations(
+        sim_time_s, tuple(p.a for p in pairs), tuple(p.b for p in pairs), tuple(float(p.distance_m) for p in pairs),
+        tuple(float(v) for p in pairs for v in (*p.point_a, *p.point_b)), margin_m,
+    )
+
+
+class EnvAction(Message, frozen=True, array_like=True):
+    """PettingZoo env (`distributed=True`) -> one arm's process: a policy action to turn into joint targets,
+    or (`kind` "reset") the arm's joints to start from. `seq` counts the env's requests."""
+
+    arm: str
+    seq: int
+    kind: str  # "act" or "reset"
+    values: Floats
+    version: int = PROTOCOL_VERSION
+
+
+class EnvTargets(Message, frozen=True, array_like=True):
+    """One arm's process -> env: the joint targets and gripper opening for request `seq`."""
+
+    arm: str
+    seq: int
+    q: Floats
+    gripper_opening: float
+    version: int = PROTOCOL_VERSION
+
+
 MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, MotionGrant, LineEvent, CoordTick, Progress, EStop,
-                 SimControl, SimStatus, Separations, LineView, RespawnRequest)
+                 SimControl, SimStatus, Separations, LineView, RespawnRequest, EnvAction, EnvTargets)

@@ -54,7 +54,7 @@ class CellParallelEnv(ParallelEnv):
         distributed: bool = False,
         monitor_port: int = 8080,
     ) -> None:
-        check_options(task, action_mode, render_mode, max_cycles, control_hz)
+        check_options(task, action_mode, render_mode, max_cycles, control_hz, distributed)
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(task, "sorting_line")
@@ -85,7 +85,7 @@ class CellParallelEnv(ParallelEnv):
         if distributed:
             from fleet.env.distributed import RemoteActuators  # the bus only when asked for
 
-            self.actuator = RemoteActuators(self.scene, action_mode)
+            self.actuator = RemoteActuators(scene, n_arms, self.possible_agents, action_mode)
         self.monitor = None
         self.monitor_port = monitor_port
         self.np_random = np.random.default_rng()
@@ -120,6 +120,7 @@ class CellParallelEnv(ParallelEnv):
         self.task_model.reset(self.world, self.np_random)
         for a, translator in self.translators.items():
             translator.reset(self.world.arms[a].qpos()[: self._dof[a]])
+        self._commanded_opening = {a: 1.0 for a in self.possible_agents}
         if self.actuator is not None:
             self.actuator.reset({a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents})
         if self.chooser is not None:
@@ -181,6 +182,7 @@ class CellParallelEnv(ParallelEnv):
         for a in self.agents:
             arm, t = self.world.arms[a], targets[a]
             arm.set_targets(t.q, np.zeros(self._dof[a]), arm.spec.gripper_targets(t.gripper_opening))
+            self._commanded_opening[a] = t.gripper_opening
             tr = self.translators[a]
             hits[a] = bool(np.any(t.q <= tr.lower + 1e-9) or np.any(t.q >= tr.upper - 1e-9))
         return hits
@@ -225,7 +227,7 @@ class CellParallelEnv(ParallelEnv):
                 own = [q[:n], dq[:n], [self._opening(a)], [float(self.chooser.task_of[a] is None and not skill.active), skill.progress], tools[a]]
                 extra = [self.chooser.features(self._options.get(a, []))]
             else:
-                own = [q[:n], dq[:n], [self.translators[a].opening], tools[a], self.task_model.target(a, self.world)]
+                own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], self.task_model.target(a, self.world)]
                 extra = []
             out[a] = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra]).clip(-OBS_LIMIT, OBS_LIMIT).astype(np.float32)
         return out
@@ -255,9 +257,9 @@ class CellParallelEnv(ParallelEnv):
         if self.monitor is None:
             from fleet.env.watch import EnvMonitor  # viser only when someone watches
 
-            self.monitor = EnvMonitor(self.scene, self.world, port=self.monitor_port)
+            self.monitor = EnvMonitor(self.scene, port=self.monitor_port)
             print(f"clawfleet env: watch at {self.monitor.url}", flush=True)
-        self.monitor.update(self.world, self._tools())
+        self.monitor.update(self.world, self.guard)
         return None
 
     def close(self) -> None:
@@ -269,13 +271,16 @@ class CellParallelEnv(ParallelEnv):
             self.actuator = None
 
 
-def check_options(task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float) -> None:
+def check_options(task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float, distributed: bool = False) -> None:
     """Refuse impossible settings up front, each with what is valid."""
     for name, value, valid in (("task", task, tuple(TASKS)), ("action_mode", action_mode, ACTION_MODES)):
         if value not in valid:
             raise ValueError(f"{name} {value!r} is not available; valid: {', '.join(valid)}")
     if action_mode == "task" and task not in TASK_MODE_TASKS:
         raise ValueError(f"action_mode 'task' chooses among the line's pending tasks; task {task!r} has none to choose (valid with 'task': {', '.join(TASK_MODE_TASKS)})")
+    if distributed and action_mode not in CONTINUOUS_MODES:
+        raise ValueError(f"distributed=True carries continuous actions ({', '.join(CONTINUOUS_MODES)}) to the arms' processes; "
+                         f"in action_mode {action_mode!r} the skills run in process: use distributed=False")
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise ValueError(f"render_mode {render_mode!r}: valid render modes are {', '.join(RENDER_MODES)}")
     if max_cycles < 1:

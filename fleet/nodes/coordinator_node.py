@@ -29,7 +29,7 @@ from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, Task, TaskState
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, MotionGrant, PartsState, Progress, Separations
+from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, MotionGrant, PartsState, Progress, separations_from_pairs
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
 from robots.frames import yaw_transform
@@ -306,10 +306,7 @@ class CoordinatorNode:
         pairs = self.guard.nearest_pairs()
         if pairs and pairs[0].distance_m < self.min_separation_m:
             self.min_separation_m, self.closest_pair = pairs[0].distance_m, (pairs[0].a, pairs[0].b)
-        self._separation_pub.put(encode(Separations(
-            now_s, tuple(p.a for p in pairs), tuple(p.b for p in pairs), tuple(p.distance_m for p in pairs),
-            tuple(float(v) for p in pairs for v in (*p.point_a, *p.point_b)), self.guard.margin_m,
-        )))
+        self._separation_pub.put(encode(separations_from_pairs(now_s, pairs, self.guard.margin_m)))
 
     def _send(self, task: Task, arm: str) -> None:
         part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]

@@ -27,11 +27,12 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, ArmState, CoordTick, EStop, LineEvent, LineView, PartsState, SimControl, SimStatus
+from fleet.bus.messages import ArmCommandMsg, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
 from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report, write_text_atomically
 from fleet.physics.world import PartInfo, World
+from fleet.world_messages import arm_state, parts_state
 
 COORD_RATE_HZ = 10.0
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
@@ -245,28 +246,20 @@ class SimServer:
         self._published_at[w.tick] = time.monotonic()
         self._published_at.pop(w.tick - 256, None)
         states = []
-        for name, arm in w.arms.items():
-            q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
-            tool = arm.tool_pose_world()
+        for name in w.arms:
             link = self.links[name]
             cmd = link.last_cmd
-            msg = ArmState(
-                name, w.tick, w.sim_time_s, tuple(q[:n].tolist()), tuple(dq[:n].tolist()), tuple(q[n:].tolist()),
-                tuple(map(float, tool.p)), tuple(map(float, tool.q)), self._held(link), link.lost,
-                cmd.task_id if cmd else None, cmd.skill if cmd else "idle", cmd.progress if cmd else 0.0,
-                self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1, cmd.failure if cmd else "",
-                cmd.request_seq if cmd else 0, cmd.request_q_to if cmd else (), cmd.request_duration_s if cmd else 0.0,
+            msg = arm_state(
+                w, name, held=self._held(link), lost=link.lost,
+                task_id=cmd.task_id if cmd else None, skill=cmd.skill if cmd else "idle", progress=cmd.progress if cmd else 0.0,
+                assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1, failure=cmd.failure if cmd else "",
+                request_seq=cmd.request_seq if cmd else 0, request_q_to=cmd.request_q_to if cmd else (),
+                request_duration_s=cmd.request_duration_s if cmd else 0.0,
             )
             self._state_pubs[name].put(encode(msg))
             states.append(msg)
         parts = w.active_parts() if parts is None else parts
-        parts_msg = PartsState(
-            w.tick, w.sim_time_s, tuple(p.part_id for p in parts), tuple(p.feeder for p in parts),
-            tuple(p.type_index for p in parts),
-            tuple(float(v) for p in parts for v in p.position), tuple(float(v) for p in parts for v in p.quaternion_wxyz),
-            tuple(float(v) for p in parts for v in p.velocity),
-            tuple(float(v) for p in parts for v in p.size_m), sum(self.events_published.values()),
-        )
+        parts_msg = parts_state(w, parts, sum(self.events_published.values()))
         self._parts_pub.put(encode(parts_msg))
         if w.tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching:  # built only while watched
             self._view_pub.put(encode(LineView(w.tick, w.sim_time_s, tuple(states), parts_msg)))

@@ -6,7 +6,7 @@ import pytest
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
     ArmCommandMsg, ArmState, ArmStatus, Assignment, CoordTick, EStop, LineEvent, MESSAGE_TYPES, PartsState, Progress,
-    LineView, MotionGrant, RespawnRequest, Separations, SimControl, SimStatus,
+    EnvAction, EnvTargets, LineView, MotionGrant, RespawnRequest, Separations, SimControl, SimStatus,
 )
 
 EXAMPLES = [
@@ -31,6 +31,8 @@ EXAMPLES = [
     Separations(3.0, ("arm_0",), ("arm_1",), (0.1,), (0.0, 0.0, 0.2, 0.1, 0.0, 0.2), 0.02),
     RespawnRequest("arm_1", "monitor"),
     MotionGrant("arm_0", 3, 2, "grant"),
+    EnvAction("arm_0", 5, "act", (0.1, -1.0, 0.0, 1.0)),
+    EnvTargets("arm_0", 5, (0.2,) * 6, 1.0),
     MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
     LineView(3, 0.03, (ArmState("arm_0", 3, 0.03, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0)),),
              PartsState(3, 0.03, (1,), ("bases",), (0,), (0.0,) * 3, (1.0, 0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0.03))),

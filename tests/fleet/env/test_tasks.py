@@ -1,0 +1,114 @@
+"""The tasks beyond reach are physically doable through the env's own action interface: a scripted arm
+(Pinocchio top-down IK turned into joint_delta actions) grasps its part with friction and drops it in its bin;
+the coordinator's allocators, through the `task` action mode, complete the handover and line parts."""
+
+import math
+
+import numpy as np
+import pytest
+
+from coordinator.allocation import make_allocator
+from fleet.env import parallel_env
+from fleet.env.task_mode import allocator_actions
+from fleet.env.tasks import above
+from robots.frames import yaw_transform
+from robots.policy_actions import MAX_DELTA_RAD
+from robots.top_down import TopDownIK
+
+
+class ScriptedPick:
+    """Above the part, down, close, up and over the bin, open: each waypoint by top-down IK, sent as joint steps."""
+
+    def __init__(self, env, agent):
+        self.env, self.agent = env, agent
+        decl = env.scene.arm(agent)
+        self.ik = TopDownIK(env.world.arms[agent].spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad))
+        self.tip = env.world.arms[agent].spec.fingertip_below_tool_m
+        self.phase, self.closing_steps = "above", 0
+
+    def _yaw(self, info) -> float:
+        """The part's yaw (a square box: any quarter turn), nearest the arm's natural yaw."""
+        w, x, y, z = info.quaternion_wxyz
+        part_yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        natural = self.ik.natural_yaw(info.position)
+        return min((part_yaw + k * math.pi / 2 for k in range(-4, 5)), key=lambda c: abs(math.remainder(c - natural, 2 * math.pi)))
+
+    def act(self) -> np.ndarray:
+        env, a = self.env, self.agent
+        info = env.world.part_info(env.task_model.part[a])
+        surface = env.task_model.start_z[a]
+        grasp_z = max(surface + info.height_m / 2, surface + self.tip + 0.004)
+        q_now = env.translators[a].q_target
+        goal, opening, yaw = None, 1.0, self._yaw(info)
+        if self.phase == "above":
+            goal = np.array([info.position[0], info.position[1], grasp_z + 0.08])
+        elif self.phase == "down":
+            goal = np.array([info.position[0], info.position[1], grasp_z])
+        elif self.phase == "close":
+            opening, self.closing_steps = -1.0, self.closing_steps + 1
+            if self.closing_steps > 10:
+                self.phase = "lift"
+        elif self.phase == "lift":
+            goal, opening, yaw = above(env.task_model.goal[a]) + [0, 0, 0.05], -1.0, None
+        if goal is None:
+            return np.array([0.0] * len(q_now) + [opening], np.float32)
+        q, _ = self.ik.solve(goal, yaw, q_now)
+        step = (q - q_now) / MAX_DELTA_RAD
+        if np.max(np.abs(step)) < 0.05:
+            self.phase = {"above": "down", "down": "close", "lift": "drop"}[self.phase]
+        return np.array([*np.clip(step, -1, 1), opening], np.float32)
+
+
+def test_pick_place_a_scripted_arm_grasps_its_part_and_drops_it_in_its_bin():
+    env = parallel_env(task="pick_place", action_mode="joint_delta", n_arms=2, max_cycles=160)
+    env.reset(seed=1)
+    arms = {a: ScriptedPick(env, a) for a in env.agents}
+    succeeded, rewards = set(), {a: [] for a in env.agents}
+    while env.agents:
+        _, reward, _, _, infos = env.step({a: arms[a].act() for a in env.agents})
+        succeeded |= {a for a, i in infos.items() if i["success"]}
+        for a, r in reward.items():
+            rewards[a].append(r)
+    assert succeeded == {"arm_0", "arm_1"}
+    for a in rewards:  # the dense reward climbs as the part goes from the belt to the bin
+        assert np.mean(rewards[a][-10:]) > np.mean(rewards[a][:10]) + 3.0
+
+
+def test_pick_place_the_part_stays_put_when_nobody_acts():
+    env = parallel_env(task="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=30)
+    env.reset(seed=0)
+    start = {a: env.world.part_info(p).position.copy() for a, p in env.task_model.part.items()}
+    still = {a: np.zeros(4, np.float32) + [0, 0, 0, 1] for a in env.agents}
+    while env.agents:
+        _, _, _, _, infos = env.step(still)
+        assert not any(i["success"] for i in infos.values())
+    for a, p in env.task_model.part.items():
+        assert np.linalg.norm(env.world.part_info(p).position - start[a]) < 0.005  # the belt is stopped for this task
+
+
+@pytest.mark.parametrize(("task", "allocator", "steps"), [("handover", "optimal", 160), ("line", "greedy", 150)])
+def test_task_mode_the_coordinators_allocators_complete_parts(task, allocator, steps):
+    env = parallel_env(task=task, action_mode="task", n_arms=2, max_cycles=steps, control_hz=5)
+    env.reset(seed=0)
+    chooser, policy = env.chooser, make_allocator(allocator, env.scene)
+    took = 0
+    while env.agents:
+        _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
+        took += sum(i["choice"] == "took" for i in infos.values())
+    totals = env.task_model.book.ledger.totals()
+    assert totals["parts_completed"] >= 1 and took >= 2
+
+
+def test_task_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed_repeats():
+    runs = []
+    for _ in range(2):
+        env = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=60, control_hz=5)
+        obs, _ = env.reset(seed=4)
+        trace = []
+        rng = np.random.default_rng(0)
+        while env.agents:
+            obs, rewards, _, _, infos = env.step({a: int(rng.integers(0, 5)) for a in env.agents})
+            trace.append((tuple(np.concatenate(list(obs.values()))), tuple(rewards.values()), tuple(i["choice"] for i in infos.values())))
+        runs.append(trace)
+    assert runs[0] == runs[1]
+    assert any(c.startswith("refused: slot") for step in runs[0] for c in step[2])
