@@ -1,8 +1,10 @@
 """Arms as python-fcl geometry: each link's URDF collision shapes, placed by Pinocchio forward kinematics.
 
 Primitives become FCL primitives (a URDF cylinder's axis is z, as FCL's); meshes
-become BVH models. One broadphase manager per arm lets the cell ask, for any set
-of configurations, how far apart the arms are.
+become BVH models. One broadphase manager per arm (for collision queries); the
+distance between two arms is a branch and bound over their shapes' bounding
+spheres, with python-fcl measuring only the pairs that can still be the nearest
+(a manager-to-manager distance calls back into Python for every candidate pair).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import fcl
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from robots.kinematics import KinematicModel
 from robots.spec import RobotSpec
@@ -104,6 +107,8 @@ class ArmGeometry:
         self.shapes = link_shapes(spec)
         self._frame_ids = [self.km.frame_id(s.link) for s in self.shapes]
         self.objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
+        self.radii_m = np.array([s.radius_m for s in self.shapes])
+        self.centres = np.zeros((len(self.shapes), 3))  # each shape's origin in the world, as placed
         self.manager = fcl.DynamicAABBTreeCollisionManager()
         self.manager.registerObjects(self.objects)
         self.manager.setup()
@@ -128,22 +133,64 @@ class ArmGeometry:
         if self.q is not None and np.array_equal(q_arm, self.q):
             return
         poses = self.km.frame_poses(self.km.full_q(q_arm), self._frame_ids)
-        for obj, shape, pose in zip(self.objects, self.shapes, poses):
-            obj.setTransform(_transform(self.base_to_world @ pose @ shape.transform_shape_to_link))
+        for i, (obj, shape, pose) in enumerate(zip(self.objects, self.shapes, poses)):
+            T = self.base_to_world @ pose @ shape.transform_shape_to_link
+            obj.setTransform(_transform(T))
+            self.centres[i] = T[:3, 3]
         self.manager.update()
         self.q = q_arm.copy()
 
 
-def separation_m(a: ArmGeometry, b: ArmGeometry) -> float:
-    """The smallest distance between two arms as placed (<= 0 when they touch)."""
-    data = fcl.DistanceData()
-    a.manager.distance(b.manager, data, fcl.defaultDistanceCallback)
-    return float(data.result.min_distance)
+_PLAIN = fcl.DistanceRequest()
+
+
+class SphereGaps:
+    """For arms as placed: the gap between every two shapes' bounding spheres (a lower bound on their distance),
+    and per pair of arms the least of them. One matrix for the whole cell, so each pair's search reuses its block."""
+
+    def __init__(self, arms: list[ArmGeometry]) -> None:
+        centres = np.concatenate([a.centres for a in arms])
+        radii = np.concatenate([a.radii_m for a in arms])
+        self.shapes = cdist(centres, centres) - radii[:, None] - radii[None, :]
+        sizes = [len(a.radii_m) for a in arms]
+        self.starts = np.cumsum([0] + sizes[:-1])
+        self.ends = self.starts + sizes
+        self.arms = np.minimum.reduceat(np.minimum.reduceat(self.shapes, self.starts, axis=0), self.starts, axis=1)
+
+    def block(self, i: int, j: int) -> np.ndarray:
+        """Shape-to-shape gaps between arm i's shapes (rows) and arm j's (columns)."""
+        return self.shapes[self.starts[i] : self.ends[i], self.starts[j] : self.ends[j]]
+
+
+def _nearest(
+    a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf, gaps: np.ndarray | None = None,
+) -> tuple[float, fcl.DistanceResult | None]:
+    """Branch and bound: shape pairs in order of their bounding spheres' gap; stop once no gap can beat the best
+    (or `below_m`: then a pair farther apart than that answers inf without being measured). One FCL result object
+    keeps the running minimum (and its nearest points) across the pairs measured."""
+    gaps = (cdist(a.centres, b.centres) - a.radii_m[:, None] - b.radii_m[None, :] if gaps is None else gaps).ravel()
+    candidates = np.flatnonzero(gaps < below_m)
+    if candidates.size == 0:
+        return math.inf, None
+    result = fcl.DistanceResult(min_distance_=below_m if math.isfinite(below_m) else np.finfo(float).max)
+    n_b, found = len(b.objects), False
+    for k in candidates[np.argsort(gaps[candidates], kind="stable")]:
+        if gaps[k] >= result.min_distance:
+            break
+        before = result.min_distance
+        fcl.distance(a.objects[k // n_b], b.objects[k % n_b], request, result)
+        found = found or result.min_distance < before
+    return (float(result.min_distance), result) if found else (math.inf, None)
+
+
+def separation_m(a: ArmGeometry, b: ArmGeometry, below_m: float = math.inf, gaps: np.ndarray | None = None) -> float:
+    """The smallest distance between two arms as placed (<= 0 when they touch); inf if it is not below `below_m`.
+    `gaps`: their shapes' sphere gaps, if already at hand (`SphereGaps.block`)."""
+    return _nearest(a, b, _PLAIN, below_m, gaps)[0]
 
 
 def closest_points(a: ArmGeometry, b: ArmGeometry) -> tuple[float, np.ndarray, np.ndarray]:
     """The distance between two arms as placed and the nearest point of each (world frame, metres)."""
-    data = fcl.DistanceData(request=fcl.DistanceRequest(enable_nearest_points=True))
-    a.manager.distance(b.manager, data, fcl.defaultDistanceCallback)
-    p_a, p_b = data.result.nearest_points
-    return float(data.result.min_distance), np.asarray(p_a, float), np.asarray(p_b, float)
+    d, result = _nearest(a, b, fcl.DistanceRequest(enable_nearest_points=True))
+    p_a, p_b = result.nearest_points
+    return d, np.asarray(p_a, float), np.asarray(p_b, float)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, closest_points, separation_m
+from coordinator.geometry import ArmGeometry, SphereGaps, closest_points, separation_m
 from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
 
 DEFAULT_MARGIN_M = 0.02
@@ -108,32 +108,35 @@ class CollisionGuard:
     def min_separation(self, configurations: dict[str, np.ndarray] | None = None) -> tuple[float, tuple[str, str] | None]:
         """The smallest distance between any two arms (at their current states unless given).
 
-        Pairs are measured nearest bases first; a pair whose bases stand so far apart that
-        even fully stretched arms could not beat the best distance so far is skipped.
+        Pairs are measured nearest first by their shapes' bounding spheres; a pair whose spheres stand
+        farther apart than the best distance so far is skipped, and within a pair only shapes that can
+        still beat it are measured (python-fcl).
         """
         configurations = configurations or self.state
         for name, q in configurations.items():
             self.arms[name].place(q)
         best, pair = math.inf, None
-        for gap, a, b in self._pairs_by_gap():
+        for gap, a, b, shapes in self._pairs_by_bound():
             if a not in configurations or b not in configurations:
                 continue
             if gap >= best:
                 break
-            d = separation_m(self.arms[a], self.arms[b])
+            d = separation_m(self.arms[a], self.arms[b], below_m=best, gaps=shapes)
             if d < best:
                 best, pair = d, (a, b)
         return best, pair
 
     def nearest_other_m(self) -> dict[str, float]:
-        """Each arm's distance to its nearest other arm, at the current states; every pair measured once."""
+        """Each arm's distance to its nearest other arm, at the current states; a pair is measured only if it
+        could beat what one of its two arms already has."""
         for name, q in self.state.items():
             self.arms[name].place(q)
         out = {name: math.inf for name in self.arms}
-        for gap, a, b in self._pairs_by_gap():
-            if gap >= max(out[a], out[b]):
+        for gap, a, b, shapes in self._pairs_by_bound():
+            worse = max(out[a], out[b])
+            if gap >= worse:
                 continue  # cannot be nearer than what both already have
-            d = separation_m(self.arms[a], self.arms[b])
+            d = separation_m(self.arms[a], self.arms[b], below_m=worse, gaps=shapes)
             out[a], out[b] = min(out[a], d), min(out[b], d)
         return out
 
@@ -141,7 +144,7 @@ class CollisionGuard:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among them."""
         nearest = self.nearest_other_m()
         out: dict[tuple[str, str], NearestPair] = {}
-        for gap, a, b in self._pairs_by_gap():
+        for gap, a, b, _ in self._pairs_by_bound():
             if (a, b) in out or gap > max(nearest[a], nearest[b]) + 1e-9:
                 continue
             d, p_a, p_b = closest_points(self.arms[a], self.arms[b])
@@ -149,17 +152,14 @@ class CollisionGuard:
                 out[(a, b)] = NearestPair(a, b, d, p_a, p_b)
         return sorted(out.values(), key=lambda p: p.distance_m)
 
-    def _pairs_by_gap(self) -> list[tuple[float, str, str]]:
-        """Every pair of arms with a lower bound on their distance (bases apart minus both reach bounds), nearest first."""
-        if not hasattr(self, "_pairs"):
-            names = list(self.arms)
-            pairs = []
-            for i, a in enumerate(names):
-                for b in names[i + 1 :]:
-                    ga, gb = self.arms[a], self.arms[b]
-                    pairs.append((float(np.linalg.norm(ga.base_to_world[:3, 3] - gb.base_to_world[:3, 3])) - _bound_m(ga) - _bound_m(gb), a, b))
-            self._pairs = sorted(pairs)
-        return self._pairs
+    def _pairs_by_bound(self) -> list[tuple[float, str, str, np.ndarray]]:
+        """Every pair of arms as placed now, nearest first by a lower bound on their distance (their shapes'
+        bounding spheres), with the shape-to-shape bounds of the pair."""
+        names = list(self.arms)
+        gaps = SphereGaps([self.arms[n] for n in names])
+        rows, cols = np.triu_indices(len(names), k=1)
+        order = np.argsort(gaps.arms[rows, cols], kind="stable")
+        return [(float(gaps.arms[rows[k], cols[k]]), names[rows[k]], names[cols[k]], gaps.block(rows[k], cols[k])) for k in order]
 
     def _where(self, arm: str, t_s: float) -> np.ndarray:
         path = self.grants.get(arm)
