@@ -29,6 +29,8 @@ GRASP_WINDOW_S = 1.5  # descend, close and lift: the part must stay in reach thi
 HOVER_M = 0.1  # reach is checked this far above the part or the station surface
 CELL_MARGIN_M = 0.06
 GRID_M = 0.01
+URGENCY_S_PER_S = 10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
+NO_DEADLINE_HORIZON_S = 30.0  # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
 
 
 class CachedReach:
@@ -199,8 +201,15 @@ class GreedyNearest:
         return one_task_at_a_time(tasks, arms, parts, busy_stations, distance)
 
 
+def due_s(task: Task) -> float:
+    """When a task must be done by: its belt deadline, else a horizon after it appeared."""
+    return task.deadline_s if task.deadline_s is not None else task.created_s + NO_DEADLINE_HORIZON_S
+
+
 class OptimalAssignment:
-    """All pending tasks against all free arms at once, least total estimated time (`linear_sum_assignment`)."""
+    """All pending tasks against all free arms at once, least total estimated time plus urgency
+    (`linear_sum_assignment`): with more tasks than arms, a part about to ride out of reach goes before one
+    that can wait, as it would be missed otherwise."""
 
     name = "optimal"
 
@@ -215,6 +224,7 @@ class OptimalAssignment:
         if not free or not pending:
             return []
         cost = np.array([[cost_of(a, t, parts[t.part_id]) for a in free] for t in pending])
+        cost += URGENCY_S_PER_S * np.array([[due_s(t)] for t in pending])  # more tasks than arms: the sooner due go first
         chosen = sorted(assign_min_cost(cost), key=lambda rc: (cost[rc], rc))
         busy, out = set(busy_stations), []
         for r, c in chosen:  # two tasks for one station in the same round: the cheaper goes first

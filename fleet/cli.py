@@ -266,7 +266,7 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
     from fleet.env.bench import bench_env
 
     table = Table("arms", "task", "agent-steps/s", "env steps/s", "env time / raw physics")
-    rows = [bench_env(n, args.task, args.steps) for n in args.arms]
+    rows = [bench_env(n, task, args.steps, distributed=args.distributed) for task in args.tasks for n in args.arms]
     for r in rows:
         table.add_row(str(r.arms), r.task, f"{r.agent_steps_per_s:,.0f}", f"{r.steps / r.env_s:,.0f}", f"{r.ratio_to_physics:.2f}")
     out.print(table)
@@ -367,8 +367,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=cmd_bench_lines)
     b = bench.add_parser("env", help="PettingZoo env: agent-steps/s and env time against raw physics")
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
-    b.add_argument("--task", default="reach")
+    b.add_argument("--tasks", nargs="+", choices=("reach", "pick_place", "line"), default=["reach", "line"])
     b.add_argument("--steps", type=int, default=400)
+    b.add_argument("--distributed", action="store_true", help="actions through Zenoh to one process per arm")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_env)
     return parser

@@ -26,3 +26,12 @@ def test_ippo_training_runs_and_writes_its_curve(tmp_path):
     assert "random policy:" in result.stdout
     assert (tmp_path / "curve.csv").read_text().startswith("iteration,wall_s,agent_steps,mean_return")
     assert (tmp_path / "curve.png").stat().st_size > 1000
+
+
+def test_task_mode_comparison_runs():
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLES / "task_mode_allocators.py"), "--arms", "2", "--max-cycles", "20", "--episodes", "1"],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert all(p in result.stdout for p in ("random", "optimal", "auction", "greedy"))

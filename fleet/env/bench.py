@@ -31,8 +31,9 @@ class EnvRow:
         return self.env_s / self.physics_s
 
 
-def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0) -> EnvRow:
-    env = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps)
+def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0, distributed: bool = False) -> EnvRow:
+    """Random joint_delta actions at 20 Hz; then the same world stepped for as many ticks with nothing else."""
+    env = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps, distributed=distributed)
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
     actions = [{a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents} for _ in range(steps)]
@@ -44,4 +45,5 @@ def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0) -
     start = time.perf_counter()
     env.world.step(steps)
     physics_s = time.perf_counter() - start
+    env.close()
     return EnvRow(arms, task, steps, env_s, physics_s)

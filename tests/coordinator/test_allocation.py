@@ -68,3 +68,24 @@ def test_each_allocator_gives_each_part_to_the_arm_whose_bin_takes_its_colour(na
     assert {ledger.tasks[t].part_id: arm for t, arm in got.items()} == {0: "arm_0", 1: "arm_1", 2: "arm_2"}
     busy = make_allocator(name, scene).allocate(pending, arms, parts, {"bin_1"})
     assert all(ledger.tasks[t].target != "bin_1" for t, _ in busy)  # a busy station takes no second task
+
+
+def test_optimal_serves_the_part_due_first_when_tasks_outnumber_arms(sorting_cell):
+    """One free arm, two parts of its colour: the one about to ride out of reach goes first, though the other
+    would be met sooner (cheaper); the part that can wait is taken next time."""
+    scene, reach = sorting_cell
+    ledger = Ledger(scene)
+    home = tuple(get_robot("openclaw").home_q)
+    arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home) for a in scene.arms]
+    x0 = scene.arms[0].base.xyz[0]
+    parts = {
+        0: PartView(np.array([x0 - 0.20, 0.0, 0.095]), np.array([0.06, 0.0, 0.0])),  # farther from the bin: 5.2 s of work
+        1: PartView(np.array([x0 + 0.10, 0.0, 0.095]), np.array([0.06, 0.0, 0.0])),  # nearer the bin: 4.6 s
+    }
+    for pid in parts:
+        ledger.arrived(pid, "mixed", 0, 1.0)
+    pending = ledger.refresh(1.0)
+    for task in pending:  # part 0 must be met within 3 s (say, a gate closes), part 1 within 5 s
+        task.deadline_s = 1.0 + (3.0 if task.part_id == 0 else 5.0)
+    got = make_allocator("optimal", scene).allocate(pending, arms, parts, set())
+    assert [(ledger.tasks[t].part_id, arm) for t, arm in got] == [(0, "arm_0")]

@@ -1,0 +1,64 @@
+"""Allocation as a policy: the `task` action mode of the env, played by the coordinator's allocators and by a
+random policy, on the same seeded line. The yardstick a learned allocation policy has to beat.
+
+    python examples/task_mode_allocators.py --task line --arms 2 --max-cycles 300 --episodes 2
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from coordinator.allocation import ALLOCATORS, make_allocator
+from fleet.env import parallel_env
+from fleet.env.task_mode import allocator_actions
+
+POLICIES = ("random", *ALLOCATORS)
+
+
+def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float) -> dict:
+    """One episode; returns the team return and the line's part counts."""
+    env = parallel_env(task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
+    env.reset(seed=seed)
+    allocator = None if policy == "random" else make_allocator(policy, env.scene)
+    rng = np.random.default_rng(seed)
+    team_return = 0.0
+    while env.agents:
+        if allocator is None:
+            actions = {a: int(rng.integers(env.action_space(a).n)) for a in env.agents}
+        else:
+            actions = allocator_actions(env.chooser, allocator, env._options)
+        _, rewards, _, _, _ = env.step(actions)
+        team_return += sum(rewards.values())
+    totals = env.task_model.book.ledger.totals()
+    env.close()
+    return {"return": team_return, "completed": totals["parts_completed"], "spawned": totals["parts_spawned"],
+            "failed": totals["tasks_failed"], "sim_s": env.world.sim_time_s}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", choices=("line", "handover"), default="line")
+    parser.add_argument("--arms", type=int, default=None, help="arm count (scenes with an arm row; default: the scene's)")
+    parser.add_argument("--max-cycles", type=int, default=300)
+    parser.add_argument("--decision-hz", type=float, default=10.0)
+    parser.add_argument("--episodes", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    table = Table(title=f"task mode on {args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at {args.decision_hz:g} Hz")
+    for column in ("policy", "team return", "parts completed / spawned", "failed tasks"):
+        table.add_column(column)
+    for policy in POLICIES:
+        runs = [play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz) for e in range(args.episodes)]
+        table.add_row(
+            policy, f"{np.mean([r['return'] for r in runs]):.1f}",
+            f"{sum(r['completed'] for r in runs)} / {sum(r['spawned'] for r in runs)}", str(sum(r["failed"] for r in runs)),
+        )
+    Console().print(table)
+
+
+if __name__ == "__main__":
+    main()
