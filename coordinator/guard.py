@@ -126,12 +126,13 @@ class CollisionGuard:
                 best, pair = d, (a, b)
         return best, pair
 
-    def nearest_other_m(self) -> dict[str, float]:
+    def nearest_other_m(self, cap_m: float = math.inf) -> dict[str, float]:
         """Each arm's distance to its nearest other arm, at the current states; a pair is measured only if it
-        could beat what one of its two arms already has."""
+        could beat what one of its two arms already has. With `cap_m`, distances at or beyond it read `cap_m`
+        (a pair whose bound is past the cap is not measured at all)."""
         for name, q in self.state.items():
             self.arms[name].place(q)
-        out = {name: math.inf for name in self.arms}
+        out = {name: cap_m for name in self.arms}
         for gap, a, b, shapes in self._pairs_by_bound():
             worse = max(out[a], out[b])
             if gap >= worse:
@@ -157,7 +158,9 @@ class CollisionGuard:
         bounding spheres), with the shape-to-shape bounds of the pair."""
         names = list(self.arms)
         gaps = SphereGaps([self.arms[n] for n in names])
-        rows, cols = np.triu_indices(len(names), k=1)
+        if not hasattr(self, "_upper"):
+            self._upper = np.triu_indices(len(names), k=1)
+        rows, cols = self._upper
         order = np.argsort(gaps.arms[rows, cols], kind="stable")
         return [(float(gaps.arms[rows[k], cols[k]]), names[rows[k]], names[cols[k]], gaps.block(rows[k], cols[k])) for k in order]
 

@@ -12,7 +12,6 @@ the world's first snapshot and draws the episode from the seed, so a seed repeat
 from __future__ import annotations
 
 import functools
-import math
 
 import gymnasium
 import numpy as np
@@ -32,7 +31,7 @@ ACTION_MODES = (*CONTINUOUS_MODES, "task")
 TASK_MODE_TASKS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
 RENDER_MODES = ("human", "rgb_array")
 OBS_LIMIT = 100.0  # joint velocities are clipped here; positions and angles never come near
-SEPARATION_CAP_M = 10.0
+SEPARATION_CAP_M = 0.2  # the nearest-arm distance an agent sees is capped here: farther arms need no FCL query
 NEAR_MISS_PENALTY, CONTACT_PENALTY, LIMIT_PENALTY, EFFORT_WEIGHT, TEAM_WEIGHT = 0.5, 1.0, 0.1, 0.01, 0.1
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
@@ -205,10 +204,10 @@ class CellParallelEnv(ParallelEnv):
     def _separations(self) -> dict[str, float]:
         """Each arm's distance to its nearest other arm (python-fcl, the coordinator's guard)."""
         if len(self.possible_agents) < 2:
-            return {a: math.inf for a in self.possible_agents}
+            return {a: SEPARATION_CAP_M for a in self.possible_agents}
         for a in self.possible_agents:
             self.guard.set_state(a, self.world.arms[a].qpos()[: self._dof[a]])
-        return self.guard.nearest_other_m()
+        return self.guard.nearest_other_m(cap_m=SEPARATION_CAP_M)
 
     def _tools(self) -> dict[str, np.ndarray]:
         """Every arm's claw position now (world frame)."""
