@@ -124,7 +124,6 @@ class CellParallelEnv(ParallelEnv):
             self.actuator.reset({a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents})
         if self.chooser is not None:
             self.chooser.reset(self.task_model.book.ledger)
-            self.chooser.pending()
         self._options = self.chooser.choices() if self.chooser else {}
         if self.render_mode == "human":
             self.render()
