@@ -157,7 +157,7 @@ class TimeCost:
         return approach + transfer + self.fixed_s
 
 
-def _candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:
+def open_candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:
     """Pending tasks whose part is seen and whose stations are free, oldest first."""
     return [t for t in sorted(tasks, key=lambda t: (t.created_s, t.task_id)) if t.part_id in parts and not busy_stations.intersection(t.stations)]
 
@@ -169,7 +169,7 @@ def one_task_at_a_time(
     """Oldest task first, each to the free arm with the lowest score (infinite: cannot serve); one task per station."""
     free = [a for a in arms if a.free]
     busy, out = set(busy_stations), []
-    for task in _candidates(tasks, parts, busy_stations):
+    for task in open_candidates(tasks, parts, busy_stations):
         if not free:
             break
         if busy.intersection(task.stations):
@@ -220,7 +220,7 @@ class OptimalAssignment:
         rules = Eligibility(self.scene, arms)
         cost_of = TimeCost(rules)
         free = [a for a in arms if a.free]
-        pending = _candidates(tasks, parts, busy_stations)
+        pending = open_candidates(tasks, parts, busy_stations)
         if not free or not pending:
             return []
         cost = np.array([[cost_of(a, t, parts[t.part_id]) for a in free] for t in pending])

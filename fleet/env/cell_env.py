@@ -20,7 +20,7 @@ from pettingzoo import ParallelEnv
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
 from fleet.env.task_mode import SLOT_FEATURES, SLOTS, TaskChooser
-from fleet.env.tasks import TASKS, EnvTask, make_task
+from fleet.env.tasks import SUCCESS_BONUS, TASKS, EnvTask, make_task
 from fleet.physics.render import require_render
 from fleet.physics.world import World
 from robots.frames import yaw_transform
@@ -114,7 +114,6 @@ class CellParallelEnv(ParallelEnv):
         self.world.restore_state(self._start)
         self.agents = list(self.possible_agents)
         self.cycles = 0
-        self._counted = (0, 0)
         self.task_model.home_tool = self._tools()
         self.task_model.reset(self.world, self.np_random)
         for a, translator in self.translators.items():
@@ -125,9 +124,10 @@ class CellParallelEnv(ParallelEnv):
         if self.chooser is not None:
             self.chooser.reset(self.task_model.book.ledger)
         self._options = self.chooser.choices() if self.chooser else {}
+        observations = self._observe()  # places the guard's arms, which the human render draws
         if self.render_mode == "human":
             self.render()
-        return self._observe(), {a: {"success": False, "collision": False} for a in self.agents}
+        return observations, {a: {"success": False, "collision": False} for a in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]):
         limit_hits = self._act(actions)
@@ -188,14 +188,12 @@ class CellParallelEnv(ParallelEnv):
     def _task_rewards(self, tools: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
         if self.chooser is None:
             return self.task_model.progress(self.world, tools)
-        book = self.task_model.book
-        gained = book.completed - self._counted[0] - (book.missed - self._counted[1])
-        self._counted = (book.completed, book.missed)
+        gained = self.task_model.book.net_gain()
         rewards, successes = {}, {}
         for a in self.agents:
             outcomes, self.chooser.outcomes[a] = self.chooser.outcomes[a], []
             own = sum(1.0 if o == "done" else -1.0 for o in outcomes)
-            rewards[a] = own + 5.0 * gained
+            rewards[a] = own + SUCCESS_BONUS * gained
             successes[a] = "done" in outcomes
         return rewards, successes
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -40,7 +41,7 @@ def _stop(procs: list[subprocess.Popen], session) -> None:
     for p in procs:
         if p.poll() is None:
             try:
-                os.killpg(p.pid, 15)
+                os.killpg(p.pid, signal.SIGTERM)
             except ProcessLookupError:
                 pass
     deadline = time.monotonic() + 5.0
@@ -48,7 +49,7 @@ def _stop(procs: list[subprocess.Popen], session) -> None:
         try:
             p.wait(timeout=max(0.1, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
-            os.killpg(p.pid, 9)
+            os.killpg(p.pid, signal.SIGKILL)
             p.wait()
     try:
         session.close()

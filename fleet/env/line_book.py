@@ -15,6 +15,7 @@ class LineBook:
     def __init__(self, scene: Scene) -> None:
         self.watcher = LineWatcher(scene)
         self.ledger = Ledger(scene)
+        self._counted = 0
 
     def update(self, world: World) -> None:
         for e in self.watcher.update(world, world.active_parts()):
@@ -28,3 +29,9 @@ class LineBook:
     def missed(self) -> int:
         totals = self.ledger.totals()
         return totals["parts_missed"] + totals["parts_failed"]
+
+    def net_gain(self) -> int:
+        """Parts completed minus parts missed or failed since the last call (the line's reward term)."""
+        net = self.completed - self.missed
+        gained, self._counted = net - self._counted, net
+        return gained

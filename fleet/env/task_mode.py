@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, _candidates
+from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates
 from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, OPEN_STATES, Task, TaskState
 from fleet.observe import arm_observation, base_transform, part_observations
@@ -66,7 +66,7 @@ class TaskChooser:
         """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
         views, parts = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
-        open_tasks = _candidates(self.pending(), parts, self.ledger.busy_stations())
+        open_tasks = open_candidates(self.pending(), parts, self.ledger.busy_stations())
         out = {}
         for view in views:
             scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks] if view.free else []

@@ -55,7 +55,6 @@ class EnvTask(ABC):
 
     name: str
     physics_hz: float = 500.0  # grasps need contact resolution at this rate
-    has_parts = True
 
     def __init__(self, agents: list[str]) -> None:
         self.agents = agents
@@ -88,7 +87,6 @@ class Reach(EnvTask):
 
     name = "reach"
     physics_hz = 100.0  # no grasp-grade contacts needed
-    has_parts = False
     ORBIT_M = 0.05
     RAD_PER_S = 0.5
     SUCCESS_M = 0.03
@@ -244,7 +242,6 @@ class Line(EnvTask):
 
     def reset(self, world: World, rng: np.random.Generator) -> None:
         self.book = LineBook(world.scene_model)
-        self._counted = (0, 0)
 
     def on_tick(self, world: World) -> None:
         self.book.update(world)
@@ -257,9 +254,7 @@ class Line(EnvTask):
         return min((p.position for p in parts), key=lambda p: float(np.linalg.norm(p - tool)))
 
     def progress(self, world, tools):
-        completed, missed = self.book.completed, self.book.missed
-        gained = (completed - self._counted[0]) - (missed - self._counted[1])
-        self._counted = (completed, missed)
+        gained = self.book.net_gain()
         rewards = {
             a: 0.5 * closeness(float(np.linalg.norm(tools[a] - self.target(a, world)))) + SUCCESS_BONUS * gained for a in self.agents
         }
