@@ -60,6 +60,7 @@ class ArmView:
     free: bool
     reach: CachedReach = field(compare=False, repr=False)
     q: tuple[float, ...] = ()
+    free_in_s: float | None = None  # a busy arm: about when its task ends (None: unknown, so it is not planned for)
 
 
 @dataclass(frozen=True)
@@ -206,10 +207,17 @@ def due_s(task: Task) -> float:
     return task.deadline_s if task.deadline_s is not None else task.created_s + NO_DEADLINE_HORIZON_S
 
 
+def later(part: PartView, dt_s: float) -> PartView:
+    """Where a part will be in `dt_s` seconds (a belt part rides on; a part at rest stays)."""
+    return PartView(part.position + part.velocity * dt_s, part.velocity) if dt_s else part
+
+
 class OptimalAssignment:
-    """All pending tasks against all free arms at once, least total estimated time plus urgency
+    """All pending tasks against all arms at once, least total estimated time plus urgency
     (`linear_sum_assignment`): with more tasks than arms, a part about to ride out of reach goes before one
-    that can wait, as it would be missed otherwise."""
+    that can wait, as it would be missed otherwise. A busy arm whose task ends soon is planned for too (its
+    cost starts when it is free): only free arms are dispatched, but a free arm no longer takes a task that a
+    soon-free arm does better while work only it can do waits."""
 
     name = "optimal"
 
@@ -223,12 +231,15 @@ class OptimalAssignment:
         pending = open_candidates(tasks, parts, busy_stations)
         if not free or not pending:
             return []
-        cost = np.array([[cost_of(a, t, parts[t.part_id]) for a in free] for t in pending])
+        soon = [a for a in arms if not a.free and a.free_in_s is not None]
+        columns = free + soon
+        wait_s = [0.0] * len(free) + [a.free_in_s for a in soon]
+        cost = np.array([[w + cost_of(a, t, later(parts[t.part_id], w)) for a, w in zip(columns, wait_s)] for t in pending])
         cost += URGENCY_S_PER_S * np.array([[due_s(t)] for t in pending])  # more tasks than arms: the sooner due go first
         chosen = sorted(assign_min_cost(cost), key=lambda rc: (cost[rc], rc))
         busy, out = set(busy_stations), []
         for r, c in chosen:  # two tasks for one station in the same round: the cheaper goes first
-            if busy.intersection(pending[r].stations):
+            if c >= len(free) or busy.intersection(pending[r].stations):
                 continue
             busy.update(pending[r].stations)
             out.append((pending[r].task_id, free[c].name))

@@ -2,7 +2,8 @@
 
 Primitives become FCL primitives (a URDF cylinder's axis is z, as FCL's); meshes
 become BVH models. The broadphase is one matrix for the whole cell: the gaps
-between every two shapes' bounding spheres (`SphereGaps`); the distance between
+between every two shapes' bounding spheres (`SphereGaps`; a long shape is covered by a
+row of smaller spheres, so its bound stays tight); the distance between
 two arms is a branch and bound over it, with python-fcl measuring only the shape
 pairs that can still be the nearest. (python-fcl's broadphase managers call back
 into Python for every candidate pair: 4x slower here, same distances.) An FCL
@@ -32,6 +33,7 @@ class LinkShape:
     geometry: fcl.CollisionGeometry
     transform_shape_to_link: np.ndarray
     radius_m: float  # a sphere about the shape's origin holding all of it
+    cover: np.ndarray  # (k, 4): spheres (centre x, y, z in the shape frame, radius) that together hold all of it
 
 
 def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
@@ -51,7 +53,27 @@ def _origin(element: ET.Element | None) -> np.ndarray:
     return T
 
 
-def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeometry, float]:
+MAX_COVER_SPHERES = 4
+
+
+def _row_cover(length_m: float, width_m: float, axis: int) -> np.ndarray:
+    """Spheres in a row along `axis` holding a box or cylinder `length_m` long and at most `width_m` across
+    (about one sphere per 1.5 widths of length, so a long link gets a tight bound)."""
+    k = int(min(MAX_COVER_SPHERES, max(1, math.ceil(length_m / (1.5 * width_m)))))
+    piece = length_m / k
+    cover = np.zeros((k, 4))
+    cover[:, axis] = -length_m / 2 + piece * (np.arange(k) + 0.5)
+    cover[:, 3] = 0.5 * math.hypot(piece, width_m)
+    return cover
+
+
+def _box_cover(size: tuple[float, float, float]) -> np.ndarray:
+    axis = int(np.argmax(size))
+    others = [v for i, v in enumerate(size) if i != axis]
+    return _row_cover(size[axis], math.hypot(*others), axis)
+
+
+def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeometry, float, np.ndarray]:
     import trimesh
 
     mesh = trimesh.load(Path(filename.removeprefix("file://")), force="mesh")
@@ -60,23 +82,26 @@ def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeom
     bvh.beginModel(len(vertices), len(mesh.faces))
     bvh.addSubModel(vertices, np.asarray(mesh.faces))
     bvh.endModel()
-    return bvh, float(np.linalg.norm(vertices, axis=1).max())
+    centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2  # about the mesh's box: tighter than about its origin
+    cover = np.array([[*centre, np.linalg.norm(vertices - centre, axis=1).max()]])
+    return bvh, float(np.linalg.norm(vertices, axis=1).max()), cover
 
 
-def _geometry(element: ET.Element, inflate_m: float) -> tuple[fcl.CollisionGeometry, float] | None:
-    """An FCL geometry for a URDF <geometry> element (grown by `inflate_m` on every side), and its radius."""
+def _geometry(element: ET.Element, inflate_m: float) -> tuple[fcl.CollisionGeometry, float, np.ndarray] | None:
+    """An FCL geometry for a URDF <geometry> element (grown by `inflate_m` on every side), its radius and its
+    cover of spheres."""
     shape = next(iter(element), None)
     if shape is None:
         return None
     if shape.tag == "box":
         sx, sy, sz = (float(v) + 2 * inflate_m for v in shape.get("size").split())
-        return fcl.Box(sx, sy, sz), 0.5 * math.sqrt(sx * sx + sy * sy + sz * sz)
+        return fcl.Box(sx, sy, sz), 0.5 * math.sqrt(sx * sx + sy * sy + sz * sz), _box_cover((sx, sy, sz))
     if shape.tag == "cylinder":
         r, length = float(shape.get("radius")) + inflate_m, float(shape.get("length")) + 2 * inflate_m
-        return fcl.Cylinder(r, length), math.hypot(r, length / 2)
+        return fcl.Cylinder(r, length), math.hypot(r, length / 2), _row_cover(length, 2 * r, 2)
     if shape.tag == "sphere":
         r = float(shape.get("radius")) + inflate_m
-        return fcl.Sphere(r), r
+        return fcl.Sphere(r), r, np.array([[0.0, 0.0, 0.0, r]])
     if shape.tag == "mesh":
         scale = [float(v) for v in shape.get("scale", "1 1 1").split()]
         return _mesh_geometry(shape.get("filename"), scale)
@@ -91,7 +116,7 @@ def link_shapes(spec: RobotSpec, inflate_m: float = 0.0) -> list[LinkShape]:
         for collision in link.findall("collision"):
             found = _geometry(collision.find("geometry"), inflate_m)
             if found is not None:
-                shapes.append(LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1]))
+                shapes.append(LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1], found[2]))
     return shapes
 
 
@@ -111,6 +136,11 @@ class ArmGeometry:
         self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
         self._shape_to_link = np.array([s.transform_shape_to_link for s in self.shapes])
         self.radii_m = np.array([s.radius_m for s in self.shapes])
+        cover = np.concatenate([s.cover for s in self.shapes])
+        self._cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])
+        self._cover_local = np.concatenate([cover[:, :3], np.ones((len(cover), 1))], axis=1)
+        self.cover_radii_m = cover[:, 3]
+        self.cover_starts = np.flatnonzero(np.diff(self._cover_shape, prepend=-1))  # each shape's first sphere
         self.transforms = np.tile(np.eye(4), (len(self.shapes), 1, 1))  # each shape in the world, as placed
         self._posed = [False] * len(self.shapes)  # whether the FCL object carries the current transform
         self.q: np.ndarray | None = None
@@ -143,6 +173,16 @@ class ArmGeometry:
         """Each shape's origin in the world (the centre of its bounding sphere), as placed."""
         return self.transforms[:, :3, 3]
 
+    @property
+    def cover_centres(self) -> np.ndarray:
+        """The centres of the spheres covering the shapes, in the world, as placed (grouped by shape)."""
+        return np.einsum("kij,kj->ki", self.transforms[self._cover_shape, :3, :], self._cover_local)
+
+    def shape_gaps(self, other: ArmGeometry) -> np.ndarray:
+        """A lower bound on the distance between each shape of this arm (rows) and each of `other`'s."""
+        spheres = cdist(self.cover_centres, other.cover_centres) - self.cover_radii_m[:, None] - other.cover_radii_m[None, :]
+        return np.minimum.reduceat(np.minimum.reduceat(spheres, self.cover_starts, axis=0), other.cover_starts, axis=1)
+
     def object(self, i: int) -> fcl.CollisionObject:
         """Shape i as an FCL object at its current pose."""
         if not self._posed[i]:
@@ -159,9 +199,11 @@ class SphereGaps:
     and per pair of arms the least of them. One matrix for the whole cell, so each pair's search reuses its block."""
 
     def __init__(self, arms: list[ArmGeometry]) -> None:
-        centres = np.concatenate([a.centres for a in arms])
-        radii = np.concatenate([a.radii_m for a in arms])
-        self.shapes = cdist(centres, centres) - radii[:, None] - radii[None, :]
+        centres = np.concatenate([a.cover_centres for a in arms])
+        radii = np.concatenate([a.cover_radii_m for a in arms])
+        starts = np.concatenate([a.cover_starts + offset for a, offset in zip(arms, np.cumsum([0] + [len(a.cover_radii_m) for a in arms[:-1]]))])
+        spheres = cdist(centres, centres) - radii[:, None] - radii[None, :]
+        self.shapes = np.minimum.reduceat(np.minimum.reduceat(spheres, starts, axis=0), starts, axis=1)
         sizes = [len(a.radii_m) for a in arms]
         self.starts = np.cumsum([0] + sizes[:-1])
         self.ends = self.starts + sizes
@@ -178,7 +220,7 @@ def _nearest(
     """Branch and bound: shape pairs in order of their bounding spheres' gap; stop once no gap can beat the best
     (or `below_m`: then a pair farther apart than that answers inf without being measured). One FCL result object
     keeps the running minimum (and its nearest points) across the pairs measured."""
-    gaps = (cdist(a.centres, b.centres) - a.radii_m[:, None] - b.radii_m[None, :] if gaps is None else gaps).ravel()
+    gaps = (a.shape_gaps(b) if gaps is None else gaps).ravel()
     candidates = np.flatnonzero(gaps < below_m)
     if candidates.size == 0:
         return math.inf, None

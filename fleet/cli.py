@@ -358,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_allocation)
     b = bench.add_parser("lines", help="throughput, contacts and separation of whole runs per scene and allocator")
-    b.add_argument("--cases", nargs="+", default=["assembly_line", "handover", "pick_cell", "sorting_line:2", "sorting_line:4", "sorting_line:6"],
+    b.add_argument("--cases", nargs="+", default=["assembly_line", "handover", "mixed_infeed", "pick_cell", "sorting_line:2", "sorting_line:4", "sorting_line:6"],
                    help="SCENE or SCENE:ARMS")
     b.add_argument("--allocators", nargs="+", default=["optimal", "auction", "greedy"], choices=("optimal", "auction", "greedy"))
     b.add_argument("--seconds", type=float, default=120.0, help="sim seconds per run")

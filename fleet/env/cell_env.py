@@ -140,7 +140,9 @@ class CellParallelEnv(ParallelEnv):
                 self.chooser.report()
         self.cycles += 1
         touching = {name for pair in self.world.inter_arm_contacts() for name in pair}
-        separation, tools = self._separations(), self._tools()
+        joints = self._joints()
+        separation, tools = self._separations(joints), self._tools()
+        targets = {a: self.task_model.target(a, self.world) for a in self.agents} if self.chooser is None else {}
         rewards, successes = self._task_rewards(tools)
         team = sum(successes.values()) / max(1, len(self.agents))
         infos = {}
@@ -154,7 +156,7 @@ class CellParallelEnv(ParallelEnv):
             infos[a] = {"success": successes[a], "collision": a in touching, "near_miss": near_miss,
                         "separation_m": min(separation[a], SEPARATION_CAP_M), "joint_limit": bool(limit_hits.get(a))}
             if self.chooser is None:
-                infos[a]["distance_m"] = float(np.linalg.norm(tools[a] - self.task_model.target(a, self.world)))
+                infos[a]["distance_m"] = float(np.linalg.norm(tools[a] - targets[a]))
         if self.chooser is not None:
             for a, what in self._choice_results.items():
                 infos[a]["choice"] = what
@@ -162,7 +164,7 @@ class CellParallelEnv(ParallelEnv):
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}
         truncations = {a: done for a in self.agents}
-        observations = self._observe(separation, tools)
+        observations = self._observe(separation, tools, joints, targets)
         if done:
             self.agents = []
         if self.render_mode == "human":
@@ -198,32 +200,40 @@ class CellParallelEnv(ParallelEnv):
         return rewards, successes
 
     # --- observations -----------------------------------------------------------------
-    def _separations(self) -> dict[str, float]:
+    def _joints(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Every arm's joint positions and velocities now (read once a step: observations and separations share them)."""
+        return {a: (self.world.arms[a].qpos(), self.world.arms[a].qvel()) for a in self.possible_agents}
+
+    def _separations(self, joints: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, float]:
         """Each arm's distance to its nearest other arm (python-fcl, the coordinator's guard)."""
         if len(self.possible_agents) < 2:
             return {a: SEPARATION_CAP_M for a in self.possible_agents}
         for a in self.possible_agents:
-            self.guard.set_state(a, self.world.arms[a].qpos()[: self._dof[a]])
+            self.guard.set_state(a, joints[a][0][: self._dof[a]])
         return self.guard.nearest_other_m(cap_m=SEPARATION_CAP_M)
 
     def _tools(self) -> dict[str, np.ndarray]:
         """Every arm's claw position now (world frame)."""
         return {a: np.asarray(self.world.arms[a].tool_pose_world().p, float) for a in self.possible_agents}
 
-    def _observe(self, separation: dict[str, float] | None = None, tools: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
-        separation = separation or self._separations()
+    def _observe(
+        self, separation: dict[str, float] | None = None, tools: dict[str, np.ndarray] | None = None,
+        joints: dict[str, tuple[np.ndarray, np.ndarray]] | None = None, targets: dict[str, np.ndarray] | None = None,
+    ) -> dict[str, np.ndarray]:
+        joints = joints or self._joints()
+        separation = separation or self._separations(joints)
         tools = tools or self._tools()
         out = {}
         for a in self.agents:
-            arm = self.world.arms[a]
-            q, dq, n = arm.qpos(), arm.qvel(), self._dof[a]
+            (q, dq), n = joints[a], self._dof[a]
             others = [tools[b] for b in self.possible_agents if b != a]
             if self.chooser is not None:
                 skill = self.chooser.skills[a]
                 own = [q[:n], dq[:n], [self._opening(a)], [float(self.chooser.task_of[a] is None and not skill.active), skill.progress], tools[a]]
                 extra = [self.chooser.features(self._options.get(a, []))]
             else:
-                own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], self.task_model.target(a, self.world)]
+                target = targets[a] if targets else self.task_model.target(a, self.world)
+                own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
                 extra = []
             out[a] = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra]).clip(-OBS_LIMIT, OBS_LIMIT).astype(np.float32)
         return out

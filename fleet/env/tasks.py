@@ -92,7 +92,7 @@ class Reach(EnvTask):
     SUCCESS_M = 0.03
 
     def prepare(self, scene: Scene) -> Scene:
-        return without_arrivals(scene)
+        return without_arrivals(scene, belt_speed_m_per_s=0.0)  # nothing rides it
 
     def reset(self, world: World, rng: np.random.Generator) -> None:
         self.centres, self.phases = {}, {}

@@ -21,7 +21,7 @@ import time
 import numpy as np
 import zenoh
 
-from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, Eligibility, PartView, make_allocator
+from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, TimedPath
@@ -41,6 +41,7 @@ from scenes.schema import Scene
 COORD_RATE_HZ = 10.0
 PROGRESS_PERIOD_S = 0.5
 IDLE_SKILLS = ("idle", "done", "failed")
+OVERRUN_S = 2.0  # a task this late on its estimate: its arm's end is unknown
 REACH_IK = IKOptions(restarts=8)
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
 
@@ -99,6 +100,7 @@ class CoordinatorNode:
         self.reassigned = 0
         self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.lost: dict[str, float] = {}
+        self.busy_until_s: dict[str, float] = {}  # when each arm's current task should end (the allocator's estimate)
         self.losses: list[dict] = []
         self.parts: dict[int, PartView] = {}
         self.sim_time_s = 0.0
@@ -229,10 +231,15 @@ class CoordinatorNode:
         return [
             ArmView(
                 a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a],
-                tuple(self.guard.state[a].tolist()),
+                tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None,
             )
             for a in self.arm_names
         ]
+
+    def free_in_s(self, arm: str) -> float | None:
+        """About when a busy arm's task ends; None once it overran its estimate (or is lost): not planned for."""
+        remaining = self.busy_until_s.get(arm, -math.inf) - self.last_decision_tick / self.scene.control_hz
+        return None if arm in self.lost or remaining < -OVERRUN_S else max(remaining, 0.0)
 
     def busy_stations(self) -> set[str]:
         """Stations in use: by open tasks, and by arms still moving away from their last task's stations."""
@@ -257,8 +264,12 @@ class CoordinatorNode:
                 self.deadline_known.add(task.task_id)
                 task.deadline_s = belt_deadline_s(self.scene.conveyor, self.last_reach_along_belt_m, self.parts[task.part_id], now)
         if pending:
-            for task_id, arm in self.allocator.allocate(pending, self.arm_views(), self.parts, self.busy_stations()):
-                self._send(self.ledger.assign(task_id, arm, now), arm)
+            views = self.arm_views()
+            cost_s = TimeCost(Eligibility(self.scene, views))
+            for task_id, arm in self.allocator.allocate(pending, views, self.parts, self.busy_stations()):
+                task = self.ledger.assign(task_id, arm, now)
+                self.busy_until_s[arm] = now + cost_s(next(v for v in views if v.name == arm), task, self.parts[task.part_id])
+                self._send(task, arm)
         self._tick_pub.put(encode(CoordTick(tick, tuple(self.assign_seq[a] for a in self.arm_names))))
 
     def reassign_late_tasks(self, now_s: float) -> None:

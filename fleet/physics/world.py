@@ -147,7 +147,7 @@ class World:
         """Advance `ticks` control ticks: release due parts, then the physics steps with the belt running."""
         for _ in range(ticks):
             self._release_due_parts()
-            if self.belt is not None:
+            if self.belt is not None and self._belt_step.any():  # a stopped belt is a plain kinematic box
                 self._belt_entity.set_pose(self._belt_home)
                 home = self._belt_home.p
                 for k in range(1, self.substeps + 1):

@@ -89,3 +89,49 @@ def test_optimal_serves_the_part_due_first_when_tasks_outnumber_arms(sorting_cel
         task.deadline_s = 1.0 + (3.0 if task.part_id == 0 else 5.0)
     got = make_allocator("optimal", scene).allocate(pending, arms, parts, set())
     assert [(ledger.tasks[t].part_id, arm) for t, arm in got] == [(0, "arm_0")]
+
+
+@pytest.fixture(scope="module")
+def mixed_cell():
+    scene = load_scene("mixed_infeed")
+    reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))) for a in scene.arms}
+    return scene, reach
+
+
+def red_belt_part_and_tray_part(scene, tray_first_s: float, belt_deadline_s: float):
+    """A red part on the belt just upstream of arm_0 and a part waiting in the rework tray, as pending tasks."""
+    ledger = Ledger(scene)
+    tray = scene.station("rework_tray")
+    parts = {
+        0: PartView(np.array([*tray.pose.xyz[:2], tray.surface_z_m + 0.015]), np.zeros(3)),
+        1: PartView(np.array([scene.arms[0].base.xyz[0] - 0.13, 0.38, 0.095]), np.array([0.09, 0.0, 0.0])),
+    }
+    ledger.arrived(0, "rework", 0, tray_first_s)
+    ledger.at_station(0, "rework_tray", tray_first_s)
+    ledger.arrived(1, "belt_parts", 0, 2.0)
+    pending = ledger.refresh(2.0)
+    next(t for t in pending if t.part_id == 1).deadline_s = belt_deadline_s
+    return ledger, pending, parts
+
+
+def test_optimal_takes_the_belt_part_before_an_older_tray_part_greedy_does_not(mixed_cell):
+    """The contention scene's first decision: arm_0 alone is free; the tray part is older but can wait."""
+    scene, reach = mixed_cell
+    home = tuple(get_robot("openclaw").home_q)
+    arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home) for a in scene.arms]
+    ledger, pending, parts = red_belt_part_and_tray_part(scene, tray_first_s=1.0, belt_deadline_s=8.0)
+    part_of = lambda got: [(ledger.tasks[t].part_id, arm) for t, arm in got]
+    assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == [(1, "arm_0")]
+    assert part_of(make_allocator("greedy", scene).allocate(pending, arms, parts, set())) == [(0, "arm_0")]
+
+
+def test_optimal_leaves_shared_work_to_an_arm_about_to_be_free(mixed_cell):
+    """arm_1 ends its task in 0.3 s: arm_0 takes the belt part only it can serve and leaves the tray to arm_1,
+    though the tray part is due first; not knowing when arm_1 is free, arm_0 takes the tray part."""
+    scene, reach = mixed_cell
+    home = tuple(get_robot("openclaw").home_q)
+    ledger, pending, parts = red_belt_part_and_tray_part(scene, tray_first_s=1.0, belt_deadline_s=40.0)
+    part_of = lambda got: [(ledger.tasks[t].part_id, arm) for t, arm in got]
+    for free_in_s, expected in ((0.3, [(1, "arm_0")]), (None, [(0, "arm_0")])):
+        arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home, None if a.name == "arm_0" else free_in_s) for a in scene.arms]
+        assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected
