@@ -1,11 +1,11 @@
 """Arms as python-fcl geometry: each link's URDF collision shapes, placed by Pinocchio forward kinematics.
 
 Primitives become FCL primitives (a URDF cylinder's axis is z, as FCL's); meshes
-become BVH models. The broadphase is one matrix for the whole cell: the gaps
-between every two shapes' bounding spheres (`SphereGaps`; a long shape is covered by a
-row of smaller spheres, so its bound stays tight); the distance between
-two arms is a branch and bound over it, with python-fcl measuring only the shape
-pairs that can still be the nearest. (python-fcl's broadphase managers call back
+become BVH models. The broadphase is one matrix for the whole cell, the gaps
+between every two shapes' bounding spheres (`SphereGaps`), which orders the pairs
+of arms. Within a pair, each shape is covered by a row of smaller spheres (a long
+link's bound stays tight) and the distance is a branch and bound over their gaps,
+with python-fcl measuring only the shape pairs that can still be the nearest. (python-fcl's broadphase managers call back
 into Python for every candidate pair: 4x slower here, same distances.) An FCL
 object's pose is set only when a query needs that shape.
 """
@@ -137,12 +137,12 @@ class ArmGeometry:
         self._shape_to_link = np.array([s.transform_shape_to_link for s in self.shapes])
         self.radii_m = np.array([s.radius_m for s in self.shapes])
         cover = np.concatenate([s.cover for s in self.shapes])
-        self._cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])
+        self.cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])  # each sphere's shape
         self._cover_local = np.concatenate([cover[:, :3], np.ones((len(cover), 1))], axis=1)
         self.cover_radii_m = cover[:, 3]
-        self.cover_starts = np.flatnonzero(np.diff(self._cover_shape, prepend=-1))  # each shape's first sphere
         self.transforms = np.tile(np.eye(4), (len(self.shapes), 1, 1))  # each shape in the world, as placed
         self._posed = [False] * len(self.shapes)  # whether the FCL object carries the current transform
+        self._cover_centres: np.ndarray | None = None
         self.q: np.ndarray | None = None
         self.reach_bound_m = self._reach_bound_m()
         self.place(np.asarray(spec.home_q, float))
@@ -166,6 +166,7 @@ class ArmGeometry:
         poses = np.array(self.km.frame_poses(self.km.full_q(q_arm), self._frame_ids))
         self.transforms = self.base_to_world @ poses @ self._shape_to_link
         self._posed = [False] * len(self._objects)
+        self._cover_centres = None
         self.q = q_arm.copy()
 
     @property
@@ -176,12 +177,14 @@ class ArmGeometry:
     @property
     def cover_centres(self) -> np.ndarray:
         """The centres of the spheres covering the shapes, in the world, as placed (grouped by shape)."""
-        return np.einsum("kij,kj->ki", self.transforms[self._cover_shape, :3, :], self._cover_local)
+        if self._cover_centres is None:
+            self._cover_centres = np.einsum("kij,kj->ki", self.transforms[self.cover_shape, :3, :], self._cover_local)
+        return self._cover_centres
 
-    def shape_gaps(self, other: ArmGeometry) -> np.ndarray:
-        """A lower bound on the distance between each shape of this arm (rows) and each of `other`'s."""
-        spheres = cdist(self.cover_centres, other.cover_centres) - self.cover_radii_m[:, None] - other.cover_radii_m[None, :]
-        return np.minimum.reduceat(np.minimum.reduceat(spheres, self.cover_starts, axis=0), other.cover_starts, axis=1)
+    def sphere_gaps(self, other: ArmGeometry) -> np.ndarray:
+        """The gap between each cover sphere of this arm (rows) and each of `other`'s: a lower bound on the
+        distance between the shapes they belong to (`cover_shape`)."""
+        return cdist(self.cover_centres, other.cover_centres) - self.cover_radii_m[:, None] - other.cover_radii_m[None, :]
 
     def object(self, i: int) -> fcl.CollisionObject:
         """Shape i as an FCL object at its current pose."""
@@ -195,50 +198,45 @@ _PLAIN = fcl.DistanceRequest()
 
 
 class SphereGaps:
-    """For arms as placed: the gap between every two shapes' bounding spheres (a lower bound on their distance),
-    and per pair of arms the least of them. One matrix for the whole cell, so each pair's search reuses its block."""
+    """For arms as placed: per pair of arms a lower bound on their distance, the least gap between their shapes'
+    single bounding spheres (one `cdist` for the whole cell). Loose, but enough to order and skip pairs; a pair
+    that is measured gets the tight bounds of its cover spheres (`ArmGeometry.sphere_gaps`)."""
 
     def __init__(self, arms: list[ArmGeometry]) -> None:
-        centres = np.concatenate([a.cover_centres for a in arms])
-        radii = np.concatenate([a.cover_radii_m for a in arms])
-        starts = np.concatenate([a.cover_starts + offset for a, offset in zip(arms, np.cumsum([0] + [len(a.cover_radii_m) for a in arms[:-1]]))])
-        spheres = cdist(centres, centres) - radii[:, None] - radii[None, :]
-        self.shapes = np.minimum.reduceat(np.minimum.reduceat(spheres, starts, axis=0), starts, axis=1)
-        sizes = [len(a.radii_m) for a in arms]
-        self.starts = np.cumsum([0] + sizes[:-1])
-        self.ends = self.starts + sizes
-        self.arms = np.minimum.reduceat(np.minimum.reduceat(self.shapes, self.starts, axis=0), self.starts, axis=1)
-
-    def block(self, i: int, j: int) -> np.ndarray:
-        """Shape-to-shape gaps between arm i's shapes (rows) and arm j's (columns)."""
-        return self.shapes[self.starts[i] : self.ends[i], self.starts[j] : self.ends[j]]
+        centres = np.concatenate([a.centres for a in arms])
+        radii = np.concatenate([a.radii_m for a in arms])
+        shapes = cdist(centres, centres) - radii[:, None] - radii[None, :]
+        starts = np.cumsum([0] + [len(a.radii_m) for a in arms[:-1]])
+        self.arms = np.minimum.reduceat(np.minimum.reduceat(shapes, starts, axis=0), starts, axis=1)
 
 
-def _nearest(
-    a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf, gaps: np.ndarray | None = None,
-) -> tuple[float, fcl.DistanceResult | None]:
-    """Branch and bound: shape pairs in order of their bounding spheres' gap; stop once no gap can beat the best
-    (or `below_m`: then a pair farther apart than that answers inf without being measured). One FCL result object
-    keeps the running minimum (and its nearest points) across the pairs measured."""
-    gaps = (a.shape_gaps(b) if gaps is None else gaps).ravel()
+def _nearest(a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf) -> tuple[float, fcl.DistanceResult | None]:
+    """Branch and bound: shape pairs in order of their cover spheres' gap (a pair first comes up at its least
+    gap); stop once no gap can beat the best (or `below_m`: then a pair farther apart than that answers inf
+    without being measured). One FCL result object keeps the running minimum (and its nearest points) across
+    the pairs measured."""
+    gaps = a.sphere_gaps(b).ravel()
     candidates = np.flatnonzero(gaps < below_m)
     if candidates.size == 0:
         return math.inf, None
     result = fcl.DistanceResult(min_distance_=below_m if math.isfinite(below_m) else np.finfo(float).max)
-    n_b, found = len(b.shapes), False
+    n_b, found, measured = len(b.cover_radii_m), False, set()
     for k in candidates[np.argsort(gaps[candidates], kind="stable")]:
         if gaps[k] >= result.min_distance:
             break
+        pair = (int(a.cover_shape[k // n_b]), int(b.cover_shape[k % n_b]))
+        if pair in measured:
+            continue
+        measured.add(pair)
         before = result.min_distance
-        fcl.distance(a.object(k // n_b), b.object(k % n_b), request, result)
+        fcl.distance(a.object(pair[0]), b.object(pair[1]), request, result)
         found = found or result.min_distance < before
     return (float(result.min_distance), result) if found else (math.inf, None)
 
 
-def separation_m(a: ArmGeometry, b: ArmGeometry, below_m: float = math.inf, gaps: np.ndarray | None = None) -> float:
-    """The smallest distance between two arms as placed (<= 0 when they touch); inf if it is not below `below_m`.
-    `gaps`: their shapes' sphere gaps, if already at hand (`SphereGaps.block`)."""
-    return _nearest(a, b, _PLAIN, below_m, gaps)[0]
+def separation_m(a: ArmGeometry, b: ArmGeometry, below_m: float = math.inf) -> float:
+    """The smallest distance between two arms as placed (<= 0 when they touch); inf if it is not below `below_m`."""
+    return _nearest(a, b, _PLAIN, below_m)[0]
 
 
 def closest_points(a: ArmGeometry, b: ArmGeometry) -> tuple[float, np.ndarray, np.ndarray]:

@@ -116,12 +116,12 @@ class CollisionGuard:
         for name, q in configurations.items():
             self.arms[name].place(q)
         best, pair = math.inf, None
-        for gap, a, b, shapes in self._pairs_by_bound():
+        for gap, a, b in self._pairs_by_bound():
             if a not in configurations or b not in configurations:
                 continue
             if gap >= best:
                 break
-            d = separation_m(self.arms[a], self.arms[b], below_m=best, gaps=shapes)
+            d = separation_m(self.arms[a], self.arms[b], below_m=best)
             if d < best:
                 best, pair = d, (a, b)
         return best, pair
@@ -133,11 +133,11 @@ class CollisionGuard:
         for name, q in self.state.items():
             self.arms[name].place(q)
         out = {name: cap_m for name in self.arms}
-        for gap, a, b, shapes in self._pairs_by_bound():
+        for gap, a, b in self._pairs_by_bound():
             worse = max(out[a], out[b])
             if gap >= worse:
                 continue  # cannot be nearer than what both already have
-            d = separation_m(self.arms[a], self.arms[b], below_m=worse, gaps=shapes)
+            d = separation_m(self.arms[a], self.arms[b], below_m=worse)
             out[a], out[b] = min(out[a], d), min(out[b], d)
         return out
 
@@ -145,7 +145,7 @@ class CollisionGuard:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among them."""
         nearest = self.nearest_other_m()
         out: dict[tuple[str, str], NearestPair] = {}
-        for gap, a, b, _ in self._pairs_by_bound():
+        for gap, a, b in self._pairs_by_bound():
             if (a, b) in out or gap > max(nearest[a], nearest[b]) + 1e-9:
                 continue
             d, p_a, p_b = closest_points(self.arms[a], self.arms[b])
@@ -153,16 +153,16 @@ class CollisionGuard:
                 out[(a, b)] = NearestPair(a, b, d, p_a, p_b)
         return sorted(out.values(), key=lambda p: p.distance_m)
 
-    def _pairs_by_bound(self) -> list[tuple[float, str, str, np.ndarray]]:
+    def _pairs_by_bound(self) -> list[tuple[float, str, str]]:
         """Every pair of arms as placed now, nearest first by a lower bound on their distance (their shapes'
-        bounding spheres), with the shape-to-shape bounds of the pair."""
+        bounding spheres)."""
         names = list(self.arms)
         gaps = SphereGaps([self.arms[n] for n in names])
         if not hasattr(self, "_upper"):
             self._upper = np.triu_indices(len(names), k=1)
         rows, cols = self._upper
         order = np.argsort(gaps.arms[rows, cols], kind="stable")
-        return [(float(gaps.arms[rows[k], cols[k]]), names[rows[k]], names[cols[k]], gaps.block(rows[k], cols[k])) for k in order]
+        return [(float(gaps.arms[rows[k], cols[k]]), names[rows[k]], names[cols[k]]) for k in order]
 
     def _where(self, arm: str, t_s: float) -> np.ndarray:
         path = self.grants.get(arm)
