@@ -102,7 +102,7 @@ def test_the_page_draws_the_arms_and_its_emergency_stop_holds_every_arm(tmp_path
                 assert all(moving[a] for a in arms), "every arm publishes its state"
                 assert not any(s.held for a in arms for s in moving[a]), "nobody held before the e-stop"
 
-                page.get_by_role("button", name="Emergency stop").click()
+                page.get_by_role("button", name="Emergency stop").click(timeout=90_000)  # a loaded 2-core machine once took > 30 s
                 held_by = time.monotonic() + 10
                 while time.monotonic() < held_by:
                     latest = states_after(session, keys, arms, 0.2)
