@@ -2,12 +2,13 @@
 
 Primitives become FCL primitives (a URDF cylinder's axis is z, as FCL's); meshes
 become BVH models. The broadphase is one matrix for the whole cell, the gaps
-between every two shapes' bounding spheres (`SphereGaps`), which orders the pairs
+between every two shapes' bounding spheres (`arm_gaps_m`), which orders the pairs
 of arms. Within a pair, each shape is covered by a row of smaller spheres (a long
 link's bound stays tight) and the distance is a branch and bound over their gaps,
-with python-fcl measuring only the shape pairs that can still be the nearest. (python-fcl's broadphase managers call back
-into Python for every candidate pair: 4x slower here, same distances.) An FCL
-object's pose is set only when a query needs that shape.
+with python-fcl measuring only the shape pairs that can still be the nearest.
+(python-fcl's broadphase managers call back into Python for every candidate pair:
+4x slower here, same distances.) An FCL object's pose is set only when a query
+needs that shape.
 """
 
 from __future__ import annotations
@@ -197,17 +198,16 @@ class ArmGeometry:
 _PLAIN = fcl.DistanceRequest()
 
 
-class SphereGaps:
-    """For arms as placed: per pair of arms a lower bound on their distance, the least gap between their shapes'
-    single bounding spheres (one `cdist` for the whole cell). Loose, but enough to order and skip pairs; a pair
-    that is measured gets the tight bounds of its cover spheres (`ArmGeometry.sphere_gaps`)."""
-
-    def __init__(self, arms: list[ArmGeometry]) -> None:
-        centres = np.concatenate([a.centres for a in arms])
-        radii = np.concatenate([a.radii_m for a in arms])
-        shapes = cdist(centres, centres) - radii[:, None] - radii[None, :]
-        starts = np.cumsum([0] + [len(a.radii_m) for a in arms[:-1]])
-        self.arms = np.minimum.reduceat(np.minimum.reduceat(shapes, starts, axis=0), starts, axis=1)
+def arm_gaps_m(arms: list[ArmGeometry]) -> np.ndarray:
+    """For arms as placed: per pair of arms (rows, columns in the order given) a lower bound on their distance,
+    the least gap between their shapes' single bounding spheres (one `cdist` for the whole cell). Loose, but
+    enough to order and skip pairs; a pair that is measured gets the tight bounds of its cover spheres
+    (`ArmGeometry.sphere_gaps`)."""
+    centres = np.concatenate([a.centres for a in arms])
+    radii = np.concatenate([a.radii_m for a in arms])
+    shapes = cdist(centres, centres) - radii[:, None] - radii[None, :]
+    starts = np.cumsum([0] + [len(a.radii_m) for a in arms[:-1]])
+    return np.minimum.reduceat(np.minimum.reduceat(shapes, starts, axis=0), starts, axis=1)
 
 
 def _nearest(a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf) -> tuple[float, fcl.DistanceResult | None]:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, SphereGaps, closest_points, separation_m
+from coordinator.geometry import ArmGeometry, arm_gaps_m, closest_points, separation_m
 from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
 
 DEFAULT_MARGIN_M = 0.02
@@ -85,6 +85,7 @@ class CollisionGuard:
 
     def __init__(self, arms: dict[str, ArmGeometry], margin_m: float = DEFAULT_MARGIN_M, step_m: float | None = None) -> None:
         self.arms = arms
+        self._upper = np.triu_indices(len(arms), k=1)  # every pair of arms once, as (row, column) indices
         self.margin_m = margin_m
         self.step_m = step_m if step_m is not None else margin_m / 2
         self.state = {name: np.asarray(g.spec.home_q, float) for name, g in arms.items()}
@@ -157,12 +158,10 @@ class CollisionGuard:
         """Every pair of arms as placed now, nearest first by a lower bound on their distance (their shapes'
         bounding spheres)."""
         names = list(self.arms)
-        gaps = SphereGaps([self.arms[n] for n in names])
-        if not hasattr(self, "_upper"):
-            self._upper = np.triu_indices(len(names), k=1)
+        gaps = arm_gaps_m([self.arms[n] for n in names])
         rows, cols = self._upper
-        order = np.argsort(gaps.arms[rows, cols], kind="stable")
-        return [(float(gaps.arms[rows[k], cols[k]]), names[rows[k]], names[cols[k]]) for k in order]
+        order = np.argsort(gaps[rows, cols], kind="stable")
+        return [(float(gaps[rows[k], cols[k]]), names[rows[k]], names[cols[k]]) for k in order]
 
     def _where(self, arm: str, t_s: float) -> np.ndarray:
         path = self.grants.get(arm)

@@ -171,7 +171,7 @@ class World:
         type_index = int(clock.rng.integers(len(feeder.parts)))
         lateral = float(clock.rng.uniform(-1, 1)) * feeder.lateral_jitter_m
         yaw = float(clock.rng.uniform(-math.pi, math.pi))
-        free = [s for s in clock.slots if self.parts[s].part_id is None and self.parts[s].type_index == type_index]
+        free = self._free_slots(clock, type_index)
         if not free:
             clock.skipped_full += 1
             self.events.append(("feeder_full", feeder.name, self.tick))
@@ -183,6 +183,10 @@ class World:
             z += WALL_M + 0.01
         self._put(self.parts[free[0]], (x, y, z), yaw)
         clock.spawned += 1
+
+    def _free_slots(self, clock: FeederClock, type_index: int) -> list[int]:
+        """The feeder's pooled parts of this type not in play now (indices into `self.parts`)."""
+        return [s for s in clock.slots if self.parts[s].part_id is None and self.parts[s].type_index == type_index]
 
     def _put(self, part: SimPart, surface_xyz: tuple[float, float, float], yaw_rad: float) -> int:
         """Set a pooled part down, bottom on `surface_xyz`, give it the next id and log its spawn."""
@@ -199,7 +203,7 @@ class World:
     def place_part(self, feeder_name: str, type_index: int, surface_xyz: tuple[float, float, float], yaw_rad: float = 0.0) -> int:
         """Set a free part of a feeder's pool down at a chosen spot (the env's tasks); returns its id."""
         clock = self._clock(feeder_name)
-        free = [s for s in clock.slots if self.parts[s].part_id is None and self.parts[s].type_index == type_index]
+        free = self._free_slots(clock, type_index)
         if not free:
             raise RuntimeError(f"feeder {feeder_name!r} has no free part of type {type_index} left in its pool")
         return self._put(self.parts[free[0]], surface_xyz, yaw_rad)
