@@ -2,7 +2,7 @@
 
 Primitives become FCL primitives (a URDF cylinder's axis is z, as FCL's); meshes
 become BVH models. The broadphase is one matrix for the whole cell, the gaps
-between every two shapes' bounding spheres (`arm_gaps_m`), which orders the pairs
+between every two shapes' bounding spheres (`CellBounds`), which orders the pairs
 of arms. Within a pair, each shape is covered by a row of smaller spheres (a long
 link's bound stays tight) and the distance is a branch and bound over their gaps,
 with python-fcl measuring only the shape pairs that can still be the nearest.
@@ -145,6 +145,7 @@ class ArmGeometry:
         self._posed = [False] * len(self.shapes)  # whether the FCL object carries the current transform
         self._cover_centres: np.ndarray | None = None
         self.q: np.ndarray | None = None
+        self._placed_key = b""
         self.reach_bound_m = self._reach_bound_m()
         self.place(np.asarray(spec.home_q, float))
 
@@ -162,13 +163,14 @@ class ArmGeometry:
     def place(self, q_arm: np.ndarray) -> None:
         """Put every link where forward kinematics says it is for these arm joints (gripper closed)."""
         q_arm = np.asarray(q_arm, float)
-        if self.q is not None and np.array_equal(q_arm, self.q):
+        key = q_arm.tobytes()  # comparing bytes costs a tenth of np.array_equal
+        if key == self._placed_key:
             return
         poses = np.array(self.km.frame_poses(self.km.full_q(q_arm), self._frame_ids))
         self.transforms = self.base_to_world @ poses @ self._shape_to_link
         self._posed = [False] * len(self._objects)
         self._cover_centres = None
-        self.q = q_arm.copy()
+        self.q, self._placed_key = q_arm.copy(), key
 
     @property
     def centres(self) -> np.ndarray:
@@ -198,16 +200,22 @@ class ArmGeometry:
 _PLAIN = fcl.DistanceRequest()
 
 
-def arm_gaps_m(arms: list[ArmGeometry]) -> np.ndarray:
-    """For arms as placed: per pair of arms (rows, columns in the order given) a lower bound on their distance,
-    the least gap between their shapes' single bounding spheres (one `cdist` for the whole cell). Loose, but
-    enough to order and skip pairs; a pair that is measured gets the tight bounds of its cover spheres
-    (`ArmGeometry.sphere_gaps`)."""
-    centres = np.concatenate([a.centres for a in arms])
-    radii = np.concatenate([a.radii_m for a in arms])
-    shapes = cdist(centres, centres) - radii[:, None] - radii[None, :]
-    starts = np.cumsum([0] + [len(a.radii_m) for a in arms[:-1]])
-    return np.minimum.reduceat(np.minimum.reduceat(shapes, starts, axis=0), starts, axis=1)
+class CellBounds:
+    """Lower bounds on the distance between the arms of one cell, as placed: per pair of arms (rows, columns in
+    the order given) the least gap between their shapes' single bounding spheres, one `cdist` for the whole
+    cell (the radii and each arm's block of shapes are fixed at construction). Loose, but enough to order and
+    skip pairs; a pair that is measured gets the tight bounds of its cover spheres (`ArmGeometry.sphere_gaps`)."""
+
+    def __init__(self, arms: list[ArmGeometry]) -> None:
+        self.arms = arms
+        radii = np.concatenate([a.radii_m for a in arms])
+        self._radius_sums = radii[:, None] + radii[None, :]
+        self._starts = np.cumsum([0] + [len(a.radii_m) for a in arms[:-1]])
+
+    def gaps_m(self) -> np.ndarray:
+        centres = np.concatenate([a.centres for a in self.arms])
+        shapes = cdist(centres, centres) - self._radius_sums
+        return np.minimum.reduceat(np.minimum.reduceat(shapes, self._starts, axis=0), self._starts, axis=1)
 
 
 def _nearest(a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf) -> tuple[float, fcl.DistanceResult | None]:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, arm_gaps_m, closest_points, separation_m
+from coordinator.geometry import ArmGeometry, CellBounds, closest_points, separation_m
 from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
 
 DEFAULT_MARGIN_M = 0.02
@@ -86,6 +86,7 @@ class CollisionGuard:
     def __init__(self, arms: dict[str, ArmGeometry], margin_m: float = DEFAULT_MARGIN_M, step_m: float | None = None) -> None:
         self.arms = arms
         self._upper = np.triu_indices(len(arms), k=1)  # every pair of arms once, as (row, column) indices
+        self._bounds = CellBounds(list(arms.values()))
         self.margin_m = margin_m
         self.step_m = step_m if step_m is not None else margin_m / 2
         self.state = {name: np.asarray(g.spec.home_q, float) for name, g in arms.items()}
@@ -134,7 +135,11 @@ class CollisionGuard:
         for name, q in self.state.items():
             self.arms[name].place(q)
         out = {name: cap_m for name in self.arms}
-        for gap, a, b in self._pairs_by_bound():
+        gaps = self._bounds.gaps_m()
+        rows, cols = self._upper
+        if rows.size == 0 or gaps[rows, cols].min() >= cap_m:
+            return out  # every pair is beyond the cap: nothing to measure
+        for gap, a, b in self._pairs_by_bound(gaps):
             worse = max(out[a], out[b])
             if gap >= worse:
                 continue  # cannot be nearer than what both already have
@@ -154,11 +159,11 @@ class CollisionGuard:
                 out[(a, b)] = NearestPair(a, b, d, p_a, p_b)
         return sorted(out.values(), key=lambda p: p.distance_m)
 
-    def _pairs_by_bound(self) -> list[tuple[float, str, str]]:
+    def _pairs_by_bound(self, gaps: np.ndarray | None = None) -> list[tuple[float, str, str]]:
         """Every pair of arms as placed now, nearest first by a lower bound on their distance (their shapes'
-        bounding spheres)."""
+        bounding spheres; `gaps` if already computed for this placement)."""
         names = list(self.arms)
-        gaps = arm_gaps_m([self.arms[n] for n in names])
+        gaps = self._bounds.gaps_m() if gaps is None else gaps
         rows, cols = self._upper
         order = np.argsort(gaps[rows, cols], kind="stable")
         return [(float(gaps[rows[k], cols[k]]), names[rows[k]], names[cols[k]]) for k in order]

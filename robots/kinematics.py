@@ -27,6 +27,8 @@ class KinematicModel:
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()
         self.velocity_limit = self.model.velocityLimit.copy()
+        self._closed_q = pin.neutral(self.model)  # the neutral configuration with the gripper closed
+        self._closed_q[self.gripper_q_index] = spec.gripper_closed
 
     @property
     def nq(self) -> int:
@@ -51,9 +53,10 @@ class KinematicModel:
 
     def full_q(self, arm_q: np.ndarray, gripper_q: np.ndarray | None = None) -> np.ndarray:
         """A full configuration from arm joints (and gripper joints, else their closed values)."""
-        q = pin.neutral(self.model)
+        q = self._closed_q.copy()
         q[self.arm_q_index] = arm_q
-        q[self.gripper_q_index] = self.spec.gripper_closed if gripper_q is None else gripper_q
+        if gripper_q is not None:
+            q[self.gripper_q_index] = gripper_q
         return q
 
     def frame_pose(self, q: np.ndarray, frame: str | int | None = None) -> np.ndarray:

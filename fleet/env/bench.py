@@ -1,7 +1,10 @@
 """`fleet bench env`: agent-steps per second of the PettingZoo env, and its step time against raw physics.
 
-Random actions; the raw-physics column steps the same world for the same number
-of control ticks with the arms' targets set once, no observations or rewards.
+Random joint_delta actions. The raw-physics column replays the same run with
+nothing but the physics: the drive targets the env set at each step are written
+again (the one call any controller makes) and the world is stepped as many
+substeps; no actions to translate, no observations, rewards or separations.
+A still-arm baseline would flatter the env: moving arms cost PhysX more.
 """
 
 from __future__ import annotations
@@ -32,18 +35,37 @@ class EnvRow:
 
 
 def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0, distributed: bool = False) -> EnvRow:
-    """Random joint_delta actions at 20 Hz; then the same world stepped for as many ticks with nothing else."""
+    """Time `steps` env steps of random actions, then the physics of the same run replayed (see the module doc)."""
     env = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps, distributed=distributed)
     rng = np.random.default_rng(seed)
-    env.reset(seed=seed)
     actions = [{a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents} for _ in range(steps)]
-    start = time.perf_counter()
+    try:
+        env.reset(seed=seed)
+        start = time.perf_counter()
+        for act in actions:
+            env.step(act)
+        env_s = time.perf_counter() - start
+        physics_s = _replay_s(env, actions, seed)
+    finally:
+        env.close()
+    return EnvRow(arms, task, steps, env_s, physics_s)
+
+
+def _replay_s(env: CellParallelEnv, actions: list[dict[str, np.ndarray]], seed: int) -> float:
+    """Seconds to step the world through the same run with only its drive targets written (recorded untimed first;
+    a seed repeats the run)."""
+    env.reset(seed=seed)
+    recorded = []
     for act in actions:
         env.step(act)
-    env_s = time.perf_counter() - start
+        recorded.append({a: env.world.arms[a].drive_targets() for a in env.possible_agents})
     env.reset(seed=seed)
+    still = {a: np.zeros(arm.spec.arm_dof) for a, arm in env.world.arms.items()}
     start = time.perf_counter()
-    env.world.step(steps)
-    physics_s = time.perf_counter() - start
-    env.close()
-    return EnvRow(arms, task, steps, env_s, physics_s)
+    for targets in recorded:
+        for a, q in targets.items():
+            arm = env.world.arms[a]
+            n = arm.spec.arm_dof
+            arm.set_targets(q[:n], still[a], q[n:])
+        env.world.step(env.ticks_per_step)
+    return time.perf_counter() - start

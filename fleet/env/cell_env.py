@@ -12,6 +12,7 @@ the world's first snapshot and draws the episode from the seed, so a seed repeat
 from __future__ import annotations
 
 import functools
+import math
 
 import gymnasium
 import numpy as np
@@ -76,6 +77,7 @@ class CellParallelEnv(ParallelEnv):
         placements = {a.name: yaw_transform(a.base.xyz, a.base.yaw_rad) for a in self.scene.arms}
         self.guard = CollisionGuard({a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents})
         self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
+        self._still = {a: np.zeros(n) for a, n in self._dof.items()}  # the joint velocity target of every action
         self.translators = {} if action_mode == "task" else {
             a: ActionTranslator(self.world.arms[a].spec, placements[a], action_mode) for a in self.possible_agents
         }
@@ -130,7 +132,7 @@ class CellParallelEnv(ParallelEnv):
         return observations, {a: {"success": False, "collision": False} for a in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]):
-        limit_hits = self._act(actions)
+        limit_hits, effort = self._act(actions)
         for _ in range(self.ticks_per_step):
             if self.chooser is not None:
                 self.chooser.command()
@@ -143,20 +145,19 @@ class CellParallelEnv(ParallelEnv):
         joints = self._joints()
         separation, tools = self._separations(joints), self._tools()
         targets = {a: self.task_model.target(a, self.world) for a in self.agents} if self.chooser is None else {}
-        rewards, successes = self._task_rewards(tools)
+        rewards, successes = self._task_rewards(tools, targets)
         team = sum(successes.values()) / max(1, len(self.agents))
         infos = {}
         for a in self.agents:
-            near_miss = separation[a] < DEFAULT_MARGIN_M
-            effort = 0.0 if self.chooser else EFFORT_WEIGHT * float(np.sum(np.asarray(actions.get(a, 0.0), float) ** 2))
+            near_miss, at_limit = separation[a] < DEFAULT_MARGIN_M, limit_hits.get(a, False)
             rewards[a] = float(
                 rewards[a] + TEAM_WEIGHT * team - (NEAR_MISS_PENALTY if near_miss else 0.0)
-                - (CONTACT_PENALTY if a in touching else 0.0) - (LIMIT_PENALTY if limit_hits.get(a) else 0.0) - effort
+                - (CONTACT_PENALTY if a in touching else 0.0) - (LIMIT_PENALTY if at_limit else 0.0) - effort.get(a, 0.0)
             )
             infos[a] = {"success": successes[a], "collision": a in touching, "near_miss": near_miss,
-                        "separation_m": min(separation[a], SEPARATION_CAP_M), "joint_limit": bool(limit_hits.get(a))}
+                        "separation_m": min(separation[a], SEPARATION_CAP_M), "joint_limit": at_limit}
             if self.chooser is None:
-                infos[a]["distance_m"] = float(np.linalg.norm(tools[a] - targets[a]))
+                infos[a]["distance_m"] = math.dist(tools[a], targets[a])
         if self.chooser is not None:
             for a, what in self._choice_results.items():
                 infos[a]["choice"] = what
@@ -171,25 +172,26 @@ class CellParallelEnv(ParallelEnv):
             self.render()
         return observations, rewards, terminations, truncations, infos
 
-    def _act(self, actions: dict) -> dict[str, bool]:
-        """Apply this step's actions; returns which arms pushed a joint target against its limit."""
+    def _act(self, actions: dict) -> tuple[dict[str, bool], dict[str, float]]:
+        """Apply this step's actions; returns which arms pushed a joint target against its limit, and each arm's
+        effort penalty."""
         if self.chooser is not None:
             self._choice_results = self.chooser.choose(actions, self._options)
-            return {}
+            return {}, {}
         raw = {a: np.asarray(actions.get(a, np.zeros(self.action_space(a).shape)), float) for a in self.agents}
         targets = self.actuator.translate(raw) if self.actuator is not None else {a: self.translators[a].apply(raw[a]) for a in self.agents}
-        hits = {}
+        hits, effort = {}, {}
         for a in self.agents:
-            arm, t = self.world.arms[a], targets[a]
-            arm.set_targets(t.q, np.zeros(self._dof[a]), arm.spec.gripper_targets(t.gripper_opening))
+            arm, t, tr = self.world.arms[a], targets[a], self.translators[a]
+            arm.set_targets(t.q, self._still[a], arm.spec.gripper_targets(t.gripper_opening))
             self._commanded_opening[a] = t.gripper_opening
-            tr = self.translators[a]
-            hits[a] = bool(np.any(t.q <= tr.lower + 1e-9) or np.any(t.q >= tr.upper - 1e-9))
-        return hits
+            hits[a] = bool(((t.q <= tr.lower + 1e-9) | (t.q >= tr.upper - 1e-9)).any())
+            effort[a] = EFFORT_WEIGHT * float(raw[a] @ raw[a])
+        return hits, effort
 
-    def _task_rewards(self, tools: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
+    def _task_rewards(self, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
         if self.chooser is None:
-            return self.task_model.progress(self.world, tools)
+            return self.task_model.progress(self.world, tools, targets)
         gained = self.task_model.book.net_gain()
         rewards, successes = {}, {}
         for a in self.agents:
@@ -235,7 +237,8 @@ class CellParallelEnv(ParallelEnv):
                 target = targets[a] if targets else self.task_model.target(a, self.world)
                 own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
                 extra = []
-            out[a] = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra]).clip(-OBS_LIMIT, OBS_LIMIT).astype(np.float32)
+            vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
+            out[a] = np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector)
         return out
 
     def _opening(self, agent: str) -> float:

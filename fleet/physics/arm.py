@@ -53,6 +53,8 @@ class SimArm:
             raise KeyError(f"{spec.uid}: joints {missing} not in the URDF; active joints: {', '.join(order)}")
         self.joints = [joints[n] for n in names]
         self.qpos_index = np.array([order.index(n) for n in names])
+        if np.array_equal(self.qpos_index, np.arange(len(names))):  # the usual case: the spec's order is SAPIEN's
+            self.qpos_index = slice(0, len(names))  # a slice view costs less than a gather, every step
         self.links = {link.name: link for link in self.articulation.get_links()}
         self.tool_link = self.links[spec.tool_frame]
         for link in self.articulation.get_links():
@@ -66,6 +68,8 @@ class SimArm:
         for i, joint in enumerate(self.joints):
             gains = spec.arm_gains if i < n_arm else spec.gripper_gains
             joint.set_drive_property(gains.stiffness, gains.damping, gains.force_limit, "force")
+        self._velocity_targets = [math.nan] * n_arm  # last written; NaN differs from any value, so the first write sets all
+        self._gripper_targets = [math.nan] * len(spec.gripper_joints)
         self.set_qpos(np.concatenate([spec.home_q, spec.gripper_targets(1.0)]))
 
     def set_qpos(self, q: np.ndarray) -> None:
@@ -77,13 +81,32 @@ class SimArm:
         self.set_targets(q[: self.spec.arm_dof], np.zeros(self.spec.arm_dof), q[self.spec.arm_dof :])
 
     def set_targets(self, arm_q: np.ndarray, arm_dq: np.ndarray, gripper_q: np.ndarray | tuple[float, ...]) -> None:
-        """Drive targets: arm joint positions and velocities, gripper joint positions."""
+        """Drive targets: arm joint positions and velocities, gripper joint positions.
+
+        Arm position targets are always written (each write wakes the articulation, as before); a velocity or
+        gripper target equal to the one last written is skipped: the same physics for fewer calls into SAPIEN.
+        (Plain floats: a handful of numbers costs less as a list than as numpy arrays.)
+        """
         n = self.spec.arm_dof
-        for i in range(n):
-            self.joints[i].set_drive_target(float(arm_q[i]))
-            self.joints[i].set_drive_velocity_target(float(arm_dq[i]))
-        for j, target in zip(self.joints[n:], gripper_q):
-            j.set_drive_target(float(target))
+        for joint, target in zip(self.joints, np.asarray(arm_q, float).tolist()):
+            joint.set_drive_target(target)
+        velocity, gripper = np.asarray(arm_dq, float).tolist(), np.asarray(gripper_q, float).tolist()
+        for joint, new, old in zip(self.joints, velocity, self._velocity_targets):
+            if new != old:
+                joint.set_drive_velocity_target(new)
+        for joint, new, old in zip(self.joints[n:], gripper, self._gripper_targets):
+            if new != old:
+                joint.set_drive_target(new)
+        self._velocity_targets, self._gripper_targets = velocity, gripper
+
+    def restore_targets(self, position: np.ndarray, velocity: np.ndarray) -> None:
+        """Write every joint's drive targets (a state restore), position and velocity, arm then gripper joints."""
+        position, velocity = np.asarray(position, float).tolist(), np.asarray(velocity, float).tolist()
+        for j, t, v in zip(self.joints, position, velocity):
+            j.set_drive_target(t)
+            j.set_drive_velocity_target(v)
+        n = self.spec.arm_dof
+        self._velocity_targets, self._gripper_targets = velocity[:n], position[n:]
 
     def qpos(self) -> np.ndarray:
         return self.articulation.get_qpos()[self.qpos_index].astype(float)

@@ -53,14 +53,14 @@ class WorldState:
 
 
 def configure_physx(scene: Scene) -> None:
-    """Global PhysX settings for a world: gravity, determinism, solver iterations for friction grasps."""
+    """Global PhysX settings for a world: gravity, determinism, the scene's solver iterations (20 for friction grasps)."""
     sapien.physx.set_scene_config(
         gravity=np.array(scene.gravity_m_per_s2, dtype=np.float32),
         enable_enhanced_determinism=True,
         enable_pcm=True,
         enable_tgs=True,
     )
-    sapien.physx.set_body_config(solver_position_iterations=20, solver_velocity_iterations=2, sleep_threshold=0.0)
+    sapien.physx.set_body_config(solver_position_iterations=scene.solver_position_iterations, solver_velocity_iterations=2, sleep_threshold=0.0)
     sapien.physx.set_shape_config(contact_offset=0.004, rest_offset=0.0)
 
 
@@ -309,10 +309,7 @@ class World:
             part.body.set_kinematic(part_id is None)
         self.physx.unpack(state.physx)
         for name, arm in self.arms.items():
-            targets, vel = state.drive_targets[name], state.drive_velocity_targets[name]
-            for j, t, v in zip(arm.joints, targets, vel):
-                j.set_drive_target(float(t))
-                j.set_drive_velocity_target(float(v))
+            arm.restore_targets(state.drive_targets[name], state.drive_velocity_targets[name])
         for clock, saved in zip(self.feeders, state.feeders):
             clock.rng.bit_generator.state = copy.deepcopy(saved["rng"])
             clock.next_time_s = saved["next_time_s"]
