@@ -213,6 +213,7 @@ class CellBounds:
         self._starts = np.cumsum([0] + [len(a.radii_m) for a in arms[:-1]])
 
     def gaps_m(self) -> np.ndarray:
+        """The arm-by-arm matrix of lower bounds, for the arms as placed now (the diagonal is meaningless)."""
         centres = np.concatenate([a.centres for a in self.arms])
         shapes = cdist(centres, centres) - self._radius_sums
         return np.minimum.reduceat(np.minimum.reduceat(shapes, self._starts, axis=0), self._starts, axis=1)

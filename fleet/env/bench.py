@@ -4,7 +4,9 @@ Random joint_delta actions. The raw-physics column replays the same run with
 nothing but the physics: the drive targets the env set at each step are written
 again (the one call any controller makes) and the world is stepped as many
 substeps; no actions to translate, no observations, rewards or separations.
-A still-arm baseline would flatter the env: moving arms cost PhysX more.
+A still-arm baseline would flatter the env: moving arms cost PhysX more. The
+replay runs on a second world of the same scene, in blocks alternating with the
+env's, so a machine whose speed drifts during the run slows both sides alike.
 """
 
 from __future__ import annotations
@@ -34,38 +36,49 @@ class EnvRow:
         return self.env_s / self.physics_s
 
 
+BLOCK_STEPS = 20  # env and replay alternate in blocks of this many steps
+
+
 def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0, distributed: bool = False) -> EnvRow:
-    """Time `steps` env steps of random actions, then the physics of the same run replayed (see the module doc)."""
+    """Time `steps` env steps of random actions, and the physics of the same run replayed (see the module doc)."""
     env = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps, distributed=distributed)
+    replica = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps)
     rng = np.random.default_rng(seed)
     actions = [{a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents} for _ in range(steps)]
     try:
+        recorded = _drive_targets(replica, actions, seed)
         env.reset(seed=seed)
-        start = time.perf_counter()
-        for act in actions:
-            env.step(act)
-        env_s = time.perf_counter() - start
-        physics_s = _replay_s(env, actions, seed)
+        replica.reset(seed=seed)
+        env_s = physics_s = 0.0
+        for first in range(0, steps, BLOCK_STEPS):
+            start = time.perf_counter()
+            for act in actions[first : first + BLOCK_STEPS]:
+                env.step(act)
+            env_s += time.perf_counter() - start
+            physics_s += _replay_s(replica, recorded[first : first + BLOCK_STEPS])
     finally:
         env.close()
+        replica.close()
     return EnvRow(arms, task, steps, env_s, physics_s)
 
 
-def _replay_s(env: CellParallelEnv, actions: list[dict[str, np.ndarray]], seed: int) -> float:
-    """Seconds to step the world through the same run with only its drive targets written (recorded untimed first;
-    a seed repeats the run)."""
+def _drive_targets(env: CellParallelEnv, actions: list[dict[str, np.ndarray]], seed: int) -> list[dict[str, np.ndarray]]:
+    """Every arm's drive targets after each step of the run (a seed repeats the run)."""
     env.reset(seed=seed)
     recorded = []
     for act in actions:
         env.step(act)
         recorded.append({a: env.world.arms[a].drive_targets() for a in env.possible_agents})
-    env.reset(seed=seed)
-    still = {a: np.zeros(arm.spec.arm_dof) for a, arm in env.world.arms.items()}
+    return recorded
+
+
+def _replay_s(env: CellParallelEnv, recorded: list[dict[str, np.ndarray]]) -> float:
+    """Seconds to step `env`'s world through these steps with only the recorded drive targets written."""
     start = time.perf_counter()
     for targets in recorded:
         for a, q in targets.items():
             arm = env.world.arms[a]
             n = arm.spec.arm_dof
-            arm.set_targets(q[:n], still[a], q[n:])
+            arm.set_targets(q[:n], np.zeros(n), q[n:])
         env.world.step(env.ticks_per_step)
     return time.perf_counter() - start

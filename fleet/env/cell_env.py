@@ -178,7 +178,7 @@ class CellParallelEnv(ParallelEnv):
         if self.chooser is not None:
             self._choice_results = self.chooser.choose(actions, self._options)
             return {}, {}
-        raw = {a: np.asarray(actions.get(a, np.zeros(self.action_space(a).shape)), float) for a in self.agents}
+        raw = {a: np.asarray(actions[a], float) if a in actions else np.zeros(self.action_space(a).shape) for a in self.agents}
         targets = self.actuator.translate(raw) if self.actuator is not None else {a: self.translators[a].apply(raw[a]) for a in self.agents}
         hits, effort = {}, {}
         for a in self.agents:

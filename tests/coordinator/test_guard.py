@@ -77,3 +77,27 @@ def test_free_paths_of_both_arms_are_granted_at_once():
     guard = CollisionGuard(two_arms(gap_m=2.0))  # too far apart to meet
     assert guard.request(TimedPath("arm_0", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)).granted
     assert guard.request(TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)).granted
+
+
+def test_nearest_other_with_a_cap_is_the_exact_distance_or_the_cap():
+    """The capped query skips what cannot come under the cap; what it returns is min(exact distance, cap)."""
+    spec = get_robot("openclaw")
+    bases = [(0.0, 0.0), (0.55, 0.0), (1.1, 0.0), (3.0, 0.0)]  # the last one stands far from the rest
+    arms = {f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, y, 0.0), np.pi * (i % 2))) for i, (x, y) in enumerate(bases)}
+    guard = CollisionGuard(arms)
+    lower, upper = np.array([-1.5, -0.3, -0.3, -1.0, -0.8, -1.0]), np.array([1.5, 1.2, 1.2, 1.0, 0.8, 1.0])
+    rng = np.random.default_rng(3)
+    capped_somewhere = measured_somewhere = False
+    for _ in range(30):
+        for name in arms:
+            guard.set_state(name, rng.uniform(lower, upper))
+        for cap in (0.05, 0.2):
+            got = guard.nearest_other_m(cap_m=cap)
+            for name in arms:
+                for other in arms:
+                    arms[other].place(guard.state[other])
+                exact = min(separation_m(arms[name], arms[o]) for o in arms if o != name)
+                assert got[name] == pytest.approx(min(exact, cap), abs=1e-9)
+                capped_somewhere |= exact >= cap
+                measured_somewhere |= exact < cap
+    assert capped_somewhere and measured_somewhere, "both branches must be exercised"

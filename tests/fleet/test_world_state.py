@@ -66,3 +66,24 @@ def test_conveyor_carries_parts_at_its_speed(scene):
     world.step(100)
     speed = (world.part_info(part_id).position[0] - x0) / 1.0
     assert speed == pytest.approx(scene.conveyor.speed_m_per_s, rel=0.05)
+
+
+def test_drive_targets_read_back_as_written_across_a_restore(scene):
+    """set_targets skips writes that repeat the last ones; a restore in between must not fool it."""
+    world = World(scene)
+    arm = next(iter(world.arms.values()))
+    n = arm.spec.arm_dof
+    snapshot = world.pack_state()  # velocity targets zero, gripper open
+    q, moving, half = np.array(arm.spec.home_q) + 0.1, np.full(n, 0.2), arm.spec.gripper_targets(0.5)
+    arm.set_targets(q, moving, half)
+    world.restore_state(snapshot)
+    arm.set_targets(q, moving, half)  # the same values again: after the restore they differ from the drives
+    assert np.allclose(arm.drive_velocity_targets()[:n], moving)
+    assert np.allclose(arm.drive_targets(), np.concatenate([q, half]))
+
+
+def test_a_scene_sets_its_solver_iterations():
+    grasping = World(load_scene("pick_cell"))
+    light = World(load_scene("pick_cell").model_copy(update={"solver_position_iterations": 4}))
+    assert {a.articulation.get_solver_position_iterations() for a in grasping.arms.values()} == {20}
+    assert {a.articulation.get_solver_position_iterations() for a in light.arms.values()} == {4}

@@ -48,6 +48,7 @@ CASES = [
     ("unknown field", lambda d: d.update(conveyer={}), "conveyer", "Extra inputs"),
     ("missing field", lambda d: d["conveyor"].pop("length_m"), "conveyor.length_m", "Field required"),
     ("out of range", set_(["physics_hz"], 5), "physics_hz", "greater than or equal"),
+    ("no solver iterations", set_(["solver_position_iterations"], 0), "solver_position_iterations", "greater than or equal"),
     ("negative speed", set_(["conveyor", "speed_m_per_s"], -1), "conveyor.speed_m_per_s", "greater than or equal"),
     ("unknown model", set_(["arms", 1, "model"], "ur99"), "arms.1.model", "valid models: openclaw"),
     ("bases overlap", set_(["arms", 1, "base", "xyz"], [-0.25, -0.35, 0.0]), "arms.1.base.xyz", "bases need"),
