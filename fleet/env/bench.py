@@ -4,7 +4,7 @@ Random joint_delta actions. The raw-physics column replays the same run with
 nothing but the physics: the drive targets the env set at each step are written
 again (the one call any controller makes) and the world is stepped as many
 substeps; no actions to translate, no observations, rewards or separations.
-A still-arm baseline would flatter the env: moving arms cost PhysX more. The
+Arms held still would understate the physics: moving arms cost PhysX more. The
 replay runs on a second world of the same scene, in blocks alternating with the
 env's, so a machine whose speed drifts during the run slows both sides alike.
 """
