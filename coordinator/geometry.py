@@ -144,8 +144,7 @@ class ArmGeometry:
         self.transforms = np.tile(np.eye(4), (len(self.shapes), 1, 1))  # each shape in the world, as placed
         self._posed = [False] * len(self.shapes)  # whether the FCL object carries the current transform
         self._cover_centres: np.ndarray | None = None
-        self.q: np.ndarray | None = None
-        self._placed_key = b""
+        self._placed_key = b""  # the joints last placed, as bytes
         self.reach_bound_m = self._reach_bound_m()
         self.place(np.asarray(spec.home_q, float))
 
@@ -170,7 +169,7 @@ class ArmGeometry:
         self.transforms = self.base_to_world @ poses @ self._shape_to_link
         self._posed = [False] * len(self._objects)
         self._cover_centres = None
-        self.q, self._placed_key = q_arm.copy(), key
+        self._placed_key = key
 
     @property
     def centres(self) -> np.ndarray:
