@@ -6,13 +6,17 @@ import numpy as np
 
 from fleet.physics.world import World
 from robots.skills.interface import ArmObservation, PartObservation
+from robots.tracker import ArmTracker
 
 
-def arm_observation(world: World, arm_name: str) -> ArmObservation:
-    """Joint state of one arm now, split into arm and gripper joints."""
+def arm_observation(world: World, arm_name: str, tracker: ArmTracker | None = None) -> ArmObservation:
+    """Joint state of one arm now, split into arm and gripper joints, with its tracker's newest result."""
     arm = world.arms[arm_name]
     q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
-    return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:])
+    last = tracker.last if tracker is not None else None
+    if last is None:
+        return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:])
+    return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:], last.goal_id, last.status.value, last.reason)
 
 
 def part_observations(world: World) -> dict[int, PartObservation]:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.observe import arm_observation, base_transform, part_observations
+from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import WALL_M, World
 from robots.registry import get_robot
 from robots.skills.interface import PickPlaceTask
@@ -24,6 +25,7 @@ TRIAL_SCENE = "pick_cell"
 REFERENCE_REACH_M = 0.62
 SETTLE_S = 0.3
 TIME_LIMIT_S = 15.0
+DECISION_HZ = 20.0  # the skill decides at a controller's default rate; the tracker follows its goals every tick
 
 
 @dataclass(frozen=True)
@@ -37,8 +39,8 @@ class TrialResult:
     sim_seconds: float
 
 
-def trial_scene(robot: str, seed: int) -> Scene:
-    """The pick cell for `robot`, scaled in to a shorter arm's reach, with the trial's seed."""
+def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_iterations: int | None = None) -> Scene:
+    """The pick cell for `robot`, scaled in to a shorter arm's reach, with the trial's seed (and physics settings)."""
     spec = get_robot(robot)
     scene = load_scene(TRIAL_SCENE)
     k = min(1.0, spec.reach_m / REFERENCE_REACH_M)
@@ -51,7 +53,12 @@ def trial_scene(robot: str, seed: int) -> Scene:
     stations = [s.model_copy(update={"pose": scaled(s.pose)}) for s in scene.stations]
     arms = [a.model_copy(update={"model": robot}) for a in scene.arms]
     feeders = [f.model_copy(update={"arrival": Arrival(schedule_s=[])}) for f in scene.feeders]  # one part, spawned by the trial
-    return scene.model_copy(update={"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms, "feeders": feeders})
+    update = {"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms, "feeders": feeders}
+    if physics_hz is not None:
+        update["physics_hz"] = physics_hz
+    if solver_iterations is not None:
+        update["solver_position_iterations"] = solver_iterations
+    return type(scene).model_validate(scene.model_copy(update=update).model_dump())
 
 
 def part_in_bin(world: World, part_id: int, bin_name: str) -> bool:
@@ -66,12 +73,14 @@ def part_in_bin(world: World, part_id: int, bin_name: str) -> bool:
     return bool(inside and low and still)
 
 
-def run_trial(robot: str, seed: int) -> TrialResult:
-    """One seeded pick from the conveyor into the bin."""
-    world = World(trial_scene(robot, seed))
+def run_trial(robot: str, seed: int, physics_hz: float | None = None, solver_iterations: int | None = None) -> TrialResult:
+    """One seeded pick from the conveyor into the bin: the skill decides at `DECISION_HZ`, the tracker follows."""
+    world = World(trial_scene(robot, seed, physics_hz, solver_iterations))
     arm_name, bin_name = "arm_0", "bin_0"
     spec = world.arms[arm_name].spec
-    skill = PickPlaceSkill(spec, base_transform(world, arm_name))
+    period = max(1, round(world.scene_model.control_hz / DECISION_HZ))
+    skill = PickPlaceSkill(spec, base_transform(world, arm_name), decision_period_s=period * world.control_dt_s)
+    tracked = TrackedArms(world)
     part_id = world.spawn_now("trial_parts")
     world.step(int(SETTLE_S / world.control_dt_s))
     station = world.scene_model.station(bin_name)
@@ -84,12 +93,15 @@ def run_trial(robot: str, seed: int) -> TrialResult:
     parts = part_observations(world)
     skill.start(task, arm_observation(world, arm_name), parts[part_id])
     limit_ticks = int(TIME_LIMIT_S / world.control_dt_s)
-    for _ in range(limit_ticks):
-        if not skill.active:
-            break
-        cmd = skill.step(arm_observation(world, arm_name), part_observations(world), world.control_dt_s)
-        world.arms[arm_name].set_targets(cmd.q, cmd.dq, spec.gripper_targets(cmd.gripper_opening))
+    for k in range(limit_ticks):
+        if k % period == 0:
+            if not skill.active:
+                break
+            for goal in skill.step(arm_observation(world, arm_name, tracked.trackers[arm_name]), part_observations(world)):
+                tracked.submit(arm_name, goal)
+        tracked.apply()
         world.step()
+        tracked.update()
     world.step(int(0.5 / world.control_dt_s))
     success = skill.phase == Phase.DONE and part_in_bin(world, part_id, bin_name)
     reason = skill.failure_reason
@@ -98,12 +110,13 @@ def run_trial(robot: str, seed: int) -> TrialResult:
     return TrialResult(seed, success, skill.phase.value, reason, world.sim_time_s)
 
 
-def run_trials(robot: str, trials: int, seed: int, on_result: Callable[[TrialResult], None] | None = None) -> list[TrialResult]:
+def run_trials(robot: str, trials: int, seed: int, on_result: Callable[[TrialResult], None] | None = None,
+               physics_hz: float | None = None, solver_iterations: int | None = None) -> list[TrialResult]:
     """`trials` seeded trials (seeds seed, seed+1, ...); `on_result` sees each as it finishes."""
     get_robot(robot)  # unknown names and missing extras fail before any work
     results = []
     for i in range(trials):
-        result = run_trial(robot, seed + i)
+        result = run_trial(robot, seed + i, physics_hz, solver_iterations)
         results.append(result)
         if on_result is not None:
             on_result(result)

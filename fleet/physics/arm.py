@@ -99,6 +99,12 @@ class SimArm:
                 joint.set_drive_target(new)
         self._velocity_targets, self._gripper_targets = velocity, gripper
 
+    def set_gripper_effort(self, force_limit: float) -> None:
+        """The gripper drives' force limit (a GripperCommand goal's max effort); stiffness and damping stay."""
+        gains = self.spec.gripper_gains
+        for joint in self.joints[self.spec.arm_dof :]:
+            joint.set_drive_property(gains.stiffness, gains.damping, force_limit, "force")
+
     def restore_targets(self, position: np.ndarray, velocity: np.ndarray) -> None:
         """Write every joint's drive targets (a state restore), position and velocity, arm then gripper joints."""
         position, velocity = np.asarray(position, float).tolist(), np.asarray(velocity, float).tolist()

@@ -13,12 +13,16 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ArmObservation:
-    """What an arm reports each control tick: its joints and gripper joints, at a sim time."""
+    """What an arm reports at each decision: its joints and gripper joints at a sim time, and the newest
+    trajectory result of its tracker (goal id, status, reason; 0 and "" before any)."""
 
     time_s: float
     q: np.ndarray
     dq: np.ndarray
     gripper_q: np.ndarray
+    result_goal_id: int = 0
+    result_status: str = ""
+    result_reason: str = ""
 
 
 @dataclass(frozen=True)
@@ -32,15 +36,6 @@ class PartObservation:
     width_m: float
     height_m: float
     size_m: tuple[float, float, float] | None = None
-
-
-@dataclass(frozen=True)
-class ArmCommand:
-    """Joint position and velocity targets for the arm joints, and the gripper's opening in [0, 1]."""
-
-    q: np.ndarray
-    dq: np.ndarray
-    gripper_opening: float
 
 
 @dataclass(frozen=True)

@@ -1,21 +1,27 @@
 """Pick a part (from a moving conveyor or a still surface) and place it: the bridge layer's skill.
 
 Primitives, in order: approach above the part's predicted position, descend
-while tracking it, close, lift, transfer, lower, release, retreat. The grasp
-is a friction grasp made by the physics: this code only moves the joints and
-commands the gripper opening. It sees the world only through
-`ArmObservation` / `PartObservation` and answers an `ArmCommand`.
+while following it, close, lift, transfer, lower, release, retreat, home. The
+skill speaks in trajectory goals (`robots.joint_trajectory`), as a ROS arm's
+planner speaks FollowJointTrajectory to its joint trajectory controller: free
+moves (approach, transfer, home) are rest-to-rest quintic goals; the grasp
+(descend, close, lift) and the place (lower, release, retreat) are each one goal
+through Cartesian knots solved with Pinocchio IK, with gripper goals timed
+inside them. The tracker (`robots.tracker`) follows them at the servo rate; the
+skill decides at its own rate and plans the next local stage one decision ahead,
+so stages join without a pause. The grasp is a friction grasp made by the
+physics: this code only plans joint motion and claw openings.
 
-With `grants_required`, each free joint-space move (approach, transfer, home) is first
-asked for: the skill holds still with a `MotionRequest` out until `on_grant` answers. A
-denied approach ends the task failed (the coordinator may give it again); a denied
-transfer or return home, with a part in the claw or none, is asked for again. An approach
-kept waiting past `REPLAN_AFTER_S` is planned again from where the part is by then.
+With `grants_required`, each free move is first asked for: the skill holds with a
+`MotionRequest` out until `on_grant` answers. A denied approach ends the task
+failed (the coordinator may give it again); a denied transfer or return home is
+asked for again. An approach kept waiting past `REPLAN_AFTER_S` is planned again
+from where the part is by then. A goal the tracker aborts (path tolerance, e-stop,
+watchdog) or refuses ends the task failed with its reason.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from enum import Enum
@@ -23,8 +29,9 @@ from enum import Enum
 import numpy as np
 
 from robots.frames import rotation_from_wxyz, wrap_angle
+from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
 from robots.kinematics import KinematicModel
-from robots.skills.interface import ArmCommand, ArmObservation, PartObservation, PickPlaceTask
+from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment, quintic
@@ -47,7 +54,10 @@ class Phase(str, Enum):
 
 SEGMENT_PHASES = (Phase.APPROACH, Phase.TRANSFER, Phase.HOME)  # free joint-space moves: the ones that need a grant
 REPLAN_AFTER_S = 0.3
+KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
+PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
 ORDER = [Phase.APPROACH, Phase.DESCEND, Phase.CLOSE, Phase.LIFT, Phase.TRANSFER, Phase.LOWER, Phase.RELEASE, Phase.RETREAT, Phase.HOME]
+FAILED_STATUSES = ("aborted", "rejected")
 
 
 @dataclass(frozen=True)
@@ -81,7 +91,11 @@ class MotionRequest:
 
 
 class PickPlaceSkill:
-    """State machine for one pick-and-place; call `start`, then `step` once per control tick."""
+    """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step` returns.
+
+    `decision_period_s` is how often `step` is called: the next local stage is planned when the
+    current one ends within that time, so it is spliced in at the current one's end.
+    """
 
     def __init__(
         self,
@@ -91,9 +105,11 @@ class PickPlaceSkill:
         timing: PickPlaceTiming = PickPlaceTiming(),
         model: KinematicModel | None = None,
         grants_required: bool = False,
+        decision_period_s: float = 0.05,
     ) -> None:
         self.spec, self.timing = spec, timing
         self.grants_required = grants_required
+        self.decision_period_s = decision_period_s
         self.request: MotionRequest | None = None
         self._request_seq = 0
         self.denials = 0
@@ -103,6 +119,16 @@ class PickPlaceSkill:
         self.failure_reason = ""
         self.task: PickPlaceTask | None = None
         self.ik_failures = 0
+        self.goal_id = 0  # ids of the goals this skill sends: increasing over its whole life
+        self.sent_goals: set[int] = set()  # trajectory goals of the current task
+        self._outbox: list[ArmGoal] = []
+        self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
+        self.plan_end_s = 0.0
+        self.phase_t0 = 0.0
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(self.spec.arm_joints)
 
     # --- geometry -------------------------------------------------------------------
     def _ik(self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -124,11 +150,40 @@ class PickPlaceSkill:
         candidates = [wrap_angle(base + k * step) for k in range(int(round(2 * math.pi / step)))]
         return min(candidates, key=lambda c: abs(wrap_angle(c - natural)))
 
+    def _segment(self, q_from: np.ndarray, q_to: np.ndarray, t0_s: float, speed: float) -> JointSegment:
+        return JointSegment.timed(q_from, q_to, t0_s, self.km.velocity_limit[self.km.arm_q_index], speed)
+
+    # --- goals out ------------------------------------------------------------------
+    def _next_id(self) -> int:
+        self.goal_id += 1
+        return self.goal_id
+
+    def _send_move(self, q_end: np.ndarray, duration_s: float, start_s: float) -> None:
+        goal = rest_to_rest(self._next_id(), self.joint_names, q_end, duration_s, start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,))
+        self.sent_goals.add(goal.goal_id)
+        self._outbox.append(goal)
+
+    def _send_knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> None:
+        """A goal through joint knots at `start_s + times_s`, with velocities from the knots (cubic between them)."""
+        dq = np.gradient(qs, times_s, axis=0) if len(times_s) > 1 else np.zeros_like(qs)
+        dq[-1] = 0.0  # every stage ends at rest
+        goal = TrajectoryGoal(
+            self._next_id(), self.joint_names, tuple(map(float, times_s)), tuple(tuple(map(float, q)) for q in qs),
+            tuple(tuple(map(float, v)) for v in dq), (), start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,),
+        )
+        self.sent_goals.add(goal.goal_id)
+        self._outbox.append(goal)
+
+    def _send_gripper(self, opening: float, start_s: float | None) -> None:
+        self._outbox.append(GripperGoal(self._next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, start_s))
+
     # --- the state machine ----------------------------------------------------------
     def start(self, task: PickPlaceTask, obs: ArmObservation, part: PartObservation) -> None:
         """Begin a pick of `part`; fails at once, with a reason, if the part cannot be reached."""
         t = self.timing
         self.task, self.failure_reason = task, ""
+        self.sent_goals = set()
+        self._timeline = []
         self.q_cmd = np.asarray(obs.q, float).copy()
         self.grasp_yaw = self._grasp_yaw(part)
         tip = self.spec.fingertip_below_tool_m
@@ -139,6 +194,7 @@ class PickPlaceSkill:
         width = part.width_m + t.pregrasp_clearance_m
         self.pregrasp_opening = min(1.0, self.spec.opening_for_width(width))
         self.part_height = part.height_m
+        self._send_gripper(self.pregrasp_opening, None)
         self._plan_approach(obs, part)
 
     def _plan_approach(self, obs: ArmObservation, part: PartObservation) -> None:
@@ -153,11 +209,11 @@ class PickPlaceSkill:
             if not ok:
                 self._fail(f"part {part.part_id} cannot be reached from above at {np.round(hover, 3).tolist()}")
                 return
-            seg = JointSegment.timed(self.q_cmd, q_hover, obs.time_s, self.km.velocity_limit[self.km.arm_q_index], t.approach_speed)
+            seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
+        self.part_seen = (part.position.copy(), obs.time_s)
         self._begin_segment(seg, Phase.APPROACH, obs.time_s)
 
-    # --- motion grants --------------------------------------------------------------
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
         """Enter a free move; with grants required, ask for it first and hold still until answered."""
         self.segment = segment
@@ -165,7 +221,20 @@ class PickPlaceSkill:
         self.request = None
         if self.grants_required:
             self._ask(time_s)
+        else:
+            self._go(time_s)
 
+    def _go(self, start_s: float) -> None:
+        """Send the free move, starting at `start_s`."""
+        seg = self.segment
+        self.segment = JointSegment(seg.q_start, seg.q_end, start_s, seg.duration_s)
+        self._send_move(seg.q_end, seg.duration_s, start_s)
+        if self.phase == Phase.HOME:
+            self._send_gripper(1.0, start_s)
+        self.phase_t0 = start_s
+        self.q_cmd, self.plan_end_s = seg.q_end.copy(), start_s + seg.duration_s
+
+    # --- motion grants --------------------------------------------------------------
     def _ask(self, time_s: float) -> None:
         self._request_seq += 1
         seg = self.segment
@@ -173,14 +242,14 @@ class PickPlaceSkill:
             self._request_seq, tuple(map(float, self.q_cmd)), tuple(map(float, seg.q_end)), float(seg.duration_s), time_s,
         )
 
-    def on_grant(self, request_seq: int, decision: str, conflict_arm: str, time_s: float) -> None:
-        """The coordinator's answer to request `request_seq` (stale answers are ignored): grant, or deny naming the arm."""
+    def on_grant(self, request_seq: int, decision: str, conflict_arm: str, time_s: float, start_time_s: float | None = None) -> None:
+        """The coordinator's answer to request `request_seq` (stale answers are ignored): grant (from `start_time_s`,
+        else now), or deny naming the arm in the way."""
         if self.request is None or request_seq != self.request.seq or not self.active:
             return
         if decision == "grant":
-            self.segment = dataclasses.replace(self.segment, t0_s=time_s)  # the arm held still: the planned move, from now
-            self.phase_t0 = time_s
             self.request = None
+            self._go(max(time_s, start_time_s if start_time_s is not None else time_s))
             return
         self.denials += 1
         if self.phase == Phase.APPROACH:  # nothing in hand: give the task back, the coordinator decides again
@@ -189,20 +258,12 @@ class PickPlaceSkill:
         else:  # a part in the claw, or on the way home: ask again
             self._ask(time_s)
 
-    def _waiting(self, obs: ArmObservation, part: PartObservation | None, opening: float) -> ArmCommand | None:
-        """While a request is out: hold still (re-planning a long-kept approach). None once free to move."""
-        if self.request is None:
-            return None
-        if self.phase == Phase.APPROACH and part is not None and obs.time_s - self.request.asked_at_s > REPLAN_AFTER_S:
-            self._plan_approach(obs, part)  # the part moved on: a fresh plan, asked for again
-        return ArmCommand(self.q_cmd, np.zeros_like(self.q_cmd), opening)
-
     def reject(self, reason: str) -> None:
         """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
         self._fail(reason)
 
     def cancel(self, reason: str) -> None:
-        """Stop the current task where the arm is; it holds its last target with the claw as it is."""
+        """Stop the current task; the arm finishes the goal it is on and holds there with the claw as it is."""
         self._fail(reason)
 
     def _enter(self, phase: Phase, time_s: float) -> None:
@@ -211,6 +272,7 @@ class PickPlaceSkill:
     def _fail(self, reason: str) -> None:
         self.phase, self.failure_reason = Phase.FAILED, reason
         self.request = None
+        self._timeline = []
 
     @property
     def progress(self) -> float:
@@ -227,98 +289,119 @@ class PickPlaceSkill:
         c, o = self.spec.gripper_closed[0], self.spec.gripper_open[0]
         return float((np.mean(obs.gripper_q) - c) / (o - c))
 
-    def _track(self, position_world: np.ndarray, yaw: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        q, ok = self._ik(position_world, yaw, self.q_cmd)
-        if not ok:
-            self.ik_failures += 1
-        dq = (q - self.q_cmd) / dt if dt > 0 else np.zeros_like(q)
-        self.q_cmd = q
-        return q, dq
+    # --- each decision --------------------------------------------------------------
+    def step(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> list[ArmGoal]:
+        """One decision at `obs.time_s`: the goals to send now (often none: the tracker is following the plan)."""
+        if self.active:
+            self._decide(obs, parts)
+        out, self._outbox = self._outbox, []
+        return out
 
-    def step(self, obs: ArmObservation, parts: dict[int, PartObservation], dt: float) -> ArmCommand:
-        """One control tick: the joint targets and gripper opening for now."""
-        t, now = self.timing, obs.time_s
-        elapsed = now - getattr(self, "phase_t0", now)
-        if not self.active:
-            return ArmCommand(self.q_cmd if hasattr(self, "q_cmd") else obs.q, np.zeros_like(obs.q), 1.0)
+    def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
+        now = obs.time_s
+        if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
+            self._fail(f"trajectory goal {obs.result_goal_id} {obs.result_status}: {obs.result_reason}")
+            return
+        while self._timeline and self._timeline[0][0] <= now + 1e-9:
+            self._enter(self._timeline[0][1], self._timeline[0][0])
+            self._timeline.pop(0)
         part = parts.get(self.task.part_id)
-        if self.phase in SEGMENT_PHASES:
-            opening = {Phase.APPROACH: self.pregrasp_opening, Phase.TRANSFER: 0.0, Phase.HOME: 1.0}[self.phase]
-            held = self._waiting(obs, part, opening)
-            if held is not None:
-                return held
-        if self.phase == Phase.APPROACH:
-            q, dq = self.segment.sample(now)
-            self.q_cmd = q
-            if self.segment.done(now):
-                self._enter(Phase.DESCEND, now)
-            return ArmCommand(q, dq, self.pregrasp_opening)
-        if self.phase in (Phase.DESCEND, Phase.CLOSE):
-            if part is None:
-                self._fail(f"part {self.task.part_id} vanished before the grasp")
-                return ArmCommand(self.q_cmd, np.zeros_like(self.q_cmd), 1.0)
-            aim = part.position + self.velocity * t.track_lead_s
-            if self.phase == Phase.DESCEND:
-                z = self.grasp_z + t.hover_m * (1 - quintic(elapsed / t.descend_s))
-                opening = self.pregrasp_opening
-                if elapsed >= t.descend_s:
-                    self._enter(Phase.CLOSE, now)
+        if self.request is not None:  # holding for a grant
+            if self.phase == Phase.APPROACH and part is not None and now - self.request.asked_at_s > REPLAN_AFTER_S:
+                self._plan_approach(obs, part)  # the part moved on: a fresh plan, asked for again
+            return
+        if self._timeline:
+            return
+        ahead = self.plan_end_s - now  # how long the planned motion still runs
+        if self.phase == Phase.APPROACH and ahead <= self.decision_period_s + 1e-9:
+            self._plan_grasp(part, now)
+        elif self.phase == Phase.TRANSFER and ahead <= self.decision_period_s + 1e-9:
+            self._plan_place()
+        elif ahead <= 1e-9:
+            if self.phase == Phase.LIFT:
+                self._after_lift(obs)
+            elif self.phase == Phase.RETREAT:
+                home = np.asarray(self.spec.home_q, float)
+                self._begin_segment(self._segment(self.q_cmd, home, now, self.timing.approach_speed), Phase.HOME, now)
+            elif self.phase == Phase.HOME:
+                self.phase = Phase.DONE
+
+    def _solve_path(self, points: list[np.ndarray], yaw: float) -> np.ndarray:
+        """Joints through Cartesian tool positions, each IK seeded by the one before."""
+        qs, q = [], self.q_cmd
+        for p in points:
+            q, ok = self._ik(p, yaw, q)
+            if not ok:
+                self.ik_failures += 1
+            qs.append(q)
+        return np.asarray(qs)
+
+    def _plan_grasp(self, part: PartObservation | None, now: float) -> None:
+        """Descend onto the part following it, close, lift: one goal from the approach's end, and the close."""
+        t = self.timing
+        if part is None:
+            self._fail(f"part {self.task.part_id} vanished before the grasp")
+            return
+        start = self.plan_end_s
+        seen_at = now
+        d, c, lift = t.descend_s, t.close_s, t.lift_s
+        times = np.arange(KNOT_S, d + c + lift + 1e-9, KNOT_S)
+
+        def aim(tt: float) -> np.ndarray:
+            return part.position + self.velocity * (start + tt - seen_at + t.track_lead_s)
+
+        lift_xy = aim(d + c)[:2]
+        points = []
+        for tt in times:
+            if tt <= d + c:
+                xy = aim(tt)[:2]
+                z = self.grasp_z + t.hover_m * (1 - quintic(tt / d)) if tt <= d else self.grasp_z
             else:
-                z, opening = self.grasp_z, 0.0
-                if elapsed >= t.close_s:
-                    self.lift_xy = np.array([aim[0], aim[1]])
-                    self._enter(Phase.LIFT, now)
-            q, dq = self._track(np.array([aim[0], aim[1], z]), self.grasp_yaw, dt)
-            return ArmCommand(q, dq, opening)
-        if self.phase == Phase.LIFT:
-            xy = self.lift_xy + self.velocity[:2] * min(elapsed, 0.15)
-            z = self.grasp_z + t.lift_m * quintic(elapsed / t.lift_s)
-            q, dq = self._track(np.array([xy[0], xy[1], z]), self.grasp_yaw, dt)
-            if elapsed >= t.lift_s:
-                if self._gripper_opening(obs) < 0.03:
-                    self._fail(f"grasp of part {self.task.part_id} missed: the claw closed on nothing")
-                    return ArmCommand(q, np.zeros_like(q), 1.0)
-                place = np.asarray(self.task.place_xyz, float)
-                self.place_yaw = self._natural_yaw(place)
-                above = place + [0, 0, self.tool_above_bottom_m + t.hover_m]
-                q_above, ok = self._ik(above, self.place_yaw, self.q_cmd)
-                if not ok:
-                    self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
-                    return ArmCommand(q, np.zeros_like(q), 0.0)
-                self._begin_segment(
-                    JointSegment.timed(q, q_above, now, self.km.velocity_limit[self.km.arm_q_index], t.transfer_speed), Phase.TRANSFER, now,
-                )
-            return ArmCommand(q, dq, 0.0)
-        if self.phase == Phase.TRANSFER:
-            q, dq = self.segment.sample(now)
-            self.q_cmd = q
-            if self.segment.done(now):
-                self._enter(Phase.LOWER, now)
-            return ArmCommand(q, dq, 0.0)
+                e = tt - d - c
+                xy = lift_xy + self.velocity[:2] * min(e, 0.15)
+                z = self.grasp_z + t.lift_m * quintic(e / lift)
+            points.append(np.array([xy[0], xy[1], z]))
+        qs = self._solve_path(points, self.grasp_yaw)
+        self._send_knots(start, times, qs)
+        self._send_gripper(0.0, start + d)
+        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
+        self._timeline = [(start, Phase.DESCEND), (start + d, Phase.CLOSE), (start + d + c, Phase.LIFT)]
+
+    def _after_lift(self, obs: ArmObservation) -> None:
+        """The part must be in the claw (the fingers stopped apart); then the transfer above the place."""
+        t, now = self.timing, obs.time_s
+        if self._gripper_opening(obs) < 0.03:
+            self._send_gripper(1.0, None)
+            self._fail(f"grasp of part {self.task.part_id} missed: the claw closed on nothing")
+            return
+        place = np.asarray(self.task.place_xyz, float)
+        self.place_yaw = self._natural_yaw(place)
+        above = place + [0, 0, self.tool_above_bottom_m + t.hover_m]
+        q_above, ok = self._ik(above, self.place_yaw, self.q_cmd)
+        if not ok:
+            self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
+            return
+        self._begin_segment(self._segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)
+
+    def _plan_place(self) -> None:
+        """Lower, release, retreat: one goal from the transfer's end, and the claw opening at the release."""
+        t = self.timing
+        start = self.plan_end_s
         place = np.asarray(self.task.place_xyz, float)
         release_z = place[2] + self.tool_above_bottom_m + t.place_drop_m
-        if self.phase == Phase.LOWER:
-            z = release_z + t.hover_m * (1 - quintic(elapsed / t.lower_s))
-            q, dq = self._track(np.array([place[0], place[1], z]), self.place_yaw, dt)
-            if elapsed >= t.lower_s:
-                self._enter(Phase.RELEASE, now)
-            return ArmCommand(q, dq, 0.0)
-        if self.phase == Phase.RELEASE:
-            if elapsed >= t.release_s:
-                self._enter(Phase.RETREAT, now)
-            return ArmCommand(self.q_cmd, np.zeros_like(self.q_cmd), self.pregrasp_opening)
-        if self.phase == Phase.RETREAT:
-            z = release_z + t.hover_m * quintic(elapsed / t.retreat_s)
-            q, dq = self._track(np.array([place[0], place[1], z]), self.place_yaw, dt)
-            if elapsed >= t.retreat_s:
-                home = np.asarray(self.spec.home_q, float)
-                self._begin_segment(
-                    JointSegment.timed(q, home, now, self.km.velocity_limit[self.km.arm_q_index], t.approach_speed), Phase.HOME, now,
-                )
-            return ArmCommand(q, dq, self.pregrasp_opening)
-        # HOME
-        q, dq = self.segment.sample(now)
-        self.q_cmd = q
-        if self.segment.done(now):
-            self.phase = Phase.DONE
-        return ArmCommand(q, dq, 1.0)
+        lo, rel, back = t.lower_s, t.release_s, t.retreat_s
+        times = np.arange(KNOT_S, lo + rel + back + 1e-9, KNOT_S)
+        points = []
+        for tt in times:
+            if tt <= lo:
+                z = release_z + t.hover_m * (1 - quintic(tt / lo))
+            elif tt <= lo + rel:
+                z = release_z
+            else:
+                z = release_z + t.hover_m * quintic((tt - lo - rel) / back)
+            points.append(np.array([place[0], place[1], z]))
+        qs = self._solve_path(points, self.place_yaw)
+        self._send_knots(start, times, qs)
+        self._send_gripper(self.pregrasp_opening, start + lo)
+        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
+        self._timeline = [(start, Phase.LOWER), (start + lo, Phase.RELEASE), (start + lo + rel, Phase.RETREAT)]

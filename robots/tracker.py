@@ -1,0 +1,225 @@
+"""The cerebellum: one arm's trajectory tracker, as an arm's firmware (or ROS's joint_trajectory_controller) holds it.
+
+It follows the active trajectory goal at the servo rate, splices a newer goal in at
+that goal's start time (the old one is preempted), holds the last point when a
+trajectory ends, checks path and goal tolerances, clamps to the joint limits, and
+stops on e-stop or when the controller's watchdog deadline passes: every active goal
+is aborted with its reason and the arm holds where it is. The gripper takes
+GripperCommand-like goals beside it. Pure computation: the sim server (or any driver)
+reads `desired()` / `gripper_opening()` each tick and reports the joints to `update()`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from robots.joint_trajectory import (
+    ArmGoal, CheckedGoal, GoalResult, GoalStatus, GripperGoal, ResultCode, Spline, TrajectoryGoal, check_goal,
+)
+
+GRIPPER_REACHED = 0.03  # opening units: within this of the target the claw has reached it
+GRIPPER_STILL_PER_S = 0.05  # opening units per second: slower than this the claw has stopped
+GRIPPER_SETTLE_S = 0.1  # the claw must stay stopped this long to count as stalled
+
+
+@dataclass
+class _Active:
+    checked: CheckedGoal
+    spline: Spline
+    ended: bool = False  # its result is out (preempted by a goal that starts later): it drives the arm, unchecked, until then
+
+
+@dataclass
+class _Gripper:
+    goal: GripperGoal
+    start_s: float
+    still_since_s: float | None = None
+
+
+class ArmTracker:
+    """One arm: joint names and limits in the arm's order, the gripper's opening read through `opening_of`."""
+
+    def __init__(self, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, hold_q: np.ndarray,
+                 *, opening_of=None, default_effort_n: float = 0.0) -> None:
+        self.joint_names = tuple(joint_names)
+        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
+        self.hold_q = np.asarray(hold_q, float).copy()
+        self.opening_of = opening_of or (lambda gripper_q: float(np.mean(gripper_q)))
+        self.default_effort_n = default_effort_n
+        self.active: _Active | None = None
+        self.next: _Active | None = None  # accepted with a start time still ahead: the current path runs until then
+        self.gripper: _Gripper | None = None
+        self.next_gripper: _Gripper | None = None
+        self.opening = 1.0
+        self.effort_n = default_effort_n
+        self.estop = False
+        self.watchdog_deadline_s = math.inf
+        self.clamped = 0
+        self.last: GoalResult | None = None  # the newest trajectory result, echoed in the arm's state
+
+    # --- goals in -------------------------------------------------------------------
+    def submit(self, goal: ArmGoal, now_s: float) -> list[GoalResult]:
+        """Accept or refuse a goal at `now_s`; returns the refusal, or the results of the goals it preempts."""
+        if isinstance(goal, GripperGoal):
+            return self._submit_gripper(goal, now_s)
+        if self.estop:
+            return self._note([GoalResult(goal.goal_id, "trajectory", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, "emergency stop engaged", now_s)])
+        checked = check_goal(goal, self.joint_names, self.lower, self.upper)
+        if isinstance(checked, GoalResult):
+            return self._note([_at(checked, now_s)])
+        start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
+        q0, dq0, ddq0 = self._path_at(start)
+        new = _Active(checked, Spline.through(start, q0, dq0, ddq0, checked))
+        out = [self._end(old, "trajectory", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, f"preempted by goal {goal.goal_id}", now_s)
+               for old in (self.active, self.next) if old is not None and not old.ended]
+        if start <= now_s:
+            self.active, self.next = new, None
+        else:
+            self.next = new  # the current path (or the hold) runs until the new goal's start
+            if self.active is not None:
+                self.active.ended = True
+        return self._note(out)
+
+    def _submit_gripper(self, goal: GripperGoal, now_s: float) -> list[GoalResult]:
+        def reject(reason: str) -> list[GoalResult]:
+            return self._note([GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, reason, now_s)])
+        if self.estop:
+            return reject("emergency stop engaged")
+        if not (math.isfinite(goal.opening) and 0.0 <= goal.opening <= 1.0):
+            return reject(f"opening {goal.opening!r} must be within [0, 1]")
+        if not (math.isfinite(goal.max_effort_n) and goal.max_effort_n >= 0):
+            return reject(f"max effort {goal.max_effort_n!r} must be finite and not negative")
+        if goal.start_time_s is not None and not math.isfinite(goal.start_time_s):
+            return reject("start time is not finite")
+        start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
+        out = [GoalResult(g.goal.goal_id, "gripper", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, f"preempted by goal {goal.goal_id}", now_s)
+               for g in (self.gripper, self.next_gripper) if g is not None]
+        self.gripper, self.next_gripper = None, _Gripper(goal, start)  # the claw keeps its opening until the start
+        if start <= now_s:
+            self._start_gripper()
+        return self._note(out)
+
+    def _start_gripper(self) -> None:
+        self.gripper, self.next_gripper = self.next_gripper, None
+        g = self.gripper.goal
+        self.opening = g.opening
+        self.effort_n = min(g.max_effort_n, self.default_effort_n) if g.max_effort_n > 0 and self.default_effort_n > 0 else (
+            g.max_effort_n or self.default_effort_n)
+
+    # --- each tick ------------------------------------------------------------------
+    def _path_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where the commanded path is at `t_s` (a pending goal from its start on; the hold point if none)."""
+        if self.next is not None and t_s >= self.next.spline.t0_s:
+            return self.next.spline.sample(t_s)
+        if self.active is not None:
+            return self.active.spline.sample(t_s)
+        zero = np.zeros_like(self.hold_q)
+        return self.hold_q.copy(), zero, zero
+
+    def desired(self, now_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """The joint position and velocity targets for now (clamped to the limits; clamps are counted)."""
+        if self.next is not None and now_s >= self.next.spline.t0_s - 1e-9:
+            self.active, self.next = self.next, None
+        if self.next_gripper is not None and now_s >= self.next_gripper.start_s - 1e-9:
+            self._start_gripper()
+        q, dq, _ = self._path_at(now_s)
+        clamped = np.clip(q, self.lower, self.upper)
+        if np.any(clamped != q):
+            self.clamped += 1
+        return clamped, dq
+
+    def gripper_opening(self) -> float:
+        return self.opening
+
+    def update(self, now_s: float, q: np.ndarray, gripper_q: np.ndarray, gripper_dq: np.ndarray) -> list[GoalResult]:
+        """After the physics stepped to `now_s`: tolerances, ends of goals, the watchdog. Returns the results."""
+        if now_s > self.watchdog_deadline_s:
+            return self.abort(now_s, q, "watchdog: the controller missed its deadline")
+        out = []
+        a = self.active
+        if a is not None and not a.ended:
+            out += self._check(a, now_s, np.asarray(q, float))
+        g = self.gripper
+        if g is not None and now_s >= g.start_s:
+            out += self._check_gripper(g, now_s, gripper_q, gripper_dq)
+        return self._note(out)
+
+    def _check(self, a: _Active, now_s: float, q: np.ndarray) -> list[GoalResult]:
+        goal, spline = a.checked.goal, a.spline
+        if now_s < spline.t_end_s:
+            want, _, _ = spline.sample(now_s)
+            over = np.abs(want - q) > a.checked.path_tolerance
+            if over.any():
+                j = int(np.argmax(over))
+                return self.abort(now_s, q, f"{self.joint_names[j]} {abs(want[j] - q[j]):.3f} rad off its path", ResultCode.PATH_TOLERANCE_VIOLATED)
+            return []
+        err = np.abs(q - spline.q_end)
+        if np.all(err <= a.checked.goal_tolerance):
+            self.hold_q, self.active = spline.q_end.copy(), None
+            return [GoalResult(goal.goal_id, "trajectory", GoalStatus.SUCCEEDED, ResultCode.SUCCESSFUL, "", now_s)]
+        if now_s > spline.t_end_s + goal.goal_time_tolerance_s:
+            j = int(np.argmax(err - np.where(np.isfinite(a.checked.goal_tolerance), a.checked.goal_tolerance, 0)))
+            self.hold_q, self.active = spline.q_end.copy(), None
+            return [GoalResult(goal.goal_id, "trajectory", GoalStatus.ABORTED, ResultCode.GOAL_TOLERANCE_VIOLATED,
+                               f"{self.joint_names[j]} {err[j]:.3f} rad from its goal {goal.goal_time_tolerance_s:g} s after the end", now_s)]
+        return []
+
+    def _check_gripper(self, g: _Gripper, now_s: float, gripper_q: np.ndarray, gripper_dq: np.ndarray) -> list[GoalResult]:
+        opening = self.opening_of(np.asarray(gripper_q, float))
+        speed = abs(self.opening_of(np.asarray(gripper_q, float) + np.asarray(gripper_dq, float)) - opening)
+        reached = abs(opening - g.goal.opening) <= GRIPPER_REACHED
+        still = speed < GRIPPER_STILL_PER_S
+        g.still_since_s = (g.still_since_s if g.still_since_s is not None else now_s) if still else None
+        settled = g.still_since_s is not None and now_s - g.still_since_s >= GRIPPER_SETTLE_S
+        if not (reached and still) and not settled:
+            return []
+        self.gripper = None
+        return [GoalResult(g.goal.goal_id, "gripper", GoalStatus.SUCCEEDED, ResultCode.SUCCESSFUL,
+                           "" if reached else f"stalled at opening {opening:.3f}", now_s, reached=reached, stalled=not reached)]
+
+    # --- safety ---------------------------------------------------------------------
+    def abort(self, now_s: float, q: np.ndarray, reason: str, code: ResultCode = ResultCode.ABORTED) -> list[GoalResult]:
+        """Abort every active or pending goal (arm and gripper) and hold the arm where it is now."""
+        out = [self._end(x, "trajectory", GoalStatus.ABORTED, code, reason, now_s) for x in (self.active, self.next) if x is not None and not x.ended]
+        out += [GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
+                for g in (self.gripper, self.next_gripper) if g is not None and code == ResultCode.ABORTED]
+        if code == ResultCode.ABORTED:
+            self.gripper = self.next_gripper = None
+        self.active = self.next = None
+        self.hold_q = np.clip(np.asarray(q, float), self.lower, self.upper)
+        self.watchdog_deadline_s = math.inf
+        return self._note(out)
+
+    def set_estop(self, engaged: bool, now_s: float, q: np.ndarray) -> list[GoalResult]:
+        """Engage (abort everything, hold, refuse goals) or release (hold still until a new goal)."""
+        self.estop = engaged
+        return self.abort(now_s, q, "emergency stop") if engaged else []
+
+    def watch(self, deadline_s: float) -> None:
+        """The controller must be heard from again before `deadline_s` (sim time), or the arm stops."""
+        self.watchdog_deadline_s = deadline_s
+
+    def unwatch(self) -> None:
+        self.watchdog_deadline_s = math.inf
+
+    @property
+    def goal_id(self) -> int:
+        """The trajectory goal driving the arm now or about to (0: none, the arm holds)."""
+        a = self.next or self.active
+        return a.checked.goal.goal_id if a is not None else 0
+
+    def _end(self, a: _Active, kind: str, status: GoalStatus, code: ResultCode, reason: str, now_s: float) -> GoalResult:
+        return GoalResult(a.checked.goal.goal_id, kind, status, code, reason, now_s)
+
+    def _note(self, results: list[GoalResult]) -> list[GoalResult]:
+        for r in results:
+            if r.kind == "trajectory":
+                self.last = r
+        return results
+
+
+def _at(result: GoalResult, now_s: float) -> GoalResult:
+    return GoalResult(result.goal_id, result.kind, result.status, result.code, result.reason, now_s)
