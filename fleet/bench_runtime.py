@@ -10,14 +10,12 @@
 from __future__ import annotations
 
 import contextlib
-import os
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -26,6 +24,7 @@ from fleet.bus.session import BusEndpoints, open_listening_session
 from fleet.launcher import Launcher, RunOptions
 from fleet.nodes.sim_server import SimServer
 from fleet.physics.world import World
+from fleet.processes import ChildProcess, stop_children
 from scenes.loader import load_scene
 
 SCENE = "sorting_line"
@@ -45,12 +44,10 @@ def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
     world = World(load_scene(SCENE, arms=arms))
     keys = Keys("benchbus")
     session, endpoint = open_listening_session(BusEndpoints())
+    logs = Path(tempfile.mkdtemp(prefix="clawfleet-benchbus-"))
     procs = [
-        subprocess.Popen(
-            [sys.executable, "-m", "fleet.nodes.arm_controller", "--scene", SCENE, "--arms", str(arms),
-             "--arm", name, "--run", keys.run, "--connect", endpoint],
-            stdin=subprocess.DEVNULL,
-        )
+        ChildProcess([sys.executable, "-m", "fleet.nodes.arm_controller", "--scene", SCENE, "--arms", str(arms),
+                      "--arm", name, "--run", keys.run, "--connect", endpoint], logs / f"{name}.log").start()
         for name in world.arms
     ]
     try:
@@ -66,14 +63,8 @@ def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
             finally:
                 server.close()
     finally:
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        stop_children(procs)
+        shutil.rmtree(logs, ignore_errors=True)
     return BusRow(arms, ticks, float(np.percentile(rtt, 50)), float(np.percentile(rtt, 99)), ticks / wall)
 
 
@@ -159,21 +150,20 @@ class MonitorRow:
 MONITOR_VARIANTS = ("no monitor", "monitor, no page open", "monitor + headless chromium")
 
 
-def _browse(url: str) -> subprocess.Popen:
+def _browse(url: str) -> ChildProcess:
     """A headless Chromium showing `url` (software WebGL), as a viewer would (no sandbox: CI runs as root)."""
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
         raise RuntimeError("the browser variant needs chromium (apt-get install chromium)")
-    profile = tempfile.mkdtemp(prefix="clawfleet-chromium-")
-    return subprocess.Popen(
+    profile = Path(tempfile.mkdtemp(prefix="clawfleet-chromium-"))
+    return ChildProcess(
         [chromium, "--headless=new", "--enable-unsafe-swiftshader", "--no-first-run", "--no-sandbox", f"--user-data-dir={profile}",
-         "--window-size=1280,800", "--remote-debugging-port=0", url],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-    )
+         "--window-size=1280,800", "--remote-debugging-port=0", url], profile / "chromium.log",
+    ).start()
 
 
 def _monitored_run(scene: str, arms: int | None, sim_seconds: float, variant: str) -> dict:
-    browsers: list[subprocess.Popen] = []
+    browsers: list[ChildProcess] = []
 
     def on_message(text: str) -> None:
         if variant == MONITOR_VARIANTS[2] and text.startswith("monitor: http"):
@@ -185,8 +175,7 @@ def _monitored_run(scene: str, arms: int | None, sim_seconds: float, variant: st
             summary = launcher.run()
     finally:
         for b in browsers:
-            os.killpg(b.pid, signal.SIGKILL)
-            b.wait()
+            b.kill()
     if summary["status"] != "ok":
         raise RuntimeError(f"the benchmark run failed: {summary['error']}")
     if variant == MONITOR_VARIANTS[2] and not summary["monitor"].get("most_pages_open"):

@@ -11,10 +11,8 @@ dead sim server or coordinator ends the run with one clear message.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -26,6 +24,7 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
+from fleet.processes import ChildProcess, stop_children
 from scenes.loader import load_scene
 
 STOP_GRACE_S = 1.5
@@ -56,44 +55,40 @@ class RunOptions:
 
 @dataclass
 class Node:
-    """One child process of the run."""
+    """One child process of the run, with its role, report file and earlier incarnations."""
 
     role: str
     name: str
     argv: list[str]
     report: Path
     log: Path
-    proc: subprocess.Popen | None = None
+    child: ChildProcess | None = None
     exit_code: int | None = None
     history: list[dict] = field(default_factory=list)  # earlier incarnations (respawned controllers)
 
     def start(self) -> None:
-        with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+        self.child = ChildProcess(self.argv, self.log).start()
         self.exit_code = None
 
+    @property
+    def proc(self):
+        return self.child.proc if self.child else None
+
     def poll(self) -> int | None:
-        if self.proc is not None and self.exit_code is None:
-            self.exit_code = self.proc.poll()
+        if self.child is not None and self.exit_code is None:
+            self.exit_code = self.child.poll()
         return self.exit_code
 
     @property
     def alive(self) -> bool:
-        return self.proc is not None and self.poll() is None
+        return self.child is not None and self.poll() is None
 
     def signal(self, sig: int) -> None:
         if self.alive:
-            try:
-                os.killpg(self.proc.pid, sig)
-            except ProcessLookupError:
-                pass
+            self.child.signal(sig)
 
     def log_tail(self, lines: int = 3) -> str:
-        try:
-            text = self.log.read_text(errors="replace").strip().splitlines()
-        except OSError:
-            return ""
-        return " | ".join(line.strip() for line in text[-lines:])
+        return ChildProcess(self.argv, self.log).log_tail(lines)
 
     def record(self) -> dict:
         return {"role": self.role, "name": self.name, "pid": self.proc.pid if self.proc else None, "exit_code": self.poll()}
@@ -208,17 +203,7 @@ class Launcher:
 
     def stop_all(self) -> None:
         """SIGTERM every node (the sim first, so it writes its figures), SIGKILL what is left after a grace period."""
-        for node in self.nodes:
-            node.signal(signal.SIGTERM)
-        deadline = time.monotonic() + STOP_GRACE_S
-        while any(n.alive for n in self.nodes) and time.monotonic() < deadline:
-            time.sleep(0.01)
-        for node in self.nodes:
-            if node.alive:
-                node.signal(signal.SIGKILL)
-                node.proc.wait(timeout=5)
-            elif node.proc is not None:
-                node.proc.wait(timeout=5)
+        stop_children([n.child for n in self.nodes if n.child is not None], STOP_GRACE_S)
 
     # --- the run --------------------------------------------------------------------
     def run(self) -> dict:
@@ -275,8 +260,7 @@ class Launcher:
             self.on_message(f"respawn of {request.arm} refused: {why}")
             return False
         if node.alive:  # alive but silent: a hung controller is replaced
-            node.signal(signal.SIGKILL)
-            node.proc.wait(timeout=5)
+            node.child.kill()
         node.history.append(node.record())
         node.start()
         self.respawns += 1

@@ -59,6 +59,7 @@ class ArmTracker:
         self.watchdog_deadline_s = math.inf
         self.clamped = 0
         self.last: GoalResult | None = None  # the newest trajectory result, echoed in the arm's state
+        self.desired_now: tuple[np.ndarray, np.ndarray] = (self.hold_q.copy(), np.zeros_like(self.hold_q))  # the last targets
 
     # --- goals in -------------------------------------------------------------------
     def submit(self, goal: ArmGoal, now_s: float) -> list[GoalResult]:
@@ -129,6 +130,7 @@ class ArmTracker:
         clamped = np.clip(q, self.lower, self.upper)
         if np.any(clamped != q):
             self.clamped += 1
+        self.desired_now = (clamped, dq)
         return clamped, dq
 
     def gripper_opening(self) -> float:

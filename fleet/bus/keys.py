@@ -27,8 +27,17 @@ class Keys:
     def arm_state(self, arm: str) -> str:
         return self._arm(arm, "state")
 
-    def arm_cmd(self, arm: str) -> str:
-        return self._arm(arm, "cmd")
+    def arm_step(self, arm: str) -> str:
+        """The controller's answer to each state it gets (`ControllerStep`)."""
+        return self._arm(arm, "step")
+
+    def arm_goal(self, arm: str) -> str:
+        """Trajectory and gripper goals for the arm's tracker (`TrajectoryGoalMsg`, `GripperGoalMsg`)."""
+        return self._arm(arm, "goal")
+
+    def arm_result(self, arm: str) -> str:
+        """One result per goal (`GoalResultMsg`)."""
+        return self._arm(arm, "result")
 
     def arm_status(self, arm: str) -> str:
         return self._arm(arm, "status")
@@ -45,7 +54,7 @@ class Keys:
         return self._arm(arm, "env_targets")
 
     def all_arms(self, leaf: str) -> str:
-        """Wildcard over every arm's `leaf` (state, cmd, status, assign, env_action or env_targets)."""
+        """Wildcard over every arm's `leaf` (state, step, goal, result, status, assign, env_action or env_targets)."""
         return f"{ROOT}/{self.run}/arm/*/{leaf}"
 
     @property
@@ -64,6 +73,11 @@ class Keys:
     @property
     def sim_status(self) -> str:
         return f"{ROOT}/{self.run}/world/status"
+
+    @property
+    def frame(self) -> str:
+        """Every arm and part in one message at the coordinator's decision rate (`LineView`)."""
+        return f"{ROOT}/{self.run}/world/frame"
 
     @property
     def view(self) -> str:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import msgspec
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 Floats = tuple[float, ...]
 
 
@@ -21,15 +21,17 @@ class Message(msgspec.Struct, frozen=True, array_like=True):
 
 
 class ArmState(Message, frozen=True, array_like=True):
-    """Sim -> controller and coordinator, every control tick: one arm's joints, gripper and tool pose.
+    """Sim -> its controller at the controller's rate (and, in `LineView`s, to the coordinator and monitors):
+    one arm's joints, gripper and tool pose, with its tracker's feedback.
 
-    `task_id`, `skill` and `progress` echo the command applied last, so the coordinator
-    learns what each arm does in step with the sim clock. `assign_seq` is the newest
-    assignment the coordinator had published to this arm when this tick began: a controller
-    acts on an assignment at the first state announcing it (lockstep with a coordinator; -1
-    otherwise: act on arrival).
-    `held` is true while the arm is held (e-stop, watchdog, lost controller); `lost` once
-    its controller went silent in lockstep.
+    Feedback (FollowJointTrajectory's): `goal_id` is the trajectory goal driving the arm (0: none, it holds),
+    `desired_q`/`desired_dq` where the tracker wants it now (error = desired - actual `q`); `result_*` is the
+    newest trajectory result (`GoalResultMsg` carries every result). `task_id`, `skill` and `progress` echo
+    the controller's last step, so the coordinator learns what each arm does in step with the sim clock.
+    `assign_seq` is the newest order the coordinator had published to this arm when this tick began: a
+    controller acts on an order at the first state announcing it (lockstep with a coordinator; -1 otherwise:
+    act on arrival). `next_tick` is when this arm's controller gets its next state. `held` is true while the
+    arm is held (e-stop, watchdog, lost controller); `lost` once its controller went silent in lockstep.
     """
 
     arm: str
@@ -47,20 +49,28 @@ class ArmState(Message, frozen=True, array_like=True):
     progress: float = 0.0
     assign_seq: int = 0
     failure: str = ""
-    request_seq: int = 0  # echo of the command's motion request (see ArmCommandMsg)
+    request_seq: int = 0  # echo of the controller's motion request (see ControllerStep)
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
+    goal_id: int = 0
+    desired_q: Floats = ()
+    desired_dq: Floats = ()
+    result_goal_id: int = 0
+    result_status: str = ""
+    result_code: int = 0
+    result_reason: str = ""
+    next_tick: int = 0
     version: int = PROTOCOL_VERSION
 
 
-class ArmCommandMsg(Message, frozen=True, array_like=True):
-    """Controller -> sim: joint targets answering the state of `tick`, and what the skill is doing."""
+class ControllerStep(Message, frozen=True, array_like=True):
+    """Controller -> sim: the answer to the state of `tick`: when it wants its next state (`next_tick`), the ids
+    of the goals it sent with this answer (the sim waits for them in lockstep), and what the skill is doing."""
 
     arm: str
     tick: int
-    q: Floats
-    dq: Floats
-    gripper_opening: float
+    next_tick: int
+    goal_ids: tuple[int, ...] = ()
     task_id: int | None = None
     skill: str = "idle"
     progress: float = 0.0
@@ -68,6 +78,61 @@ class ArmCommandMsg(Message, frozen=True, array_like=True):
     request_seq: int = 0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
+    version: int = PROTOCOL_VERSION
+
+
+class TrajectoryGoalMsg(Message, frozen=True, array_like=True, tag="trajectory"):
+    """Anyone (the arm's controller) -> sim: follow a joint trajectory (control_msgs/FollowJointTrajectory).
+
+    `joint_names` are the arm's own; `positions` (and optional `velocities`, `accelerations`) are flattened,
+    one row of len(joint_names) per point, at strictly increasing `times_from_start_s` after `start_time_s`
+    (sim seconds; None: when the sim receives it). Tolerances: empty (not checked), one value, or one per joint;
+    0 = not checked. A newer goal preempts this one at its own start time.
+    """
+
+    arm: str
+    goal_id: int
+    joint_names: tuple[str, ...]
+    times_from_start_s: Floats
+    positions: Floats
+    velocities: Floats = ()
+    accelerations: Floats = ()
+    start_time_s: float | None = None
+    path_tolerance_rad: Floats = ()
+    goal_tolerance_rad: Floats = ()
+    goal_time_tolerance_s: float = 0.5
+    version: int = PROTOCOL_VERSION
+
+
+class GripperGoalMsg(Message, frozen=True, array_like=True, tag="gripper"):
+    """Anyone (the arm's controller) -> sim: drive the claw to `opening` (0 closed, 1 open) with at most
+    `max_effort_n` (0: the robot's own limit) from `start_time_s` (None: on receipt); GripperCommand-like."""
+
+    arm: str
+    goal_id: int
+    opening: float
+    max_effort_n: float = 0.0
+    start_time_s: float | None = None
+    version: int = PROTOCOL_VERSION
+
+
+ArmGoalMsg = TrajectoryGoalMsg | GripperGoalMsg
+
+
+class GoalResultMsg(Message, frozen=True, array_like=True):
+    """Sim -> anyone, once per goal: `status` succeeded / aborted / rejected / preempted, control_msgs' `code`
+    (0 SUCCESSFUL, -1 INVALID_GOAL, -2 INVALID_JOINTS, -4 PATH_TOLERANCE_VIOLATED, -5 GOAL_TOLERANCE_VIOLATED;
+    -6 a safety stop: e-stop, watchdog, lost controller), the reason, and for the claw `reached` / `stalled`."""
+
+    arm: str
+    goal_id: int
+    kind: str
+    status: str
+    code: int
+    reason: str
+    sim_time_s: float
+    reached: bool = False
+    stalled: bool = False
     version: int = PROTOCOL_VERSION
 
 
@@ -130,6 +195,7 @@ class MotionGrant(Message, frozen=True, array_like=True, tag="grant"):
     decision: str
     conflict_arm: str = ""
     min_separation_m: float = -1.0
+    start_time_s: float = -1.0  # sim time the granted move starts (the arm's next state); -1: when heard
     version: int = PROTOCOL_VERSION
 
 
@@ -225,8 +291,8 @@ class Separations(Message, frozen=True, array_like=True):
 
 
 class LineView(Message, frozen=True, array_like=True):
-    """Sim -> monitors, every few ticks: every arm's state and the parts in one message (a viewer's decimated feed,
-    so watching costs the line one message per `view_every_ticks` instead of one per arm per tick)."""
+    """Sim -> monitors (`world/view`, every few ticks while watched) and the coordinator (`world/frame`, at its
+    decision rate): every arm's state and the parts in one message."""
 
     tick: int
     sim_time_s: float
@@ -272,5 +338,5 @@ class EnvTargets(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
-MESSAGE_TYPES = (ArmState, ArmCommandMsg, ArmStatus, PartsState, Assignment, MotionGrant, LineEvent, CoordTick, Progress, EStop,
+MESSAGE_TYPES = (ArmState, ControllerStep, TrajectoryGoalMsg, GripperGoalMsg, GoalResultMsg, ArmStatus, PartsState, Assignment, MotionGrant, LineEvent, CoordTick, Progress, EStop,
                  SimControl, SimStatus, Separations, LineView, RespawnRequest, EnvAction, EnvTargets)

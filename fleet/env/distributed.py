@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import itertools
 import os
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -25,6 +23,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EnvAction, EnvTargets
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session
+from fleet.processes import ChildProcess, stop_children
 from robots.policy_actions import CONTINUOUS_MODES, JointTargets
 
 START_TIMEOUT_S = 60.0
@@ -37,20 +36,8 @@ class RemoteArmsError(RuntimeError):
     """An arm's process did not answer; the message names it."""
 
 
-def _stop(procs: list[subprocess.Popen], session) -> None:
-    for p in procs:
-        if p.poll() is None:
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-    deadline = time.monotonic() + 5.0
-    for p in procs:
-        try:
-            p.wait(timeout=max(0.1, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait()
+def _stop(procs: list[ChildProcess], session) -> None:
+    stop_children(procs, grace_s=5.0)
     try:
         session.close()
     except Exception:  # already closed
@@ -73,14 +60,13 @@ class RemoteActuators:
         self._sub = self.session.declare_subscriber(self.keys.all_arms("env_targets"), self._inbox)
         self._pubs = {a: self.session.declare_publisher(self.keys.env_action(a)) for a in arms}
         self._logs = Path(tempfile.mkdtemp(prefix="clawfleet_env_"))
-        self.procs: dict[str, subprocess.Popen] = {}
+        self.procs: dict[str, ChildProcess] = {}
         for arm in arms:
             argv = [sys.executable, "-m", "fleet.nodes.env_arm_node", "--scene", scene, "--run", self.keys.run, "--arm", arm,
                     "--action-mode", action_mode, "--connect", self.endpoint]
             if n_arms is not None:
                 argv += ["--arms", str(n_arms)]
-            with open(self._logs / f"{arm}.log", "wb") as log:
-                self.procs[arm] = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+            self.procs[arm] = ChildProcess(argv, self._logs / f"{arm}.log").start()
         self._finalizer = weakref.finalize(self, _stop, list(self.procs.values()), self.session)
         self.seq = 0
 
@@ -118,9 +104,9 @@ class RemoteActuators:
         parts = []
         for arm in arms:
             proc = self.procs[arm]
-            state = "running" if proc.poll() is None else f"exited with {proc.returncode}"
-            lines = (self._logs / f"{arm}.log").read_text(errors="replace").strip().splitlines()
-            parts.append(f"{arm} ({state}{': ' + lines[-1] if lines else ''})")
+            state = "running" if proc.poll() is None else f"exited with {proc.poll()}"
+            last = proc.log_tail(1)
+            parts.append(f"{arm} ({state}{': ' + last if last else ''})")
         return f"no answer within {timeout_s:g} s from the process of {', '.join(parts)}"
 
     def close(self) -> None:

@@ -14,7 +14,7 @@ from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
 from fleet.monitor.options import DEFAULT_HOST, DEFAULT_PORT, DEFAULT_RATE_HZ
 from fleet.monitor.panel import Panel
-from fleet.nodes.lifecycle import StopFlag
+from fleet.processes import StopFlag
 from scenes.schema import Scene
 
 

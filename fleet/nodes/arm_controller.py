@@ -1,11 +1,13 @@
-"""The arm controller process: runs the pick-and-place skill for one arm behind the bus.
+"""The arm controller process: runs the pick-and-place skill for one arm behind the bus, at its own rate.
 
-It sees its arm only through `ArmState` messages and the parts through
-`PartsState`, takes work from `Assignment`, and answers every state with a
-command stamped with that state's tick, which also says what the skill is
-doing. A state naming an assignment this controller has not received yet
-(`assign_seq`, lockstep) waits for it, so work starts on the same tick in every
-run. It never imports the simulator.
+It sees its arm only through `ArmState` messages (with the tracker's feedback) and
+the parts through `PartsState`, takes work from `Assignment`, and drives the arm
+with trajectory and gripper goals on the arm's `goal` key, which the arm's tracker
+(in the sim, or a real arm's driver) follows. It answers every state it gets with a
+`ControllerStep` naming the goals it just sent and when it wants its next state
+(`--rate-hz`, 20 by default). A state naming an assignment this controller has not
+received yet (`assign_seq`, lockstep) waits for it, so work starts on the same tick
+in every run. It never imports the simulator.
 
     python -m fleet.nodes.arm_controller --scene pick_cell --arm arm_0 --run demo --connect tcp/127.0.0.1:7447
 """
@@ -13,6 +15,7 @@ run. It never imports the simulator.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import threading
@@ -22,18 +25,20 @@ import numpy as np
 import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, ArmOrder, ArmState, ArmStatus, Assignment, MotionGrant, PartsState
+from fleet.bus.messages import ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, MotionGrant, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
+from fleet.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
 from robots.skills.pick_place import PickPlaceSkill
 from scenes.schema import Scene
 
-HEARTBEAT_TICKS = 10
+HEARTBEAT_DECISIONS = 4  # a heartbeat every this many decisions (5 Hz at the default rate)
 ASSIGNMENT_WAIT_S = 0.5
+DEFAULT_RATE_HZ = 20.0
 
 
 def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
@@ -49,16 +54,22 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
 
 
 class ArmController:
-    """One arm's bridge (skill state machine) and cerebellum (its joint targets) on the bus."""
+    """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene, *, grants: bool = False) -> None:
+    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene, *, grants: bool = False,
+                 rate_hz: float = DEFAULT_RATE_HZ) -> None:
         decl = next((a for a in scene.arms if a.name == arm), None)
         if decl is None:
             raise SystemExit(f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}")
+        if not (math.isfinite(rate_hz) and 0 < rate_hz <= scene.control_hz):
+            raise SystemExit(f"arm_controller: --rate-hz {rate_hz:g} must be within (0, {scene.control_hz:g}] (the scene's servo rate)")
         self.arm, self.keys, self.session = arm, keys, session
         self.spec = get_robot(decl.model)
-        self.dt = 1.0 / scene.control_hz
-        self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad), grants_required=grants)
+        self.period_ticks = max(1, round(scene.control_hz / rate_hz))
+        self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad), grants_required=grants,
+                                    decision_period_s=self.period_ticks / scene.control_hz)
+        self.incarnation = int.from_bytes(os.urandom(4), "little")
+        self.skill.goal_id = (self.incarnation & 0x7FFFFFFF) << 20  # goal ids never repeat across a respawn
         self.drops = DropCounter()
         self._decoders = {
             "state": Decoder(ArmState, self.drops), "parts": Decoder(PartsState, self.drops),
@@ -71,7 +82,8 @@ class ArmController:
             session.declare_subscriber(keys.parts, self._inboxes["parts"]),
             session.declare_subscriber(keys.arm_assign(arm), self._inboxes["assign"]),
         ]
-        self._cmd_pub = session.declare_publisher(keys.arm_cmd(arm))
+        self._step_pub = session.declare_publisher(keys.arm_step(arm))
+        self._goal_pub = session.declare_publisher(keys.arm_goal(arm))
         self._status_pub = session.declare_publisher(keys.arm_status(arm))
         self.parts: dict[int, PartObservation] = {}
         self.parts_tick = -1
@@ -79,18 +91,19 @@ class ArmController:
         self.pending: Assignment | None = None
         self.grants: list[MotionGrant] = []  # answers to motion requests, handed to the skill at the next step
         self.task_id: int | None = None
-        self.hold_q: np.ndarray | None = None
         self.seq = 0
         self.assign_seq: int | None = None  # newest assignment received; None until the first state
+        self.answered_tick = -1
+        self.decisions = 0
+        self.goals_sent = 0
         self.busy_s = 0.0
         self.missed_assignments = 0
-        self.incarnation = int.from_bytes(os.urandom(4), "little")
 
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
-        self._cmd_pub.undeclare()
-        self._status_pub.undeclare()
+        for pub in (self._step_pub, self._goal_pub, self._status_pub):
+            pub.undeclare()
 
     def _latest(self, name: str):
         latest = None
@@ -146,11 +159,11 @@ class ArmController:
             self.assign_seq = seq
 
     def poll(self) -> bool:
-        """Handle what arrived; answer the newest state if there is one. True when a command was sent."""
+        """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
         state = self._latest("state")
         self._take_assignments()
-        if state is None:
-            return False
+        if state is None or state.tick <= self.answered_tick:
+            return False  # nothing new (the sim re-sends a state it is still waiting for: answered already)
         if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
             self.assign_seq = max(0, state.assign_seq)
         elif state.assign_seq > self.assign_seq:
@@ -162,10 +175,10 @@ class ArmController:
             raw = self._inboxes["parts"].drain()
             if raw:
                 self._inboxes["parts"].items.append(raw[-1])  # keep the newest for when a task comes
-        n = self.spec.arm_dof
-        obs = ArmObservation(state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q))
-        if self.hold_q is None:
-            self.hold_q = obs.q.copy()
+        obs = ArmObservation(
+            state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q),
+            state.result_goal_id, state.result_status, state.result_reason,
+        )
         if self.pending is not None and not self.skill.active:
             a, self.pending = self.pending, None
             task = PickPlaceTask(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
@@ -176,23 +189,24 @@ class ArmController:
             else:
                 self.skill.start(task, obs, part)
         for g in self.grants:
-            self.skill.on_grant(g.request_seq, g.decision, g.conflict_arm, obs.time_s)
+            self.skill.on_grant(g.request_seq, g.decision, g.conflict_arm, obs.time_s, g.start_time_s if g.start_time_s >= 0 else None)
         self.grants.clear()
         if self.skill.active:
-            cmd = self.skill.step(obs, self.parts, self.dt)
-            q, dq, opening = cmd.q, cmd.dq, cmd.gripper_opening
-            self.hold_q = q
-            self.busy_s += self.dt
-        else:
-            q, dq, opening = self.hold_q, np.zeros(n), 1.0
+            self.busy_s += self.skill.decision_period_s
+        goals = self.skill.step(obs, self.parts)
+        for goal in goals:
+            self._goal_pub.put(encode(goal_message(self.arm, goal)))
+        self.goals_sent += len(goals)
         phase, progress = self.skill.phase.value, float(self.skill.progress)
         request = self.skill.request if self.skill.active else None
-        self._cmd_pub.put(encode(ArmCommandMsg(
-            self.arm, state.tick, tuple(map(float, q)), tuple(map(float, dq)), float(opening), self.task_id, phase, progress,
+        self._step_pub.put(encode(ControllerStep(
+            self.arm, state.tick, state.tick + self.period_ticks, tuple(g.goal_id for g in goals), self.task_id, phase, progress,
             self.skill.failure_reason if phase == "failed" else "",
             request.seq if request else 0, request.q_to if request else (), request.duration_s if request else 0.0,
         )))
-        if state.tick % HEARTBEAT_TICKS == 0:
+        self.answered_tick = state.tick
+        self.decisions += 1
+        if self.decisions % HEARTBEAT_DECISIONS == 0:
             self.send_heartbeat(state.sim_time_s)
         return True
 
@@ -210,18 +224,18 @@ def main(argv: list[str] | None = None) -> int:
     add_scene_arguments(parser)
     parser.add_argument("--arm", required=True)
     parser.add_argument("--grants", action="store_true", help="ask the coordinator for a motion grant before each free move")
+    parser.add_argument("--rate-hz", type=float, default=DEFAULT_RATE_HZ, help="decisions per sim second: the states this controller asks for (default 20)")
     parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
-    args = parser.parse_args(argv)
-    stop = StopFlag()
-    scene = load_node_scene(args, "arm_controller")
-    if scene is None:
+    opened = node_arguments(parser, argv, "arm_controller")
+    if opened is None:
         return 2
+    args, stop, scene = opened
     if args.rt:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
-        controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants)
+        controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants, rate_hz=args.rate_hz)
         last_beat = time.monotonic()
         try:
             while not stop.should_stop():
@@ -238,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
             write_report(args.report, {
                 "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
                 "missed_assignments": controller.missed_assignments, "grants_denied": controller.skill.denials, "stopped_by": stop.reason,
+                "decisions": controller.decisions, "goals_sent": controller.goals_sent,
             })
     return 0
 

@@ -1,9 +1,10 @@
 """The coordinator process: the ledger and allocator of `coordinator/` behind the bus.
 
-It listens to the sim's line events, part poses and arm states (whose skill echo
-says what each arm does, in step with the sim clock) and to the controllers'
-heartbeats; every `1 / COORD_RATE_HZ` of sim time it refreshes the tasks,
-allocates them and publishes assignments. In lockstep it then answers the sim
+It listens to the sim's line events, to its frames (every arm's state, whose skill
+echo says what each arm does in step with the sim clock, and the parts, in one
+message every `1 / COORD_RATE_HZ` of sim time) and to the controllers' heartbeats;
+at each frame it refreshes the tasks, allocates them, answers motion requests and
+publishes assignments. In lockstep it then answers the sim
 with a `CoordTick`, so its decisions land on the same tick in every run. An arm
 whose heartbeats stop for `heartbeat_timeout_s` (wall clock) is lost: its tasks
 go back to the pool. It never imports the simulator.
@@ -29,9 +30,11 @@ from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, Task, TaskState
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, ArmStatus, Assignment, CoordTick, LineEvent, MotionGrant, PartsState, Progress, separations_from_pairs
+from fleet.bus.messages import (
+    ArmState, ArmStatus, Assignment, CoordTick, LineEvent, LineView, MotionGrant, PartsState, Progress, separations_from_pairs,
+)
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
+from fleet.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
 from robots.ik import IKOptions
 from robots.registry import get_robot
@@ -74,14 +77,10 @@ class CoordinatorNode:
         self.period_ticks = max(1, round(scene.control_hz / COORD_RATE_HZ))
         self.drops = DropCounter()
         self._decoders = {
-            "events": Decoder(LineEvent, self.drops), "parts": Decoder(PartsState, self.drops),
-            "state": Decoder(ArmState, self.drops), "status": Decoder(ArmStatus, self.drops),
+            "events": Decoder(LineEvent, self.drops), "frame": Decoder(LineView, self.drops), "status": Decoder(ArmStatus, self.drops),
         }
         self._inbox = Inbox()  # one queue for everything: messages are handled in arrival order
-        self._subs = [
-            session.declare_subscriber(k, self._inbox)
-            for k in (keys.events, keys.parts, keys.all_arms("state"), keys.all_arms("status"))
-        ]
+        self._subs = [session.declare_subscriber(k, self._inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))]
         self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
         self._subs.append(session.declare_subscriber(keys.all_arms("status"), self._on_heartbeat_arrival))
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
@@ -91,6 +90,7 @@ class CoordinatorNode:
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.skill = {a: "idle" for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
+        self.next_tick = {a: 0 for a in self.arm_names}  # when each arm's controller gets its next state (it acts on orders then)
         self.incarnation: dict[str, int] = {}
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
         self.heartbeat_at: dict[str, float] = {}
@@ -140,12 +140,10 @@ class CoordinatorNode:
                 continue
             if leaf == "events":
                 self._on_event(msg)
-            elif leaf == "state":
-                self._on_state(msg)
-            elif leaf == "status":
-                self._on_status(msg)
+            elif leaf == "frame":
+                self._on_frame(msg)
             else:
-                self._on_parts(msg)
+                self._on_status(msg)
         self._check_heartbeats()
         self._decide_when_complete()
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
@@ -156,10 +154,16 @@ class CoordinatorNode:
         self.events_seen += 1
         self.ledger.on_event(e.kind, e.part_id, e.detail, e.type_index, e.tick / self.scene.control_hz)
 
+    def _on_frame(self, f: LineView) -> None:
+        for s in f.arms:
+            self._on_state(s)
+        self._on_parts(f.parts)
+
     def _on_state(self, s: ArmState) -> None:
         if s.arm not in self.skill or s.tick <= self.last_tick[s.arm]:
-            return  # the sim republishes a state while it waits: count each tick once
+            return  # count each tick once
         self.last_tick[s.arm] = s.tick
+        self.next_tick[s.arm] = s.next_tick
         self.skill[s.arm] = s.skill
         self.guard.set_state(s.arm, np.asarray(s.q))
         if s.request_seq > self.request_seq[s.arm] and len(s.request_q_to) == len(s.q):
@@ -190,19 +194,19 @@ class CoordinatorNode:
             for i, pid in enumerate(p.part_ids)
         }
         due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - self.last_decision_tick >= self.period_ticks
-        if due:
+        if due and p.tick > self.last_decision_tick and (self._due is None or self._due[0] != p.tick):  # a re-sent frame: once
             self._due = (p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
 
     def _decide_when_complete(self) -> None:
-        """Decide for the due tick once every live arm's state of that tick and every event before it are in.
+        """Decide for the due frame's tick once every event published before it is in.
 
-        Samples on different keys may arrive in either order; waiting for them is what makes
-        a lockstep run repeat exactly.
+        Events and frames travel on different keys and may arrive in either order; waiting for
+        them is what makes a lockstep run repeat exactly.
         """
         if self._due is None:
             return
         tick, events, deadline = self._due
-        complete = self.events_seen >= events and all(self.last_tick[a] >= tick for a in self.arm_names if a not in self.lost)
+        complete = self.events_seen >= events
         if complete or time.monotonic() > deadline:
             self._due = None
             self.decide(tick)
@@ -292,13 +296,15 @@ class CoordinatorNode:
     def answer_motion_requests(self, now_s: float) -> None:
         """Check every waiting request with the guard, arms in scene order (one global order: no cycle of waits).
 
-        A grant starts now, for the duration asked; `deny` (an arm that is not moving is in the way) goes back
+        A grant starts when the arm next hears from the sim (its controller acts on it then), for the duration
+        asked; `deny` (an arm that is not moving is in the way) goes back
         to the arm; `wait` (an arm with a granted move is in the way) stays here until that move is over.
         """
         self.guard.expire(now_s)
         for arm in [a for a in self.arm_names if a in self.requests]:
             asked = self.requests[arm]
-            start = now_s + 1.0 / self.scene.control_hz  # the arm hears the grant with the next tick's state and starts then
+            hz = self.scene.control_hz
+            start = max(self.next_tick[arm], self.last_decision_tick + 1) / hz  # the controller hears of it with its next state
             path = TimedPath(arm, asked.q_from, asked.q_to, start, start + (asked.t_end_s - asked.t_start_s))
             self.guard.set_state(arm, np.asarray(asked.q_from))
             verdict = self.guard.request(path)
@@ -309,7 +315,7 @@ class CoordinatorNode:
             self.assign_seq[arm] += 1
             self._assign_pubs[arm].put(encode(MotionGrant(
                 arm, self.assign_seq[arm], self.request_seq[arm], verdict.decision, verdict.conflict_arm or "",
-                verdict.min_separation_m if math.isfinite(verdict.min_separation_m) else -1.0,
+                verdict.min_separation_m if math.isfinite(verdict.min_separation_m) else -1.0, start if verdict.granted else -1.0,
             )))
 
     def watch_separations(self, now_s: float) -> None:
@@ -374,11 +380,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
-    args = parser.parse_args(argv)
-    stop = StopFlag()
-    scene = load_node_scene(args, "coordinator")
-    if scene is None:
+    opened = node_arguments(parser, argv, "coordinator")
+    if opened is None:
         return 2
+    args, stop, scene = opened
     with open_session(BusEndpoints.from_args(args)) as session:
         node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep", allocator=make_allocator(args.allocator, scene))
         try:

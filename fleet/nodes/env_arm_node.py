@@ -18,7 +18,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EnvAction, EnvTargets
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report
+from fleet.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
 from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 from robots.registry import get_robot
@@ -31,11 +31,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--action-mode", choices=CONTINUOUS_MODES, required=True)
     parser.add_argument("--report", help="write this process's figures (requests answered, dropped) to this JSON file")
     add_bus_arguments(parser)
-    args = parser.parse_args(argv)
-    stop = StopFlag()
-    scene = load_node_scene(args, "fleet-env-arm")
-    if scene is None:
+    opened = node_arguments(parser, argv, "fleet-env-arm")
+    if opened is None:
         return 2
+    args, stop, scene = opened
     try:
         decl = scene.arm(args.arm)
     except KeyError as exc:

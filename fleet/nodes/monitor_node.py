@@ -16,7 +16,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
 from fleet.monitor.app import Monitor, SceneUnavailable, fetch_scene, print_url
 from fleet.monitor.options import DEFAULT_RATE_HZ, add_monitor_arguments, exposure_warning
-from fleet.nodes.lifecycle import StopFlag, write_report, write_text_atomically
+from fleet.processes import StopFlag, write_report, write_text_atomically
 
 
 MONITOR_NICENESS = 10

@@ -1,13 +1,16 @@
-"""The sim server: owns the physics world, publishes arm and part states each control tick, applies commands.
+"""The sim server: owns the physics world and every arm's trajectory tracker; states to each controller at its rate.
 
-Each arm's latest valid command is held (zero-order hold). A command older than
-the watchdog limit (sim time) makes the arm hold still; so does the e-stop.
-Joint targets outside the limits are clamped and counted. In `lockstep` the
-server waits each tick for every live controller's command to that tick; one
-silent past the timeout is marked lost, its arm held, and the run goes on; a
-lost controller that answers again rejoins. With a coordinator in lockstep, every
-`coord_period_ticks` the server also waits for the coordinator's `CoordTick`, so
-its decisions land on the same tick in every run.
+Each arm's tracker (`robots.tracker`, through `fleet.physics.tracking`) follows the
+trajectory goals on the arm's `goal` key at the servo rate (the scene's `control_hz`)
+and publishes one result per goal; the physics runs `physics_hz / control_hz` steps a
+tick. Each controller gets its arm's state at the ticks it asked for (`ControllerStep.
+next_tick`, 20 Hz by default) and answers it; in `lockstep` the server waits only for
+the controllers due at that tick (and, every `coord_period_ticks`, for the
+coordinator's `CoordTick`), so a run repeats exactly. A controller silent past the
+lockstep timeout is marked lost and its arm held (its goals aborted); one that answers
+again rejoins. In `realtime` answers are applied when they arrive, and an arm whose
+controller misses its deadline (`watchdog_s` after the state it was due to answer)
+is held by the tracker's watchdog. The e-stop aborts every goal and holds every arm.
 
     python -m fleet.nodes.sim_server --scene assembly_line --run demo --listen tcp/127.0.0.1:7447 --duration 60
 """
@@ -26,37 +29,47 @@ import numpy as np
 import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus
+from fleet.bus.messages import (
+    ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus,
+)
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
-from fleet.nodes.lifecycle import StopFlag, add_scene_arguments, load_node_scene, write_report, write_text_atomically
+from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import PartInfo, World
+from fleet.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.world_messages import arm_state, parts_state
+from robots.joint_trajectory import GoalResult
 
 COORD_RATE_HZ = 10.0
+DEFAULT_CONTROLLER_HZ = 20.0  # a controller's state rate until it says otherwise
+MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
-HOLD_STILL_RAD_PER_S = 0.02  # a held arm slower than this on every joint is at rest: its hold position is latched
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
+REPUBLISH_S = 0.05  # wall seconds before a state still unanswered is sent again (a late joiner, a lost sample)
 IDLE_SKILLS = ("idle", "done", "failed")
 
 
 @dataclass
 class ArmLink:
-    """The server's view of one arm's controller: its latest command and whether it is alive."""
+    """The server's view of one arm's controller: its last answer, when its next state is due, whether it is alive."""
 
     name: str
-    last_cmd: ArmCommandMsg | None = None
-    last_cmd_time_s: float = -np.inf
+    period_ticks: int
+    last_step: ControllerStep | None = None
+    next_tick: int = 0  # the tick of the controller's next state
+    awaiting: ArmState | None = None  # the state published and not answered yet
+    awaiting_goals: tuple[int, ...] = ()  # goal ids the answer named that have not arrived yet
     lost: bool = False
-    hold_q: np.ndarray | None = None  # where a held arm came to rest (kept until released)
+    watchdog_held: bool = False
+    goals_seen: deque = field(default_factory=lambda: deque(maxlen=64))
 
 
 @dataclass
 class SimStats:
     """What the server counts over a run; `report` turns it into the run summary's sim part."""
 
-    clamped: Counter = field(default_factory=Counter)
     watchdog_holds: Counter = field(default_factory=Counter)
     lost: list[str] = field(default_factory=list)
     rejoined: list[str] = field(default_factory=list)
@@ -66,14 +79,20 @@ class SimStats:
     round_trip_ms: list[float] = field(default_factory=list)
     coordinator_lost: bool = False
     wall_s: Counter = field(default_factory=Counter)  # where the server's wall time went, by stage
-    busy_ticks: Counter = field(default_factory=Counter)  # ticks each arm's applied command came from a running skill
+    busy_ticks: Counter = field(default_factory=Counter)  # ticks each arm's controller reported a running skill
     recent_round_trip_ms: deque = field(default_factory=lambda: deque(maxlen=1000))
     last_contact_pairs: tuple[str, ...] = ()
     last_contact_s: float = -1.0
+    results: Counter = field(default_factory=Counter)  # goal results by status
+    messages_out: Counter = field(default_factory=Counter)  # published, by key leaf
+    messages_in: Counter = field(default_factory=Counter)  # received, by key leaf
 
 
 class SimServer:
-    """Runs a world behind the bus; call `run_ticks` (or `tick` repeatedly)."""
+    """Runs a world behind the bus; call `run_ticks` (or `tick` repeatedly).
+
+    `controllers=False` waits for nobody: the arms take goals from whoever sends them (a user's own
+    trajectory client), with no watchdog."""
 
     def __init__(
         self,
@@ -82,10 +101,11 @@ class SimServer:
         keys: Keys,
         *,
         mode: str = "lockstep",
-        watchdog_s: float = 0.1,
+        watchdog_s: float = 0.25,
         lockstep_timeout_s: float = 1.0,
         first_command_timeout_s: float = 30.0,
         coordinator: bool = False,
+        controllers: bool = True,
         count_contacts: bool = True,
         stop: StopFlag | None = None,
         speed: float = 1.0,
@@ -96,8 +116,12 @@ class SimServer:
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
         self.first_command_timeout_s = first_command_timeout_s
         self.stop = stop
-        self.links = {name: ArmLink(name) for name in world.arms}
-        self._limits = {name: arm.joint_limits() for name, arm in world.arms.items()}
+        self.controllers = controllers
+        hz = world.scene_model.control_hz
+        period = max(1, round(hz / DEFAULT_CONTROLLER_HZ))
+        self.max_period_ticks = max(1, round(hz * MAX_CONTROLLER_PERIOD_S))
+        self.links = {name: ArmLink(name, period) for name in world.arms}
+        self.tracked = TrackedArms(world)
         self.drops = DropCounter()
         self.stats = SimStats()
         self.estop = False
@@ -105,14 +129,16 @@ class SimServer:
         self.speed = speed
         self._status_at = 0.0
         self._control_decoder = Decoder(SimControl, self.drops)
-        self._cmd_decoder = Decoder(ArmCommandMsg, self.drops)
+        self._step_decoder = Decoder(ControllerStep, self.drops)
+        self._goal_decoder = Decoder(ArmGoalMsg, self.drops)
         self._estop_decoder = Decoder(EStop, self.drops)
         self._coord_decoder = Decoder(CoordTick, self.drops)
-        self._cmd_inbox = Inbox()
-        self._estop_inbox, self._coord_inbox = Inbox(wake=self._cmd_inbox.wake), Inbox(wake=self._cmd_inbox.wake)
-        self._control_inbox = Inbox(wake=self._cmd_inbox.wake)
+        self._inbox = Inbox()  # answers and goals in one queue: handled in arrival order
+        self._estop_inbox, self._coord_inbox = Inbox(wake=self._inbox.wake), Inbox(wake=self._inbox.wake)
+        self._control_inbox = Inbox(wake=self._inbox.wake)
         self._subs = [
-            session.declare_subscriber(keys.all_arms("cmd"), self._cmd_inbox),
+            session.declare_subscriber(keys.all_arms("step"), self._inbox),
+            session.declare_subscriber(keys.all_arms("goal"), self._inbox),
             session.declare_subscriber(keys.estop, self._estop_inbox),
             session.declare_subscriber(keys.coord("tick"), self._coord_inbox),
             session.declare_subscriber(keys.control, self._control_inbox),
@@ -121,32 +147,43 @@ class SimServer:
         self._scene_queryable = session.declare_queryable(keys.scene, lambda query: query.reply(keys.scene, scene_json))
         self._status_pub = session.declare_publisher(keys.sim_status)
         self._view_pub = session.declare_publisher(keys.view)
-        self.view_every_ticks = max(1, round(world.scene_model.control_hz / VIEW_RATE_HZ))
+        self._frame_pub = session.declare_publisher(keys.frame)
+        self.view_every_ticks = max(1, round(hz / VIEW_RATE_HZ))
         self._state_pubs = {name: session.declare_publisher(keys.arm_state(name)) for name in world.arms}
+        self._result_pubs = {name: session.declare_publisher(keys.arm_result(name)) for name in world.arms}
         self._parts_pub = session.declare_publisher(keys.parts)
         self._events_pub = session.declare_publisher(keys.events)
         self.watcher = LineWatcher(world.scene_model)
         self.events_published = Counter()
         self.count_contacts = count_contacts
         self.coordinator = coordinator
-        self.coord_period_ticks = max(1, round(world.scene_model.control_hz / COORD_RATE_HZ))
+        self.coord_period_ticks = max(1, round(hz / COORD_RATE_HZ))
         self._coord_tick = -1
         self.assign_seqs = {name: 0 for name in world.arms}
-        self._published_at: dict[int, float] = {}
+        self._published_at: dict[tuple[str, int], float] = {}
+        self._last_frame: bytes | None = None
 
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
         self._scene_queryable.undeclare()
-        for pub in [*self._state_pubs.values(), self._parts_pub, self._events_pub, self._status_pub, self._view_pub]:
+        pubs = [*self._state_pubs.values(), *self._result_pubs.values(), self._parts_pub, self._events_pub, self._status_pub,
+                self._view_pub, self._frame_pub]
+        for pub in pubs:
             pub.undeclare()
+
+    def _put(self, pub: zenoh.Publisher, leaf: str, payload: bytes) -> None:
+        pub.put(payload)
+        self.stats.messages_out[leaf] += 1
 
     # --- inputs ---------------------------------------------------------------------
     def _take_inputs(self) -> None:
         for key, payload in self._estop_inbox.drain():
             msg = self._estop_decoder.decode(key, payload)
-            if msg is not None:
+            if msg is not None and msg.engaged != self.estop:
                 self.estop = msg.engaged
+                for arm, results in self.tracked.set_estop(msg.engaged).items():
+                    self._publish_results(arm, results)
         for key, payload in self._control_inbox.drain():
             msg = self._control_decoder.decode(key, payload)
             if msg is None:
@@ -158,29 +195,11 @@ class SimServer:
                 self.paused = msg.paused
             if msg.speed is not None:
                 self.speed = msg.speed
-        for key, payload in self._cmd_inbox.drain():
-            msg = self._cmd_decoder.decode(key, payload)
-            if msg is None:
-                continue
-            link = self.links.get(Keys.arm_of(key))
-            if link is None or msg.arm != link.name:
-                self.drops.drop(key, "command for an unknown arm or on another arm's key")
-                continue
-            n = self.world.arms[link.name].spec.arm_dof
-            values = msg.q + msg.dq + msg.request_q_to + (msg.gripper_opening, msg.request_duration_s)
-            if len(msg.q) != n or len(msg.dq) != n or len(msg.request_q_to) not in (0, n) or not np.all(np.isfinite(values)):
-                self.drops.drop(key, f"command with wrong length or non-finite values (arm has {n} joints)")
-                continue
-            if link.last_cmd is None or msg.tick >= link.last_cmd.tick:
-                link.last_cmd, link.last_cmd_time_s = msg, self.world.sim_time_s
-                sent = self._published_at.get(msg.tick)
-                if sent is not None:
-                    rtt_ms = (time.monotonic() - sent) * 1e3
-                    self.stats.round_trip_ms.append(rtt_ms)
-                    self.stats.recent_round_trip_ms.append(rtt_ms)
-                if link.lost and msg.tick >= self.world.tick - 1:
-                    link.lost = False
-                    self.stats.rejoined.append(link.name)
+        for key, payload in self._inbox.drain():
+            if key.endswith("/goal"):
+                self._on_goal(key, payload)
+            else:
+                self._on_step(key, payload)
         for key, payload in self._coord_inbox.drain():
             msg = self._coord_decoder.decode(key, payload)
             if msg is None:
@@ -194,17 +213,61 @@ class SimServer:
             for name, seq in zip(self.links, msg.assign_seqs):
                 self.assign_seqs[name] = max(self.assign_seqs[name], seq)
 
-    def _wait_for_commands(self) -> None:
-        """Lockstep: until every live arm answered this tick's state, or its timeout passed."""
+    def _link_for(self, key: str, arm: str) -> ArmLink | None:
+        link = self.links.get(Keys.arm_of(key))
+        if link is None or arm != link.name:
+            self.drops.drop(key, "a message for an unknown arm or on another arm's key")
+            return None
+        return link
+
+    def _on_goal(self, key: str, payload: bytes) -> None:
+        msg = self._goal_decoder.decode(key, payload)
+        if msg is None or (link := self._link_for(key, msg.arm)) is None:
+            return
+        self.stats.messages_in["goal"] += 1
+        link.goals_seen.append(msg.goal_id)
+        link.awaiting_goals = tuple(g for g in link.awaiting_goals if g != msg.goal_id)
+        goal = goal_from_message(msg)
+        results = [goal] if isinstance(goal, GoalResult) else self.tracked.submit(link.name, goal)
+        self._publish_results(link.name, [GoalResult(r.goal_id, r.kind, r.status, r.code, r.reason, self.world.sim_time_s,
+                                                     r.reached, r.stalled) if r.time_s == 0.0 else r for r in results])
+
+    def _on_step(self, key: str, payload: bytes) -> None:
+        msg = self._step_decoder.decode(key, payload)
+        if msg is None or (link := self._link_for(key, msg.arm)) is None:
+            return
+        self.stats.messages_in["step"] += 1
+        awaited = link.awaiting
+        if awaited is None or msg.tick != awaited.tick:
+            return  # an answer to a state already answered, or overtaken: nothing to do
+        link.last_step, link.awaiting = msg, None
+        link.awaiting_goals = tuple(g for g in msg.goal_ids if g not in link.goals_seen)
+        link.next_tick = min(max(msg.next_tick, msg.tick + 1), msg.tick + self.max_period_ticks)
+        link.period_ticks = link.next_tick - msg.tick
+        sent = self._published_at.pop((link.name, msg.tick), None)
+        if sent is not None:
+            rtt_ms = (time.monotonic() - sent) * 1e3
+            self.stats.round_trip_ms.append(rtt_ms)
+            self.stats.recent_round_trip_ms.append(rtt_ms)
+        self.tracked.trackers[link.name].watch(link.next_tick / self.world.scene_model.control_hz + self.watchdog_s)
+        link.watchdog_held = False
+        if link.lost:
+            link.lost = False
+            self.stats.rejoined.append(link.name)
+
+    def _waiting_for(self) -> list[ArmLink]:
+        return [l for l in self.links.values() if not l.lost and (l.awaiting is not None or l.awaiting_goals)]
+
+    def _wait_for_answers(self) -> None:
+        """Lockstep: until every live controller due this tick answered (with the goals it named), or its timeout passed."""
         tick = self.world.tick
-        first = tick == 0
-        deadline = time.monotonic() + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
-        republish_at = time.monotonic() + 0.05
+        deadline = time.monotonic() + (self.first_command_timeout_s if tick == 0 else self.lockstep_timeout_s)
+        republish_at = time.monotonic() + REPUBLISH_S
         coord_tick = tick % self.coord_period_ticks == 0 if self.mode == "lockstep" else tick == 0
         want_coord = self.coordinator and not self.stats.coordinator_lost and coord_tick
         while True:
             self._take_inputs()
-            waiting = [l for l in self.links.values() if not l.lost and (l.last_cmd is None or l.last_cmd.tick < tick)]
+            waiting = self._waiting_for()
             coord_waiting = want_coord and self._coord_tick < tick
             if not waiting and not coord_waiting:
                 return
@@ -212,23 +275,30 @@ class SimServer:
                 return
             if time.monotonic() > deadline:
                 for link in waiting:
-                    link.lost = True
-                    self.stats.lost.append(link.name)
+                    self._lose(link)
                 if coord_waiting:
                     self.stats.coordinator_lost = True
                 return
-            if time.monotonic() > republish_at:  # a controller that joined late, or a lost sample
-                self.publish_state()
-                republish_at = time.monotonic() + 0.05
-            self._cmd_inbox.wait(0.01)
+            if time.monotonic() > republish_at:  # a process that joined late, or a lost sample
+                for link in waiting:
+                    if link.awaiting is not None:
+                        self._state_pubs[link.name].put(encode(link.awaiting))
+                if coord_waiting and self._last_frame is not None:
+                    self._frame_pub.put(self._last_frame)
+                republish_at = time.monotonic() + REPUBLISH_S
+            self._inbox.wait(0.01)
 
-    # --- one tick -------------------------------------------------------------------
-    def _stale(self, link: ArmLink) -> bool:
-        """No command, or the newest is older than the watchdog limit (sim time)."""
-        return link.last_cmd is None or self.world.sim_time_s - link.last_cmd_time_s > self.watchdog_s + 1e-9
+    def _lose(self, link: ArmLink) -> None:
+        """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
+        link.lost, link.awaiting, link.awaiting_goals = True, None, ()
+        self.stats.lost.append(link.name)
+        self._publish_results(link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)"))
 
-    def _held(self, link: ArmLink) -> bool:
-        return self.estop or link.lost or self._stale(link)
+    # --- outputs --------------------------------------------------------------------
+    def _publish_results(self, arm: str, results: list[GoalResult]) -> None:
+        for r in results:
+            self.stats.results[r.status.value] += 1
+            self._put(self._result_pubs[arm], "result", encode(result_message(arm, r)))
 
     def publish_events(self, parts: list[PartInfo]) -> bool:
         """This tick's line events (parts arrived, resting at a station, lost, retired), before the states.
@@ -236,72 +306,83 @@ class SimServer:
         left = False
         for e in self.watcher.update(self.world, parts):
             self.events_published[e.kind] += 1
-            self._events_pub.put(encode(LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)))
+            self._put(self._events_pub, "events", encode(LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)))
             left = left or e.kind in ("lost", "retired")
         return left
 
-    def publish_state(self, parts: list[PartInfo] | None = None) -> None:
-        """Every arm's state, then the parts (`parts`: the tick's active parts, if already at hand)."""
+    def _state(self, name: str) -> ArmState:
+        link, tracker = self.links[name], self.tracked.trackers[name]
+        step = link.last_step
+        desired_q, desired_dq = tracker.desired_now
+        last = tracker.last
+        return arm_state(
+            self.world, name, held=self.estop or link.lost or link.watchdog_held, lost=link.lost,
+            task_id=step.task_id if step else None, skill=step.skill if step else "idle", progress=step.progress if step else 0.0,
+            assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1,
+            failure=step.failure if step else "", request_seq=step.request_seq if step else 0,
+            request_q_to=step.request_q_to if step else (), request_duration_s=step.request_duration_s if step else 0.0,
+            goal_id=tracker.goal_id, desired_q=tuple(map(float, desired_q)), desired_dq=tuple(map(float, desired_dq)),
+            result_goal_id=last.goal_id if last else 0, result_status=last.status.value if last else "",
+            result_code=int(last.code) if last else 0, result_reason=last.reason if last else "", next_tick=link.next_tick,
+        )
+
+    def publish_states(self, parts: list[PartInfo] | None = None) -> None:
+        """States to the controllers due now (and the parts with them), the coordinator's frame, the monitors' view."""
         w = self.world
-        self._published_at[w.tick] = time.monotonic()
-        self._published_at.pop(w.tick - 256, None)
-        states = []
-        for name in w.arms:
-            link = self.links[name]
-            cmd = link.last_cmd
-            msg = arm_state(
-                w, name, held=self._held(link), lost=link.lost,
-                task_id=cmd.task_id if cmd else None, skill=cmd.skill if cmd else "idle", progress=cmd.progress if cmd else 0.0,
-                assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1, failure=cmd.failure if cmd else "",
-                request_seq=cmd.request_seq if cmd else 0, request_q_to=cmd.request_q_to if cmd else (),
-                request_duration_s=cmd.request_duration_s if cmd else 0.0,
-            )
-            self._state_pubs[name].put(encode(msg))
-            states.append(msg)
+        tick = w.tick
+        due = [l for l in self.links.values() if l.next_tick <= tick] if self.controllers else []
+        for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
+            link.next_tick = tick + link.period_ticks
+        frame = self.coordinator and tick % self.coord_period_ticks == 0
+        view = tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching  # built only while watched
+        if not (due or frame or view):
+            return
+        states = {name: self._state(name) for name in w.arms} if (frame or view) else {l.name: self._state(l.name) for l in due}
+        now = time.monotonic()
+        for link in due:
+            msg = states[link.name]
+            self._put(self._state_pubs[link.name], "state", encode(msg))
+            if not link.lost:
+                link.awaiting = msg
+                self._published_at[(link.name, tick)] = now
         parts = w.active_parts() if parts is None else parts
         parts_msg = parts_state(w, parts, sum(self.events_published.values()))
-        self._parts_pub.put(encode(parts_msg))
-        if w.tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching:  # built only while watched
-            self._view_pub.put(encode(LineView(w.tick, w.sim_time_s, tuple(states), parts_msg)))
+        if due:
+            self._put(self._parts_pub, "parts", encode(parts_msg))
+        if frame or view:
+            line = encode(LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg))
+            if frame:
+                self._put(self._frame_pub, "frame", line)
+                self._last_frame = line
+            if view:
+                self._put(self._view_pub, "view", line)
 
-    def _apply_commands(self) -> None:
-        for name, link in self.links.items():
-            arm = self.world.arms[name]
-            n = arm.spec.arm_dof
-            if self._held(link):
-                if not (self.estop or link.lost):  # held for no other reason than a stale command
-                    self.stats.watchdog_holds[name] += 1
-                if link.hold_q is None or np.abs(arm.qvel()[:n]).max() > HOLD_STILL_RAD_PER_S:
-                    link.hold_q = arm.qpos()[:n].copy()  # braking: hold where it is; once still, latched (no creep)
-                arm.set_targets(link.hold_q, np.zeros(n), arm.drive_targets()[n:])
-                continue
-            link.hold_q = None
-            cmd = link.last_cmd
-            if cmd.skill not in IDLE_SKILLS:
-                self.stats.busy_ticks[name] += 1
-            lower, upper = self._limits[name]
-            q = np.asarray(cmd.q)
-            clamped = np.clip(q, lower[:n], upper[:n])
-            if np.any(clamped != q):
-                self.stats.clamped[name] += 1
-            arm.set_targets(clamped, np.asarray(cmd.dq), arm.spec.gripper_targets(cmd.gripper_opening))
-
+    # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:
-        """Publish events and states, gather commands (waiting in lockstep), apply them, step physics."""
+        """Publish events and due states, gather answers (waiting in lockstep), track, step the physics."""
         clock = self.stats.wall_s
         t0 = time.perf_counter()
         parts = self.world.active_parts()
         if self.publish_events(parts):
             parts = self.world.active_parts()  # parts lost or retired just now are off the stage
-        self.publish_state(parts)
+        self.publish_states(parts)
         t1 = time.perf_counter()
-        if self.mode == "lockstep" or self.world.tick == 0:  # realtime too waits once, for every process to start
-            self._wait_for_commands()
+        if self.controllers and (self.mode == "lockstep" or self.world.tick == 0):  # realtime too waits once, for every process
+            self._wait_for_answers()
         else:
             self._take_inputs()
         t2 = time.perf_counter()
-        self._apply_commands()
+        self.tracked.apply()
         self.world.step()
+        results = self.tracked.update()
+        for name, rs in results.items():
+            if any(r.reason.startswith("watchdog") for r in rs):
+                self.links[name].watchdog_held = True
+                self.stats.watchdog_holds[name] += 1
+            self._publish_results(name, rs)
+        for name, link in self.links.items():
+            if link.last_step is not None and link.last_step.skill not in IDLE_SKILLS and not link.lost:
+                self.stats.busy_ticks[name] += 1
         t3 = time.perf_counter()
         self.stats.ticks += 1
         if self.count_contacts:
@@ -332,7 +413,7 @@ class SimServer:
             self.publish_status()
             if self.paused:
                 self._take_inputs()
-                self._cmd_inbox.wait(0.05)
+                self._inbox.wait(0.05)
                 start_wall, start_sim = time.monotonic(), self.world.sim_time_s
                 continue
             self.tick()
@@ -346,7 +427,7 @@ class SimServer:
                     start_wall, start_sim, speed_then = time.monotonic(), self.world.sim_time_s, self.speed
                 ahead = (self.world.sim_time_s - start_sim) / self.speed - (time.monotonic() - start_wall)
                 if ahead > 0:
-                    time.sleep(ahead)
+                    self._inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
                     self.stats.wall_s["pacing"] += ahead
         self.publish_status(force=True)
 
@@ -366,6 +447,12 @@ class SimServer:
             tuple(l.name for l in self.links.values() if l.lost), self.drops.total,
         )))
 
+    def messages_per_arm_per_s(self) -> dict[str, float]:
+        """Bus messages per arm per sim second, by key leaf, both ways (the sim's own count)."""
+        sim_s, arms = max(self.world.sim_time_s, 1e-9), max(len(self.links), 1)
+        both = self.stats.messages_out + self.stats.messages_in
+        return {k: round(v / arms / sim_s, 2) for k, v in sorted(both.items())}
+
     def report(self) -> dict:
         """The sim's part of the run summary."""
         rtt = np.asarray(self.stats.round_trip_ms)
@@ -381,11 +468,13 @@ class SimServer:
             "latency_p50_ms": round(float(np.percentile(rtt, 50)), 3) if rtt.size else None,
             "latency_p99_ms": round(float(np.percentile(rtt, 99)), 3) if rtt.size else None,
             "dropped_messages": self.drops.total,
-            "clamped_commands": dict(self.stats.clamped),
+            "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
+            "goal_results": dict(sorted(self.stats.results.items())),
             "watchdog_holds": dict(self.stats.watchdog_holds),
             "arms_lost": list(self.stats.lost),
             "arms_rejoined": list(self.stats.rejoined),
             "coordinator_lost": self.stats.coordinator_lost,
+            "bus_messages_per_arm_per_s": self.messages_per_arm_per_s(),
             "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
             "loop_wall_seconds": round(sum(v for k, v in self.stats.wall_s.items() if k != "startup"), 3),
         }
@@ -400,14 +489,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
+    parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")
     add_bus_arguments(parser)
-    args = parser.parse_args(argv)
-    stop = StopFlag()
-    scene = load_node_scene(args, "sim_server")
-    if scene is None:
+    opened = node_arguments(parser, argv, "sim_server")
+    if opened is None:
         return 2
+    args, stop, scene = opened
     if args.seed is not None:
         scene = scene.model_copy(update={"seed": args.seed})
     world = World(scene)
@@ -420,7 +509,7 @@ def main(argv: list[str] | None = None) -> int:
         session = zenoh.open(make_config(endpoints))
     with contextlib.closing(session):
         server = SimServer(
-            world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator,
+            world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator, controllers=not args.no_controllers,
             lockstep_timeout_s=args.lockstep_timeout, stop=stop, speed=args.speed,
         )
         try:
