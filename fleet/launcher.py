@@ -327,6 +327,7 @@ class Launcher:
             "sim_seconds": sim_s,
             "wall_seconds": round(wall_s, 3),
             "loop_wall_seconds": sim.get("loop_wall_seconds"),
+            "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
             "parts_spawned": sim.get("parts_spawned", 0),
             "parts_completed": completed,
             "parts_missed": coord.get("parts_missed", 0),
@@ -343,6 +344,8 @@ class Launcher:
             "grant_waits": coord.get("grant_waits", 0),
             "tasks_reassigned": coord.get("tasks_reassigned", 0),
             "grant_requests_open": coord.get("grant_requests_open", {}),
+            "goal_results": sim.get("goal_results", {}),
+            "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),
             "dropped_messages": sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)

@@ -17,7 +17,7 @@ from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import WALL_M, World
 from robots.registry import get_robot
 from robots.skills.interface import PickPlaceTask
-from robots.skills.pick_place import Phase, PickPlaceSkill
+from robots.skills.pick_place import DEFAULT_DECISION_HZ, Phase, PickPlaceSkill
 from scenes.loader import load_scene
 from scenes.schema import Arrival, Scene
 
@@ -25,7 +25,6 @@ TRIAL_SCENE = "pick_cell"
 REFERENCE_REACH_M = 0.62
 SETTLE_S = 0.3
 TIME_LIMIT_S = 15.0
-DECISION_HZ = 20.0  # the skill decides at a controller's default rate; the tracker follows its goals every tick
 
 
 @dataclass(frozen=True)
@@ -74,11 +73,11 @@ def part_in_bin(world: World, part_id: int, bin_name: str) -> bool:
 
 
 def run_trial(robot: str, seed: int, physics_hz: float | None = None, solver_iterations: int | None = None) -> TrialResult:
-    """One seeded pick from the conveyor into the bin: the skill decides at `DECISION_HZ`, the tracker follows."""
+    """One seeded pick from the conveyor into the bin: the skill decides at a controller's default rate, the tracker follows."""
     world = World(trial_scene(robot, seed, physics_hz, solver_iterations))
     arm_name, bin_name = "arm_0", "bin_0"
     spec = world.arms[arm_name].spec
-    period = max(1, round(world.scene_model.control_hz / DECISION_HZ))
+    period = max(1, round(world.scene_model.control_hz / DEFAULT_DECISION_HZ))
     skill = PickPlaceSkill(spec, base_transform(world, arm_name), decision_period_s=period * world.control_dt_s)
     tracked = TrackedArms(world)
     part_id = world.spawn_now("trial_parts")

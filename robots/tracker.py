@@ -126,6 +126,10 @@ class ArmTracker:
             self.active, self.next = self.next, None
         if self.next_gripper is not None and now_s >= self.next_gripper.start_s - 1e-9:
             self._start_gripper()
+        if self.active is None and self.next is None:  # holding: the same targets as last time
+            if self.desired_now[0] is not self.hold_q:
+                self.desired_now = (self.hold_q, np.zeros_like(self.hold_q))
+            return self.desired_now
         q, dq, _ = self._path_at(now_s)
         clamped = np.clip(q, self.lower, self.upper)
         if np.any(clamped != q):

@@ -16,11 +16,12 @@ from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility,
 from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, OPEN_STATES, Task, TaskState
 from fleet.observe import arm_observation, base_transform, part_observations
+from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import World
 from robots.frames import yaw_transform
 from robots.ik import IKOptions
 from robots.skills.interface import PickPlaceTask
-from robots.skills.pick_place import PickPlaceSkill
+from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from robots.top_down import TopDownIK
 from scenes.schema import Scene
 
@@ -44,7 +45,10 @@ class TaskChooser:
 
     def reset(self, ledger: Ledger) -> None:
         self.ledger = ledger
-        self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a)) for a in self.agents}
+        self.period_ticks = max(1, round(self.scene.control_hz / DEFAULT_DECISION_HZ))  # the skills decide as controllers do
+        period_s = self.period_ticks / self.scene.control_hz
+        self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a), decision_period_s=period_s) for a in self.agents}
+        self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
         self.outcomes: dict[str, list[str]] = {a: [] for a in self.agents}
 
@@ -116,21 +120,26 @@ class TaskChooser:
             (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target)), velocity,
         )
         parts = part_observations(self.world)
-        self.skills[agent].start(job, arm_observation(self.world, agent), parts[task.part_id])
+        skill = self.skills[agent]
+        skill.start(job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id])
+        for goal in skill.step(arm_observation(self.world, agent, self.tracked.trackers[agent]), parts):
+            self.tracked.submit(agent, goal)
         self.task_of[agent] = task.task_id
 
     def command(self) -> None:
-        """Before a tick: every working arm's skill sets its joint targets."""
-        parts = part_observations(self.world)
-        for agent in self.agents:
-            skill = self.skills[agent]
-            if skill.active:
-                arm = self.world.arms[agent]
-                cmd = skill.step(arm_observation(self.world, agent), parts, self.world.control_dt_s)
-                arm.set_targets(cmd.q, cmd.dq, arm.spec.gripper_targets(cmd.gripper_opening))
+        """Before a tick: at decision ticks every working arm's skill sends its goals; the trackers set the drive targets."""
+        if self.world.tick % self.period_ticks == 0:
+            parts = part_observations(self.world)
+            for agent in self.agents:
+                skill = self.skills[agent]
+                if skill.active:
+                    for goal in skill.step(arm_observation(self.world, agent, self.tracked.trackers[agent]), parts):
+                        self.tracked.submit(agent, goal)
+        self.tracked.apply()
 
     def report(self) -> None:
-        """After a tick: each arm's skill phase goes to the ledger; a closed task frees its arm."""
+        """After a tick: the trackers' results; each arm's skill phase goes to the ledger; a closed task frees its arm."""
+        self.tracked.update()
         now = self.world.sim_time_s
         for agent in self.agents:
             task_id = self.task_of[agent]

@@ -33,12 +33,11 @@ from fleet.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
-from robots.skills.pick_place import PickPlaceSkill
+from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
 HEARTBEAT_DECISIONS = 4  # a heartbeat every this many decisions (5 Hz at the default rate)
 ASSIGNMENT_WAIT_S = 0.5
-DEFAULT_RATE_HZ = 20.0
 
 
 def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
@@ -57,7 +56,7 @@ class ArmController:
     """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene, *, grants: bool = False,
-                 rate_hz: float = DEFAULT_RATE_HZ) -> None:
+                 rate_hz: float = DEFAULT_DECISION_HZ) -> None:
         decl = next((a for a in scene.arms if a.name == arm), None)
         if decl is None:
             raise SystemExit(f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}")
@@ -224,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:
     add_scene_arguments(parser)
     parser.add_argument("--arm", required=True)
     parser.add_argument("--grants", action="store_true", help="ask the coordinator for a motion grant before each free move")
-    parser.add_argument("--rate-hz", type=float, default=DEFAULT_RATE_HZ, help="decisions per sim second: the states this controller asks for (default 20)")
+    parser.add_argument("--rate-hz", type=float, default=DEFAULT_DECISION_HZ, help="decisions per sim second: the states this controller asks for (default 20)")
     parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)

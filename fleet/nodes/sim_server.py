@@ -41,9 +41,9 @@ from fleet.physics.world import PartInfo, World
 from fleet.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
+from robots.skills.pick_place import DEFAULT_DECISION_HZ
 
 COORD_RATE_HZ = 10.0
-DEFAULT_CONTROLLER_HZ = 20.0  # a controller's state rate until it says otherwise
 MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
@@ -118,7 +118,7 @@ class SimServer:
         self.stop = stop
         self.controllers = controllers
         hz = world.scene_model.control_hz
-        period = max(1, round(hz / DEFAULT_CONTROLLER_HZ))
+        period = max(1, round(hz / DEFAULT_DECISION_HZ))  # until a controller asks for another rate
         self.max_period_ticks = max(1, round(hz * MAX_CONTROLLER_PERIOD_S))
         self.links = {name: ArmLink(name, period) for name in world.arms}
         self.tracked = TrackedArms(world)

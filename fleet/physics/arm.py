@@ -68,7 +68,8 @@ class SimArm:
         for i, joint in enumerate(self.joints):
             gains = spec.arm_gains if i < n_arm else spec.gripper_gains
             joint.set_drive_property(gains.stiffness, gains.damping, gains.force_limit, "force")
-        self._velocity_targets = [math.nan] * n_arm  # last written; NaN differs from any value, so the first write sets all
+        self._position_targets = [math.nan] * n_arm  # last written; NaN differs from any value, so the first write sets all
+        self._velocity_targets = [math.nan] * n_arm
         self._gripper_targets = [math.nan] * len(spec.gripper_joints)
         self.set_qpos(np.concatenate([spec.home_q, spec.gripper_targets(1.0)]))
 
@@ -83,21 +84,23 @@ class SimArm:
     def set_targets(self, arm_q: np.ndarray, arm_dq: np.ndarray, gripper_q: np.ndarray | tuple[float, ...]) -> None:
         """Drive targets: arm joint positions and velocities, gripper joint positions.
 
-        Arm position targets are always written (each write wakes the articulation, as before); a velocity or
-        gripper target equal to the one last written is skipped: the same physics for fewer calls into SAPIEN.
-        (Plain floats: a handful of numbers costs less as a list than as numpy arrays.)
+        A target equal to the one last written is skipped (the articulation never sleeps:
+        `sleep_threshold` 0), so an arm holding still costs no calls into SAPIEN. Plain floats:
+        a handful of numbers costs less as a list than as numpy arrays.
         """
         n = self.spec.arm_dof
-        for joint, target in zip(self.joints, np.asarray(arm_q, float).tolist()):
-            joint.set_drive_target(target)
-        velocity, gripper = np.asarray(arm_dq, float).tolist(), np.asarray(gripper_q, float).tolist()
+        position, velocity = np.asarray(arm_q, float).tolist(), np.asarray(arm_dq, float).tolist()
+        gripper = list(map(float, gripper_q))
+        for joint, new, old in zip(self.joints, position, self._position_targets):
+            if new != old:
+                joint.set_drive_target(new)
         for joint, new, old in zip(self.joints, velocity, self._velocity_targets):
             if new != old:
                 joint.set_drive_velocity_target(new)
         for joint, new, old in zip(self.joints[n:], gripper, self._gripper_targets):
             if new != old:
                 joint.set_drive_target(new)
-        self._velocity_targets, self._gripper_targets = velocity, gripper
+        self._position_targets, self._velocity_targets, self._gripper_targets = position, velocity, gripper
 
     def set_gripper_effort(self, force_limit: float) -> None:
         """The gripper drives' force limit (a GripperCommand goal's max effort); stiffness and damping stay."""
@@ -112,7 +115,7 @@ class SimArm:
             j.set_drive_target(t)
             j.set_drive_velocity_target(v)
         n = self.spec.arm_dof
-        self._velocity_targets, self._gripper_targets = velocity[:n], position[n:]
+        self._position_targets, self._velocity_targets, self._gripper_targets = position[:n], velocity[:n], position[n:]
 
     def qpos(self) -> np.ndarray:
         return self.articulation.get_qpos()[self.qpos_index].astype(float)

@@ -52,6 +52,7 @@ class Phase(str, Enum):
     FAILED = "failed"
 
 
+DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
 SEGMENT_PHASES = (Phase.APPROACH, Phase.TRANSFER, Phase.HOME)  # free joint-space moves: the ones that need a grant
 REPLAN_AFTER_S = 0.3
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
@@ -105,7 +106,7 @@ class PickPlaceSkill:
         timing: PickPlaceTiming = PickPlaceTiming(),
         model: KinematicModel | None = None,
         grants_required: bool = False,
-        decision_period_s: float = 0.05,
+        decision_period_s: float = 1.0 / DEFAULT_DECISION_HZ,
     ) -> None:
         self.spec, self.timing = spec, timing
         self.grants_required = grants_required

@@ -4,6 +4,7 @@ asks again for a transfer it cannot abandon, and re-plans an approach kept waiti
 import numpy as np
 
 from robots.frames import yaw_transform
+from robots.joint_trajectory import GripperGoal, TrajectoryGoal
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
 from robots.skills.pick_place import REPLAN_AFTER_S, Phase, PickPlaceSkill
@@ -35,15 +36,20 @@ def test_the_approach_waits_for_its_grant_then_moves():
     assert skill.phase == Phase.APPROACH and skill.request is not None
     request = skill.request
     assert np.allclose(request.q_from, SPEC.home_q) and request.duration_s > 0
-    for k in range(20):  # no answer yet: holds still
-        cmd = skill.step(obs(SPEC.home_q, k * DT), {7: part_at(0.0)}, DT)
-        assert np.allclose(cmd.q, SPEC.home_q) and not np.any(cmd.dq)
+    first = skill.step(obs(SPEC.home_q, 0.0), {7: part_at(0.0)})
+    assert [type(g) for g in first] == [GripperGoal], "the claw opens for the part; the arm holds, sending no trajectory"
+    for k in range(1, 20):  # no answer yet: still no trajectory
+        assert skill.step(obs(SPEC.home_q, k * DT), {7: part_at(0.0)}) == []
     skill.on_grant(request.seq + 5, "grant", "", 0.2)  # a stale or foreign answer changes nothing
     assert skill.request is request
-    skill.on_grant(request.seq, "grant", "", 0.2)
+    skill.on_grant(request.seq, "grant", "", 0.2, start_time_s=0.25)
     assert skill.request is None
-    cmd = skill.step(obs(SPEC.home_q, 0.2 + 10 * DT), {7: part_at(0.0)}, DT)
-    assert np.abs(np.asarray(cmd.q) - SPEC.home_q).max() > 1e-3, "granted: the arm moves along the segment"
+    goals = skill.step(obs(SPEC.home_q, 0.2), {7: part_at(0.0)})
+    assert len(goals) == 1 and isinstance(goals[0], TrajectoryGoal), "granted: the move goes to the tracker"
+    move = goals[0]
+    assert move.start_time_s == 0.25, "from the time the grant names"
+    assert np.allclose(move.positions[-1], request.q_to) and np.isclose(move.times_from_start_s[-1], request.duration_s)
+    assert move.joint_names == SPEC.arm_joints
 
 
 def test_a_denied_approach_gives_the_task_back_with_the_arm_in_the_way():
@@ -67,6 +73,6 @@ def test_an_approach_kept_waiting_is_planned_again_from_where_the_part_has_gone(
     skill = started(belt)
     first = skill.request
     later = REPLAN_AFTER_S + 0.05
-    skill.step(obs(SPEC.home_q, later), {7: part_at(0.0, later, belt)}, DT)
+    skill.step(obs(SPEC.home_q, later), {7: part_at(0.0, later, belt)})
     assert skill.request.seq == first.seq + 1, "a fresh request for a fresh plan"
     assert not np.allclose(skill.request.q_to, first.q_to), "aimed where the part is now"
