@@ -36,6 +36,7 @@ class IKOptions:
     max_step_rad: float = 0.3
     restarts: int = 4
     seed: int = 0
+    stall_iterations: int = 25  # give an attempt up when its error has not dropped by 1% for this many iterations
 
 
 def _axis_error(current_axis: np.ndarray, target_axis: np.ndarray) -> np.ndarray:
@@ -63,6 +64,7 @@ def _solve_once(
     cols = km.arm_q_index  # revolute/prismatic joints: idx_v == idx_q
     p_t, r_t = target[:3, 3], target[:3, :3]
     pos_err = ang_err = np.inf
+    best_err, best_at = np.inf, 0
     for it in range(1, opts.max_iterations + 1):
         pose = km.frame_pose(q)
         p, r = pose[:3, 3], pose[:3, :3]
@@ -80,6 +82,11 @@ def _solve_once(
         pos_err, ang_err = float(np.linalg.norm(e_pos)), float(np.linalg.norm(e_rot))
         if pos_err < opts.tolerance_m and ang_err < opts.tolerance_rad:
             return IKResult(q, True, pos_err, ang_err, it)
+        err = pos_err + 0.1 * ang_err
+        if err < 0.99 * best_err:
+            best_err, best_at = err, it
+        elif it - best_at >= opts.stall_iterations:  # stuck (a joint limit, out of reach): a restart does better
+            return IKResult(q, False, pos_err, ang_err, it)
         e = np.concatenate([e_pos, e_rot])
         jjt = j @ j.T + (opts.damping**2) * np.eye(6)
         dq = j.T @ np.linalg.solve(jjt, e)

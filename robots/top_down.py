@@ -43,8 +43,9 @@ class TopDownIK:
         yaw = self.natural_yaw(position_world) if yaw_world is None else yaw_world
         target = self.world_to_base @ transform(np.asarray(position_world, float), top_down_rotation(yaw))
         result = solve_ik(self.km, target, self.km.full_q(q_start), approach_axis_only=self.approach_axis_only, options=self.options)
-        if not result.success:
-            retry = solve_ik(self.km, target, self.km.full_q(self.aimed_home(position_world)), approach_axis_only=self.approach_axis_only, options=self.options)
+        aimed = self.aimed_home(position_world)
+        if not result.success and not np.array_equal(np.asarray(q_start, float), aimed):
+            retry = solve_ik(self.km, target, self.km.full_q(aimed), approach_axis_only=self.approach_axis_only, options=self.options)
             if retry.success:
                 result = retry
         return result.q[self.km.arm_q_index], result.success

@@ -30,7 +30,8 @@ class ArmState(Message, frozen=True, array_like=True):
     the controller's last step, so the coordinator learns what each arm does in step with the sim clock.
     `assign_seq` is the newest order the coordinator had published to this arm when this tick began: a
     controller acts on an order at the first state announcing it (lockstep with a coordinator; -1 otherwise:
-    act on arrival). `next_tick` is when this arm's controller gets its next state. `held` is true while the
+    act on arrival). `next_tick` is when this arm's controller gets its next state; its answer takes effect
+    `period_ticks` later (lockstep applies answers at the arm's next due tick). `held` is true while the
     arm is held (e-stop, watchdog, lost controller); `lost` once its controller went silent in lockstep.
     """
 
@@ -60,6 +61,7 @@ class ArmState(Message, frozen=True, array_like=True):
     result_code: int = 0
     result_reason: str = ""
     next_tick: int = 0
+    period_ticks: int = 0  # the controller's period: its answer to the state at `next_tick` takes effect a period later
     version: int = PROTOCOL_VERSION
 
 

@@ -90,7 +90,7 @@ class CoordinatorNode:
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.skill = {a: "idle" for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
-        self.next_tick = {a: 0 for a in self.arm_names}  # when each arm's controller gets its next state (it acts on orders then)
+        self.acts_at_tick = {a: 0 for a in self.arm_names}  # when an order sent now takes effect on each arm
         self.incarnation: dict[str, int] = {}
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
         self.heartbeat_at: dict[str, float] = {}
@@ -163,7 +163,7 @@ class CoordinatorNode:
         if s.arm not in self.skill or s.tick <= self.last_tick[s.arm]:
             return  # count each tick once
         self.last_tick[s.arm] = s.tick
-        self.next_tick[s.arm] = s.next_tick
+        self.acts_at_tick[s.arm] = s.next_tick + s.period_ticks  # heard with its next state, answered a period later
         self.skill[s.arm] = s.skill
         self.guard.set_state(s.arm, np.asarray(s.q))
         if s.request_seq > self.request_seq[s.arm] and len(s.request_q_to) == len(s.q):
@@ -304,7 +304,7 @@ class CoordinatorNode:
         for arm in [a for a in self.arm_names if a in self.requests]:
             asked = self.requests[arm]
             hz = self.scene.control_hz
-            start = max(self.next_tick[arm], self.last_decision_tick + 1) / hz  # the controller hears of it with its next state
+            start = max(self.acts_at_tick[arm], self.last_decision_tick + 1) / hz  # the controller's answer to its next state
             path = TimedPath(arm, asked.q_from, asked.q_to, start, start + (asked.t_end_s - asked.t_start_s))
             self.guard.set_state(arm, np.asarray(asked.q_from))
             verdict = self.guard.request(path)

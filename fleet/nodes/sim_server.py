@@ -3,14 +3,19 @@
 Each arm's tracker (`robots.tracker`, through `fleet.physics.tracking`) follows the
 trajectory goals on the arm's `goal` key at the servo rate (the scene's `control_hz`)
 and publishes one result per goal; the physics runs `physics_hz / control_hz` steps a
-tick. Each controller gets its arm's state at the ticks it asked for (`ControllerStep.
-next_tick`, 20 Hz by default) and answers it; in `lockstep` the server waits only for
-the controllers due at that tick (and, every `coord_period_ticks`, for the
-coordinator's `CoordTick`), so a run repeats exactly. A controller silent past the
-lockstep timeout is marked lost and its arm held (its goals aborted); one that answers
-again rejoins. In `realtime` answers are applied when they arrive, and an arm whose
-controller misses its deadline (`watchdog_s` after the state it was due to answer)
-is held by the tracker's watchdog. The e-stop aborts every goal and holds every arm.
+tick. Each controller gets its arm's state at the ticks it asks for (`ControllerStep.
+next_tick`, 20 Hz by default) and answers it within one of its periods: the physics
+runs on while controllers think. In `lockstep` an answer (and the goals it names) is
+applied at the arm's next due tick, and the server waits there only if it is not in
+yet; the coordinator's `CoordTick` for a frame is awaited likewise at the next tick
+that publishes states. So a run repeats exactly, and every process works in parallel
+with the physics. A controller silent past the lockstep timeout is marked lost and its
+arm held (its goals aborted); one that answers again rejoins. In `realtime` answers
+and goals are applied when they arrive, and an arm whose controller misses its
+deadline (`watchdog_s` after the tick its answer was due) is held by the tracker's
+watchdog. The e-stop aborts every goal and holds every arm. Goals from anyone else
+(a user's trajectory client) are applied at the arm's next due tick in lockstep, on
+arrival in realtime or without controllers.
 
     python -m fleet.nodes.sim_server --scene assembly_line --run demo --listen tcp/127.0.0.1:7447 --duration 60
 """
@@ -58,12 +63,19 @@ class ArmLink:
     name: str
     period_ticks: int
     last_step: ControllerStep | None = None
-    next_tick: int = 0  # the tick of the controller's next state
+    next_tick: int = 0  # the tick of the controller's next state (its answer to the last one is applied then)
     awaiting: ArmState | None = None  # the state published and not answered yet
-    awaiting_goals: tuple[int, ...] = ()  # goal ids the answer named that have not arrived yet
+    answer: ControllerStep | None = None  # the answer to `awaiting`, in and not applied yet (lockstep)
+    goals: list = field(default_factory=list)  # goals in and not applied yet (lockstep), in arrival order
     lost: bool = False
     watchdog_held: bool = False
-    goals_seen: deque = field(default_factory=lambda: deque(maxlen=64))
+
+    def ready(self) -> bool:
+        """The answer to the awaited state is in, with every goal it names."""
+        if self.answer is None:
+            return False
+        arrived = {g.goal_id for g in self.goals}
+        return all(g in arrived for g in self.answer.goal_ids)
 
 
 @dataclass
@@ -162,6 +174,8 @@ class SimServer:
         self.assign_seqs = {name: 0 for name in world.arms}
         self._published_at: dict[tuple[str, int], float] = {}
         self._last_frame: bytes | None = None
+        self._coord_pending: int | None = None  # the tick of the last frame whose CoordTick is still owed
+        self._started = not controllers  # every controller answered once (realtime waits until then)
 
     def close(self) -> None:
         for sub in self._subs:
@@ -225,52 +239,70 @@ class SimServer:
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.stats.messages_in["goal"] += 1
-        link.goals_seen.append(msg.goal_id)
-        link.awaiting_goals = tuple(g for g in link.awaiting_goals if g != msg.goal_id)
+        if self._deferred:
+            link.goals.append(msg)  # applied at the arm's next due tick, so a lockstep run repeats
+        else:
+            self._submit(link, msg)
+
+    def _submit(self, link: ArmLink, msg) -> None:
         goal = goal_from_message(msg)
+        now = self.world.sim_time_s
         results = [goal] if isinstance(goal, GoalResult) else self.tracked.submit(link.name, goal)
-        self._publish_results(link.name, [GoalResult(r.goal_id, r.kind, r.status, r.code, r.reason, self.world.sim_time_s,
-                                                     r.reached, r.stalled) if r.time_s == 0.0 else r for r in results])
+        self._publish_results(link.name, [
+            GoalResult(r.goal_id, r.kind, r.status, r.code, r.reason, now, r.reached, r.stalled) for r in results
+        ])
 
     def _on_step(self, key: str, payload: bytes) -> None:
         msg = self._step_decoder.decode(key, payload)
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.stats.messages_in["step"] += 1
-        awaited = link.awaiting
-        if awaited is None or msg.tick != awaited.tick:
+        if link.awaiting is None or msg.tick != link.awaiting.tick or link.answer is not None:
             return  # an answer to a state already answered, or overtaken: nothing to do
-        link.last_step, link.awaiting = msg, None
-        link.awaiting_goals = tuple(g for g in msg.goal_ids if g not in link.goals_seen)
-        link.next_tick = min(max(msg.next_tick, msg.tick + 1), msg.tick + self.max_period_ticks)
-        link.period_ticks = link.next_tick - msg.tick
+        link.answer = msg
         sent = self._published_at.pop((link.name, msg.tick), None)
         if sent is not None:
             rtt_ms = (time.monotonic() - sent) * 1e3
             self.stats.round_trip_ms.append(rtt_ms)
             self.stats.recent_round_trip_ms.append(rtt_ms)
+        if not self._deferred:
+            self._apply_answer(link)
+
+    @property
+    def _deferred(self) -> bool:
+        """Answers and goals wait for their arm's due tick (lockstep, or until every process is up)."""
+        return self.controllers and (self.mode == "lockstep" or not self._started)
+
+    def _apply_answer(self, link: ArmLink) -> None:
+        """The controller's answer takes effect: its goals (and any others queued) go to the tracker."""
+        msg, link.answer = link.answer, None
+        for goal in link.goals:
+            self._submit(link, goal)
+        link.goals = []
+        if msg is None:
+            return
+        link.awaiting = None
+        link.last_step = msg
+        link.next_tick = min(max(msg.next_tick, msg.tick + 1), msg.tick + self.max_period_ticks)
+        link.period_ticks = link.next_tick - msg.tick
         self.tracked.trackers[link.name].watch(link.next_tick / self.world.scene_model.control_hz + self.watchdog_s)
         link.watchdog_held = False
         if link.lost:
             link.lost = False
             self.stats.rejoined.append(link.name)
 
-    def _waiting_for(self) -> list[ArmLink]:
-        return [l for l in self.links.values() if not l.lost and (l.awaiting is not None or l.awaiting_goals)]
-
-    def _wait_for_answers(self) -> None:
-        """Lockstep: until every live controller due this tick answered (with the goals it named), or its timeout passed."""
-        tick = self.world.tick
-        deadline = time.monotonic() + (self.first_command_timeout_s if tick == 0 else self.lockstep_timeout_s)
+    def _wait_for_answers(self, due: list[ArmLink], want_coord: int | None) -> None:
+        """Until every live controller due now has answered its last state (with the goals it named) and the
+        coordinator has answered frame `want_coord`, or the timeout passed; then the answers take effect."""
+        first = not self._started
+        deadline = time.monotonic() + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
         republish_at = time.monotonic() + REPUBLISH_S
-        coord_tick = tick % self.coord_period_ticks == 0 if self.mode == "lockstep" else tick == 0
-        want_coord = self.coordinator and not self.stats.coordinator_lost and coord_tick
         while True:
             self._take_inputs()
-            waiting = self._waiting_for()
-            coord_waiting = want_coord and self._coord_tick < tick
+            waiting = [l for l in due if not l.lost and l.awaiting is not None and not l.ready()]
+            coord_waiting = want_coord is not None and not self.stats.coordinator_lost and self._coord_tick < want_coord
             if not waiting and not coord_waiting:
-                return
+                break
             if self.stop is not None and self.stop.should_stop():
                 return
             if time.monotonic() > deadline:
@@ -278,19 +310,24 @@ class SimServer:
                     self._lose(link)
                 if coord_waiting:
                     self.stats.coordinator_lost = True
-                return
+                break
             if time.monotonic() > republish_at:  # a process that joined late, or a lost sample
                 for link in waiting:
-                    if link.awaiting is not None:
+                    if link.answer is None:
                         self._state_pubs[link.name].put(encode(link.awaiting))
                 if coord_waiting and self._last_frame is not None:
                     self._frame_pub.put(self._last_frame)
                 republish_at = time.monotonic() + REPUBLISH_S
             self._inbox.wait(0.01)
+        for link in due:
+            if link.answer is not None or link.goals:
+                self._apply_answer(link)
+        if not self._started and all(l.last_step is not None or l.lost for l in self.links.values()):
+            self._started = True  # realtime: from here on answers apply when they arrive
 
     def _lose(self, link: ArmLink) -> None:
         """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
-        link.lost, link.awaiting, link.awaiting_goals = True, None, ()
+        link.lost, link.awaiting, link.answer = True, None, None
         self.stats.lost.append(link.name)
         self._publish_results(link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)"))
 
@@ -324,13 +361,16 @@ class SimServer:
             goal_id=tracker.goal_id, desired_q=tuple(map(float, desired_q)), desired_dq=tuple(map(float, desired_dq)),
             result_goal_id=last.goal_id if last else 0, result_status=last.status.value if last else "",
             result_code=int(last.code) if last else 0, result_reason=last.reason if last else "", next_tick=link.next_tick,
+            period_ticks=link.period_ticks,
         )
 
-    def publish_states(self, parts: list[PartInfo] | None = None) -> None:
+    def _due(self) -> list[ArmLink]:
+        return [l for l in self.links.values() if l.next_tick <= self.world.tick] if self.controllers else []
+
+    def publish_states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
         """States to the controllers due now (and the parts with them), the coordinator's frame, the monitors' view."""
         w = self.world
         tick = w.tick
-        due = [l for l in self.links.values() if l.next_tick <= tick] if self.controllers else []
         for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
             link.next_tick = tick + link.period_ticks
         frame = self.coordinator and tick % self.coord_period_ticks == 0
@@ -342,9 +382,8 @@ class SimServer:
         for link in due:
             msg = states[link.name]
             self._put(self._state_pubs[link.name], "state", encode(msg))
-            if not link.lost:
-                link.awaiting = msg
-                self._published_at[(link.name, tick)] = now
+            link.awaiting, link.answer = msg, None
+            self._published_at[(link.name, tick)] = now
         parts = w.active_parts() if parts is None else parts
         parts_msg = parts_state(w, parts, sum(self.events_published.values()))
         if due:
@@ -353,25 +392,32 @@ class SimServer:
             line = encode(LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg))
             if frame:
                 self._put(self._frame_pub, "frame", line)
-                self._last_frame = line
+                self._last_frame, self._coord_pending = line, tick
             if view:
                 self._put(self._view_pub, "view", line)
 
     # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:
-        """Publish events and due states, gather answers (waiting in lockstep), track, step the physics."""
+        """Events; answers due now (waiting in lockstep); due states and frames out; track; step the physics."""
         clock = self.stats.wall_s
         t0 = time.perf_counter()
         parts = self.world.active_parts()
         if self.publish_events(parts):
             parts = self.world.active_parts()  # parts lost or retired just now are off the stage
-        self.publish_states(parts)
+        due = self._due()
+        frame = self.coordinator and self.world.tick % self.coord_period_ticks == 0
         t1 = time.perf_counter()
-        if self.controllers and (self.mode == "lockstep" or self.world.tick == 0):  # realtime too waits once, for every process
-            self._wait_for_answers()
+        started = self._started
+        coord_owed = self._coord_pending if (self.mode == "lockstep" or not self._started) else None
+        if (self._deferred or coord_owed is not None) and (due or frame):
+            self._wait_for_answers(due, coord_owed)
+            if coord_owed is not None and self._coord_tick >= coord_owed:
+                self._coord_pending = None
         else:
             self._take_inputs()
         t2 = time.perf_counter()
+        self.publish_states(due, parts)
+        t3 = time.perf_counter()
         self.tracked.apply()
         self.world.step()
         results = self.tracked.update()
@@ -383,7 +429,7 @@ class SimServer:
         for name, link in self.links.items():
             if link.last_step is not None and link.last_step.skill not in IDLE_SKILLS and not link.lost:
                 self.stats.busy_ticks[name] += 1
-        t3 = time.perf_counter()
+        t4 = time.perf_counter()
         self.stats.ticks += 1
         if self.count_contacts:
             pairs = self.world.inter_arm_contacts()
@@ -392,11 +438,11 @@ class SimServer:
                 self.stats.contact_pairs.update(pairs)
                 self.stats.last_contact_pairs = tuple(sorted("-".join(p) for p in pairs))
                 self.stats.last_contact_s = self.world.sim_time_s
-        t4 = time.perf_counter()
-        clock["publish"] += t1 - t0
-        clock["wait" if self.stats.ticks > 1 else "startup"] += t2 - t1  # tick 0 waits for every process to start
-        clock["physics"] += t3 - t2
-        clock["contacts"] += t4 - t3
+        t5 = time.perf_counter()
+        clock["publish"] += (t1 - t0) + (t3 - t2)
+        clock["wait" if started else "startup"] += t2 - t1  # until every process answered once: start-up
+        clock["physics"] += t4 - t3
+        clock["contacts"] += t5 - t4
 
     def run_ticks(self, ticks: int, speed: float | None = None, stop: StopFlag | None = None) -> None:
         """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at the speed factor.
@@ -405,7 +451,7 @@ class SimServer:
         stop = stop or self.stop
         if speed is not None:
             self.speed = speed
-        start_wall, start_sim, speed_then = time.monotonic(), self.world.sim_time_s, self.speed
+        start_wall, start_sim, speed_then, started_then = time.monotonic(), self.world.sim_time_s, self.speed, self._started
         done = 0
         while done < ticks:
             if stop is not None and stop.should_stop():
@@ -423,8 +469,8 @@ class SimServer:
             if self.stats.coordinator_lost and self.mode == "lockstep":
                 return  # its decisions would never be announced again: end the run rather than stall it
             if self.mode == "realtime":
-                if self.world.tick == 1 or self.speed != speed_then:  # the clock starts once every process answered tick 0
-                    start_wall, start_sim, speed_then = time.monotonic(), self.world.sim_time_s, self.speed
+                if self._started != started_then or self.speed != speed_then:  # the clock starts once every process answered
+                    start_wall, start_sim, speed_then, started_then = time.monotonic(), self.world.sim_time_s, self.speed, self._started
                 ahead = (self.world.sim_time_s - start_sim) / self.speed - (time.monotonic() - start_wall)
                 if ahead > 0:
                     self._inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick

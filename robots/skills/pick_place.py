@@ -94,8 +94,11 @@ class MotionRequest:
 class PickPlaceSkill:
     """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step` returns.
 
-    `decision_period_s` is how often `step` is called: the next local stage is planned when the
-    current one ends within that time, so it is spliced in at the current one's end.
+    `decision_period_s` is how often `step` is called; `latency_s` how long after a decision its goals
+    reach the tracker (a controller's answer takes effect at its next due tick: one period, the
+    default). Every goal carries an absolute start time at least that far ahead, so the arm moves
+    the same in process and over the bus; the next local stage is planned when the current one
+    ends within a period plus the latency, so it is spliced in at the current one's end.
     """
 
     def __init__(
@@ -107,10 +110,13 @@ class PickPlaceSkill:
         model: KinematicModel | None = None,
         grants_required: bool = False,
         decision_period_s: float = 1.0 / DEFAULT_DECISION_HZ,
+        latency_s: float | None = None,
     ) -> None:
         self.spec, self.timing = spec, timing
         self.grants_required = grants_required
         self.decision_period_s = decision_period_s
+        self.latency_s = decision_period_s if latency_s is None else latency_s
+        self._now = 0.0
         self.request: MotionRequest | None = None
         self._request_seq = 0
         self.denials = 0
@@ -175,13 +181,19 @@ class PickPlaceSkill:
         self.sent_goals.add(goal.goal_id)
         self._outbox.append(goal)
 
+    def _earliest(self, start_s: float | None = None) -> float:
+        """The earliest a goal sent now can start: once it has reached the tracker."""
+        soonest = self._now + self.latency_s
+        return soonest if start_s is None else max(start_s, soonest)
+
     def _send_gripper(self, opening: float, start_s: float | None) -> None:
-        self._outbox.append(GripperGoal(self._next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, start_s))
+        self._outbox.append(GripperGoal(self._next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, self._earliest(start_s)))
 
     # --- the state machine ----------------------------------------------------------
     def start(self, task: PickPlaceTask, obs: ArmObservation, part: PartObservation) -> None:
         """Begin a pick of `part`; fails at once, with a reason, if the part cannot be reached."""
         t = self.timing
+        self._now = obs.time_s
         self.task, self.failure_reason = task, ""
         self.sent_goals = set()
         self._timeline = []
@@ -226,7 +238,8 @@ class PickPlaceSkill:
             self._go(time_s)
 
     def _go(self, start_s: float) -> None:
-        """Send the free move, starting at `start_s`."""
+        """Send the free move, starting at `start_s` (or as soon as it can)."""
+        start_s = self._earliest(start_s)
         seg = self.segment
         self.segment = JointSegment(seg.q_start, seg.q_end, start_s, seg.duration_s)
         self._send_move(seg.q_end, seg.duration_s, start_s)
@@ -248,6 +261,7 @@ class PickPlaceSkill:
         else now), or deny naming the arm in the way."""
         if self.request is None or request_seq != self.request.seq or not self.active:
             return
+        self._now = time_s
         if decision == "grant":
             self.request = None
             self._go(max(time_s, start_time_s if start_time_s is not None else time_s))
@@ -299,7 +313,7 @@ class PickPlaceSkill:
         return out
 
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
-        now = obs.time_s
+        now = self._now = obs.time_s
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
             self._fail(f"trajectory goal {obs.result_goal_id} {obs.result_status}: {obs.result_reason}")
             return
@@ -314,9 +328,10 @@ class PickPlaceSkill:
         if self._timeline:
             return
         ahead = self.plan_end_s - now  # how long the planned motion still runs
-        if self.phase == Phase.APPROACH and ahead <= self.decision_period_s + 1e-9:
+        horizon = self.decision_period_s + self.latency_s + 1e-9  # the next decision's goals would come too late
+        if self.phase == Phase.APPROACH and ahead <= horizon:
             self._plan_grasp(part, now)
-        elif self.phase == Phase.TRANSFER and ahead <= self.decision_period_s + 1e-9:
+        elif self.phase == Phase.TRANSFER and ahead <= horizon:
             self._plan_place()
         elif ahead <= 1e-9:
             if self.phase == Phase.LIFT:
@@ -343,7 +358,7 @@ class PickPlaceSkill:
         if part is None:
             self._fail(f"part {self.task.part_id} vanished before the grasp")
             return
-        start = self.plan_end_s
+        start = self._earliest(self.plan_end_s)
         seen_at = now
         d, c, lift = t.descend_s, t.close_s, t.lift_s
         times = np.arange(KNOT_S, d + c + lift + 1e-9, KNOT_S)
@@ -387,7 +402,7 @@ class PickPlaceSkill:
     def _plan_place(self) -> None:
         """Lower, release, retreat: one goal from the transfer's end, and the claw opening at the release."""
         t = self.timing
-        start = self.plan_end_s
+        start = self._earliest(self.plan_end_s)
         place = np.asarray(self.task.place_xyz, float)
         release_z = place[2] + self.tool_above_bottom_m + t.place_drop_m
         lo, rel, back = t.lower_s, t.release_s, t.retreat_s
