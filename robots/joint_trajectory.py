@@ -171,7 +171,11 @@ def check_goal(goal: TrajectoryGoal, joint_names: tuple[str, ...], lower: np.nda
 
 @dataclass
 class Spline:
-    """Positions and velocities over absolute sim time: from a start state through a goal's points, held at the end."""
+    """Positions and velocities over absolute sim time: from a start state through a goal's points, held at the end.
+
+    With a servo period, positions and velocities at every servo tick (multiples of the period) are
+    evaluated at once when the spline is built, so each tick reads them instead of calling scipy.
+    """
 
     t0_s: float
     t_end_s: float
@@ -179,9 +183,14 @@ class Spline:
     dpoly: BPoly
     ddpoly: BPoly
     q_end: np.ndarray
+    period_s: float | None = None
+    first_k: int = 0
+    grid_q: np.ndarray | None = None
+    grid_dq: np.ndarray | None = None
 
     @classmethod
-    def through(cls, t0_s: float, q0: np.ndarray, dq0: np.ndarray, ddq0: np.ndarray, checked: CheckedGoal) -> "Spline":
+    def through(cls, t0_s: float, q0: np.ndarray, dq0: np.ndarray, ddq0: np.ndarray, checked: CheckedGoal,
+                period_s: float | None = None) -> "Spline":
         """From state (q0, dq0, ddq0) at `t0_s` through the goal's points (same order of derivatives at every knot)."""
         order = 1 + (checked.velocities is not None) + (checked.accelerations is not None)
         rows = [checked.positions] + [a for a in (checked.velocities, checked.accelerations) if a is not None]
@@ -194,7 +203,13 @@ class Spline:
             values = np.concatenate([np.stack(start)[None], points])
         poly = BPoly.from_derivatives(knots, values)
         dpoly = poly.derivative()
-        return cls(float(knots[0]), float(knots[-1]), poly, dpoly, dpoly.derivative(), checked.positions[-1].copy())
+        spline = cls(float(knots[0]), float(knots[-1]), poly, dpoly, dpoly.derivative(), checked.positions[-1].copy(), period_s)
+        if period_s:
+            k0, k1 = math.ceil(spline.t0_s / period_s - 1e-6), math.floor(spline.t_end_s / period_s + 1e-6)
+            if k1 >= k0:
+                times = np.clip(np.arange(k0, k1 + 1) * period_s, spline.t0_s, spline.t_end_s)
+                spline.first_k, spline.grid_q, spline.grid_dq = k0, poly(times), dpoly(times)
+        return spline
 
     def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at `t_s` (the first point before the start, the last after the end)."""
@@ -202,6 +217,18 @@ class Spline:
             return self.q_end.copy(), np.zeros_like(self.q_end), np.zeros_like(self.q_end)
         t = max(t_s, self.t0_s)
         return self.poly(t), self.dpoly(t), self.ddpoly(t)
+
+    def state(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Position and velocity at `t_s`: read from the servo grid when `t_s` is on it."""
+        if self.grid_q is not None:
+            k = round(t_s / self.period_s)
+            i = k - self.first_k
+            if 0 <= i < len(self.grid_q) and abs(k * self.period_s - t_s) < 1e-9:
+                if t_s >= self.t_end_s:
+                    return self.q_end, np.zeros_like(self.q_end)
+                return self.grid_q[i], self.grid_dq[i]
+        q, dq, _ = self.sample(t_s)
+        return q, dq
 
 
 def rest_to_rest(goal_id: int, joint_names: tuple[str, ...], q_end: np.ndarray, duration_s: float, start_time_s: float | None,

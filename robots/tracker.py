@@ -43,8 +43,9 @@ class ArmTracker:
     """One arm: joint names and limits in the arm's order, the gripper's opening read through `opening_of`."""
 
     def __init__(self, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, hold_q: np.ndarray,
-                 *, opening_of=None, default_effort_n: float = 0.0) -> None:
+                 *, opening_of=None, default_effort_n: float = 0.0, servo_period_s: float | None = None) -> None:
         self.joint_names = tuple(joint_names)
+        self.servo_period_s = servo_period_s  # ticks at multiples of it read the trajectory from a grid built once
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         self.hold_q = np.asarray(hold_q, float).copy()
         self.opening_of = opening_of or (lambda gripper_q: float(np.mean(gripper_q)))
@@ -73,7 +74,7 @@ class ArmTracker:
             return self._note([_at(checked, now_s)])
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
         q0, dq0, ddq0 = self._path_at(start)
-        new = _Active(checked, Spline.through(start, q0, dq0, ddq0, checked))
+        new = _Active(checked, Spline.through(start, q0, dq0, ddq0, checked, self.servo_period_s))
         out = [self._end(old, "trajectory", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, f"preempted by goal {goal.goal_id}", now_s)
                for old in (self.active, self.next) if old is not None and not old.ended]
         if start <= now_s:
@@ -130,7 +131,8 @@ class ArmTracker:
             if self.desired_now[0] is not self.hold_q:
                 self.desired_now = (self.hold_q, np.zeros_like(self.hold_q))
             return self.desired_now
-        q, dq, _ = self._path_at(now_s)
+        a = self.next if self.next is not None and now_s >= self.next.spline.t0_s else self.active
+        q, dq = a.spline.state(now_s) if a is not None else (self.hold_q, np.zeros_like(self.hold_q))
         clamped = np.clip(q, self.lower, self.upper)
         if np.any(clamped != q):
             self.clamped += 1
@@ -156,7 +158,7 @@ class ArmTracker:
     def _check(self, a: _Active, now_s: float, q: np.ndarray) -> list[GoalResult]:
         goal, spline = a.checked.goal, a.spline
         if now_s < spline.t_end_s:
-            want, _, _ = spline.sample(now_s)
+            want, _ = spline.state(now_s)
             over = np.abs(want - q) > a.checked.path_tolerance
             if over.any():
                 j = int(np.argmax(over))

@@ -166,6 +166,7 @@ class SimServer:
         self._parts_pub = session.declare_publisher(keys.parts)
         self._events_pub = session.declare_publisher(keys.events)
         self.watcher = LineWatcher(world.scene_model)
+        self.watch_every_ticks = period
         self.events_published = Counter()
         self.count_contacts = count_contacts
         self.coordinator = coordinator
@@ -401,9 +402,11 @@ class SimServer:
         """Events; answers due now (waiting in lockstep); due states and frames out; track; step the physics."""
         clock = self.stats.wall_s
         t0 = time.perf_counter()
-        parts = self.world.active_parts()
-        if self.publish_events(parts):
-            parts = self.world.active_parts()  # parts lost or retired just now are off the stage
+        parts = None
+        if self.world.tick % self.watch_every_ticks == 0:  # the line's events at the controllers' default rate
+            parts = self.world.active_parts()
+            if self.publish_events(parts):
+                parts = self.world.active_parts()  # parts lost or retired just now are off the stage
         due = self._due()
         frame = self.coordinator and self.world.tick % self.coord_period_ticks == 0
         t1 = time.perf_counter()

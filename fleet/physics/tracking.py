@@ -27,8 +27,11 @@ class TrackedArms:
             self.trackers[name] = ArmTracker(
                 tuple(spec.arm_joints), lower[:n], upper[:n], arm.qpos()[:n],
                 opening_of=lambda g, c=c, span=span: float(np.mean((g - c) / span)), default_effort_n=spec.gripper_gains.force_limit,
+                servo_period_s=world.control_dt_s,
             )
         self._effort = {name: t.effort_n for name, t in self.trackers.items()}
+        self._opening: dict[str, float] = {}
+        self._gripper_q: dict[str, tuple[float, ...]] = {}
 
     def submit(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
         """Hand `arm`'s tracker a goal now; the refusal or the preempted goals' results come back."""
@@ -43,7 +46,10 @@ class TrackedArms:
             if tracker.effort_n != self._effort[name]:
                 arm.set_gripper_effort(tracker.effort_n)
                 self._effort[name] = tracker.effort_n
-            arm.set_targets(q, dq, arm.spec.gripper_targets(tracker.gripper_opening()))
+            opening = tracker.gripper_opening()
+            if opening != self._opening.get(name):
+                self._gripper_q[name], self._opening[name] = arm.spec.gripper_targets(opening), opening
+            arm.set_targets(q, dq, self._gripper_q[name])
 
     def update(self) -> dict[str, list[GoalResult]]:
         """After the tick's physics: each arm's finished goals (tolerances, ends, watchdog)."""
