@@ -28,6 +28,7 @@ from fleet.processes import ChildProcess, stop_children
 from scenes.loader import load_scene
 
 SCENE = "sorting_line"
+STATUS_PER_ARM_PER_S = 5.0  # controller heartbeats (`ArmStatus`, every 4th decision at 20 Hz): not seen by the sim's counts
 
 
 @dataclass(frozen=True)
@@ -37,10 +38,12 @@ class BusRow:
     p50_ms: float
     p99_ms: float
     ticks_per_s: float
+    messages_per_arm_per_s: float  # both ways, shared messages (parts) split among the arms, heartbeats included
+    messages_per_arm_per_s_v1: float  # the same line under protocol 1: a state and a command per arm every tick
 
 
 def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
-    """Round trips state -> command for `arms` idle controller processes in lockstep."""
+    """Round trips state -> answer for `arms` idle controller processes in lockstep, and the bus messages they cost."""
     world = World(load_scene(SCENE, arms=arms))
     keys = Keys("benchbus")
     session, endpoint = open_listening_session(BusEndpoints())
@@ -56,27 +59,35 @@ def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
             try:
                 server.run_ticks(50)  # every controller up and answering
                 server.stats.round_trip_ms.clear()
-                start = time.perf_counter()
+                server.stats.messages_in.clear()
+                server.stats.messages_out.clear()
+                start, sim_start = time.perf_counter(), world.sim_time_s
                 server.run_ticks(ticks)
                 wall = time.perf_counter() - start
                 rtt = np.asarray(server.stats.round_trip_ms)
+                counted = sum((server.stats.messages_in + server.stats.messages_out).values())
+                per_arm = counted / arms / (world.sim_time_s - sim_start) + STATUS_PER_ARM_PER_S
             finally:
                 server.close()
     finally:
         stop_children(procs)
         shutil.rmtree(logs, ignore_errors=True)
-    return BusRow(arms, ticks, float(np.percentile(rtt, 50)), float(np.percentile(rtt, 99)), ticks / wall)
+    hz = world.scene_model.control_hz
+    v1 = 2 * hz + hz / 10 + hz / arms  # state + command every tick, a heartbeat every 10th, the parts every tick (shared)
+    return BusRow(arms, ticks, float(np.percentile(rtt, 50)), float(np.percentile(rtt, 99)), ticks / wall, round(per_arm, 1), v1)
 
 
 @dataclass(frozen=True)
 class RunRow:
     arms: int
     sim_seconds: float
-    wall_seconds: float  # the sim's loop, from its first tick to its last (process start-up excluded)
-    raw_physics_seconds: float
+    wall_seconds: float  # the sim's loop, from its first tick to its last (process start-up excluded); median of the repeats
+    raw_physics_seconds: float  # the same scene stepped in one process, arms still (median)
+    replay_physics_seconds: float  # the same scene stepped in one process with the run's own drive targets (median)
     parts_completed: int
     contacts: int
     p99_ms: float | None
+    messages_per_arm_per_s: float
 
     @property
     def realtime_factor(self) -> float:
@@ -85,6 +96,10 @@ class RunRow:
     @property
     def ratio_to_physics(self) -> float:
         return self.wall_seconds / self.raw_physics_seconds
+
+    @property
+    def ratio_to_replay(self) -> float:
+        return self.wall_seconds / self.replay_physics_seconds
 
 
 def raw_physics_seconds(arms: int, sim_seconds: float) -> float:
@@ -96,15 +111,38 @@ def raw_physics_seconds(arms: int, sim_seconds: float) -> float:
     return time.perf_counter() - start
 
 
-def bench_run(arms: int, sim_seconds: float = 20.0) -> RunRow:
-    """One lockstep `fleet run` of the sorting line, and raw physics for the same sim time."""
-    with Launcher(RunOptions(scene=SCENE, arms=arms, duration_s=sim_seconds, run_id="benchrun")) as launcher:
-        summary = launcher.run()
-    if summary["status"] != "ok":
-        raise RuntimeError(f"the benchmark run failed: {summary['error']}")
+def replay_physics_seconds(arms: int, targets_file: str) -> float:
+    """Wall time to step the scene in process with a run's recorded drive targets: its physics and motion, no processes."""
+    world = World(load_scene(SCENE, arms=arms))
+    log = np.load(targets_file)
+    position, velocity, gripper = log["position"].tolist(), log["velocity"].tolist(), log["gripper"].tolist()
+    sim_arms = list(world.arms.values())
+    start = time.perf_counter()
+    for p_tick, v_tick, g_tick in zip(position, velocity, gripper):
+        for arm, p, v, g in zip(sim_arms, p_tick, v_tick, g_tick):
+            arm.set_targets(p, v, g)
+        world.step()
+    return time.perf_counter() - start
+
+
+def bench_run(arms: int, sim_seconds: float = 60.0, repeats: int = 3) -> RunRow:
+    """Lockstep `fleet run`s of the sorting line, each followed at once by raw physics (arms still) and by a replay of
+    its own drive targets (same motion) of the same scene and sim time; medians, so the machine's drift hits all alike."""
+    walls, raws, replays, summary = [], [], [], {}
+    with tempfile.TemporaryDirectory(prefix="clawfleet-benchrun-") as tmp:
+        targets = str(Path(tmp) / "targets.npz")
+        for _ in range(repeats):
+            with Launcher(RunOptions(scene=SCENE, arms=arms, duration_s=sim_seconds, run_id="benchrun", record_targets=targets)) as launcher:
+                summary = launcher.run()
+            if summary["status"] != "ok":
+                raise RuntimeError(f"the benchmark run failed: {summary['error']}")
+            walls.append(summary["loop_wall_seconds"])
+            raws.append(raw_physics_seconds(arms, sim_seconds))
+            replays.append(replay_physics_seconds(arms, targets))
+    per_arm = sum(summary["bus_messages_per_arm_per_s"].values()) + STATUS_PER_ARM_PER_S
     return RunRow(
-        arms, summary["sim_seconds"], summary["loop_wall_seconds"], raw_physics_seconds(arms, sim_seconds),
-        summary["parts_completed"], summary["inter_arm_contacts"], summary["latency_p99_ms"],
+        arms, summary["sim_seconds"], float(np.median(walls)), float(np.median(raws)), float(np.median(replays)),
+        summary["parts_completed"], summary["inter_arm_contacts"], summary["latency_p99_ms"], round(per_arm, 1),
     )
 
 

@@ -193,30 +193,35 @@ def cmd_bench(args: argparse.Namespace) -> int:
 def cmd_bench_bus(args: argparse.Namespace) -> int:
     from fleet.bench_runtime import bench_bus
 
-    table = Table("arms", "ticks", "round trip p50 (ms)", "p99 (ms)", "lockstep ticks/s")
+    table = Table("arms", "ticks", "round trip p50 (ms)", "p99 (ms)", "lockstep ticks/s", "msgs/arm/sim s", "protocol 1", "fewer")
     rows = []
     for n in args.arms:
         row = bench_bus(n, args.ticks)
         rows.append(row)
-        table.add_row(str(n), str(row.ticks), f"{row.p50_ms:.2f}", f"{row.p99_ms:.2f}", f"{row.ticks_per_s:,.0f}")
+        table.add_row(str(n), str(row.ticks), f"{row.p50_ms:.2f}", f"{row.p99_ms:.2f}", f"{row.ticks_per_s:,.0f}",
+                      f"{row.messages_per_arm_per_s:.1f}", f"{row.messages_per_arm_per_s_v1:.0f}",
+                      f"{row.messages_per_arm_per_s_v1 / row.messages_per_arm_per_s:.1f}x")
     return print_bench(table, rows, args.json)
 
 
 def cmd_bench_run(args: argparse.Namespace) -> int:
     from fleet.bench_runtime import bench_run
 
-    table = Table("arms", "sim s", "wall s", "sim s per wall s", "wall / raw physics", "parts done", "contacts", "p99 (ms)")
+    table = Table("arms", "sim s", "wall s", "sim s per wall s", "wall / raw physics (still)", "wall / replay (same motion)",
+                  "parts done", "contacts", "bus msgs/arm/s", "p99 (ms)")
     rows = []
     for n in args.arms:
-        row = bench_run(n, args.seconds)
+        row = bench_run(n, args.seconds, args.repeats)
         rows.append(row)
         table.add_row(
             str(n), f"{row.sim_seconds:.0f}", f"{row.wall_seconds:.1f}", f"{row.realtime_factor:.2f}",
-            f"{row.ratio_to_physics:.2f}", str(row.parts_completed), str(row.contacts), f"{row.p99_ms}",
+            f"{row.ratio_to_physics:.2f}", f"{row.ratio_to_replay:.2f}", str(row.parts_completed), str(row.contacts),
+            f"{row.messages_per_arm_per_s:.0f}", f"{row.p99_ms}",
         )
     out.print(table)
     if args.json:
-        print(json.dumps([r.__dict__ | {"realtime_factor": r.realtime_factor, "ratio_to_physics": r.ratio_to_physics} for r in rows]))
+        print(json.dumps([r.__dict__ | {"realtime_factor": r.realtime_factor, "ratio_to_physics": r.ratio_to_physics,
+                                        "ratio_to_replay": r.ratio_to_replay} for r in rows]))
     return 0
 
 
@@ -337,7 +342,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=cmd_bench_bus)
     b = bench.add_parser("run", help="whole lockstep lines (all processes) against raw physics of the same scene")
     b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
-    b.add_argument("--seconds", type=float, default=20.0, help="sim seconds per run")
+    b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per run")
+    b.add_argument("--repeats", type=int, default=3, help="runs per arm count (medians)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_run)
     b = bench.add_parser("monitor", help="lockstep runs without and with the browser monitor: what watching costs")

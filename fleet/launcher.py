@@ -51,6 +51,7 @@ class RunOptions:
     monitor: bool = False
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080
+    record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
 
 
 @dataclass
@@ -144,6 +145,8 @@ class Launcher:
         sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--seed", str(self.seed), "--coordinator"]
         if not o.listen:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
+        if o.record_targets:
+            sim_args += ["--record-targets", o.record_targets]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
 
     def client_nodes(self) -> list[Node]:

@@ -175,6 +175,7 @@ class SimServer:
         self.assign_seqs = {name: 0 for name in world.arms}
         self._published_at: dict[tuple[str, int], float] = {}
         self._last_frame: bytes | None = None
+        self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
         self._coord_pending: int | None = None  # the tick of the last frame whose CoordTick is still owed
         self._started = not controllers  # every controller answered once (realtime waits until then)
 
@@ -422,6 +423,8 @@ class SimServer:
         self.publish_states(due, parts)
         t3 = time.perf_counter()
         self.tracked.apply()
+        if self.target_log is not None:
+            self.target_log.append([(a._position_targets, a._velocity_targets, a._gripper_targets) for a in self.world.arms.values()])
         self.world.step()
         results = self.tracked.update()
         for name, rs in results.items():
@@ -529,6 +532,14 @@ class SimServer:
         }
 
 
+def save_target_log(path: str, log: list) -> None:
+    """Drive targets per tick and arm (positions, velocities, gripper), as one array each in an .npz file."""
+    arrays = {}
+    for i, part in enumerate(("position", "velocity", "gripper")):
+        arrays[part] = np.asarray([[arm[i] for arm in tick] for tick in log], dtype=float)
+    np.savez(path, **arrays)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-sim-server", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
@@ -538,6 +549,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
+    parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
     parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")
@@ -561,9 +573,13 @@ def main(argv: list[str] | None = None) -> int:
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator, controllers=not args.no_controllers,
             lockstep_timeout_s=args.lockstep_timeout, stop=stop, speed=args.speed,
         )
+        if args.record_targets:
+            server.target_log = []
         try:
             server.run_ticks(ticks)
         finally:
+            if args.record_targets:
+                save_target_log(args.record_targets, server.target_log)
             lost = "the coordinator did not answer within the lockstep timeout" if server.stats.coordinator_lost and args.mode == "lockstep" else ""
             report = server.report() | {"stopped_by": stop.reason or lost or "duration"}
             server.close()

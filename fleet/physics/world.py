@@ -132,6 +132,8 @@ class World:
         entity.set_pose(self._belt_home)
         self._belt_entity = entity
         self._belt_step = np.array(c.direction) * c.speed_m_per_s * self.scene.get_timestep()
+        home = self._belt_home.p
+        self._belt_targets = [sapien.Pose(home + self._belt_step * k, self._belt_home.q) for k in range(1, self.substeps + 1)]
         return entity.find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
 
     def _build_station(self, s: Station) -> None:
@@ -149,9 +151,8 @@ class World:
             self._release_due_parts()
             if self.belt is not None and self._belt_step.any():  # a stopped belt is a plain kinematic box
                 self._belt_entity.set_pose(self._belt_home)
-                home = self._belt_home.p
-                for k in range(1, self.substeps + 1):
-                    self.belt.set_kinematic_target(sapien.Pose(home + self._belt_step * k, self._belt_home.q))
+                for target in self._belt_targets:
+                    self.belt.set_kinematic_target(target)
                     self.scene.step()
             else:
                 for _ in range(self.substeps):
