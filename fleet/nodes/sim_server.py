@@ -367,7 +367,7 @@ class SimServer:
         )
 
     def _due(self) -> list[ArmLink]:
-        return [l for l in self.links.values() if l.next_tick <= self.world.tick] if self.controllers else []
+        return [l for l in self.links.values() if l.next_tick <= self.world.tick]
 
     def publish_states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
         """States to the controllers due now (and the parts with them), the coordinator's frame, the monitors' view."""
@@ -384,8 +384,9 @@ class SimServer:
         for link in due:
             msg = states[link.name]
             self._put(self._state_pubs[link.name], "state", encode(msg))
-            link.awaiting, link.answer = msg, None
-            self._published_at[(link.name, tick)] = now
+            if self.controllers:  # someone must answer it (without controllers the states are feedback only)
+                link.awaiting, link.answer = msg, None
+                self._published_at[(link.name, tick)] = now
         parts = w.active_parts() if parts is None else parts
         parts_msg = parts_state(w, parts, sum(self.events_published.values()))
         if due:

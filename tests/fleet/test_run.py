@@ -138,7 +138,7 @@ def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp
             deadline = time.monotonic() + 60
             while time.monotonic() < deadline and sent < 200:
                 for arm in ("arm_0", "arm_1"):
-                    session.put(keys.arm_cmd(arm), os.urandom(int.from_bytes(os.urandom(1), "little") % 64))
+                    session.put(keys.arm_step(arm), os.urandom(int.from_bytes(os.urandom(1), "little") % 64))
                     sent += 1
                 time.sleep(0.02)
             time.sleep(3.0)  # the line keeps running after the garbage

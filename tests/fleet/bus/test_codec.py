@@ -5,15 +5,23 @@ import pytest
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
-    ArmCommandMsg, ArmState, ArmStatus, Assignment, CoordTick, EStop, LineEvent, MESSAGE_TYPES, PartsState, Progress,
-    EnvAction, EnvTargets, LineView, MotionGrant, RespawnRequest, Separations, SimControl, SimStatus,
+    ArmState, ArmStatus, Assignment, ControllerStep, CoordTick, EStop, GoalResultMsg, GripperGoalMsg, LineEvent, MESSAGE_TYPES,
+    PartsState, Progress, EnvAction, EnvTargets, LineView, MotionGrant, RespawnRequest, Separations, SimControl, SimStatus,
+    TrajectoryGoalMsg,
 )
 
 EXAMPLES = [
     ArmState("arm_0", 12, 0.12, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), True),
     ArmState("arm_1", 13, 0.13, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), False, True, 4, "lift", 0.5, 3),
-    ArmCommandMsg("arm_1", 12, (0.2,) * 6, (0.01,) * 6, 0.5),
-    ArmCommandMsg("arm_1", 12, (0.2,) * 6, (0.01,) * 6, 0.5, 4, "descend", 0.25),
+    ArmState("arm_1", 15, 0.15, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), goal_id=7,
+             desired_q=(0.11,) * 6, desired_dq=(0.01,) * 6, result_goal_id=6, result_status="preempted", next_tick=20, period_ticks=5),
+    ControllerStep("arm_1", 12, 17),
+    ControllerStep("arm_1", 12, 17, (41, 42), 4, "descend", 0.25),
+    TrajectoryGoalMsg("arm_0", 41, ("a", "b"), (0.5, 1.0), (0.1, 0.2, 0.3, 0.4)),
+    TrajectoryGoalMsg("arm_0", 41, ("a", "b"), (0.5,), (0.1, 0.2), (0.0, 0.0), (0.0, 0.0), 3.25, (0.3,), (0.01, 0.02), 0.2),
+    GripperGoalMsg("arm_0", 42, 0.0, 20.0, 3.75),
+    GoalResultMsg("arm_0", 41, "trajectory", "aborted", -4, "shoulder_lift 0.3 rad off its path", 4.5),
+    GoalResultMsg("arm_0", 42, "gripper", "succeeded", 0, "", 4.9, False, True),
     ArmStatus("arm_2", 7, 3.5, "descend", 4, 0.25),
     ArmStatus("arm_2", 8, 3.6, "failed", 4, 0.25, 2.5, "the claw closed on nothing"),
     PartsState(3, 0.03, (1, 2), ("bases", "tops"), (0, 0), (0.0,) * 6, (1.0, 0, 0, 0) * 2, (0.05, 0, 0) * 2, (0.05, 0.05, 0.03) * 2),
@@ -31,6 +39,7 @@ EXAMPLES = [
     Separations(3.0, ("arm_0",), ("arm_1",), (0.1,), (0.0, 0.0, 0.2, 0.1, 0.0, 0.2), 0.02),
     RespawnRequest("arm_1", "monitor"),
     MotionGrant("arm_0", 3, 2, "grant"),
+    MotionGrant("arm_0", 5, 4, "grant", "", 0.3, 12.05),
     EnvAction("arm_0", 5, "act", (0.1, -1.0, 0.0, 1.0)),
     EnvTargets("arm_0", 5, (0.2,) * 6, 1.0),
     MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
@@ -63,7 +72,7 @@ def test_arm_state_is_compact():
 @pytest.mark.parametrize("payload", [b"", b"\x00\x01garbage", b"\xff" * 40, encode(EXAMPLES[0])[:-5], encode(EStop(True, "x"))])
 def test_malformed_payloads_are_dropped_and_counted(payload):
     drops = DropCounter()
-    assert Decoder(ArmCommandMsg, drops).decode("clawfleet/r/arm/arm_0/cmd", payload) is None
+    assert Decoder(ControllerStep, drops).decode("clawfleet/r/arm/arm_0/step", payload) is None
     assert drops.total == 1
 
 
@@ -71,7 +80,7 @@ def test_invalid_utf8_in_a_string_field_is_dropped():
     """msgspec raises UnicodeDecodeError (not a DecodeError) for this one; a bus must not crash on it."""
     payload = b"\x95\xa5arm_\xc3\x28\x01\x90\x90\xcb" + b"\x00" * 8
     drops = DropCounter()
-    assert Decoder(ArmCommandMsg, drops).decode("k", payload) is None
+    assert Decoder(ControllerStep, drops).decode("k", payload) is None
     assert drops.total == 1
 
 
@@ -89,7 +98,7 @@ def test_random_bytes_never_raise():
 def test_wrong_version_is_dropped():
     drops = DropCounter()
     old = msgspec.structs.replace(EXAMPLES[1], version=99)
-    decoder = Decoder(ArmCommandMsg, drops)
+    decoder = Decoder(ArmState, drops)
     assert decoder.decode("k", encode(old)) is None
     assert decoder.decode("k", encode(old)) is None
     assert drops.total == 2 and len(drops.counts) == 1
@@ -104,3 +113,14 @@ def test_orders_on_one_key_decode_to_their_own_type():
     assert decoder.decode("k", encode(grant)) == grant
     assert decoder.decode("k", encode(assignment)) == assignment
     assert decoder.decode("k", encode(Progress(4.0, 3, 1, 0, 2))) is None and decoder.drops.total == 1
+
+
+def test_trajectory_and_gripper_goals_on_one_key_decode_to_their_own_type():
+    from fleet.bus.messages import ArmGoalMsg
+
+    decoder = Decoder(ArmGoalMsg, DropCounter())
+    trajectory = TrajectoryGoalMsg("arm_0", 41, ("a",), (0.5,), (0.1,))
+    gripper = GripperGoalMsg("arm_0", 42, 1.0)
+    assert decoder.decode("k", encode(trajectory)) == trajectory
+    assert decoder.decode("k", encode(gripper)) == gripper
+    assert decoder.decode("k", encode(EStop(True, "x"))) is None and decoder.drops.total == 1

@@ -10,7 +10,7 @@ import pytest
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmCommandMsg
+from fleet.bus.messages import ControllerStep
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, make_config, open_session
 
 PUBLISHER = textwrap.dedent(
@@ -18,13 +18,13 @@ PUBLISHER = textwrap.dedent(
     import sys, time
     from fleet.bus.codec import encode
     from fleet.bus.keys import Keys
-    from fleet.bus.messages import ArmCommandMsg
+    from fleet.bus.messages import ControllerStep
     from fleet.bus.session import BusEndpoints, open_session
-    key = Keys("test").arm_cmd("arm_0")
+    key = Keys("test").arm_step("arm_0")
     with open_session(BusEndpoints(connect=(sys.argv[1],))) as session:
         time.sleep(1.0)
         for i in range(20):
-            session.put(key, encode(ArmCommandMsg("arm_0", i, (0.0,) * 6, (0.0,) * 6, 1.0)))
+            session.put(key, encode(ControllerStep("arm_0", i, i + 5)))
             session.put(key, b"garbage")
         time.sleep(0.5)
     """
@@ -48,10 +48,10 @@ def test_messages_cross_processes_and_garbage_is_counted():
     endpoint = loopback_endpoint(port)
     keys, inbox = Keys("test"), Inbox()
     drops = DropCounter()
-    decoder = Decoder(ArmCommandMsg, drops)
+    decoder = Decoder(ControllerStep, drops)
     received = []
     with open_session(BusEndpoints(listen=(endpoint,))) as session:
-        sub = session.declare_subscriber(keys.all_arms("cmd"), inbox)
+        sub = session.declare_subscriber(keys.all_arms("step"), inbox)
         proc = subprocess.Popen([sys.executable, "-c", PUBLISHER, endpoint])
         try:
             deadline = time.monotonic() + 20

@@ -53,7 +53,7 @@ def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
                 (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M), tuple(world.belt_velocity()),
             )))
             for _ in range(25):
-                session.put(keys.arm_cmd("arm_0"), os.urandom(24))
+                session.put(keys.arm_step("arm_0"), os.urandom(24))
                 server.run_ticks(50)
             server.run_ticks(250)
             decoder = Decoder(LineEvent, DropCounter())
