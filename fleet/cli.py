@@ -57,11 +57,18 @@ def cmd_robots(args: argparse.Namespace) -> int:
 
 
 def cmd_trials(args: argparse.Namespace) -> int:
-    from fleet.trials import run_trials
+    from pydantic import ValidationError
+
+    from fleet.trials import run_trials, trial_scene
 
     get_robot(args.robot)
     if args.trials < 1:
         raise SystemExit("fleet: error: --trials must be at least 1")
+    try:
+        trial_scene(args.robot, args.seed, args.physics_hz, args.solver_iterations)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        raise SystemExit(f"fleet: error: {'.'.join(map(str, first['loc'])) or 'scene'}: {first['msg']}") from None
     failures: list[str] = []
     with Progress(
         TextColumn(f"{args.robot} trials"), BarColumn(), MofNCompleteColumn(),
@@ -77,9 +84,10 @@ def cmd_trials(args: argparse.Namespace) -> int:
                 failures.append(f"seed {result.seed}: {result.phase}: {result.reason}")
             progress.update(bar, advance=1, ok=ok)
 
-        results = run_trials(args.robot, args.trials, args.seed, on_result)
+        results = run_trials(args.robot, args.trials, args.seed, on_result, args.physics_hz, args.solver_iterations)
     successes = sum(r.success for r in results)
-    summary = {"robot": args.robot, "trials": len(results), "successes": successes, "success_rate": successes / len(results)}
+    summary = {"robot": args.robot, "trials": len(results), "successes": successes, "success_rate": successes / len(results),
+               "physics_hz": args.physics_hz, "solver_iterations": args.solver_iterations}
     for line in failures:
         err.print(f"  failed: {line}")
     out.print(f"{args.robot}: {successes}/{len(results)} picks placed, success rate {summary['success_rate']:.2f}")
@@ -325,6 +333,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--robot", default="openclaw")
     p.add_argument("--trials", type=int, default=50)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--physics-hz", type=float, default=None, help="physics rate to try (a whole multiple of the 100 Hz servo rate)")
+    p.add_argument("--solver-iterations", type=int, default=None, help="PhysX position iterations to try (the scene's: 20)")
     p.add_argument("--json", action="store_true", help="last stdout line: one JSON object")
     p.set_defaults(func=cmd_trials)
 

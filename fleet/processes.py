@@ -109,6 +109,10 @@ class ChildProcess:
             except ProcessLookupError:
                 pass
 
+    def wait(self, timeout: float | None = None) -> int:
+        """Reap the child (its exit code)."""
+        return self.proc.wait(timeout=timeout)
+
     def kill(self) -> None:
         """SIGKILL the group and reap the child."""
         if self.proc is not None:

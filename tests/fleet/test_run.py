@@ -19,7 +19,7 @@ from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_
 from fleet.launcher import Launcher, RunOptions
 
 QUICK_LINE = str(Path(__file__).parent / "scenes_data" / "quick_line.yaml")
-WALL_FIGURES = ("wall_seconds", "loop_wall_seconds", "latency_p50_ms", "latency_p99_ms", "processes")
+WALL_FIGURES = ("wall_seconds", "loop_wall_seconds", "wall_s_by_stage", "latency_p50_ms", "latency_p99_ms", "processes")
 
 
 def assert_nothing_left(summary: dict, endpoint: str) -> None:

@@ -1,8 +1,9 @@
 """The sim server and a real arm controller process over Zenoh on loopback, in lockstep.
 
-The controller picks a part off the conveyor into the bin through the bus alone;
-garbage on the command key is counted, not fatal; a killed controller is marked
-lost and its arm held while the run goes on.
+The controller picks a part off the conveyor into the bin through the bus alone
+(trajectory goals to the sim's tracker); garbage on its answer key is counted, not
+fatal; a killed controller is marked lost and its arm held while the run goes on,
+also when it dies in the middle of a move.
 """
 
 import os
@@ -11,6 +12,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from fleet.bus.codec import Decoder, DropCounter, encode
@@ -76,4 +78,47 @@ def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
                 proc.kill()
             proc.wait(timeout=5)
             events_sub.undeclare()
+            server.close()
+
+
+def test_a_controller_killed_mid_trajectory_leaves_its_arm_held_within_a_period_not_at_the_trajectorys_end():
+    endpoint = loopback_endpoint(free_loopback_port())
+    world = World(trial_scene("openclaw", 0))
+    keys = Keys("t")
+    with open_session(BusEndpoints(listen=(endpoint,))) as session:
+        server = SimServer(world, session, keys, mode="lockstep", lockstep_timeout_s=1.0)
+        proc = start_controller(endpoint)
+        try:
+            part_id = world.spawn_now("trial_parts")
+            server.run_ticks(30)
+            station = world.scene_model.station("bin_0")
+            session.put(keys.arm_assign("arm_0"), encode(Assignment(
+                "arm_0", 1, 1, part_id, world.scene_model.conveyor.pose.xyz[2],
+                (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M), tuple(world.belt_velocity()),
+            )))
+            tracker = server.tracked.trackers["arm_0"]
+            for _ in range(800):  # until the arm is in the middle of a long move
+                server.run_ticks(1)
+                a = tracker.active
+                if a is not None and a.spline.t_end_s - world.sim_time_s > 0.5 and np.abs(world.arms["arm_0"].qvel()[:6]).max() > 0.3:
+                    break
+            else:
+                raise AssertionError("the arm never made a long move")
+            end_q = a.spline.q_end.copy()
+            os.kill(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=5)
+            killed_at = world.sim_time_s
+            server.run_ticks(40)
+            assert server.stats.lost == ["arm_0"]
+            last = server.tracked.trackers["arm_0"].last
+            assert last.status.value == "aborted" and "lost" in last.reason
+            assert last.time_s - killed_at <= 2 * 0.05 + 1e-9, "held at the controller's next due tick"
+            q = world.arms["arm_0"].qpos()[:6]
+            server.run_ticks(50)
+            assert np.abs(world.arms["arm_0"].qpos()[:6] - q).max() < 0.02, "and it stays held"
+            assert np.abs(q - end_q).max() > 0.1, "short of where the trajectory was going"
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait(timeout=5)
             server.close()
