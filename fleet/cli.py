@@ -65,7 +65,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
     if args.trials < 1:
         raise SystemExit("fleet: error: --trials must be at least 1")
     try:
-        trial_scene(args.robot, args.seed, args.physics_hz, args.solver_iterations)
+        scene = trial_scene(args.robot, args.seed, args.physics_hz, args.solver_iterations)
     except ValidationError as exc:
         first = exc.errors()[0]
         raise SystemExit(f"fleet: error: {'.'.join(map(str, first['loc'])) or 'scene'}: {first['msg']}") from None
@@ -87,7 +87,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         results = run_trials(args.robot, args.trials, args.seed, on_result, args.physics_hz, args.solver_iterations)
     successes = sum(r.success for r in results)
     summary = {"robot": args.robot, "trials": len(results), "successes": successes, "success_rate": successes / len(results),
-               "physics_hz": args.physics_hz, "solver_iterations": args.solver_iterations}
+               "physics_hz": scene.physics_hz, "solver_iterations": scene.solver_position_iterations}
     for line in failures:
         err.print(f"  failed: {line}")
     out.print(f"{args.robot}: {successes}/{len(results)} picks placed, success rate {summary['success_rate']:.2f}")

@@ -48,9 +48,16 @@ def test_trials_json_last_line():
     result = fleet("trials", "--robot", "openclaw", "--trials", "2", "--seed", "7", "--json")
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout.strip().splitlines()[-1])
-    assert set(summary) == {"robot", "trials", "successes", "success_rate"}
+    assert set(summary) == {"robot", "trials", "successes", "success_rate", "physics_hz", "solver_iterations"}
     assert summary["trials"] == 2 and summary["robot"] == "openclaw"
     assert summary["successes"] == 2
+    assert (summary["physics_hz"], summary["solver_iterations"]) == (200.0, 20), "the trial cell's own physics"
+
+
+def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line():
+    result = fleet("trials", "--trials", "1", "--physics-hz", "250")
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert result.stderr.strip() == "fleet: error: scene: Value error, physics_hz must be a whole multiple of control_hz"
 
 
 @pytest.mark.parametrize("args, says", [

@@ -188,7 +188,7 @@ def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_
             session.put(keys.respawn, encode(RespawnRequest("arm_0", "test")))
 
     keys = Keys("line")
-    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=10.0, seed=5), drive, on_message=messages.append) as launcher:
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5), drive, on_message=messages.append) as launcher:
         launcher_ref.append(launcher)
         with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
             summary = launcher.run()
