@@ -19,10 +19,15 @@ class PhysicsBenchRow:
     parts_active: int
     physics_steps: int
     wall_seconds: float
+    physics_hz: float = 200.0
 
     @property
     def steps_per_s(self) -> float:
         return self.physics_steps / self.wall_seconds
+
+    @property
+    def sim_s_per_wall_s(self) -> float:
+        return self.steps_per_s / self.physics_hz
 
 
 def populated_sorting_world(arms: int, warmup_s: float = 2.0) -> World:
@@ -42,4 +47,4 @@ def bench_physics(arms: int, sim_seconds: float = 4.0) -> PhysicsBenchRow:
     start = time.perf_counter()
     world.step(ticks)
     wall = time.perf_counter() - start
-    return PhysicsBenchRow(arms, len(world.active_parts()), ticks * world.substeps, wall)
+    return PhysicsBenchRow(arms, len(world.active_parts()), ticks * world.substeps, wall, world.scene_model.physics_hz)

@@ -191,7 +191,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     for n in args.arms:
         row = bench_physics(n, args.seconds)
         rows.append(row)
-        table.add_row(str(n), str(row.parts_active), f"{row.steps_per_s:,.0f}", f"{row.steps_per_s / 500:.1f}")
+        table.add_row(str(n), str(row.parts_active), f"{row.steps_per_s:,.0f}", f"{row.sim_s_per_wall_s:.1f}")
     out.print(table)
     if args.json:
         print(json.dumps([{"arms": r.arms, "steps_per_s": round(r.steps_per_s, 1)} for r in rows]))
