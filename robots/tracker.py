@@ -214,6 +214,11 @@ class ArmTracker:
         self.watchdog_deadline_s = math.inf
 
     @property
+    def idle(self) -> bool:
+        """No goal running or waiting to start: the arm holds and nothing needs checking but the watchdog."""
+        return self.active is None and self.next is None and self.gripper is None and self.next_gripper is None
+
+    @property
     def goal_id(self) -> int:
         """The trajectory goal driving the arm now or about to (0: none, the arm holds)."""
         a = self.next or self.active

@@ -31,6 +31,7 @@ class TrackedArms:
             )
         self._effort = {name: t.effort_n for name, t in self.trackers.items()}
         self._opening: dict[str, float] = {}
+        self._held: dict[str, np.ndarray | None] = {}  # the hold point last written, per arm holding still
         self._gripper_q: dict[str, tuple[float, ...]] = {}
 
     def submit(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
@@ -42,6 +43,10 @@ class TrackedArms:
         now = self.world.sim_time_s
         for name, tracker in self.trackers.items():
             arm = self.world.arms[name]
+            holding = tracker.idle
+            if holding and self._held.get(name) is tracker.hold_q:
+                continue  # holding where it held last tick: the drives already have these targets
+            self._held[name] = tracker.hold_q if holding else None
             q, dq = tracker.desired(now)
             if tracker.effort_n != self._effort[name]:
                 arm.set_gripper_effort(tracker.effort_n)
@@ -55,6 +60,8 @@ class TrackedArms:
         """After the tick's physics: each arm's finished goals (tolerances, ends, watchdog)."""
         now, out = self.world.sim_time_s, {}
         for name, tracker in self.trackers.items():
+            if tracker.idle and now <= tracker.watchdog_deadline_s:
+                continue  # nothing to check: no joints to read
             arm = self.world.arms[name]
             q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
             results = tracker.update(now, q[:n], q[n:], dq[n:])
