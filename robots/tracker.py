@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robots.joint_trajectory import (
-    ArmGoal, CheckedGoal, GoalResult, GoalStatus, GripperGoal, ResultCode, Spline, TrajectoryGoal, check_goal,
+    ArmGoal, CheckedGoal, GoalResult, GoalStatus, GripperGoal, ResultCode, Spline, check_goal,
 )
 
 GRIPPER_REACHED = 0.03  # opening units: within this of the target the claw has reached it
