@@ -15,6 +15,7 @@ from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task,
 from scenes.schema import Scene
 
 HELD = "held"
+EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
 MAX_ATTEMPTS = 3
 HOLDING_PHASES = ("lift", "transfer", "lower", "release")
@@ -32,6 +33,7 @@ class Ledger:
         self._next_task_id = 1
         self._open_by_part: dict[int, int] = {}
         self._finished_at: dict[int, float] = {}  # task id -> when its arm said the skill was done
+        self._station_names = {s.name for s in scene.stations}
 
     # --- line events ------------------------------------------------------------------
     def arrived(self, part_id: int, feeder: str, type_index: int, now_s: float) -> None:
@@ -75,6 +77,28 @@ class Ledger:
                 stack.clear()  # the assembly moved on (or fell) as one
             else:
                 stack.remove(part.part_id)
+
+    def event_problem(self, kind: str, part_id: int, detail: str, type_index: int) -> str:
+        """Why a well-formed event cannot be true of this line ("" if it can): unknown kind, feeder, type, station
+        or part, or a part arriving twice. The node drops such events and counts them."""
+        if kind not in EVENT_KINDS:
+            return f"unknown event kind {kind!r}"
+        if part_id < 0:
+            return "a negative part id"
+        if kind == "arrived":
+            feeder = next((f for f in self.scene.feeders if f.name == detail), None)
+            if feeder is None:
+                return f"part {part_id} arrived from no feeder of this line ({detail!r})"
+            if not 0 <= type_index < len(feeder.parts):
+                return f"feeder {detail} has no part type {type_index}"
+            if part_id in self.parts:
+                return f"part {part_id} arrived twice"
+            return ""
+        if part_id not in self.parts:
+            return f"{kind} of part {part_id}, which never arrived"
+        if kind in ("at_station", "retired") and detail not in self._station_names:
+            return f"{kind} at no station of this line ({detail!r})"
+        return ""
 
     def on_event(self, kind: str, part_id: int, detail: str, type_index: int, now_s: float) -> None:
         """One line event as the sim reports it (`arrived`: detail is the feeder; `at_station`: the station;

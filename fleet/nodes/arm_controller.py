@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from collections import deque
 import sys
 import threading
 import time
@@ -27,6 +28,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
+from fleet.bus.plausible import TickClock, arm_state_problem, not_finite, parts_problem, seq_problem
 from fleet.bus.messages import ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, MotionGrant, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.processes import add_scene_arguments, node_arguments, write_report
@@ -76,6 +78,7 @@ class ArmController:
         }
         self.wake = threading.Event()
         self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign")}
+        self.sim_clock = TickClock(scene.control_hz)  # states and parts are the sim's: none may run far ahead of it
         self._subs = [
             session.declare_subscriber(keys.arm_state(arm), self._inboxes["state"]),
             session.declare_subscriber(keys.parts, self._inboxes["parts"]),
@@ -92,7 +95,7 @@ class ArmController:
         self.task_id: int | None = None
         self.seq = 0
         self.assign_seq: int | None = None  # newest assignment received; None until the first state
-        self.answered_tick = -1
+        self.answered: deque[int] = deque(maxlen=64)  # ticks answered lately (a future tick must not silence true ones)
         self.decisions = 0
         self.goals_sent = 0
         self.busy_s = 0.0
@@ -105,18 +108,54 @@ class ArmController:
             pub.undeclare()
 
     def _latest(self, name: str):
+        """The newest believable message queued on `name` (states, parts); the rest are dropped and counted."""
         latest = None
         for key, payload in self._inboxes[name].drain():
             msg = self._decoders[name].decode(key, payload)
-            if msg is not None:
-                latest = msg
+            if msg is None:
+                continue
+            problem = self._problem(msg)
+            if problem:
+                self.drops.drop(key, problem)
+                continue
+            self.sim_clock.believe(msg.tick)
+            latest = msg
         return latest
+
+    def _problem(self, msg) -> str:
+        """Why a decoded state or parts message cannot be the sim's ("" if it can)."""
+        problem = self.sim_clock.problem(msg.tick)
+        if problem:
+            return problem
+        if isinstance(msg, PartsState):
+            return parts_problem(msg)
+        announced = seq_problem(msg.assign_seq, self.assign_seq) if msg.assign_seq != -1 else ""  # -1: orders act on arrival
+        return arm_state_problem(msg, self.arm, self.spec.arm_dof) or announced
+
+    def _order_problem(self, msg) -> str:
+        """Why an order cannot be the coordinator's ("" if it can)."""
+        if msg.arm != self.arm:
+            return f"an order for {msg.arm!r} on {self.arm}'s key"
+        problem = seq_problem(msg.seq, self.assign_seq)
+        if problem:
+            return problem
+        if isinstance(msg, Assignment):
+            values = (msg.surface_z_m, *msg.place_xyz, *msg.surface_velocity)
+            if len(msg.place_xyz) != 3 or len(msg.surface_velocity) != 3 or not_finite(values) or max(map(abs, values)) > 100.0:
+                return "an assignment with a place or velocity that is not a finite point"
+        elif msg.decision not in ("grant", "deny") or not_finite((msg.start_time_s, msg.min_separation_m)):
+            return "a motion grant that is neither grant nor deny, or with non-finite times"
+        return ""
 
     def _take_assignments(self) -> None:
         """Queue what arrived; `_apply_assignments` acts on it when a state says its time has come."""
         for key, payload in self._inboxes["assign"].drain():
             msg = self._decoders["assign"].decode(key, payload)
-            if msg is None or msg.arm != self.arm:
+            if msg is None:
+                continue
+            problem = self._order_problem(msg)
+            if problem:
+                self.drops.drop(key, problem)
                 continue
             if self.assign_seq is not None and msg.seq <= self.assign_seq:
                 continue
@@ -161,7 +200,7 @@ class ArmController:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
         state = self._latest("state")
         self._take_assignments()
-        if state is None or state.tick <= self.answered_tick:
+        if state is None or state.tick in self.answered:
             return False  # nothing new (the sim re-sends a state it is still waiting for: answered already)
         if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
             self.assign_seq = max(0, state.assign_seq)
@@ -203,7 +242,7 @@ class ArmController:
             self.skill.failure_reason if phase == "failed" else "",
             request.seq if request else 0, request.q_to if request else (), request.duration_s if request else 0.0,
         )))
-        self.answered_tick = state.tick
+        self.answered.append(state.tick)
         self.decisions += 1
         if self.decisions % HEARTBEAT_DECISIONS == 0:
             self.send_heartbeat(state.sim_time_s)

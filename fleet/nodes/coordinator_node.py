@@ -30,6 +30,7 @@ from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, Task, TaskState
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
+from fleet.bus.plausible import TickClock, arm_state_problem, parts_problem
 from fleet.bus.messages import (
     ArmState, ArmStatus, Assignment, CoordTick, LineEvent, LineView, MotionGrant, PartsState, Progress, separations_from_pairs,
 )
@@ -79,6 +80,8 @@ class CoordinatorNode:
         self._decoders = {
             "events": Decoder(LineEvent, self.drops), "frame": Decoder(LineView, self.drops), "status": Decoder(ArmStatus, self.drops),
         }
+        self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
+        self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
         self._inbox = Inbox()  # one queue for everything: messages are handled in arrival order
         self._subs = [session.declare_subscriber(k, self._inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))]
         self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
@@ -138,7 +141,10 @@ class CoordinatorNode:
             msg = self._decoders[leaf].decode(key, payload) if leaf in self._decoders else None
             if msg is None:
                 continue
-            if leaf == "events":
+            problem = self._problem(leaf, msg)
+            if problem:
+                self.drops.drop(key, problem)
+            elif leaf == "events":
                 self._on_event(msg)
             elif leaf == "frame":
                 self._on_frame(msg)
@@ -149,6 +155,23 @@ class CoordinatorNode:
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)
+
+    def _problem(self, leaf: str, msg) -> str:
+        """Why a decoded message cannot be true ("" if it can): it is then dropped and counted, never acted on."""
+        if leaf == "events":
+            return self.sim_clock.problem(msg.tick) or self.ledger.event_problem(msg.kind, msg.part_id, msg.detail, msg.type_index)
+        if leaf == "frame":
+            problem = self.sim_clock.problem(msg.tick) or parts_problem(msg.parts)
+            if not problem and sorted(s.arm for s in msg.arms) != sorted(self.arm_names):
+                problem = "a frame whose arms are not this line's"
+            for s in msg.arms if not problem else ():
+                problem = problem or arm_state_problem(s, s.arm, self._dof[s.arm]) or ("" if s.tick == msg.tick else "a frame mixing ticks")
+            if not problem:
+                self.sim_clock.believe(msg.tick)
+            return problem
+        if msg.arm not in self.skill:
+            return f"a heartbeat of no arm of this line ({msg.arm!r})"
+        return ""
 
     def _on_event(self, e: LineEvent) -> None:
         self.events_seen += 1

@@ -36,6 +36,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
+from fleet.bus.plausible import seq_problem
 from fleet.bus.messages import (
     ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus,
 )
@@ -222,6 +223,13 @@ class SimServer:
                 continue
             if len(msg.assign_seqs) != len(self.links):
                 self.drops.drop(key, f"coordinator tick with {len(msg.assign_seqs)} arms, the scene has {len(self.links)}")
+                continue
+            if msg.tick > self.world.tick:
+                self.drops.drop(key, f"coordinator tick {msg.tick} answers a frame not sent yet (now {self.world.tick})")
+                continue
+            problem = next((p for n, q in zip(self.links, msg.assign_seqs) if (p := seq_problem(q, self.assign_seqs[n]))), "")
+            if problem:
+                self.drops.drop(key, problem)
                 continue
             self._coord_tick = max(self._coord_tick, msg.tick)
             if self.mode != "lockstep":

@@ -1,0 +1,70 @@
+"""Well-formed lies: what a receiver checks before it believes a message that decoded fine.
+
+Decoding proves shape; these checks are about meaning: finite numbers, lengths that fit,
+and ticks or sequence numbers not far ahead of what the receiver has seen from the sender
+(a message from the future is refused, not adopted, so it cannot make every true message
+look stale). Each check returns the reason to refuse, or "" to accept; receivers drop
+refused messages and count them by reason, as they do malformed ones.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+MAX_AHEAD_S = 2.0  # a sender's tick may run this far (sim seconds) ahead of the newest one believed
+MAX_SEQ_JUMP = 1000  # an order count may jump this far ahead of the newest one believed
+
+
+def not_finite(values: Iterable[float]) -> bool:
+    return not all(math.isfinite(v) for v in values)
+
+
+class TickClock:
+    """The newest tick believed from one sender; the first message sets it, later ones may run at most
+    `max_ahead_ticks` past it."""
+
+    def __init__(self, control_hz: float, max_ahead_s: float = MAX_AHEAD_S) -> None:
+        self.max_ahead_ticks = max(1, round(control_hz * max_ahead_s))
+        self.newest: int | None = None
+
+    def problem(self, tick: int) -> str:
+        if tick < 0:
+            return "a negative tick"
+        if self.newest is not None and tick > self.newest + self.max_ahead_ticks:
+            return f"tick {tick} is far ahead of the sender's clock ({self.newest})"
+        return ""
+
+    def believe(self, tick: int) -> None:
+        self.newest = tick if self.newest is None else max(self.newest, tick)
+
+
+def seq_problem(seq: int, newest: int | None) -> str:
+    if seq < 0:
+        return "a negative sequence number"
+    if newest is not None and seq > newest + MAX_SEQ_JUMP:
+        return f"sequence number {seq} jumps far ahead of {newest}"
+    return ""
+
+
+def arm_state_problem(state, arm: str, n_joints: int) -> str:
+    """An `ArmState` that cannot be the sim's report of `arm`."""
+    if state.arm != arm:
+        return f"a state of {state.arm!r} on {arm}'s key"
+    if len(state.q) != n_joints or len(state.dq) != n_joints:
+        return f"a state with {len(state.q)} joints (the arm has {n_joints})"
+    if not_finite((state.sim_time_s, *state.q, *state.dq, *state.gripper_q, *state.tool_position)):
+        return "a state with NaN or infinite values"
+    return ""
+
+
+def parts_problem(parts) -> str:
+    """A `PartsState` whose arrays do not fit its part ids, or with non-finite values."""
+    k = len(parts.part_ids)
+    sizes = (len(parts.feeders), len(parts.type_indices), len(parts.positions) // 3, len(parts.quaternions_wxyz) // 4,
+             len(parts.velocities) // 3, len(parts.sizes_m) // 3)
+    if any(s != k for s in sizes) or len(parts.positions) != 3 * k:
+        return "parts whose arrays do not fit their ids"
+    if not_finite((parts.sim_time_s, *parts.positions, *parts.velocities, *parts.sizes_m)):
+        return "parts with NaN or infinite values"
+    return ""

@@ -1,0 +1,63 @@
+"""Well-formed lies on a running line's bus: each is refused, dropped and counted, and the lockstep run comes out
+exactly as a clean run of the same seed (an unknown feeder, messages from the far future, NaN fields, a fake
+assignment, a fake coordinator tick)."""
+
+import math
+
+from fleet.bus.codec import encode
+from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmState, Assignment, CoordTick, LineEvent, LineView, PartsState
+from fleet.bus.session import BusEndpoints, open_session
+from fleet.launcher import Launcher, RunOptions
+from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES, assert_nothing_left
+
+FAR = 10**18
+COUNTED = WALL_FIGURES + ("dropped_messages", "bus_messages_per_arm_per_s")
+
+
+def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:
+    nan = math.nan
+    state = lambda arm: ArmState(arm, FAR, 1e16, (nan,) * 6, (nan,) * 6, (0.0, 0.0), (0.0,) * 3, (1.0, 0.0, 0.0, 0.0), lost=True)  # noqa: E731
+    parts = PartsState(FAR, 1e16, (), (), (), (), (), (), ())
+    out = [
+        (keys.events, encode(LineEvent("arrived", 1_000_000_000, 0, "feeder_nope", -5))),
+        (keys.events, encode(LineEvent("at_station", 0, FAR, "bin_0"))),
+        (keys.events, encode(LineEvent("lost", 424242, 1, "gone"))),
+        (keys.frame, encode(LineView(FAR, 1e16, tuple(state(a) for a in arms), parts))),
+        (keys.coord("tick"), encode(CoordTick(FAR, tuple(2**62 for _ in arms)))),
+    ]
+    for arm in arms:
+        out.append((keys.arm_state(arm), encode(state(arm))))
+        out.append((keys.arm_assign(arm), encode(Assignment(arm, 2**63 - 1, 7, 0, 0.1, (nan, 0.0, 0.0), (0.0, 0.0, 0.0)))))
+        out.append((keys.arm_assign(arm), encode(Assignment(arm, 3, 7, 0, 0.1, (math.inf, 0.0, 0.0), (0.0, 0.0, 0.0)))))
+    return out
+
+
+def run(with_lies: bool) -> tuple[dict, int]:
+    keys = Keys("line")
+    told: list[int] = []
+    options = RunOptions(scene=QUICK_LINE, duration_s=18.0, seed=5)
+    with Launcher(options) as launcher:
+        arms = [a.name for a in launcher.scene.arms]
+        with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
+
+            def tell(progress) -> None:
+                if with_lies and progress.sim_time_s > 2.0 and len(told) < 5:  # five rounds, while parts are being worked
+                    for key, payload in lies(keys, arms):
+                        session.put(key, payload)
+                    told.append(len(lies(keys, arms)))
+
+            launcher.on_progress = tell
+            summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    return summary, sum(told)
+
+
+def test_well_formed_lies_are_dropped_and_counted_and_change_nothing():
+    clean, _ = run(with_lies=False)
+    lied, told = run(with_lies=True)
+    assert told >= 11, "at least one round of lies went out while parts were worked"
+    assert lied["status"] == "ok" and lied["parts_completed"] >= 2
+    assert lied["dropped_messages"] >= told, "each lie was dropped and counted"
+    strip = lambda s: {k: v for k, v in s.items() if k not in COUNTED}  # noqa: E731
+    assert strip(lied) == strip(clean), "the line ran exactly as without them"
