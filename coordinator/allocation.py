@@ -61,6 +61,7 @@ class ArmView:
     reach: CachedReach = field(compare=False, repr=False)
     q: tuple[float, ...] = ()
     free_in_s: float | None = None  # a busy arm: about when its task ends (None: unknown, so it is not planned for)
+    live: bool = True  # False for a lost arm: it owns no stretch of the belt, so its neighbours take over its parts
 
 
 @dataclass(frozen=True)
@@ -85,11 +86,11 @@ def horizontal_distance_m(a, b) -> float:
 
 
 class Eligibility:
-    """The rules every allocator shares: reach, and conveyor stretches owned by the nearest arm."""
+    """The rules every allocator shares: reach, and conveyor stretches owned by the nearest live arm."""
 
     def __init__(self, scene: Scene, arms: list[ArmView]) -> None:
         self.scene = scene
-        self.bases = {a.name: a.base_xyz for a in arms}
+        self.bases = {a.name: a.base_xyz for a in arms if a.live}
 
     @staticmethod
     def in_reach(arm: ArmView, point) -> bool:

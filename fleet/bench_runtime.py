@@ -28,7 +28,7 @@ from fleet.processes import ChildProcess, stop_children
 from scenes.loader import load_scene
 
 SCENE = "sorting_line"
-STATUS_PER_ARM_PER_S = 5.0  # controller heartbeats (`ArmStatus`, every 4th decision at 20 Hz): not seen by the sim's counts
+STATUS_PER_ARM_PER_S = 5.0  # controller heartbeats (`ArmStatus`, 5 a wall second; per sim second fewer in a fast lockstep run): not seen by the sim
 
 
 @dataclass(frozen=True)

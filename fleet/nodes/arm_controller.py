@@ -38,7 +38,7 @@ from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTa
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
-HEARTBEAT_DECISIONS = 4  # a heartbeat every this many decisions (5 Hz at the default rate)
+HEARTBEAT_S = 0.2  # wall seconds between heartbeats, on their own timer whatever the state traffic
 ASSIGNMENT_WAIT_S = 0.5
 
 
@@ -95,6 +95,7 @@ class ArmController:
         self.task_id: int | None = None
         self.seq = 0
         self.assign_seq: int | None = None  # newest assignment received; None until the first state
+        self.sim_time_s = -1.0  # of the newest state answered (-1: none yet)
         self.answered: deque[int] = deque(maxlen=64)  # ticks answered lately (a future tick must not silence true ones)
         self.decisions = 0
         self.goals_sent = 0
@@ -244,8 +245,7 @@ class ArmController:
         )))
         self.answered.append(state.tick)
         self.decisions += 1
-        if self.decisions % HEARTBEAT_DECISIONS == 0:
-            self.send_heartbeat(state.sim_time_s)
+        self.sim_time_s = state.sim_time_s
         return True
 
     def send_heartbeat(self, sim_time_s: float) -> None:
@@ -274,16 +274,14 @@ def main(argv: list[str] | None = None) -> int:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
         controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants, rate_hz=args.rate_hz)
-        last_beat = time.monotonic()
+        last_beat = -HEARTBEAT_S
         try:
             while not stop.should_stop():
-                if controller.poll():
+                if time.monotonic() - last_beat >= HEARTBEAT_S:  # liveness on its own clock, busy or idle
+                    controller.send_heartbeat(controller.sim_time_s)
                     last_beat = time.monotonic()
-                else:
-                    if time.monotonic() - last_beat > 0.2:  # held by the sim or waiting: still alive
-                        controller.send_heartbeat(-1.0)
-                        last_beat = time.monotonic()
-                    controller.wake.wait(0.05)
+                if not controller.poll():
+                    controller.wake.wait(min(0.05, max(0.0, last_beat + HEARTBEAT_S - time.monotonic())))
                     controller.wake.clear()
         finally:
             controller.close()

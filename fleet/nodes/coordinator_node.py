@@ -258,7 +258,7 @@ class CoordinatorNode:
         return [
             ArmView(
                 a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a],
-                tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None,
+                tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None, a not in self.lost,
             )
             for a in self.arm_names
         ]

@@ -198,3 +198,23 @@ def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_
     assert summary["respawns"] == 1
     assert any("refused" in m for m in messages) and any("respawned arm_0" in m for m in messages)
     assert [p["exit_code"] for p in summary["processes"] if p["name"] == "arm_0"] == [-9, 0]
+
+
+def test_a_controller_killed_for_good_makes_exactly_its_arm_lost_and_the_line_goes_on():
+    killed = []
+
+    def kill_arm_1(progress):
+        if not killed and progress.sim_time_s > 4.0:
+            node = next(n for n in launcher_ref[0].nodes if n.name == "arm_1")
+            killed.append(progress.sim_time_s)
+            os.kill(node.proc.pid, signal.SIGKILL)
+
+    launcher_ref = []
+    with Launcher(RunOptions(scene="sorting_line", arms=4, duration_s=40.0, seed=3), kill_arm_1) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert killed and summary["status"] == "ok"
+    assert summary["arms_lost"] == ["arm_1"], "the sim stopped hearing exactly the dead controller"
+    assert [e["arm"] for e in summary["arm_events"] if e["event"] == "lost"] == ["arm_1"], "healthy arms kept beating"
+    assert summary["parts_completed"] >= 3, "the other arms went on completing parts"
