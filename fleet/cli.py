@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -21,7 +23,11 @@ from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
 from scenes.loader import RobotFacts, SceneError, bundled_scene_names, load_scene
 
-USER_ERRORS = (SceneError, UnknownRobotError, MissingModelsError)
+class UsageError(ValueError):
+    """A flag that cannot work: one line, exit 2, before anything starts."""
+
+
+USER_ERRORS = (SceneError, UnknownRobotError, MissingModelsError, UsageError)
 out = Console()
 err = Console(stderr=True)
 
@@ -68,7 +74,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
         scene = trial_scene(args.robot, args.seed, args.physics_hz, args.solver_iterations)
     except ValidationError as exc:
         first = exc.errors()[0]
-        raise SystemExit(f"fleet: error: {'.'.join(map(str, first['loc'])) or 'scene'}: {first['msg']}") from None
+        raise UsageError(f"{'.'.join(map(str, first['loc'])) or 'scene'}: {first['msg']}") from None
     failures: list[str] = []
     with Progress(
         TextColumn(f"{args.robot} trials"), BarColumn(), MofNCompleteColumn(),
@@ -96,13 +102,40 @@ def cmd_trials(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_run_flags(args: argparse.Namespace) -> None:
+    """Every `fleet run` flag that cannot work, refused in one line before any process starts."""
+    from fleet.bus.keys import Keys
+    from fleet.bus.session import BusEndpoints, make_config
+
+    if not (math.isfinite(args.duration) and 0 < args.duration <= 7 * 24 * 3600):
+        raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
+    if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
+        raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
+    try:
+        Keys(args.run_id)
+    except ValueError as exc:
+        raise UsageError(f"--run-id: {exc}") from None
+    if args.zenoh_config and not Path(args.zenoh_config).is_file():
+        raise UsageError(f"--zenoh-config {args.zenoh_config}: not a readable file")
+    for flag, endpoints in (("--listen", args.listen or ()), ("--connect", args.connect or ())):
+        for ep in endpoints:
+            proto, _, rest = ep.partition("/")
+            if proto not in ("tcp", "udp", "tls", "quic", "unixsock-stream", "ws") or not rest:
+                raise UsageError(f"{flag} {ep!r}: an endpoint looks like tcp/127.0.0.1:7447")
+    try:
+        make_config(BusEndpoints(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config))
+    except Exception as exc:  # zenoh's own parser: keep its message, not its source locations
+        said = re.search(r'msg: "([^"]*)"', str(exc))
+        text = re.sub(r"\s+at /\S+", "", said.group(1) if said else (str(exc).splitlines() or [type(exc).__name__])[0])
+        raise UsageError(f"bus flags: {text}") from None
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from fleet.launcher import Launcher, RunOptions
 
-    if args.duration <= 0:
-        raise SystemExit("fleet: error: --duration must be positive")
-    if args.speed <= 0:
-        raise SystemExit("fleet: error: --speed must be positive")
+    check_run_flags(args)
     load_scene(args.scene, arms=args.arms, robots=robot_facts())  # a bad scene: one line, before anything starts
     options = RunOptions(
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,

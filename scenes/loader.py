@@ -41,10 +41,17 @@ def bundled_scene_names() -> list[str]:
     return sorted(p.stem for p in BUNDLED_DIR.glob("*.yaml"))
 
 
+MAX_SCENE_BYTES = 1_000_000  # a scene is a page of YAML; anything this large is not one
+
+
 def resolve_scene_path(name_or_path: str | Path) -> Path:
     """A bundled scene's file for a name, or the given path; error lists the bundled names."""
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") or path.exists():
+        if path.is_dir():
+            raise SceneError(str(path), "", "a directory, not a scene file")
+        if path.exists() and not path.is_file():
+            raise SceneError(str(path), "", "not a regular file (a device or a pipe)")
         if not path.is_file():
             raise SceneError(str(path), "", "no such file")
         return path
@@ -52,6 +59,18 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
     if bundled.is_file():
         return bundled
     raise SceneError(str(name_or_path), "", f"no such scene; bundled scenes: {', '.join(bundled_scene_names())}")
+
+
+def yaml_text(path: Path, label: str) -> str:
+    """The file's text: refused at once when too large for a scene, or when it is not UTF-8 (naming the byte)."""
+    size = path.stat().st_size
+    if size > MAX_SCENE_BYTES:
+        raise SceneError(label, "", f"{size:,} bytes: larger than a scene can be ({MAX_SCENE_BYTES:,} bytes at most)")
+    raw = path.read_bytes()
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(label, "", f"not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r})") from None
 
 
 def load_scene(
@@ -63,8 +82,9 @@ def load_scene(
     """Read, validate and expand a scene. `arms` sets an arm row's count; `robots` enables model and reach checks."""
     path = resolve_scene_path(name_or_path)
     label = str(path)
+    data = yaml_text(path, label)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(data)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else ""

@@ -64,6 +64,14 @@ def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line
     (["run", "no_such_scene"], "no such scene"),
     (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
     (["run", "--allocator", "fastest"], "invalid choice"),
+    (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be lower-case"),
+    (["run", "--listen", "garbage"], "--listen 'garbage': an endpoint looks like tcp/127.0.0.1:7447"),
+    (["run", "--duration", "nan"], "--duration nan: give a positive number"),
+    (["run", "--duration", "inf"], "--duration inf: give a positive number"),
+    (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
+    (["run", "--monitor", "--port", "99999"], "--port 99999: a TCP port is 0 to 65535"),
+    (["check", "/dev/null"], "/dev/null: not a regular file"),
+    (["check", "/"], "/: a directory, not a scene file"),
 ])
 def test_run_refuses_bad_input_with_one_line_and_starts_nothing(args, says):
     result = fleet(*args)
@@ -71,6 +79,17 @@ def test_run_refuses_bad_input_with_one_line_and_starts_nothing(args, says):
     lines = result.stderr.strip().splitlines()
     assert says in lines[-1] and "Traceback" not in result.stderr
     assert "sim" not in result.stderr.split("error")[0]  # no progress bar: nothing was started
+
+
+def test_check_refuses_binary_and_oversized_files_at_once(tmp_path):
+    binary, big = tmp_path / "binary.yaml", tmp_path / "big.yaml"
+    binary.write_bytes(b"name: x\n\xff\xfe\x00junk")
+    big.write_text("description: " + "x" * 1_200_000 + "\n")
+    result = fleet("check", str(binary))
+    assert result.returncode == 2 and result.stderr.strip() == f"fleet: error: {binary}: not UTF-8 text (byte 8: b'\\xff')"
+    result = fleet("check", str(big))
+    assert result.returncode == 2 and "larger than a scene can be (1,000,000 bytes at most)" in result.stderr
+    assert result.stderr.count("\n") == 1
 
 
 def test_monitor_needs_an_endpoint_and_says_so_in_one_line():
