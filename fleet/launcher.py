@@ -352,7 +352,7 @@ class Launcher:
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),
             "dropped_messages": sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
-            + sum(c.get("dropped_messages", 0) for c in controllers),
+            + sum(c.get("dropped_messages", 0) for c in controllers) + (monitor or {}).get("dropped_messages", 0),
             "arms_lost": sim.get("arms_lost", []),
             "arm_events": coord.get("arm_events", []),
             "respawns": self.respawns,
