@@ -112,6 +112,8 @@ class Launcher:
         self.monitor_gone = False
         self.respawn_requests: list[dict] = []
         self.arms_lost: tuple[str, ...] = ()
+        self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died
+        self.last_sim_time_s = 0.0
         self.scene = load_scene(options.scene, arms=options.arms)
         self.seed = self.scene.seed if options.seed is None else options.seed
         self.on_progress = on_progress
@@ -242,10 +244,13 @@ class Launcher:
         for key, payload in inbox.drain():
             decoder = self._decoders.get(key)
             msg = decoder.decode(key, payload) if decoder else None
-            if isinstance(msg, Progress) and self.on_progress is not None:
-                self.on_progress(msg)
+            if isinstance(msg, Progress):
+                self.last_progress = msg
+                if self.on_progress is not None:
+                    self.on_progress(msg)
             elif isinstance(msg, SimStatus):
                 self.arms_lost = msg.arms_lost
+                self.last_sim_time_s = max(self.last_sim_time_s, msg.sim_time_s)
             elif isinstance(msg, RespawnRequest):
                 self.respawn_on_request(msg)
 
@@ -313,8 +318,16 @@ class Launcher:
         sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
         controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
         monitor = next((self._read(n) for n in self.nodes if n.role == "monitor"), None)
-        sim_s = sim.get("sim_seconds", 0.0)
-        completed = coord.get("parts_completed", 0)
+        heard = self.last_progress
+        sim_s = sim.get("sim_seconds", max(self.last_sim_time_s, heard.sim_time_s if heard else 0.0))
+        if coord:
+            counts = {k: coord.get(k, 0) for k in ("parts_completed", "parts_missed", "parts_failed")}
+        else:  # the coordinator died: its last progress message is what is known
+            counts = {"parts_completed": heard.parts_completed if heard else 0, "parts_missed": heard.parts_missed if heard else 0,
+                      "parts_failed": heard.parts_failed if heard else 0}
+        spawned = sim.get("parts_spawned", max(heard.parts_spawned if heard else 0, sum(counts.values())))
+        in_progress = coord.get("parts_in_progress", spawned - sum(counts.values())) if coord and sim else spawned - sum(counts.values())
+        completed = counts["parts_completed"]
         processes = [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes]
         status = "error" if error else ("interrupted" if self.interrupted else "ok")
         return {
@@ -331,11 +344,11 @@ class Launcher:
             "wall_seconds": round(wall_s, 3),
             "loop_wall_seconds": sim.get("loop_wall_seconds"),
             "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
-            "parts_spawned": sim.get("parts_spawned", 0),
+            "parts_spawned": spawned,
             "parts_completed": completed,
-            "parts_missed": coord.get("parts_missed", 0),
-            "parts_failed": coord.get("parts_failed", 0),
-            "parts_in_progress": coord.get("parts_in_progress", 0),
+            "parts_missed": counts["parts_missed"],
+            "parts_failed": counts["parts_failed"],
+            "parts_in_progress": max(0, in_progress),
             "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
             "utilisation": sim.get("utilisation", {}),
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),

@@ -114,6 +114,27 @@ def test_a_crashed_coordinator_ends_the_run_with_one_clear_message():
     assert summary["status"] == "error"
     assert summary["error"].startswith("the coordinator crashed (exit -9)")
     assert "\n" not in summary["error"]
+    assert_parts_add_up(summary)
+
+
+def assert_parts_add_up(summary: dict) -> None:
+    fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
+    assert summary["sim_seconds"] > 1.0 and summary["parts_spawned"] > 0, summary
+    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
+
+
+def test_a_crashed_sim_ends_the_run_with_its_counts_from_what_was_last_heard():
+    def kill_sim(progress):
+        if progress.sim_time_s > 3.0 and launcher_ref[0].nodes[0].alive:
+            os.kill(launcher_ref[0].nodes[0].proc.pid, signal.SIGKILL)
+
+    launcher_ref = []
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), kill_sim) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert summary["status"] == "error" and summary["error"].startswith("the sim server crashed (exit -9)")
+    assert_parts_add_up(summary)
 
 
 def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp_path):
