@@ -38,9 +38,25 @@ def robot_facts() -> dict[str, RobotFacts]:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    load_scene(args.file, arms=args.arms, robots=robot_facts())
+    from coordinator.capacity import capacity_bound
+
+    scene = load_scene(args.file, arms=args.arms, robots=robot_facts())
     print("ok")
+    print(capacity_line(capacity_bound(scene)))
     return 0
+
+
+def capacity_line(bound) -> str:
+    """The capacity bound in one line: what the line could complete at best, and what limits it."""
+    text = f"capacity: at best {bound.throughput_bound_per_min:.2f} parts/min of {bound.arrivals_per_min:.2f} arriving"
+    if bound.bottleneck == "arrivals":
+        busiest = max([*bound.arm_busy.items(), *bound.station_busy.items()], key=lambda kv: kv[1], default=("-", 0.0))
+        text += f" (the line can take them all; busiest: {busiest[0]} {busiest[1]:.0%} of the time)"
+    else:
+        text += f" (bottleneck: {bound.bottleneck}, busy all the time)"
+    if bound.unservable:
+        text += f"; no arm can serve {', '.join(bound.unservable)}"
+    return text
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
@@ -195,7 +211,10 @@ def print_run_summary(s: dict) -> None:
         ("parts spawned / completed", f"{s['parts_spawned']} / {s['parts_completed']}"),
         ("missed / failed / on the line", f"{s['parts_missed']} / {s['parts_failed']} / {s['parts_in_progress']}"),
         ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
-        ("utilisation", ", ".join(f"{a} {u:.0%}" for a, u in s["utilisation"].items()) or "-"),
+        ("capacity bound (per minute)", "-" if s.get("throughput_bound_per_min") is None else
+         f"{s['throughput_bound_per_min']:.2f}: {s['bound_fraction']:.0%} of it achieved, limited by {s['bottleneck']['name']}"),
+        ("arms: working / waiting for a grant / idle", "; ".join(
+            f"{a} {t['working']:.0%} / {t['waiting_for_grant']:.0%} / {t['idle']:.0%}" for a, t in s.get("arm_time", {}).items()) or "-"),
         ("inter-arm contacts (ticks)", str(s["inter_arm_contacts"])),
         ("min separation (m)", "-" if s["min_separation_m"] is None else f"{s['min_separation_m']:.3f}"),
         ("grants denied", str(s["grants_denied"])),

@@ -314,6 +314,20 @@ class Launcher:
         except (OSError, ValueError):
             return {}
 
+    @staticmethod
+    def _capacity(capacity: dict | None, completed: int, sim_s: float) -> dict:
+        """The line's capacity bound (the coordinator's) and how much of it this run achieved."""
+        if not capacity:
+            return {"throughput_bound_per_min": None, "bound_fraction": None, "bottleneck": None}
+        bound = capacity["throughput_bound_per_min"]
+        achieved = completed / (sim_s / 60.0) if sim_s > 0 else 0.0
+        busy = capacity["arm_busy_at_bound"] | capacity["station_busy_at_bound"]
+        return {
+            "throughput_bound_per_min": bound, "bound_fraction": round(achieved / bound, 4) if bound > 0 else None,
+            "bottleneck": {"name": capacity["bottleneck"], "busy_fraction_at_bound": busy.get(capacity["bottleneck"])},
+            "capacity": capacity,
+        }
+
     def summary(self, wall_s: float, error: str) -> dict:
         sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
         controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
@@ -351,6 +365,8 @@ class Launcher:
             "parts_in_progress": max(0, in_progress),
             "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
             "utilisation": sim.get("utilisation", {}),
+            "arm_time": sim.get("arm_time", {}),
+            **self._capacity(coord.get("capacity"), completed, sim_s),
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
             "min_separation_m": coord.get("min_separation_m"),

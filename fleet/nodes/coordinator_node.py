@@ -22,6 +22,7 @@ import time
 import numpy as np
 import zenoh
 
+from coordinator.capacity import capacity_bound
 from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
@@ -112,6 +113,7 @@ class CoordinatorNode:
         self._progress_at = 0.0
         self.events_seen = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
+        self.capacity = capacity_bound(scene)  # what the line could do at best, for the summary
         conveyor = scene.conveyor  # the belt's last reachable point, worked out once before the run starts
         self.last_reach_along_belt_m = last_reach_along_belt_m(conveyor, self.arm_views(), conveyor.pose.xyz[2] + 0.015) if conveyor else None
 
@@ -393,6 +395,7 @@ class CoordinatorNode:
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "dropped_messages": self.drops.total,
+            "capacity": self.capacity.as_dict(),
         }
 
 

@@ -93,6 +93,7 @@ class SimStats:
     coordinator_lost: bool = False
     wall_s: Counter = field(default_factory=Counter)  # where the server's wall time went, by stage
     busy_ticks: Counter = field(default_factory=Counter)  # ticks each arm's controller reported a running skill
+    grant_wait_ticks: Counter = field(default_factory=Counter)  # of those, ticks it held still for a motion grant
     recent_round_trip_ms: deque = field(default_factory=lambda: deque(maxlen=1000))
     last_contact_pairs: tuple[str, ...] = ()
     last_contact_s: float = -1.0
@@ -444,6 +445,8 @@ class SimServer:
         for name, link in self.links.items():
             if link.last_step is not None and link.last_step.skill not in IDLE_SKILLS and not link.lost:
                 self.stats.busy_ticks[name] += 1
+                if link.last_step.request_seq > 0:
+                    self.stats.grant_wait_ticks[name] += 1
         t4 = time.perf_counter()
         self.stats.ticks += 1
         if self.count_contacts:
@@ -508,6 +511,13 @@ class SimServer:
             tuple(l.name for l in self.links.values() if l.lost), self.drops.total,
         )))
 
+    def arm_time(self, arm: str) -> dict[str, float]:
+        """Fractions of the run an arm worked, held still waiting for a motion grant, or had no task."""
+        ticks = max(self.stats.ticks, 1)
+        busy, waiting = self.stats.busy_ticks[arm], self.stats.grant_wait_ticks[arm]
+        return {"working": round((busy - waiting) / ticks, 4), "waiting_for_grant": round(waiting / ticks, 4),
+                "idle": round(1 - busy / ticks, 4)}
+
     def messages_per_arm_per_s(self) -> dict[str, float]:
         """Bus messages per arm per sim second, by key leaf, both ways (the sim's own count)."""
         sim_s, arms = max(self.world.sim_time_s, 1e-9), max(len(self.links), 1)
@@ -524,6 +534,7 @@ class SimServer:
             "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
             "events": dict(sorted(self.events_published.items())),
             "utilisation": {a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0 for a in self.links},
+            "arm_time": {a: self.arm_time(a) for a in self.links},
             "inter_arm_contacts": self.stats.contact_ticks,
             "contact_pairs": sorted("-".join(p) for p in self.stats.contact_pairs),
             "latency_p50_ms": round(float(np.percentile(rtt, 50)), 3) if rtt.size else None,

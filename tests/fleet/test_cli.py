@@ -17,7 +17,8 @@ def fleet(*args, timeout=300):
 def test_check_prints_ok_for_bundled_scenes(name):
     result = fleet("check", name)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "ok"
+    first, bound = result.stdout.strip().splitlines()
+    assert first == "ok" and bound.startswith("capacity: at best ") and "parts/min" in bound
 
 
 def test_check_broken_scene_is_one_line_exit_2(tmp_path):

@@ -1,0 +1,183 @@
+"""What a line could do at best: an upper bound on its throughput, from the scene and the arms' task times.
+
+A small linear programme (`scipy.optimize.linprog`): each part type arrives at its feeder's mean
+rate and must make every hop of its route (source to first station, station to station); a hop is
+done by any arm that can serve it (the coordinator's own `Eligibility`: reach, and the stretch of
+belt each arm owns), taking that arm the coordinator's own time estimate (`TimeCost`, from its home
+pose: optimistic, it leaves out the way home). No arm may be busy more than all the time, no
+station may serve more than one task at a time, and an assembly leaves its fixture no faster than
+its parts arrive there. The bound is the most parts a minute the line can complete; the binding
+arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linprog
+
+from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView, TimeCost
+from coordinator.tasks import CONVEYOR, Task
+from robots.frames import yaw_transform
+from robots.ik import IKOptions
+from robots.registry import get_robot
+from robots.top_down import TopDownIK
+from scenes.schema import Scene
+
+BELT_SAMPLE_M = 0.05  # belt pick points are tried this far apart
+REACH_IK = IKOptions(restarts=8)
+
+
+@dataclass(frozen=True)
+class Hop:
+    """One move of a part type's route: from `source` (the conveyor or a station) to station `target`."""
+
+    feeder: str
+    type_index: int
+    source: str
+    target: str
+
+
+@dataclass
+class CapacityBound:
+    """The line's best throughput (parts a minute), what limits it, and each arm's and station's busy fraction there."""
+
+    arrivals_per_min: float
+    throughput_bound_per_min: float
+    bottleneck: str  # an arm or station id, or "arrivals" when the line can take every part that comes
+    bottleneck_busy_fraction: float
+    arm_busy: dict[str, float] = field(default_factory=dict)
+    station_busy: dict[str, float] = field(default_factory=dict)
+    unservable: list[str] = field(default_factory=list)  # hops no arm can do: their parts can never be completed
+
+    def as_dict(self) -> dict:
+        return {
+            "arrivals_per_min": round(self.arrivals_per_min, 3), "throughput_bound_per_min": round(self.throughput_bound_per_min, 3),
+            "bottleneck": self.bottleneck, "bottleneck_busy_fraction": round(self.bottleneck_busy_fraction, 3),
+            "arm_busy_at_bound": {a: round(v, 3) for a, v in self.arm_busy.items()},
+            "station_busy_at_bound": {s: round(v, 3) for s, v in self.station_busy.items()},
+            "unservable_hops": self.unservable,
+        }
+
+
+def arrival_rate_per_s(scene: Scene, feeder_name: str) -> float:
+    """A feeder's mean release rate: its Poisson rate, or its schedule's count over its span."""
+    arrival = scene.feeder(feeder_name).arrival
+    if arrival.rate_per_min is not None:
+        return arrival.rate_per_min / 60.0
+    times = arrival.schedule_s or []
+    return len(times) / max(max(times, default=0.0), 1.0)
+
+
+def route_hops(scene: Scene) -> list[Hop]:
+    hops = []
+    for f in scene.feeders:
+        for t in range(len(f.parts)):
+            stations = scene.route(f.name, t)
+            for source, target in zip([f.into, *stations], stations):
+                hops.append(Hop(f.name, t, source, target))
+    return hops
+
+
+def arm_views(scene: Scene) -> list[ArmView]:
+    """Every arm at its home pose, free, with its reach (the coordinator's IK options)."""
+    views = []
+    for a in scene.arms:
+        spec = get_robot(a.model)
+        reach = CachedReach(TopDownIK(spec, yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK))
+        views.append(ArmView(a.name, a.base.xyz, True, reach, tuple(spec.home_q)))
+    return views
+
+
+def pick_points(scene: Scene, hop: Hop) -> list[PartView]:
+    """Where a part of this hop may be picked: along the belt every `BELT_SAMPLE_M`, or at its source station."""
+    part = scene.feeder(hop.feeder).parts[hop.type_index]
+    half = part.size_m[2] / 2
+    if hop.source != CONVEYOR:
+        s = scene.station(hop.source)
+        return [PartView(np.array([s.pose.xyz[0], s.pose.xyz[1], s.surface_z_m + half]), np.zeros(3))]
+    c = scene.conveyor
+    velocity = np.array(c.direction) * c.speed_m_per_s
+    n = max(2, int(c.length_m / BELT_SAMPLE_M) + 1)
+    out = []
+    for along in np.linspace(0.0, c.length_m, n):
+        x, y, z = c.point_at(float(along), 0.0)
+        out.append(PartView(np.array([x, y, z + half]), velocity))
+    return out
+
+
+def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop]) -> np.ndarray:
+    """(arms, hops): the least time each arm needs for each hop (inf: it cannot serve it)."""
+    rules = Eligibility(scene, views)
+    cost = TimeCost(rules)
+    out = np.full((len(views), len(hops)), math.inf)
+    for j, hop in enumerate(hops):
+        task = Task(0, 0, hop.source, hop.target, 0.0)
+        points = pick_points(scene, hop)
+        for i, view in enumerate(views):
+            out[i, j] = min((cost(view, task, p) for p in points), default=math.inf)
+    return out
+
+
+def capacity_bound(scene: Scene) -> CapacityBound:
+    """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations."""
+    hops = route_hops(scene)
+    views = arm_views(scene)
+    seconds = hop_seconds(scene, views, hops)
+    types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
+    rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
+    arrivals = 60.0 * sum(rate.values())
+    unservable = [f"{h.feeder}[{h.type_index}]: {h.source} -> {h.target}" for j, h in enumerate(hops) if not np.isfinite(seconds[:, j]).any()]
+    # variables: r[type] (completed parts per s), then x[arm, hop] (hops done per s) where the arm can serve the hop
+    pairs = [(i, j) for i in range(len(views)) for j in range(len(hops)) if np.isfinite(seconds[i, j])]
+    n_r = len(types)
+    index = {p: n_r + k for k, p in enumerate(pairs)}
+    n = n_r + len(pairs)
+    a_eq, b_eq, a_ub, b_ub, labels = [], [], [], [], []
+    for j, hop in enumerate(hops):  # every hop of a type is made as often as that type completes
+        row = np.zeros(n)
+        row[types.index((hop.feeder, hop.type_index))] = -1.0
+        for i in range(len(views)):
+            if (i, j) in index:
+                row[index[(i, j)]] = 1.0
+        a_eq.append(row)
+        b_eq.append(0.0)
+    for i, view in enumerate(views):  # an arm works at most all the time
+        row = np.zeros(n)
+        for j in range(len(hops)):
+            if (i, j) in index:
+                row[index[(i, j)]] = seconds[i, j]
+        a_ub.append(row), b_ub.append(1.0), labels.append(view.name)
+    for station in scene.stations:  # a station serves one task at a time
+        row = np.zeros(n)
+        for (i, j), k in index.items():
+            if station.name in (hops[j].source, hops[j].target):
+                row[k] = seconds[i, j]
+        if row.any():
+            a_ub.append(row), b_ub.append(1.0), labels.append(station.name)
+    for station in scene.stations:  # an assembly leaves no faster than its later parts arrive
+        for later in station.assembles[1:]:
+            for t_first in [t for t in types if t[0] == station.assembles[0]]:
+                for t_later in [t for t in types if t[0] == later]:
+                    row = np.zeros(n)
+                    row[types.index(t_first)], row[types.index(t_later)] = 1.0, -1.0
+                    a_ub.append(row), b_ub.append(0.0), labels.append("")
+    unreachable = {(h.feeder, h.type_index) for j, h in enumerate(hops) if not np.isfinite(seconds[:, j]).any()}
+    bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
+    result = linprog(
+        -np.r_[np.ones(n_r), np.zeros(len(pairs))], A_ub=np.array(a_ub) if a_ub else None, b_ub=b_ub or None,
+        A_eq=np.array(a_eq) if a_eq else None, b_eq=b_eq or None, bounds=bounds, method="highs",
+    )
+    if result.status != 0:
+        raise RuntimeError(f"the capacity programme of {scene.name} did not solve: {result.message}")
+    best = float(-result.fun) * 60.0
+    usage = (np.array(a_ub) @ result.x) if a_ub else np.zeros(0)
+    arm_busy = {v.name: float(usage[i]) for i, v in enumerate(views)}
+    station_busy = {labels[k]: float(usage[k]) for k in range(len(views), len(labels)) if labels[k]}
+    busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))
+    limited = best < arrivals - 1e-6 - 60.0 * sum(rate[t] for t in unreachable)
+    return CapacityBound(
+        arrivals, best, busiest[0] if limited else "arrivals", busiest[1], arm_busy, station_busy, unservable,
+    )

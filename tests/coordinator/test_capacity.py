@@ -1,0 +1,38 @@
+"""The line's capacity bound: the arrival rate when the line can take every part, else what its busiest arm or
+station allows; hops no arm can serve are named and their parts left out."""
+
+import pytest
+
+from coordinator.capacity import capacity_bound
+from scenes import load_scene
+
+
+def with_feeders(scene, **changes):
+    feeders = [f.model_copy(update=changes) for f in scene.feeders]
+    return scene.model_copy(update={"feeders": feeders})
+
+
+def test_the_assembly_line_can_take_what_arrives_and_its_fixture_is_the_busiest_place():
+    bound = capacity_bound(load_scene("assembly_line"))
+    assert bound.arrivals_per_min == pytest.approx(6.0) and bound.throughput_bound_per_min == pytest.approx(6.0)
+    assert bound.bottleneck == "arrivals"
+    assert max(bound.station_busy, key=bound.station_busy.get) == "fixture_0"
+    assert 0 < bound.station_busy["fixture_0"] < 1 and all(0 <= v <= 1 + 1e-9 for v in bound.arm_busy.values())
+
+
+def test_a_flood_of_parts_is_capped_by_the_busiest_arm_or_station():
+    scene = load_scene("sorting_line", arms=2)
+    arrival = scene.feeders[0].arrival.model_copy(update={"rate_per_min": 200.0})
+    bound = capacity_bound(with_feeders(scene, arrival=arrival))
+    assert bound.arrivals_per_min == pytest.approx(200.0)
+    assert 0 < bound.throughput_bound_per_min < 200.0
+    assert bound.bottleneck != "arrivals" and bound.bottleneck_busy_fraction == pytest.approx(1.0, abs=1e-6)
+    calm = capacity_bound(scene)
+    assert calm.throughput_bound_per_min <= bound.throughput_bound_per_min, "more arrivals never lower the bound"
+
+
+def test_a_station_out_of_every_arms_reach_is_named_and_its_parts_are_left_out():
+    scene = load_scene("pick_cell")
+    far = [s.model_copy(update={"pose": s.pose.model_copy(update={"xyz": (5.0, 5.0, 0.0)})}) for s in scene.stations]
+    bound = capacity_bound(scene.model_copy(update={"stations": far}))
+    assert bound.unservable and bound.throughput_bound_per_min == pytest.approx(0.0)
