@@ -103,40 +103,23 @@ def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_o
     assert summary["sim_seconds"] < 10.0
 
 
-def test_a_crashed_coordinator_ends_the_run_with_one_clear_message():
-    def kill_coordinator(progress):
-        if progress.sim_time_s > 1.0 and launcher_ref[0].nodes[1].alive:
-            os.kill(launcher_ref[0].nodes[1].proc.pid, signal.SIGKILL)
+@pytest.mark.parametrize("index, says", [(1, "the coordinator crashed (exit -9)"), (0, "the sim server crashed (exit -9)")], ids=["coordinator", "sim"])
+def test_a_crashed_node_ends_the_run_with_one_clear_message_and_every_part_accounted_for(index, says):
+    """A dead coordinator or sim: one line why, and the counts from what the launcher last heard."""
+    def kill(progress):
+        if progress.sim_time_s > 3.0 and launcher_ref[0].nodes[index].alive:
+            os.kill(launcher_ref[0].nodes[index].proc.pid, signal.SIGKILL)
 
     launcher_ref = []
-    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), kill_coordinator) as launcher:
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), kill) as launcher:
         launcher_ref.append(launcher)
         summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
-    assert summary["status"] == "error"
-    assert summary["error"].startswith("the coordinator crashed (exit -9)")
+    assert summary["status"] == "error" and summary["error"].startswith(says)
     assert "\n" not in summary["error"]
-    assert_parts_add_up(summary)
-
-
-def assert_parts_add_up(summary: dict) -> None:
     fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
     assert summary["sim_seconds"] > 1.0 and summary["parts_spawned"] > 0, summary
     assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
-
-
-def test_a_crashed_sim_ends_the_run_with_its_counts_from_what_was_last_heard():
-    def kill_sim(progress):
-        if progress.sim_time_s > 3.0 and launcher_ref[0].nodes[0].alive:
-            os.kill(launcher_ref[0].nodes[0].proc.pid, signal.SIGKILL)
-
-    launcher_ref = []
-    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), kill_sim) as launcher:
-        launcher_ref.append(launcher)
-        summary = launcher.run()
-    assert_nothing_left(summary, launcher.endpoint)
-    assert summary["status"] == "error" and summary["error"].startswith("the sim server crashed (exit -9)")
-    assert_parts_add_up(summary)
 
 
 def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp_path):
