@@ -53,8 +53,12 @@ class CellParallelEnv(ParallelEnv):
         render_mode: str | None = None,
         distributed: bool = False,
         monitor_port: int = 8080,
+        mask_in_observation: bool = False,
     ) -> None:
         check_options(task, action_mode, render_mode, max_cycles, control_hz, distributed)
+        if mask_in_observation and action_mode != "task":
+            raise ValueError(f"mask_in_observation applies to action_mode 'task' (choices that can be invalid); {action_mode!r} has none")
+        self.mask_in_observation = mask_in_observation
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(task, "sorting_line")
@@ -95,13 +99,25 @@ class CellParallelEnv(ParallelEnv):
 
     # --- spaces -----------------------------------------------------------------------
     @functools.lru_cache(maxsize=None)
-    def observation_space(self, agent: str) -> gymnasium.spaces.Box:
+    def observation_space(self, agent: str) -> gymnasium.spaces.Space:
         n, others = self._dof[agent], len(self.possible_agents) - 1
         if self.action_mode == "task":
             size = n + n + 1 + 2 + 3 + 3 * others + 1 + SLOTS * SLOT_FEATURES
         else:
             size = n + n + 1 + 3 + 3 + 3 * others + 1
-        return gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
+        box = gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
+        if not self.mask_in_observation:
+            return box
+        mask = gymnasium.spaces.Box(0, 1, shape=(SLOTS + 1,), dtype=np.int8)  # PettingZoo's classic-env convention
+        return gymnasium.spaces.Dict({"observation": box, "action_mask": mask})
+
+    def action_mask(self, agent: str) -> np.ndarray:
+        """Task mode: which actions choose something real now (1) or an empty slot (0); waiting (0) is always valid.
+        A busy arm may only wait. Two arms may still pick the same task in one step: the later one is refused."""
+        mask = np.zeros(SLOTS + 1, dtype=np.int8)
+        mask[0] = 1
+        mask[1 : 1 + len(self._options.get(agent, []))] = 1
+        return mask
 
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent: str) -> gymnasium.spaces.Space:
@@ -129,7 +145,11 @@ class CellParallelEnv(ParallelEnv):
         observations = self._observe()  # places the guard's arms, which the human render draws
         if self.render_mode == "human":
             self.render()
-        return observations, {a: {"success": False, "collision": False} for a in self.agents}
+        infos = {a: {"success": False, "collision": False} for a in self.agents}
+        if self.chooser is not None:
+            for a in self.agents:
+                infos[a]["action_mask"] = self.action_mask(a)
+        return observations, infos
 
     def step(self, actions: dict[str, np.ndarray]):
         limit_hits, effort = self._act(actions)
@@ -162,6 +182,8 @@ class CellParallelEnv(ParallelEnv):
             for a, what in self._choice_results.items():
                 infos[a]["choice"] = what
             self._options = self.chooser.choices()
+            for a in self.agents:
+                infos[a]["action_mask"] = self.action_mask(a)
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}
         truncations = {a: done for a in self.agents}
@@ -239,6 +261,8 @@ class CellParallelEnv(ParallelEnv):
                 extra = []
             vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
             out[a] = np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector)
+            if self.mask_in_observation:
+                out[a] = {"observation": out[a], "action_mask": self.action_mask(a)}
         return out
 
     def _opening(self, agent: str) -> float:

@@ -13,6 +13,11 @@ def test_pettingzoo_parallel_aec_seed_and_max_cycles_tests_pass(task, mode):
     conformance.check(task, mode)
 
 
+@pytest.mark.parametrize("task", ["line", "handover"])
+def test_task_mode_with_the_action_mask_in_the_observation_passes_them_too(task):
+    conformance.check(task, "task", mask_in_observation=True)
+
+
 def test_ee_delta_moves_the_claw_the_way_it_is_told():
     penv = parallel_env(n_arms=1, max_cycles=100, action_mode="ee_delta")
     penv.reset(seed=0)

@@ -112,3 +112,32 @@ def test_task_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed
         runs.append(trace)
     assert runs[0] == runs[1]
     assert any(c.startswith("refused: slot") for step in runs[0] for c in step[2])
+
+
+def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choices():
+    env = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=1000, mask_in_observation=True)
+    try:
+        observations, infos = env.reset(seed=3)
+        assert env.observation_space("arm_0")["action_mask"].shape == (5,)
+        rng = np.random.default_rng(3)
+        took = 0
+        while env.agents:
+            for a in env.agents:
+                mask = observations[a]["action_mask"]
+                assert np.array_equal(mask, infos[a]["action_mask"]) and mask[0] == 1, "the mask in both places; waiting always allowed"
+                options = env._options.get(a, [])
+                assert mask[1:].sum() == len(options)
+                assert all(t.state.value == "pending" and math.isfinite(seconds) for t, seconds in options), "each valid slot is a task the arm can serve"
+            actions = {a: int(rng.choice(np.flatnonzero(observations[a]["action_mask"]))) for a in env.agents}
+            observations, _, _, _, infos = env.step(actions)
+            choices = [info.get("choice", "") for info in infos.values()]
+            assert not any("empty" in c for c in choices), choices
+            took += choices.count("took")
+        assert took >= 3, "the masked policy took real tasks"
+    finally:
+        env.close()
+
+
+def test_action_masks_in_the_observation_are_refused_outside_task_mode():
+    with pytest.raises(ValueError, match="mask_in_observation applies to action_mode 'task'"):
+        parallel_env(task="reach", action_mode="joint_delta", mask_in_observation=True)
