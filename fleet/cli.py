@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import math
 import sys
@@ -328,7 +329,16 @@ def cmd_bench_lines(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_env(args: argparse.Namespace) -> int:
-    from fleet.env.bench import bench_env
+    from fleet.env.bench import bench_env, bench_vector
+
+    if args.vector:
+        table = Table("cells", "worker processes", "arms per cell", "task", "agent-steps/s", "against 1 cell in process")
+        rows = [bench_vector(1, 0, args.arms[0], args.tasks[0], args.steps)]
+        rows += [bench_vector(n, min(n, os.cpu_count() or 1), args.arms[0], args.tasks[0], args.steps) for n in args.vector]
+        for r in rows:
+            table.add_row(str(r.cells), str(r.cpus), str(r.arms), r.task, f"{r.agent_steps_per_s:,.0f}",
+                          f"{r.agent_steps_per_s / rows[0].agent_steps_per_s:.2f}x")
+        return print_bench(table, rows, args.json)
 
     table = Table("arms", "task", "agent-steps/s", "env steps/s", "env time / raw physics")
     rows = [bench_env(n, task, args.steps, distributed=args.distributed) for task in args.tasks for n in args.arms]
@@ -438,6 +448,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--tasks", nargs="+", choices=("reach", "pick_place", "line"), default=["reach", "line"])
     b.add_argument("--steps", type=int, default=400)
     b.add_argument("--distributed", action="store_true", help="actions through Zenoh to one process per arm")
+    b.add_argument("--vector", type=int, nargs="+", metavar="N", help="N cells at once in worker processes (SuperSuit), against one in process")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_env)
     return parser

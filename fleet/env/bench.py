@@ -83,3 +83,36 @@ def _replay_s(env: CellParallelEnv, recorded: list[dict[str, np.ndarray]]) -> fl
             arm.set_targets(q[:n], still[a], q[n:])
         env.world.step(env.ticks_per_step)
     return time.perf_counter() - start
+
+
+@dataclass(frozen=True)
+class VectorRow:
+    cells: int
+    cpus: int
+    arms: int
+    task: str
+    steps: int
+    agent_steps: int
+    wall_s: float
+
+    @property
+    def agent_steps_per_s(self) -> float:
+        return self.agent_steps / self.wall_s
+
+
+def bench_vector(cells: int, cpus: int, arms: int = 4, task: str = "reach", steps: int = 300) -> VectorRow:
+    """`steps` vector steps of `cells` cells in `cpus` worker processes (0: in process), random actions."""
+    from fleet.env.vector import vector_env
+
+    venv = vector_env(cells, cpus, task=task, n_arms=arms, max_cycles=10**6)
+    try:
+        obs, _ = venv.reset(seed=0)
+        rng = np.random.default_rng(0)
+        actions = rng.uniform(-1, 1, (steps, obs.shape[0], *venv.action_space.shape)).astype(np.float32)
+        start = time.perf_counter()
+        for a in actions:
+            venv.step(a)
+        wall = time.perf_counter() - start
+    finally:
+        venv.close()
+    return VectorRow(cells, cpus, arms, task, steps, steps * obs.shape[0], wall)

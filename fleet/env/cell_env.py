@@ -55,6 +55,10 @@ class CellParallelEnv(ParallelEnv):
         monitor_port: int = 8080,
         mask_in_observation: bool = False,
     ) -> None:
+        self._init_kwargs = dict(
+            scene=scene, n_arms=n_arms, task=task, action_mode=action_mode, control_hz=control_hz, max_cycles=max_cycles,
+            render_mode=render_mode, distributed=distributed, monitor_port=monitor_port, mask_in_observation=mask_in_observation,
+        )
         check_options(task, action_mode, render_mode, max_cycles, control_hz, distributed)
         if mask_in_observation and action_mode != "task":
             raise ValueError(f"mask_in_observation applies to action_mode 'task' (choices that can be invalid); {action_mode!r} has none")
@@ -96,6 +100,10 @@ class CellParallelEnv(ParallelEnv):
         self.np_random = np.random.default_rng()
         self.cycles = 0
         self._options: dict = {}
+
+    def __reduce__(self):
+        """Pickled as its settings: a copy (a vector env's worker process) is a fresh cell of the same kind."""
+        return (_rebuild, (self._init_kwargs,))
 
     # --- spaces -----------------------------------------------------------------------
     @functools.lru_cache(maxsize=None)
@@ -302,6 +310,10 @@ class CellParallelEnv(ParallelEnv):
         if self.actuator is not None:
             self.actuator.close()
             self.actuator = None
+
+
+def _rebuild(kwargs: dict) -> "CellParallelEnv":
+    return CellParallelEnv(**kwargs)
 
 
 def check_options(task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float, distributed: bool = False) -> None:
