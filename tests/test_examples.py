@@ -35,3 +35,13 @@ def test_task_mode_comparison_runs():
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert all(p in result.stdout for p in ("random", "optimal", "auction", "greedy"))
+
+
+def test_stable_baselines3_ppo_through_supersuit_trains_a_few_iterations():
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLES / "sb3_ppo_reach.py"), "--cells", "2", "--cpus", "2", "--timesteps", "1024", "--n-steps", "64",
+         "--max-cycles", "20"],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "trained 1024 agent-steps on 2 cell(s) x 2 arms" in result.stdout and "mean return per arm" in result.stdout
