@@ -114,8 +114,8 @@ class Launcher:
         self.arms_lost: tuple[str, ...] = ()
         self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died
         self.last_sim_time_s = 0.0
-        self.scene = load_scene(options.scene, arms=options.arms)
-        self.seed = self.scene.seed if options.seed is None else options.seed
+        self.scene = load_scene(options.scene, arms=options.arms, seed=options.seed)
+        self.seed = self.scene.seed
         self.on_progress = on_progress
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
@@ -136,7 +136,7 @@ class Launcher:
 
     def _node(self, role: str, name: str, module: str, extra: list[str], listen: bool = False) -> Node:
         o = self.options
-        argv = [sys.executable, "-m", module, "--scene", o.scene, "--run", o.run_id, *self._bus_args(listen), *extra]
+        argv = [sys.executable, "-m", module, "--scene", o.scene, "--run", o.run_id, "--seed", str(self.seed), *self._bus_args(listen), *extra]
         if o.arms is not None:
             argv += ["--arms", str(o.arms)]
         report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
@@ -144,7 +144,7 @@ class Launcher:
 
     def sim_node(self) -> Node:
         o = self.options
-        sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--seed", str(self.seed), "--coordinator"]
+        sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--coordinator"]
         if not o.listen:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
         if o.record_targets:
@@ -350,6 +350,7 @@ class Launcher:
             "arm_ids": [a.name for a in self.scene.arms],
             "mode": self.options.mode,
             "seed": self.seed,
+            "randomised": dict(self.scene.randomised),
             "allocator": coord.get("allocator"),
             "status": status,
             "error": error,

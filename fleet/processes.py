@@ -58,12 +58,13 @@ def add_scene_arguments(parser: argparse.ArgumentParser, run_required: bool = Tr
     parser.add_argument("--scene", default="assembly_line", help="bundled scene name or scene file")
     parser.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
     parser.add_argument("--run", required=run_required, help="run id: keeps several lines on one Zenoh network apart")
+    parser.add_argument("--seed", type=int, default=None, help="the run's seed (the scene's by default): arrivals and randomised values")
 
 
 def load_node_scene(args: argparse.Namespace, prog: str) -> Scene | None:
     """The node's scene, or None after printing one line naming the file, field and reason."""
     try:
-        return load_scene(args.scene, arms=args.arms)
+        return load_scene(args.scene, arms=args.arms, seed=getattr(args, "seed", None))
     except SceneError as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return None

@@ -15,6 +15,7 @@ from pathlib import Path
 import yaml
 from pydantic import ValidationError
 
+from scenes.randomise import draw
 from scenes.schema import Arm, Scene, Station
 
 MIN_BASE_SEPARATION_M = 0.25
@@ -78,8 +79,10 @@ def load_scene(
     *,
     arms: int | None = None,
     robots: Mapping[str, RobotFacts] | None = None,
+    seed: int | None = None,
 ) -> Scene:
-    """Read, validate and expand a scene. `arms` sets an arm row's count; `robots` enables model and reach checks."""
+    """Read, validate and expand a scene. `arms` sets an arm row's count; `robots` enables model and reach checks;
+    `seed` replaces the scene's. Its `randomise` ranges are drawn from the seed (`scenes.randomise`)."""
     path = resolve_scene_path(name_or_path)
     label = str(path)
     data = yaml_text(path, label)
@@ -98,6 +101,11 @@ def load_scene(
         field = ".".join(str(p) for p in err["loc"]) or "(top level)"
         raise SceneError(label, field, err["msg"]) from None
     scene = expand_arm_row(scene, arms, label)
+    if seed is not None:
+        if seed < 0:
+            raise SceneError(label, "seed", f"{seed} must not be negative")
+        scene = scene.model_copy(update={"seed": seed})
+    scene = draw(scene)
     check_scene(scene, label, robots)
     return scene
 

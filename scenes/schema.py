@@ -160,6 +160,40 @@ class ArmRow(Strict):
     max_count: int = Field(12, ge=1, le=12)
 
 
+class Draw(Strict):
+    """One value drawn per run: `uniform: [low, high]` or `normal: [mean, std]` (clipped to the field's limits)."""
+
+    uniform: tuple[float, float] | None = None
+    normal: tuple[float, float] | None = None
+
+    @model_validator(mode="after")
+    def _one_distribution(self) -> "Draw":
+        if (self.uniform is None) == (self.normal is None):
+            raise ValueError("give exactly one of uniform: [low, high] or normal: [mean, std]")
+        values = self.uniform or self.normal
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError("the range must be finite numbers")
+        if self.uniform is not None and self.uniform[0] > self.uniform[1]:
+            raise ValueError(f"uniform low {self.uniform[0]} is above high {self.uniform[1]}")
+        if self.normal is not None and self.normal[1] < 0:
+            raise ValueError(f"normal std {self.normal[1]} is negative")
+        return self
+
+
+class Randomisation(Strict):
+    """Domain randomisation, drawn once per run from the run's seed (`scenes/randomise.py`). Scales are factors on
+    the scene's own values; `part_friction` replaces every part's friction; `part_pose_noise_m` is the standard
+    deviation of the noise on the part positions controllers see."""
+
+    part_friction: Draw | None = None
+    part_mass_scale: Draw | None = None
+    part_size_scale: Draw | None = None
+    belt_speed_scale: Draw | None = None
+    arrival_rate_scale: Draw | None = None
+    arm_gain_scale: Draw | None = None
+    part_pose_noise_m: Draw | None = None
+
+
 class Scene(Strict):
     """A whole cell."""
 
@@ -178,6 +212,13 @@ class Scene(Strict):
     stations: list[Station] = []
     arms: list[Arm] = []
     arm_row: ArmRow | None = None
+    randomise: Randomisation | None = None
+    randomised: dict[str, float] = {}
+    """The values drawn for this run (filled by `scenes.randomise.draw`; listed in the run summary)."""
+    drive_gain_scale: float = Field(1.0, gt=0.05, le=20.0)
+    """Factor on every arm's drive stiffness and damping (a randomised arm gain lands here)."""
+    part_pose_noise_m: float = Field(0.0, ge=0.0, le=0.05)
+    """Standard deviation of the noise added to the part positions controllers see (metres)."""
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":

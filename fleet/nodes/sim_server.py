@@ -30,6 +30,7 @@ import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
 
+import msgspec
 import numpy as np
 import zenoh
 
@@ -177,6 +178,7 @@ class SimServer:
         self.assign_seqs = {name: 0 for name in world.arms}
         self._published_at: dict[tuple[str, int], float] = {}
         self._last_frame: bytes | None = None
+        self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
         self._coord_pending: int | None = None  # the tick of the last frame whose CoordTick is still owed
         self._started = not controllers  # every controller answered once (realtime waits until then)
@@ -399,7 +401,8 @@ class SimServer:
         parts = w.active_parts() if parts is None else parts
         parts_msg = parts_state(w, parts, sum(self.events_published.values()))
         if due:
-            self._put(self._parts_pub, "parts", encode(parts_msg))
+            seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
+            self._put(self._parts_pub, "parts", encode(seen))
         if frame or view:
             line = encode(LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg))
             if frame:
@@ -407,6 +410,11 @@ class SimServer:
                 self._last_frame, self._coord_pending = line, tick
             if view:
                 self._put(self._view_pub, "view", line)
+
+    def _with_noise(self, parts):
+        """The parts as controllers see them in a randomised scene: positions with seeded Gaussian noise."""
+        noise = self._noise_rng.normal(0.0, self.world.scene_model.part_pose_noise_m, len(parts.positions))
+        return msgspec.structs.replace(parts, positions=tuple(float(p + n) for p, n in zip(parts.positions, noise)))
 
     # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:
@@ -547,6 +555,7 @@ class SimServer:
             "arms_rejoined": list(self.stats.rejoined),
             "coordinator_lost": self.stats.coordinator_lost,
             "bus_messages_per_arm_per_s": self.messages_per_arm_per_s(),
+            "randomised": dict(self.world.scene_model.randomised),
             "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
             "loop_wall_seconds": round(sum(v for k, v in self.stats.wall_s.items() if k != "startup"), 3),
         }
@@ -566,7 +575,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=120.0, help="sim seconds")
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--speed", type=float, default=1.0)
-    parser.add_argument("--seed", type=int, default=None)
     parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
     parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
@@ -578,8 +586,6 @@ def main(argv: list[str] | None = None) -> int:
     if opened is None:
         return 2
     args, stop, scene = opened
-    if args.seed is not None:
-        scene = scene.model_copy(update={"seed": args.seed})
     world = World(scene)
     ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
     endpoints = BusEndpoints.from_args(args)

@@ -32,7 +32,8 @@ def yaw_pose(xyz: tuple[float, float, float], yaw_rad: float) -> sapien.Pose:
 class SimArm:
     """An articulated arm with its drives; joint vectors are in the spec's arm + gripper joint order."""
 
-    def __init__(self, scene: sapien.Scene, spec: RobotSpec, name: str, base_pose: sapien.Pose, arm_index: int) -> None:
+    def __init__(self, scene: sapien.Scene, spec: RobotSpec, name: str, base_pose: sapien.Pose, arm_index: int,
+                 gain_scale: float = 1.0) -> None:
         self.name, self.spec = name, spec
         loader = scene.create_urdf_loader()
         loader.fix_root_link = True
@@ -67,7 +68,8 @@ class SimArm:
         n_arm = spec.arm_dof
         for i, joint in enumerate(self.joints):
             gains = spec.arm_gains if i < n_arm else spec.gripper_gains
-            joint.set_drive_property(gains.stiffness, gains.damping, gains.force_limit, "force")
+            k = gain_scale if i < n_arm else 1.0  # a randomised scene may scale the arm's drives, never the claw's grip
+            joint.set_drive_property(gains.stiffness * k, gains.damping * k, gains.force_limit, "force")
         self._position_targets = [math.nan] * n_arm  # last written; NaN differs from any value, so the first write sets all
         self._velocity_targets = [math.nan] * n_arm
         self._gripper_targets = [math.nan] * len(spec.gripper_joints)

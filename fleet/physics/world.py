@@ -84,7 +84,7 @@ class World:
         self.arms: dict[str, SimArm] = {}
         for i, arm in enumerate(scene.arms):
             spec = get_robot(arm.model)
-            self.arms[arm.name] = SimArm(self.scene, spec, arm.name, yaw_pose(arm.base.xyz, arm.base.yaw_rad), i)
+            self.arms[arm.name] = SimArm(self.scene, spec, arm.name, yaw_pose(arm.base.xyz, arm.base.yaw_rad), i, scene.drive_gain_scale)
         self._arm_of_body = {
             link: name for name, a in self.arms.items() for link in a.articulation.get_links()
         }

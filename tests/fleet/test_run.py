@@ -224,3 +224,24 @@ def test_a_controller_killed_for_good_makes_exactly_its_arm_lost_and_the_line_go
     assert summary["arms_lost"] == ["arm_1"], "the sim stopped hearing exactly the dead controller"
     assert [e["arm"] for e in summary["arm_events"] if e["event"] == "lost"] == ["arm_1"], "healthy arms kept beating"
     assert summary["parts_completed"] >= 3, "the other arms went on completing parts"
+
+
+def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_path):
+    import yaml
+
+    data = yaml.safe_load(Path(QUICK_LINE).read_text()) | {"randomise": {
+        "part_friction": {"uniform": [0.7, 1.1]}, "belt_speed_scale": {"uniform": [0.8, 1.2]},
+        "arm_gain_scale": {"uniform": [0.9, 1.1]}, "part_pose_noise_m": {"uniform": [0.0005, 0.002]},
+    }}
+    scene = tmp_path / "randomised_line.yaml"
+    scene.write_text(yaml.safe_dump(data))
+    runs = []
+    for _ in range(2):
+        with Launcher(RunOptions(scene=str(scene), duration_s=15.0, seed=9)) as launcher:
+            runs.append(launcher.run())
+        assert_nothing_left(runs[-1], launcher.endpoint)
+    first, second = runs
+    assert first["status"] == "ok" and set(first["randomised"]) == {"part_friction", "belt_speed_scale", "arm_gain_scale", "part_pose_noise_m"}
+    assert first["parts_completed"] >= 1, first["unfinished_parts"]
+    strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
+    assert strip(first) == strip(second), "every process drew the same values from the seed, and the noise repeats"
