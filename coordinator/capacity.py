@@ -8,6 +8,8 @@ pose: optimistic, it leaves out the way home). No arm may be busy more than all 
 station may serve more than one task at a time, and an assembly leaves its fixture no faster than
 its parts arrive there. The bound is the most parts a minute the line can complete; the binding
 arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
+After a run, the same programme with the hop times the run measured (assignment to the part at
+rest, per arm) says what the line could do with arms as fast as they really were.
 """
 
 from __future__ import annotations
@@ -108,8 +110,9 @@ def pick_points(scene: Scene, hop: Hop) -> list[PartView]:
     return out
 
 
-def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop]) -> np.ndarray:
-    """(arms, hops): the least time each arm needs for each hop (inf: it cannot serve it)."""
+def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s: dict[tuple[str, str, str], float] | None = None) -> np.ndarray:
+    """(arms, hops): the least time each arm needs for each hop (inf: it cannot serve it); where `measured_s` has
+    the mean time an arm took for a (source, target) hop in a run, that time instead of the model's."""
     rules = Eligibility(scene, views)
     cost = TimeCost(rules)
     out = np.full((len(views), len(hops)), math.inf)
@@ -118,14 +121,27 @@ def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop]) -> np.ndarr
         points = pick_points(scene, hop)
         for i, view in enumerate(views):
             out[i, j] = min((cost(view, task, p) for p in points), default=math.inf)
+            seen = (measured_s or {}).get((view.name, hop.source, hop.target))
+            if seen is not None and np.isfinite(out[i, j]):
+                out[i, j] = seen
     return out
 
 
-def capacity_bound(scene: Scene) -> CapacityBound:
-    """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations."""
+def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
+    """Mean seconds from assignment to the part at rest, per (arm, source, target), over a run's done tasks."""
+    times: dict[tuple[str, str, str], list[float]] = {}
+    for t in tasks:
+        if t.state.value == "done" and t.arm is not None and t.assigned_s is not None and t.done_s is not None:
+            times.setdefault((t.arm, t.source, t.target), []).append(t.done_s - t.assigned_s)
+    return {k: float(np.mean(v)) for k, v in times.items()}
+
+
+def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None) -> CapacityBound:
+    """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
+    with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's."""
     hops = route_hops(scene)
     views = arm_views(scene)
-    seconds = hop_seconds(scene, views, hops)
+    seconds = hop_seconds(scene, views, hops, measured_s)
     types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
     rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
     arrivals = 60.0 * sum(rate.values())

@@ -53,6 +53,7 @@ class Ledger:
         if station == part.next_station:
             part.hop += 1
             if task is not None and task.target == station:
+                task.done_s = now_s
                 self._close(task, TaskState.DONE, "")
             if station in self.stacks and part.feeder in self.scene.station(station).assembles:
                 self.stacks[station].append(part_id)

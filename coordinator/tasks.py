@@ -62,6 +62,7 @@ class Task:
     reason: str = ""
     stations: tuple[str, ...] = field(default=())
     deadline_s: float | None = None  # belt tasks: when the part rides out of every arm's reach
+    done_s: float | None = None  # when the part came to rest at the target (DONE tasks)
     reassignments: int = 0
 
     def __post_init__(self) -> None:

@@ -368,6 +368,7 @@ class Launcher:
             "utilisation": sim.get("utilisation", {}),
             "arm_time": sim.get("arm_time", {}),
             **self._capacity(coord.get("capacity"), completed, sim_s),
+            "capacity_measured": coord.get("capacity_measured"),
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
             "min_separation_m": coord.get("min_separation_m"),

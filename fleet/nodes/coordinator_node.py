@@ -22,7 +22,7 @@ import time
 import numpy as np
 import zenoh
 
-from coordinator.capacity import capacity_bound
+from coordinator.capacity import capacity_bound, measured_hop_seconds
 from coordinator.allocation import ALLOCATORS, Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
@@ -382,7 +382,7 @@ class CoordinatorNode:
             "unfinished_parts": self.ledger.unfinished(),
             "tasks": [
                 {"task_id": t.task_id, "part_id": t.part_id, "source": t.source, "target": t.target, "state": t.state.value,
-                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "deadline_s": t.deadline_s,
+                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "deadline_s": t.deadline_s, "done_s": t.done_s,
                  "reassignments": t.reassignments, "reason": t.reason}
                 for t in self.ledger.tasks.values()
             ],
@@ -396,7 +396,16 @@ class CoordinatorNode:
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "dropped_messages": self.drops.total,
             "capacity": self.capacity.as_dict(),
+            "capacity_measured": self.measured_capacity(),
         }
+
+    def measured_capacity(self) -> dict | None:
+        """The capacity bound again with the hop times this run measured (None before any task was done)."""
+        measured = measured_hop_seconds(list(self.ledger.tasks.values()))
+        if not measured:
+            return None
+        return capacity_bound(self.scene, measured).as_dict() | {"measured_hop_s": {
+            f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())}}
 
 
 def main(argv: list[str] | None = None) -> int:

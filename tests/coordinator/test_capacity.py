@@ -36,3 +36,22 @@ def test_a_station_out_of_every_arms_reach_is_named_and_its_parts_are_left_out()
     far = [s.model_copy(update={"pose": s.pose.model_copy(update={"xyz": (5.0, 5.0, 0.0)})}) for s in scene.stations]
     bound = capacity_bound(scene.model_copy(update={"stations": far}))
     assert bound.unservable and bound.throughput_bound_per_min == pytest.approx(0.0)
+
+
+def test_hop_times_a_run_measured_replace_the_models_and_slower_arms_lower_the_bound():
+    from coordinator.capacity import measured_hop_seconds
+    from coordinator.tasks import Task, TaskState
+
+    scene = load_scene("assembly_line")
+    done = []
+    for k, (arm, source, target, seconds) in enumerate([("arm_1", "tops_bin", "fixture_0", 12.0), ("arm_1", "tops_bin", "fixture_0", 14.0),
+                                                         ("arm_0", "conveyor", "fixture_0", 7.0)]):
+        task = Task(k, k, source, target, 0.0, state=TaskState.DONE, arm=arm, assigned_s=10.0 * k)
+        task.done_s = 10.0 * k + seconds
+        done.append(task)
+    done.append(Task(9, 9, "fixture_0", "output_tray", 0.0, state=TaskState.FAILED, arm="arm_2", assigned_s=1.0))
+    measured = measured_hop_seconds(done)
+    assert measured == {("arm_1", "tops_bin", "fixture_0"): 13.0, ("arm_0", "conveyor", "fixture_0"): 7.0}
+    model, slow = capacity_bound(scene), capacity_bound(scene, measured)
+    assert slow.throughput_bound_per_min < model.throughput_bound_per_min
+    assert slow.bottleneck == "fixture_0" and slow.bottleneck_busy_fraction == pytest.approx(1.0)
