@@ -68,7 +68,7 @@ def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawne
             os.kill(node.proc.pid, signal.SIGKILL)
 
     launcher_ref = []
-    options = RunOptions(scene=QUICK_LINE, duration_s=16.0, seed=5, respawn=True)
+    options = RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True)  # the respawned process takes seconds to start
     with Launcher(options, kill_arm_0) as launcher:
         launcher_ref.append(launcher)
         summary = launcher.run()
