@@ -53,8 +53,18 @@ def arm_state_problem(state, arm: str, n_joints: int) -> str:
         return f"a state of {state.arm!r} on {arm}'s key"
     if len(state.q) != n_joints or len(state.dq) != n_joints:
         return f"a state with {len(state.q)} joints (the arm has {n_joints})"
-    if not_finite((state.sim_time_s, *state.q, *state.dq, *state.gripper_q, *state.tool_position)):
+    if not_finite((state.sim_time_s, *state.q, *state.dq, *state.gripper_q, *state.tool_position, *state.request_q_to,
+                    state.request_duration_s, *state.desired_q, *state.desired_dq)):
         return "a state with NaN or infinite values"
+    return request_problem(state, n_joints)
+
+
+def request_problem(msg, n_joints: int) -> str:
+    """A motion request (in a `ControllerStep` or echoed in an `ArmState`) the guard could not check."""
+    if msg.request_seq < 0 or len(msg.request_q_to) not in (0, n_joints):
+        return f"a motion request with {len(msg.request_q_to)} joints (the arm has {n_joints}) or a negative seq"
+    if not_finite((*msg.request_q_to, msg.request_duration_s)) or not 0.0 <= msg.request_duration_s <= 600.0:
+        return "a motion request with a duration that is not 0..600 s or non-finite joints"
     return ""
 
 

@@ -37,7 +37,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
-from fleet.bus.plausible import seq_problem
+from fleet.bus.plausible import request_problem, seq_problem
 from fleet.bus.messages import (
     ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus,
 )
@@ -270,6 +270,11 @@ class SimServer:
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.stats.messages_in["step"] += 1
+        problem = request_problem(msg, self.world.arms[link.name].spec.arm_dof) or (
+            "" if math.isfinite(msg.progress) else "an answer with a non-finite progress")
+        if problem:
+            self.drops.drop(key, problem)
+            return
         if link.awaiting is None or msg.tick != link.awaiting.tick or link.answer is not None:
             return  # an answer to a state already answered, or overtaken: nothing to do
         link.answer = msg
