@@ -19,14 +19,18 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from coordinator.tasks import CONVEYOR, Task
+from robots.frames import yaw_transform
+from robots.ik import IKOptions
+from robots.registry import get_robot
 from robots.skills.pick_place import PickPlaceTiming
 from robots.top_down import TopDownIK
-from scenes.schema import Scene
+from scenes.schema import Arm, Scene
 
 EARLIEST_ARRIVAL_S = 0.6  # the soonest an arm can be above a part
 PICK_LEAD_S = 1.5  # about the time an arm needs to arrive above a part
 GRASP_WINDOW_S = 1.5  # descend, close and lift: the part must stay in reach this long after arrival
 HOVER_M = 0.1  # reach is checked this far above the part or the station surface
+REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot for an unlucky start
 CELL_MARGIN_M = 0.06
 GRID_M = 0.01
 URGENCY_S_PER_S = 10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
@@ -40,6 +44,11 @@ class CachedReach:
         self.top_down = top_down
         self.velocity_limit = top_down.km.velocity_limit[top_down.km.arm_q_index]
         self._cache: dict[tuple[int, int, int], np.ndarray | None] = {}
+
+    @classmethod
+    def of(cls, arm: Arm) -> "CachedReach":
+        """The reach of a scene's arm where it stands (its robot model, the reach checks' IK options)."""
+        return cls(TopDownIK(get_robot(arm.model), yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK))
 
     def joints(self, point) -> np.ndarray | None:
         key = tuple(int(round(float(v) / GRID_M)) for v in point[:3])

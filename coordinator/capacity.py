@@ -22,14 +22,10 @@ from scipy.optimize import linprog
 
 from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView, TimeCost
 from coordinator.tasks import CONVEYOR, Task
-from robots.frames import yaw_transform
-from robots.ik import IKOptions
 from robots.registry import get_robot
-from robots.top_down import TopDownIK
 from scenes.schema import Scene
 
 BELT_SAMPLE_M = 0.05  # belt pick points are tried this far apart
-REACH_IK = IKOptions(restarts=8)
 
 
 @dataclass(frozen=True)
@@ -83,14 +79,10 @@ def route_hops(scene: Scene) -> list[Hop]:
     return hops
 
 
-def arm_views(scene: Scene) -> list[ArmView]:
-    """Every arm at its home pose, free, with its reach (the coordinator's IK options)."""
-    views = []
-    for a in scene.arms:
-        spec = get_robot(a.model)
-        reach = CachedReach(TopDownIK(spec, yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK))
-        views.append(ArmView(a.name, a.base.xyz, True, reach, tuple(spec.home_q)))
-    return views
+def arm_views(scene: Scene, reach: dict[str, CachedReach] | None = None) -> list[ArmView]:
+    """Every arm at its home pose, free, with its reach (`reach`: caches to share, e.g. the coordinator's)."""
+    reach = reach or {a.name: CachedReach.of(a) for a in scene.arms}
+    return [ArmView(a.name, a.base.xyz, True, reach[a.name], tuple(get_robot(a.model).home_q)) for a in scene.arms]
 
 
 def pick_points(scene: Scene, hop: Hop) -> list[PartView]:
@@ -136,11 +128,13 @@ def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
     return {k: float(np.mean(v)) for k, v in times.items()}
 
 
-def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None) -> CapacityBound:
+def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
+                   reach: dict[str, CachedReach] | None = None) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
-    with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's."""
+    with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's; `reach` shares
+    the arms' reach caches (the coordinator's) instead of building new ones."""
     hops = route_hops(scene)
-    views = arm_views(scene)
+    views = arm_views(scene, reach)
     seconds = hop_seconds(scene, views, hops, measured_s)
     types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
     rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}

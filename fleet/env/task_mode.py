@@ -18,16 +18,12 @@ from coordinator.tasks import CONVEYOR, OPEN_STATES, Task, TaskState
 from fleet.observe import arm_observation, base_transform, part_observations
 from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import World
-from robots.frames import yaw_transform
-from robots.ik import IKOptions
 from robots.skills.interface import PickPlaceTask
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
-from robots.top_down import TopDownIK
 from scenes.schema import Scene
 
 SLOTS = 4  # the first SLOTS tasks an arm can serve, oldest first, are its choices
 SLOT_FEATURES = 8  # valid, pick point xyz, place point xyz, estimated seconds / 10
-REACH_IK = IKOptions(restarts=8)
 WAIT = 0  # action 0: take nothing new this step
 
 
@@ -36,10 +32,7 @@ class TaskChooser:
 
     def __init__(self, scene: Scene, world: World, agents: list[str]) -> None:
         self.scene, self.agents = scene, agents
-        self.reach = {
-            a.name: CachedReach(TopDownIK(world.arms[a.name].spec, yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK))
-            for a in scene.arms
-        }
+        self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.world = world
 

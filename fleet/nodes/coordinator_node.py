@@ -38,16 +38,13 @@ from fleet.bus.messages import (
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
-from robots.ik import IKOptions
 from robots.registry import get_robot
-from robots.top_down import TopDownIK
 from scenes.schema import Scene
 
 COORD_RATE_HZ = 10.0
 PROGRESS_PERIOD_S = 0.5
 IDLE_SKILLS = ("idle", "done", "failed")
 OVERRUN_S = 2.0  # a task this late on its estimate: its arm's end is unknown
-REACH_IK = IKOptions(restarts=8)
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
 
 
@@ -74,7 +71,7 @@ class CoordinatorNode:
         })
         self.min_separation_m = math.inf
         self.closest_pair: tuple[str, str] | None = None
-        self.reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad), options=REACH_IK)) for a in scene.arms}
+        self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.period_ticks = max(1, round(scene.control_hz / COORD_RATE_HZ))
         self.drops = DropCounter()
@@ -113,7 +110,7 @@ class CoordinatorNode:
         self._progress_at = 0.0
         self.events_seen = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
-        self.capacity = capacity_bound(scene)  # what the line could do at best, for the summary
+        self.capacity = capacity_bound(scene, reach=self.reach)  # what the line could do at best, for the summary
         conveyor = scene.conveyor  # the belt's last reachable point, worked out once before the run starts
         self.last_reach_along_belt_m = last_reach_along_belt_m(conveyor, self.arm_views(), conveyor.pose.xyz[2] + 0.015) if conveyor else None
 
@@ -404,7 +401,7 @@ class CoordinatorNode:
         measured = measured_hop_seconds(list(self.ledger.tasks.values()))
         if not measured:
             return None
-        return capacity_bound(self.scene, measured).as_dict() | {"measured_hop_s": {
+        return capacity_bound(self.scene, measured, self.reach).as_dict() | {"measured_hop_s": {
             f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())}}
 
 
