@@ -11,6 +11,7 @@ reads `desired()` / `gripper_opening()` each tick and reports the joints to `upd
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ from robots.joint_trajectory import (
 GRIPPER_REACHED = 0.03  # opening units: within this of the target the claw has reached it
 GRIPPER_STILL_PER_S = 0.05  # opening units per second: slower than this the claw has stopped
 GRIPPER_SETTLE_S = 0.1  # the claw must stay stopped this long to count as stalled
+WATCHDOG_REASON = "watchdog: the controller missed its deadline"
 
 
 @dataclass
@@ -71,7 +73,7 @@ class ArmTracker:
             return self._note([GoalResult(goal.goal_id, "trajectory", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, "emergency stop engaged", now_s)])
         checked = check_goal(goal, self.joint_names, self.lower, self.upper)
         if isinstance(checked, GoalResult):
-            return self._note([_at(checked, now_s)])
+            return self._note([dataclasses.replace(checked, time_s=now_s)])
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
         q0, dq0, ddq0 = self._path_at(start)
         new = _Active(checked, Spline.through(start, q0, dq0, ddq0, checked, self.servo_period_s))
@@ -145,7 +147,7 @@ class ArmTracker:
     def update(self, now_s: float, q: np.ndarray, gripper_q: np.ndarray, gripper_dq: np.ndarray) -> list[GoalResult]:
         """After the physics stepped to `now_s`: tolerances, ends of goals, the watchdog. Returns the results."""
         if now_s > self.watchdog_deadline_s:
-            return self.abort(now_s, q, "watchdog: the controller missed its deadline")
+            return self.abort(now_s, q, WATCHDOG_REASON)
         out = []
         a = self.active
         if a is not None and not a.ended:
@@ -233,6 +235,3 @@ class ArmTracker:
                 self.last = r
         return results
 
-
-def _at(result: GoalResult, now_s: float) -> GoalResult:
-    return GoalResult(result.goal_id, result.kind, result.status, result.code, result.reason, now_s)

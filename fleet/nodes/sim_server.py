@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import sys
 import time
@@ -48,6 +49,7 @@ from fleet.physics.world import PartInfo, World
 from fleet.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
+from robots.tracker import WATCHDOG_REASON
 from robots.skills.pick_place import DEFAULT_DECISION_HZ
 
 COORD_RATE_HZ = 10.0
@@ -259,11 +261,10 @@ class SimServer:
 
     def _submit(self, link: ArmLink, msg) -> None:
         goal = goal_from_message(msg)
-        now = self.world.sim_time_s
-        results = [goal] if isinstance(goal, GoalResult) else self.tracked.submit(link.name, goal)
-        self._publish_results(link.name, [
-            GoalResult(r.goal_id, r.kind, r.status, r.code, r.reason, now, r.reached, r.stalled) for r in results
-        ])
+        if isinstance(goal, GoalResult):  # refused before reaching the tracker: stamped here (the tracker stamps its own)
+            self._publish_results(link.name, [dataclasses.replace(goal, time_s=self.world.sim_time_s)])
+        else:
+            self._publish_results(link.name, self.tracked.submit(link.name, goal))
 
     def _on_step(self, key: str, payload: bytes) -> None:
         msg = self._step_decoder.decode(key, payload)
@@ -451,7 +452,7 @@ class SimServer:
         self.world.step()
         results = self.tracked.update()
         for name, rs in results.items():
-            if any(r.reason.startswith("watchdog") for r in rs):
+            if any(r.reason == WATCHDOG_REASON for r in rs):
                 self.links[name].watchdog_held = True
                 self.stats.watchdog_holds[name] += 1
             self._publish_results(name, rs)
