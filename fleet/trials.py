@@ -96,8 +96,7 @@ def run_trial(robot: str, seed: int, physics_hz: float | None = None, solver_ite
         if k % period == 0:
             if not skill.active:
                 break
-            for goal in skill.step(arm_observation(world, arm_name, tracked.trackers[arm_name]), part_observations(world)):
-                tracked.submit(arm_name, goal)
+            tracked.decide(arm_name, skill, part_observations(world))
         tracked.apply()
         world.step()
         tracked.update()

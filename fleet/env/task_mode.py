@@ -113,10 +113,8 @@ class TaskChooser:
             (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target)), velocity,
         )
         parts = part_observations(self.world)
-        skill = self.skills[agent]
-        skill.start(job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id])
-        for goal in skill.step(arm_observation(self.world, agent, self.tracked.trackers[agent]), parts):
-            self.tracked.submit(agent, goal)
+        self.skills[agent].start(job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id])
+        self.tracked.decide(agent, self.skills[agent], parts)
         self.task_of[agent] = task.task_id
 
     def command(self) -> None:
@@ -124,10 +122,8 @@ class TaskChooser:
         if self.world.tick % self.period_ticks == 0:
             parts = part_observations(self.world)
             for agent in self.agents:
-                skill = self.skills[agent]
-                if skill.active:
-                    for goal in skill.step(arm_observation(self.world, agent, self.tracked.trackers[agent]), parts):
-                        self.tracked.submit(agent, goal)
+                if self.skills[agent].active:
+                    self.tracked.decide(agent, self.skills[agent], parts)
         self.tracked.apply()
 
     def report(self) -> None:

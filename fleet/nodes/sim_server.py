@@ -448,7 +448,7 @@ class SimServer:
         t3 = time.perf_counter()
         self.tracked.apply()
         if self.target_log is not None:
-            self.target_log.append([(a._position_targets, a._velocity_targets, a._gripper_targets) for a in self.world.arms.values()])
+            self.target_log.append([a.written_targets() for a in self.world.arms.values()])
         self.world.step()
         results = self.tracked.update()
         for name, rs in results.items():

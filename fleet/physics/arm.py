@@ -104,6 +104,10 @@ class SimArm:
                 joint.set_drive_target(new)
         self._position_targets, self._velocity_targets, self._gripper_targets = position, velocity, gripper
 
+    def written_targets(self) -> tuple[list[float], list[float], list[float]]:
+        """The drive targets last written: arm positions, arm velocities, gripper positions."""
+        return self._position_targets, self._velocity_targets, self._gripper_targets
+
     def set_gripper_effort(self, force_limit: float) -> None:
         """The gripper drives' force limit (a GripperCommand goal's max effort); stiffness and damping stay."""
         gains = self.spec.gripper_gains

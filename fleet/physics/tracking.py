@@ -8,8 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from fleet.observe import arm_observation
 from fleet.physics.world import World
 from robots.joint_trajectory import ArmGoal, GoalResult
+from robots.skills.interface import PartObservation
+from robots.skills.pick_place import PickPlaceSkill
 from robots.tracker import ArmTracker
 
 
@@ -37,6 +40,12 @@ class TrackedArms:
     def submit(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
         """Hand `arm`'s tracker a goal now; the refusal or the preempted goals' results come back."""
         return self.trackers[arm].submit(goal, self.world.sim_time_s)
+
+    def decide(self, arm: str, skill: PickPlaceSkill, parts: dict[int, PartObservation]) -> None:
+        """One decision of `arm`'s skill in process, as a controller makes it over the bus: it sees the arm (with its
+        tracker's newest result) and the parts, and its goals go to the arm's tracker."""
+        for goal in skill.step(arm_observation(self.world, arm, self.trackers[arm]), parts):
+            self.submit(arm, goal)
 
     def apply(self) -> None:
         """Drive targets for this tick from every tracker (its trajectory, or where it holds)."""
