@@ -63,33 +63,36 @@ class Node:
     argv: list[str]
     report: Path
     log: Path
-    child: ChildProcess | None = None
     exit_code: int | None = None
     history: list[dict] = field(default_factory=list)  # earlier incarnations (respawned controllers)
+    child: ChildProcess = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.child = ChildProcess(self.argv, self.log)
 
     def start(self) -> None:
-        self.child = ChildProcess(self.argv, self.log).start()
+        self.child.start()
         self.exit_code = None
 
     @property
     def proc(self):
-        return self.child.proc if self.child else None
+        return self.child.proc
 
     def poll(self) -> int | None:
-        if self.child is not None and self.exit_code is None:
+        if self.exit_code is None:
             self.exit_code = self.child.poll()
         return self.exit_code
 
     @property
     def alive(self) -> bool:
-        return self.child is not None and self.poll() is None
+        return self.child.proc is not None and self.poll() is None
 
     def signal(self, sig: int) -> None:
         if self.alive:
             self.child.signal(sig)
 
     def log_tail(self, lines: int = 3) -> str:
-        return ChildProcess(self.argv, self.log).log_tail(lines)
+        return self.child.log_tail(lines)
 
     def record(self) -> dict:
         return {"role": self.role, "name": self.name, "pid": self.proc.pid if self.proc else None, "exit_code": self.poll()}
@@ -208,7 +211,7 @@ class Launcher:
 
     def stop_all(self) -> None:
         """SIGTERM every node (the sim first, so it writes its figures), SIGKILL what is left after a grace period."""
-        stop_children([n.child for n in self.nodes if n.child is not None], STOP_GRACE_S)
+        stop_children([n.child for n in self.nodes], STOP_GRACE_S)
 
     # --- the run --------------------------------------------------------------------
     def run(self) -> dict:

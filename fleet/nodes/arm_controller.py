@@ -108,17 +108,23 @@ class ArmController:
         for pub in (self._step_pub, self._goal_pub, self._status_pub):
             pub.undeclare()
 
-    def _latest(self, name: str):
-        """The newest believable message queued on `name` (states, parts); the rest are dropped and counted."""
-        latest = None
+    def _believable(self, name: str, problem):
+        """The messages queued on `name` that decode and that `problem` finds nothing wrong with, in arrival order
+        (checked one at a time, as the caller takes them); the rest are dropped and counted."""
         for key, payload in self._inboxes[name].drain():
             msg = self._decoders[name].decode(key, payload)
             if msg is None:
                 continue
-            problem = self._problem(msg)
-            if problem:
-                self.drops.drop(key, problem)
+            why = problem(msg)
+            if why:
+                self.drops.drop(key, why)
                 continue
+            yield msg
+
+    def _latest(self, name: str):
+        """The newest believable message queued on `name` (states, parts)."""
+        latest = None
+        for msg in self._believable(name, self._problem):
             self.sim_clock.believe(msg.tick)
             latest = msg
         return latest
@@ -150,14 +156,7 @@ class ArmController:
 
     def _take_assignments(self) -> None:
         """Queue what arrived; `_apply_assignments` acts on it when a state says its time has come."""
-        for key, payload in self._inboxes["assign"].drain():
-            msg = self._decoders["assign"].decode(key, payload)
-            if msg is None:
-                continue
-            problem = self._order_problem(msg)
-            if problem:
-                self.drops.drop(key, problem)
-                continue
+        for msg in self._believable("assign", self._order_problem):
             if self.assign_seq is not None and msg.seq <= self.assign_seq:
                 continue
             self.assign_seq = msg.seq
