@@ -45,7 +45,8 @@ class CapacityBound:
     arrivals_per_min: float
     throughput_bound_per_min: float
     bottleneck: str  # an arm or station id, or "arrivals" when the line can take every part that comes
-    bottleneck_busy_fraction: float
+    bottleneck_busy_fraction: float  # of the busiest arm or station (the bottleneck when it limits)
+    busiest: str = ""  # the busiest arm or station at the bound, whether or not it limits the line
     arm_busy: dict[str, float] = field(default_factory=dict)
     station_busy: dict[str, float] = field(default_factory=dict)
     unservable: list[str] = field(default_factory=list)  # hops no arm can do: their parts can never be completed
@@ -53,7 +54,7 @@ class CapacityBound:
     def as_dict(self) -> dict:
         return {
             "arrivals_per_min": round(self.arrivals_per_min, 3), "throughput_bound_per_min": round(self.throughput_bound_per_min, 3),
-            "bottleneck": self.bottleneck, "bottleneck_busy_fraction": round(self.bottleneck_busy_fraction, 3),
+            "bottleneck": self.bottleneck, "bottleneck_busy_fraction": round(self.bottleneck_busy_fraction, 3), "busiest": self.busiest,
             "arm_busy_at_bound": {a: round(v, 3) for a, v in self.arm_busy.items()},
             "station_busy_at_bound": {s: round(v, 3) for s, v in self.station_busy.items()},
             "unservable_hops": self.unservable,
@@ -189,5 +190,5 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))
     limited = best < arrivals - 1e-6 - 60.0 * sum(rate[t] for t in unreachable)
     return CapacityBound(
-        arrivals, best, busiest[0] if limited else "arrivals", busiest[1], arm_busy, station_busy, unservable,
+        arrivals, best, busiest[0] if limited else "arrivals", busiest[1], busiest[0], arm_busy, station_busy, unservable,
     )

@@ -22,7 +22,7 @@ from rich.table import Table
 from fleet.bus.session import add_bus_arguments
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
-from scenes.loader import RobotFacts, SceneError, bundled_scene_names, load_scene
+from scenes.loader import RobotFacts, SceneError, bundled_scene_names, first_error, load_scene
 
 class UsageError(ValueError):
     """A flag that cannot work: one line, exit 2, before anything starts."""
@@ -51,8 +51,7 @@ def capacity_line(bound) -> str:
     """The capacity bound in one line: what the line could complete at best, and what limits it."""
     text = f"capacity: at best {bound.throughput_bound_per_min:.2f} parts/min of {bound.arrivals_per_min:.2f} arriving"
     if bound.bottleneck == "arrivals":
-        busiest = max([*bound.arm_busy.items(), *bound.station_busy.items()], key=lambda kv: kv[1], default=("-", 0.0))
-        text += f" (the line can take them all; busiest: {busiest[0]} {busiest[1]:.0%} of the time)"
+        text += f" (the line can take them all; busiest: {bound.busiest or '-'} {bound.bottleneck_busy_fraction:.0%} of the time)"
     else:
         text += f" (bottleneck: {bound.bottleneck}, busy all the time)"
     if bound.unservable:
@@ -90,8 +89,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
     try:
         scene = trial_scene(args.robot, args.seed, args.physics_hz, args.solver_iterations)
     except ValidationError as exc:
-        first = exc.errors()[0]
-        raise UsageError(f"{'.'.join(map(str, first['loc'])) or 'scene'}: {first['msg']}") from None
+        raise UsageError("{}: {}".format(*first_error(exc, top="scene"))) from None
     failures: list[str] = []
     with Progress(
         TextColumn(f"{args.robot} trials"), BarColumn(), MofNCompleteColumn(),

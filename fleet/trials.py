@@ -57,7 +57,7 @@ def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_i
         update["physics_hz"] = physics_hz
     if solver_iterations is not None:
         update["solver_position_iterations"] = solver_iterations
-    return type(scene).model_validate(scene.model_copy(update=update).model_dump())
+    return scene.revalidated(**update)
 
 
 def part_in_bin(world: World, part_id: int, bin_name: str) -> bool:

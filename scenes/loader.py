@@ -74,6 +74,12 @@ def yaml_text(path: Path, label: str) -> str:
         raise SceneError(label, "", f"not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r})") from None
 
 
+def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, str]:
+    """The first problem pydantic found: the field's dotted path (`top` for the model as a whole) and the reason."""
+    err = exc.errors()[0]
+    return ".".join(str(p) for p in err["loc"]) or top, err["msg"]
+
+
 def load_scene(
     name_or_path: str | Path,
     *,
@@ -97,9 +103,7 @@ def load_scene(
     try:
         scene = Scene.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = ".".join(str(p) for p in err["loc"]) or "(top level)"
-        raise SceneError(label, field, err["msg"]) from None
+        raise SceneError(label, *first_error(exc)) from None
     scene = expand_arm_row(scene, arms, label)
     if seed is not None:
         if seed < 0:

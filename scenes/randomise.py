@@ -57,4 +57,4 @@ def draw(scene: Scene) -> Scene:
     update = {"feeders": feeders, "randomise": None, "randomised": drawn, "drive_gain_scale": gains, "part_pose_noise_m": noise}
     if scene.conveyor is not None:
         update["conveyor"] = scene.conveyor.model_copy(update={"speed_m_per_s": min(scene.conveyor.speed_m_per_s * belt, 0.5)})
-    return Scene.model_validate(scene.model_copy(update=update).model_dump())
+    return scene.revalidated(**update)

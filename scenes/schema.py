@@ -25,6 +25,10 @@ class Strict(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
+    def revalidated(self, **update: object):
+        """A copy with `update` applied and every field and rule checked again (`model_copy` alone checks nothing)."""
+        return type(self).model_validate(self.model_copy(update=update).model_dump())
+
 
 class Pose2D(Strict):
     """A placement on the floor: position in metres (world frame) and yaw about +z in degrees."""

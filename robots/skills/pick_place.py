@@ -224,7 +224,6 @@ class PickPlaceSkill:
                 return
             seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
-        self.part_seen = (part.position.copy(), obs.time_s)
         self._begin_segment(seg, Phase.APPROACH, obs.time_s)
 
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
