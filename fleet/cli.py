@@ -147,6 +147,20 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"bus flags: {text}") from None
 
 
+def run_recording(args: argparse.Namespace) -> str | None:
+    """Where `fleet run` records: `--record FILE`, else `DIR/recording.mcap` with `--out DIR`, else nowhere."""
+    if args.out:
+        out_dir = Path(args.out)
+        if out_dir.exists() and not out_dir.is_dir():
+            raise UsageError(f"--out {args.out}: exists and is not a folder")
+        if not out_dir.parent.is_dir():
+            raise UsageError(f"--out {args.out}: no folder {out_dir.parent}")
+        out_dir.mkdir(exist_ok=True)
+    if args.record:
+        return str(writable_file("--record", args.record))
+    return str(Path(args.out) / "recording.mcap") if args.out else None
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from fleet.launcher import Launcher, RunOptions
 
@@ -156,7 +170,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
         respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
         listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
-        monitor=args.monitor, monitor_host=args.host, monitor_port=args.port,
+        monitor=args.monitor, monitor_host=args.host, monitor_port=args.port, record=run_recording(args),
     )
     if args.monitor:
         warning = exposure_warning(args.host)
@@ -188,6 +202,30 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"fleet: error: {summary['error']}", file=sys.stderr)
         return 1
     return 130 if summary["status"] == "interrupted" else 0
+
+
+def writable_file(flag: str, path: str) -> Path:
+    """A file path whose folder exists (refused in one line otherwise)."""
+    target = Path(path)
+    if target.is_dir():
+        raise UsageError(f"{flag} {path}: is a directory; give a file name, e.g. run.mcap")
+    if not target.parent.is_dir():
+        raise UsageError(f"{flag} {path}: no folder {target.parent}")
+    return target
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from fleet.nodes import recorder_node
+
+    if not args.connect:
+        raise UsageError("fleet record needs --connect ENDPOINT (fleet run prints its bus endpoint)")
+    writable_file("file", args.file)
+    argv = ["--run", args.run_id, "--out", args.file, "--scene-timeout", str(args.wait), "--nice", "0"]
+    for ep in args.connect:
+        argv += ["--connect", ep]
+    if args.zenoh_config:
+        argv += ["--zenoh-config", args.zenoh_config]
+    return recorder_node.main(argv)
 
 
 def cmd_monitor(args: argparse.Namespace) -> int:
@@ -367,9 +405,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keep-logs", action="store_true", help="keep each process's log and report (the path is printed)")
     p.add_argument("--json", action="store_true", help="last stdout line: the summary as one JSON object")
     p.add_argument("--monitor", action="store_true", help="serve the browser monitor (Viser) of this run; see --host/--port")
+    p.add_argument("--record", metavar="FILE.mcap", help="record every bus message, TF, joint states and markers (rosbag2-layout MCAP)")
+    p.add_argument("--out", metavar="DIR", help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots")
     add_monitor_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("record", help="record a running line to an MCAP file (attaches over the bus; Ctrl-C finishes the file)")
+    p.add_argument("file", help="the MCAP file to write")
+    p.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("monitor", help="watch and control a running line in the browser (attaches over the bus)")
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")

@@ -24,10 +24,12 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
-from fleet.processes import ChildProcess, stop_children
+from fleet.processes import ChildProcess, stop_children, write_text_atomically
 from scenes.loader import load_scene
 
 STOP_GRACE_S = 1.5
+RECORDER_GRACE_S = 120.0  # a recorder behind the line finishes writing what it heard; killing it would lose the file
+RECORDER_START_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,7 @@ class RunOptions:
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
+    record: str | None = None  # an MCAP file: a recorder taps the bus from the first tick (the sim waits for it)
 
 
 @dataclass
@@ -123,6 +126,7 @@ class Launcher:
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
+        self.recorder: Node | None = None  # started before the clients, stopped after the summary
         self.respawns = 0
         self.interrupted = ""
         self.keep_dir = options.keep_logs
@@ -152,6 +156,8 @@ class Launcher:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
         if o.record_targets:
             sim_args += ["--record-targets", o.record_targets]
+        if o.record:
+            sim_args += ["--await-recorder", str(RECORDER_START_S)]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
 
     def client_nodes(self) -> list[Node]:
@@ -174,6 +180,25 @@ class Launcher:
         ]
         return Node("monitor", "monitor", argv, report, log)
 
+    def recorder_node(self) -> Node:
+        """The recorder, attached over the bus like any other client; it adds the summary found in `summary.json`."""
+        o = self.options
+        report, log = self.dir / "recorder.json", self.dir / "recorder.log"
+        argv = [
+            sys.executable, "-m", "fleet.nodes.recorder_node", "--run", o.run_id, *self._bus_args(False), "--out", str(o.record),
+            "--summary-file", str(self.dir / "summary.json"), "--report", str(report),
+        ]
+        return Node("recorder", "recorder", argv, report, log)
+
+    def finish_recording(self, summary: dict) -> dict:
+        """Hand the recorder the summary and let it finish the file; what it reports."""
+        write_text_atomically(str(self.dir / "summary.json"), json.dumps(summary, sort_keys=True))
+        stop_children([self.recorder.child], RECORDER_GRACE_S)
+        report = self._read(self.recorder)
+        if not report:
+            self.on_message(f"the recorder did not finish {self.options.record}: {self.recorder.log_tail() or 'no output'}")
+        return report
+
     def __enter__(self) -> "Launcher":
         try:
             sim = self.sim_node()
@@ -181,6 +206,9 @@ class Launcher:
             sim.start()
             if not self.endpoint:
                 self.endpoint = self._await_endpoint(sim)
+            if self.options.record:
+                self.recorder = self.recorder_node()
+                self.recorder.start()
             self.nodes += self.client_nodes()
             if self.options.monitor:
                 self.nodes.append(self.monitor_node())
@@ -206,6 +234,8 @@ class Launcher:
 
     def __exit__(self, *exc: object) -> None:
         self.stop_all()
+        if self.recorder is not None:
+            stop_children([self.recorder.child], RECORDER_GRACE_S)
         if not self.keep_dir:
             shutil.rmtree(self.dir, ignore_errors=True)
 
@@ -238,7 +268,11 @@ class Launcher:
             self.stop_all()
         if error:
             self.keep_dir = True
-        return self.summary(time.monotonic() - started, error)
+        summary = self.summary(time.monotonic() - started, error)
+        if self.recorder is not None:
+            summary["recording"] = self.finish_recording(summary)
+            summary["processes"].append(self.recorder.record())
+        return summary
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.interrupted = signal.Signals(signum).name

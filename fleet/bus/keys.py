@@ -19,6 +19,16 @@ class Keys:
         if not is_valid_name(self.run):
             raise ValueError(f"run id {self.run!r} must be lower-case letters, digits and _ (starting with a letter)")
 
+    @property
+    def prefix(self) -> str:
+        """Every key of the run starts with this (`clawfleet/<run>`)."""
+        return f"{ROOT}/{self.run}"
+
+    @property
+    def recorder_ready(self) -> str:
+        """A recorder says it listens (the sim, told to await one, starts its clock only then)."""
+        return f"{ROOT}/{self.run}/recorder/ready"
+
     def _arm(self, arm: str, leaf: str) -> str:
         if not is_valid_name(arm):
             raise ValueError(f"arm id {arm!r} is not a valid id")

@@ -18,22 +18,6 @@ from fleet.processes import StopFlag
 from scenes.schema import Scene
 
 
-
-class SceneUnavailable(RuntimeError):
-    """No sim answered the scene query in time."""
-
-
-def fetch_scene(session: zenoh.Session, keys: Keys, timeout_s: float = 10.0) -> Scene:
-    """The scene the running sim serves (`Keys.scene`), asked until it answers or `timeout_s` passes."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        for reply in session.get(keys.scene, timeout=min(1.0, max(deadline - time.monotonic(), 0.1))):
-            if reply.ok is not None:
-                return Scene.model_validate_json(reply.ok.payload.to_bytes())
-        time.sleep(0.1)
-    raise SceneUnavailable(f"no sim of run {keys.run!r} answered on {keys.scene} within {timeout_s:.0f} s")
-
-
 class Monitor:
     """Use in a `with` block: the Viser server, the bus subscribers and publishers are released on leaving."""
 

@@ -14,7 +14,8 @@ import sys
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
-from fleet.monitor.app import Monitor, SceneUnavailable, fetch_scene, print_url
+from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.monitor.app import Monitor, print_url
 from fleet.monitor.options import DEFAULT_RATE_HZ, add_monitor_arguments, exposure_warning
 from fleet.processes import StopFlag, write_report, write_text_atomically
 

@@ -27,6 +27,7 @@ import contextlib
 import dataclasses
 import math
 import sys
+import threading
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
@@ -575,6 +576,16 @@ def save_target_log(path: str, log: list) -> None:
     np.savez(path, **arrays)
 
 
+def await_recorder(session: zenoh.Session, keys: Keys, timeout_s: float) -> bool:
+    """Wait until a recorder says it listens (its subscribers are declared before it says so)."""
+    heard = threading.Event()
+    sub = session.declare_subscriber(keys.recorder_ready, lambda _sample: heard.set())
+    try:
+        return heard.wait(timeout_s)
+    finally:
+        sub.undeclare()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-sim-server", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
@@ -584,6 +595,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
     parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
+    parser.add_argument("--await-recorder", type=float, metavar="S", default=0.0, help="start the clock only once a recorder listens (wait at most S wall seconds)")
     parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")
@@ -607,6 +619,10 @@ def main(argv: list[str] | None = None) -> int:
         )
         if args.record_targets:
             server.target_log = []
+        if args.await_recorder and not await_recorder(session, Keys(args.run), args.await_recorder):
+            server.close()
+            print(f"sim_server: no recorder said it listens within {args.await_recorder:.0f} s", file=sys.stderr)
+            return 1
         try:
             server.run_ticks(ticks)
         finally:

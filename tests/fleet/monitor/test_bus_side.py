@@ -11,7 +11,8 @@ from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import SimStatus
 from fleet.bus.session import BusEndpoints, open_session
-from fleet.monitor.app import Monitor, SceneUnavailable, fetch_scene
+from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.monitor.app import Monitor
 from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
 from fleet.monitor.options import exposure_warning

@@ -1,0 +1,25 @@
+"""Asking a running line for its scene: the sim answers `Keys.scene` with the scene it runs, as JSON."""
+
+from __future__ import annotations
+
+import time
+
+import zenoh
+
+from fleet.bus.keys import Keys
+from scenes.schema import Scene
+
+
+class SceneUnavailable(RuntimeError):
+    """No sim answered the scene query in time."""
+
+
+def fetch_scene(session: zenoh.Session, keys: Keys, timeout_s: float = 10.0) -> Scene:
+    """The scene the running sim serves (`Keys.scene`), asked until it answers or `timeout_s` passes."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for reply in session.get(keys.scene, timeout=min(1.0, max(deadline - time.monotonic(), 0.1))):
+            if reply.ok is not None:
+                return Scene.model_validate_json(reply.ok.payload.to_bytes())
+        time.sleep(0.1)
+    raise SceneUnavailable(f"no sim of run {keys.run!r} answered on {keys.scene} within {timeout_s:.0f} s")

@@ -1,0 +1,132 @@
+"""What a recording holds, from the bus messages heard: every raw message on its key's channel, and the ROS 2
+topics derived from them. No I/O but the writer: the recorder node feeds it what it hears.
+
+Stamps are sim time: a message's own (`sim_time_s`, or its tick) where it carries one, else the newest sim time
+heard before it (goals, orders, e-stops), so nothing is stamped before the message that caused it.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from dataclasses import dataclass, field
+
+from fleet.bus.codec import Decoder, DropCounter
+from fleet.bus.keys import Keys
+from fleet.bus.messages import (
+    ArmGoalMsg, ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, CoordTick, EnvAction, EnvTargets, EStop, GoalResultMsg,
+    GripperGoalMsg, LineEvent, LineView, MotionGrant, PartsState, Progress, RespawnRequest, Separations, SimControl, SimStatus,
+    TrajectoryGoalMsg,
+)
+from fleet.record.line_to_ros import LineToRos
+from fleet.record.mcap_file import RecordingWriter
+from fleet.record.ros_types import ros_type, sim_ns, to_ros
+from scenes.schema import Scene
+
+ARM_LEAVES = {
+    "state": ArmState, "step": ControllerStep, "goal": ArmGoalMsg, "result": GoalResultMsg, "status": ArmStatus,
+    "assign": ArmOrder, "env_action": EnvAction, "env_targets": EnvTargets,
+}
+LINE_LEAVES = {
+    "world/parts": PartsState, "world/events": LineEvent, "world/control": SimControl, "world/status": SimStatus,
+    "world/frame": LineView, "estop": EStop, "coord/tick": CoordTick, "coord/progress": Progress,
+    "coord/separation": Separations, "launcher/respawn": RespawnRequest,
+}
+SEMANTIC_TOPICS = {  # bus message type -> ROS topic (arm ones under /<arm>)
+    LineEvent: "/line/events", TrajectoryGoalMsg: "trajectory_goals", GripperGoalMsg: "gripper_goals",
+    GoalResultMsg: "goal_results", Assignment: "assignments", MotionGrant: "grants", ArmStatus: "status",
+    Progress: "/line/progress", SimStatus: "/line/sim_status", Separations: "/line/separations",
+}
+
+
+def recorded_keys(keys: Keys) -> list[str]:
+    """The key expressions a recorder subscribes to: every key of the run but the monitors' `world/view`
+    (a copy of `world/frame` at another rate, built only while someone watches; recording it would make the sim build it)."""
+    root = keys.prefix
+    return [f"{root}/arm/**", f"{root}/world/parts", f"{root}/world/events", f"{root}/world/control", f"{root}/world/status",
+            f"{root}/world/frame", f"{root}/estop", f"{root}/coord/**", f"{root}/launcher/**"]
+
+
+@dataclass
+class RecorderStats:
+    by_key: Counter = field(default_factory=Counter)
+    undecodable: int = 0
+
+
+class Recorder:
+    """Turns heard bus messages into a recording: `take(key, payload)` for each, `finish(summary)` at the end."""
+
+    def __init__(self, writer: RecordingWriter, scene: Scene, keys: Keys) -> None:
+        self.writer, self.scene, self.keys = writer, scene, keys
+        self.ros = LineToRos(scene)
+        self.control_hz = scene.control_hz
+        self.drops = DropCounter()
+        self.stats = RecorderStats()
+        self.now_s = 0.0
+        self._prefix = f"{keys.prefix}/"
+        self._decoders: dict[type, Decoder] = {}
+        self._write_static()
+
+    def _write_static(self) -> None:
+        self.writer.ros("/tf_static", self.ros.tf_static(), 0, latched=True)
+        self.writer.ros("/cell", self.ros.cell_markers(), 0, latched=True)
+        description = ros_type("std_msgs/msg/String")
+        for arm in self.ros.arms.values():
+            self.writer.ros(f"/{arm.arm}/robot_description", description(data=arm.spec.urdf_text()), 0, latched=True)
+
+    def message_type(self, key: str) -> type | None:
+        """The bus message type a key carries (None: a key this recorder does not know)."""
+        if not key.startswith(self._prefix):
+            return None
+        rest = key[len(self._prefix):]
+        if rest.startswith("arm/"):
+            return ARM_LEAVES.get(rest.rsplit("/", 1)[-1])
+        return LINE_LEAVES.get(rest)
+
+    def _decode(self, key: str, message_type: type | None, payload: bytes):
+        if message_type is None:
+            return None
+        if message_type not in self._decoders:
+            self._decoders[message_type] = Decoder(message_type, self.drops)
+        return self._decoders[message_type].decode(key, payload)
+
+    def _stamp_s(self, message: object) -> float:
+        """The message's own sim time where it has one, else the newest heard."""
+        if isinstance(message, (ArmState, LineView, PartsState, GoalResultMsg, ArmStatus, Progress, SimStatus, Separations)):
+            return message.sim_time_s
+        if isinstance(message, (LineEvent, ControllerStep, CoordTick)):
+            return message.tick / self.control_hz
+        return self.now_s
+
+    def take(self, key: str, payload: bytes) -> None:
+        """Record one heard message: raw (always, even one that does not decode), and its ROS topics."""
+        message_type = self.message_type(key)
+        message = self._decode(key, message_type, payload)
+        stamp_s = self._stamp_s(message) if message is not None else self.now_s
+        self.now_s = max(self.now_s, stamp_s)
+        stamp = sim_ns(stamp_s)
+        type_name = getattr(type(message), "__name__", "") if message is not None else ""
+        self.writer.raw(key, type_name or getattr(message_type, "__name__", "") or "unknown", payload, stamp)
+        self.stats.by_key[key] += 1
+        if message is None:
+            self.stats.undecodable += 1
+            return
+        self._derive(message, stamp)
+
+    def _derive(self, message: object, stamp: int) -> None:
+        w = self.writer
+        if isinstance(message, ArmState) and message.arm in self.ros.arms:
+            w.ros("/tf", self.ros.tf(message), stamp)
+            w.ros(f"/{message.arm}/joint_states", self.ros.joint_state(message), stamp)
+        elif isinstance(message, LineView):
+            w.ros("/parts", self.ros.parts_markers(message.parts), stamp)
+        topic = SEMANTIC_TOPICS.get(type(message))
+        if topic is not None:
+            w.ros(topic if topic.startswith("/") else f"/{message.arm}/{topic}", to_ros(message), stamp)
+
+    def finish(self, summary: dict | None) -> None:
+        """The run's summary (latched, at the last sim time heard), then the file's index."""
+        if summary is not None:
+            w = self.writer
+            w.ros("/line/summary", ros_type("std_msgs/msg/String")(data=json.dumps(summary, sort_keys=True)), sim_ns(self.now_s), latched=True)
+        self.writer.close()
