@@ -28,7 +28,11 @@ class UsageError(ValueError):
     """A flag that cannot work: one line, exit 2, before anything starts."""
 
 
-USER_ERRORS = (SceneError, UnknownRobotError, MissingModelsError, UsageError)
+def user_errors() -> tuple[type[BaseException], ...]:
+    """Errors a user causes: one line, exit 2 (a bad recording's only once the recording module is loaded: it imports mcap)."""
+    errors: tuple[type[BaseException], ...] = (SceneError, UnknownRobotError, MissingModelsError, UsageError)
+    recording = sys.modules.get("fleet.record.mcap_file")
+    return errors + ((recording.RecordingError,) if recording else ())
 out = Console()
 err = Console(stderr=True)
 
@@ -194,6 +198,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 err.print(f"logs and reports kept in {launcher.dir}")
         progress.update(bar, completed=summary["sim_seconds"], done=summary["parts_completed"], spawned=summary["parts_spawned"])
     print_run_summary(summary)
+    if args.out:
+        write_run_artefacts(summary, Path(args.out))
     if args.summary:
         Path(args.summary).write_text(json.dumps(summary, indent=1) + "\n")
     if args.json:
@@ -212,6 +218,37 @@ def writable_file(flag: str, path: str) -> Path:
     if not target.parent.is_dir():
         raise UsageError(f"{flag} {path}: no folder {target.parent}")
     return target
+
+
+def write_run_artefacts(summary: dict, out_dir: Path) -> None:
+    """`fleet run --out DIR`: the summary, and the time series and plots made from the run's recording."""
+    from fleet.record.mcap_file import Recording
+    from fleet.record.report import series_from_recording, write_report
+
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if (summary.get("recording") or {}).get("file"):
+        written = write_report(series_from_recording(Recording(summary["recording"]["file"])), out_dir)
+        err.print(f"artefacts in {out_dir}: summary.json, {Path(summary['recording']['file']).name}, {', '.join(p.name for p in written)}",
+                  markup=False, highlight=False)
+    else:
+        err.print(f"the recorder wrote nothing: only summary.json in {out_dir}", markup=False, highlight=False)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from fleet.record.mcap_file import Recording
+    from fleet.record.report import series_from_recording, write_report
+
+    recording = Recording(args.file)
+    out_dir = Path(args.out)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out {args.out}: exists and is not a folder")
+    series = series_from_recording(recording)
+    written = write_report(series, out_dir)
+    if series.summary is not None:
+        (out_dir / "summary.json").write_text(json.dumps(series.summary, indent=1) + "\n")
+    out.print(f"{args.file}: {len(series.arm_rows)} arm states, {len(series.line_rows)} line samples over {series.end_s:.1f} sim s")
+    out.print(f"wrote {', '.join(p.name for p in written)} in {out_dir}")
+    return 0
 
 
 def cmd_record(args: argparse.Namespace) -> int:
@@ -418,6 +455,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_bus_arguments(p)
     p.set_defaults(func=cmd_record)
 
+    p = sub.add_parser("report", help="time series (CSV) and plots (Gantt, throughput, separation, round trips) from a recording")
+    p.add_argument("file", help="an MCAP file written by fleet run --record / fleet record")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the CSVs and PNGs")
+    p.set_defaults(func=cmd_report)
+
     p = sub.add_parser("monitor", help="watch and control a running line in the browser (attaches over the bus)")
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
@@ -503,7 +545,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except USER_ERRORS as exc:
+    except user_errors() as exc:
         print(f"fleet: error: {exc}", file=sys.stderr)
         return 2
     except RuntimeError as exc:  # a run that could not start (the launcher's RunError), a failed benchmark

@@ -419,6 +419,8 @@ class Launcher:
             "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),
+            "round_trip_histogram": sim.get("round_trip_histogram"),
+            "bus_messages_out": sim.get("messages_out", {}),
             "dropped_messages": sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
             + sum(c.get("dropped_messages", 0) for c in controllers) + (monitor or {}).get("dropped_messages", 0),
             "arms_lost": sim.get("arms_lost", []),

@@ -334,9 +334,9 @@ class SimServer:
             if time.monotonic() > republish_at:  # a process that joined late, or a lost sample
                 for link in waiting:
                     if link.answer is None:
-                        self._state_pubs[link.name].put(encode(link.awaiting))
+                        self._put(self._state_pubs[link.name], "state", encode(link.awaiting))
                 if coord_waiting and self._last_frame is not None:
-                    self._frame_pub.put(self._last_frame)
+                    self._put(self._frame_pub, "frame", self._last_frame)
                 republish_at = time.monotonic() + REPUBLISH_S
             self._inbox.wait(0.01)
         for link in due:
@@ -518,7 +518,7 @@ class SimServer:
         self._status_at = now
         st, ticks = self.stats, max(self.stats.ticks, 1)
         recent = st.recent_round_trip_ms
-        self._status_pub.put(encode(SimStatus(
+        self._put(self._status_pub, "status", encode(SimStatus(
             self.world.tick, self.world.sim_time_s, self.mode, self.paused, self.estop, self.speed,
             tuple(st.busy_ticks[a] / ticks for a in self.links),
             float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
@@ -554,6 +554,8 @@ class SimServer:
             "contact_pairs": sorted("-".join(p) for p in self.stats.contact_pairs),
             "latency_p50_ms": round(float(np.percentile(rtt, 50)), 3) if rtt.size else None,
             "latency_p99_ms": round(float(np.percentile(rtt, 99)), 3) if rtt.size else None,
+            "round_trip_histogram": round_trip_histogram(rtt),
+            "messages_out": dict(sorted(self.stats.messages_out.items())),
             "dropped_messages": self.drops.total,
             "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
             "goal_results": dict(sorted(self.stats.results.items())),
@@ -566,6 +568,15 @@ class SimServer:
             "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
             "loop_wall_seconds": round(sum(v for k, v in self.stats.wall_s.items() if k != "startup"), 3),
         }
+
+
+RTT_EDGES_MS = np.geomspace(0.05, 2000.0, 47)  # log-spaced: sub-millisecond loopback to a lockstep timeout
+
+
+def round_trip_histogram(rtt_ms: np.ndarray) -> dict:
+    """Every state-to-answer round trip of the run, binned (log-spaced edges in ms)."""
+    counts, _ = np.histogram(np.clip(rtt_ms, RTT_EDGES_MS[0], RTT_EDGES_MS[-1]), bins=RTT_EDGES_MS)
+    return {"edges_ms": [round(float(e), 4) for e in RTT_EDGES_MS], "counts": counts.tolist()}
 
 
 def save_target_log(path: str, log: list) -> None:

@@ -23,6 +23,7 @@ from mcap.writer import CompressionType, Writer
 from fleet.bus.messages import PROTOCOL_VERSION
 from fleet.record.ros_types import msgdef, serialize
 
+MAGIC = b"\x89MCAP0\r\n"
 RAW_ENCODING = "msgpack"
 METADATA = "clawfleet"
 LIBRARY = "clawfleet"
@@ -110,13 +111,16 @@ class Recording:
         self.path = Path(path)
         if not self.path.is_file():
             raise RecordingError(f"{self.path}: no such recording")
+        with open(self.path, "rb") as f:
+            if f.read(len(MAGIC)) != MAGIC:
+                raise RecordingError(f"{self.path}: not an MCAP file")
         try:
             with open(self.path, "rb") as f:
                 reader = make_reader(f)
                 summary = reader.get_summary()
                 meta = {m.name: m.metadata for m in reader.iter_metadata()}
         except (McapError, ValueError, EOFError, OSError) as exc:
-            raise RecordingError(f"{self.path}: not a readable MCAP file ({_first_line(exc)})") from None
+            raise RecordingError(f"{self.path}: an MCAP file cut short or damaged ({_first_line(exc)})") from None
         if summary is None:
             raise RecordingError(f"{self.path}: the MCAP file has no summary (cut short while being written?)")
         if METADATA not in meta:

@@ -65,6 +65,7 @@ class Recorder:
         self.now_s = 0.0
         self._prefix = f"{keys.prefix}/"
         self._decoders: dict[type, Decoder] = {}
+        self._last_tick: dict[str, int] = {}  # per arm ("" for the line's frames): the newest tick made into ROS topics
         self._write_static()
 
     def _write_static(self) -> None:
@@ -113,12 +114,19 @@ class Recorder:
             return
         self._derive(message, stamp)
 
+    def _is_new(self, stream: str, tick: int) -> bool:
+        """A state or frame not seen before (the sim re-sends one while it waits for its answer)."""
+        if tick <= self._last_tick.get(stream, -1):
+            return False
+        self._last_tick[stream] = tick
+        return True
+
     def _derive(self, message: object, stamp: int) -> None:
         w = self.writer
-        if isinstance(message, ArmState) and message.arm in self.ros.arms:
+        if isinstance(message, ArmState) and message.arm in self.ros.arms and self._is_new(message.arm, message.tick):
             w.ros("/tf", self.ros.tf(message), stamp)
             w.ros(f"/{message.arm}/joint_states", self.ros.joint_state(message), stamp)
-        elif isinstance(message, LineView):
+        elif isinstance(message, LineView) and self._is_new("", message.tick):
             w.ros("/parts", self.ros.parts_markers(message.parts), stamp)
         topic = SEMANTIC_TOPICS.get(type(message))
         if topic is not None:
