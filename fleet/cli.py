@@ -7,6 +7,7 @@ with one readable line on stderr and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -251,6 +252,53 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    import threading
+
+    from fleet.bus.keys import Keys
+    from fleet.bus.session import BusEndpoints, open_listening_session, open_session
+    from fleet.processes import StopFlag
+    from fleet.record.mcap_file import Recording
+    from fleet.record.replay import Player
+
+    recording = Recording(args.file)
+    if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
+        raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
+    try:
+        keys = Keys(args.run_id or recording.run_id)
+    except ValueError as exc:
+        raise UsageError(f"--run-id: {exc}") from None
+    stop = StopFlag(watch_parent=False)
+    endpoints = BusEndpoints.from_args(args)
+    if endpoints.listen or endpoints.config_file:
+        session_cm, endpoint = open_session(endpoints), ", ".join(endpoints.listen) or "(from the Zenoh config)"
+    else:
+        session, endpoint = open_listening_session(endpoints)
+        session_cm = contextlib.closing(session)
+    with session_cm as session, Player(recording, session, keys, args.from_s, args.speed) as player:
+        clock = player.clock
+        err.print(f"replaying {args.file}: {clock.start_s:.1f} to {clock.end_s:.1f} sim s of run {recording.run_id!r} as run {keys.run!r} "
+                  f"on {endpoint} (watch it: fleet monitor --connect {endpoint} --run-id {keys.run})", markup=False, highlight=False)
+        if not args.monitor:
+            player.run(stop, until_end=True)
+            out.print(f"published {player.published} messages up to {clock.position_s:.1f} sim s" + (f" (stopped: {stop.reason})" if stop.reason else ""))
+            return 130 if stop.reason == "SIGINT" else 0
+        from fleet.monitor.app import Monitor, print_url
+        from fleet.monitor.replay_panel import ReplayPanel
+
+        warning = exposure_warning(args.host)
+        if warning:
+            err.print(warning, style="bold yellow", markup=False, highlight=False)
+        with Monitor(session, keys, recording.scene, args.host, args.port) as monitor:
+            monitor.extras.append(ReplayPanel(monitor.server, player))
+            print_url(monitor, args.port)
+            playing = threading.Thread(target=player.run, args=(stop, False), daemon=True)
+            playing.start()
+            monitor.run(stop)
+            playing.join(timeout=5)
+    return 130 if stop.reason == "SIGINT" else 0
+
+
 def cmd_record(args: argparse.Namespace) -> int:
     from fleet.nodes import recorder_node
 
@@ -454,6 +502,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(p)
     p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("replay", help="play a recording back onto the bus; with --monitor, in the browser with a time slider")
+    p.add_argument("file", help="an MCAP file written by fleet run --record / fleet record")
+    p.add_argument("--monitor", action="store_true", help="serve the browser monitor with play, pause, scrub and speed (Ctrl-C ends)")
+    p.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second (default 1)")
+    p.add_argument("--from", dest="from_s", type=float, default=None, metavar="S", help="start at this sim time")
+    p.add_argument("--run-id", default=None, help="publish as this run id (default: the recorded one)")
+    add_monitor_arguments(p)
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("report", help="time series (CSV) and plots (Gantt, throughput, separation, round trips) from a recording")
     p.add_argument("file", help="an MCAP file written by fleet run --record / fleet record")

@@ -33,6 +33,7 @@ class Monitor:
             self.server.stop()
             raise
         self.frames = 0
+        self.extras: list = []  # more panels to refresh each frame (objects with `show()`): the replay controls
         self.most_pages_open = 0
         self.started_at: float | None = None
 
@@ -68,6 +69,8 @@ class Monitor:
         with self.server.atomic():
             self.view.show(snap)
             self.panel.show(snap)
+            for extra in self.extras:
+                extra.show()
         self.frames += 1
         if self.frames % 30 == 0:
             self.most_pages_open = max(self.most_pages_open, len(self.server.get_clients()))
