@@ -68,12 +68,17 @@ class Node:
     log: Path
     exit_code: int | None = None
     history: list[dict] = field(default_factory=list)  # earlier incarnations (respawned controllers)
+    counts_starts: bool = False  # passes `--incarnation N` (N = 1, 2, ... each start): a controller's goal ids repeat for a seed
+    starts: int = 0
     child: ChildProcess = field(init=False)
 
     def __post_init__(self) -> None:
         self.child = ChildProcess(self.argv, self.log)
 
     def start(self) -> None:
+        self.starts += 1
+        if self.counts_starts:
+            self.child.argv = [*self.argv, "--incarnation", str(self.starts)]
         self.child.start()
         self.exit_code = None
 
@@ -167,7 +172,9 @@ class Launcher:
         for arm in self.scene.arms:
             grants = ["--grants"] if len(self.scene.arms) > 1 else []  # a lone arm has nobody to ask about
             extra = ["--arm", arm.name, *grants] + (["--rt"] if o.realtime_priority else [])
-            nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
+            node = self._node("controller", arm.name, "fleet.nodes.arm_controller", extra)
+            node.counts_starts = True
+            nodes.append(node)
         return nodes
 
     def monitor_node(self) -> Node:

@@ -58,7 +58,7 @@ class ArmController:
     """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene, *, grants: bool = False,
-                 rate_hz: float = DEFAULT_DECISION_HZ) -> None:
+                 rate_hz: float = DEFAULT_DECISION_HZ, incarnation: int | None = None) -> None:
         decl = next((a for a in scene.arms if a.name == arm), None)
         if decl is None:
             raise SystemExit(f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}")
@@ -69,7 +69,8 @@ class ArmController:
         self.period_ticks = max(1, round(scene.control_hz / rate_hz))
         self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad), grants_required=grants,
                                     decision_period_s=self.period_ticks / scene.control_hz)
-        self.incarnation = int.from_bytes(os.urandom(4), "little")
+        # differs each time a controller starts: the launcher counts its starts (so a seed repeats exactly), else random
+        self.incarnation = incarnation if incarnation is not None else int.from_bytes(os.urandom(4), "little")
         self.skill.goal_id = (self.incarnation & 0x7FFFFFFF) << 20  # goal ids never repeat across a respawn
         self.drops = DropCounter()
         self._decoders = {
@@ -262,6 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arm", required=True)
     parser.add_argument("--grants", action="store_true", help="ask the coordinator for a motion grant before each free move")
     parser.add_argument("--rate-hz", type=float, default=DEFAULT_DECISION_HZ, help="decisions per sim second: the states this controller asks for (default 20)")
+    parser.add_argument("--incarnation", type=int, default=None, help="this start's number (the launcher counts them; default random)")
     parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
@@ -272,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.rt:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
-        controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants, rate_hz=args.rate_hz)
+        controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants, rate_hz=args.rate_hz, incarnation=args.incarnation)
         last_beat = -HEARTBEAT_S
         try:
             while not stop.should_stop():

@@ -127,7 +127,8 @@ class Player:
 
     def run(self, stop: StopFlag, until_end: bool = True) -> None:
         """Play on the wall clock until `stop` (or, with `until_end`, until the recording's end)."""
-        self.seek(self.clock.position_s)
+        if self.clock.position_s > self.clock.start_s:  # starting part way: the line as it was then, first
+            self.seek(self.clock.position_s)
         last = time.monotonic()
         while not stop.should_stop():
             self._take_controls()
