@@ -417,6 +417,17 @@ def cmd_bench_monitor(args: argparse.Namespace) -> int:
     return print_bench(table, rows, args.json)
 
 
+def cmd_bench_record(args: argparse.Namespace) -> int:
+    from fleet.bench_runtime import bench_record
+
+    rows = bench_record(args.scene, args.arms, args.seconds, args.repeats)
+    table = Table("variant", "sim loop wall s", "run wall s", "loop ratio", "run ratio", "MB / sim minute", "messages / sim s")
+    for r in rows:
+        table.add_row(r.variant, f"{r.loop_wall_seconds:.2f}", f"{r.run_wall_seconds:.2f}", f"{r.loop_ratio:.3f}", f"{r.run_ratio:.3f}",
+                      "-" if r.mb_per_sim_minute is None else f"{r.mb_per_sim_minute:.2f}", "-" if r.messages_per_sim_s is None else f"{r.messages_per_sim_s:.0f}")
+    return print_bench(table, rows, args.json)
+
+
 def cmd_bench_collision(args: argparse.Namespace) -> int:
     from coordinator.bench import bench_collision
 
@@ -571,6 +582,13 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--no-browser", action="store_true", help="skip the variant with a headless chromium on the page")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_monitor)
+    b = bench.add_parser("record", help="lockstep runs without and with --record: what recording costs, MB per sim minute")
+    b.add_argument("--scene", default="assembly_line")
+    b.add_argument("--arms", type=int, default=None)
+    b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per run")
+    b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_record)
     b = bench.add_parser("collision", help="FCL guard: full-cell separation and one grant check")
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--json", action="store_true")

@@ -191,8 +191,9 @@ class Launcher:
         """The recorder, attached over the bus like any other client; it adds the summary found in `summary.json`."""
         o = self.options
         report, log = self.dir / "recorder.json", self.dir / "recorder.log"
+        bus = self._bus_args(False) if self.endpoint else ["--endpoint-file", str(self.dir / "endpoint"), *self._bus_args(False)]
         argv = [
-            sys.executable, "-m", "fleet.nodes.recorder_node", "--run", o.run_id, *self._bus_args(False), "--out", str(o.record),
+            sys.executable, "-m", "fleet.nodes.recorder_node", "--run", o.run_id, *bus, "--out", str(o.record),
             "--summary-file", str(self.dir / "summary.json"), "--report", str(report),
         ]
         return Node("recorder", "recorder", argv, report, log)
@@ -211,11 +212,11 @@ class Launcher:
             sim = self.sim_node()
             self.nodes = [sim]
             sim.start()
-            if not self.endpoint:
-                self.endpoint = self._await_endpoint(sim)
-            if self.options.record:
+            if self.options.record:  # beside the sim: it waits for the sim's endpoint file while both import
                 self.recorder = self.recorder_node()
                 self.recorder.start()
+            if not self.endpoint:
+                self.endpoint = self._await_endpoint(sim)
             self.nodes += self.client_nodes()
             if self.options.monitor:
                 self.nodes.append(self.monitor_node())
@@ -279,6 +280,7 @@ class Launcher:
         if self.recorder is not None:
             summary["recording"] = self.finish_recording(summary)
             summary["processes"].append(self.recorder.record())
+            summary["wall_seconds"] = round(time.monotonic() - started, 3)  # until the file is whole
         return summary
 
     def _on_signal(self, signum: int, _frame: object) -> None:

@@ -59,6 +59,8 @@ def make_config(endpoints: BusEndpoints) -> zenoh.Config:
     config = zenoh.Config.from_file(endpoints.config_file) if endpoints.config_file else zenoh.Config()
     config.insert_json5("mode", json.dumps("peer"))
     config.insert_json5("scouting/multicast/enabled", "false")
+    # every sample carries its publisher's HLC time: a recorder puts what it hears back in publish order
+    config.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     listen = list(endpoints.listen)
     if not listen and not endpoints.config_file:
         listen = [loopback_endpoint(0)]  # an OS-chosen port, never every interface
@@ -121,3 +123,32 @@ class Inbox:
         while self.items:
             out.append(self.items.popleft())
         return out
+
+
+class Tap:
+    """Subscribers whose samples queue inside Zenoh (no Python callback per sample: a busy reader never slows the
+    publishers), drained in batches in publish order (their HLC timestamps). Use in a `with` block."""
+
+    def __init__(self, session: zenoh.Session, key_exprs: list[str], capacity: int = 1 << 16) -> None:
+        self._subs = [session.declare_subscriber(k, zenoh.handlers.FifoChannel(capacity)) for k in key_exprs]
+
+    def __enter__(self) -> "Tap":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        for sub in self._subs:
+            sub.undeclare()
+        self._subs = []
+
+    def drain(self) -> list[tuple[str, bytes]]:
+        """Everything queued so far as (key, payload), oldest publication first."""
+        batch = []
+        for sub in self._subs:
+            while (sample := sub.try_recv()) is not None:
+                stamp = sample.timestamp
+                batch.append((stamp.get_time_as_ntp64() if stamp is not None else 0, len(batch), str(sample.key_expr), sample.payload.to_bytes()))
+        batch.sort()
+        return [(key, payload) for _, _, key, payload in batch]

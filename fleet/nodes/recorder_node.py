@@ -19,14 +19,37 @@ from pathlib import Path
 
 from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
 from fleet.processes import StopFlag, write_report
 from fleet.record.mcap_file import RecordingWriter
 from fleet.record.recorder import Recorder, recorded_keys
 
 READY_EVERY_S = 0.1
-DRAIN_GRACE_S = 0.3  # after a stop: messages still on their way are recorded too
+DRAIN_EVERY_S = 0.1
+QUIET_S = 0.2  # nothing heard for this long: the line is paused or over
+DERIVE_WHEN_QUIET = 500  # held-back messages made into ROS topics per round while nothing new arrives
+DEFER_ROS = 200_000  # bus messages whose ROS topics wait for the end of the run (or for this many to gather)
+DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too
 RECORDER_NICENESS = 5
+
+
+def yield_cpu(niceness: int) -> None:
+    """Run only on CPU time the line leaves idle (SCHED_IDLE, Linux), else at a lower priority: lockstep
+    processes wait on each other often, and the recorder catches up in those gaps."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+    except (AttributeError, OSError):
+        os.nice(niceness)
+
+
+def await_endpoint_file(path: str, timeout_s: float, stop: StopFlag) -> str | None:
+    """The endpoint a sim writes to `path` once it listens (None: not within `timeout_s`, or stopped)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not stop.should_stop():
+        if Path(path).is_file():
+            return Path(path).read_text().strip()
+        time.sleep(0.02)
+    return None
 
 
 def read_summary(path: str | None) -> dict | None:
@@ -40,31 +63,33 @@ def read_summary(path: str | None) -> dict | None:
 
 def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None) -> dict:
     """Record until `stop`; the figures of the recording."""
-    inbox = Inbox()
-    subs = [session.declare_subscriber(k, inbox) for k in recorded_keys(keys)]
+    tap = Tap(session, recorded_keys(keys))
     try:
         scene = fetch_scene(session, keys, scene_timeout_s)
         ready = session.declare_publisher(keys.recorder_ready)
         started = time.monotonic()
         with RecordingWriter(out, scene.model_dump_json(), keys.run) as writer:
-            recorder = Recorder(writer, scene, keys)
-            heard_line, ready_at = False, 0.0
+            recorder = Recorder(writer, scene, keys, defer_ros=DEFER_ROS)
+            heard_line, ready_at, last_heard = False, 0.0, 0.0
             while not stop.should_stop():
                 if not heard_line and time.monotonic() >= ready_at:
                     ready.put(b"")
                     ready_at = time.monotonic() + READY_EVERY_S
-                inbox.wait(READY_EVERY_S)
-                for key, payload in inbox.drain():
+                batch = tap.drain()
+                for key, payload in batch:
                     recorder.take(key, payload)
-                    heard_line = True
+                if batch:
+                    heard_line, last_heard = True, time.monotonic()
+                elif heard_line and time.monotonic() - last_heard > QUIET_S and recorder.derive_deferred(DERIVE_WHEN_QUIET):
+                    continue  # the line is quiet (paused, or over): catch up on the ROS topics meanwhile
+                time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
             time.sleep(DRAIN_GRACE_S)
-            for key, payload in inbox.drain():
+            for key, payload in tap.drain():
                 recorder.take(key, payload)
             recorder.finish(read_summary(summary_file))
         ready.undeclare()
     finally:
-        for sub in subs:
-            sub.undeclare()
+        tap.close()
     return {
         "file": out, "messages_written": writer.messages, "bus_messages": sum(recorder.stats.by_key.values()),
         "undecodable": recorder.stats.undecodable, "dropped_messages": recorder.drops.total,
@@ -79,14 +104,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="the MCAP file to write")
     parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim to say its scene")
     parser.add_argument("--summary-file", help="at the end, add the run summary found in this JSON file")
-    parser.add_argument("--nice", type=int, default=RECORDER_NICENESS, help="scheduling niceness: the recorder yields the CPU to the line")
+    parser.add_argument("--nice", type=int, default=RECORDER_NICENESS, help="0: a normal process; else it runs on idle CPU time (SCHED_IDLE), or at this niceness where that is refused")
+    parser.add_argument("--endpoint-file", help="connect to the endpoint written to this file (wait for it; the launcher's sim writes it)")
     parser.add_argument("--report", help="write the recording's figures to this JSON file at exit")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
     stop = StopFlag()
     if args.nice:
-        os.nice(args.nice)
-    with open_session(BusEndpoints.from_args(args)) as session:
+        yield_cpu(args.nice)
+    endpoints = BusEndpoints.from_args(args)
+    if args.endpoint_file:  # started beside the sim: its imports overlap the sim's start-up
+        endpoint = await_endpoint_file(args.endpoint_file, args.scene_timeout, stop)
+        if endpoint is None:
+            print(f"fleet record: no endpoint in {args.endpoint_file} within {args.scene_timeout:.0f} s", file=sys.stderr)
+            return 1
+        endpoints = BusEndpoints(endpoints.listen, (*endpoints.connect, endpoint), endpoints.config_file)
+    with open_session(endpoints) as session:
         try:
             report = record(session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file)
         except SceneUnavailable as exc:

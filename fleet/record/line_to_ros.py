@@ -31,18 +31,18 @@ def _header(sim_time_s: float, frame_id: str):
     return ros_type("std_msgs/msg/Header")(stamp=time_msg(sim_time_s), frame_id=frame_id)
 
 
-def _transform_msg(matrix: np.ndarray):
-    """`geometry_msgs/Transform` of a 4x4 matrix (ROS quaternions are x, y, z, w)."""
-    x, y, z, w = pin.Quaternion(matrix[:3, :3]).coeffs()
-    t = matrix[:3, 3]
-    return ros_type("geometry_msgs/msg/Transform")(
-        translation=ros_type("geometry_msgs/msg/Vector3")(x=float(t[0]), y=float(t[1]), z=float(t[2])),
-        rotation=ros_type("geometry_msgs/msg/Quaternion")(x=float(x), y=float(y), z=float(z), w=float(w)),
-    )
+Vector3, Quaternion = ros_type("geometry_msgs/msg/Vector3"), ros_type("geometry_msgs/msg/Quaternion")
+Transform, TransformStamped = ros_type("geometry_msgs/msg/Transform"), ros_type("geometry_msgs/msg/TransformStamped")
 
 
-def _stamped(sim_time_s: float, parent: str, child: str, matrix: np.ndarray):
-    return ros_type("geometry_msgs/msg/TransformStamped")(header=_header(sim_time_s, parent), child_frame_id=child, transform=_transform_msg(matrix))
+def _transform_msg(pose: pin.SE3 | np.ndarray):
+    """`geometry_msgs/Transform` of a pose (SE3 or 4x4 matrix); Pinocchio's XYZQUAT is x, y, z, qx, qy, qz, qw, as ROS."""
+    x, y, z, qx, qy, qz, qw = pin.SE3ToXYZQUAT(pose if isinstance(pose, pin.SE3) else pin.SE3(pose)).tolist()
+    return Transform(translation=Vector3(x=x, y=y, z=z), rotation=Quaternion(x=qx, y=qy, z=qz, w=qw))
+
+
+def _stamped(sim_time_s: float, parent: str, child: str, pose: pin.SE3 | np.ndarray):
+    return TransformStamped(header=_header(sim_time_s, parent), child_frame_id=child, transform=_transform_msg(pose))
 
 
 @dataclass(frozen=True)
@@ -68,6 +68,7 @@ class ArmTf:
         bodies = [i for i, f in enumerate(frames) if f.type == pin.FrameType.BODY]
         self.root_link = frames[bodies[0]].name
         self.links = [self._link(i) for i in bodies[1:]]
+        self._named_links = [(link, self.frame(link.parent), self.frame(link.name)) for link in self.links]
 
     def _link(self, index: int) -> _Link:
         frames = self.kin.model.frames
@@ -87,11 +88,10 @@ class ArmTf:
         """Every link relative to its parent link at this state."""
         model, data = self.kin.model, self.kin.data
         pin.framesForwardKinematics(model, data, self.kin.full_q(np.asarray(state.q), np.asarray(state.gripper_q)))
-        out = []
-        for link in self.links:
-            relative = data.oMf[link.parent_frame].actInv(data.oMf[link.frame]).homogeneous
-            out.append(_stamped(state.sim_time_s, self.frame(link.parent), self.frame(link.name), relative))
-        return out
+        return [
+            _stamped(state.sim_time_s, parent, child, data.oMf[link.parent_frame].actInv(data.oMf[link.frame]))
+            for link, parent, child in self._named_links
+        ]
 
     def joint_state(self, state: ArmState):
         """Positions of every joint by its URDF name; velocities of the arm joints (the claw's are not measured: NaN)."""
@@ -140,8 +140,9 @@ class LineToRos:
     def tf_static(self):
         return ros_type("tf2_msgs/msg/TFMessage")(transforms=[arm.static_transform() for arm in self.arms.values()])
 
-    def tf(self, state: ArmState):
-        return ros_type("tf2_msgs/msg/TFMessage")(transforms=self.arms[state.arm].transforms(state))
+    def tf(self, states: list[ArmState]):
+        """Every link of the given arms (one tick of the line) in one message."""
+        return ros_type("tf2_msgs/msg/TFMessage")(transforms=[t for s in states for t in self.arms[s.arm].transforms(s)])
 
     def joint_state(self, state: ArmState):
         return self.arms[state.arm].joint_state(state)

@@ -1,7 +1,8 @@
 """What a recording holds, from the bus messages heard: every raw message on its key's channel, and the ROS 2
 topics derived from them. No I/O but the writer: the recorder node feeds it what it hears.
 
-Stamps are sim time: a message's own (`sim_time_s`, or its tick) where it carries one, else the newest sim time
+TF comes from the sim's frames (every arm at one tick, at the coordinator's rate: 10 Hz), joint states from each
+arm's own states (its controller's rate: 20 Hz). Stamps are sim time: a message's own (`sim_time_s`, or its tick) where it carries one, else the newest sim time
 heard before it (goals, orders, e-stops), so nothing is stamped before the message that caused it.
 """
 
@@ -54,10 +55,15 @@ class RecorderStats:
 
 
 class Recorder:
-    """Turns heard bus messages into a recording: `take(key, payload)` for each, `finish(summary)` at the end."""
+    """Turns heard bus messages into a recording: `take(key, payload)` for each, `finish(summary)` at the end.
 
-    def __init__(self, writer: RecordingWriter, scene: Scene, keys: Keys) -> None:
+    While a line runs, the recorder node defers the ROS topics (`defer_ros`): the raw messages are cheap to
+    write, and the CPU a 2-core machine spends on TF and markers is taken from the lockstep loop otherwise."""
+
+    def __init__(self, writer: RecordingWriter, scene: Scene, keys: Keys, defer_ros: int = 0) -> None:
         self.writer, self.scene, self.keys = writer, scene, keys
+        self.defer_ros = defer_ros  # > 0: raw messages go to the file at once, their ROS topics in batches of this many
+        self._deferred: list[tuple[object, int]] = []
         self.ros = LineToRos(scene)
         self.control_hz = scene.control_hz
         self.drops = DropCounter()
@@ -111,8 +117,20 @@ class Recorder:
         self.stats.by_key[key] += 1
         if message is None:
             self.stats.undecodable += 1
-            return
-        self._derive(message, stamp)
+        elif self.defer_ros:
+            self._deferred.append((message, stamp))
+            if len(self._deferred) >= self.defer_ros:
+                self.derive_deferred()
+        else:
+            self._derive(message, stamp)
+
+    def derive_deferred(self, most: int | None = None) -> int:
+        """Make the ROS topics of the messages held back (the oldest `most` of them); how many are left."""
+        count = len(self._deferred) if most is None else min(most, len(self._deferred))
+        for message, stamp in self._deferred[:count]:
+            self._derive(message, stamp)
+        del self._deferred[:count]
+        return len(self._deferred)
 
     def _is_new(self, stream: str, tick: int) -> bool:
         """A state or frame not seen before (the sim re-sends one while it waits for its answer)."""
@@ -124,16 +142,17 @@ class Recorder:
     def _derive(self, message: object, stamp: int) -> None:
         w = self.writer
         if isinstance(message, ArmState) and message.arm in self.ros.arms and self._is_new(message.arm, message.tick):
-            w.ros("/tf", self.ros.tf(message), stamp)
             w.ros(f"/{message.arm}/joint_states", self.ros.joint_state(message), stamp)
         elif isinstance(message, LineView) and self._is_new("", message.tick):
+            w.ros("/tf", self.ros.tf([a for a in message.arms if a.arm in self.ros.arms]), stamp)
             w.ros("/parts", self.ros.parts_markers(message.parts), stamp)
         topic = SEMANTIC_TOPICS.get(type(message))
         if topic is not None:
             w.ros(topic if topic.startswith("/") else f"/{message.arm}/{topic}", to_ros(message), stamp)
 
     def finish(self, summary: dict | None) -> None:
-        """The run's summary (latched, at the last sim time heard), then the file's index."""
+        """The ROS topics still held back, the run's summary (latched, at the last sim time heard), then the file's index."""
+        self.derive_deferred()
         if summary is not None:
             w = self.writer
             w.ros("/line/summary", ros_type("std_msgs/msg/String")(data=json.dumps(summary, sort_keys=True)), sim_ns(self.now_s), latched=True)

@@ -78,20 +78,23 @@ def bus_type(message_type: type[Message]) -> str:
     return name
 
 
+@cache
+def _fields(message_type: type[Message]) -> tuple[tuple[str, mi.Type, object], ...]:
+    """(name, type, value for None) of every field but `version`."""
+    return tuple((f.name, f.type, _field_type(f.type)[1]) for f in mi.type_info(message_type).fields if f.name != "version")
+
+
 def to_ros(message: Message) -> object:
     """The generated ROS message of a bus message (optional values as their sentinels)."""
-    typename = bus_type(type(message))
     values = {}
-    for f in mi.type_info(type(message)).fields:
-        if f.name == "version":
-            continue
-        value = getattr(message, f.name)
+    for name, info, none in _fields(type(message)):
+        value = getattr(message, name)
         if value is None:
-            value = _field_type(f.type)[1]
+            value = none
         elif isinstance(value, tuple):
-            value = _array(value, f.type.item_type)
-        values[f.name] = value
-    return ros_type(typename)(**values)
+            value = _array(value, info.item_type)
+        values[name] = value
+    return ros_type(bus_type(type(message)))(**values)
 
 
 def _array(values: tuple, item: mi.Type):
