@@ -1,0 +1,147 @@
+"""A sweep's grid: every combination of seeds, allocators and scene overrides, each one run with a stable id.
+
+An override (`--set conveyor.speed_m_per_s=0.05,0.1`) sets one field of the scene file, by its dotted path
+(list items by index: `feeders.0.arrival.rate_per_min`), to each of its values in turn (YAML scalars:
+`none` removes an optional section, e.g. `randomise=none`). Each overridden scene is written to the sweep's
+folder and checked like any scene file, so a bad path or value names the field and the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import yaml
+
+from scenes.loader import SceneError, load_scene, resolve_scene_path, yaml_text
+
+
+class GridError(ValueError):
+    """A sweep flag that cannot work: one line for the user."""
+
+
+@dataclass(frozen=True)
+class Override:
+    """One `--set PATH=V1,V2,...`: a dotted field path and the values it takes."""
+
+    path: str
+    values: tuple
+
+    @classmethod
+    def parse(cls, text: str) -> "Override":
+        path, sep, values = text.partition("=")
+        if not sep or not path or not values:
+            raise GridError(f"--set {text!r}: write FIELD.PATH=VALUE[,VALUE...], e.g. conveyor.speed_m_per_s=0.05,0.1")
+        parsed = []
+        for v in values.split(","):
+            value = yaml.safe_load(v)
+            parsed.append(None if isinstance(value, str) and value.lower() == "none" else value)
+        return cls(path.strip(), tuple(parsed))
+
+
+@dataclass(frozen=True)
+class RunCell:
+    """One run of a sweep: what `fleet run` would be given."""
+
+    scene: str
+    seed: int
+    allocator: str
+    duration_s: float
+    arms: int | None = None
+    overrides: dict = field(default_factory=dict)
+
+    @property
+    def group(self) -> dict:
+        """The cell's arguments but its seed: runs of one group are averaged."""
+        return {"scene": self.scene, "arms": self.arms, "allocator": self.allocator, "duration_s": self.duration_s, **self.overrides}
+
+    @property
+    def run_id(self) -> str:
+        """Stable across sweeps: a finished run is found again by it."""
+        text = json.dumps(asdict(self), sort_keys=True, default=str)
+        return "r" + hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def set_path(data: dict, path: str, value: object, label: str) -> None:
+    """Set `data`'s field at a dotted path (list items by index); the error names the path."""
+    parts = path.split(".")
+    node: object = data
+    for i, part in enumerate(parts[:-1]):
+        node = _child(node, part, ".".join(parts[: i + 1]), label)
+    last = parts[-1]
+    if isinstance(node, list):
+        index = _index(node, last, path, label)
+        node[index] = value
+    elif isinstance(node, dict):
+        if value is None:
+            node.pop(last, None)
+        else:
+            node[last] = value
+    else:
+        raise SceneError(label, path, f"{'.'.join(parts[:-1]) or '(top level)'} holds no fields")
+
+
+def _child(node: object, part: str, where: str, label: str) -> object:
+    if isinstance(node, list):
+        return node[_index(node, part, where, label)]
+    if isinstance(node, dict):
+        if node.get(part) is None:  # a section the file leaves out (or removed): set fields of a new one
+            node[part] = {}
+        if not isinstance(node[part], (dict, list)):
+            raise SceneError(label, where, f"is a value ({node[part]!r}), not a section with fields")
+        return node[part]
+    raise SceneError(label, where, "holds no fields")
+
+
+def _index(node: list, part: str, where: str, label: str) -> int:
+    if not part.isdigit() or int(part) >= len(node):
+        raise SceneError(label, where, f"give a list index from 0 to {len(node) - 1}")
+    return int(part)
+
+
+def scene_with(scene: str, overrides: dict, folder: Path) -> str:
+    """The scene to run: `scene` itself without overrides, else a checked copy with them written under `folder`."""
+    if not overrides:
+        return scene
+    source = resolve_scene_path(scene)
+    data = yaml.safe_load(yaml_text(source, str(source)))
+    label = f"{source} with --set {', '.join(f'{k}={v}' for k, v in overrides.items())}"
+    for path, value in overrides.items():
+        set_path(data, path, value, label)
+    digest = hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    folder.mkdir(parents=True, exist_ok=True)
+    target = folder / f"{source.stem}-{digest}.yaml"
+    target.write_text(yaml.safe_dump(data, sort_keys=False))
+    try:
+        load_scene(target)
+    except SceneError as exc:
+        raise SceneError(label, exc.field, exc.reason) from None
+    return str(target)
+
+
+def grid(scene: str, seeds: list[int], allocators: list[str], duration_s: float, arms: int | None = None,
+         overrides: list[Override] = ()) -> list[RunCell]:
+    """Every combination, seeds innermost (so the first runs already cover every group)."""
+    paths = [o.path for o in overrides]
+    combos = itertools.product(allocators, *(o.values for o in overrides))
+    cells = []
+    for allocator, *values in combos:
+        for seed in seeds:
+            cells.append(RunCell(scene, seed, allocator, duration_s, arms, dict(zip(paths, values))))
+    return sorted(cells, key=lambda c: (c.seed, json.dumps(c.group, sort_keys=True, default=str)))
+
+
+def parse_seeds(text: str) -> list[int]:
+    """`0-19`, `3`, or `1,4,9`."""
+    try:
+        if "-" in text and "," not in text:
+            low, high = (int(v) for v in text.split("-", 1))
+            if high < low:
+                raise ValueError
+            return list(range(low, high + 1))
+        return [int(v) for v in text.split(",")]
+    except ValueError:
+        raise GridError(f"--seeds {text!r}: give a range like 0-19, or a list like 1,4,9 (non-negative)") from None

@@ -1,0 +1,140 @@
+"""A sweep's tables and plots: `runs.csv` (one row per run: its arguments and the summary's figures),
+`cells.csv` (per group of runs that differ only in seed: mean and 95% confidence interval of each figure),
+`throughput.png` (per allocator and override), `throughput_vs_<field>.png` for a numeric override."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+FIGURES = ("throughput_per_min", "parts_completed", "parts_missed", "bound_fraction", "inter_arm_contacts", "min_separation_m",
+           "grants_denied", "wall_seconds")
+
+
+def _scalar(value: object) -> bool:
+    return value is None or isinstance(value, (int, float, str, bool))
+
+
+def run_rows(results: list[dict]) -> list[dict]:
+    """One row per run: its arguments, then every scalar figure of its summary."""
+    rows = []
+    for r in results:
+        cell, summary = r["cell"], r["summary"]
+        row = {"run_id": _run_id(cell), "scene": cell["scene"], "arms": cell["arms"], "allocator": cell["allocator"], "seed": cell["seed"],
+               "duration_s": cell["duration_s"]}
+        row |= {f"set:{k}": v for k, v in sorted(cell["overrides"].items())}
+        row |= {k: v for k, v in sorted(summary.items()) if _scalar(v) and k not in row}
+        rows.append(row)
+    return rows
+
+
+def _run_id(cell: dict) -> str:
+    from fleet.sweep.grid import RunCell
+
+    return RunCell(**cell).run_id
+
+
+def group_key(row: dict) -> tuple:
+    return tuple((k, json.dumps(row[k])) for k in sorted(row) if k in ("scene", "arms", "allocator", "duration_s") or k.startswith("set:"))
+
+
+def mean_ci(values: list[float]) -> tuple[float, float]:
+    """Mean and the half-width of its 95% confidence interval (Student's t; NaN with one value)."""
+    x = np.asarray([v for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))], float)
+    if x.size == 0:
+        return math.nan, math.nan
+    if x.size == 1:
+        return float(x[0]), math.nan
+    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size)
+    return float(x.mean()), float(half)
+
+
+def cell_rows(rows: list[dict]) -> list[dict]:
+    """Per group of runs differing only in seed: how many, and each figure's mean and 95% interval."""
+    groups: dict[tuple, list[dict]] = {}
+    for row in rows:
+        groups.setdefault(group_key(row), []).append(row)
+    out = []
+    for key, members in groups.items():
+        cell = {k: json.loads(v) for k, v in key} | {"runs": len(members), "seeds": " ".join(str(m["seed"]) for m in sorted(members, key=lambda m: m["seed"]))}
+        for figure in FIGURES:
+            mean, half = mean_ci([m.get(figure) for m in members])
+            cell[f"{figure}_mean"], cell[f"{figure}_ci95"] = round(mean, 4), round(half, 4)
+        out.append(cell)
+    return sorted(out, key=lambda c: json.dumps([c.get(k) for k in sorted(c) if not k.endswith(("_mean", "_ci95"))], default=str))
+
+
+def write_csv(path: Path, rows: list[dict]) -> Path:
+    fields: list[str] = []
+    for row in rows:
+        fields += [k for k in row if k not in fields]
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def label(cell: dict) -> str:
+    sets = ", ".join(f"{k[4:]}={cell[k]}" for k in sorted(cell) if k.startswith("set:"))
+    return f"{cell['allocator']}" + (f" ({sets})" if sets else "")
+
+
+def plot_throughput(cells: list[dict], path: Path) -> Path:
+    """Mean throughput per group, with its 95% interval."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(max(5, 1.2 * len(cells)), 4))
+    means = [c["throughput_per_min_mean"] for c in cells]
+    errs = [0 if math.isnan(c["throughput_per_min_ci95"]) else c["throughput_per_min_ci95"] for c in cells]
+    ax.bar(range(len(cells)), means, yerr=errs, capsize=4, color="#4C72B0")
+    ax.set_xticks(range(len(cells)), [label(c) for c in cells], rotation=20, ha="right", fontsize=8)
+    ax.set_ylabel("parts per sim minute (mean, 95% CI)")
+    ax.set_title(f"{cells[0]['scene']}: {cells[0]['runs']} seeds per bar", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_against(cells: list[dict], field: str, path: Path) -> Path:
+    """Mean throughput against a numeric override, one line per allocator."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for allocator in sorted({c["allocator"] for c in cells}):
+        mine = sorted((c for c in cells if c["allocator"] == allocator), key=lambda c: c[f"set:{field}"])
+        ax.errorbar([c[f"set:{field}"] for c in mine], [c["throughput_per_min_mean"] for c in mine],
+                    yerr=[0 if math.isnan(c["throughput_per_min_ci95"]) else c["throughput_per_min_ci95"] for c in mine], capsize=4, marker="o", label=allocator)
+    ax.set_xlabel(field)
+    ax.set_ylabel("parts per sim minute (mean, 95% CI)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_results(results: list[dict], out: Path) -> tuple[list[dict], list[Path]]:
+    """runs.csv, cells.csv and the plots; the cell rows and the files written."""
+    rows = run_rows(results)
+    cells = cell_rows(rows)
+    written = [write_csv(out / "runs.csv", rows), write_csv(out / "cells.csv", cells)]
+    if cells:
+        written.append(plot_throughput(cells, out / "throughput.png"))
+        for key in sorted({k for c in cells for k in c if k.startswith("set:")}):
+            values = {c[key] for c in cells}
+            if len(values) > 1 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+                written.append(plot_against(cells, key[4:], out / f"throughput_vs_{key[4:].replace('.', '_')}.png"))
+    return cells, written

@@ -1,0 +1,107 @@
+"""Running a sweep's cells: each one is a whole `fleet run` (its own sim, coordinator and controller processes),
+on a local process pool (`jobs` at a time) or as Ray tasks on a cluster. Resumable: a finished run leaves
+`DIR/runs/<run_id>.json` and is not run again; an interrupted one leaves nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict
+from pathlib import Path
+
+from fleet.sweep.grid import RunCell, scene_with
+
+RUNS_DIR = "runs"
+
+
+def run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None = None) -> dict:
+    """One run, exactly as `fleet run` would do it with these arguments; its summary. `scene_text`: the
+    overridden scene file's text, written where this runs (a cluster node has no copy of the sweep's folder)."""
+    import tempfile
+
+    from fleet.launcher import Launcher, RunOptions
+
+    with tempfile.TemporaryDirectory(prefix="clawfleet-sweep-") as tmp:
+        if scene_text is not None:
+            scene = str(Path(tmp) / Path(scene).name)
+            Path(scene).write_text(scene_text)
+        options = RunOptions(scene=scene, arms=cell.arms, duration_s=cell.duration_s, seed=cell.seed, allocator=cell.allocator, run_id=run_id)
+        with Launcher(options, on_message=lambda _text: None) as launcher:
+            return launcher.run()
+
+
+def result_path(out: Path, cell: RunCell) -> Path:
+    return out / RUNS_DIR / f"{cell.run_id}.json"
+
+
+def finished(out: Path, cells: Iterable[RunCell]) -> set[str]:
+    """Run ids whose result is already in `out` (a run that was interrupted left none)."""
+    return {c.run_id for c in cells if result_path(out, c).is_file()}
+
+
+def save(out: Path, cell: RunCell, summary: dict) -> bool:
+    """Keep a run's result (not an interrupted one: it runs again next time); whether it was kept."""
+    if summary.get("status") == "interrupted":
+        return False
+    path = result_path(out, cell)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps({"cell": asdict(cell), "summary": summary}, sort_keys=True, default=str))
+    tmp.replace(path)
+    return True
+
+
+def load_results(out: Path) -> list[dict]:
+    """Every kept result: `{"cell": ..., "summary": ...}`."""
+    return [json.loads(p.read_text()) for p in sorted((out / RUNS_DIR).glob("*.json"))]
+
+
+def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[RunCell, dict], None]) -> None:
+    """`jobs` runs at a time in worker processes (spawned: no inherited bus state)."""
+    scenes = {c.run_id: scene_with(c.scene, c.overrides, out / "scenes") for c in cells}
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        pending = {pool.submit(run_cell, c, scenes[c.run_id], c.run_id): c for c in cells}
+        try:
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    cell = pending.pop(future)
+                    summary = future.result()
+                    save(out, cell, summary)
+                    on_done(cell, summary)
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            raise
+
+
+def run_ray(cells: list[RunCell], out: Path, address: str | None, jobs: int, on_done: Callable[[RunCell, dict], None]) -> dict:
+    """Each run a Ray task; a local Ray instance on loopback only unless `address` names a cluster. What Ray used."""
+    import ray
+
+    scenes = {c.run_id: scene_with(c.scene, c.overrides, out / "scenes") for c in cells}
+    started = not ray.is_initialized()
+    if started:
+        if address:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=jobs, _node_ip_address="127.0.0.1", include_dashboard=False, log_to_driver=False)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(run_cell)
+        texts = {c.run_id: Path(scenes[c.run_id]).read_text() if c.overrides else None for c in cells}
+        pending = {task.remote(c, scenes[c.run_id], c.run_id, texts[c.run_id]): c for c in cells}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                cell = pending.pop(ref)
+                summary = ray.get(ref)
+                save(out, cell, summary)
+                on_done(cell, summary)
+        return {"address": address or "local (127.0.0.1)", "nodes": len(ray.nodes())}
+    finally:
+        if started:
+            ray.shutdown()

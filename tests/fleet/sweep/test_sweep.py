@@ -1,0 +1,132 @@
+"""Sweeps: the grid and its scene overrides, runs in parallel that give what `fleet run` gives, resuming after
+Ctrl-C with nothing left behind, and the same results from a local Ray instance bound to loopback only."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from fleet.launcher import Launcher, RunOptions
+from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
+from fleet.sweep.results import cell_rows, mean_ci, run_rows
+from fleet.sweep.runner import load_results, run_local
+from scenes.loader import SceneError, load_scene
+
+SECONDS = 8.0
+SAME = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "inter_arm_contacts", "throughput_per_min", "goal_results",
+        "grants_given", "min_separation_m")
+
+
+def test_seeds_and_overrides_parse_and_a_bad_one_says_how():
+    assert parse_seeds("0-3") == [0, 1, 2, 3] and parse_seeds("1,4,9") == [1, 4, 9] and parse_seeds("7") == [7]
+    with pytest.raises(GridError, match="--seeds"):
+        parse_seeds("5-2")
+    assert Override.parse("conveyor.speed_m_per_s=0.05,0.1") == Override("conveyor.speed_m_per_s", (0.05, 0.1))
+    assert Override.parse("randomise=none").values == (None,)
+    with pytest.raises(GridError, match="FIELD.PATH=VALUE"):
+        Override.parse("conveyor.speed_m_per_s")
+
+
+def test_the_grid_covers_every_combination_seeds_innermost():
+    cells = grid("assembly_line", [0, 1], ["optimal", "greedy"], 10.0, overrides=[Override("conveyor.speed_m_per_s", (0.05, 0.08))])
+    assert len(cells) == 8 and len({c.run_id for c in cells}) == 8
+    assert [c.seed for c in cells[:4]] == [0, 0, 0, 0], "every group's first seed comes first"
+    assert cells[0].run_id == grid("assembly_line", [0, 1], ["optimal", "greedy"], 10.0, overrides=[Override("conveyor.speed_m_per_s", (0.05, 0.08))])[0].run_id
+
+
+def test_an_override_is_checked_like_a_scene_file(tmp_path):
+    path = scene_with("assembly_line", {"conveyor.speed_m_per_s": 0.07, "feeders.0.arrival.rate_per_min": 2.0}, tmp_path)
+    scene = load_scene(path)
+    assert scene.conveyor.speed_m_per_s == 0.07 and scene.feeders[0].arrival.rate_per_min == 2.0
+    with pytest.raises(SceneError, match=r"assembly_line.yaml with --set conveyor.speed_m_per_s=9.0: conveyor.speed_m_per_s: .*0.5"):
+        scene_with("assembly_line", {"conveyor.speed_m_per_s": 9.0}, tmp_path)
+    with pytest.raises(SceneError, match=r"feeders.7: give a list index from 0 to"):
+        scene_with("assembly_line", {"feeders.7.capacity": 3}, tmp_path)
+
+
+def test_mean_and_interval():
+    mean, half = mean_ci([1.0, 2.0, 3.0])
+    assert mean == 2.0 and half == pytest.approx(4.303 * 1.0 / 3 ** 0.5, rel=1e-3)
+    assert mean_ci([5.0])[1] != mean_ci([5.0])[1], "one run has no interval (NaN)"
+
+
+def same_figures(summary: dict) -> dict:
+    return {k: summary[k] for k in SAME}
+
+
+def test_a_sweep_of_four_runs_on_two_jobs_gives_what_four_fleet_runs_give(tmp_path):
+    cells = grid("assembly_line", [0, 1], ["optimal", "greedy"], SECONDS)
+    run_local(cells, tmp_path, 2, lambda cell, summary: None)
+    results = {(r["cell"]["seed"], r["cell"]["allocator"]): r["summary"] for r in load_results(tmp_path)}
+    assert len(results) == 4 and all(s["status"] == "ok" for s in results.values())
+    for seed, allocator in [(0, "optimal"), (1, "greedy")]:
+        with Launcher(RunOptions(duration_s=SECONDS, seed=seed, allocator=allocator)) as launcher:
+            alone = launcher.run()
+        assert same_figures(results[(seed, allocator)]) == same_figures(alone)
+    rows = run_rows(load_results(tmp_path))
+    cells_out = cell_rows(rows)
+    assert {c["allocator"]: c["runs"] for c in cells_out} == {"optimal": 2, "greedy": 2}
+
+
+def fleet_processes() -> set[int]:
+    out = subprocess.run(["pgrep", "-f", "fleet.nodes"], capture_output=True, text=True).stdout
+    return {int(p) for p in out.split()}
+
+
+def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missing(tmp_path):
+    before = fleet_processes()
+    argv = [sys.executable, "-m", "fleet.cli", "sweep", "assembly_line", "--seeds", "0-3", "--duration", str(SECONDS), "--jobs", "2", "--out", str(tmp_path)]
+    sweep = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    runs = tmp_path / "runs"
+    deadline = time.monotonic() + 180
+    while not (runs.is_dir() and list(runs.glob("*.json"))):
+        assert time.monotonic() < deadline and sweep.poll() is None, "no run finished"
+        time.sleep(0.2)
+    os.killpg(sweep.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground group
+    sweep.communicate(timeout=60)
+    time.sleep(1.0)
+    assert fleet_processes() - before == set(), "a run's processes outlived the sweep"
+    kept = {p.name: p.stat().st_mtime for p in runs.glob("*.json")}
+    assert 1 <= len(kept) < 4
+    again = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert f"({len(kept)} already in" in again.stderr
+    assert len(list(runs.glob("*.json"))) == 4
+    assert all((runs / name).stat().st_mtime == mtime for name, mtime in kept.items()), "a finished run was run again"
+    assert (tmp_path / "cells.csv").is_file() and (tmp_path / "throughput.png").stat().st_size > 1000
+
+
+def listening_addresses() -> set[tuple[str, str]]:
+    """(address, process) of every TCP listener on this machine."""
+    out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True).stdout
+    found = set()
+    for line in out.splitlines():
+        cols = line.split()
+        found.add((cols[3].rsplit(":", 1)[0], cols[-1] if "users:" in cols[-1] else ""))
+    return found
+
+
+def test_a_sweep_on_a_local_ray_on_loopback_gives_the_pools_results(tmp_path):
+    ray = pytest.importorskip("ray")
+    from fleet.sweep.runner import run_ray
+
+    cells = grid("assembly_line", [2, 3], ["optimal"], SECONDS)
+    run_local(cells, tmp_path / "pool", 2, lambda cell, summary: None)
+    before = listening_addresses()
+    ray.init(num_cpus=2, _node_ip_address="127.0.0.1", include_dashboard=False, log_to_driver=False)
+    try:
+        during = listening_addresses() - before
+        used = run_ray(cells, tmp_path / "ray", None, 2, lambda cell, summary: None)
+    finally:
+        ray.shutdown()
+    exposed = {(addr, who) for addr, who in during if not addr.startswith(("127.", "[::ffff:127.", "localhost"))}
+    assert not exposed, f"Ray listens beyond loopback: {exposed}"
+    assert used["nodes"] == 1
+    pool = {r["cell"]["seed"]: same_figures(r["summary"]) for r in load_results(tmp_path / "pool")}
+    on_ray = {r["cell"]["seed"]: same_figures(r["summary"]) for r in load_results(tmp_path / "ray")}
+    assert pool == on_ray and len(pool) == 2
