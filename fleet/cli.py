@@ -307,6 +307,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and 0 < args.duration <= 24 * 3600):
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a day)")
     jobs = args.jobs or os.cpu_count() or 1
+    if args.ray:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise UsageError("--ray needs Ray: pip install 'clawfleet[rl]' (or pip install ray)") from None
     if jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: at least 1")
     try:
@@ -321,7 +326,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     done = finished(out_dir, cells)
     todo = [c for c in cells if c.run_id not in done]
     err.print(f"sweep: {len(cells)} runs ({len(done)} already in {out_dir}), {len(todo)} to go, "
-              f"{'on Ray' if args.ray is not None else f'{jobs} at a time'}", markup=False, highlight=False)
+              f"{f'on the Ray cluster at {args.ray}' if args.ray else f'{jobs} at a time'}", markup=False, highlight=False)
     with Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[last]}"), TimeElapsedColumn(),
                   console=err, transient=False) as progress:
         bar = progress.add_task("runs", total=len(cells), completed=len(done), last="")
@@ -329,8 +334,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         def on_done(cell, summary) -> None:
             progress.update(bar, advance=1, last=f"seed {cell.seed} {cell.allocator}: {summary.get('throughput_per_min', 0):.2f}/min ({summary.get('status')})")
 
-        if todo and args.ray is not None:
-            run_ray(todo, out_dir, args.ray or None, jobs, on_done)
+        if todo and args.ray:
+            run_ray(todo, out_dir, args.ray, on_done)
         elif todo:
             run_local(todo, out_dir, jobs, on_done)
     cells_rows, written = write_results(load_results(out_dir), out_dir)
@@ -572,7 +577,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
     p.add_argument("--duration", type=float, default=60.0, help="sim seconds per run (default 60)")
     p.add_argument("--jobs", type=int, default=None, help="runs at a time on this machine (default: its cores)")
-    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS", help="run each run as a Ray task: on the cluster at ADDRESS, or a local Ray on loopback")
+    p.add_argument("--ray", metavar="ADDRESS", help="run each run as a Ray task on the Ray cluster at ADDRESS (e.g. 127.0.0.1:6379; docs/running.md)")
     p.add_argument("--out", required=True, metavar="DIR", help="results: runs/*.json, runs.csv, cells.csv, plots; a run already there is not run again")
     p.set_defaults(func=cmd_sweep)
 

@@ -79,17 +79,19 @@ def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[Run
             raise
 
 
-def run_ray(cells: list[RunCell], out: Path, address: str | None, jobs: int, on_done: Callable[[RunCell, dict], None]) -> dict:
-    """Each run a Ray task; a local Ray instance on loopback only unless `address` names a cluster. What Ray used."""
+def run_ray(cells: list[RunCell], out: Path, address: str, on_done: Callable[[RunCell, dict], None]) -> dict:
+    """Each run a Ray task on the cluster at `address` (one CPU each; a run's processes live on the node that
+    runs it). What Ray reported. No local Ray is started here: Ray's servers listen on every interface of the
+    machine they run on (Ray 2.60, whatever `node_ip_address` says), so where to run one is the user's call."""
     import ray
 
     scenes = {c.run_id: scene_with(c.scene, c.overrides, out / "scenes") for c in cells}
-    started = not ray.is_initialized()
-    if started:
-        if address:
-            ray.init(address=address, log_to_driver=False)
-        else:
-            ray.init(num_cpus=jobs, _node_ip_address="127.0.0.1", include_dashboard=False, log_to_driver=False)
+    try:
+        ray.init(address=address, log_to_driver=False)
+    except (ConnectionError, RuntimeError) as exc:
+        said = str(exc).strip().splitlines()
+        hint = " (a cluster with token authentication: set RAY_AUTH_MODE=token here too)" if "auth" in str(exc).lower() else ""
+        raise RuntimeError(f"cannot reach the Ray cluster at {address}: {said[-1] if said else type(exc).__name__}{hint}") from None
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(run_cell)
         texts = {c.run_id: Path(scenes[c.run_id]).read_text() if c.overrides else None for c in cells}
@@ -101,7 +103,6 @@ def run_ray(cells: list[RunCell], out: Path, address: str | None, jobs: int, on_
                 summary = ray.get(ref)
                 save(out, cell, summary)
                 on_done(cell, summary)
-        return {"address": address or "local (127.0.0.1)", "nodes": len(ray.nodes())}
+        return {"address": address, "nodes": len(ray.nodes())}
     finally:
-        if started:
-            ray.shutdown()
+        ray.shutdown()
