@@ -3,6 +3,7 @@
 URDF; a second run of the same seed records the same messages; replay drives a subscriber with them."""
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -235,3 +236,30 @@ def test_a_truncated_or_foreign_file_is_one_line_and_exit_2(recorded, tmp_path, 
         done = subprocess.run([sys.executable, "-m", "fleet.cli", command, str(bad), *extra], capture_output=True, text=True, timeout=60)
         assert done.returncode == 2, done.stderr
         assert says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+def test_fleet_record_taps_a_line_already_running_and_finishes_the_file_on_ctrl_c(tmp_path):
+    from fleet.bus.session import free_loopback_port, loopback_endpoint
+
+    endpoint = loopback_endpoint(free_loopback_port())
+    line = subprocess.Popen([sys.executable, "-m", "fleet.cli", "run", "--duration", "600", "--mode", "realtime", "--listen", endpoint],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    path = tmp_path / "tap.mcap"
+    try:
+        tap = subprocess.Popen([sys.executable, "-m", "fleet.cli", "record", "--connect", endpoint, "--wait", "60", str(path)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 90
+        while not (path.is_file() and path.stat().st_size > 20_000):
+            assert time.monotonic() < deadline and tap.poll() is None, "the recorder wrote nothing"
+            time.sleep(0.2)
+        time.sleep(2.0)
+        tap.send_signal(signal.SIGINT)
+        _, err = tap.communicate(timeout=60)
+        assert tap.returncode == 0, err[-2000:]
+    finally:
+        line.send_signal(signal.SIGINT)
+        line.communicate(timeout=60)
+    recording = Recording(path)
+    assert recording.run_id == "line" and recording.scene.name == "assembly_line"
+    assert recording.message_counts["/arm_0/joint_states"] > 20 and recording.message_counts["/tf"] > 10
+    assert "/line/summary" not in recording.channels, "a tap has no run summary to add"
