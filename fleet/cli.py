@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import json
 import os
 import re
@@ -300,18 +301,15 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from fleet.sweep.grid import GridError, Override, grid, parse_seeds
+    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
     from fleet.sweep.results import write_results
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
     if not (math.isfinite(args.duration) and 0 < args.duration <= 24 * 3600):
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a day)")
     jobs = args.jobs or os.cpu_count() or 1
-    if args.ray:
-        try:
-            import ray  # noqa: F401
-        except ImportError:
-            raise UsageError("--ray needs Ray: pip install 'clawfleet[rl]' (or pip install ray)") from None
+    if args.ray and importlib.util.find_spec("ray") is None:
+        raise UsageError("--ray needs Ray: pip install 'clawfleet[rl]' (or pip install ray)")
     if jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: at least 1")
     try:
@@ -323,6 +321,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if out_dir.exists() and not out_dir.is_dir():
         raise UsageError(f"--out {args.out}: exists and is not a folder")
     out_dir.mkdir(parents=True, exist_ok=True)
+    for overrides in {json.dumps(c.overrides, sort_keys=True) for c in cells}:  # a bad --set: one line, before anything runs
+        scene_with(args.scene, json.loads(overrides), out_dir / "scenes")
     done = finished(out_dir, cells)
     todo = [c for c in cells if c.run_id not in done]
     err.print(f"sweep: {len(cells)} runs ({len(done)} already in {out_dir}), {len(todo)} to go, "

@@ -1,13 +1,11 @@
 """Sweeps: the grid and its scene overrides, runs in parallel that give what `fleet run` gives, resuming after
 Ctrl-C with nothing left behind, and the same results from a local Ray instance bound to loopback only."""
 
-import json
 import os
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -138,3 +136,12 @@ def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_cluster_
     assert "on the Ray cluster at 127.0.0.1:6390" in " ".join(on_ray.stderr.split())
     figures = lambda folder: {r["cell"]["seed"]: same_figures(r["summary"]) for r in load_results(folder)}  # noqa: E731
     assert figures(tmp_path / "pool") == figures(tmp_path / "ray") and len(figures(tmp_path / "ray")) == 2
+
+
+def test_a_bad_sweep_flag_is_one_line_and_runs_nothing(tmp_path):
+    for extra, says in ((["--set", "conveyor.speed_m_per_s=3"], "conveyor.speed_m_per_s: Input should be less than or equal to 0.5"),
+                        (["--seeds", "4-1"], "--seeds '4-1'"), (["--set", "conveyor"], "FIELD.PATH=VALUE"), (["--jobs", "0", "--duration", "nan"], "--duration nan")):
+        done = subprocess.run([sys.executable, "-m", "fleet.cli", "sweep", "assembly_line", *extra, "--out", str(tmp_path / "out")],
+                              capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not (tmp_path / "out" / "runs").exists()
