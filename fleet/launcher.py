@@ -194,7 +194,7 @@ class Launcher:
         bus = self._bus_args(False) if self.endpoint else ["--endpoint-file", str(self.dir / "endpoint"), *self._bus_args(False)]
         argv = [
             sys.executable, "-m", "fleet.nodes.recorder_node", "--run", o.run_id, *bus, "--out", str(o.record),
-            "--summary-file", str(self.dir / "summary.json"), "--report", str(report),
+            "--summary-file", str(self.dir / "summary.json"), "--report", str(report), *(["--hold"] if o.mode == "lockstep" else []),
         ]
         return Node("recorder", "recorder", argv, report, log)
 

@@ -15,6 +15,7 @@ import json
 import os
 import sys
 import time
+from collections import deque
 from pathlib import Path
 
 from fleet.bus.keys import Keys
@@ -26,8 +27,9 @@ from fleet.record.recorder import Recorder, recorded_keys
 
 READY_EVERY_S = 0.1
 DRAIN_EVERY_S = 0.1
-QUIET_S = 0.2  # nothing heard for this long: the line is paused or over
-DERIVE_WHEN_QUIET = 500  # held-back messages made into ROS topics per round while nothing new arrives
+QUIET_S = 0.1  # nothing heard for this long: the line is paused or over
+CATCH_UP_SLICE = 500  # held-back messages written (or made into ROS topics) per round while nothing new arrives
+HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond, they are written as they come
 DEFER_ROS = 200_000  # bus messages whose ROS topics wait for the end of the run (or for this many to gather)
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too
 RECORDER_NICENESS = 5
@@ -61,8 +63,22 @@ def read_summary(path: str | None) -> dict | None:
         return None
 
 
-def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None) -> dict:
-    """Record until `stop`; the figures of the recording."""
+def take(recorder: Recorder, backlog: deque, count: int) -> None:
+    for _ in range(min(count, len(backlog))):
+        recorder.take(*backlog.popleft())
+
+
+def catch_up(recorder: Recorder, backlog: deque) -> bool:
+    """One slice of the held-back work (raw messages first, then their ROS topics); whether any was left."""
+    if backlog:
+        take(recorder, backlog, CATCH_UP_SLICE)
+        return True
+    return recorder.derive_deferred(CATCH_UP_SLICE) > 0
+
+
+def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
+    """Record until `stop`; the figures of the recording. `hold`: keep what is heard in memory while the line is
+    busy and write it when it is quiet or over (a lockstep line at full speed leaves no CPU to spare)."""
     tap = Tap(session, recorded_keys(keys))
     try:
         scene = fetch_scene(session, keys, scene_timeout_s)
@@ -70,22 +86,24 @@ def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float
         started = time.monotonic()
         with RecordingWriter(out, scene.model_dump_json(), keys.run) as writer:
             recorder = Recorder(writer, scene, keys, defer_ros=DEFER_ROS)
+            backlog: deque[tuple[str, bytes]] = deque()  # heard, in publish order, not written yet
             heard_line, ready_at, last_heard = False, 0.0, 0.0
             while not stop.should_stop():
                 if not heard_line and time.monotonic() >= ready_at:
                     ready.put(b"")
                     ready_at = time.monotonic() + READY_EVERY_S
                 batch = tap.drain()
-                for key, payload in batch:
-                    recorder.take(key, payload)
+                backlog.extend(batch)
                 if batch:
                     heard_line, last_heard = True, time.monotonic()
-                elif heard_line and time.monotonic() - last_heard > QUIET_S and recorder.derive_deferred(DERIVE_WHEN_QUIET):
-                    continue  # the line is quiet (paused, or over): catch up on the ROS topics meanwhile
+                if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
+                    take(recorder, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
+                if heard_line and not batch and time.monotonic() - last_heard > QUIET_S and catch_up(recorder, backlog):
+                    continue  # the line is quiet (paused, or over): write what was held back meanwhile
                 time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
             time.sleep(DRAIN_GRACE_S)
-            for key, payload in tap.drain():
-                recorder.take(key, payload)
+            backlog.extend(tap.drain())
+            take(recorder, backlog, len(backlog))
             recorder.finish(read_summary(summary_file))
         ready.undeclare()
     finally:
@@ -105,6 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim to say its scene")
     parser.add_argument("--summary-file", help="at the end, add the run summary found in this JSON file")
     parser.add_argument("--nice", type=int, default=RECORDER_NICENESS, help="0: a normal process; else it runs on idle CPU time (SCHED_IDLE), or at this niceness where that is refused")
+    parser.add_argument("--hold", action="store_true", help="write while the line is quiet or over, not as it runs (lockstep at full speed)")
     parser.add_argument("--endpoint-file", help="connect to the endpoint written to this file (wait for it; the launcher's sim writes it)")
     parser.add_argument("--report", help="write the recording's figures to this JSON file at exit")
     add_bus_arguments(parser)
@@ -121,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         endpoints = BusEndpoints(endpoints.listen, (*endpoints.connect, endpoint), endpoints.config_file)
     with open_session(endpoints) as session:
         try:
-            report = record(session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file)
+            report = record(session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file, args.hold)
         except SceneUnavailable as exc:
             print(f"fleet record: {exc}", file=sys.stderr)
             return 1
