@@ -156,12 +156,7 @@ def check_run_flags(args: argparse.Namespace) -> None:
 def run_recording(args: argparse.Namespace) -> str | None:
     """Where `fleet run` records: `--record FILE`, else `DIR/recording.mcap` with `--out DIR`, else nowhere."""
     if args.out:
-        out_dir = Path(args.out)
-        if out_dir.exists() and not out_dir.is_dir():
-            raise UsageError(f"--out {args.out}: exists and is not a folder")
-        if not out_dir.parent.is_dir():
-            raise UsageError(f"--out {args.out}: no folder {out_dir.parent}")
-        out_dir.mkdir(exist_ok=True)
+        output_folder("--out", args.out, parents=False)
     if args.record:
         return str(writable_file("--record", args.record))
     return str(Path(args.out) / "recording.mcap") if args.out else None
@@ -212,6 +207,18 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 130 if summary["status"] == "interrupted" else 0
 
 
+def output_folder(flag: str, path: str, parents: bool = True) -> Path:
+    """A folder to write results into, made if missing (with its parents, or refused when `parents` is False
+    and the parent is missing); refused in one line when the path is a file."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{flag} {path}: exists and is not a folder")
+    if not parents and not folder.parent.is_dir():
+        raise UsageError(f"{flag} {path}: no folder {folder.parent}")
+    folder.mkdir(parents=parents, exist_ok=True)
+    return folder
+
+
 def writable_file(flag: str, path: str) -> Path:
     """A file path whose folder exists (refused in one line otherwise)."""
     target = Path(path)
@@ -241,9 +248,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from fleet.record.report import series_from_recording, write_report
 
     recording = Recording(args.file)
-    out_dir = Path(args.out)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"--out {args.out}: exists and is not a folder")
+    out_dir = output_folder("--out", args.out)
     series = series_from_recording(recording)
     written = write_report(series, out_dir)
     if series.summary is not None:
@@ -301,7 +306,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
+    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scenes_for
     from fleet.sweep.results import write_results
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
@@ -317,12 +322,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except GridError as exc:
         raise UsageError(str(exc)) from None
     load_scene(args.scene, arms=args.arms, robots=robot_facts())  # a bad scene: one line, before anything runs
-    out_dir = Path(args.out)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"--out {args.out}: exists and is not a folder")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for overrides in {json.dumps(c.overrides, sort_keys=True) for c in cells}:  # a bad --set: one line, before anything runs
-        scene_with(args.scene, json.loads(overrides), out_dir / "scenes")
+    out_dir = output_folder("--out", args.out)
+    scenes = scenes_for(cells, out_dir / "scenes")  # a bad --set: one line, before anything runs
     done = finished(out_dir, cells)
     todo = [c for c in cells if c.run_id not in done]
     err.print(f"sweep: {len(cells)} runs ({len(done)} already in {out_dir}), {len(todo)} to go, "
@@ -335,9 +336,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             progress.update(bar, advance=1, last=f"seed {cell.seed} {cell.allocator}: {summary.get('throughput_per_min', 0):.2f}/min ({summary.get('status')})")
 
         if todo and args.ray:
-            run_ray(todo, out_dir, args.ray, on_done)
+            run_ray(todo, out_dir, args.ray, on_done, scenes)
         elif todo:
-            run_local(todo, out_dir, jobs, on_done)
+            run_local(todo, out_dir, jobs, on_done, scenes)
     cells_rows, written = write_results(load_results(out_dir), out_dir)
     table = Table("allocator / overrides", "runs", "throughput /min (95% CI)", "completed", "missed", "bound fraction", "contacts")
     from fleet.sweep.results import label

@@ -24,7 +24,7 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
-from fleet.processes import ChildProcess, stop_children, write_text_atomically
+from fleet.processes import ChildProcess, read_when_written, stop_children, write_text_atomically
 from scenes.loader import load_scene
 
 STOP_GRACE_S = 1.5
@@ -229,15 +229,12 @@ class Launcher:
 
     def _await_endpoint(self, sim: Node, timeout_s: float = 60.0) -> str:
         """The endpoint the sim server listens on, once it has bound it."""
-        path = self.dir / "endpoint"
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if path.exists():
-                return path.read_text().strip()
-            if sim.poll() is not None:
-                self.keep_dir = True
-                raise RunError(f"the sim server exited while starting (exit {sim.exit_code}): {sim.log_tail() or 'no output'}; logs in {self.dir}")
-            time.sleep(0.02)
+        endpoint = read_when_written(self.dir / "endpoint", timeout_s, give_up=lambda: sim.poll() is not None)
+        if endpoint is not None:
+            return endpoint
+        if sim.poll() is not None:
+            self.keep_dir = True
+            raise RunError(f"the sim server exited while starting (exit {sim.exit_code}): {sim.log_tail() or 'no output'}; logs in {self.dir}")
         raise RunError(f"the sim server did not start listening within {timeout_s:.0f} s; logs in {self.dir}")
 
     def __exit__(self, *exc: object) -> None:

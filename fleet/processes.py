@@ -20,7 +20,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -149,6 +149,18 @@ def write_text_atomically(path: str, text: str) -> None:
     tmp = target.with_suffix(target.suffix + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, target)
+
+
+def read_when_written(path: str | Path, timeout_s: float, give_up: Callable[[], bool] = lambda: False) -> str | None:
+    """The text another process writes to `path` (with `write_text_atomically`), once it is there; None when it
+    is not within `timeout_s`, or `give_up()` says to stop waiting."""
+    target = Path(path)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not give_up():
+        if target.is_file():
+            return target.read_text().strip()
+        time.sleep(0.02)
+    return None
 
 
 def write_report(path: str | None, report: dict) -> None:

@@ -1,4 +1,5 @@
-"""Asking a running line for its scene: the sim answers `Keys.scene` with the scene it runs, as JSON."""
+"""The scene of a running line on the bus: whoever plays the line (the sim, a replay) answers `Keys.scene` with
+it as JSON; a monitor or a recorder asks."""
 
 from __future__ import annotations
 
@@ -23,3 +24,9 @@ def fetch_scene(session: zenoh.Session, keys: Keys, timeout_s: float = 10.0) -> 
                 return Scene.model_validate_json(reply.ok.payload.to_bytes())
         time.sleep(0.1)
     raise SceneUnavailable(f"no sim of run {keys.run!r} answered on {keys.scene} within {timeout_s:.0f} s")
+
+
+def serve_scene(session: zenoh.Session, keys: Keys, scene_json: str) -> zenoh.Queryable:
+    """Answer scene queries with `scene_json` until the returned queryable is undeclared."""
+    payload = scene_json.encode()
+    return session.declare_queryable(keys.scene, lambda query: query.reply(keys.scene, payload))

@@ -21,16 +21,15 @@ from pathlib import Path
 from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
-from fleet.processes import StopFlag, write_report
+from fleet.processes import StopFlag, read_when_written, write_report
 from fleet.record.mcap_file import RecordingWriter
 from fleet.record.recorder import Recorder, recorded_keys
 
 READY_EVERY_S = 0.1
 DRAIN_EVERY_S = 0.1
 QUIET_S = 0.1  # nothing heard for this long: the line is paused or over
-CATCH_UP_SLICE = 500  # held-back messages written (or made into ROS topics) per round while nothing new arrives
+CATCH_UP_SLICE = 500  # held-back messages written per round while nothing new arrives
 HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond, they are written as they come
-DEFER_ROS = 200_000  # bus messages whose ROS topics wait for the end of the run (or for this many to gather)
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too
 RECORDER_NICENESS = 5
 
@@ -42,16 +41,6 @@ def yield_cpu(niceness: int) -> None:
         os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
     except (AttributeError, OSError):
         os.nice(niceness)
-
-
-def await_endpoint_file(path: str, timeout_s: float, stop: StopFlag) -> str | None:
-    """The endpoint a sim writes to `path` once it listens (None: not within `timeout_s`, or stopped)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline and not stop.should_stop():
-        if Path(path).is_file():
-            return Path(path).read_text().strip()
-        time.sleep(0.02)
-    return None
 
 
 def read_summary(path: str | None) -> dict | None:
@@ -69,11 +58,10 @@ def take(recorder: Recorder, backlog: deque, count: int) -> None:
 
 
 def catch_up(recorder: Recorder, backlog: deque) -> bool:
-    """One slice of the held-back work (raw messages first, then their ROS topics); whether any was left."""
-    if backlog:
-        take(recorder, backlog, CATCH_UP_SLICE)
-        return True
-    return recorder.derive_deferred(CATCH_UP_SLICE) > 0
+    """One slice of the held-back messages written (raw and ROS topics); whether there was any."""
+    had = bool(backlog)
+    take(recorder, backlog, CATCH_UP_SLICE)
+    return had
 
 
 def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
@@ -85,7 +73,7 @@ def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float
         ready = session.declare_publisher(keys.recorder_ready)
         started = time.monotonic()
         with RecordingWriter(out, scene.model_dump_json(), keys.run) as writer:
-            recorder = Recorder(writer, scene, keys, defer_ros=DEFER_ROS)
+            recorder = Recorder(writer, scene, keys)
             backlog: deque[tuple[str, bytes]] = deque()  # heard, in publish order, not written yet
             heard_line, ready_at, last_heard = False, 0.0, 0.0
             while not stop.should_stop():
@@ -133,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         yield_cpu(args.nice)
     endpoints = BusEndpoints.from_args(args)
     if args.endpoint_file:  # started beside the sim: its imports overlap the sim's start-up
-        endpoint = await_endpoint_file(args.endpoint_file, args.scene_timeout, stop)
+        endpoint = read_when_written(args.endpoint_file, args.scene_timeout, give_up=stop.should_stop)
         if endpoint is None:
             print(f"fleet record: no endpoint in {args.endpoint_file} within {args.scene_timeout:.0f} s", file=sys.stderr)
             return 1

@@ -40,6 +40,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
 from fleet.bus.plausible import request_problem, seq_problem
+from fleet.bus.scene_query import serve_scene
 from fleet.bus.messages import (
     ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus,
 )
@@ -161,8 +162,7 @@ class SimServer:
             session.declare_subscriber(keys.coord("tick"), self._coord_inbox),
             session.declare_subscriber(keys.control, self._control_inbox),
         ]
-        scene_json = world.scene_model.model_dump_json().encode()
-        self._scene_queryable = session.declare_queryable(keys.scene, lambda query: query.reply(keys.scene, scene_json))
+        self._scene_queryable = serve_scene(session, keys, world.scene_model.model_dump_json())
         self._status_pub = session.declare_publisher(keys.sim_status)
         self._view_pub = session.declare_publisher(keys.view)
         self._frame_pub = session.declare_publisher(keys.frame)

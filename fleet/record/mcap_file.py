@@ -145,16 +145,13 @@ class Recording:
     def raw_keys(self) -> list[str]:
         return sorted(t for t, c in self.channels.items() if c.message_encoding == RAW_ENCODING)
 
-    def raw_type(self, key: str) -> str:
-        return self.channels[key].metadata.get("clawfleet_type", "")
-
     def raw_messages(self, keys: list[str] | None = None, start_ns: int | None = None) -> Iterator[RawMessage]:
         """Raw bus messages in time order (of one channel: in the order they were heard)."""
         topics = keys if keys is not None else self.raw_keys
         yield from (RawMessage(channel.topic, message.data, message.log_time) for _, channel, message in self._iter(topics, start_ns))
 
-    def messages(self, topics: list[str]) -> Iterator[tuple[str, object, int]]:
-        """(topic, raw mcap message, schema name) for the given topics, in time order."""
+    def messages(self, topics: list[str]) -> Iterator[tuple[str, object, str]]:
+        """(topic, mcap message, schema name) for the given topics, in time order."""
         for schema, channel, message in self._iter(topics, None):
             yield channel.topic, message, schema.name if schema else ""
 

@@ -56,14 +56,10 @@ class RecorderStats:
 
 class Recorder:
     """Turns heard bus messages into a recording: `take(key, payload)` for each, `finish(summary)` at the end.
+    When to take them (as they come, or once the line is quiet) is the recorder node's choice."""
 
-    While a line runs, the recorder node defers the ROS topics (`defer_ros`): the raw messages are cheap to
-    write, and the CPU a 2-core machine spends on TF and markers is taken from the lockstep loop otherwise."""
-
-    def __init__(self, writer: RecordingWriter, scene: Scene, keys: Keys, defer_ros: int = 0) -> None:
-        self.writer, self.scene, self.keys = writer, scene, keys
-        self.defer_ros = defer_ros  # > 0: raw messages go to the file at once, their ROS topics in batches of this many
-        self._deferred: list[tuple[object, int]] = []
+    def __init__(self, writer: RecordingWriter, scene: Scene, keys: Keys) -> None:
+        self.writer = writer
         self.ros = LineToRos(scene)
         self.control_hz = scene.control_hz
         self.drops = DropCounter()
@@ -117,20 +113,8 @@ class Recorder:
         self.stats.by_key[key] += 1
         if message is None:
             self.stats.undecodable += 1
-        elif self.defer_ros:
-            self._deferred.append((message, stamp))
-            if len(self._deferred) >= self.defer_ros:
-                self.derive_deferred()
         else:
             self._derive(message, stamp)
-
-    def derive_deferred(self, most: int | None = None) -> int:
-        """Make the ROS topics of the messages held back (the oldest `most` of them); how many are left."""
-        count = len(self._deferred) if most is None else min(most, len(self._deferred))
-        for message, stamp in self._deferred[:count]:
-            self._derive(message, stamp)
-        del self._deferred[:count]
-        return len(self._deferred)
 
     def _is_new(self, stream: str, tick: int) -> bool:
         """A state or frame not seen before (the sim re-sends one while it waits for its answer)."""
@@ -151,8 +135,7 @@ class Recorder:
             w.ros(topic if topic.startswith("/") else f"/{message.arm}/{topic}", to_ros(message), stamp)
 
     def finish(self, summary: dict | None) -> None:
-        """The ROS topics still held back, the run's summary (latched, at the last sim time heard), then the file's index."""
-        self.derive_deferred()
+        """The run's summary (latched, at the last sim time heard), then the file's index."""
         if summary is not None:
             w = self.writer
             w.ros("/line/summary", ros_type("std_msgs/msg/String")(data=json.dumps(summary, sort_keys=True)), sim_ns(self.now_s), latched=True)

@@ -20,6 +20,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import SimControl
+from fleet.bus.scene_query import serve_scene
 from fleet.bus.session import Inbox
 from fleet.processes import StopFlag
 from fleet.record.mcap_file import RawMessage, Recording
@@ -66,8 +67,7 @@ class Player:
         self._lock = threading.Lock()
         self._frame, self._view = keys.frame, keys.view
         self._pubs: dict[str, zenoh.Publisher] = {}
-        scene_json = recording.scene_json.encode()
-        self._scene = session.declare_queryable(keys.scene, lambda query: query.reply(keys.scene, scene_json))
+        self._scene = serve_scene(session, keys, recording.scene_json)
         self._control_inbox = Inbox()
         self._control_sub = session.declare_subscriber(keys.control, self._control_inbox)
         self._control_decoder = Decoder(SimControl, DropCounter())

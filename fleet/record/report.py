@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import json
 from dataclasses import dataclass, field
+from itertools import groupby
 from pathlib import Path
 
 from fleet.bus.codec import Decoder, DropCounter
@@ -86,18 +87,15 @@ def _line_row(sep: Separations, progress: Progress | None, status: SimStatus | N
 
 
 def phase_segments(rows: list[dict], arm: str, end_s: float) -> list[tuple[float, float, str, int | None, bool]]:
-    """(start, duration, skill, task, held) runs of one arm's states: what the Gantt chart draws."""
+    """(start, duration, skill, task, held) runs of one arm's consecutive states alike: what the Gantt chart draws.
+    A state lasts until the next one; the last until the recording's end."""
     mine = [r for r in rows if r["arm"] == arm]
+    ends = [r["sim_time_s"] for r in mine[1:]] + ([max(end_s, mine[-1]["sim_time_s"])] if mine else [])
     segments = []
-    for i, r in enumerate(mine):
-        until = mine[i + 1]["sim_time_s"] if i + 1 < len(mine) else max(end_s, r["sim_time_s"])
-        held = r["held"] or r["lost"]
-        key = (r["skill"], r["task_id"], held)
-        if segments and (segments[-1][2], segments[-1][3], segments[-1][4]) == key and abs(segments[-1][0] + segments[-1][1] - r["sim_time_s"]) < 1e-9:
-            start = segments[-1][0]
-            segments[-1] = (start, until - start, *key)
-        else:
-            segments.append((r["sim_time_s"], until - r["sim_time_s"], *key))
+    for key, run in groupby(zip(mine, ends), key=lambda pair: (pair[0]["skill"], pair[0]["task_id"], pair[0]["held"] or pair[0]["lost"])):
+        run = list(run)
+        start = run[0][0]["sim_time_s"]
+        segments.append((start, run[-1][1] - start, *key))
     return segments
 
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 from functools import cache
 
-import msgspec
 import msgspec.inspect as mi
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -104,8 +103,3 @@ def _array(values: tuple, item: mi.Type):
     if isinstance(item, mi.StrType):
         return list(values)
     return np.asarray(values, dtype={mi.IntType: np.int64, mi.FloatType: np.float64, mi.BoolType: np.bool_}[type(item)])
-
-
-def struct_as_dict(message: msgspec.Struct) -> dict:
-    """A bus message as a plain dict (for JSON and tables)."""
-    return {f: getattr(message, f) for f in message.__struct_fields__}

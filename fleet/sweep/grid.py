@@ -122,6 +122,15 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
     return str(target)
 
 
+def scenes_for(cells: list[RunCell], folder: Path) -> dict[str, str]:
+    """Each cell's scene to run (by run id): every distinct set of overrides written and checked once."""
+    made: dict[str, str] = {}
+    for overrides in {json.dumps([c.scene, c.overrides], sort_keys=True, default=str) for c in cells}:
+        scene, values = json.loads(overrides)
+        made[overrides] = scene_with(scene, values, folder)
+    return {c.run_id: made[json.dumps([c.scene, c.overrides], sort_keys=True, default=str)] for c in cells}
+
+
 def grid(scene: str, seeds: list[int], allocators: list[str], duration_s: float, arms: int | None = None,
          overrides: list[Override] = ()) -> list[RunCell]:
     """Every combination, seeds innermost (so the first runs already cover every group)."""

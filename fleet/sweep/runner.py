@@ -12,7 +12,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict
 from pathlib import Path
 
-from fleet.sweep.grid import RunCell, scene_with
+from fleet.sweep.grid import RunCell, scenes_for
 
 RUNS_DIR = "runs"
 
@@ -59,9 +59,9 @@ def load_results(out: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted((out / RUNS_DIR).glob("*.json"))]
 
 
-def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[RunCell, dict], None]) -> None:
-    """`jobs` runs at a time in worker processes (spawned: no inherited bus state)."""
-    scenes = {c.run_id: scene_with(c.scene, c.overrides, out / "scenes") for c in cells}
+def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[RunCell, dict], None], scenes: dict[str, str] | None = None) -> None:
+    """`jobs` runs at a time in worker processes (spawned: no inherited bus state). `scenes`: `scenes_for(cells)`, if made already."""
+    scenes = scenes or scenes_for(cells, out / "scenes")
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
         pending = {pool.submit(run_cell, c, scenes[c.run_id], c.run_id): c for c in cells}
@@ -79,13 +79,13 @@ def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[Run
             raise
 
 
-def run_ray(cells: list[RunCell], out: Path, address: str, on_done: Callable[[RunCell, dict], None]) -> dict:
+def run_ray(cells: list[RunCell], out: Path, address: str, on_done: Callable[[RunCell, dict], None], scenes: dict[str, str] | None = None) -> dict:
     """Each run a Ray task on the cluster at `address` (one CPU each; a run's processes live on the node that
     runs it). What Ray reported. No local Ray is started here: Ray's servers listen on every interface of the
     machine they run on (Ray 2.60, whatever `node_ip_address` says), so where to run one is the user's call."""
     import ray
 
-    scenes = {c.run_id: scene_with(c.scene, c.overrides, out / "scenes") for c in cells}
+    scenes = scenes or scenes_for(cells, out / "scenes")
     try:
         ray.init(address=address, log_to_driver=False)
     except (ConnectionError, RuntimeError) as exc:
