@@ -21,6 +21,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from fleet.bus.faults import add_fault_arguments
 from fleet.bus.session import add_bus_arguments
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
@@ -125,6 +126,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
 
 def check_run_flags(args: argparse.Namespace) -> None:
     """Every `fleet run` flag that cannot work, refused in one line before any process starts."""
+    from fleet.bus.faults import network_from_args
     from fleet.bus.keys import Keys
     from fleet.bus.session import BusEndpoints, make_config
 
@@ -134,6 +136,10 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
+    try:
+        network_from_args(args)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     try:
         Keys(args.run_id)
     except ValueError as exc:
@@ -172,6 +178,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
         listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
         monitor=args.monitor, monitor_host=args.host, monitor_port=args.port, record=run_recording(args),
+        latency_ms=args.latency_ms, jitter_ms=args.jitter_ms, loss=args.loss,
     )
     if args.monitor:
         warning = exposure_warning(args.host)
@@ -560,6 +567,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--record", metavar="FILE.mcap", help="record every bus message, TF, joint states and markers (rosbag2-layout MCAP)")
     p.add_argument("--out", metavar="DIR", help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots")
     add_monitor_arguments(p)
+    add_fault_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_run)
 

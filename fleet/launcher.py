@@ -55,6 +55,9 @@ class RunOptions:
     monitor_port: int = 8080
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: a recorder taps the bus from the first tick (the sim waits for it)
+    latency_ms: float | None = None  # network faults on every link (None: the scene's)
+    jitter_ms: float | None = None
+    loss: float | None = None
 
 
 @dataclass
@@ -163,6 +166,9 @@ class Launcher:
             sim_args += ["--record-targets", o.record_targets]
         if o.record:
             sim_args += ["--await-recorder", str(RECORDER_START_S)]
+        for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
+            if value is not None:
+                sim_args += [flag, repr(value)]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
 
     def client_nodes(self) -> list[Node]:
@@ -371,6 +377,13 @@ class Launcher:
             "capacity": capacity,
         }
 
+    @staticmethod
+    def _faults(links: dict, controllers: list[dict]) -> dict:
+        """What the bus faults were and what they cost the controllers (goals sent again); empty without faults."""
+        if not links:
+            return {}
+        return {"links": links, "goals_resent": {c["arm"]: c.get("goals_resent", 0) for c in controllers if "arm" in c}}
+
     def summary(self, wall_s: float, error: str) -> dict:
         sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
         controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
@@ -422,6 +435,7 @@ class Launcher:
             "tasks_reassigned": coord.get("tasks_reassigned", 0),
             "grant_requests_open": coord.get("grant_requests_open", {}),
             "goal_results": sim.get("goal_results", {}),
+            "network_faults": self._faults(sim.get("network_faults", {}), controllers),
             "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),
             "latency_p50_ms": sim.get("latency_p50_ms"),
             "latency_p99_ms": sim.get("latency_p99_ms"),

@@ -166,6 +166,11 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
     _unique(label, "arms", [a.name for a in scene.arms])
     _unique(label, "stations", [s.name for s in scene.stations])
     _unique(label, "feeders", [f.name for f in scene.feeders])
+    if scene.network is not None:
+        linked = {a.name for a in scene.arms} | {"coordinator"}
+        for name in scene.network.links:
+            if name not in linked:
+                raise SceneError(label, f"network.links.{name}", f"no such link; links: {', '.join(sorted(linked))}")
     station_names = {s.name for s in scene.stations}
     for i, f in enumerate(scene.feeders):
         if f.into == "conveyor" and scene.conveyor is None:

@@ -198,6 +198,31 @@ class Randomisation(Strict):
     part_pose_noise_m: Draw | None = None
 
 
+class LinkFaults(Strict):
+    """Faults on one bus link between the sim and a process, each way: a delay (mean and jitter, milliseconds; the
+    jitter is the standard deviation of a normal draw, clipped at zero, so messages can overtake each other) and a
+    loss probability per message."""
+
+    latency_ms: float = Field(0.0, ge=0.0, le=2000.0)
+    jitter_ms: float = Field(0.0, ge=0.0, le=1000.0)
+    loss: float = Field(0.0, ge=0.0, lt=1.0)
+
+    @property
+    def active(self) -> bool:
+        return self.latency_ms > 0 or self.jitter_ms > 0 or self.loss > 0
+
+
+class Network(LinkFaults):
+    """Network faults on the bus (`fleet/bus/faults.py`): the defaults for every link, and per link (an arm's name or
+    `coordinator`) a replacement. In lockstep they act in sim time and repeat exactly for a seed; in realtime in wall time."""
+
+    links: dict[str, LinkFaults] = {}
+
+    def link(self, name: str) -> LinkFaults:
+        """The faults on the link to `name` (an arm or `coordinator`)."""
+        return self.links.get(name, LinkFaults(latency_ms=self.latency_ms, jitter_ms=self.jitter_ms, loss=self.loss))
+
+
 class Scene(Strict):
     """A whole cell."""
 
@@ -223,6 +248,8 @@ class Scene(Strict):
     """Factor on every arm's drive stiffness and damping (a randomised arm gain lands here)."""
     part_pose_noise_m: float = Field(0.0, ge=0.0, le=0.05)
     """Standard deviation of the noise added to the part positions controllers see (metres)."""
+    network: Network | None = None
+    """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import msgspec
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 Floats = tuple[float, ...]
 
 
@@ -62,6 +62,7 @@ class ArmState(Message, frozen=True, array_like=True):
     result_reason: str = ""
     next_tick: int = 0
     period_ticks: int = 0  # the controller's period: its answer to the state at `next_tick` takes effect a period later
+    delivered_tick: int = -1  # the tick this copy reached its controller (its own clock; -1: `tick`, no network delay)
     version: int = PROTOCOL_VERSION
 
 

@@ -67,6 +67,7 @@ class ArmController:
         self.arm, self.keys, self.session = arm, keys, session
         self.spec = get_robot(decl.model)
         self.period_ticks = max(1, round(scene.control_hz / rate_hz))
+        self.hz = scene.control_hz
         self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad), grants_required=grants,
                                     decision_period_s=self.period_ticks / scene.control_hz)
         # differs each time a controller starts: the launcher counts its starts (so a seed repeats exactly), else random
@@ -90,6 +91,8 @@ class ArmController:
         self._status_pub = session.declare_publisher(keys.arm_status(arm))
         self.parts: dict[int, PartObservation] = {}
         self.parts_tick = -1
+        self.parts_seen: deque[PartsState] = deque(maxlen=64)  # the newest parts messages, oldest first
+        self.delays = deque(maxlen=40)  # ticks each recent state spent on the bus on its way here
         self.received: list[Assignment | MotionGrant] = []  # orders in, not yet acted on
         self.pending: Assignment | None = None
         self.grants: list[MotionGrant] = []  # answers to motion requests, handed to the skill at the next step
@@ -177,13 +180,17 @@ class ArmController:
                 self.pending = msg
 
     def _parts_for_tick(self, tick: int) -> None:
-        """The parts as of `tick`: they travel apart from the arm's state, so wait (briefly) for that tick's message."""
+        """The parts as of `tick` (the newest sampled no later: a state delayed on the bus is matched with the parts
+        of its own time). They travel apart from the arm's state, so wait (briefly) for that tick's message."""
         deadline = time.monotonic() + ASSIGNMENT_WAIT_S
         while True:
-            parts = self._latest("parts")
-            if parts is not None:
-                self.parts, self.parts_tick = parts_from_message(parts), parts.tick
-            if self.parts_tick >= tick or time.monotonic() > deadline:
+            for msg in self._believable("parts", self._problem):
+                self.sim_clock.believe(msg.tick)
+                self.parts_seen.append(msg)
+            seen = [m for m in self.parts_seen if m.tick <= tick]
+            if seen and seen[-1].tick != self.parts_tick:
+                self.parts, self.parts_tick = parts_from_message(seen[-1]), seen[-1].tick
+            if (self.parts_seen and self.parts_seen[-1].tick >= tick) or time.monotonic() > deadline:
                 return
             self._inboxes["parts"].wait(0.01)
 
@@ -213,10 +220,11 @@ class ArmController:
         else:
             raw = self._inboxes["parts"].drain()
             if raw:
-                self._inboxes["parts"].items.append(raw[-1])  # keep the newest for when a task comes
+                self._inboxes["parts"].items.extend(raw[-64:])  # keep the newest for when a task comes
+        self._expect_latency(state)
         obs = ArmObservation(
             state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q),
-            state.result_goal_id, state.result_status, state.result_reason,
+            state.result_goal_id, state.result_status, state.result_reason, goal_id=state.goal_id,
         )
         if self.pending is not None and not self.skill.active:
             a, self.pending = self.pending, None
@@ -247,6 +255,14 @@ class ArmController:
         self.decisions += 1
         self.sim_time_s = state.sim_time_s
         return True
+
+    def _expect_latency(self, state: ArmState) -> None:
+        """How long after a decision its goals reach the tracker: one period, plus the bus's delay both ways,
+        measured on the states (the tick each arrived at, against the tick it was sampled) and taken as the
+        same on the way back, at its recent worst."""
+        delay = max(state.delivered_tick - state.tick, 0) if state.delivered_tick >= 0 else 0
+        self.delays.append(delay)
+        self.skill.latency_s = self.skill.decision_period_s + 2 * max(self.delays) / self.hz
 
     def send_heartbeat(self, sim_time_s: float) -> None:
         """The status the coordinator watches for liveness, with what the arm is doing."""
@@ -289,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
             write_report(args.report, {
                 "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
                 "missed_assignments": controller.missed_assignments, "grants_denied": controller.skill.denials, "stopped_by": stop.reason,
-                "decisions": controller.decisions, "goals_sent": controller.goals_sent,
+                "decisions": controller.decisions, "goals_sent": controller.goals_sent, "goals_resent": controller.skill.goals_resent,
             })
     return 0
 

@@ -37,6 +37,8 @@ import numpy as np
 import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.faults import DelayLine, add_fault_arguments, faults_report, links_for, network_from_args
+from fleet.bus.flights import FlightBook
 from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
 from fleet.bus.plausible import request_problem, seq_problem
@@ -64,24 +66,29 @@ IDLE_SKILLS = ("idle", "done", "failed")
 
 @dataclass
 class ArmLink:
-    """The server's view of one arm's controller: its last answer, when its next state is due, whether it is alive."""
+    """The server's view of one arm's controller: its states in flight and their answers, when its next state is
+    sampled, whether it is alive."""
 
     name: str
     period_ticks: int
+    book: FlightBook
     last_step: ControllerStep | None = None
-    next_tick: int = 0  # the tick of the controller's next state (its answer to the last one is applied then)
-    awaiting: ArmState | None = None  # the state published and not answered yet
-    answer: ControllerStep | None = None  # the answer to `awaiting`, in and not applied yet (lockstep)
+    next_tick: int = 0  # the tick its next state is sampled
     goals: list = field(default_factory=list)  # goals in and not applied yet (lockstep), in arrival order
+    discard_goals: set = field(default_factory=set)  # ids named by answers lost on the way back: never applied
     lost: bool = False
     watchdog_held: bool = False
 
+    def named_goals(self) -> set[int]:
+        """Goal ids named by answers in and not applied yet."""
+        return {g for f in self.book.flights.values() if f.answer is not None for g in f.answer.goal_ids}
+
     def ready(self) -> bool:
-        """The answer to the awaited state is in, with every goal it names."""
-        if self.answer is None:
+        """Every state delivered has its answer, and every goal those answers name is in (lockstep)."""
+        if self.book.awaiting() is not None:
             return False
         arrived = {g.goal_id for g in self.goals}
-        return all(g in arrived for g in self.answer.goal_ids)
+        return self.named_goals() <= arrived
 
 
 @dataclass
@@ -139,7 +146,11 @@ class SimServer:
         hz = world.scene_model.control_hz
         period = max(1, round(hz / DEFAULT_DECISION_HZ))  # until a controller asks for another rate
         self.max_period_ticks = max(1, round(hz * MAX_CONTROLLER_PERIOD_S))
-        self.links = {name: ArmLink(name, period) for name in world.arms}
+        scene = world.scene_model
+        self.faults = links_for(scene.network, [*world.arms, "coordinator"], scene.seed)
+        self.links = {name: ArmLink(name, period, FlightBook(self.faults[name], hz)) for name in world.arms}
+        self.coord_book = FlightBook(self.faults["coordinator"], hz)
+        self._delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
         self.tracked = TrackedArms(world)
         self.drops = DropCounter()
         self.stats = SimStats()
@@ -179,11 +190,8 @@ class SimServer:
         self.coord_period_ticks = max(1, round(hz / COORD_RATE_HZ))
         self._coord_tick = -1
         self.assign_seqs = {name: 0 for name in world.arms}
-        self._published_at: dict[tuple[str, int], float] = {}
-        self._last_frame: bytes | None = None
         self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
-        self._coord_pending: int | None = None  # the tick of the last frame whose CoordTick is still owed
         self._started = not controllers  # every controller answered once (realtime waits until then)
 
     def close(self) -> None:
@@ -237,11 +245,40 @@ class SimServer:
             if problem:
                 self.drops.drop(key, problem)
                 continue
-            self._coord_tick = max(self._coord_tick, msg.tick)
-            if self.mode != "lockstep":
-                continue  # realtime: controllers act on assignments as they arrive
-            for name, seq in zip(self.links, msg.assign_seqs):
-                self.assign_seqs[name] = max(self.assign_seqs[name], seq)
+            self._on_coord_tick(msg)
+        for kind, link, item in self._delayed.pop_due(time.monotonic()):
+            self._arrived(kind, link, item)
+
+    def _on_coord_tick(self, msg: CoordTick) -> None:
+        """The coordinator answered a frame: lockstep applies it when due (`_apply_coord`); realtime notes it."""
+        if self._deferred_coord:
+            self.coord_book.answer(msg.tick, msg)  # one lost on the way back is dropped by the book
+            return
+        passage = self.faults["coordinator"].passage("up")
+        if not passage.lost:
+            self._arrive_later("coord", None, msg, passage.delay_s)
+
+    def _apply_coord(self, msg: CoordTick) -> None:
+        self._coord_tick = max(self._coord_tick, msg.tick)
+        if self.mode != "lockstep":
+            return  # realtime: controllers act on assignments as they arrive
+        for name, seq in zip(self.links, msg.assign_seqs):
+            self.assign_seqs[name] = max(self.assign_seqs[name], seq)
+
+    def _arrive_later(self, kind: str, link: ArmLink | None, item, delay_s: float) -> None:
+        """Realtime: a message on its way in arrives `delay_s` from now (at once without delay)."""
+        if delay_s <= 0:
+            self._arrived(kind, link, item)
+        else:
+            self._delayed.push(time.monotonic() + delay_s, (kind, link, item))
+
+    def _arrived(self, kind: str, link: ArmLink | None, item) -> None:
+        if kind == "coord":
+            self._apply_coord(item)
+        elif kind == "goal":
+            self._submit(link, item)
+        elif link.book.applied(item):
+            self._apply_answer(link, item.answer)
 
     def _link_for(self, key: str, arm: str) -> ArmLink | None:
         link = self.links.get(Keys.arm_of(key))
@@ -256,9 +293,14 @@ class SimServer:
             return
         self.stats.messages_in["goal"] += 1
         if self._deferred:
-            link.goals.append(msg)  # applied at the arm's next due tick, so a lockstep run repeats
-        else:
-            self._submit(link, msg)
+            if msg.goal_id in link.discard_goals:  # its answer was lost on the way: so was it
+                link.discard_goals.discard(msg.goal_id)
+            else:
+                link.goals.append(msg)  # applied with the answer naming it (or at the arm's next due tick), so a lockstep run repeats
+            return
+        passage = link.book.link.passage("up")
+        if not passage.lost:
+            self._arrive_later("goal", link, msg, passage.delay_s)
 
     def _submit(self, link: ArmLink, msg) -> None:
         goal = goal_from_message(msg)
@@ -277,50 +319,78 @@ class SimServer:
         if problem:
             self.drops.drop(key, problem)
             return
-        if link.awaiting is None or msg.tick != link.awaiting.tick or link.answer is not None:
-            return  # an answer to a state already answered, or overtaken: nothing to do
-        link.answer = msg
-        sent = self._published_at.pop((link.name, msg.tick), None)
-        if sent is not None:
-            rtt_ms = (time.monotonic() - sent) * 1e3
-            self.stats.round_trip_ms.append(rtt_ms)
-            self.stats.recent_round_trip_ms.append(rtt_ms)
-        if not self._deferred:
-            self._apply_answer(link)
+        flight = link.book.answer(msg.tick, msg)
+        if flight is None:
+            return  # an answer to a state already answered, overtaken or never delivered: nothing to do
+        rtt_ms = (time.monotonic() - flight.delivered_wall_s) * 1e3
+        self.stats.round_trip_ms.append(rtt_ms)
+        self.stats.recent_round_trip_ms.append(rtt_ms)
+        if self._deferred:
+            if flight.up_lost:  # lost on the way back: it and the goals it names never reach the tracker
+                link.discard_goals.update(msg.goal_ids)
+                link.goals = [g for g in link.goals if g.goal_id not in link.discard_goals]
+                link.discard_goals -= {g.goal_id for g in link.goals}
+            return
+        passage = link.book.link.passage("up")
+        if not passage.lost:
+            self._arrive_later("step", link, flight, passage.delay_s)
 
     @property
     def _deferred(self) -> bool:
         """Answers and goals wait for their arm's due tick (lockstep, or until every process is up)."""
         return self.controllers and (self.mode == "lockstep" or not self._started)
 
-    def _apply_answer(self, link: ArmLink) -> None:
-        """The controller's answer takes effect: its goals (and any others queued) go to the tracker."""
-        msg, link.answer = link.answer, None
-        for goal in link.goals:
+    @property
+    def _deferred_coord(self) -> bool:
+        """The coordinator's ticks are awaited and take effect when due (lockstep, or until every process is up)."""
+        return self.coordinator and (self.mode == "lockstep" or not self._started)
+
+    def _apply_answers(self, link: ArmLink) -> None:
+        """Lockstep: the answers due now take effect, each with the goals it names; goals no answer names
+        (a user's own client, a lost controller) go with them."""
+        for flight in link.book.due_answers(self.world.tick):
+            named = set(flight.answer.goal_ids)
+            goals = [g for g in link.goals if g.goal_id in named]
+            link.goals = [g for g in link.goals if g.goal_id not in named]
+            for goal in goals:
+                self._submit(link, goal)
+            self._apply_answer(link, flight.answer)
+        held = link.named_goals()
+        for goal in [g for g in link.goals if g.goal_id not in held]:
             self._submit(link, goal)
-        link.goals = []
-        if msg is None:
-            return
-        link.awaiting = None
+        link.goals = [g for g in link.goals if g.goal_id in held]
+
+    def _apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
+        """The controller's answer takes effect (its goals are with the tracker): what it does, when it wants its
+        next state, the watchdog's next deadline."""
+        latest = msg.tick >= link.book.newest_delivered  # no later state went out: the schedule is still its to set
         link.last_step = msg
-        link.next_tick = min(max(msg.next_tick, msg.tick + 1), msg.tick + self.max_period_ticks)
-        link.period_ticks = link.next_tick - msg.tick
-        self.tracked.trackers[link.name].watch(link.next_tick / self.world.scene_model.control_hz + self.watchdog_s)
+        period = min(max(msg.next_tick - msg.tick, 1), self.max_period_ticks)
+        link.period_ticks = period
+        if latest:
+            link.next_tick = msg.tick + period
+        hz = self.world.scene_model.control_hz
+        self.tracked.trackers[link.name].watch(max(link.next_tick, self.world.tick) / hz + self.watchdog_s + self._round_trip_s(link))
         link.watchdog_held = False
         if link.lost:
             link.lost = False
             self.stats.rejoined.append(link.name)
 
-    def _wait_for_answers(self, due: list[ArmLink], want_coord: int | None) -> None:
-        """Until every live controller due now has answered its last state (with the goals it named) and the
-        coordinator has answered frame `want_coord`, or the timeout passed; then the answers take effect."""
+    def _round_trip_s(self, link: ArmLink) -> float:
+        """The longest a state and its answer are expected to travel on this link (latency and 3 sigma of jitter)."""
+        f = link.book.link.faults
+        return 2 * (f.latency_ms + 3 * f.jitter_ms) / 1e3
+
+    def _wait_for_answers(self, links: list[ArmLink], coord: bool) -> None:
+        """Until every live controller of `links` has answered each state delivered to it (with the goals it names),
+        and the coordinator each frame (`coord`), or the timeout passed; then the answers due now take effect."""
         first = not self._started
         deadline = time.monotonic() + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
         republish_at = time.monotonic() + REPUBLISH_S
         while True:
             self._take_inputs()
-            waiting = [l for l in due if not l.lost and l.awaiting is not None and not l.ready()]
-            coord_waiting = want_coord is not None and not self.stats.coordinator_lost and self._coord_tick < want_coord
+            waiting = [l for l in links if not l.lost and not l.ready()]
+            coord_waiting = coord and not self.stats.coordinator_lost and self.coord_book.awaiting() is not None
             if not waiting and not coord_waiting:
                 break
             if self.stop is not None and self.stop.should_stop():
@@ -333,21 +403,28 @@ class SimServer:
                 break
             if time.monotonic() > republish_at:  # a process that joined late, or a lost sample
                 for link in waiting:
-                    if link.answer is None:
-                        self._put(self._state_pubs[link.name], "state", encode(link.awaiting))
-                if coord_waiting and self._last_frame is not None:
-                    self._put(self._frame_pub, "frame", self._last_frame)
+                    if (flight := link.book.awaiting()) is not None:
+                        self._put(self._state_pubs[link.name], "state", flight.payload)
+                if coord_waiting:
+                    self._put(self._frame_pub, "frame", self.coord_book.awaiting().payload)
                 republish_at = time.monotonic() + REPUBLISH_S
             self._inbox.wait(0.01)
-        for link in due:
-            if link.answer is not None or link.goals:
-                self._apply_answer(link)
+        self._apply_due(links, coord)
+
+    def _apply_due(self, links: list[ArmLink], coord: bool) -> None:
+        """The answers (controllers', coordinator's) due at this tick take effect."""
+        for link in links:
+            self._apply_answers(link)
+        if coord:
+            for flight in self.coord_book.due_answers(self.world.tick):
+                self._apply_coord(flight.answer)
         if not self._started and all(l.last_step is not None or l.lost for l in self.links.values()):
             self._started = True  # realtime: from here on answers apply when they arrive
 
     def _lose(self, link: ArmLink) -> None:
         """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
-        link.lost, link.awaiting, link.answer = True, None, None
+        link.lost = True
+        link.book.clear()
         self.stats.lost.append(link.name)
         self._publish_results(link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)"))
 
@@ -388,35 +465,55 @@ class SimServer:
         return [l for l in self.links.values() if l.next_tick <= self.world.tick]
 
     def publish_states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
-        """States to the controllers due now (and the parts with them), the coordinator's frame, the monitors' view."""
+        """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
+        coordinator's frame likewise; the monitors' view."""
         w = self.world
         tick = w.tick
         for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
             link.next_tick = tick + link.period_ticks
         frame = self.coordinator and tick % self.coord_period_ticks == 0
         view = tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching  # built only while watched
-        if not (due or frame or view):
-            return
-        states = {name: self._state(name) for name in w.arms} if (frame or view) else {l.name: self._state(l.name) for l in due}
-        now = time.monotonic()
-        for link in due:
-            msg = states[link.name]
-            self._put(self._state_pubs[link.name], "state", encode(msg))
-            if self.controllers:  # someone must answer it (without controllers the states are feedback only)
-                link.awaiting, link.answer = msg, None
-                self._published_at[(link.name, tick)] = now
-        parts = w.active_parts() if parts is None else parts
-        parts_msg = parts_state(w, parts, sum(self.events_published.values()))
-        if due:
-            seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
-            self._put(self._parts_pub, "parts", encode(seen))
-        if frame or view:
-            line = encode(LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg))
-            if frame:
-                self._put(self._frame_pub, "frame", line)
-                self._last_frame, self._coord_pending = line, tick
-            if view:
-                self._put(self._view_pub, "view", line)
+        if due or frame or view:
+            states = {name: self._state(name) for name in w.arms} if (frame or view) else {l.name: self._state(l.name) for l in due}
+            now = time.monotonic()
+            for link in due:
+                if self.controllers:  # someone must answer it (without controllers the states are feedback only)
+                    link.book.send(tick, states[link.name], link.period_ticks, now, self._deferred)
+                else:
+                    self._put(self._state_pubs[link.name], "state", encode(states[link.name]))
+            parts = w.active_parts() if parts is None else parts
+            parts_msg = parts_state(w, parts, sum(self.events_published.values()))
+            if due:
+                seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
+                self._put(self._parts_pub, "parts", encode(seen))
+            if frame or view:
+                line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg)
+                if frame:
+                    self.coord_book.send(tick, line, 1, now, self._deferred_coord)
+                if view:
+                    self._put(self._view_pub, "view", encode(line))
+        self._deliver()
+
+    def _deliver(self) -> None:
+        """Send what reaches its process now: states (a delayed one stamped with the tick it arrives), frames."""
+        tick, now = self.world.tick, time.monotonic()
+        for link in self.links.values():
+            flight = link.book.deliver(tick, now, self._deferred)
+            if flight is not None:
+                state = flight.message if flight.tick == tick else msgspec.structs.replace(flight.message, delivered_tick=tick)
+                flight.payload = encode(state)
+                self._put(self._state_pubs[link.name], "state", flight.payload)
+            elif not self._deferred:
+                link.book.prune(tick, self.max_period_ticks)
+        flight = self.coord_book.deliver(tick, now, self._deferred_coord)
+        if flight is not None:
+            line = flight.message
+            if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
+                line = msgspec.structs.replace(line, parts=msgspec.structs.replace(line.parts, events_published=sum(self.events_published.values())))
+            flight.payload = encode(line)
+            self._put(self._frame_pub, "frame", flight.payload)
+        elif not self._deferred_coord:
+            self.coord_book.prune(tick, self.max_period_ticks)
 
     def _with_noise(self, parts):
         """The parts as controllers see them in a randomised scene: positions with seeded Gaussian noise."""
@@ -434,14 +531,15 @@ class SimServer:
             if self.publish_events(parts):
                 parts = self.world.active_parts()  # parts lost or retired just now are off the stage
         due = self._due()
-        frame = self.coordinator and self.world.tick % self.coord_period_ticks == 0
+        tick = self.world.tick
         t1 = time.perf_counter()
         started = self._started
-        coord_owed = self._coord_pending if (self.mode == "lockstep" or not self._started) else None
-        if (self._deferred or coord_owed is not None) and (due or frame):
-            self._wait_for_answers(due, coord_owed)
-            if coord_owed is not None and self._coord_tick >= coord_owed:
-                self._coord_pending = None
+        links = [l for l in self.links.values() if l.next_tick <= tick or l.book.arrives(tick) or l.book.applies(tick)] if self._deferred else []
+        # the coordinator's answers take effect with the next states out after them (frames: its period apart)
+        frame = self.coordinator and tick % self.coord_period_ticks == 0
+        coord = self._deferred_coord and (frame or self.coord_book.arrives(tick) or (bool(links) and self.coord_book.applies(tick)))
+        if links or coord:
+            self._wait_for_answers(links, coord)
         else:
             self._take_inputs()
         t2 = time.perf_counter()
@@ -565,6 +663,7 @@ class SimServer:
             "coordinator_lost": self.stats.coordinator_lost,
             "bus_messages_per_arm_per_s": self.messages_per_arm_per_s(),
             "randomised": dict(self.world.scene_model.randomised),
+            "network_faults": faults_report(self.faults),
             "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
             "loop_wall_seconds": round(sum(v for k, v in self.stats.wall_s.items() if k != "startup"), 3),
         }
@@ -610,11 +709,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")
+    add_fault_arguments(parser)
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "sim_server")
     if opened is None:
         return 2
     args, stop, scene = opened
+    try:
+        network = network_from_args(args)
+    except ValueError as exc:
+        print(f"sim_server: {exc}", file=sys.stderr)
+        return 2
+    if network is not None:
+        scene = scene.model_copy(update={"network": network})
     world = World(scene)
     ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
     endpoints = BusEndpoints.from_args(args)

@@ -13,8 +13,9 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ArmObservation:
-    """What an arm reports at each decision: its joints and gripper joints at a sim time, and the newest
-    trajectory result of its tracker (goal id, status, reason; 0 and "" before any)."""
+    """What an arm reports at each decision: its joints and gripper joints at a sim time, the newest
+    trajectory result of its tracker (goal id, status, reason; 0 and "" before any) and, over a bus that
+    can lose messages, the goal driving it (so the skill sees which of its goals arrived)."""
 
     time_s: float
     q: np.ndarray
@@ -23,6 +24,7 @@ class ArmObservation:
     result_goal_id: int = 0
     result_status: str = ""
     result_reason: str = ""
+    goal_id: int | None = None  # the trajectory goal driving the arm (0: none); None where goals cannot be lost
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ watchdog) or refuses ends the task failed with its reason.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from enum import Enum
@@ -59,6 +60,8 @@ KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
 ORDER = [Phase.APPROACH, Phase.DESCEND, Phase.CLOSE, Phase.LIFT, Phase.TRANSFER, Phase.LOWER, Phase.RELEASE, Phase.RETREAT, Phase.HOME]
 FAILED_STATUSES = ("aborted", "rejected")
+LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
+MAX_RESENDS = 2  # a batch of goals lost again after this many sends ends the task failed
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,8 @@ class PickPlaceSkill:
         self.sent_goals: set[int] = set()  # trajectory goals of the current task
         self._outbox: list[ArmGoal] = []
         self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
+        self._unconfirmed: list[tuple[float, int, list[ArmGoal]]] = []  # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
+        self.goals_resent = 0
         self.plan_end_s = 0.0
         self.phase_t0 = 0.0
 
@@ -197,6 +202,7 @@ class PickPlaceSkill:
         self.task, self.failure_reason = task, ""
         self.sent_goals = set()
         self._timeline = []
+        self._unconfirmed = []
         self.q_cmd = np.asarray(obs.q, float).copy()
         self.grasp_yaw = self._grasp_yaw(part)
         tip = self.spec.fingertip_below_tool_m
@@ -309,12 +315,52 @@ class PickPlaceSkill:
         if self.active:
             self._decide(obs, parts)
         out, self._outbox = self._outbox, []
+        if obs.goal_id is not None and any(isinstance(g, TrajectoryGoal) for g in out):
+            self._unconfirmed.append((obs.time_s, 1, out))
         return out
+
+    def _resend_lost(self, obs: ArmObservation) -> bool:
+        """Goals lost on the bus: a batch whose trajectory goal the tracker has not shown (driving, or with a
+        result) well after it was due there is sent again, later by as much as it must (the plan shifts with
+        it); lost `MAX_RESENDS` times, the task fails. False when the task failed."""
+        if obs.goal_id is None:
+            return True
+        seen = max(obs.goal_id, obs.result_goal_id)
+        keep = []
+        for sent_s, sends, goals in self._unconfirmed:
+            newest = max(g.goal_id for g in goals if isinstance(g, TrajectoryGoal))
+            if seen >= newest:
+                continue
+            if obs.time_s - sent_s <= self.latency_s + LOST_AFTER_PERIODS * self.decision_period_s:
+                keep.append((sent_s, sends, goals))
+                continue
+            if sends > MAX_RESENDS:
+                self._fail(f"trajectory goal {newest} was lost on the bus {sends} times")
+                return False
+            keep.append((obs.time_s, sends + 1, self._resend(goals, obs.time_s)))
+        self._unconfirmed = keep
+        return True
+
+    def _resend(self, goals: list[ArmGoal], now_s: float) -> list[ArmGoal]:
+        """`goals` again with new ids, starting no sooner than a goal sent now can; the plan moves with them."""
+        self._now = now_s
+        first = min(g.start_time_s for g in goals if g.start_time_s is not None)
+        shift = max(0.0, self._earliest() - first)
+        again = [dataclasses.replace(g, goal_id=self._next_id(), start_time_s=None if g.start_time_s is None else g.start_time_s + shift)
+                 for g in goals]
+        self.sent_goals.update(g.goal_id for g in again if isinstance(g, TrajectoryGoal))
+        self.plan_end_s += shift
+        self._timeline = [(t + shift, p) for t, p in self._timeline]
+        self.goals_resent += len(again)
+        self._outbox.extend(again)
+        return again
 
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
         now = self._now = obs.time_s
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
             self._fail(f"trajectory goal {obs.result_goal_id} {obs.result_status}: {obs.result_reason}")
+            return
+        if not self._resend_lost(obs):
             return
         while self._timeline and self._timeline[0][0] <= now + 1e-9:
             self._enter(self._timeline[0][1], self._timeline[0][0])
