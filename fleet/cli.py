@@ -325,7 +325,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: at least 1")
     try:
-        cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, [Override.parse(t) for t in args.set or ()])
+        overrides = [Override.parse(t) for t in args.set or ()] + [
+            Override(f"network.{field}", tuple(values)) for field, values in
+            (("latency_ms", args.latency_ms), ("jitter_ms", args.jitter_ms), ("loss", args.loss)) if values
+        ]
+        cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, overrides)
     except GridError as exc:
         raise UsageError(str(exc)) from None
     load_scene(args.scene, arms=args.arms, robots=robot_facts())  # a bad scene: one line, before anything runs
@@ -585,6 +589,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", metavar="FIELD.PATH=V1,V2", help="a scene field and the values it takes (repeatable), e.g. conveyor.speed_m_per_s=0.05,0.1")
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
     p.add_argument("--duration", type=float, default=60.0, help="sim seconds per run (default 60)")
+    p.add_argument("--latency-ms", type=float, nargs="+", metavar="MS", help="bus latency levels, each way on every link (network.latency_ms)")
+    p.add_argument("--jitter-ms", type=float, nargs="+", metavar="MS", help="bus jitter levels (network.jitter_ms)")
+    p.add_argument("--loss", type=float, nargs="+", metavar="P", help="bus loss levels (network.loss)")
     p.add_argument("--jobs", type=int, default=None, help="runs at a time on this machine (default: its cores)")
     p.add_argument("--ray", metavar="ADDRESS", help="run each run as a Ray task on the Ray cluster at ADDRESS (e.g. 127.0.0.1:6379; docs/running.md)")
     p.add_argument("--out", required=True, metavar="DIR", help="results: runs/*.json, runs.csv, cells.csv, plots; a run already there is not run again")

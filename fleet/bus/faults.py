@@ -92,7 +92,7 @@ def links_for(network: Network | None, names: list[str], seed: int) -> dict[str,
 
 def faults_report(links: dict[str, FaultyLink]) -> dict:
     """The run summary's `network_faults`: per link what was injected and what it did (empty without faults)."""
-    return {name: link.report() for name, link in links.items() if link.active}
+    return {name: link.report() for name, link in links.items() if link.active and link.counts}
 
 
 class DelayLine:

@@ -71,6 +71,8 @@ def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line
     (["run", "--duration", "inf"], "--duration inf: give a positive number"),
     (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
     (["run", "--monitor", "--port", "99999"], "--port 99999: a TCP port is 0 to 65535"),
+    (["run", "--loss", "1.5"], "--loss 1.5: Input should be less than 1"),
+    (["run", "--latency-ms", "-5"], "--latency-ms -5: Input should be greater than or equal to 0"),
     (["check", "/dev/null"], "/dev/null: not a regular file"),
     (["check", "/"], "/: a directory, not a scene file"),
 ])

@@ -246,3 +246,17 @@ def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_pat
     assert first["parts_completed"] >= 1, first["unfinished_parts"]
     strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
     assert strip(first) == strip(second), "every process drew the same values from the seed, and the noise repeats"
+
+
+def test_a_line_with_bus_faults_repeats_for_its_seed_and_says_what_was_injected():
+    faults = {"latency_ms": 50.0, "jitter_ms": 10.0, "loss": 0.05}
+    first, launcher = run_line(duration_s=15.0, seed=5, **faults)
+    assert_nothing_left(first, launcher.endpoint)
+    assert first["status"] == "ok" and first["arms_lost"] == [] and first["inter_arm_contacts"] == 0
+    links = first["network_faults"]["links"]
+    assert set(links) == {*first["arm_ids"], "coordinator"}
+    assert all(link["latency_ms"] == 50.0 and link["down"]["lost"] > 0 for link in links.values())
+    assert first["parts_completed"] >= 1, first["unfinished_parts"]
+    second, launcher = run_line(duration_s=15.0, seed=5, **faults)
+    strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
+    assert strip(first) == strip(second), "lockstep faults act in sim time: the same losses, delays and run"

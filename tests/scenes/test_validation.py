@@ -57,6 +57,9 @@ CASES = [
     ("duplicate arm", set_(["arms", 1, "name"], "arm_0"), "arms.1.name", "duplicate"),
     ("feeder into nothing", set_(["feeders", 1, "into"], "nowhere"), "feeders.1.into", "no station"),
     ("control not dividing physics", set_(["control_hz"], 150), "(top level)", "whole multiple"),
+    ("loss of one or more", set_(["network"], {"loss": 1.0}), "network.loss", "less than 1"),
+    ("negative latency on a link", set_(["network"], {"links": {"arm_0": {"latency_ms": -1}}}), "network.links.arm_0.latency_ms", "greater than or equal"),
+    ("a link to nobody", set_(["network"], {"links": {"arm_9": {"loss": 0.1}}}), "network.links.arm_9", "links: arm_0, arm_1, arm_2, coordinator"),
 ]
 
 
