@@ -28,6 +28,17 @@ from scenes.loader import SceneError, load_scene
 from scenes.schema import Scene
 
 PR_SET_PDEATHSIG = 1
+PARENT_ENV = "CLAWFLEET_PARENT_PID"  # set for every child a `ChildProcess` starts: the pid that started it
+
+
+def die_with_parent() -> None:
+    """Ask Linux to send this process SIGTERM when its parent dies (nothing elsewhere): no orphan outlives a
+    killed parent, and a SIGTERM handler still gets to stop what this process started."""
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        except (OSError, AttributeError):
+            pass
 
 
 class StopFlag:
@@ -35,14 +46,13 @@ class StopFlag:
 
     def __init__(self, watch_parent: bool = True) -> None:
         self.reason = ""
-        self._parent = os.getppid() if watch_parent else None
+        # the parent that started us (a launcher says who, so a parent that died before we got here is noticed too)
+        started_by = os.environ.pop(PARENT_ENV, "")
+        self._parent = (int(started_by) if started_by.isdigit() else os.getppid()) if watch_parent else None
         for sig in (signal.SIGTERM, signal.SIGINT):
             signal.signal(sig, self._on_signal)
-        if watch_parent and sys.platform.startswith("linux"):
-            try:
-                ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-            except (OSError, AttributeError):
-                pass
+        if watch_parent:
+            die_with_parent()
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.reason = signal.Signals(signum).name
@@ -88,7 +98,8 @@ class ChildProcess:
 
     def start(self) -> "ChildProcess":
         with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+            self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
+                                         env=os.environ | {PARENT_ENV: str(os.getpid())})
         return self
 
     def poll(self) -> int | None:

@@ -7,19 +7,51 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import os
+import signal
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict
 from pathlib import Path
 
+from fleet.processes import die_with_parent
 from fleet.sweep.grid import RunCell, scenes_for
 
 RUNS_DIR = "runs"
 
 
+_POOL_PARENT: int | None = None  # in a local pool's worker: the sweep's pid
+
+
+def _pool_worker_start() -> None:
+    """A local pool worker: SIGTERM when the sweep dies (its run's launcher stops that run), and no new run after."""
+    global _POOL_PARENT
+    _POOL_PARENT = os.getppid()
+    signal.signal(signal.SIGTERM, _interrupt)  # also while a run starts, before its launcher takes the signal
+    die_with_parent()
+
+
+def _interrupt(_signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _sweep_gone() -> bool:
+    return _POOL_PARENT is not None and os.getppid() != _POOL_PARENT
+
+
 def run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None = None) -> dict:
     """One run, exactly as `fleet run` would do it with these arguments; its summary. `scene_text`: the
     overridden scene file's text, written where this runs (a cluster node has no copy of the sweep's folder)."""
+    if _sweep_gone():
+        os._exit(0)  # the sweep died: a queued run is not started
+    try:
+        return _run_cell(cell, scene, run_id, scene_text)
+    finally:
+        if _sweep_gone():
+            os._exit(0)  # its run was stopped with it; nobody is left to take a result
+
+
+def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) -> dict:
     import tempfile
 
     from fleet.launcher import Launcher, RunOptions
@@ -63,7 +95,8 @@ def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[Run
     """`jobs` runs at a time in worker processes (spawned: no inherited bus state). `scenes`: `scenes_for(cells)`, if made already."""
     scenes = scenes or scenes_for(cells, out / "scenes")
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+    # a worker dies with the sweep (SIGTERM, kill -9 alike): its run's launcher stops that run's processes
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_pool_worker_start) as pool:
         pending = {pool.submit(run_cell, c, scenes[c.run_id], c.run_id): c for c in cells}
         try:
             while pending:

@@ -99,6 +99,28 @@ def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missi
     assert (tmp_path / "cells.csv").is_file() and (tmp_path / "throughput.png").stat().st_size > 1000
 
 
+def pool_workers() -> set[int]:
+    out = subprocess.run(["pgrep", "-f", "multiprocessing.spawn"], capture_output=True, text=True).stdout
+    return {int(p) for p in out.split()}
+
+
+def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_path):
+    before, workers_before = fleet_processes(), pool_workers()
+    argv = [sys.executable, "-m", "fleet.cli", "sweep", "assembly_line", "--seeds", "0-3", "--duration", "60", "--jobs", "2", "--out", str(tmp_path)]
+    sweep = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while len(fleet_processes() - before) < 2:  # runs under way
+        assert time.monotonic() < deadline and sweep.poll() is None, "no run started"
+        time.sleep(0.2)
+    os.kill(sweep.pid, signal.SIGTERM)  # the sweep's own process only, as a process manager stops it
+    sweep.wait(timeout=30)
+    deadline = time.monotonic() + 30
+    while (fleet_processes() - before or pool_workers() - workers_before) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert fleet_processes() - before == set(), "a run's processes outlived the sweep"
+    assert pool_workers() - workers_before == set(), "a pool worker outlived the sweep"
+
+
 NETNS = "clawfleet_sweep_ray"
 
 
