@@ -1,6 +1,8 @@
 """A sweep's tables and plots: `runs.csv` (one row per run: its arguments and the summary's figures),
 `cells.csv` (per group of runs that differ only in seed: mean and 95% confidence interval of each figure),
-`throughput.png` (per allocator and override), `throughput_vs_<field>.png` for a numeric override."""
+`pairs.csv` (each pair of allocators over the same seeds and arguments: the paired difference in throughput
+with its 95% interval and Student's paired t-test), `throughput.png` (per allocator and override),
+`throughput_vs_<field>.png` for a numeric override."""
 
 from __future__ import annotations
 
@@ -69,6 +71,31 @@ def cell_rows(rows: list[dict]) -> list[dict]:
     return sorted(out, key=lambda c: json.dumps([c.get(k) for k in sorted(c) if not k.endswith(("_mean", "_ci95"))], default=str))
 
 
+def pair_rows(rows: list[dict], figure: str = "throughput_per_min") -> list[dict]:
+    """Each pair of allocators run over the same seeds with otherwise equal arguments: the mean of the per-seed
+    differences (first minus second), its 95% interval and the paired t-test's p-value (scipy)."""
+    groups: dict[tuple, dict[str, dict[int, float]]] = {}
+    for row in rows:
+        rest = tuple(item for item in group_key(row) if item[0] != "allocator")
+        groups.setdefault(rest, {}).setdefault(row["allocator"], {})[row["seed"]] = row.get(figure)
+    out = []
+    for rest, by_allocator in groups.items():
+        names = sorted(by_allocator)
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                seeds = sorted(set(by_allocator[a]) & set(by_allocator[b]))
+                x = np.asarray([by_allocator[a][s] for s in seeds], float)
+                y = np.asarray([by_allocator[b][s] for s in seeds], float)
+                mean, half = mean_ci(list(x - y))
+                p = float(stats.ttest_rel(x, y).pvalue) if len(seeds) > 1 and np.any(x != y) else math.nan
+                out.append({k: json.loads(v) for k, v in rest} | {
+                    "first": a, "second": b, "seeds": len(seeds), f"{figure}_first": round(float(x.mean()), 4) if seeds else math.nan,
+                    f"{figure}_second": round(float(y.mean()), 4) if seeds else math.nan,
+                    "difference_mean": round(mean, 4), "difference_ci95": round(half, 4), "p_value": round(p, 5),
+                })
+    return out
+
+
 def write_csv(path: Path, rows: list[dict]) -> Path:
     fields: list[str] = []
     for row in rows:
@@ -131,6 +158,9 @@ def write_results(results: list[dict], out: Path) -> tuple[list[dict], list[Path
     rows = run_rows(results)
     cells = cell_rows(rows)
     written = [write_csv(out / "runs.csv", rows), write_csv(out / "cells.csv", cells)]
+    pairs = pair_rows(rows)
+    if pairs:
+        written.append(write_csv(out / "pairs.csv", pairs))
     if cells:
         written.append(plot_throughput(cells, out / "throughput.png"))
         for key in sorted({k for c in cells for k in c if k.startswith("set:")}):

@@ -8,10 +8,11 @@ import sys
 import time
 
 import pytest
+from scipy import stats
 
 from fleet.launcher import Launcher, RunOptions
 from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
-from fleet.sweep.results import cell_rows, mean_ci, run_rows
+from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
 
@@ -51,6 +52,20 @@ def test_mean_and_interval():
     mean, half = mean_ci([1.0, 2.0, 3.0])
     assert mean == 2.0 and half == pytest.approx(4.303 * 1.0 / 3 ** 0.5, rel=1e-3)
     assert mean_ci([5.0])[1] != mean_ci([5.0])[1], "one run has no interval (NaN)"
+
+
+def test_allocators_are_compared_pairwise_over_the_same_seeds():
+    def row(allocator: str, seed: int, throughput: float, belt: float = 0.05) -> dict:
+        return {"scene": "x", "arms": None, "allocator": allocator, "duration_s": 60.0, "seed": seed,
+                "set:conveyor.speed_m_per_s": belt, "throughput_per_min": throughput}
+
+    rows = [row("optimal", s, 10.0 + s + 1.0) for s in range(4)] + [row("greedy", s, 10.0 + s + (0.5 if s % 2 else 1.5)) for s in range(4)]
+    rows += [row("greedy", 9, 3.0, belt=0.1)]  # another group with one allocator: no pair
+    (pair,) = pair_rows(rows)
+    assert (pair["first"], pair["second"], pair["seeds"]) == ("greedy", "optimal", 4)
+    assert pair["difference_mean"] == 0.0 and pair["set:conveyor.speed_m_per_s"] == 0.05
+    assert pair["p_value"] == pytest.approx(stats.ttest_rel([11.5, 11.5, 13.5, 13.5], [11, 12, 13, 14]).pvalue, abs=1e-5)
+    assert pair["difference_ci95"] == pytest.approx(mean_ci([0.5, -0.5, 0.5, -0.5])[1], abs=1e-4)
 
 
 def same_figures(summary: dict) -> dict:
