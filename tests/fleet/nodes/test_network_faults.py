@@ -66,15 +66,17 @@ class GoalSender:
         self.sub.undeclare()
 
 
-def landing_ticks(network: Network | None, goal_ticks: set[int] | None, ticks: int) -> tuple[dict[int, int], SimServer]:
-    """Run the pick cell `ticks` ticks with `network`'s faults; the tick at which each goal reached the tracker."""
+def landing_ticks(network: Network | None, goal_ticks: set[int] | None, ticks: int, mode: str = "lockstep",
+                  wall_at: dict[int, float] | None = None) -> tuple[dict[int, int], SimServer]:
+    """Run the pick cell `ticks` ticks with `network`'s faults; the tick at which each goal reached the tracker
+    (and in `wall_at`, the wall time each tick was done)."""
     scene = trial_scene("openclaw", 0).model_copy(update={"network": network})
     world = World(scene)
     keys = Keys("nf")
     endpoint = loopback_endpoint(free_loopback_port())
     spec = world.arms["arm_0"].spec
     with open_session(BusEndpoints(listen=(endpoint,))) as server_session, open_session(BusEndpoints(connect=(endpoint,))) as client_session:
-        server = SimServer(world, server_session, keys, mode="lockstep", lockstep_timeout_s=2.0)
+        server = SimServer(world, server_session, keys, mode=mode, lockstep_timeout_s=2.0, first_command_timeout_s=10.0)
         sender = GoalSender(client_session, keys, goal_ticks, spec.arm_joints, np.asarray(spec.home_q, float))
         time.sleep(0.3)  # the two sessions find each other
         landed: dict[int, int] = {}
@@ -82,7 +84,9 @@ def landing_ticks(network: Network | None, goal_ticks: set[int] | None, ticks: i
             tracker = server.tracked.trackers["arm_0"]
             for _ in range(ticks):
                 tick = world.tick
-                server.tick()
+                server.run_ticks(1)  # paced by the wall clock in realtime
+                if wall_at is not None:
+                    wall_at[tick] = time.monotonic()
                 if tracker.goal_id and tracker.goal_id not in landed:
                     landed[tracker.goal_id] = tick
         finally:
@@ -113,3 +117,14 @@ def test_lost_messages_are_counted_never_waited_for_and_repeat_for_the_seed():
     landed = [t for t in first.values() if t is not None]
     assert 0 < len(landed) < len(first), "some goals were lost with their answers, the rest landed"
     assert all(landed_at > sent for sent, landed_at in first.items() if landed_at is not None)
+
+
+def test_in_realtime_the_faults_act_in_wall_time():
+    wall_at: dict[int, float] = {}
+    landed, server = landing_ticks(Network(latency_ms=100, jitter_ms=10, loss=0.1), None, 300, mode="realtime", wall_at=wall_at)
+    report = server.report()["network_faults"]["arm_0"]
+    assert report["down"]["lost"] > 0 and 90 < report["down"]["mean_delay_ms"] < 110
+    trips = [wall_at[t] - wall_at[sent] for sent, t in landed.items() if t is not None and sent in wall_at]
+    assert trips, "some goals landed"
+    assert min(trips) >= 0.2 - 0.06, "no command lands before its state went out and its answer came back (100 ms each way, 3 sigma jitter)"
+    assert server.stats.lost == []
