@@ -15,7 +15,9 @@ and goals are applied when they arrive, and an arm whose controller misses its
 deadline (`watchdog_s` after the tick its answer was due) is held by the tracker's
 watchdog. The e-stop aborts every goal and holds every arm. Goals from anyone else
 (a user's trajectory client) are applied at the arm's next due tick in lockstep, on
-arrival in realtime or without controllers.
+arrival in realtime or without controllers. Network faults (the scene's `network`, or
+`--latency-ms/--jitter-ms/--loss`) put each state, frame and answer in flight on its link
+(`fleet.bus.flights`): in lockstep for whole ticks of sim time, in realtime on the wall clock.
 
     python -m fleet.nodes.sim_server --scene assembly_line --run demo --listen tcp/127.0.0.1:7447 --duration 60
 """
@@ -188,7 +190,6 @@ class SimServer:
         self.count_contacts = count_contacts
         self.coordinator = coordinator
         self.coord_period_ticks = max(1, round(hz / COORD_RATE_HZ))
-        self._coord_tick = -1
         self.assign_seqs = {name: 0 for name in world.arms}
         self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
@@ -250,7 +251,7 @@ class SimServer:
             self._arrived(kind, link, item)
 
     def _on_coord_tick(self, msg: CoordTick) -> None:
-        """The coordinator answered a frame: lockstep applies it when due (`_apply_coord`); realtime notes it."""
+        """The coordinator answered a frame: lockstep applies it when due (`_apply_coord`); realtime when it arrives."""
         if self._deferred_coord:
             self.coord_book.answer(msg.tick, msg)  # one lost on the way back is dropped by the book
             return
@@ -259,7 +260,7 @@ class SimServer:
             self._arrive_later("coord", None, msg, passage.delay_s)
 
     def _apply_coord(self, msg: CoordTick) -> None:
-        self._coord_tick = max(self._coord_tick, msg.tick)
+        """The coordinator's orders up to its tick are announced in the states from now on (lockstep)."""
         if self.mode != "lockstep":
             return  # realtime: controllers act on assignments as they arrive
         for name, seq in zip(self.links, msg.assign_seqs):
