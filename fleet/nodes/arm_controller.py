@@ -241,6 +241,8 @@ class ArmController:
         if self.skill.active:
             self.busy_s += self.skill.decision_period_s
         goals = self.skill.step(obs, self.parts)
+        if self.skill.task is None:  # clearing the way home: no task of the coordinator's
+            self.task_id = None
         for goal in goals:
             self._goal_pub.put(encode(goal_message(self.arm, goal)))
         self.goals_sent += len(goals)

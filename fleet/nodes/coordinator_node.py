@@ -188,7 +188,8 @@ class CoordinatorNode:
         self.acts_at_tick[s.arm] = s.next_tick + s.period_ticks  # heard with its next state, answered a period later
         self.skill[s.arm] = s.skill
         self.guard.set_state(s.arm, np.asarray(s.q))
-        if s.request_seq > self.request_seq[s.arm] and len(s.request_q_to) == len(s.q):
+        # a new request is one whose number differs from the last taken (a respawned controller counts from 1 again)
+        if s.request_seq > 0 and s.request_seq != self.request_seq[s.arm] and len(s.request_q_to) == len(s.q):
             self.request_seq[s.arm] = s.request_seq
             self.requests[s.arm] = TimedPath(s.arm, s.q, s.request_q_to, s.sim_time_s, s.sim_time_s + s.request_duration_s)
         if s.lost and s.arm not in self.lost:

@@ -81,6 +81,9 @@ class PickPlaceTiming:
     transfer_speed: float = 0.45
     pregrasp_clearance_m: float = 0.024
     place_drop_m: float = 0.008
+    clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home
+    home_tolerance_rad: float = 0.05  # within this of the home pose on every joint counts as home
+    detour_after_s: float = 2.0  # a transfer denied this long goes home first (the arm in the way may be waiting for it)
 
 
 @dataclass(frozen=True)
@@ -137,6 +140,10 @@ class PickPlaceSkill:
         self.goals_resent = 0
         self.plan_end_s = 0.0
         self.phase_t0 = 0.0
+        self._idle_since_s: float | None = None  # when the skill last stopped being active (None: active)
+        self._asking_since_s = 0.0  # when the current free move was first asked for
+        self._detour_to: np.ndarray | None = None  # a denied transfer's end, while the arm detours home first
+        self.detours = 0
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -199,6 +206,8 @@ class PickPlaceSkill:
         """Begin a pick of `part`; fails at once, with a reason, if the part cannot be reached."""
         t = self.timing
         self._now = obs.time_s
+        self._idle_since_s = None
+        self._detour_to = None
         self.task, self.failure_reason = task, ""
         self.sent_goals = set()
         self._timeline = []
@@ -237,6 +246,7 @@ class PickPlaceSkill:
         self.segment = segment
         self._enter(phase, time_s)
         self.request = None
+        self._asking_since_s = time_s
         if self.grants_required:
             self._ask(time_s)
         else:
@@ -275,8 +285,25 @@ class PickPlaceSkill:
         if self.phase == Phase.APPROACH:  # nothing in hand: give the task back, the coordinator decides again
             self.request = None
             self._fail(f"motion denied: the approach would pass within the margin of {conflict_arm or 'another arm'}")
+        elif self._should_detour(time_s):  # the way stays blocked: make room by going home, then transfer from there
+            self._detour_home(time_s)
         else:  # a part in the claw, or on the way home: ask again
             self._ask(time_s)
+
+    def _at_home(self, q: np.ndarray) -> bool:
+        return bool(np.max(np.abs(np.asarray(q, float) - np.asarray(self.spec.home_q, float))) <= self.timing.home_tolerance_rad)
+
+    def _should_detour(self, time_s: float) -> bool:
+        """Two arms each standing in the other's way (one waiting to transfer, one to go home or transfer) would
+        wait for ever; the transfer that has waited `detour_after_s` gives way."""
+        return (self.phase == Phase.TRANSFER and self._detour_to is None and not self._at_home(self.q_cmd)
+                and time_s - self._asking_since_s >= self.timing.detour_after_s - 1e-9)
+
+    def _detour_home(self, time_s: float) -> None:
+        self._detour_to = self.segment.q_end.copy()
+        self.detours += 1
+        home = np.asarray(self.spec.home_q, float)
+        self._begin_segment(self._segment(self.q_cmd, home, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
 
     def reject(self, reason: str) -> None:
         """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
@@ -314,6 +341,8 @@ class PickPlaceSkill:
         """One decision at `obs.time_s`: the goals to send now (often none: the tracker is following the plan)."""
         if self.active:
             self._decide(obs, parts)
+        else:
+            self._clear_the_way(obs)
         out, self._outbox = self._outbox, []
         if obs.goal_id is not None and any(isinstance(g, TrajectoryGoal) for g in out):
             self._unconfirmed.append((obs.time_s, 1, out))
@@ -355,6 +384,25 @@ class PickPlaceSkill:
         self._outbox.extend(again)
         return again
 
+    def _clear_the_way(self, obs: ArmObservation) -> None:
+        """An arm left standing away from home with nothing to do (its task failed mid-way, or its controller was
+        restarted) would block its neighbours' grants for ever: after `clear_after_s` it goes home, claw open
+        (a part still held drops where it is, and the line's events say what became of it)."""
+        if self._idle_since_s is None:
+            self._idle_since_s = obs.time_s
+        home = np.asarray(self.spec.home_q, float)
+        q = np.asarray(obs.q, float)
+        if obs.time_s - self._idle_since_s < self.timing.clear_after_s - 1e-9:
+            return
+        if self._at_home(q):
+            return
+        self._now = obs.time_s
+        self.task, self.failure_reason = None, ""
+        self.sent_goals, self._timeline, self._unconfirmed = set(), [], []
+        self.q_cmd = q.copy()
+        self._idle_since_s = None
+        self._begin_segment(self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s)
+
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
         now = self._now = obs.time_s
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
@@ -365,7 +413,7 @@ class PickPlaceSkill:
         while self._timeline and self._timeline[0][0] <= now + 1e-9:
             self._enter(self._timeline[0][1], self._timeline[0][0])
             self._timeline.pop(0)
-        part = parts.get(self.task.part_id)
+        part = parts.get(self.task.part_id) if self.task is not None else None
         if self.request is not None:  # holding for a grant
             if self.phase == Phase.APPROACH and part is not None and now - self.request.asked_at_s > REPLAN_AFTER_S:
                 self._plan_approach(obs, part)  # the part moved on: a fresh plan, asked for again
@@ -374,6 +422,11 @@ class PickPlaceSkill:
             return
         ahead = self.plan_end_s - now  # how long the planned motion still runs
         horizon = self.decision_period_s + self.latency_s + 1e-9  # the next decision's goals would come too late
+        if self._detour_to is not None:  # home reached on a detour: the transfer again, from there
+            if ahead <= 1e-9:
+                q_to, self._detour_to = self._detour_to, None
+                self._begin_segment(self._segment(self.q_cmd, q_to, now, self.timing.transfer_speed), Phase.TRANSFER, now)
+            return
         if self.phase == Phase.APPROACH and ahead <= horizon:
             self._plan_grasp(part, now)
         elif self.phase == Phase.TRANSFER and ahead <= horizon:

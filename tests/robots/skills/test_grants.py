@@ -76,3 +76,40 @@ def test_an_approach_kept_waiting_is_planned_again_from_where_the_part_has_gone(
     skill.step(obs(SPEC.home_q, later), {7: part_at(0.0, later, belt)})
     assert skill.request.seq == first.seq + 1, "a fresh request for a fresh plan"
     assert not np.allclose(skill.request.q_to, first.q_to), "aimed where the part is now"
+
+
+def transferring(at_s: float = 1.0) -> PickPlaceSkill:
+    """A skill holding a part away from home, asking for its transfer at `at_s`."""
+    skill = started()
+    skill.on_grant(skill.request.seq, "grant", "", 0.0)
+    skill.q_cmd = skill.segment.q_end.copy()  # at the hover pose, as after the grasp and lift
+    skill._begin_segment(skill._segment(skill.q_cmd, np.asarray(SPEC.home_q) + 0.4, at_s, 0.5), Phase.TRANSFER, at_s)
+    return skill
+
+
+def test_a_transfer_kept_out_makes_room_by_going_home_then_asks_again_from_there():
+    skill = transferring(at_s=1.0)
+    place_q = skill.segment.q_end.copy()
+    skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1)
+    assert np.allclose(skill.request.q_to, place_q), "denied briefly: the same transfer asked again"
+    skill.on_grant(skill.request.seq, "deny", "arm_0", 1.0 + skill.timing.detour_after_s)
+    assert skill.detours == 1 and np.allclose(skill.request.q_to, SPEC.home_q), "kept out: home first, part in hand"
+    skill.on_grant(skill.request.seq, "grant", "", 3.1)
+    home_by = skill.plan_end_s
+    skill.step(obs(SPEC.home_q, home_by + 0.01), {})
+    assert skill.phase == Phase.TRANSFER and np.allclose(skill.request.q_from, SPEC.home_q)
+    assert np.allclose(skill.request.q_to, place_q), "then the transfer again, from home"
+
+
+def test_an_arm_left_idle_away_from_home_goes_home_and_one_at_home_stays():
+    skill = PickPlaceSkill(SPEC, BASE, grants_required=True)  # as a controller restarted with its arm mid-task
+    away = np.asarray(SPEC.home_q) + 0.3
+    assert skill.step(obs(away, 5.0), {}) == [] and skill.request is None
+    skill.step(obs(away, 5.0 + skill.timing.clear_after_s / 2), {})
+    assert skill.request is None, "a new task may still come: not yet"
+    skill.step(obs(away, 5.0 + skill.timing.clear_after_s), {})
+    assert skill.phase == Phase.HOME and skill.task is None and np.allclose(skill.request.q_to, SPEC.home_q)
+    at_home = PickPlaceSkill(SPEC, BASE, grants_required=True)
+    for k in range(5):
+        at_home.step(obs(SPEC.home_q, k * 1.0), {})
+    assert at_home.phase == Phase.IDLE and at_home.request is None
