@@ -38,16 +38,33 @@ def _bound_m(arm: ArmGeometry) -> float:
 @dataclass(frozen=True)
 class TimedPath:
     """A joint-space segment: `q_from` at `t_start_s` to `q_to` at `t_end_s`, straight in joint space, timed as the
-    skills move (rest to rest, quintic), so the guard places each arm where it really is at each instant."""
+    skills move (rest to rest, quintic), so the guard places each arm where it really is at each instant.
+
+    `then_q` are the poses of the local stage that follows the move without a grant of its own (the grasp's
+    descent and lift, a place's lowering and retreat), reached `then_after_s` seconds after `t_end_s` (joint-space
+    straight lines between them): a grant covers that stage too, until `t_done_s`.
+    """
 
     arm: str
     q_from: tuple[float, ...]
     q_to: tuple[float, ...]
     t_start_s: float
     t_end_s: float
+    then_q: tuple[tuple[float, ...], ...] = ()
+    then_after_s: tuple[float, ...] = ()
+
+    @property
+    def t_done_s(self) -> float:
+        """When the move and the local stage after it are over."""
+        return self.t_end_s + (self.then_after_s[-1] if self.then_after_s else 0.0)
 
     def at(self, t_s: float) -> np.ndarray:
-        """Where the arm is at `t_s`: the skills' rest-to-rest quintic time law along the joint-space line."""
+        """Where the arm is at `t_s`: the skills' rest-to-rest quintic time law along the joint-space line, then
+        the local stage's poses."""
+        if t_s > self.t_end_s and self.then_q:
+            times = np.concatenate([[self.t_end_s], self.t_end_s + np.asarray(self.then_after_s)])
+            poses = np.vstack([self.q_to, self.then_q])
+            return np.array([np.interp(t_s, times, poses[:, j]) for j in range(poses.shape[1])])
         span = self.t_end_s - self.t_start_s
         u = 1.0 if span <= 0 else quintic((t_s - self.t_start_s) / span)
         return (1 - u) * np.asarray(self.q_from) + u * np.asarray(self.q_to)
@@ -55,6 +72,15 @@ class TimedPath:
     @property
     def joint_travel_rad(self) -> float:
         return float(np.abs(np.asarray(self.q_to) - np.asarray(self.q_from)).sum())
+
+    def local_speed_rad_per_s(self) -> float:
+        """The fastest joint-space speed (summed over joints) of the local stage's pieces."""
+        if not self.then_q:
+            return 0.0
+        poses = np.vstack([self.q_to, self.then_q])
+        dt = np.diff(np.concatenate([[0.0], self.then_after_s]))
+        travel = np.abs(np.diff(poses, axis=0)).sum(axis=1)
+        return float(max((d / max(t, 1e-9) for d, t in zip(travel, dt)), default=0.0))
 
 
 @dataclass(frozen=True)
@@ -103,7 +129,7 @@ class CollisionGuard:
 
     def expire(self, now_s: float) -> None:
         """Forget grants whose time window has passed."""
-        for arm in [a for a, p in self.grants.items() if p.t_end_s < now_s]:
+        for arm in [a for a, p in self.grants.items() if p.t_done_s < now_s]:
             del self.grants[arm]
 
     # --- queries --------------------------------------------------------------------
@@ -175,9 +201,10 @@ class CollisionGuard:
     def closing_speed_m_per_s(self, path: TimedPath) -> float:
         """An upper bound on how fast any point of the asking arm and of the arms moving with it can approach."""
         def speed(p: TimedPath) -> float:
-            return QUINTIC_PEAK_SPEED * p.joint_travel_rad * self.arms[p.arm].spec.reach_m / max(p.t_end_s - p.t_start_s, 1e-9)
+            move = QUINTIC_PEAK_SPEED * p.joint_travel_rad / max(p.t_end_s - p.t_start_s, 1e-9)
+            return max(move, p.local_speed_rad_per_s()) * self.arms[p.arm].spec.reach_m
 
-        others = [p for a, p in self.grants.items() if a != path.arm and p.t_end_s > path.t_start_s and p.t_start_s < path.t_end_s]
+        others = [p for a, p in self.grants.items() if a != path.arm and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s]
         return speed(path) + max((speed(p) for p in others), default=0.0)
 
     def _neighbours(self, arm: str) -> list[str]:
@@ -209,12 +236,12 @@ class CollisionGuard:
                 here = min(here, d)
                 if d < closest:
                     closest, closest_arm, when = d, other, float(t)
-            if closest < self.margin_m or t >= path.t_end_s:
+            if closest < self.margin_m or t >= path.t_done_s:
                 break
-            t = min(path.t_end_s, t + max(self.step_m, here - self.margin_m) / speed)
+            t = min(path.t_done_s, t + max(self.step_m, here - self.margin_m) / speed)
         if closest >= self.margin_m:
             return Verdict("grant", None, closest)
-        other_moves = closest_arm in self.grants and self.grants[closest_arm].t_end_s >= (when or 0.0)
+        other_moves = closest_arm in self.grants and self.grants[closest_arm].t_done_s >= (when or 0.0)
         return Verdict("wait" if other_moves else "deny", closest_arm, closest, when)
 
     def request(self, path: TimedPath) -> Verdict:

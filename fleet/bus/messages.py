@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import msgspec
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 Floats = tuple[float, ...]
 
 
@@ -53,6 +53,8 @@ class ArmState(Message, frozen=True, array_like=True):
     request_seq: int = 0  # echo of the controller's motion request (see ControllerStep)
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
+    request_then_q: Floats = ()
+    request_then_after_s: Floats = ()
     goal_id: int = 0
     desired_q: Floats = ()
     desired_dq: Floats = ()
@@ -81,6 +83,10 @@ class ControllerStep(Message, frozen=True, array_like=True):
     request_seq: int = 0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
+    # the local stage after the move, which asks no grant of its own: poses (flattened, one row per joint vector)
+    # reached these many seconds after the move's end (increasing); the grant covers them too
+    request_then_q: Floats = ()
+    request_then_after_s: Floats = ()
     version: int = PROTOCOL_VERSION
 
 

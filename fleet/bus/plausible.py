@@ -65,6 +65,11 @@ def request_problem(msg, n_joints: int) -> str:
         return f"a motion request with {len(msg.request_q_to)} joints (the arm has {n_joints}) or a negative seq"
     if not_finite((*msg.request_q_to, msg.request_duration_s)) or not 0.0 <= msg.request_duration_s <= 600.0:
         return "a motion request with a duration that is not 0..600 s or non-finite joints"
+    then_q, then_s = msg.request_then_q, msg.request_then_after_s
+    if len(then_q) != len(then_s) * n_joints or not_finite((*then_q, *then_s)):
+        return f"a motion request whose local stage has {len(then_q)} joint values for {len(then_s)} times, or non-finite ones"
+    if any(b <= a for a, b in zip((0.0, *then_s), then_s)) or (then_s and then_s[-1] > 60.0):
+        return "a motion request whose local stage times do not increase within 0..60 s"
     return ""
 
 

@@ -252,6 +252,7 @@ class ArmController:
             self.arm, state.tick, state.tick + self.period_ticks, tuple(g.goal_id for g in goals), self.task_id, phase, progress,
             self.skill.failure_reason if phase == "failed" else "",
             request.seq if request else 0, request.q_to if request else (), request.duration_s if request else 0.0,
+            tuple(v for q in request.then_q for v in q) if request else (), request.then_after_s if request else (),
         )))
         self.answered.append(state.tick)
         self.decisions += 1

@@ -15,6 +15,7 @@ go back to the pool. It never imports the simulator.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import time
@@ -191,7 +192,10 @@ class CoordinatorNode:
         # a new request is one whose number differs from the last taken (a respawned controller counts from 1 again)
         if s.request_seq > 0 and s.request_seq != self.request_seq[s.arm] and len(s.request_q_to) == len(s.q):
             self.request_seq[s.arm] = s.request_seq
-            self.requests[s.arm] = TimedPath(s.arm, s.q, s.request_q_to, s.sim_time_s, s.sim_time_s + s.request_duration_s)
+            n = len(s.q)
+            then_q = tuple(tuple(s.request_then_q[k:k + n]) for k in range(0, len(s.request_then_q), n))
+            self.requests[s.arm] = TimedPath(s.arm, s.q, s.request_q_to, s.sim_time_s, s.sim_time_s + s.request_duration_s,
+                                             then_q, tuple(s.request_then_after_s))
         if s.lost and s.arm not in self.lost:
             self._arm_lost(s.arm, "the sim stopped hearing its controller", time.monotonic() - self._heard_at.get(s.arm, 0.0))
         self.ledger.arm_report(s.arm, s.task_id, s.skill, s.sim_time_s, s.failure)
@@ -328,7 +332,7 @@ class CoordinatorNode:
             asked = self.requests[arm]
             hz = self.scene.control_hz
             start = max(self.acts_at_tick[arm], self.last_decision_tick + 1) / hz  # the controller's answer to its next state
-            path = TimedPath(arm, asked.q_from, asked.q_to, start, start + (asked.t_end_s - asked.t_start_s))
+            path = dataclasses.replace(asked, t_start_s=start, t_end_s=start + (asked.t_end_s - asked.t_start_s))
             self.guard.set_state(arm, np.asarray(asked.q_from))
             verdict = self.guard.request(path)
             if verdict.decision == "wait":

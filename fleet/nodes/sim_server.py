@@ -456,6 +456,7 @@ class SimServer:
             assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1,
             failure=step.failure if step else "", request_seq=step.request_seq if step else 0,
             request_q_to=step.request_q_to if step else (), request_duration_s=step.request_duration_s if step else 0.0,
+            request_then_q=step.request_then_q if step else (), request_then_after_s=step.request_then_after_s if step else (),
             goal_id=tracker.goal_id, desired_q=tuple(map(float, desired_q)), desired_dq=tuple(map(float, desired_dq)),
             result_goal_id=last.goal_id if last else 0, result_status=last.status.value if last else "",
             result_code=int(last.code) if last else 0, result_reason=last.reason if last else "", next_tick=link.next_tick,

@@ -88,13 +88,16 @@ class PickPlaceTiming:
 
 @dataclass(frozen=True)
 class MotionRequest:
-    """A joint-space move the skill wants to make: from `q_from` to `q_to` in `duration_s`, asked at `asked_at_s`."""
+    """A joint-space move the skill wants to make: from `q_from` to `q_to` in `duration_s`, asked at `asked_at_s`;
+    then the local stage it will follow without asking (`then_q`, reached `then_after_s` after the move's end)."""
 
     seq: int
     q_from: tuple[float, ...]
     q_to: tuple[float, ...]
     duration_s: float
     asked_at_s: float
+    then_q: tuple[tuple[float, ...], ...] = ()
+    then_after_s: tuple[float, ...] = ()
 
 
 class PickPlaceSkill:
@@ -143,6 +146,9 @@ class PickPlaceSkill:
         self._idle_since_s: float | None = None  # when the skill last stopped being active (None: active)
         self._asking_since_s = 0.0  # when the current free move was first asked for
         self._detour_to: np.ndarray | None = None  # a denied transfer's end, while the arm detours home first
+        self._then_cache: tuple = (None, ([], []))  # the local stage of the move last asked for
+        self._hover_world = np.zeros(3)
+        self.place_yaw = 0.0
         self.detours = 0
 
     @property
@@ -239,6 +245,7 @@ class PickPlaceSkill:
                 return
             seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
+        self._hover_world = hover
         self._begin_segment(seg, Phase.APPROACH, obs.time_s)
 
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
@@ -267,9 +274,45 @@ class PickPlaceSkill:
     def _ask(self, time_s: float) -> None:
         self._request_seq += 1
         seg = self.segment
+        key = (self.phase, tuple(np.round(seg.q_end, 9)))
+        if self._then_cache[0] != key:
+            self._then_cache = (key, self._local_stage_after(seg.q_end))
+        then_after_s, then_q = self._then_cache[1]
         self.request = MotionRequest(
             self._request_seq, tuple(map(float, self.q_cmd)), tuple(map(float, seg.q_end)), float(seg.duration_s), time_s,
+            tuple(tuple(map(float, q)) for q in then_q), tuple(then_after_s),
         )
+
+    def _local_stage_after(self, q_end: np.ndarray) -> tuple[list[float], list[np.ndarray]]:
+        """Where the stage that follows this move without a grant will take the arm, and when (seconds after the
+        move's end), padded by the latency it may start late: the descent, grasp and lift after an approach (the
+        part carried on by its surface meanwhile); the lowering, release and retreat after a transfer. The guard
+        keeps the other arms clear of these too, so an arm never moves where no check has looked."""
+        t = self.timing
+        late = self.decision_period_s + self.latency_s  # the stage may begin this much after the move ends
+        if self.phase == Phase.APPROACH and self.task is not None:
+            d, c, lift = t.descend_s, t.close_s, t.lift_s
+            v = self.velocity
+            hover = self._hover_world
+            down = np.array([hover[0], hover[1], self.grasp_z])
+            points = [down + v * d, down + v * (d + c), down + v * (d + c + 0.15) + [0, 0, t.lift_m]]
+            times = [d, d + c, d + c + lift]
+            yaw = self.grasp_yaw
+        elif self.phase == Phase.TRANSFER and self._detour_to is None and self.task is not None:
+            place = np.asarray(self.task.place_xyz, float)
+            release = place + [0, 0, self.tool_above_bottom_m + t.place_drop_m]
+            above = place + [0, 0, self.tool_above_bottom_m + t.hover_m]
+            points, yaw = [release, release, above], self.place_yaw
+            times = [t.lower_s, t.lower_s + t.release_s, t.lower_s + t.release_s + t.retreat_s]
+        else:
+            return [], []
+        qs, q = [], np.asarray(q_end, float)
+        for point in points:
+            q, ok = self._ik(point, yaw, q)
+            if not ok:
+                return [], []  # the stage's own planning will fail the task; the move alone is still checked
+            qs.append(q)
+        return [*times, times[-1] + late], [*qs, qs[-1]]
 
     def on_grant(self, request_seq: int, decision: str, conflict_arm: str, time_s: float, start_time_s: float | None = None) -> None:
         """The coordinator's answer to request `request_seq` (stale answers are ignored): grant (from `start_time_s`,

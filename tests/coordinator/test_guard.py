@@ -99,3 +99,24 @@ def test_nearest_other_with_a_cap_is_the_exact_distance_or_the_cap():
                 capped_somewhere |= exact >= cap
                 measured_somewhere |= exact < cap
     assert capped_somewhere and measured_somewhere, "both branches must be exercised"
+
+
+def test_the_local_stage_after_a_move_is_checked_and_held_by_its_grant():
+    """arm_0 moves to a pose clear of arm_1, then (without a grant of its own) reaches out: the grant covers both."""
+    guard = CollisionGuard(two_arms(gap_m=1.0))
+    guard.set_state("arm_1", REACH_OUT)  # arm_1 stands reaching into the middle
+    halfway = (HOME + REACH_OUT) / 2
+    move_only = TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0)
+    assert guard.check(move_only).granted
+    with_stage = TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0, then_q=(tuple(halfway), tuple(REACH_OUT)), then_after_s=(0.5, 1.0))
+    assert with_stage.t_done_s == 2.0 and np.allclose(with_stage.at(1.5), halfway) and np.allclose(with_stage.at(9.0), REACH_OUT)
+    verdict = guard.check(with_stage)
+    assert verdict.decision == "deny" and verdict.at_time_s > 1.0, "the clash is in the local stage, after the move"
+    guard.set_state("arm_1", HOME)
+    assert guard.request(with_stage).granted
+    reach_1 = TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 1.2, 1.8)
+    assert guard.request(reach_1).decision == "wait", "arm_0 is reaching out in its local stage by then"
+    guard.expire(1.9)
+    assert "arm_0" in guard.grants, "the grant lasts until the local stage is over"
+    guard.expire(2.1)
+    assert "arm_0" not in guard.grants

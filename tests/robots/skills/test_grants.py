@@ -113,3 +113,19 @@ def test_an_arm_left_idle_away_from_home_goes_home_and_one_at_home_stays():
     for k in range(5):
         at_home.step(obs(SPEC.home_q, k * 1.0), {})
     assert at_home.phase == Phase.IDLE and at_home.request is None
+
+
+def test_a_request_carries_the_local_stage_that_follows_it_without_a_grant():
+    skill = started()
+    request = skill.request
+    t = skill.timing
+    assert len(request.then_q) == 4 and request.then_after_s[:3] == (t.descend_s, t.descend_s + t.close_s, t.descend_s + t.close_s + t.lift_s)
+    assert request.then_after_s[3] > request.then_after_s[2], "held a little longer: the grasp may start late"
+    z = [skill.km.frame_pose(skill.km.full_q(np.asarray(q)))[2, 3] for q in (request.q_to, *request.then_q)]  # the base stands on z = 0
+    assert z[1] < z[0] - 0.05 and z[3] > z[2] + 0.05, "down from the hover to the part, then lifted"
+    moving = transferring()
+    place = moving.request
+    assert len(place.then_q) == 4 and np.allclose(place.then_q[0], place.then_q[1]), "lowered, held while the claw opens"
+    tool = [(BASE @ moving.km.frame_pose(moving.km.full_q(np.asarray(q))))[:3, 3] for q in place.then_q]
+    assert np.allclose(tool[0][:2], moving.task.place_xyz[:2], atol=0.005), "lowered onto the place"
+    assert tool[2][2] > tool[0][2] + 0.05, "and back up"
