@@ -125,6 +125,9 @@ def _fcl_transform(T: np.ndarray) -> fcl.Transform:
     return fcl.Transform(T[:3, :3], T[:3, 3])
 
 
+_REACH_BOUND_M: dict[str, float] = {}  # robot model -> radius about its base holding every link
+
+
 class ArmGeometry:
     """One arm's collision objects in the world; `place(q)` moves them to a configuration."""
 
@@ -145,7 +148,9 @@ class ArmGeometry:
         self._posed = [False] * len(self.shapes)  # whether the FCL object carries the current transform
         self._cover_centres: np.ndarray | None = None
         self._placed_key = b""  # the joints last placed, as bytes
-        self.reach_bound_m = self._reach_bound_m()
+        if spec.uid not in _REACH_BOUND_M:  # a property of the model: drawn once per process
+            _REACH_BOUND_M[spec.uid] = self._reach_bound_m()
+        self.reach_bound_m = _REACH_BOUND_M[spec.uid]
         self.place(np.asarray(spec.home_q, float))
 
     def _reach_bound_m(self, samples: int = 300, seed: int = 0) -> float:

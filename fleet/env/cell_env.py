@@ -148,7 +148,7 @@ class CellParallelEnv(ParallelEnv):
         if self.actuator is not None:
             self.actuator.reset({a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents})
         if self.chooser is not None:
-            self.chooser.reset(self.task_model.book.ledger)
+            self.chooser.reset(self.task_model.book.dispatcher)
         self._options = self.chooser.choices() if self.chooser else {}
         observations = self._observe()  # places the guard's arms, which the human render draws
         if self.render_mode == "human":

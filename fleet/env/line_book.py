@@ -1,8 +1,9 @@
-"""The line's bookkeeping in process: the sim's watcher turns part poses into events, the coordinator's ledger
-keeps parts and tasks. The same two pieces `fleet run` uses, without the bus between them."""
+"""The line's bookkeeping in process: the sim's watcher turns part poses into events, the coordinator's
+dispatcher (its ledger) keeps parts and tasks. The same two pieces `fleet run` uses, without the bus between them."""
 
 from __future__ import annotations
 
+from coordinator.dispatcher import Dispatcher
 from coordinator.ledger import Ledger
 from fleet.line_watch import LineWatcher
 from fleet.physics.world import World
@@ -14,12 +15,16 @@ class LineBook:
 
     def __init__(self, scene: Scene) -> None:
         self.watcher = LineWatcher(scene)
-        self.ledger = Ledger(scene)
+        self.dispatcher = Dispatcher(scene)
         self._counted = 0
+
+    @property
+    def ledger(self) -> Ledger:
+        return self.dispatcher.ledger
 
     def update(self, world: World) -> None:
         for e in self.watcher.update(world, world.active_parts()):
-            self.ledger.on_event(e.kind, e.part_id, e.detail, e.type_index, world.sim_time_s)
+            self.dispatcher.on_event(e.kind, e.part_id, e.detail, e.type_index, world.sim_time_s)
 
     @property
     def completed(self) -> int:

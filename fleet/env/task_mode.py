@@ -2,8 +2,9 @@
 pick-and-place skill does the work. A policy learns allocation on the same choices the coordinator's
 allocators make (`allocator_actions` turns an allocator's answer into env actions, for comparison).
 
-The tasks, their eligibility (reach, belt stretches, one task per station) and their time estimates
-are the coordinator's own (`Ledger`, `Eligibility`, `TimeCost`): one implementation, in process.
+The tasks, their belt deadlines, their eligibility (reach, belt stretches, one task per station), their
+time estimates, the orders that start them and the reassignment of belt tasks an arm can no longer meet
+are the coordinator's own (`Dispatcher`, `Eligibility`, `TimeCost`): one implementation, in process.
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ import math
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates
-from coordinator.ledger import Ledger
-from coordinator.tasks import CONVEYOR, OPEN_STATES, Task, TaskState
+from coordinator.dispatcher import Dispatcher
+from coordinator.tasks import OPEN_STATES, Task, TaskState
 from fleet.observe import arm_observation, base_transform, part_observations
 from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import World
@@ -36,8 +37,9 @@ class TaskChooser:
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.world = world
 
-    def reset(self, ledger: Ledger) -> None:
-        self.ledger = ledger
+    def reset(self, dispatcher: Dispatcher) -> None:
+        self.dispatcher = dispatcher
+        self.ledger = dispatcher.ledger
         self.period_ticks = max(1, round(self.scene.control_hz / DEFAULT_DECISION_HZ))  # the skills decide as controllers do
         period_s = self.period_ticks / self.scene.control_hz
         self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a), decision_period_s=period_s) for a in self.agents}
@@ -57,7 +59,9 @@ class TaskChooser:
         ]
 
     def pending(self) -> list[Task]:
-        return self.ledger.refresh(self.world.sim_time_s)
+        """The tasks waiting for an arm (belt tasks with their deadlines), as the coordinator sees them now."""
+        self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
+        return self.dispatcher.pending(self.world.sim_time_s)
 
     def choices(self) -> dict[str, list[tuple[Task, float]]]:
         """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
@@ -104,14 +108,9 @@ class TaskChooser:
 
     def _start(self, agent: str, task: Task) -> None:
         self.ledger.assign(task.task_id, agent, self.world.sim_time_s)
-        part = self.world.part_info(task.part_id)
-        record = self.ledger.parts[task.part_id]
-        station = self.scene.station(task.target)
-        velocity = tuple(self.world.belt_velocity()) if task.source == CONVEYOR else (0.0, 0.0, 0.0)
-        job = PickPlaceTask(
-            task.part_id, float(part.position[2] - record.height_m / 2),
-            (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target)), velocity,
-        )
+        self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
+        order = self.dispatcher.assignment(task, agent)
+        job = PickPlaceTask(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
         parts = part_observations(self.world)
         self.skills[agent].start(job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id])
         self.tracked.decide(agent, self.skills[agent], parts)
@@ -132,16 +131,26 @@ class TaskChooser:
         now = self.world.sim_time_s
         for agent in self.agents:
             task_id = self.task_of[agent]
-            if task_id is None:
-                continue
             skill = self.skills[agent]
-            task = self.ledger.tasks[task_id]
-            if task.state in OPEN_STATES:
-                self.ledger.arm_report(agent, task_id, skill.phase.value, now, skill.failure_reason)
-                if task.state not in OPEN_STATES:
-                    self.outcomes[agent].append(task.state.value)
+            task = self.ledger.tasks[task_id] if task_id is not None else None
+            was_open = task is not None and task.state in OPEN_STATES
+            q = self.world.arms[agent].qpos()[: self.world.arms[agent].spec.arm_dof]
+            self.dispatcher.on_arm(agent, q, skill.phase.value, now, task_id=task_id if was_open else None, failure=skill.failure_reason)
+            if task is None:
+                continue
+            if was_open and task.state not in OPEN_STATES:
+                self.outcomes[agent].append(task.state.value)
             if task.state not in OPEN_STATES and not skill.active:  # the skill finishes its retreat and way home first
                 self.task_of[agent] = None
+        if self.world.tick % self.period_ticks == 0:
+            self._take_back_late_tasks()
+
+    def _take_back_late_tasks(self) -> None:
+        """The coordinator's rule: a belt task its arm has not started on and can no longer meet goes back to the pool."""
+        self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
+        for cancel in self.dispatcher.reassign_late_tasks():
+            self.skills[cancel.arm].cancel("the part can no longer be met")
+            self.task_of[cancel.arm] = None
 
 
 def allocator_actions(chooser: TaskChooser, allocator: Allocator, options: dict[str, list[tuple[Task, float]]]) -> dict[str, int]:

@@ -38,6 +38,7 @@ import msgspec
 import numpy as np
 import zenoh
 
+from coordinator.cadence import IDLE_SKILLS, decision_period_ticks
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.faults import DelayLine, add_fault_arguments, faults_report, links_for, network_from_args
 from fleet.bus.flights import FlightBook
@@ -57,13 +58,10 @@ from fleet.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
 from robots.tracker import WATCHDOG_REASON
 from robots.skills.pick_place import DEFAULT_DECISION_HZ
-
-COORD_RATE_HZ = 10.0
 MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
 REPUBLISH_S = 0.05  # wall seconds before a state still unanswered is sent again (a late joiner, a lost sample)
-IDLE_SKILLS = ("idle", "done", "failed")
 
 
 @dataclass
@@ -189,7 +187,7 @@ class SimServer:
         self.events_published = Counter()
         self.count_contacts = count_contacts
         self.coordinator = coordinator
-        self.coord_period_ticks = max(1, round(hz / COORD_RATE_HZ))
+        self.coord_period_ticks = decision_period_ticks(world.scene_model)
         self.assign_seqs = {name: 0 for name in world.arms}
         self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline

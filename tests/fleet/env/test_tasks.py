@@ -97,6 +97,9 @@ def test_task_mode_the_coordinators_allocators_complete_parts(task, allocator, s
         took += sum(i["choice"] == "took" for i in infos.values())
     totals = env.task_model.book.ledger.totals()
     assert totals["parts_completed"] >= 1 and took >= 2
+    if task == "line":  # a moving belt (handover stops it): the coordinator's own dispatcher gives belt deadlines too
+        belt_tasks = [t for t in env.task_model.book.ledger.tasks.values() if t.source == "conveyor"]
+        assert belt_tasks and all(t.deadline_s is not None for t in belt_tasks)
 
 
 def test_task_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed_repeats():

@@ -1,0 +1,14 @@
+"""What the sim and the coordinator must agree on: when the coordinator decides, and which skill phases mean
+an arm is not working on a task. One place, imported by both."""
+
+from __future__ import annotations
+
+from scenes.schema import Scene
+
+COORD_RATE_HZ = 10.0  # coordinator decisions per second of sim time
+IDLE_SKILLS = ("idle", "done", "failed")  # skill phases of an arm that is not working on a task
+
+
+def decision_period_ticks(scene: Scene) -> int:
+    """Sim ticks between two coordinator decisions."""
+    return max(1, round(scene.control_hz / COORD_RATE_HZ))

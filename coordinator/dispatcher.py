@@ -1,0 +1,321 @@
+"""Every decision of the line's coordinator, in one pure class: no bus, no clock of its own.
+
+Events, arm reports and motion requests go in; at each decision (`decide(tick)`) orders come out,
+in the order they must be published: grants and denials of motion requests, cancellations of
+belt tasks an arm can no longer meet, and new assignments. The coordinator node decodes, feeds a
+`Dispatcher` and publishes what it returns; the PettingZoo env's task mode drives the same class
+(its tasks, belt deadlines and reassignment), so the two cannot drift apart. Liveness is the
+caller's to judge (it owns the clock): it calls `arm_lost` and `arm_rejoined`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
+from coordinator.cadence import IDLE_SKILLS, decision_period_ticks
+from coordinator.capacity import CapacityBound, capacity_bound, measured_hop_seconds
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
+from coordinator.geometry import ArmGeometry
+from coordinator.guard import CollisionGuard, NearestPair, TimedPath
+from coordinator.ledger import Ledger
+from coordinator.tasks import CONVEYOR, Task, TaskState
+from robots.frames import yaw_transform
+from robots.registry import get_robot
+from scenes.schema import Scene
+
+OVERRUN_S = 2.0  # a task this late on its estimate: its arm's end is unknown
+_BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
+
+
+@dataclass(frozen=True)
+class AssignOrder:
+    """Take `task_id`: pick part `part_id` from a surface at `surface_z_m` moving at `surface_velocity`,
+    place it at `place_xyz` (the part's bottom, world frame, metres)."""
+
+    arm: str
+    task_id: int
+    part_id: int
+    surface_z_m: float
+    place_xyz: tuple[float, float, float]
+    surface_velocity: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CancelOrder:
+    """Drop the task on part `part_id`: the arm can no longer meet it (another arm may)."""
+
+    arm: str
+    part_id: int
+
+
+@dataclass(frozen=True)
+class GrantOrder:
+    """The answer to motion request `request_seq`: `grant` (the move starts at `start_s`) or `deny` (`conflict_arm`
+    stands in the way); `min_separation_m` is the closest approach checked (inf: no neighbour)."""
+
+    arm: str
+    request_seq: int
+    decision: str
+    conflict_arm: str
+    min_separation_m: float
+    start_s: float | None
+
+
+Order = AssignOrder | CancelOrder | GrantOrder
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What one decision produced: the orders in publishing order, and the arms' nearest neighbours then."""
+
+    tick: int
+    orders: list[Order]
+    separations: list[NearestPair]
+
+
+class Dispatcher:
+    """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
+    reassignment, the collision guard's grants and the busy-until estimates."""
+
+    def __init__(self, scene: Scene, allocator: Allocator | None = None) -> None:
+        self.scene = scene
+        self.ledger = Ledger(scene)
+        self.allocator = allocator or make_allocator("optimal", scene)
+        self.arm_names = [a.name for a in scene.arms]
+        self.guard = CollisionGuard({
+            a.name: ArmGeometry(a.name, get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)) for a in scene.arms
+        })
+        self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
+        self.bases = {a.name: a.base.xyz for a in scene.arms}
+        self.period_ticks = decision_period_ticks(scene)
+        self.skill = {a: "idle" for a in self.arm_names}
+        self.acts_at_tick = {a: 0 for a in self.arm_names}  # when an order sent now takes effect on each arm
+        self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
+        self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
+        self.request_seq: dict[str, int] = {a: 0 for a in self.arm_names}
+        self.lost: dict[str, float] = {}
+        self.busy_until_s: dict[str, float] = {}  # when each arm's current task should end (the allocator's estimate)
+        self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
+        self.parts: dict[int, PartView] = {}
+        self.sim_time_s = 0.0
+        self.last_decision_tick = -10**9
+        self.decisions = 0
+        self.grants_given = 0
+        self.reassigned = 0
+        self.min_separation_m = math.inf
+        self.closest_pair: tuple[str, str] | None = None
+        self.losses: list[dict] = []
+        self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
+
+    def _belt_reach(self) -> float | None:
+        """The belt's last point an arm reaches: IK misses cost, so worked out once per layout (an env resets often)."""
+        conveyor = self.scene.conveyor
+        if conveyor is None:
+            return None
+        key = repr((conveyor.model_dump_json(), [(a.model, a.base.xyz, a.base.yaw_rad) for a in self.scene.arms]))
+        if key not in _BELT_REACH_M:
+            _BELT_REACH_M[key] = last_reach_along_belt_m(conveyor, self.arm_views(), conveyor.pose.xyz[2] + 0.015)
+        return _BELT_REACH_M[key]
+
+    @functools.cached_property
+    def capacity(self) -> CapacityBound:
+        """What the line could do at best (worked out when first asked: an env resets often)."""
+        return capacity_bound(self.scene, reach=self.reach)
+
+    # --- inputs ---------------------------------------------------------------------
+    def on_event(self, kind: str, part_id: int, detail: str, type_index: int, time_s: float) -> None:
+        """A line event (`arrived`, `at_station`, `lost`, `retired`) at sim time `time_s`."""
+        self.ledger.on_event(kind, part_id, detail, type_index, time_s)
+
+    def on_arm(self, arm: str, q: np.ndarray, skill: str, time_s: float, *, task_id: int | None = None, failure: str = "",
+               request_seq: int = 0, request: TimedPath | None = None, acts_at_tick: int = 0,
+               lost: bool = False, silent_for_s: float = 0.0) -> list[int] | None:
+        """An arm's state: its joints, its skill's phase and task, and the motion request it holds still for
+        (`request_seq` > 0; a request is new when its number differs from the last taken: a restarted
+        controller counts from 1 again). `acts_at_tick`: when an order sent now would take effect on it.
+        `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost."""
+        self.acts_at_tick[arm] = acts_at_tick
+        self.skill[arm] = skill
+        self.guard.set_state(arm, np.asarray(q))
+        if request is not None and request_seq > 0 and request_seq != self.request_seq[arm]:
+            self.request_seq[arm] = request_seq
+            self.requests[arm] = request
+        returned = None
+        if lost and arm not in self.lost:
+            returned = self.arm_lost(arm, "the sim stopped hearing its controller", silent_for_s)
+        self.ledger.arm_report(arm, task_id, skill, time_s, failure)
+        return returned
+
+    def on_parts(self, parts: dict[int, PartView], time_s: float) -> None:
+        """The parts on the line (positions and velocities, world frame) at sim time `time_s`."""
+        self.parts = parts
+        self.sim_time_s = time_s
+
+    def arm_lost(self, arm: str, why: str, silent_for_s: float) -> list[int]:
+        """An arm stopped answering: its granted path is void (it holds still), its tasks go back to the pool."""
+        self.lost[arm] = self.sim_time_s
+        self.requests.pop(arm, None)
+        self.guard.release(arm)
+        returned = self.ledger.arm_lost(arm, self.sim_time_s)
+        self.losses.append({
+            "arm": arm, "event": "lost", "why": why, "sim_time_s": round(self.sim_time_s, 3),
+            "silent_for_s": round(silent_for_s, 3), "tasks_returned": returned,
+        })
+        return returned
+
+    def arm_rejoined(self, arm: str) -> None:
+        if self.lost.pop(arm, None) is not None:
+            self.losses.append({"arm": arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
+
+    # --- what the allocator sees ----------------------------------------------------
+    def arm_views(self) -> list[ArmView]:
+        open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
+        return [
+            ArmView(
+                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a],
+                tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None, a not in self.lost,
+            )
+            for a in self.arm_names
+        ]
+
+    def free_in_s(self, arm: str) -> float | None:
+        """About when a busy arm's task ends; None once it overran its estimate (or is lost): not planned for."""
+        remaining = self.busy_until_s.get(arm, -math.inf) - self.last_decision_tick / self.scene.control_hz
+        return None if arm in self.lost or remaining < -OVERRUN_S else max(remaining, 0.0)
+
+    def busy_stations(self) -> set[str]:
+        """Stations in use: by open tasks, and by arms still moving away from their last task's stations."""
+        busy = self.ledger.busy_stations()
+        for arm, stations in self.last_stations.items():
+            if self.skill[arm] not in IDLE_SKILLS and arm not in self.lost:
+                busy.update(stations)
+        return busy
+
+    def busy_arms(self) -> int:
+        return sum(s not in IDLE_SKILLS for s in self.skill.values())
+
+    # --- decisions ------------------------------------------------------------------
+    def decide(self, tick: int) -> Decision:
+        """One decision at `tick`: answer motion requests, take late belt tasks back, refresh and allocate tasks."""
+        now = tick / self.scene.control_hz
+        self.last_decision_tick = tick
+        self.decisions += 1
+        separations = self.watch_separations() if len(self.arm_names) > 1 else []
+        orders: list[Order] = [*self.answer_motion_requests(now), *self.reassign_late_tasks()]
+        pending = self.pending(now)
+        if pending:
+            views = self.arm_views()
+            cost_s = TimeCost(Eligibility(self.scene, views))
+            for task_id, arm in self.allocator.allocate(pending, views, self.parts, self.busy_stations()):
+                task = self.ledger.assign(task_id, arm, now)
+                self.busy_until_s[arm] = now + cost_s(next(v for v in views if v.name == arm), task, self.parts[task.part_id])
+                orders.append(self.assignment(task, arm))
+        return Decision(tick, orders, separations)
+
+    def pending(self, now_s: float) -> list[Task]:
+        """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""
+        pending = self.ledger.refresh(now_s)
+        for task in pending:
+            if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
+                self.deadline_known.add(task.task_id)
+                task.deadline_s = belt_deadline_s(self.scene.conveyor, self.last_reach_along_belt_m, self.parts[task.part_id], now_s)
+        return pending
+
+    def reassign_late_tasks(self) -> list[CancelOrder]:
+        """A belt task whose arm has not started moving for it, and can no longer meet the part, goes back to the
+        pool (its arm is told to drop it), so an arm further down the belt can still take it before its deadline."""
+        views = {v.name: v for v in self.arm_views()}
+        rules = Eligibility(self.scene, list(views.values()))
+        out = []
+        for task in list(self.ledger.tasks.values()):
+            arm = task.arm
+            not_started = task.state == TaskState.ASSIGNED or (task.state == TaskState.ACTIVE and self.skill.get(arm) == "approach" and arm in self.requests)
+            part = self.parts.get(task.part_id)
+            if arm is None or part is None or not not_started or not cannot_make_it(rules, views[arm], task, part):
+                continue
+            self.ledger.requeue(task.task_id, f"{arm} could no longer meet the part")
+            self.requests.pop(arm, None)
+            self.reassigned += 1
+            out.append(CancelOrder(arm, task.part_id))
+        return out
+
+    def answer_motion_requests(self, now_s: float) -> list[GrantOrder]:
+        """Check every waiting request with the guard, arms in scene order (one global order: no cycle of waits).
+
+        A grant starts when the arm next hears from the sim (its controller acts on it then), for the duration
+        asked; `deny` (an arm that is not moving is in the way) goes back to the arm; `wait` (an arm with a
+        granted move is in the way) stays here until that move is over.
+        """
+        self.guard.expire(now_s)
+        out = []
+        for arm in [a for a in self.arm_names if a in self.requests]:
+            asked = self.requests[arm]
+            start = max(self.acts_at_tick[arm], self.last_decision_tick + 1) / self.scene.control_hz
+            path = dataclasses.replace(asked, t_start_s=start, t_end_s=start + (asked.t_end_s - asked.t_start_s))
+            self.guard.set_state(arm, np.asarray(asked.q_from))
+            verdict = self.guard.request(path)
+            if verdict.decision == "wait":
+                continue
+            del self.requests[arm]
+            self.grants_given += verdict.granted
+            out.append(GrantOrder(arm, self.request_seq[arm], verdict.decision, verdict.conflict_arm or "",
+                                  verdict.min_separation_m, start if verdict.granted else None))
+        return out
+
+    def watch_separations(self) -> list[NearestPair]:
+        """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour."""
+        pairs = self.guard.nearest_pairs()
+        if pairs and pairs[0].distance_m < self.min_separation_m:
+            self.min_separation_m, self.closest_pair = pairs[0].distance_m, (pairs[0].a, pairs[0].b)
+        return pairs
+
+    def assignment(self, task: Task, arm: str) -> AssignOrder:
+        """The order that gives `task` to `arm` (and reserves its stations until the arm is idle again)."""
+        part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]
+        station = self.scene.station(task.target)
+        velocity = self.belt_velocity() if task.source == CONVEYOR else (0.0, 0.0, 0.0)
+        place = (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target))
+        self.last_stations[arm] = task.stations
+        return AssignOrder(arm, task.task_id, task.part_id, float(part.position[2] - rec.height_m / 2), place, velocity)
+
+    def belt_velocity(self) -> tuple[float, float, float]:
+        c = self.scene.conveyor
+        return tuple(d * c.speed_m_per_s for d in c.direction) if c else (0.0, 0.0, 0.0)
+
+    # --- the summary ----------------------------------------------------------------
+    def report(self) -> dict:
+        return self.ledger.totals() | {
+            "allocator": self.allocator.name,
+            "arm_events": self.losses,
+            "unfinished_parts": self.ledger.unfinished(),
+            "tasks": [
+                {"task_id": t.task_id, "part_id": t.part_id, "source": t.source, "target": t.target, "state": t.state.value,
+                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "deadline_s": t.deadline_s, "done_s": t.done_s,
+                 "reassignments": t.reassignments, "reason": t.reason}
+                for t in self.ledger.tasks.values()
+            ],
+            "decisions": self.decisions,
+            "grants_denied": self.guard.denied,
+            "grants_given": self.grants_given,
+            "tasks_reassigned": self.reassigned,
+            "grant_waits": self.guard.waits,
+            "grant_requests_open": {a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items()},
+            "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
+            "closest_pair": list(self.closest_pair) if self.closest_pair else None,
+            "capacity": self.capacity.as_dict(),
+            "capacity_measured": self.measured_capacity(),
+        }
+
+    def measured_capacity(self) -> dict | None:
+        """The capacity bound again with the hop times this run measured (None before any task was done)."""
+        measured = measured_hop_seconds(list(self.ledger.tasks.values()))
+        if not measured:
+            return None
+        return capacity_bound(self.scene, measured, self.reach).as_dict() | {"measured_hop_s": {
+            f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())}}

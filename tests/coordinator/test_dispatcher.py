@@ -1,0 +1,98 @@
+"""The coordinator's decisions as one pure class: events, arm states and requests in, orders out.
+
+The coordinator node and the env's task mode both drive a `Dispatcher`; these tests drive it by hand,
+with no bus and no clock, as either front end does.
+"""
+
+import numpy as np
+
+from coordinator.allocation import PartView
+from coordinator.cadence import decision_period_ticks
+from coordinator.dispatcher import AssignOrder, CancelOrder, Dispatcher, GrantOrder
+from coordinator.guard import TimedPath
+from robots.registry import get_robot
+from scenes import load_scene
+
+SCENE = load_scene("sorting_line")
+HOME = np.array(get_robot("openclaw").home_q)
+PERIOD = decision_period_ticks(SCENE)
+
+
+def at_home(d: Dispatcher, t: float) -> None:
+    for arm in d.arm_names:
+        d.on_arm(arm, HOME, "idle", t)
+
+
+def part_on_belt(d: Dispatcher, part_id: int, along_m: float) -> PartView:
+    belt = SCENE.conveyor
+    x, y, z = belt.point_at(along_m)
+    return PartView(np.array([x, y, z + 0.03]), np.array(d.belt_velocity()))
+
+
+def arrive(d: Dispatcher, along_m: float = 0.4, t: float = 1.0) -> AssignOrder:
+    """One part arrives on the belt; the next decision gives it to an arm."""
+    d.on_event("arrived", 0, SCENE.feeders[0].name, 0, t)
+    d.on_parts({0: part_on_belt(d, 0, along_m)}, t)
+    at_home(d, t)
+    decision = d.decide(round(t * SCENE.control_hz / PERIOD) * PERIOD)
+    orders = [o for o in decision.orders if isinstance(o, AssignOrder)]
+    assert len(orders) == 1, decision.orders
+    return orders[0]
+
+
+def test_a_part_on_the_belt_is_given_to_an_arm_with_the_belt_velocity_and_a_deadline():
+    d = Dispatcher(SCENE)
+    order = arrive(d)
+    task = d.ledger.tasks[order.task_id]
+    assert task.arm == order.arm and task.deadline_s is not None and task.deadline_s > 1.0
+    assert order.surface_velocity == d.belt_velocity() and np.linalg.norm(order.surface_velocity) > 0
+    assert d.busy_until_s[order.arm] > 1.0, "the allocator's estimate of when the arm is free again"
+
+
+def test_a_motion_request_is_granted_from_when_the_arm_acts_and_a_restarted_controllers_is_heard():
+    d = Dispatcher(SCENE)
+    reach_out = tuple(HOME + [0.3, 0.4, -0.3, 0, 0.2, 0])
+    at_home(d, 0.0)
+    d.on_arm("arm_0", HOME, "approach", 0.9, request_seq=5, acts_at_tick=95,
+             request=TimedPath("arm_0", tuple(HOME), reach_out, 0.9, 1.9))
+    (grant,) = d.decide(90).orders
+    assert grant == GrantOrder("arm_0", 5, "grant", "", grant.min_separation_m, 0.95)
+    d.on_arm("arm_0", HOME, "approach", 1.0, request_seq=5, acts_at_tick=105,
+             request=TimedPath("arm_0", tuple(HOME), reach_out, 1.0, 2.0))
+    assert d.decide(100).orders == [], "the same request is answered once"
+    d.on_arm("arm_0", HOME, "home", 1.1, request_seq=1, acts_at_tick=115,  # a new controller counts from 1 again
+             request=TimedPath("arm_0", tuple(HOME), tuple(HOME), 1.1, 1.5))
+    assert [o.request_seq for o in d.decide(110).orders] == [1]
+
+
+def test_a_lost_arms_task_goes_to_another_arm():
+    d = Dispatcher(SCENE)
+    first = arrive(d)
+    assert d.arm_lost(first.arm, "no heartbeat", 0.8) == [first.task_id]
+    orders, tick = [], 100
+    while not orders and tick < 3000:  # the part rides on into the next arm's stretch of the belt
+        tick += PERIOD
+        t = tick / SCENE.control_hz
+        d.on_parts({0: part_on_belt(d, 0, 0.4 + SCENE.conveyor.speed_m_per_s * (t - 1.0))}, t)
+        orders = d.decide(tick).orders
+    assert [(type(o), o.part_id) for o in orders] == [(AssignOrder, 0)] and orders[0].arm != first.arm
+    assert d.report()["arm_events"][0]["tasks_returned"] == [first.task_id]
+
+
+def test_a_belt_task_its_arm_can_no_longer_meet_is_taken_back():
+    d = Dispatcher(SCENE)
+    order = arrive(d, along_m=0.4)
+    d.on_parts({0: part_on_belt(d, 0, SCENE.conveyor.length_m - 0.01)}, 30.0)  # the part rode on while the arm waited
+    cancels = [o for o in d.reassign_late_tasks() if isinstance(o, CancelOrder)]
+    assert cancels == [CancelOrder(order.arm, 0)] and d.reassigned == 1
+
+
+def test_the_same_inputs_give_the_same_decisions():
+    def run() -> list:
+        d = Dispatcher(SCENE)
+        order = arrive(d)
+        d.on_arm(order.arm, HOME, "approach", 1.1, task_id=order.task_id, request_seq=1, acts_at_tick=115,
+                 request=TimedPath(order.arm, tuple(HOME), tuple(HOME + 0.2), 1.1, 2.0))
+        return [order, *d.decide(110).orders, d.report()["tasks"]]
+
+    assert run() == run()
