@@ -119,6 +119,7 @@ class Ledger:
             return
         part = self.parts[task.part_id]
         if skill in HOLDING_PHASES and part.location != HELD:
+            part.held_from, part.held_stack = part.location, tuple(self.stacks.get(part.location, ()))
             self._leave_stack(part)
             part.location = HELD
         if task.state == TaskState.ASSIGNED and skill not in ("idle", "done", "failed"):
@@ -145,9 +146,20 @@ class Ledger:
     def _fail_attempt(self, task: Task, reason: str) -> None:
         part = self.parts[task.part_id]
         self._close(task, TaskState.FAILED, reason)
+        if part.location == HELD and part.fate == PartFate.ON_LINE:
+            self._put_back(part)
         part.attempts += 1
         if part.attempts >= MAX_ATTEMPTS and part.fate == PartFate.ON_LINE:
             part.fate, part.reason = PartFate.FAILED, f"{MAX_ATTEMPTS} attempts failed; last: {reason}"
+
+    def _put_back(self, part: PartRecord) -> None:
+        """A task failed with its part thought in the claw (a grasp that closed on nothing, a part never seen resting
+        where it was placed): the part is taken to be where it was last seen resting, so it gets a new task; if it
+        is elsewhere, the sim's next event for it (at a station, fallen) says so."""
+        part.location = part.held_from or CONVEYOR
+        stack = self.stacks.get(part.location)
+        if stack is not None and not stack and part.part_id in part.held_stack:
+            stack.extend(p for p in part.held_stack if self.parts[p].location == part.location or p == part.part_id)
 
     def _close(self, task: Task, state: TaskState, reason: str) -> None:
         task.state, task.reason = state, reason

@@ -41,6 +41,8 @@ class PartRecord:
     attempts: int = 0
     fate: PartFate = PartFate.ON_LINE
     reason: str = ""
+    held_from: str | None = None  # where the part was when an arm took it (and the stack it was in then)
+    held_stack: tuple[int, ...] = ()
 
     @property
     def next_station(self) -> str | None:

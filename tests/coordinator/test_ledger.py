@@ -89,3 +89,33 @@ def test_one_station_serves_one_task_at_a_time():
     assert lg.busy_stations() == set()
     lg.assign(task.task_id, "arm_0", 1.0)
     assert lg.busy_stations() == {"fixture_0"}
+
+
+def test_a_grasp_that_closed_on_nothing_gives_the_part_a_new_task_from_where_it_lay():
+    lg = ledger()
+    lg.arrived(0, "bases", 0, 1.0)
+    task = only(lg.refresh(1.0))
+    lg.assign(task.task_id, "arm_0", 1.0)
+    lg.arm_report("arm_0", task.task_id, "lift", 3.0)  # the skill lifts: the ledger takes the part as in the claw
+    lg.arm_report("arm_0", task.task_id, "failed", 3.5, "grasp of part 0 missed: the claw closed on nothing")
+    again = only(lg.refresh(4.0))
+    assert again.task_id != task.task_id and (again.source, again.target) == ("conveyor", "fixture_0")
+    assert lg.parts[0].attempts == 1
+
+
+def test_a_ship_that_left_the_assembly_behind_is_tried_again_with_the_stack_as_it_was():
+    lg = ledger()
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.arrived(1, "tops", 0, 1.5)
+    lg.at_station(1, "tops_bin", 2.0)
+    lg.at_station(0, "fixture_0", 5.0)
+    lg.at_station(1, "fixture_0", 9.0)
+    ship = only(lg.refresh(9.0))
+    lg.assign(ship.task_id, "arm_2", 9.0)
+    lg.arm_report("arm_2", ship.task_id, "transfer", 10.0)
+    assert lg.stacks["fixture_0"] == []
+    lg.arm_report("arm_2", ship.task_id, "done", 12.0)
+    lg.arm_report("arm_2", ship.task_id, "done", 15.5)  # never seen resting at the tray: it never left the fixture
+    assert ship.state == TaskState.FAILED and lg.stacks["fixture_0"] == [0, 1]
+    again = only(lg.refresh(16.0))
+    assert (again.part_id, again.source, again.target) == (0, "fixture_0", "output_tray")
