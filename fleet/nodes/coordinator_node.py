@@ -78,6 +78,7 @@ class CoordinatorNode:
         self.last_tick = {a: -1 for a in self.arm_names}
         self.incarnation: dict[str, int] = {}
         self.heartbeat_at: dict[str, float] = {}
+        self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self._progress_at = 0.0
         self.events_seen = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
@@ -153,6 +154,8 @@ class CoordinatorNode:
         if s.arm not in self.last_tick or s.tick <= self.last_tick[s.arm]:
             return  # count each tick once
         self.last_tick[s.arm] = s.tick
+        if not s.lost:
+            self._rejoining.discard(s.arm)
         request = None
         if s.request_seq > 0 and len(s.request_q_to) == len(s.q):
             n = len(s.q)
@@ -162,7 +165,7 @@ class CoordinatorNode:
         returned = self.dispatcher.on_arm(
             s.arm, np.asarray(s.q), s.skill, s.sim_time_s, task_id=s.task_id, failure=s.failure, request_seq=s.request_seq,
             request=request, acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later
-            lost=s.lost, silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
+            lost=s.lost and s.arm not in self._rejoining, silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
         )
         if returned is not None:
             self._tell_lost(s.arm, "the sim stopped hearing its controller", returned)
@@ -175,7 +178,9 @@ class CoordinatorNode:
             self.incarnation[s.arm] = s.incarnation
             if s.arm not in self.dispatcher.lost:
                 self._arm_lost(s.arm, "its controller restarted", self.heartbeat_at[s.arm] - (previous or 0.0))
-        self.dispatcher.arm_rejoined(s.arm)  # a respawned controller rejoined (nothing if it was not lost)
+        if s.arm in self.dispatcher.lost:  # a respawned controller rejoined; the sim says so when it has heard it,
+            self._rejoining.add(s.arm)  # and its `lost` flag until then is not a second loss
+        self.dispatcher.arm_rejoined(s.arm)
 
     def _on_parts(self, p: PartsState) -> None:
         self.dispatcher.on_parts({

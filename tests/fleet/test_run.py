@@ -79,8 +79,8 @@ def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawne
     assert dead == [{"role": "controller", "name": "arm_0", "pid": killed[0][0], "exit_code": -9}]
     events = [e for e in summary["arm_events"] if e["arm"] == "arm_0"]
     assert events, (summary["arm_events"], summary["arms_lost"], killed)
-    assert events[0]["event"] == "lost" and events[0]["silent_for_s"] < 1.0
-    assert events[-1]["event"] == "rejoined"
+    assert [e["event"] for e in events] == ["lost", "rejoined"], events  # one loss, one rejoin: nothing counted twice
+    assert events[0]["silent_for_s"] < 1.0
     assert summary["parts_completed"] >= 1, {k: summary[k] for k in ("parts_spawned", "parts_missed", "parts_failed", "parts_in_progress",
                                                                     "arm_events", "arm_time", "tasks_reassigned", "unfinished_parts")}
 
