@@ -111,6 +111,7 @@ class Dispatcher:
         self.min_separation_m = math.inf
         self.closest_pair: tuple[str, str] | None = None
         self.losses: list[dict] = []
+        self._candidates: dict[int, tuple[int, str]] = {}  # candidate id -> (task id, station), of the last `candidates`
         self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
 
     def _belt_reach(self) -> float | None:
@@ -212,11 +213,37 @@ class Dispatcher:
         if pending:
             views = self.arm_views()
             cost_s = TimeCost(Eligibility(self.scene, views))
-            for task_id, arm in self.allocator.allocate(pending, views, self.parts, self.busy_stations()):
-                task = self.ledger.assign(task_id, arm, now)
+            taken: set[int] = set()
+            for candidate_id, arm in self.allocator.allocate(self.candidates(pending), views, self.parts, self.busy_stations()):
+                if self.real(candidate_id).task_id in taken:
+                    continue  # two arms chose one task, each for another station: the first keeps it, the other waits a round
+                task = self.take(candidate_id, arm, now)
+                taken.add(task.task_id)
                 self.busy_until_s[arm] = now + cost_s(next(v for v in views if v.name == arm), task, self.parts[task.part_id])
                 orders.append(self.assignment(task, arm))
         return Decision(tick, orders, separations)
+
+    def candidates(self, pending: list[Task]) -> list[Task]:
+        """The pending tasks as the allocators see them: a task that may go to one of several stations (a sorted
+        part: any bin of its colour) once per station, each copy with an id of its own (negative), so that each
+        arm is weighed with the station it reaches. `take` turns the chosen one back into the task."""
+        out: list[Task] = []
+        for task in pending:
+            out.append(task)
+            for k, station in enumerate(task.alternatives, start=1):
+                copy = Task(-(task.task_id * 64 + k), task.part_id, task.source, station, task.created_s, deadline_s=task.deadline_s)
+                self._candidates[copy.task_id] = (task.task_id, station)
+                out.append(copy)
+        return out
+
+    def real(self, candidate_id: int) -> Task:
+        """The ledger's task behind a candidate id."""
+        return self.ledger.tasks[self._candidates.get(candidate_id, (candidate_id, ""))[0]]
+
+    def take(self, candidate_id: int, arm: str, now_s: float) -> Task:
+        """Assign the task behind a candidate to `arm`, going to the candidate's station."""
+        task_id, station = self._candidates.get(candidate_id, (candidate_id, None))
+        return self.ledger.assign(task_id, arm, now_s, station)
 
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""

@@ -179,6 +179,8 @@ class Ledger:
             if target is None or not self._ready(part, target):
                 continue
             task = Task(self._next_task_id, part.part_id, part.location, target, now_s)
+            if part.hop == len(part.route) - 1:  # a sorted part's bin: any of its colour will do
+                task.alternatives = tuple(s for s in self.scene.stations_for_colour(part.feeder, part.type_index) if s != target)
             self._next_task_id += 1
             self.tasks[task.task_id] = task
             self._open_by_part[part.part_id] = task.task_id
@@ -199,8 +201,13 @@ class Ledger:
                 return False  # one layer on its way at a time
         return True
 
-    def assign(self, task_id: int, arm: str, now_s: float) -> Task:
+    def assign(self, task_id: int, arm: str, now_s: float, target: str | None = None) -> Task:
+        """Give a pending task to `arm`; `target`: which of its stations (its target or an alternative) it goes to."""
         task = self.tasks[task_id]
+        if target is not None and target != task.target:
+            task.retarget(target)
+            part = self.parts[task.part_id]
+            part.route[part.hop] = target
         task.state, task.arm, task.assigned_s = TaskState.ASSIGNED, arm, now_s
         return task
 

@@ -66,6 +66,14 @@ class Task:
     deadline_s: float | None = None  # belt tasks: when the part rides out of every arm's reach
     done_s: float | None = None  # when the part came to rest at the target (DONE tasks)
     reassignments: int = 0
+    alternatives: tuple[str, ...] = ()  # other stations that would do as the target (a sorted part: any bin of its colour)
+
+    def retarget(self, target: str) -> None:
+        """Make `target` (the target or one of the alternatives) the station this task goes to."""
+        if target != self.target:
+            self.alternatives = tuple(s for s in (self.target, *self.alternatives) if s != target)
+            self.target = target
+            self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)
 
     def __post_init__(self) -> None:
         self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)

@@ -278,8 +278,16 @@ class Scene(Strict):
         feeder = self.feeder(feeder_name)
         if feeder.route:
             return list(feeder.route)
+        return self.stations_for_colour(feeder_name, type_index)[:1]
+
+    def stations_for_colour(self, feeder_name: str, type_index: int) -> list[str]:
+        """Every station that accepts this part's colour, in scene order (none for a feeder with its own route):
+        a sorted part may go to any of them; `route` names the first."""
+        feeder = self.feeder(feeder_name)
+        if feeder.route:
+            return []
         colour = feeder.parts[type_index].colour.lower()
-        return [s.name for s in self.stations if colour in s.colours][:1]
+        return [s.name for s in self.stations if colour in s.colours]
 
     def source_names(self) -> set[str]:
         """Where feeders put parts: `conveyor` and the stations fed directly."""

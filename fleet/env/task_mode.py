@@ -67,7 +67,7 @@ class TaskChooser:
         """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
         views, parts = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
-        open_tasks = open_candidates(self.pending(), parts, self.ledger.busy_stations())
+        open_tasks = open_candidates(self.dispatcher.candidates(self.pending()), parts, self.ledger.busy_stations())
         out = {}
         for view in views:
             scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks] if view.free else []
@@ -98,7 +98,7 @@ class TaskChooser:
                 out[agent] = f"refused: slot {k} is empty ({len(options[agent])} choices)"
                 continue
             task = options[agent][k - 1][0]
-            if task.state != TaskState.PENDING or busy.intersection(task.stations):
+            if self.dispatcher.real(task.task_id).state != TaskState.PENDING or busy.intersection(task.stations):
                 out[agent] = f"refused: task {task.task_id} was taken by an arm before it"
                 continue
             self._start(agent, task)
@@ -106,8 +106,8 @@ class TaskChooser:
             out[agent] = "took"
         return out
 
-    def _start(self, agent: str, task: Task) -> None:
-        self.ledger.assign(task.task_id, agent, self.world.sim_time_s)
+    def _start(self, agent: str, candidate: Task) -> None:
+        task = self.dispatcher.take(candidate.task_id, agent, self.world.sim_time_s)
         self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
         order = self.dispatcher.assignment(task, agent)
         job = PickPlaceTask(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
@@ -156,7 +156,7 @@ class TaskChooser:
 def allocator_actions(chooser: TaskChooser, allocator: Allocator, options: dict[str, list[tuple[Task, float]]]) -> dict[str, int]:
     """What the coordinator's allocator would choose now, as `task`-mode actions (a task outside an arm's slots: wait)."""
     views, parts = chooser.arm_views(), chooser.parts()
-    pairs = allocator.allocate(chooser.pending(), views, parts, chooser.ledger.busy_stations())
+    pairs = allocator.allocate(chooser.dispatcher.candidates(chooser.pending()), views, parts, chooser.ledger.busy_stations())
     actions = {a: WAIT for a in chooser.agents}
     for task_id, arm in pairs:
         ids = [t.task_id for t, _ in options.get(arm, [])]

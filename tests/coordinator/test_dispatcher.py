@@ -96,3 +96,18 @@ def test_the_same_inputs_give_the_same_decisions():
         return [order, *d.decide(110).orders, d.report()["tasks"]]
 
     assert run() == run()
+
+
+def test_a_sorted_part_goes_to_the_bin_of_its_colour_that_the_arm_taking_it_reaches():
+    """On the 4-arm sorting line bin_0 and bin_3 both take the first colour: a part riding past arm_3 goes to bin_3."""
+    d = Dispatcher(SCENE)
+    base_3 = SCENE.arm("arm_3").base.xyz
+    along = base_3[0] - SCENE.conveyor.pose.xyz[0]  # the belt runs along x from its pose
+    d.on_event("arrived", 0, SCENE.feeders[0].name, 0, 1.0)
+    d.on_parts({0: part_on_belt(d, 0, along)}, 1.0)
+    at_home(d, 1.0)
+    (order,) = [o for o in d.decide(100).orders if isinstance(o, AssignOrder)]
+    bin_3 = SCENE.station("bin_3").pose.xyz
+    assert order.arm == "arm_3" and order.place_xyz[:2] == bin_3[:2]
+    task = d.ledger.tasks[order.task_id]
+    assert (task.target, task.alternatives) == ("bin_3", ("bin_0",)) and d.ledger.parts[0].route == ["bin_3"]
