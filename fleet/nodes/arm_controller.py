@@ -294,16 +294,14 @@ def main(argv: list[str] | None = None) -> int:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
         controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants, rate_hz=args.rate_hz, incarnation=args.incarnation)
-        last_beat = -HEARTBEAT_S
+        beats = Heartbeat(controller)  # liveness on its own thread and clock, however long a decision takes
         try:
             while not stop.should_stop():
-                if time.monotonic() - last_beat >= HEARTBEAT_S:  # liveness on its own clock, busy or idle
-                    controller.send_heartbeat(controller.sim_time_s)
-                    last_beat = time.monotonic()
                 if not controller.poll():
-                    controller.wake.wait(min(0.05, max(0.0, last_beat + HEARTBEAT_S - time.monotonic())))
+                    controller.wake.wait(0.05)
                     controller.wake.clear()
         finally:
+            beats.stop()
             controller.close()
             write_report(args.report, {
                 "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
@@ -311,6 +309,27 @@ def main(argv: list[str] | None = None) -> int:
                 "decisions": controller.decisions, "goals_sent": controller.goals_sent, "goals_resent": controller.skill.goals_resent,
             })
     return 0
+
+
+class Heartbeat:
+    """Sends the controller's status every `HEARTBEAT_S` from a thread of its own, from now until `stop`: the
+    coordinator hears the process is alive while its loop waits for a state, a part or an order (up to
+    `ASSIGNMENT_WAIT_S`) or plans; a process killed or frozen stops beating."""
+
+    def __init__(self, controller: ArmController) -> None:
+        self._stopped = threading.Event()
+        self._controller = controller
+        controller.send_heartbeat(controller.sim_time_s)
+        self._thread = threading.Thread(target=self._run, name="heartbeat", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stopped.wait(HEARTBEAT_S):
+            self._controller.send_heartbeat(self._controller.sim_time_s)
+
+    def stop(self) -> None:
+        self._stopped.set()
+        self._thread.join(timeout=1.0)
 
 
 def request_realtime_priority() -> None:

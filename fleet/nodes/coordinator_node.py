@@ -79,6 +79,7 @@ class CoordinatorNode:
         self.incarnation: dict[str, int] = {}
         self.heartbeat_at: dict[str, float] = {}
         self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
+        self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
         self.events_seen = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
@@ -171,10 +172,15 @@ class CoordinatorNode:
             self._tell_lost(s.arm, "the sim stopped hearing its controller", returned)
 
     def _on_status(self, s: ArmStatus) -> None:
+        if s.incarnation in self._replaced.get(s.arm, ()):
+            return  # a late beat of a controller already replaced: neither a loss nor a sign of life
+        known = self.incarnation.setdefault(s.arm, s.incarnation)
+        if known != s.incarnation:  # the first beat of a new controller: heard now (its arrival stamp may still
+            self._heard_at[s.arm] = max(self._heard_at.get(s.arm, 0.0), time.monotonic())  # be the old one's)
         previous = self.heartbeat_at.get(s.arm)
         self.heartbeat_at[s.arm] = self._heard_at.get(s.arm, time.monotonic())
-        known = self.incarnation.setdefault(s.arm, s.incarnation)
         if known != s.incarnation:  # restarted faster than the heartbeat timeout: still a loss
+            self._replaced.setdefault(s.arm, set()).add(known)
             self.incarnation[s.arm] = s.incarnation
             if s.arm not in self.dispatcher.lost:
                 self._arm_lost(s.arm, "its controller restarted", self.heartbeat_at[s.arm] - (previous or 0.0))

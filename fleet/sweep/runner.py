@@ -21,6 +21,7 @@ RUNS_DIR = "runs"
 
 
 _POOL_PARENT: int | None = None  # in a local pool's worker: the sweep's pid
+_INTERRUPTED = False  # in a local pool's worker: a Ctrl-C or SIGTERM came (or the sweep died): start no run after it
 
 
 def _pool_worker_start() -> None:
@@ -28,10 +29,13 @@ def _pool_worker_start() -> None:
     global _POOL_PARENT
     _POOL_PARENT = os.getppid()
     signal.signal(signal.SIGTERM, _interrupt)  # also while a run starts, before its launcher takes the signal
+    signal.signal(signal.SIGINT, _interrupt)  # Ctrl-C reaches the sweep's whole group: workers stop too
     die_with_parent()
 
 
 def _interrupt(_signum: int, _frame: object) -> None:
+    global _INTERRUPTED
+    _INTERRUPTED = True
     raise KeyboardInterrupt
 
 
@@ -44,6 +48,8 @@ def run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None = No
     overridden scene file's text, written where this runs (a cluster node has no copy of the sweep's folder)."""
     if _sweep_gone():
         os._exit(0)  # the sweep died: a queued run is not started
+    if _INTERRUPTED:  # the sweep is stopping (it waits for its workers): a run queued before that is not started
+        raise KeyboardInterrupt("the sweep was interrupted")
     try:
         return _run_cell(cell, scene, run_id, scene_text)
     finally:
