@@ -2,6 +2,7 @@
 Ctrl-C with nothing left behind, and the same results from a local Ray instance bound to loopback only."""
 
 import os
+import secrets
 import signal
 import subprocess
 import sys
@@ -137,10 +138,12 @@ def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_
 
 
 NETNS = "clawfleet_sweep_ray"
+RAY_TOKEN = secrets.token_hex(32)  # the test cluster's own: a fresh machine has no ~/.ray/auth_token
 
 
 def in_netns(*argv: str) -> list[str]:
-    return ["ip", "netns", "exec", NETNS, "env", "RAY_AUTH_MODE=token", *argv]  # Ray 2.60 heads ask for its token
+    """Run in the test's namespace, with the token the test's Ray head and its drivers share (Ray 2.60 asks for one)."""
+    return ["ip", "netns", "exec", NETNS, "env", "RAY_AUTH_MODE=token", f"RAY_AUTH_TOKEN={RAY_TOKEN}", *argv]
 
 
 @pytest.fixture
