@@ -10,7 +10,7 @@ import time
 from dataclasses import dataclass
 
 from fleet.physics.world import World
-from scenes.loader import load_scene
+from fleet.scene_loading import load_scene
 
 
 @dataclass(frozen=True)

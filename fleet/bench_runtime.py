@@ -25,7 +25,7 @@ from fleet.launcher import Launcher, RunOptions
 from fleet.nodes.sim_server import SimServer
 from fleet.physics.world import World
 from fleet.processes import ChildProcess, stop_children
-from scenes.loader import load_scene
+from fleet.scene_loading import load_scene
 
 SCENE = "sorting_line"
 STATUS_PER_ARM_PER_S = 5.0  # controller heartbeats (`ArmStatus`, 5 a wall second; per sim second fewer in a fast lockstep run): not seen by the sim

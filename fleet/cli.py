@@ -24,8 +24,18 @@ from rich.table import Table
 from fleet.bus.faults import add_fault_arguments
 from fleet.bus.session import add_bus_arguments
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
-from robots.registry import MissingModelsError, UnknownRobotError, declared_robots, get_robot, is_available
-from scenes.loader import RobotFacts, SceneError, bundled_scene_names, first_error, load_scene
+from robots.registry import (
+    MissingModelsError,
+    UnknownRobotError,
+    declared_robots,
+    entry_point_problems,
+    get_robot,
+    is_available,
+    register_file,
+)
+from fleet.scene_loading import load_scene
+from scenes.loader import bundled_scene_names, first_error
+from scenes.yaml_file import DeclarationError
 
 class UsageError(ValueError):
     """A flag that cannot work: one line, exit 2, before anything starts."""
@@ -33,22 +43,17 @@ class UsageError(ValueError):
 
 def user_errors() -> tuple[type[BaseException], ...]:
     """Errors a user causes: one line, exit 2 (a bad recording's only once the recording module is loaded: it imports mcap)."""
-    errors: tuple[type[BaseException], ...] = (SceneError, UnknownRobotError, MissingModelsError, UsageError)
+    errors: tuple[type[BaseException], ...] = (DeclarationError, UnknownRobotError, MissingModelsError, UsageError)
     recording = sys.modules.get("fleet.record.mcap_file")
     return errors + ((recording.RecordingError,) if recording else ())
 out = Console()
 err = Console(stderr=True)
 
 
-def robot_facts() -> dict[str, RobotFacts]:
-    """What scene validation needs of every registered robot."""
-    return {spec.uid: RobotFacts(spec.reach_m) for spec in declared_robots()}
-
-
 def cmd_check(args: argparse.Namespace) -> int:
     from coordinator.capacity import capacity_bound
 
-    scene = load_scene(args.file, arms=args.arms, robots=robot_facts())
+    scene = load_scene(args.file, arms=args.arms)
     print("ok")
     print(capacity_line(capacity_bound(scene)))
     return 0
@@ -69,20 +74,49 @@ def capacity_line(bound) -> str:
 def cmd_scenes(args: argparse.Namespace) -> int:
     table = Table("scene", "arms", "description")
     for name in bundled_scene_names():
-        scene = load_scene(name, robots=robot_facts())
+        scene = load_scene(name)
         table.add_row(name, str(len(scene.arms)), scene.description)
     out.print(table)
     return 0
 
 
+def robot_uid(name_or_file: str) -> str:
+    """A registered robot's uid, or the uid of the robot a YAML file declares (registered here)."""
+    path = Path(name_or_file)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        return register_file(path).uid
+    return get_robot(name_or_file).uid
+
+
 def cmd_robots(args: argparse.Namespace) -> int:
-    table = Table("robot", "arm DoF", "gripper DoF", "reach (m)", "available", "summary")
+    if args.check:
+        return check_robot_lines(robot_uid(args.check), args.trials, args.seed)
+    table = Table("robot", "arm DoF", "gripper DoF", "reach (m)", "available", "declared in", "summary")
     for spec in declared_robots():
         uid = spec.uid
         available = "yes" if is_available(uid) else f"needs the '{spec.needs_extra}' extra"
-        table.add_row(uid, str(spec.arm_dof), str(len(spec.gripper_joints)), f"{spec.reach_m:.2f}", available, spec.summary)
+        table.add_row(uid, str(spec.arm_dof), str(len(spec.gripper_joints)), f"{spec.reach_m:.2f}", available,
+                      spec.declared_in, spec.summary)
     out.print(table)
+    for problem in entry_point_problems():
+        err.print(f"problem: {problem}", markup=False, highlight=False)
     return 0
+
+
+def check_robot_lines(uid: str, trials: int, seed: int) -> int:
+    """`fleet robots --check`: one plain line per check; exit 1 when any found a problem."""
+    from fleet.robot_check import check_robot
+
+    if trials < 0:
+        raise UsageError(f"--trials {trials}: give 0 or more")
+    spec = get_robot(uid)
+    print(f"{uid}: {spec.arm_dof}-DoF arm, {len(spec.gripper_joints)} gripper joint(s), declared in {spec.declared_in}", flush=True)
+    problems = 0
+    for finding in check_robot(spec, trials, seed):
+        problems += not finding.ok
+        print(finding.line(), flush=True)
+    print(f"{uid}: {'no problems found' if problems == 0 else f'{problems} problem(s)'}")
+    return 0 if problems == 0 else 1
 
 
 def cmd_trials(args: argparse.Namespace) -> int:
@@ -90,7 +124,7 @@ def cmd_trials(args: argparse.Namespace) -> int:
 
     from fleet.trials import run_trials, trial_scene
 
-    get_robot(args.robot)
+    args.robot = robot_uid(args.robot)
     if args.trials < 1:
         raise SystemExit("fleet: error: --trials must be at least 1")
     try:
@@ -172,7 +206,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from fleet.launcher import Launcher, RunOptions
 
     check_run_flags(args)
-    load_scene(args.scene, arms=args.arms, robots=robot_facts())  # a bad scene: one line, before anything starts
+    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
     options = RunOptions(
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
         respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
@@ -332,7 +366,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, overrides)
     except GridError as exc:
         raise UsageError(str(exc)) from None
-    load_scene(args.scene, arms=args.arms, robots=robot_facts())  # a bad scene: one line, before anything runs
+    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything runs
     out_dir = output_folder("--out", args.out)
     scenes = scenes_for(cells, out_dir / "scenes")  # a bad --set: one line, before anything runs
     done = finished(out_dir, cells)
@@ -627,11 +661,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("scenes", help="list the bundled scenes")
     p.set_defaults(func=cmd_scenes)
 
-    p = sub.add_parser("robots", help="list the registered robot models")
+    p = sub.add_parser("robots", help="list the registered robot models, or check one (--check)")
+    p.add_argument("--check", metavar="ROBOT", default=None,
+                   help="a robot uid or robot YAML file: kinematics against the physics, home, gripper, pick trials")
+    p.add_argument("--trials", type=int, default=3, help="pick trials with --check (0: none)")
+    p.add_argument("--seed", type=int, default=0, help="first trial seed with --check")
     p.set_defaults(func=cmd_robots)
 
     p = sub.add_parser("trials", help="seeded pick-and-place trials: conveyor to bin, friction grasps")
-    p.add_argument("--robot", default="openclaw")
+    p.add_argument("--robot", default="openclaw", help="a robot uid or robot YAML file")
     p.add_argument("--trials", type=int, default=50)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--physics-hz", type=float, default=None, help="physics rate to try (a whole multiple of the 100 Hz servo rate)")

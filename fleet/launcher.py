@@ -25,7 +25,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
 from fleet.processes import ChildProcess, read_when_written, stop_children, write_text_atomically
-from scenes.loader import load_scene
+from fleet.scene_loading import load_scene
 
 STOP_GRACE_S = 1.5
 RECORDER_GRACE_S = 120.0  # a recorder behind the line finishes writing what it heard; killing it would lose the file

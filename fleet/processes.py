@@ -24,7 +24,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from scenes.loader import SceneError, load_scene
+from fleet.scene_loading import load_scene
+from scenes.loader import SceneError
 from scenes.schema import Scene
 
 PR_SET_PDEATHSIG = 1

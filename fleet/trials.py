@@ -18,7 +18,7 @@ from fleet.physics.world import WALL_M, World
 from robots.registry import get_robot
 from robots.skills.interface import PickPlaceTask
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, Phase, PickPlaceSkill
-from scenes.loader import load_scene
+from fleet.scene_loading import load_scene
 from scenes.schema import Arrival, Scene
 
 TRIAL_SCENE = "pick_cell"

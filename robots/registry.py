@@ -1,13 +1,23 @@
-"""The robot registry: `openclaw` always; `so101` and `panda` from the `models` extra (example-robot-data)."""
+"""The robot registry: `openclaw` always; `so101` and `panda` from the `models` extra (example-robot-data);
+robots that installed packages declare under the `clawfleet.robots` entry point group; robot files a scene names.
+
+An entry point may name a `RobotSpec`, a function returning one, or the path of a robot YAML file. One that
+cannot be loaded is not fatal: it is listed by `entry_point_problems` (and `fleet robots`), the rest work.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 from importlib import metadata
 from pathlib import Path
 
+from robots.robot_file import RobotFileError, load_robot_file
 from robots.spec import DriveGains, RobotSpec
 
 _REGISTRY: dict[str, RobotSpec] = {}
+_ENTRY_POINT_PROBLEMS: list[str] = []
+_entry_points_loaded = False
+ENTRY_POINT_GROUP = "clawfleet.robots"
 MODELS_EXTRA_HINT = "pip install 'clawfleet[models]'"
 
 
@@ -30,7 +40,57 @@ def register(spec: RobotSpec) -> RobotSpec:
     return spec
 
 
+def register_file(path: str | Path) -> RobotSpec:
+    """Register the robot a YAML file declares (again for the same file: the same robot; raises `RobotFileError`)."""
+    resolved = str(Path(path).expanduser().resolve())
+    for spec in _REGISTRY.values():
+        if spec.declared_in == resolved:
+            return spec
+    spec = load_robot_file(Path(path))
+    _load_entry_points()
+    if spec.uid in _REGISTRY:
+        raise RobotFileError(resolved, "uid", f"{spec.uid!r} is taken (declared in {_REGISTRY[spec.uid].declared_in})")
+    return register(spec)
+
+
+def _entry_point_spec(entry: metadata.EntryPoint) -> RobotSpec:
+    """The robot an entry point names: a spec, a function returning one, or a robot file's path."""
+    target = entry.load()
+    if callable(target) and not isinstance(target, RobotSpec):
+        target = target()
+    if isinstance(target, (str, Path)):
+        return load_robot_file(Path(target))
+    if not isinstance(target, RobotSpec):
+        raise TypeError(f"names a {type(target).__name__}, not a RobotSpec, a function returning one or a robot file path")
+    return target
+
+
+def _load_entry_points() -> None:
+    """Register every robot of the `clawfleet.robots` group, once; problems are kept, not raised."""
+    global _entry_points_loaded
+    if _entry_points_loaded:
+        return
+    _entry_points_loaded = True
+    for entry in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        dist = entry.dist.name if entry.dist is not None else "?"
+        where = f"entry point {entry.name!r} of {dist}"
+        try:
+            spec = _entry_point_spec(entry)
+            if spec.uid in _REGISTRY:
+                raise ValueError(f"robot {spec.uid!r} is taken (declared in {_REGISTRY[spec.uid].declared_in})")
+            register(dataclasses.replace(spec, declared_in=where) if spec.declared_in == "clawfleet" else spec)
+        except Exception as exc:  # another package's code: whatever it raises is reported, never fatal
+            _ENTRY_POINT_PROBLEMS.append(f"{where} ({entry.value}): {type(exc).__name__}: {exc}")
+
+
+def entry_point_problems() -> list[str]:
+    """One line per `clawfleet.robots` entry point that could not be loaded."""
+    _load_entry_points()
+    return list(_ENTRY_POINT_PROBLEMS)
+
+
 def robot_names() -> list[str]:
+    _load_entry_points()
     return sorted(_REGISTRY)
 
 
@@ -41,6 +101,7 @@ def declared_robots() -> list[RobotSpec]:
 
 def get_robot(uid: str) -> RobotSpec:
     """The declaration of `uid`; raises with the valid names, or with the extra to install."""
+    _load_entry_points()
     try:
         spec = _REGISTRY[uid]
     except KeyError:

@@ -45,8 +45,12 @@ class RobotSpec:
     width_per_gripper_unit_m: float | None = None
     fingertip_below_tool_m: float = 0.0
     package_prefix: str | None = None
+    package_root_dir: Path | None = None
+    """Where `package_prefix` URIs resolve (default: the folder two above the URDF's, as example-robot-data lays out)."""
     keyframes: dict[str, tuple[float, ...]] = field(default_factory=dict)
     needs_extra: str | None = None
+    declared_in: str = "clawfleet"
+    """Where the declaration came from: clawfleet itself, a robot file's path, or an entry point."""
 
     @property
     def arm_dof(self) -> int:
@@ -69,6 +73,6 @@ class RobotSpec:
         path = self.urdf_path()
         text = path.read_text()
         if self.package_prefix is not None:
-            root = path.parents[2]
+            root = self.package_root_dir if self.package_root_dir is not None else path.parents[2]
             text = text.replace(self.package_prefix, str(root) + "/")
         return re.sub(r"<mimic[^>]*/>", "", text)

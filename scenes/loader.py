@@ -7,16 +7,17 @@ names exist and how far each reaches) is passed in by the caller as `RobotFacts`
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-import yaml
 from pydantic import ValidationError
 
 from scenes.randomise import draw
 from scenes.schema import Arm, Scene, Station
+from scenes.yaml_file import DeclarationError, first_error, regular_file, yaml_mapping
+from scenes.yaml_file import yaml_text as declaration_text
 
 MIN_BASE_SEPARATION_M = 0.25
 BUNDLED_DIR = Path(str(resources.files("scenes") / "bundled"))
@@ -29,12 +30,12 @@ class RobotFacts:
     reach_m: float
 
 
-class SceneError(ValueError):
-    """A scene that cannot be used: names the file, the field path and the reason, on one line."""
+RobotFileReader = Callable[[Path], tuple[str, RobotFacts]]
+"""Reads (and registers) a robot file a scene names: its uid and facts, or a `ValueError` saying what is wrong."""
 
-    def __init__(self, file: str, field: str, reason: str) -> None:
-        self.file, self.field, self.reason = file, field, reason
-        super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
+
+class SceneError(DeclarationError):
+    """A scene that cannot be used: names the file, the field path and the reason, on one line."""
 
 
 def bundled_scene_names() -> list[str]:
@@ -49,13 +50,7 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
     """A bundled scene's file for a name, or the given path; error lists the bundled names."""
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") or path.exists():
-        if path.is_dir():
-            raise SceneError(str(path), "", "a directory, not a scene file")
-        if path.exists() and not path.is_file():
-            raise SceneError(str(path), "", "not a regular file (a device or a pipe)")
-        if not path.is_file():
-            raise SceneError(str(path), "", "no such file")
-        return path
+        return regular_file(path, "scene", SceneError)
     bundled = BUNDLED_DIR / f"{name_or_path}.yaml"
     if bundled.is_file():
         return bundled
@@ -63,21 +58,8 @@ def resolve_scene_path(name_or_path: str | Path) -> Path:
 
 
 def yaml_text(path: Path, label: str) -> str:
-    """The file's text: refused at once when too large for a scene, or when it is not UTF-8 (naming the byte)."""
-    size = path.stat().st_size
-    if size > MAX_SCENE_BYTES:
-        raise SceneError(label, "", f"{size:,} bytes: larger than a scene can be ({MAX_SCENE_BYTES:,} bytes at most)")
-    raw = path.read_bytes()
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SceneError(label, "", f"not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r})") from None
-
-
-def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, str]:
-    """The first problem pydantic found: the field's dotted path (`top` for the model as a whole) and the reason."""
-    err = exc.errors()[0]
-    return ".".join(str(p) for p in err["loc"]) or top, err["msg"]
+    """The scene file's text: refused at once when too large for a scene, or when it is not UTF-8."""
+    return declaration_text(path, label, "scene", MAX_SCENE_BYTES, SceneError)
 
 
 def load_scene(
@@ -86,24 +68,19 @@ def load_scene(
     arms: int | None = None,
     robots: Mapping[str, RobotFacts] | None = None,
     seed: int | None = None,
+    read_robot_file: RobotFileReader | None = None,
 ) -> Scene:
     """Read, validate and expand a scene. `arms` sets an arm row's count; `robots` enables model and reach checks;
-    `seed` replaces the scene's. Its `randomise` ranges are drawn from the seed (`scenes.randomise`)."""
+    `seed` replaces the scene's. Its `randomise` ranges are drawn from the seed (`scenes.randomise`).
+    Its `robot_files` become absolute paths, each given to `read_robot_file`, whose robots join `robots`."""
     path = resolve_scene_path(name_or_path)
     label = str(path)
-    data = yaml_text(path, label)
-    try:
-        data = yaml.safe_load(data)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else ""
-        raise SceneError(label, where, f"not valid YAML: {getattr(exc, 'problem', exc)}") from None
-    if not isinstance(data, dict):
-        raise SceneError(label, "", "a scene file must hold a mapping of fields at its top level")
+    data = yaml_mapping(path, label, "scene", MAX_SCENE_BYTES, SceneError)
     try:
         scene = Scene.model_validate(data)
     except ValidationError as exc:
         raise SceneError(label, *first_error(exc)) from None
+    scene, robots = with_robot_files(scene, path, label, robots, read_robot_file)
     scene = expand_arm_row(scene, arms, label)
     if seed is not None:
         if seed < 0:
@@ -112,6 +89,25 @@ def load_scene(
     scene = draw(scene)
     check_scene(scene, label, robots)
     return scene
+
+
+def with_robot_files(scene: Scene, path: Path, label: str, robots: Mapping[str, RobotFacts] | None,
+                     read_robot_file: RobotFileReader | None) -> tuple[Scene, Mapping[str, RobotFacts] | None]:
+    """The scene with its robot files as absolute paths, and `robots` with theirs (each read by `read_robot_file`)."""
+    if not scene.robot_files:
+        return scene, robots
+    files = [str((path.parent / f).resolve()) if not Path(f).is_absolute() else f for f in scene.robot_files]
+    known = dict(robots) if robots is not None else None
+    for i, file in enumerate(files):
+        if read_robot_file is None:
+            continue
+        try:
+            uid, facts = read_robot_file(Path(file))
+        except ValueError as exc:
+            raise SceneError(label, f"robot_files.{i}", str(exc)) from None
+        if known is not None:
+            known[uid] = facts
+    return scene.model_copy(update={"robot_files": files}), known
 
 
 def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> Scene:

@@ -250,6 +250,8 @@ class Scene(Strict):
     """Standard deviation of the noise added to the part positions controllers see (metres)."""
     network: Network | None = None
     """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
+    robot_files: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field([], max_length=16)
+    """Robot declaration files (YAML, docs/robots.md) whose uids this scene's arms may name; relative to the scene file."""
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":

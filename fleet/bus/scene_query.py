@@ -8,6 +8,7 @@ import time
 import zenoh
 
 from fleet.bus.keys import Keys
+from fleet.scene_loading import use_scene_robots
 from scenes.schema import Scene
 
 
@@ -21,7 +22,7 @@ def fetch_scene(session: zenoh.Session, keys: Keys, timeout_s: float = 10.0) -> 
     while time.monotonic() < deadline:
         for reply in session.get(keys.scene, timeout=min(1.0, max(deadline - time.monotonic(), 0.1))):
             if reply.ok is not None:
-                return Scene.model_validate_json(reply.ok.payload.to_bytes())
+                return use_scene_robots(Scene.model_validate_json(reply.ok.payload.to_bytes()))
         time.sleep(0.1)
     raise SceneUnavailable(f"no sim of run {keys.run!r} answered on {keys.scene} within {timeout_s:.0f} s")
 

@@ -26,7 +26,7 @@ from fleet.physics.render import require_render
 from fleet.physics.world import World
 from robots.frames import yaw_transform
 from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
-from scenes.loader import load_scene
+from fleet.scene_loading import load_scene
 
 ACTION_MODES = (*CONTINUOUS_MODES, "task")
 TASK_MODE_TASKS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from

@@ -137,9 +137,10 @@ class Recording:
 
     @property
     def scene(self):
+        from fleet.scene_loading import use_scene_robots
         from scenes.schema import Scene
 
-        return Scene.model_validate_json(self.scene_json)
+        return use_scene_robots(Scene.model_validate_json(self.scene_json))
 
     @property
     def raw_keys(self) -> list[str]:

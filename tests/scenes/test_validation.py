@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet.cli import robot_facts
+from fleet.scene_loading import robot_facts
 from scenes import SceneError, bundled_scene_names, load_scene
 from scenes.loader import BUNDLED_DIR
 

@@ -1,0 +1,59 @@
+"""Reading a YAML declaration file (a scene, a robot): size and encoding checked, errors naming file and field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+from pydantic import ValidationError
+
+
+class DeclarationError(ValueError):
+    """A declaration file that cannot be used: names the file, the field path and the reason, on one line."""
+
+    def __init__(self, file: str, field: str, reason: str) -> None:
+        self.file, self.field, self.reason = file, field, reason
+        super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
+
+
+def regular_file(path: Path, what: str, error: type[DeclarationError] = DeclarationError) -> Path:
+    """`path` if it is a regular file, else the error saying what it is instead."""
+    if path.is_dir():
+        raise error(str(path), "", f"a directory, not a {what} file")
+    if path.exists() and not path.is_file():
+        raise error(str(path), "", "not a regular file (a device or a pipe)")
+    if not path.is_file():
+        raise error(str(path), "", "no such file")
+    return path
+
+
+def yaml_text(path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError) -> str:
+    """The file's text: refused at once when larger than `max_bytes`, or when it is not UTF-8 (naming the byte)."""
+    size = path.stat().st_size
+    if size > max_bytes:
+        raise error(label, "", f"{size:,} bytes: larger than a {what} can be ({max_bytes:,} bytes at most)")
+    raw = path.read_bytes()
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(label, "", f"not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r})") from None
+
+
+def yaml_mapping(path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError) -> dict:
+    """The file's top-level mapping of fields; one-line errors for size, encoding, YAML syntax and shape."""
+    text = yaml_text(path, label, what, max_bytes, error)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else ""
+        raise error(label, where, f"not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    if not isinstance(data, dict):
+        raise error(label, "", f"a {what} file must hold a mapping of fields at its top level")
+    return data
+
+
+def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, str]:
+    """The first problem pydantic found: the field's dotted path (`top` for the model as a whole) and the reason."""
+    err = exc.errors()[0]
+    return ".".join(str(p) for p in err["loc"]) or top, err["msg"]

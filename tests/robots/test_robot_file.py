@@ -1,0 +1,108 @@
+"""A robot declared in a YAML file: the same facts as a registered one, and one line naming file and field per mistake."""
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+import yaml
+
+from robots.registry import get_robot, is_available, register_file
+from robots.robot_file import RobotFileError, load_robot_file
+
+EXAMPLE = Path(__file__).parents[2] / "examples" / "robots" / "my_claw.yaml"
+FACTS = ("arm_joints", "gripper_joints", "tool_frame", "home_q", "gripper_open", "gripper_closed", "grasp_width_m", "reach_m",
+         "arm_gains", "gripper_gains", "finger_links", "finger_friction", "approach_axis_tool", "closing_axis_tool",
+         "width_per_gripper_unit_m", "fingertip_below_tool_m", "keyframes")
+
+
+def written(tmp_path: Path, change: dict, name: str = "arm.yaml") -> Path:
+    """The example robot file with `change` applied (a value None removes the field), written under tmp_path."""
+    data = yaml.safe_load(EXAMPLE.read_text())
+    data["urdf"] = str((EXAMPLE.parent / data["urdf"]).resolve())
+    for key, value in change.items():
+        if value is None:
+            data.pop(key, None)
+        else:
+            data[key] = value
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_the_example_file_declares_the_openclaw_under_a_new_uid():
+    spec = load_robot_file(EXAMPLE)
+    builtin = get_robot("openclaw")
+    assert spec.uid == "my_claw" and spec.declared_in == str(EXAMPLE.resolve())
+    assert {f: getattr(spec, f) for f in FACTS} == {f: getattr(builtin, f) for f in FACTS}
+    assert spec.urdf_text() == builtin.urdf_text()
+
+
+@pytest.mark.parametrize("change, field, says", [
+    ({"tool_fram": "tool_link"}, "tool_fram", "Extra inputs are not permitted"),
+    ({"uid": None}, "uid", "Field required"),
+    ({"uid": "My Arm"}, "uid", "should match pattern"),
+    ({"arm_joints": ["shoulder_pan", "shoulder_lift", "elbw", "forearm_roll", "wrist_pitch", "wrist_roll"]},
+     "arm_joints.2", "no movable joint 'elbw' in the URDF; did you mean elbow"),
+    ({"tool_frame": "tool"}, "tool_frame", "no frame 'tool' in the URDF; did you mean tool_link"),
+    ({"finger_links": ["finger_left_link", "finger_rite_link"]}, "finger_links.1", "no link 'finger_rite_link'"),
+    ({"home_q": [0.0, -0.2, 1.9]}, "home_q", "3 values for 6 joints"),
+    ({"home_q": [0.0, -0.2, 9.0, 0.0, 1.44, 0.0]}, "home_q.2", "9 is beyond joint 'elbow''s limits"),
+    ({"gripper_closed_q": [0.035, 0.035]}, "gripper_closed_q", "equal to gripper_open_q"),
+    ({"gripper_open_q": [0.035, 0.5]}, "gripper_open_q.1", "beyond joint 'finger_right''s limits"),
+    ({"grasp_width_m": [0.06, 0.02]}, "(top level)", "must be below the largest"),
+    ({"approach_axis_tool": [0, 0, 2]}, "approach_axis_tool", "unit vector"),
+    ({"home_q": [0.0, "nan", 1.9, 0.0, 1.44, 0.0]}, "home_q.1", "finite number"),
+    ({"urdf": "nowhere/arm.urdf"}, "urdf", "no such file"),
+    ({"keyframes": {"up": [0, 0]}}, "keyframes.up", "2 values for 6 joints"),
+])
+def test_each_kind_of_mistake_is_one_line_naming_the_file_and_field(tmp_path, change, field, says):
+    path = written(tmp_path, change)
+    with pytest.raises(RobotFileError) as info:
+        load_robot_file(path)
+    message = str(info.value)
+    assert message.startswith(f"{path.resolve()}: {field}: ") and says in message and "\n" not in message, message
+
+
+def test_files_that_are_not_robot_declarations_are_refused_in_one_line(tmp_path):
+    (tmp_path / "binary.yaml").write_bytes(b"uid: x\n\xff\xfe")
+    (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
+    (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'></robot>")
+    cases = {
+        tmp_path / "binary.yaml": "not UTF-8 text (byte 7",
+        tmp_path / "list.yaml": "a robot file must hold a mapping of fields",
+        tmp_path: "a directory, not a robot file",
+        tmp_path / "missing.yaml": "no such file",
+        written(tmp_path, {"urdf": str(tmp_path / "broken.urdf")}, "bad_urdf.yaml"): "urdf: not a URDF Pinocchio can read",
+    }
+    for path, says in cases.items():
+        with pytest.raises(RobotFileError) as info:
+            load_robot_file(path)
+        assert says in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_a_file_registers_once_and_its_uid_cannot_be_taken_twice(tmp_path):
+    first = register_file(written(tmp_path, {"uid": "claw_twice"}, "a.yaml"))
+    assert register_file(tmp_path / "a.yaml") is first and get_robot("claw_twice") is first
+    with pytest.raises(RobotFileError, match=r"uid: 'claw_twice' is taken \(declared in .*a\.yaml\)"):
+        register_file(written(tmp_path, {"uid": "claw_twice"}, "b.yaml"))
+    with pytest.raises(RobotFileError, match="uid: 'openclaw' is taken"):
+        register_file(written(tmp_path, {"uid": "openclaw"}, "c.yaml"))
+
+
+@pytest.mark.skipif(not is_available("panda"), reason="needs the models extra")
+def test_an_arm_from_another_package_with_package_uris_loads_as_the_registered_one(tmp_path):
+    panda = get_robot("panda")
+    urdf = panda.urdf_path()
+    facts = {f: getattr(panda, f) for f in FACTS}
+    # its URDF names meshes as package://example-robot-data/robots/...: the packages lie in share/
+    data = {"uid": "my_panda", "urdf": str(urdf), "package_root": str(urdf.parents[4]), **{
+        "arm_joints": list(facts["arm_joints"]), "gripper_joints": list(facts["gripper_joints"]), "tool_frame": facts["tool_frame"],
+        "home_q": list(facts["home_q"]), "gripper_open_q": list(facts["gripper_open"]), "gripper_closed_q": list(facts["gripper_closed"]),
+        "grasp_width_m": list(facts["grasp_width_m"]), "reach_m": facts["reach_m"],
+        "arm_gains": dataclasses.asdict(facts["arm_gains"]), "gripper_gains": dataclasses.asdict(facts["gripper_gains"]),
+        "finger_links": list(facts["finger_links"]), "width_per_gripper_unit_m": facts["width_per_gripper_unit_m"]}}
+    path = tmp_path / "my_panda.yaml"
+    path.write_text(yaml.safe_dump(data))
+    spec = load_robot_file(path)
+    assert spec.urdf_text() == panda.urdf_text()  # package:// URIs resolved to the same meshes
+    assert {f: getattr(spec, f) for f in FACTS} == facts
