@@ -15,11 +15,11 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from robots.spec import DriveGains, RobotSpec
 from scenes.schema import NAME_PATTERN
-from scenes.yaml_file import DeclarationError, first_error, regular_file, yaml_mapping
+from scenes.yaml_file import DeclarationError, read_declaration, regular_file
 
 MAX_ROBOT_FILE_BYTES = 100_000
 PACKAGE_URI = "package://"
@@ -101,11 +101,7 @@ def load_robot_file(path: Path) -> RobotSpec:
     """The robot a YAML file declares, checked against its URDF; raises `RobotFileError` naming file and field."""
     path = regular_file(Path(path), "robot", RobotFileError).resolve()
     label = str(path)
-    data = yaml_mapping(path, label, "robot", MAX_ROBOT_FILE_BYTES, RobotFileError)
-    try:
-        decl = RobotFile.model_validate(data)
-    except ValidationError as exc:
-        raise RobotFileError(label, *first_error(exc)) from None
+    decl = read_declaration(path, label, "robot", MAX_ROBOT_FILE_BYTES, RobotFile, RobotFileError)
     urdf = _relative_to(path, decl.urdf)
     if not urdf.is_file():
         raise RobotFileError(label, "urdf", f"no such file {urdf}")

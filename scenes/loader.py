@@ -12,11 +12,10 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from pydantic import ValidationError
 
 from scenes.randomise import draw
 from scenes.schema import Arm, Scene, Station
-from scenes.yaml_file import DeclarationError, first_error, regular_file, yaml_mapping
+from scenes.yaml_file import DeclarationError, first_error, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
 from scenes.yaml_file import yaml_text as declaration_text
 
 MIN_BASE_SEPARATION_M = 0.25
@@ -75,11 +74,7 @@ def load_scene(
     Its `robot_files` become absolute paths, each given to `read_robot_file`, whose robots join `robots`."""
     path = resolve_scene_path(name_or_path)
     label = str(path)
-    data = yaml_mapping(path, label, "scene", MAX_SCENE_BYTES, SceneError)
-    try:
-        scene = Scene.model_validate(data)
-    except ValidationError as exc:
-        raise SceneError(label, *first_error(exc)) from None
+    scene = read_declaration(path, label, "scene", MAX_SCENE_BYTES, Scene, SceneError)
     scene, robots = with_robot_files(scene, path, label, robots, read_robot_file)
     scene = expand_arm_row(scene, arms, label)
     if seed is not None:

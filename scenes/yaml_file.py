@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TypeVar
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
+
+Model = TypeVar("Model", bound=BaseModel)
 
 
 class DeclarationError(ValueError):
@@ -57,3 +60,13 @@ def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, st
     """The first problem pydantic found: the field's dotted path (`top` for the model as a whole) and the reason."""
     err = exc.errors()[0]
     return ".".join(str(p) for p in err["loc"]) or top, err["msg"]
+
+
+def read_declaration(path: Path, label: str, what: str, max_bytes: int, model: type[Model],
+                     error: type[DeclarationError] = DeclarationError) -> Model:
+    """The file's fields validated by `model`; the first problem as one line naming the field."""
+    data = yaml_mapping(path, label, what, max_bytes, error)
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise error(label, *first_error(exc)) from None
