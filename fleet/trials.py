@@ -8,6 +8,7 @@ the pick skill in process and judges success by where the part comes to rest.
 from __future__ import annotations
 
 from collections.abc import Callable
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,8 @@ import numpy as np
 from fleet.observe import arm_observation, base_transform, part_observations
 from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import WALL_M, World
+from robots.frames import wrap_angle
+from robots.kinematics import KinematicModel
 from robots.registry import get_robot
 from robots.skills.interface import PickPlaceTask
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, Phase, PickPlaceSkill
@@ -25,6 +28,7 @@ TRIAL_SCENE = "pick_cell"
 REFERENCE_REACH_M = 0.62
 SETTLE_S = 0.3
 TIME_LIMIT_S = 15.0
+FACING_MARGIN = 0.85  # of the first joint's range: the cell's yaw is kept while belt and bin are this well inside it
 
 
 @dataclass(frozen=True)
@@ -50,7 +54,8 @@ def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_i
 
     conveyor = scene.conveyor.model_copy(update={"pose": scaled(scene.conveyor.pose), "width_m": scene.conveyor.width_m * max(k, 0.7)})
     stations = [s.model_copy(update={"pose": scaled(s.pose)}) for s in scene.stations]
-    arms = [a.model_copy(update={"model": robot}) for a in scene.arms]
+    arms = [a.model_copy(update={"model": robot, "base": a.base.model_copy(update={"yaw_deg": facing_deg(spec, a, conveyor, stations[0])})})
+            for a in scene.arms]
     feeders = [f.model_copy(update={"arrival": Arrival(schedule_s=[])}) for f in scene.feeders]  # one part, spawned by the trial
     update = {"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms, "feeders": feeders}
     if physics_hz is not None:
@@ -58,6 +63,25 @@ def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_i
     if solver_iterations is not None:
         update["solver_position_iterations"] = solver_iterations
     return scene.revalidated(**update)
+
+
+def facing_deg(spec, arm, conveyor, bin_station) -> float:
+    """The arm's base yaw: the cell's own, unless the arm's first joint cannot turn from the belt to the bin that
+    way (SO-101: +-110 degrees); then turned to face between them."""
+    km = KinematicModel(spec)
+    j = km.arm_q_index[0]
+    limit = min(abs(km.lower[j]), abs(km.upper[j]))
+    x0, y0 = arm.base.xyz[0], arm.base.xyz[1]
+    cx, cy = conveyor.pose.xyz[0], conveyor.pose.xyz[1]
+    along = (math.cos(conveyor.pose.yaw_rad), math.sin(conveyor.pose.yaw_rad))
+    s_m = (x0 - cx) * along[0] + (y0 - cy) * along[1]  # the belt's nearest point to the arm
+    pick = (cx + along[0] * s_m, cy + along[1] * s_m)
+    bearings = [math.atan2(y - y0, x - x0) for x, y in (pick, bin_station.pose.xyz[:2])]
+    relative = [wrap_angle(b - arm.base.yaw_rad) for b in bearings]
+    if max(abs(r) for r in relative) <= FACING_MARGIN * limit:
+        return arm.base.yaw_deg
+    spread = wrap_angle(bearings[1] - bearings[0])
+    return math.degrees(wrap_angle(bearings[0] + spread / 2))
 
 
 def part_in_bin(world: World, part_id: int, bin_name: str) -> bool:

@@ -37,6 +37,7 @@ class IKOptions:
     restarts: int = 4
     seed: int = 0
     stall_iterations: int = 25  # give an attempt up when its error has not dropped by 1% for this many iterations
+    rotation_weight: float = 1.0  # below 1: position matters more than orientation where both cannot be met
 
 
 def _axis_error(current_axis: np.ndarray, target_axis: np.ndarray) -> np.ndarray:
@@ -59,9 +60,9 @@ def _solve_once(
     q0: np.ndarray,
     axis_tool: np.ndarray | None,
     opts: IKOptions,
+    cols: np.ndarray,
 ) -> IKResult:
-    q = km.clamp(q0.copy())
-    cols = km.arm_q_index  # revolute/prismatic joints: idx_v == idx_q
+    q = km.clamp(q0.copy())  # cols: the joints moved (revolute/prismatic joints: idx_v == idx_q)
     p_t, r_t = target[:3, 3], target[:3, :3]
     pos_err = ang_err = np.inf
     best_err, best_at = np.inf, 0
@@ -87,6 +88,8 @@ def _solve_once(
             best_err, best_at = err, it
         elif it - best_at >= opts.stall_iterations:  # stuck (a joint limit, out of reach): a restart does better
             return IKResult(q, False, pos_err, ang_err, it)
+        if opts.rotation_weight != 1.0:
+            e_rot, j = e_rot * opts.rotation_weight, np.vstack([j[:3], j[3:] * opts.rotation_weight])
         e = np.concatenate([e_pos, e_rot])
         jjt = j @ j.T + (opts.damping**2) * np.eye(6)
         dq = j.T @ np.linalg.solve(jjt, e)
@@ -103,24 +106,26 @@ def solve_ik(
     *,
     approach_axis_only: bool = False,
     options: IKOptions = IKOptions(),
+    locked: tuple[int, ...] = (),
 ) -> IKResult:
     """Joint configuration putting the tool at a target pose in the base frame.
 
     With `approach_axis_only`, only the target's position and the direction of
     the tool's approach axis are matched (rotation about that axis is free), as
-    a 5-DoF arm needs. Starts from `q_start`, then from seeded random
-    configurations; returns the best attempt, flagged unsuccessful if none converged.
+    a 5-DoF arm needs. Arm joints listed in `locked` (indices into the arm's joints) stay as
+    `q_start` has them. Starts from `q_start`, then from seeded random configurations; returns
+    the best attempt, flagged unsuccessful if none converged.
     """
     axis = np.asarray(km.spec.approach_axis_tool, dtype=float) if approach_axis_only else None
-    best = _solve_once(km, transform_target_to_base, q_start, axis, options)
+    cols = np.delete(km.arm_q_index, list(locked)) if locked else km.arm_q_index
+    best = _solve_once(km, transform_target_to_base, q_start, axis, options, cols)
     rng = np.random.default_rng(options.seed)
     for _ in range(options.restarts):
         if best.success:
             break
         q_seed = q_start.copy()
-        cols = km.arm_q_index
         q_seed[cols] = rng.uniform(km.lower[cols], km.upper[cols])
-        attempt = _solve_once(km, transform_target_to_base, q_seed, axis, options)
+        attempt = _solve_once(km, transform_target_to_base, q_seed, axis, options, cols)
         if attempt.success or attempt.position_error_m < best.position_error_m:
             best = attempt
     return best

@@ -29,6 +29,18 @@ class KinematicModel:
         self.velocity_limit = self.model.velocityLimit.copy()
         self._closed_q = pin.neutral(self.model)  # the neutral configuration with the gripper closed
         self._closed_q[self.gripper_q_index] = spec.gripper_closed
+        self._pan: tuple[np.ndarray, float] | None = None
+
+    def first_joint_axis(self) -> tuple[np.ndarray, float]:
+        """Where the first arm joint's axis stands in the base frame (its origin at the home pose) and +1 or -1 as
+        it turns about +z or -z: the joint that aims the arm (every registered arm's is vertical)."""
+        if self._pan is None:
+            q = self.full_q(np.asarray(self.spec.home_q, float))
+            joint = self.model.getJointId(self.spec.arm_joints[0])
+            pin.computeJointJacobians(self.model, self.data, q)
+            column = pin.getJointJacobian(self.model, self.data, joint, pin.ReferenceFrame.WORLD)[:, self.model.joints[joint].idx_v]
+            self._pan = (self.data.oMi[joint].translation.copy(), 1.0 if column[5] >= 0 else -1.0)  # angular part: the axis
+        return self._pan
 
     @property
     def nq(self) -> int:

@@ -49,6 +49,16 @@ class RobotSpec:
     """Where `package_prefix` URIs resolve (default: the folder two above the URDF's, as example-robot-data lays out)."""
     keyframes: dict[str, tuple[float, ...]] = field(default_factory=dict)
     needs_extra: str | None = None
+    fixed_jaw_face_m: float | None = None
+    """A gripper with one fixed jaw (SO-101): where that jaw's inner face lies along `closing_axis_tool` (the way the
+    moving jaw closes) from the tool frame; a part's centre goes half its width short of it. None: the jaws close
+    symmetrically about the tool frame."""
+    pick_timing: dict[str, float] = field(default_factory=dict)
+    """This robot's values for fields of the pick skill's timing (`PickPlaceTiming`: speeds, hover and lift heights)."""
+    max_approach_tilt_deg: float = 0.0
+    """How far from straight down the claw may lean (outwards, away from the base) where straight down is out of reach."""
+    match_yaw: bool = True
+    """An arm of fewer than six joints also turns its claw to the grasp's yaw where it can (else only the approach axis)."""
     declared_in: str = "clawfleet"
     """Where the declaration came from: clawfleet itself, a robot file's path, or an entry point."""
 
@@ -67,6 +77,13 @@ class RobotSpec:
             return 1.0
         c, o = self.gripper_closed[0], self.gripper_open[0]
         return (width_m / self.width_per_gripper_unit_m - c) / (o - c)
+
+    def grasp_centre_tool(self, width_m: float) -> tuple[float, float, float]:
+        """Where a part `width_m` wide sits between the jaws, in the tool frame (the origin for symmetric jaws)."""
+        if self.fixed_jaw_face_m is None:
+            return (0.0, 0.0, 0.0)
+        k = self.fixed_jaw_face_m - width_m / 2
+        return tuple(float(a * k) for a in self.closing_axis_tool)
 
     def urdf_text(self) -> str:
         """The URDF with package URIs resolved and <mimic> removed: every joint is driven on its own."""

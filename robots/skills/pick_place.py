@@ -61,6 +61,7 @@ PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) abo
 ORDER = [Phase.APPROACH, Phase.DESCEND, Phase.CLOSE, Phase.LIFT, Phase.TRANSFER, Phase.LOWER, Phase.RELEASE, Phase.RETREAT, Phase.HOME]
 FAILED_STATUSES = ("aborted", "rejected")
 LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
+MAX_KNOT_JUMP_RAD = 0.5  # a Cartesian path's knot that would turn a joint further than this from the one before is not kept
 MAX_RESENDS = 2  # a batch of goals lost again after this many sends ends the task failed
 
 
@@ -84,6 +85,11 @@ class PickPlaceTiming:
     clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home
     home_tolerance_rad: float = 0.05  # within this of the home pose on every joint counts as home
     detour_after_s: float = 2.0  # a transfer denied this long goes home first (the arm in the way may be waiting for it)
+
+    @classmethod
+    def for_robot(cls, spec: RobotSpec) -> "PickPlaceTiming":
+        """The default timing with the robot's own values (`RobotSpec.pick_timing`)."""
+        return dataclasses.replace(cls(), **spec.pick_timing)
 
 
 @dataclass(frozen=True)
@@ -115,13 +121,13 @@ class PickPlaceSkill:
         spec: RobotSpec,
         transform_base_to_world: np.ndarray,
         *,
-        timing: PickPlaceTiming = PickPlaceTiming(),
+        timing: PickPlaceTiming | None = None,
         model: KinematicModel | None = None,
         grants_required: bool = False,
         decision_period_s: float = 1.0 / DEFAULT_DECISION_HZ,
         latency_s: float | None = None,
     ) -> None:
-        self.spec, self.timing = spec, timing
+        self.spec, self.timing = spec, timing if timing is not None else PickPlaceTiming.for_robot(spec)
         self.grants_required = grants_required
         self.decision_period_s = decision_period_s
         self.latency_s = decision_period_s if latency_s is None else latency_s
@@ -149,6 +155,10 @@ class PickPlaceSkill:
         self._then_cache: tuple = (None, ([], []))  # the local stage of the move last asked for
         self._hover_world = np.zeros(3)
         self.place_yaw = 0.0
+        self.pick_tilt_rad = self.place_tilt_rad = 0.0  # how far the claw leans from straight down at each end
+        self.grasp_centre = (0.0, 0.0, 0.0)  # where the part sits between the jaws, tool frame (off centre: one fixed jaw)
+        self._grasp_world = np.zeros(3)
+        self._pick_up = self._place_up = np.array([0.0, 0.0, 1.0])  # the way the claw rises from the part, from the place
         self.detours = 0
 
     @property
@@ -156,8 +166,20 @@ class PickPlaceSkill:
         return tuple(self.spec.arm_joints)
 
     # --- geometry -------------------------------------------------------------------
-    def _ik(self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray) -> tuple[np.ndarray, bool]:
-        return self.top_down.solve(position_world, yaw_world, q_start)
+    def _ik(self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray, tilt_rad: float) -> tuple[np.ndarray, bool]:
+        return self.top_down.solve(position_world, yaw_world, q_start, tilt_rad, self.grasp_centre)
+
+    def _least_tilt(self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0) -> tuple[float, np.ndarray] | None:
+        """The most vertical claw (straight down where it can) that reaches `up_m` above a spot (and `below_m`
+        straight above it first), and its joints."""
+        found = self.top_down.least_tilt([spot_world], yaw_world, self.q_cmd, self.grasp_centre,
+                                         lambda tilt: [self._rise(spot_world, yaw_world, tilt, up_m, below_m)])
+        return None if found is None else (found[0], found[1][0])
+
+    def _rise(self, spot_world: np.ndarray, yaw_world: float, tilt_rad: float, up_m: float, below_m: float = 0.0) -> np.ndarray:
+        """From a spot to the claw `up_m` above it: `below_m` straight up, then `up_m` the way the claw rises."""
+        up = self.top_down.up_between_jaws(spot_world, yaw_world, tilt_rad)
+        return np.array([up[0] * up_m, up[1] * up_m, below_m + up[2] * up_m])
 
     def _natural_yaw(self, position_world: np.ndarray) -> float:
         return self.top_down.natural_yaw(position_world)
@@ -170,7 +192,11 @@ class PickPlaceSkill:
         sx, sy, _ = part.size_m
         axes = rotation_from_wxyz(part.quaternion_wxyz)
         across = axes[:, 0] if sx <= sy else axes[:, 1]
-        base = math.atan2(across[0], -across[1])  # tool y = (sin yaw, -cos yaw) along `across`
+        cx, cy, _ = self.spec.closing_axis_tool  # pointing down, the tool's closing axis lies at yaw + atan2(-cy, cx)
+        if (cx, cy) == (0.0, 1.0):  # the usual claw, closing along tool y = (sin yaw, -cos yaw)
+            base = math.atan2(across[0], -across[1])
+        else:
+            base = math.atan2(across[1], across[0]) - math.atan2(-cy, cx)
         step = math.pi / 2 if abs(sx - sy) < 1e-6 else math.pi
         candidates = [wrap_angle(base + k * step) for k in range(int(round(2 * math.pi / step)))]
         return min(candidates, key=lambda c: abs(wrap_angle(c - natural)))
@@ -220,6 +246,7 @@ class PickPlaceSkill:
         self._unconfirmed = []
         self.q_cmd = np.asarray(obs.q, float).copy()
         self.grasp_yaw = self._grasp_yaw(part)
+        self.grasp_centre = self.spec.grasp_centre_tool(part.width_m)
         tip = self.spec.fingertip_below_tool_m
         self.grasp_z = max(task.surface_z_m + part.height_m / 2, task.surface_z_m + tip + 0.004)
         self.grasp_z = min(self.grasp_z, task.surface_z_m + part.height_m + tip - 0.010)
@@ -237,15 +264,19 @@ class PickPlaceSkill:
         lead = t.descend_s
         seg = None
         for _ in range(2):
-            hover = part.position + self.velocity * lead
-            hover = np.array([hover[0], hover[1], self.grasp_z + t.hover_m])
-            q_hover, ok = self._ik(hover, self.grasp_yaw, self.q_cmd)
-            if not ok:
+            at = part.position + self.velocity * lead
+            grasp = np.array([at[0], at[1], self.grasp_z])
+            found = self._least_tilt(grasp, self.grasp_yaw, t.hover_m)
+            if found is None:
+                hover = grasp + [0.0, 0.0, t.hover_m]
                 self._fail(f"part {part.part_id} cannot be reached from above at {np.round(hover, 3).tolist()}")
                 return
+            self.pick_tilt_rad, q_hover = found
+            self._pick_up = self.top_down.up_between_jaws(grasp, self.grasp_yaw, self.pick_tilt_rad)
+            hover = grasp + self._rise(grasp, self.grasp_yaw, self.pick_tilt_rad, t.hover_m)
             seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
-        self._hover_world = hover
+        self._hover_world, self._grasp_world = hover, grasp
         self._begin_segment(seg, Phase.APPROACH, obs.time_s)
 
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
@@ -293,22 +324,21 @@ class PickPlaceSkill:
         if self.phase == Phase.APPROACH and self.task is not None:
             d, c, lift = t.descend_s, t.close_s, t.lift_s
             v = self.velocity
-            hover = self._hover_world
-            down = np.array([hover[0], hover[1], self.grasp_z])
-            points = [down + v * d, down + v * (d + c), down + v * (d + c + 0.15) + [0, 0, t.lift_m]]
+            down = self._grasp_world
+            points = [down + v * d, down + v * (d + c), down + v * (d + c + 0.15) + self._pick_up * t.lift_m]
             times = [d, d + c, d + c + lift]
-            yaw = self.grasp_yaw
+            yaw, tilt = self.grasp_yaw, self.pick_tilt_rad
         elif self.phase == Phase.TRANSFER and self._detour_to is None and self.task is not None:
             place = np.asarray(self.task.place_xyz, float)
             release = place + [0, 0, self.tool_above_bottom_m + t.place_drop_m]
-            above = place + [0, 0, self.tool_above_bottom_m + t.hover_m]
-            points, yaw = [release, release, above], self.place_yaw
+            above = place + self._rise(place, self.place_yaw, self.place_tilt_rad, t.hover_m, self.tool_above_bottom_m)
+            points, yaw, tilt = [release, release, above], self.place_yaw, self.place_tilt_rad
             times = [t.lower_s, t.lower_s + t.release_s, t.lower_s + t.release_s + t.retreat_s]
         else:
             return [], []
         qs, q = [], np.asarray(q_end, float)
         for point in points:
-            q, ok = self._ik(point, yaw, q)
+            q, ok = self._ik(point, yaw, q, tilt)
             if not ok:
                 return [], []  # the stage's own planning will fail the task; the move alone is still checked
             qs.append(q)
@@ -483,14 +513,16 @@ class PickPlaceSkill:
             elif self.phase == Phase.HOME:
                 self.phase = Phase.DONE
 
-    def _solve_path(self, points: list[np.ndarray], yaw: float) -> np.ndarray:
-        """Joints through Cartesian tool positions, each IK seeded by the one before."""
+    def _solve_path(self, points: list[np.ndarray], yaw: float, tilt_rad: float) -> np.ndarray:
+        """Joints through Cartesian tool positions at one claw tilt, each IK seeded by the one before."""
         qs, q = [], self.q_cmd
         for p in points:
-            q, ok = self._ik(p, yaw, q)
+            solved, ok = self._ik(p, yaw, q, tilt_rad)
             if not ok:
                 self.ik_failures += 1
-            qs.append(q)
+            if ok or np.max(np.abs(solved - q)) <= MAX_KNOT_JUMP_RAD:
+                q = solved  # a failed solve's best attempt that stays near the path is kept (the tracker follows it)
+            qs.append(q)  # else the knot before is held: such an attempt can be anywhere (a wrist turned half round)
         return np.asarray(qs)
 
     def _plan_grasp(self, part: PartObservation | None, now: float) -> None:
@@ -508,17 +540,18 @@ class PickPlaceSkill:
             return part.position + self.velocity * (start + tt - seen_at + t.track_lead_s)
 
         lift_xy = aim(d + c)[:2]
+        up = self._pick_up
         points = []
         for tt in times:
             if tt <= d + c:
                 xy = aim(tt)[:2]
-                z = self.grasp_z + t.hover_m * (1 - quintic(tt / d)) if tt <= d else self.grasp_z
+                rise = t.hover_m * (1 - quintic(tt / d)) if tt <= d else 0.0
             else:
                 e = tt - d - c
                 xy = lift_xy + self.velocity[:2] * min(e, 0.15)
-                z = self.grasp_z + t.lift_m * quintic(e / lift)
-            points.append(np.array([xy[0], xy[1], z]))
-        qs = self._solve_path(points, self.grasp_yaw)
+                rise = t.lift_m * quintic(e / lift)
+            points.append(np.array([xy[0] + up[0] * rise, xy[1] + up[1] * rise, self.grasp_z + up[2] * rise]))
+        qs = self._solve_path(points, self.grasp_yaw, self.pick_tilt_rad)
         self._send_knots(start, times, qs)
         self._send_gripper(0.0, start + d)
         self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
@@ -533,11 +566,12 @@ class PickPlaceSkill:
             return
         place = np.asarray(self.task.place_xyz, float)
         self.place_yaw = self._natural_yaw(place)
-        above = place + [0, 0, self.tool_above_bottom_m + t.hover_m]
-        q_above, ok = self._ik(above, self.place_yaw, self.q_cmd)
-        if not ok:
+        found = self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m)
+        if found is None:
             self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
             return
+        self.place_tilt_rad, q_above = found
+        self._place_up = self.top_down.up_between_jaws(place, self.place_yaw, self.place_tilt_rad)
         self._begin_segment(self._segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)
 
     def _plan_place(self) -> None:
@@ -548,16 +582,17 @@ class PickPlaceSkill:
         release_z = place[2] + self.tool_above_bottom_m + t.place_drop_m
         lo, rel, back = t.lower_s, t.release_s, t.retreat_s
         times = np.arange(KNOT_S, lo + rel + back + 1e-9, KNOT_S)
+        up = self._place_up
         points = []
         for tt in times:
             if tt <= lo:
-                z = release_z + t.hover_m * (1 - quintic(tt / lo))
+                rise = t.hover_m * (1 - quintic(tt / lo))
             elif tt <= lo + rel:
-                z = release_z
+                rise = 0.0
             else:
-                z = release_z + t.hover_m * quintic((tt - lo - rel) / back)
-            points.append(np.array([place[0], place[1], z]))
-        qs = self._solve_path(points, self.place_yaw)
+                rise = t.hover_m * quintic((tt - lo - rel) / back)
+            points.append(np.array([place[0] + up[0] * rise, place[1] + up[1] * rise, release_z + up[2] * rise]))
+        qs = self._solve_path(points, self.place_yaw, self.place_tilt_rad)
         self._send_knots(start, times, qs)
         self._send_gripper(self.pregrasp_opening, start + lo)
         self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
