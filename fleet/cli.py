@@ -119,6 +119,33 @@ def check_robot_lines(uid: str, trials: int, seed: int) -> int:
     return 0 if problems == 0 else 1
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    """`fleet tune`: a seeded search over a robot's gains and pick timing, each candidate judged by pick trials."""
+    from fleet.tuning import search
+
+    uid = robot_uid(args.robot)
+    if args.candidates < 1 or args.trials < 1:
+        raise UsageError("--candidates and --trials must be at least 1")
+    spec = get_robot(uid)
+    with Progress(TextColumn(f"{uid} tuning"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=err) as progress:
+        bar = progress.add_task("tune", total=args.candidates)
+        results = search(uid, args.candidates, args.trials, args.seed, lambda _t: progress.update(bar, advance=1))
+    names = list(results[0].candidate.describe(spec))
+    table = Table("rank", "placed", "sim s / trial", *names, title=f"{uid}: {args.candidates} settings x {args.trials} trials (seed {args.seed})")
+    for rank, tried in enumerate(results, 1):
+        values = tried.candidate.describe(spec)
+        mark = " (registered)" if tried.candidate == type(tried.candidate)() else ""
+        table.add_row(f"{rank}{mark}", f"{tried.successes}/{tried.trials}", f"{tried.mean_sim_s:.2f}", *(f"{values[n]:g}" for n in names))
+    out.print(table)
+    best = results[0]
+    for line in best.failures:
+        err.print(f"  best setting failed: {line}", markup=False, highlight=False)
+    if args.json:
+        print(json.dumps({"robot": uid, "trials": args.trials, "seed": args.seed,
+                          "results": [{"successes": t.successes, "mean_sim_s": t.mean_sim_s, **t.candidate.describe(spec)} for t in results]}))
+    return 0
+
+
 def cmd_trials(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
@@ -676,6 +703,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solver-iterations", type=int, default=None, help="PhysX position iterations to try (the scene's: 20)")
     p.add_argument("--json", action="store_true", help="last stdout line: one JSON object")
     p.set_defaults(func=cmd_trials)
+
+    p = sub.add_parser("tune", help="seeded search over a robot's drive gains and pick timing, judged by pick trials")
+    p.add_argument("--robot", default="openclaw", help="a robot uid or robot YAML file")
+    p.add_argument("--candidates", type=int, default=12, help="settings tried: the registered one and draws from the search space")
+    p.add_argument("--trials", type=int, default=20, help="seeded pick trials per setting")
+    p.add_argument("--seed", type=int, default=0, help="seed of the draws and first trial seed")
+    p.add_argument("--json", action="store_true", help="last stdout line: one JSON object")
+    p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser("bench", help="benchmarks")
     bench = p.add_subparsers(dest="bench", required=True)

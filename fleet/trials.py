@@ -56,13 +56,20 @@ def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_i
     stations = [s.model_copy(update={"pose": scaled(s.pose)}) for s in scene.stations]
     arms = [a.model_copy(update={"model": robot, "base": a.base.model_copy(update={"yaw_deg": facing_deg(spec, a, conveyor, stations[0])})})
             for a in scene.arms]
-    feeders = [f.model_copy(update={"arrival": Arrival(schedule_s=[])}) for f in scene.feeders]  # one part, spawned by the trial
+    feeders = [f.model_copy(update={"arrival": Arrival(schedule_s=[]), "parts": graspable(spec, f.parts)}) for f in scene.feeders]  # one part, spawned by the trial
     update = {"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms, "feeders": feeders}
     if physics_hz is not None:
         update["physics_hz"] = physics_hz
     if solver_iterations is not None:
         update["solver_position_iterations"] = solver_iterations
     return scene.revalidated(**update)
+
+
+def graspable(spec, parts: list) -> list:
+    """The part types whose narrow side fits the robot's gripper (`grasp_width_m`): the trial feeds it those."""
+    low, high = spec.grasp_width_m
+    fit = [p for p in parts if low <= min(p.size_m[0], p.size_m[1]) <= high]
+    return fit or list(parts)
 
 
 def facing_deg(spec, arm, conveyor, bin_station) -> float:

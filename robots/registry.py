@@ -171,13 +171,14 @@ SO101 = register(
         gripper_closed=(-0.15,),
         grasp_width_m=(0.015, 0.05),
         reach_m=0.36,
-        arm_gains=DriveGains(stiffness=400.0, damping=20.0, force_limit=10.0),
+        arm_gains=DriveGains(stiffness=800.0, damping=40.0, force_limit=10.0),  # by `fleet tune`
         gripper_gains=DriveGains(stiffness=50.0, damping=2.0, force_limit=3.0),
         finger_links=("gripper_link", "moving_jaw_so101_v1_link"),
         closing_axis_tool=(1.0, 0.0, 0.0),  # the moving jaw swings towards the fixed one along the tool's x
         fixed_jaw_face_m=0.001,  # the tool frame sits at the fixed jaw's tip (measured on the collision shapes)
         max_approach_tilt_deg=60.0,  # 5 joints, a short reach: it cannot point straight down over a belt
-        pick_timing={"hover_m": 0.04, "lift_m": 0.06},  # a short arm: low hovers keep the claw within its reach
+        # a short arm: low hovers keep the claw within its reach; speeds and lift by `fleet tune` (docs/benchmarks.md)
+        pick_timing={"hover_m": 0.04, "lift_m": 0.06, "transfer_speed": 0.15, "lift_s": 0.8},
         package_prefix="package://example-robot-data/robots/",
         needs_extra="models",
     )

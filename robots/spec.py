@@ -53,6 +53,9 @@ class RobotSpec:
     """A gripper with one fixed jaw (SO-101): where that jaw's inner face lies along `closing_axis_tool` (the way the
     moving jaw closes) from the tool frame; a part's centre goes half its width short of it. None: the jaws close
     symmetrically about the tool frame."""
+    grip_depth_m: float = 0.0
+    """How far behind the tool frame (against the approach axis) a part's centre is held: a tool frame at the jaws'
+    tips (SO-101) holds parts this far in, where the jaws overlap them."""
     pick_timing: dict[str, float] = field(default_factory=dict)
     """This robot's values for fields of the pick skill's timing (`PickPlaceTiming`: speeds, hover and lift heights)."""
     max_approach_tilt_deg: float = 0.0
@@ -80,10 +83,8 @@ class RobotSpec:
 
     def grasp_centre_tool(self, width_m: float) -> tuple[float, float, float]:
         """Where a part `width_m` wide sits between the jaws, in the tool frame (the origin for symmetric jaws)."""
-        if self.fixed_jaw_face_m is None:
-            return (0.0, 0.0, 0.0)
-        k = self.fixed_jaw_face_m - width_m / 2
-        return tuple(float(a * k) for a in self.closing_axis_tool)
+        k = 0.0 if self.fixed_jaw_face_m is None else self.fixed_jaw_face_m - width_m / 2
+        return tuple(float(c * k - a * self.grip_depth_m) for c, a in zip(self.closing_axis_tool, self.approach_axis_tool))
 
     def urdf_text(self) -> str:
         """The URDF with package URIs resolved and <mimic> removed: every joint is driven on its own."""
