@@ -176,6 +176,7 @@ SO101 = register(
         finger_links=("gripper_link", "moving_jaw_so101_v1_link"),
         closing_axis_tool=(1.0, 0.0, 0.0),  # the moving jaw swings towards the fixed one along the tool's x
         fixed_jaw_face_m=0.001,  # the tool frame sits at the fixed jaw's tip (measured on the collision shapes)
+        carry_tilted=True,
         max_approach_tilt_deg=60.0,  # 5 joints, a short reach: it cannot point straight down over a belt
         # a short arm: low hovers keep the claw within its reach; speeds and lift by `fleet tune` (docs/benchmarks.md)
         pick_timing={"hover_m": 0.04, "lift_m": 0.06, "transfer_speed": 0.15, "lift_s": 0.8},

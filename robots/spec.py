@@ -56,6 +56,9 @@ class RobotSpec:
     grip_depth_m: float = 0.0
     """How far behind the tool frame (against the approach axis) a part's centre is held: a tool frame at the jaws'
     tips (SO-101) holds parts this far in, where the jaws overlap them."""
+    carry_tilted: bool = False
+    """Place leaning at least as far as the pick did (the claw is not turned upright on the way): an arm that holds
+    parts at its jaws' tips keeps them better."""
     pick_timing: dict[str, float] = field(default_factory=dict)
     """This robot's values for fields of the pick skill's timing (`PickPlaceTiming`: speeds, hover and lift heights)."""
     max_approach_tilt_deg: float = 0.0

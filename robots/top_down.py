@@ -141,10 +141,10 @@ class TopDownIK:
 
     def least_tilt(self, positions_world: list[np.ndarray], yaw_world: float | None, q_start: np.ndarray,
                    centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                   offsets: Callable[[float], list[np.ndarray]] | None = None) -> tuple[float, list[np.ndarray]] | None:
+                   offsets: Callable[[float], list[np.ndarray]] | None = None, from_rad: float = 0.0) -> tuple[float, list[np.ndarray]] | None:
         """The most vertical approach that reaches every position (each moved by `offsets(tilt)` if given: a hover
         above the part along the way it rises), and the joints for each; None if no allowed tilt does."""
-        for tilt in self.tilts_rad:
+        for tilt in [t for t in self.tilts_rad if t >= from_rad - 1e-9]:
             points = positions_world if offsets is None else [p + o for p, o in zip(positions_world, offsets(tilt))]
             qs, q, ok = [], q_start, True
             for point in points:

@@ -169,11 +169,12 @@ class PickPlaceSkill:
     def _ik(self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray, tilt_rad: float) -> tuple[np.ndarray, bool]:
         return self.top_down.solve(position_world, yaw_world, q_start, tilt_rad, self.grasp_centre)
 
-    def _least_tilt(self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0) -> tuple[float, np.ndarray] | None:
-        """The most vertical claw (straight down where it can) that reaches `up_m` above a spot (and `below_m`
-        straight above it first), and its joints."""
+    def _least_tilt(self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0,
+                    from_rad: float = 0.0) -> tuple[float, np.ndarray] | None:
+        """The most vertical claw (straight down where it can; leaning `from_rad` at least) that reaches `up_m`
+        above a spot (and `below_m` straight above it first), and its joints."""
         found = self.top_down.least_tilt([spot_world], yaw_world, self.q_cmd, self.grasp_centre,
-                                         lambda tilt: [self._rise(spot_world, yaw_world, tilt, up_m, below_m)])
+                                         lambda tilt: [self._rise(spot_world, yaw_world, tilt, up_m, below_m)], from_rad)
         return None if found is None else (found[0], found[1][0])
 
     def _rise(self, spot_world: np.ndarray, yaw_world: float, tilt_rad: float, up_m: float, below_m: float = 0.0) -> np.ndarray:
@@ -566,7 +567,10 @@ class PickPlaceSkill:
             return
         place = np.asarray(self.task.place_xyz, float)
         self.place_yaw = self._natural_yaw(place)
-        found = self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m)
+        found = None
+        if self.spec.carry_tilted:  # the part is carried as it was picked, not turned in the jaws on the way
+            found = self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m, self.pick_tilt_rad)
+        found = found or self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m)
         if found is None:
             self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
             return
