@@ -25,6 +25,7 @@ from robots.spec import RobotSpec
 
 
 TILT_STEP_DEG = 5.0
+REACH_TILT_STEP_DEG = 15.0  # a reach check needs only to know that some tilt reaches: it tries every third
 YAW_TOLERANCE_RAD = 0.05  # a short arm's claw turned to within this of the asked yaw counts as turned
 TURNED_TOLERANCE_M = 0.001
 TURNED_TOLERANCE_RAD = 0.1
@@ -57,6 +58,8 @@ class TopDownIK:
         self.pan_origin_world = (self.base_to_world @ np.append(pan_origin_base, 1.0))[:3]
         step = math.radians(TILT_STEP_DEG)
         self.tilts_rad = [0.0] + [step * k for k in range(1, int(spec.max_approach_tilt_deg / TILT_STEP_DEG + 1e-9) + 1)]
+        every = round(REACH_TILT_STEP_DEG / TILT_STEP_DEG)  # reach checks try fewer tilts, each one the skill tries too
+        self.reach_tilts_rad = self.tilts_rad[::every] + ([self.tilts_rad[-1]] if (len(self.tilts_rad) - 1) % every else [])
 
     def outward(self, position_world: np.ndarray) -> np.ndarray:
         """Horizontal direction from the arm's turning axis to the spot (world frame): where a tilted approach leans,
@@ -141,10 +144,11 @@ class TopDownIK:
 
     def least_tilt(self, positions_world: list[np.ndarray], yaw_world: float | None, q_start: np.ndarray,
                    centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                   offsets: Callable[[float], list[np.ndarray]] | None = None, from_rad: float = 0.0) -> tuple[float, list[np.ndarray]] | None:
+                   offsets: Callable[[float], list[np.ndarray]] | None = None, from_rad: float = 0.0,
+                   tilts_rad: list[float] | None = None) -> tuple[float, list[np.ndarray]] | None:
         """The most vertical approach that reaches every position (each moved by `offsets(tilt)` if given: a hover
         above the part along the way it rises), and the joints for each; None if no allowed tilt does."""
-        for tilt in [t for t in self.tilts_rad if t >= from_rad - 1e-9]:
+        for tilt in [t for t in (self.tilts_rad if tilts_rad is None else tilts_rad) if t >= from_rad - 1e-9]:
             points = positions_world if offsets is None else [p + o for p, o in zip(positions_world, offsets(tilt))]
             qs, q, ok = [], q_start, True
             for point in points:
@@ -175,5 +179,6 @@ class TopDownIK:
         if math.hypot(p[0], p[1]) > self.spec.reach_m:
             return None
         centre = self.spec.grasp_centre_tool(sum(self.spec.grasp_width_m) / 2)  # a part of middling width
-        found = self.least_tilt([np.asarray(position_world, float)[:3]], None, self.aimed_home(position_world), centre)
+        found = self.least_tilt([np.asarray(position_world, float)[:3]], None, self.aimed_home(position_world), centre,
+                                tilts_rad=self.reach_tilts_rad)
         return None if found is None else found[1][0]

@@ -1,0 +1,32 @@
+"""Arms of three models on one line (mixed_fleet: an OpenClaw, an SO-101 and a Panda): the guard, the allocator's
+time costs, the monitor's scene and the env take them side by side; the line runs with zero contacts."""
+
+import pytest
+
+from fleet.launcher import Launcher, RunOptions
+from robots.registry import is_available
+from tests.fleet.test_run import assert_nothing_left
+
+pytestmark = pytest.mark.skipif(not (is_available("so101") and is_available("panda")), reason="needs the models extra")
+
+
+def test_three_models_share_a_line_in_lockstep_with_zero_contacts():
+    with Launcher(RunOptions(scene="mixed_fleet", duration_s=60.0)) as launcher:
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert summary["status"] == "ok" and summary["inter_arm_contacts"] == 0, summary.get("error")
+    assert summary["parts_completed"] >= 4 and summary["parts_missed"] == 0, {k: summary[k] for k in ("parts_spawned", "parts_completed", "parts_missed")}
+    assert all(summary["arm_time"][arm]["working"] > 0.05 for arm in ("arm_0", "arm_1", "arm_2")), summary["arm_time"]
+
+
+def test_the_env_drives_arms_of_different_models_side_by_side():
+    from fleet.env import parallel_env
+
+    env = parallel_env(scene="mixed_fleet", task="reach")
+    observations, _ = env.reset(seed=0)
+    assert set(observations) == {"arm_0", "arm_1", "arm_2"}
+    spaces = {agent: env.action_space(agent).shape for agent in env.agents}
+    assert spaces["arm_0"] != spaces["arm_2"]  # 6 joints and 7: each arm acts with its own model's joints
+    for _ in range(20):
+        observations, *_ = env.step({agent: env.action_space(agent).sample() for agent in env.agents})
+    env.close()
