@@ -56,6 +56,7 @@ class TopDownIK:
                                                   rotation_weight=0.1)
         pan_origin_base, self.pan_sign = self.km.first_joint_axis()  # where the arm turns, and which way (SO-101: about -z)
         self.pan_origin_world = (self.base_to_world @ np.append(pan_origin_base, 1.0))[:3]
+        self.yaw_offset = self._home_yaw_offset()
         step = math.radians(TILT_STEP_DEG)
         self.tilts_rad = [0.0] + [step * k for k in range(1, int(spec.max_approach_tilt_deg / TILT_STEP_DEG + 1e-9) + 1)]
         every = round(REACH_TILT_STEP_DEG / TILT_STEP_DEG)  # reach checks try fewer tilts, each one the skill tries too
@@ -79,7 +80,16 @@ class TopDownIK:
         """The tool yaw the arm reaches with least wrist roll: facing along the line from its base."""
         p_base = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
         base_yaw = math.atan2(self.base_to_world[1, 0], self.base_to_world[0, 0])
-        return wrap_angle(base_yaw + self._bearing(p_base) + math.pi)
+        return wrap_angle(base_yaw + self._bearing(p_base) + self.yaw_offset)
+
+    def _home_yaw_offset(self) -> float:
+        """How the tool's x axis turns from the spot's bearing at the home pose, to the nearest quarter turn: the
+        natural yaw keeps it so (the OpenClaw's x points back at its base, a Panda hand's away), so the wrist need
+        not turn half round to point down."""
+        home = self.km.frame_pose(self.km.full_q(np.asarray(self.spec.home_q, float)))
+        heading = math.atan2(home[1, 0], home[0, 0])
+        quarter = round(wrap_angle(heading - self._bearing(home[:3, 3])) / (math.pi / 2)) % 4
+        return (0.0, math.pi / 2, math.pi, -math.pi / 2)[quarter]
 
     def _bearing(self, p_base: np.ndarray) -> float:
         """The spot's direction seen from the arm's turning axis, in the base frame (radians about +z)."""
