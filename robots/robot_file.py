@@ -10,6 +10,7 @@ wrong length. Units are in the field names.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from pathlib import Path
 from typing import Annotated
@@ -76,6 +77,29 @@ class RobotFile(_Strict):
     width_per_gripper_unit_m: Positive | None = None
     fingertip_below_tool_m: Annotated[float, Field(ge=0, le=0.5)] = 0.0
     keyframes: dict[Annotated[str, Field(pattern=NAME_PATTERN)], list[Finite]] = {}
+    max_approach_tilt_deg: Annotated[float, Field(ge=0, le=80)] = 0.0
+    """How far the claw may lean outwards where it cannot point straight down (an arm of few joints or short reach)."""
+    fixed_jaw_face_m: Annotated[float, Field(ge=-0.2, le=0.2, allow_inf_nan=False)] | None = None
+    """A gripper with one fixed jaw: where its inner face lies along closing_axis_tool from the tool frame."""
+    grip_depth_m: Annotated[float, Field(ge=0, le=0.2)] = 0.0
+    """How far behind the tool frame, against the approach axis, parts are held."""
+    carry_tilted: bool = False
+    """Place leaning at least as far as the pick did (parts held at the jaws' tips stay in)."""
+    match_yaw: bool = True
+    """An arm of fewer than six joints turns its claw to the grasp yaw with its last joint."""
+    pick_timing: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = {}
+    """Values for the pick skill's timing fields (hover_m, lift_m, approach_speed, transfer_speed, lift_s, ...)."""
+
+    @field_validator("pick_timing")
+    @classmethod
+    def _timing_fields(cls, v: dict[str, float]) -> dict[str, float]:
+        from robots.skills.pick_place import PickPlaceTiming  # the skill's own fields: no list to keep in step
+
+        valid = [f.name for f in dataclasses.fields(PickPlaceTiming)]
+        for name in v:
+            if name not in valid:
+                raise ValueError(f"no timing field {name!r}; fields: {', '.join(valid)}")
+        return v
 
     @field_validator("approach_axis_tool", "closing_axis_tool")
     @classmethod
@@ -131,6 +155,12 @@ def load_robot_file(path: Path) -> RobotSpec:
         package_prefix=PACKAGE_URI if package_root is not None else None,
         package_root_dir=package_root,
         keyframes={k: tuple(v) for k, v in decl.keyframes.items()},
+        max_approach_tilt_deg=decl.max_approach_tilt_deg,
+        fixed_jaw_face_m=decl.fixed_jaw_face_m,
+        grip_depth_m=decl.grip_depth_m,
+        carry_tilted=decl.carry_tilted,
+        match_yaw=decl.match_yaw,
+        pick_timing=dict(decl.pick_timing),
         declared_in=label,
     )
     check_against_urdf(spec, decl, label)

@@ -12,7 +12,8 @@ from robots.robot_file import RobotFileError, load_robot_file
 EXAMPLE = Path(__file__).parents[2] / "examples" / "robots" / "my_claw.yaml"
 FACTS = ("arm_joints", "gripper_joints", "tool_frame", "home_q", "gripper_open", "gripper_closed", "grasp_width_m", "reach_m",
          "arm_gains", "gripper_gains", "finger_links", "finger_friction", "approach_axis_tool", "closing_axis_tool",
-         "width_per_gripper_unit_m", "fingertip_below_tool_m", "keyframes")
+         "width_per_gripper_unit_m", "fingertip_below_tool_m", "keyframes", "max_approach_tilt_deg", "fixed_jaw_face_m",
+         "grip_depth_m", "carry_tilted", "match_yaw", "pick_timing")
 
 
 def written(tmp_path: Path, change: dict, name: str = "arm.yaml") -> Path:
@@ -54,6 +55,8 @@ def test_the_example_file_declares_the_openclaw_under_a_new_uid():
     ({"home_q": [0.0, "nan", 1.9, 0.0, 1.44, 0.0]}, "home_q.1", "finite number"),
     ({"urdf": "nowhere/arm.urdf"}, "urdf", "no such file"),
     ({"keyframes": {"up": [0, 0]}}, "keyframes.up", "2 values for 6 joints"),
+    ({"pick_timing": {"hover": 0.05}}, "pick_timing", "no timing field 'hover'; fields: hover_m"),
+    ({"max_approach_tilt_deg": 90}, "max_approach_tilt_deg", "less than or equal to 80"),
 ])
 def test_each_kind_of_mistake_is_one_line_naming_the_file_and_field(tmp_path, change, field, says):
     path = written(tmp_path, change)
@@ -89,20 +92,20 @@ def test_a_file_registers_once_and_its_uid_cannot_be_taken_twice(tmp_path):
         register_file(written(tmp_path, {"uid": "openclaw"}, "c.yaml"))
 
 
-@pytest.mark.skipif(not is_available("panda"), reason="needs the models extra")
-def test_an_arm_from_another_package_with_package_uris_loads_as_the_registered_one(tmp_path):
-    panda = get_robot("panda")
-    urdf = panda.urdf_path()
-    facts = {f: getattr(panda, f) for f in FACTS}
+@pytest.mark.parametrize("uid", ["panda", "so101"])
+def test_an_arm_from_another_package_with_package_uris_loads_as_the_registered_one(tmp_path, uid):
+    if not is_available(uid):
+        pytest.skip("needs the models extra")
+    spec = get_robot(uid)
+    urdf = spec.urdf_path()
+    facts = {f: getattr(spec, f) for f in FACTS}
+    renamed = {"home_q": "home_q", "gripper_open": "gripper_open_q", "gripper_closed": "gripper_closed_q"}
+    data = {renamed.get(f, f): (dataclasses.asdict(v) if dataclasses.is_dataclass(v) else list(v) if isinstance(v, tuple) else v)
+            for f, v in facts.items() if v is not None}
     # its URDF names meshes as package://example-robot-data/robots/...: the packages lie in share/
-    data = {"uid": "my_panda", "urdf": str(urdf), "package_root": str(urdf.parents[4]), **{
-        "arm_joints": list(facts["arm_joints"]), "gripper_joints": list(facts["gripper_joints"]), "tool_frame": facts["tool_frame"],
-        "home_q": list(facts["home_q"]), "gripper_open_q": list(facts["gripper_open"]), "gripper_closed_q": list(facts["gripper_closed"]),
-        "grasp_width_m": list(facts["grasp_width_m"]), "reach_m": facts["reach_m"],
-        "arm_gains": dataclasses.asdict(facts["arm_gains"]), "gripper_gains": dataclasses.asdict(facts["gripper_gains"]),
-        "finger_links": list(facts["finger_links"]), "width_per_gripper_unit_m": facts["width_per_gripper_unit_m"]}}
-    path = tmp_path / "my_panda.yaml"
+    data.update(uid=f"my_{uid}", urdf=str(urdf), package_root=str(urdf.parents[4]))
+    path = tmp_path / f"my_{uid}.yaml"
     path.write_text(yaml.safe_dump(data))
-    spec = load_robot_file(path)
-    assert spec.urdf_text() == panda.urdf_text()  # package:// URIs resolved to the same meshes
-    assert {f: getattr(spec, f) for f in FACTS} == facts
+    declared = load_robot_file(path)
+    assert declared.urdf_text() == spec.urdf_text()  # package:// URIs resolved to the same meshes
+    assert {f: getattr(declared, f) for f in FACTS} == facts
