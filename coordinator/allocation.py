@@ -149,13 +149,17 @@ class TimeCost:
     """Estimated seconds for an arm to finish a task from where it stands: joint travel at the skill's speeds
     (Pinocchio IK for the pick and place poses, velocity limits for the time) plus the fixed primitives."""
 
-    def __init__(self, rules: Eligibility, timing: PickPlaceTiming = PickPlaceTiming()) -> None:
-        self.rules, self.t = rules, timing
-        self.fixed_s = timing.descend_s + timing.close_s + timing.lift_s + timing.lower_s + timing.release_s + timing.retreat_s
+    def __init__(self, rules: Eligibility, timing: PickPlaceTiming | None = None) -> None:
+        self.rules, self.t = rules, timing  # None: each arm's robot's own timing (arms of several models on one line)
+
+    def timing(self, arm: ArmView) -> PickPlaceTiming:
+        return self.t if self.t is not None else PickPlaceTiming.for_robot(arm.reach.top_down.spec)
 
     def __call__(self, arm: ArmView, task: Task, part: PartView) -> float:
         if not self.rules.can_serve(arm, task, part):
             return math.inf
+        t = self.timing(arm)
+        fixed_s = t.descend_s + t.close_s + t.lift_s + t.lower_s + t.release_s + t.retreat_s
         station = self.rules.scene.station(task.target)
         q_pick = arm.reach.joints(self.rules.pick_point(task, part) + [0.0, 0.0, HOVER_M])
         q_place = arm.reach.joints(np.array([*station.pose.xyz[:2], station.surface_z_m + HOVER_M]))
@@ -163,9 +167,9 @@ class TimeCost:
             return math.inf
         v = arm.reach.velocity_limit
         q_now = np.asarray(arm.q, float) if arm.q else q_pick
-        approach = float(np.max(np.abs(q_pick - q_now) / (v * self.t.approach_speed)))
-        transfer = float(np.max(np.abs(q_place - q_pick) / (v * self.t.transfer_speed)))
-        return approach + transfer + self.fixed_s
+        approach = float(np.max(np.abs(q_pick - q_now) / (v * t.approach_speed)))
+        transfer = float(np.max(np.abs(q_place - q_pick) / (v * t.transfer_speed)))
+        return approach + transfer + fixed_s
 
 
 def open_candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:

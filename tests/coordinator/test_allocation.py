@@ -8,7 +8,7 @@ import pytest
 from coordinator.allocation import ALLOCATORS, ArmView, CachedReach, PartView, assign_min_cost, make_allocator
 from coordinator.ledger import Ledger
 from robots.frames import yaw_transform
-from robots.registry import get_robot
+from robots.registry import get_robot, is_available
 from robots.top_down import TopDownIK
 from scenes import load_scene
 
@@ -135,3 +135,21 @@ def test_optimal_leaves_shared_work_to_an_arm_about_to_be_free(mixed_cell):
     for free_in_s, expected in ((0.3, [(1, "arm_0")]), (None, [(0, "arm_0")])):
         arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home, None if a.name == "arm_0" else free_in_s) for a in scene.arms]
         assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected
+
+
+def test_time_costs_use_each_arm_robots_own_timing_on_a_mixed_line():
+    from coordinator.allocation import Eligibility, TimeCost
+    from robots.skills.pick_place import PickPlaceTiming
+
+    if not is_available("so101"):
+        pytest.skip("needs the models extra")
+    scene = load_scene("mixed_fleet")
+    so101 = scene.arm("arm_1")
+    view = ArmView(so101.name, so101.base.xyz, True, CachedReach.of(so101), tuple(get_robot("so101").home_q))
+    ledger = Ledger(scene)
+    ledger.arrived(0, "mixed", 1, 1.0)  # green: the SO-101's bin
+    task = ledger.refresh(1.0)[0]
+    part = PartView(np.array([0.66, 0.0, 0.095]), np.array([0.05, 0.0, 0.0]))
+    rules = Eligibility(scene, [view])
+    own, openclaws = TimeCost(rules)(view, task, part), TimeCost(rules, PickPlaceTiming())(view, task, part)
+    assert np.isfinite(own) and own > openclaws  # the SO-101 transfers at 0.15 of its joints' speed, not 0.45
