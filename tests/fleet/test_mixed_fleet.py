@@ -30,3 +30,22 @@ def test_the_env_drives_arms_of_different_models_side_by_side():
     for _ in range(20):
         observations, *_ = env.step({agent: env.action_space(agent).sample() for agent in env.agents})
     env.close()
+
+
+def test_the_monitor_draws_arms_of_different_models_from_their_own_urdfs():
+    import numpy as np
+    import viser
+
+    from fleet.monitor.cell_view import CellView
+    from fleet.scene_loading import load_scene
+    from robots.registry import get_robot
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        view = CellView(server, load_scene("mixed_fleet"))
+        for name, model in (("arm_0", "openclaw"), ("arm_1", "so101"), ("arm_2", "panda")):
+            arm, spec = view.arms[name], get_robot(model)
+            assert sorted(arm.urdf.get_actuated_joint_names()) == sorted((*spec.arm_joints, *spec.gripper_joints))
+            arm.update_cfg(np.asarray(spec.home_q) * 0.5, np.asarray(spec.gripper_closed))  # each moves with its own joints
+    finally:
+        server.stop()
