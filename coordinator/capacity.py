@@ -30,12 +30,14 @@ BELT_SAMPLE_M = 0.05  # belt pick points are tried this far apart
 
 @dataclass(frozen=True)
 class Hop:
-    """One move of a part type's route: from `source` (the conveyor or a station) to station `target`."""
+    """One move of a part type's route: from `source` (the conveyor or a station) to station `target`; `stage` is its
+    place in the route (a sorted part's one stage has a hop per station that takes its colour: any of them will do)."""
 
     feeder: str
     type_index: int
     source: str
     target: str
+    stage: int = 0
 
 
 @dataclass
@@ -71,13 +73,24 @@ def arrival_rate_per_s(scene: Scene, feeder_name: str) -> float:
 
 
 def route_hops(scene: Scene) -> list[Hop]:
+    """Every hop of every part type's route; a sorted part's one hop to each station of its colour (the coordinator
+    sends it to whichever of them the arm that takes it reaches)."""
     hops = []
     for f in scene.feeders:
         for t in range(len(f.parts)):
             stations = scene.route(f.name, t)
-            for source, target in zip([f.into, *stations], stations):
-                hops.append(Hop(f.name, t, source, target))
+            for stage, (source, target) in enumerate(zip([f.into, *stations], stations)):
+                hops.append(Hop(f.name, t, source, target, stage))
+            hops += [Hop(f.name, t, f.into, other, 0) for other in scene.stations_for_colour(f.name, t)[1:]]
     return hops
+
+
+def _stages(hops: list[Hop]) -> dict[tuple[str, int, int], list[int]]:
+    """The hops (by index) of each route stage of each part type: one of them must be made per part."""
+    out: dict[tuple[str, int, int], list[int]] = {}
+    for j, h in enumerate(hops):
+        out.setdefault((h.feeder, h.type_index, h.stage), []).append(j)
+    return out
 
 
 def arm_views(scene: Scene, reach: dict[str, CachedReach] | None = None) -> list[ArmView]:
@@ -129,6 +142,25 @@ def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
     return {k: float(np.mean(v)) for k, v in times.items()}
 
 
+def _balanced(x: np.ndarray, best_per_s: float, n_r: int, a_ub: np.ndarray, b_ub: list[float], labels: list[str],
+              a_eq: list, b_eq: list, bounds: list) -> np.ndarray:
+    """Of the ways to reach the bound, one that loads the busiest arm or station least (a second programme: the
+    first's answer is any vertex, and with several stations for a part it may heap the work on a few arms); the
+    first answer if this one does not solve."""
+    n = a_ub.shape[1]
+    loaded = [k for k, label in enumerate(labels) if label]  # arms and stations; the assembly rows keep their bound
+    rows = np.hstack([a_ub, np.zeros((len(labels), 1))])
+    rows[loaded, -1] = -1.0  # usage - z <= 0
+    limits = [0.0 if label else b for label, b in zip(labels, b_ub)]
+    keep = np.r_[-np.ones(n_r), np.zeros(n - n_r + 1)]  # completed parts at least the bound (less a hair)
+    result = linprog(
+        np.r_[np.zeros(n), 1.0], A_ub=np.vstack([rows, keep]), b_ub=[*limits, -best_per_s * (1 - 1e-9)],
+        A_eq=np.hstack([np.array(a_eq), np.zeros((len(a_eq), 1))]) if a_eq else None, b_eq=b_eq or None,
+        bounds=[*bounds, (0.0, 1.0)], method="highs",
+    )
+    return result.x[:n] if result.status == 0 else x
+
+
 def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
                    reach: dict[str, CachedReach] | None = None) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
@@ -140,19 +172,23 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
     rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
     arrivals = 60.0 * sum(rate.values())
-    unservable = [f"{h.feeder}[{h.type_index}]: {h.source} -> {h.target}" for j, h in enumerate(hops) if not np.isfinite(seconds[:, j]).any()]
+    stages = _stages(hops)
+    dead = [js for js in stages.values() if not np.isfinite(seconds[:, js]).any()]  # no arm can make any hop of it
+    unservable = [f"{hops[js[0]].feeder}[{hops[js[0]].type_index}]: {hops[js[0]].source} -> {' or '.join(hops[j].target for j in js)}"
+                  for js in dead]
     # variables: r[type] (completed parts per s), then x[arm, hop] (hops done per s) where the arm can serve the hop
     pairs = [(i, j) for i in range(len(views)) for j in range(len(hops)) if np.isfinite(seconds[i, j])]
     n_r = len(types)
     index = {p: n_r + k for k, p in enumerate(pairs)}
     n = n_r + len(pairs)
     a_eq, b_eq, a_ub, b_ub, labels = [], [], [], [], []
-    for j, hop in enumerate(hops):  # every hop of a type is made as often as that type completes
+    for (feeder, type_index, _), js in stages.items():  # every stage of a type is made as often as that type completes
         row = np.zeros(n)
-        row[types.index((hop.feeder, hop.type_index))] = -1.0
-        for i in range(len(views)):
-            if (i, j) in index:
-                row[index[(i, j)]] = 1.0
+        row[types.index((feeder, type_index))] = -1.0
+        for j in js:
+            for i in range(len(views)):
+                if (i, j) in index:
+                    row[index[(i, j)]] = 1.0
         a_eq.append(row)
         b_eq.append(0.0)
     for i, view in enumerate(views):  # an arm works at most all the time
@@ -175,7 +211,7 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
                     row = np.zeros(n)
                     row[types.index(t_first)], row[types.index(t_later)] = 1.0, -1.0
                     a_ub.append(row), b_ub.append(0.0), labels.append("")
-    unreachable = {(h.feeder, h.type_index) for j, h in enumerate(hops) if not np.isfinite(seconds[:, j]).any()}
+    unreachable = {(hops[js[0]].feeder, hops[js[0]].type_index) for js in dead}
     bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
     result = linprog(
         -np.r_[np.ones(n_r), np.zeros(len(pairs))], A_ub=np.array(a_ub) if a_ub else None, b_ub=b_ub or None,
@@ -184,7 +220,8 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     if result.status != 0:
         raise RuntimeError(f"the capacity programme of {scene.name} did not solve: {result.message}")
     best = float(-result.fun) * 60.0
-    usage = (np.array(a_ub) @ result.x) if a_ub else np.zeros(0)
+    x = _balanced(result.x, best / 60.0, n_r, np.array(a_ub), b_ub, labels, a_eq, b_eq, bounds) if a_ub else result.x
+    usage = (np.array(a_ub) @ x) if a_ub else np.zeros(0)
     arm_busy = {v.name: float(usage[i]) for i, v in enumerate(views)}
     station_busy = {labels[k]: float(usage[k]) for k in range(len(views), len(labels)) if labels[k]}
     busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))
