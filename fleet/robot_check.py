@@ -141,9 +141,18 @@ def check_trials(uid: str, trials: int, seed: int, on_trial: Callable[[], None] 
     return lines
 
 
+def _guarded(check: Callable[[RobotSpec], Finding], spec: RobotSpec) -> Finding:
+    """A check's finding; one the physics could not even run is a problem line saying why, not a traceback."""
+    try:
+        return check(spec)
+    except Exception as exc:  # SAPIEN and Pinocchio raise bare RuntimeErrors for a model they cannot load
+        first = (str(exc).strip().splitlines() or [""])[0]
+        return Finding(False, f"{check.__name__.removeprefix('check_')}: could not be checked: {type(exc).__name__}: {first}")
+
+
 def check_robot(spec: RobotSpec, trials: int = 3, seed: int = 0) -> Iterator[Finding]:
     """Every check in turn (the physics checks first: a robot that fails them is not tried at picking)."""
-    physics = [check_kinematics(spec), check_home(spec), check_gripper(spec)]
+    physics = [_guarded(check, spec) for check in (check_kinematics, check_home, check_gripper)]
     yield from physics
     if trials > 0 and all(f.ok for f in physics):
         yield from check_trials(spec.uid, trials, seed)

@@ -178,6 +178,20 @@ def _names_hint(name: str, valid: list[str]) -> str:
     return ("did you mean " if close else "valid: ") + ", ".join(shown) + (" ..." if not close and len(valid) > 40 else "")
 
 
+def _check_meshes(spec: RobotSpec, label: str) -> None:
+    """Every mesh the URDF names exists (the physics would only log a missing one and leave the link without it)."""
+    import xml.etree.ElementTree as ET
+
+    urdf_dir = spec.urdf_path().parent
+    for link in ET.fromstring(spec.urdf_text()).iter("link"):
+        for mesh in link.iter("mesh"):
+            name = (mesh.get("filename") or "").removeprefix("file://")
+            path = Path(name) if Path(name).is_absolute() else urdf_dir / name
+            if not name or name.startswith(PACKAGE_URI) or not path.is_file():
+                raise RobotFileError(label, "urdf", f"link {link.get('name')!r} names a mesh that is not there: {name or '(no filename)'}"
+                                     + (" (give package_root for package:// URIs)" if name.startswith(PACKAGE_URI) else ""))
+
+
 def check_against_urdf(spec: RobotSpec, decl: RobotFile, label: str) -> None:
     """Joints, frames, links and positions of the declaration as the URDF has them (Pinocchio reads it)."""
     import pinocchio as pin  # only when a robot file is read: listing robots needs no kinematics
@@ -187,6 +201,7 @@ def check_against_urdf(spec: RobotSpec, decl: RobotFile, label: str) -> None:
     except Exception as exc:  # Pinocchio's parser raises bare RuntimeError/ValueError with C++ detail
         first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise RobotFileError(label, "urdf", f"not a URDF Pinocchio can read: {first}") from None
+    _check_meshes(spec, label)
     joints = [model.names[i] for i in range(1, model.njoints)]
     for field, names in (("arm_joints", decl.arm_joints), ("gripper_joints", decl.gripper_joints)):
         for i, name in enumerate(names):

@@ -70,12 +70,15 @@ def test_files_that_are_not_robot_declarations_are_refused_in_one_line(tmp_path)
     (tmp_path / "binary.yaml").write_bytes(b"uid: x\n\xff\xfe")
     (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
     (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'></robot>")
+    openclaw = (EXAMPLE.parent / yaml.safe_load(EXAMPLE.read_text())["urdf"]).resolve().read_text()
+    (tmp_path / "no_mesh.urdf").write_text(openclaw.replace("<collision>", '<collision><geometry><mesh filename="gone.stl"/></geometry></collision><collision>', 1))
     cases = {
         tmp_path / "binary.yaml": "not UTF-8 text (byte 7",
         tmp_path / "list.yaml": "a robot file must hold a mapping of fields",
         tmp_path: "a directory, not a robot file",
         tmp_path / "missing.yaml": "no such file",
         written(tmp_path, {"urdf": str(tmp_path / "broken.urdf")}, "bad_urdf.yaml"): "urdf: not a URDF Pinocchio can read",
+        written(tmp_path, {"urdf": str(tmp_path / "no_mesh.urdf")}, "no_mesh.yaml"): "names a mesh that is not there: gone.stl",
     }
     for path, says in cases.items():
         with pytest.raises(RobotFileError) as info:
