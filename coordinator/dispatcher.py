@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
-from coordinator.cadence import IDLE_SKILLS, decision_period_ticks
+from coordinator.cadence import AVAILABLE_SKILLS, IDLE_SKILLS, decision_period_ticks
 from coordinator.capacity import CapacityBound, capacity_bound, measured_hop_seconds
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
@@ -179,7 +179,7 @@ class Dispatcher:
         open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
         return [
             ArmView(
-                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in IDLE_SKILLS, self.reach[a],
+                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS, self.reach[a],
                 tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None, a not in self.lost,
             )
             for a in self.arm_names

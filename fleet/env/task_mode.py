@@ -53,7 +53,7 @@ class TaskChooser:
 
     def arm_views(self) -> list[ArmView]:
         return [
-            ArmView(a, self.bases[a], self.task_of[a] is None and not self.skills[a].active, self.reach[a],
+            ArmView(a, self.bases[a], self.task_of[a] is None and self.skills[a].available, self.reach[a],
                     tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()))
             for a in self.agents
         ]
@@ -140,7 +140,7 @@ class TaskChooser:
                 continue
             if was_open and task.state not in OPEN_STATES:
                 self.outcomes[agent].append(task.state.value)
-            if task.state not in OPEN_STATES and not skill.active:  # the skill finishes its retreat and way home first
+            if task.state not in OPEN_STATES and skill.available:  # the skill finishes its retreat first (home may be given up)
                 self.task_of[agent] = None
         if self.world.tick % self.period_ticks == 0:
             self._take_back_late_tasks()

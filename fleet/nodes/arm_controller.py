@@ -226,7 +226,7 @@ class ArmController:
             state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q),
             state.result_goal_id, state.result_status, state.result_reason, goal_id=state.goal_id,
         )
-        if self.pending is not None and not self.skill.active:
+        if self.pending is not None and self.skill.available:
             a, self.pending = self.pending, None
             task = PickPlaceTask(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
             self.task_id = a.task_id

@@ -406,6 +406,12 @@ class PickPlaceSkill:
     def active(self) -> bool:
         return self.phase not in (Phase.IDLE, Phase.DONE, Phase.FAILED)
 
+    @property
+    def available(self) -> bool:
+        """Free to start a task: idle, or on the way home (given up for the next task's approach, which the
+        tracker splices in where the way home has got to)."""
+        return not self.active or self.phase == Phase.HOME
+
     def _gripper_opening(self, obs: ArmObservation) -> float:
         c, o = self.spec.gripper_closed[0], self.spec.gripper_open[0]
         return float((np.mean(obs.gripper_q) - c) / (o - c))

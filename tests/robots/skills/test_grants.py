@@ -129,3 +129,16 @@ def test_a_request_carries_the_local_stage_that_follows_it_without_a_grant():
     tool = [(BASE @ moving.km.frame_pose(moving.km.full_q(np.asarray(q))))[:3, 3] for q in place.then_q]
     assert np.allclose(tool[0][:2], moving.task.place_xyz[:2], atol=0.005), "lowered onto the place"
     assert tool[2][2] > tool[0][2] + 0.05, "and back up"
+
+
+def test_an_arm_on_its_way_home_may_take_the_next_task_and_approaches_from_where_it_is():
+    skill = PickPlaceSkill(SPEC, BASE, grants_required=True)
+    away = np.asarray(SPEC.home_q) + 0.3
+    skill.step(obs(away, 0.0), {})
+    skill.step(obs(away, skill.timing.clear_after_s), {})  # an idle arm away from home sets off home
+    assert skill.phase == Phase.HOME and skill.active and skill.available
+    assert not started().available, "an arm at work is not available"
+    on_the_way = (np.asarray(SPEC.home_q) + away) / 2
+    task = PickPlaceTask(7, 0.08, (0.3, -0.55, 0.04), (0.0, 0.0, 0.0))
+    skill.start(task, obs(on_the_way, 2.0), part_at(0.0))
+    assert skill.phase == Phase.APPROACH and np.allclose(skill.request.q_from, on_the_way), "home given up for the approach"
