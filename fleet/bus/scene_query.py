@@ -10,6 +10,7 @@ import zenoh
 from fleet.bus.keys import Keys
 from fleet.scene_loading import use_scene_robots
 from scenes.schema import Scene
+from scenes.yaml_file import DeclarationError
 
 
 class SceneUnavailable(RuntimeError):
@@ -22,7 +23,11 @@ def fetch_scene(session: zenoh.Session, keys: Keys, timeout_s: float = 10.0) -> 
     while time.monotonic() < deadline:
         for reply in session.get(keys.scene, timeout=min(1.0, max(deadline - time.monotonic(), 0.1))):
             if reply.ok is not None:
-                return use_scene_robots(Scene.model_validate_json(reply.ok.payload.to_bytes()))
+                scene = Scene.model_validate_json(reply.ok.payload.to_bytes())
+                try:
+                    return use_scene_robots(scene)
+                except DeclarationError as exc:  # the run's robot files are not on this host (or not the same)
+                    raise SceneUnavailable(f"the scene of run {keys.run!r} names a robot file that cannot be used here: {exc}") from None
         time.sleep(0.1)
     raise SceneUnavailable(f"no sim of run {keys.run!r} answered on {keys.scene} within {timeout_s:.0f} s")
 

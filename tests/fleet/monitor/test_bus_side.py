@@ -11,7 +11,7 @@ from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import SimStatus
 from fleet.bus.session import BusEndpoints, open_session
-from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.bus.scene_query import SceneUnavailable, fetch_scene, serve_scene
 from fleet.monitor.app import Monitor
 from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
@@ -98,6 +98,17 @@ def test_no_sim_means_a_clear_error_not_a_hang():
     with open_session(BusEndpoints()) as session:
         with pytest.raises(SceneUnavailable, match="no sim of run 'nobody'"):
             fetch_scene(session, Keys("nobody"), timeout_s=0.5)
+
+
+def test_a_scene_whose_robot_file_is_not_here_is_a_clear_error(tmp_path):
+    scene = load_scene("assembly_line").model_copy(update={"robot_files": [str(tmp_path / "elsewhere.yaml")]})
+    with open_session(BusEndpoints()) as session:
+        queryable = serve_scene(session, Keys("far"), scene.model_dump_json())
+        try:
+            with pytest.raises(SceneUnavailable, match=r"names a robot file that cannot be used here: .*elsewhere.yaml: no such file"):
+                fetch_scene(session, Keys("far"), timeout_s=2.0)
+        finally:
+            queryable.undeclare()
 
 
 def test_the_monitor_frees_its_port():
