@@ -52,6 +52,7 @@ class CapacityBound:
     arm_busy: dict[str, float] = field(default_factory=dict)
     station_busy: dict[str, float] = field(default_factory=dict)
     unservable: list[str] = field(default_factory=list)  # hops no arm can do: their parts can never be completed
+    model_s: np.ndarray | None = field(default=None, repr=False, compare=False)  # the model's hop times, to reuse
 
     def as_dict(self) -> dict:
         return {
@@ -116,20 +117,28 @@ def pick_points(scene: Scene, hop: Hop) -> list[PartView]:
     return out
 
 
-def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s: dict[tuple[str, str, str], float] | None = None) -> np.ndarray:
+def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s: dict[tuple[str, str, str], float] | None = None,
+                model_s: np.ndarray | None = None) -> np.ndarray:
     """(arms, hops): the least time each arm needs for each hop (inf: it cannot serve it); where `measured_s` has
-    the mean time an arm took for a (source, target) hop in a run, that time instead of the model's."""
-    rules = Eligibility(scene, views)
-    cost = TimeCost(rules)
+    the mean time an arm took for a (source, target) hop in a run, that time instead of the model's. `model_s`:
+    the model's times worked out before (IK at every belt sample: the costly part), reused."""
+    out = model_s.copy() if model_s is not None else _model_seconds(scene, views, hops)
+    for j, hop in enumerate(hops):
+        for i, view in enumerate(views):
+            seen = (measured_s or {}).get((view.name, hop.source, hop.target))
+            if seen is not None and np.isfinite(out[i, j]):
+                out[i, j] = seen
+    return out
+
+
+def _model_seconds(scene: Scene, views: list[ArmView], hops: list[Hop]) -> np.ndarray:
+    cost = TimeCost(Eligibility(scene, views))
     out = np.full((len(views), len(hops)), math.inf)
     for j, hop in enumerate(hops):
         task = Task(0, 0, hop.source, hop.target, 0.0)
         points = pick_points(scene, hop)
         for i, view in enumerate(views):
             out[i, j] = min((cost(view, task, p) for p in points), default=math.inf)
-            seen = (measured_s or {}).get((view.name, hop.source, hop.target))
-            if seen is not None and np.isfinite(out[i, j]):
-                out[i, j] = seen
     return out
 
 
@@ -162,13 +171,14 @@ def _balanced(x: np.ndarray, best_per_s: float, n_r: int, a_ub: np.ndarray, b_ub
 
 
 def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
-                   reach: dict[str, CachedReach] | None = None) -> CapacityBound:
+                   reach: dict[str, CachedReach] | None = None, model_s: np.ndarray | None = None) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
     with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's; `reach` shares
-    the arms' reach caches (the coordinator's) instead of building new ones."""
+    the arms' reach caches (the coordinator's) instead of building new ones; `model_s` the model's hop times
+    (`CapacityBound.model_s` of an earlier bound of the same scene)."""
     hops = route_hops(scene)
     views = arm_views(scene, reach)
-    seconds = hop_seconds(scene, views, hops, measured_s)
+    seconds = hop_seconds(scene, views, hops, measured_s, model_s)
     types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
     rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
     arrivals = 60.0 * sum(rate.values())
@@ -228,4 +238,5 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     limited = best < arrivals - 1e-6 - 60.0 * sum(rate[t] for t in unreachable)
     return CapacityBound(
         arrivals, best, busiest[0] if limited else "arrivals", busiest[1], busiest[0], arm_busy, station_busy, unservable,
+        model_s=model_s if model_s is not None else (seconds if not measured_s else None),
     )

@@ -344,5 +344,5 @@ class Dispatcher:
         measured = measured_hop_seconds(list(self.ledger.tasks.values()))
         if not measured:
             return None
-        return capacity_bound(self.scene, measured, self.reach).as_dict() | {"measured_hop_s": {
+        return capacity_bound(self.scene, measured, self.reach, self.capacity.model_s).as_dict() | {"measured_hop_s": {
             f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())}}

@@ -276,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
     args, stop, scene = opened
     with open_session(BusEndpoints.from_args(args)) as session:
         node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep", allocator=make_allocator(args.allocator, scene))
+        node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:
             while not stop.should_stop():
                 if not node.poll():

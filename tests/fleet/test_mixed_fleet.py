@@ -17,6 +17,8 @@ def test_three_models_share_a_line_in_lockstep_with_zero_contacts():
     assert summary["status"] == "ok" and summary["inter_arm_contacts"] == 0, summary.get("error")
     assert summary["parts_completed"] >= 4 and summary["parts_missed"] == 0, {k: summary[k] for k in ("parts_spawned", "parts_completed", "parts_missed")}
     assert all(summary["arm_time"][arm]["working"] > 0.05 for arm in ("arm_0", "arm_1", "arm_2")), summary["arm_time"]
+    coordinator = next(p for p in summary["processes"] if p["role"] == "coordinator")
+    assert coordinator["exit_code"] == 0 and summary["throughput_bound_per_min"] == 6.0, "its figures written in the stop's grace"
 
 
 def test_the_env_drives_arms_of_different_models_side_by_side():
