@@ -2,8 +2,9 @@
 
 Kinematics (Pinocchio's link poses against SAPIEN's), the home pose (reached
 from the upright pose by the arm's own drives, above the floor, within the
-declared reach), the gripper (closes and opens on nothing within a second) and
-a few seeded pick trials in the trial cell.
+declared reach), the gripper (closes and opens on nothing within a second), the
+declared reach against how far the arm really picks, and a few seeded pick
+trials in the trial cell.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ HOME_TOLERANCE_RAD = 0.02
 GRIPPER_TOLERANCE = 0.1
 """Of the gripper's travel: how near its closed (open) position a gripper must come on nothing."""
 SETTLE_S = 1.5
+REACH_HEIGHTS_M = (0.05, 0.1, 0.2)
+REACH_SLACK = 0.25  # a declared reach this much beyond the measured one is a problem (the OpenClaw's: 22%)
 PHYSICS_HZ = 200.0
 
 
@@ -130,6 +133,31 @@ def check_gripper(spec: RobotSpec) -> Finding:
     return Finding(True, f"the gripper closes and opens on nothing within {SETTLE_S:g} s")
 
 
+def measured_reach_m(spec: RobotSpec) -> float:
+    """How far out from its turning axis, horizontally, the arm points its claw down (or leaning as far as it may)
+    at pick heights (5, 10 and 20 cm above its base): the farthest spot found in 1 cm steps."""
+    from robots.top_down import TopDownIK
+
+    ik = TopDownIK(spec, np.eye(4))
+    axis = ik.pan_origin_world[:2]
+    best = 0.0
+    for z in REACH_HEIGHTS_M:
+        for r in np.arange(0.05, spec.reach_m * 1.3, 0.01):
+            spot = np.array([axis[0] + r, axis[1], z])
+            if ik.least_tilt([spot], None, ik.aimed_home(spot), tilts_rad=ik.reach_tilts_rad) is not None:
+                best = max(best, float(np.hypot(*spot[:2])))
+    return best
+
+
+def check_reach(spec: RobotSpec) -> Finding:
+    """The declared `reach_m` (scenes check stations against it) against how far the arm really picks."""
+    measured = measured_reach_m(spec)
+    text = f"picks up to {measured:.2f} m out at 5-20 cm above its base (declared reach_m {spec.reach_m:.2f})"
+    if spec.reach_m > measured * (1 + REACH_SLACK):
+        return Finding(False, text + ": scenes would accept stations it cannot pick at or place on")
+    return Finding(True, text)
+
+
 def check_trials(uid: str, trials: int, seed: int, on_trial: Callable[[], None] | None = None) -> list[Finding]:
     """Seeded pick trials in the trial cell: one line for the count, one per failure."""
     from fleet.trials import run_trials
@@ -152,7 +180,7 @@ def _guarded(check: Callable[[RobotSpec], Finding], spec: RobotSpec) -> Finding:
 
 def check_robot(spec: RobotSpec, trials: int = 3, seed: int = 0) -> Iterator[Finding]:
     """Every check in turn (the physics checks first: a robot that fails them is not tried at picking)."""
-    physics = [_guarded(check, spec) for check in (check_kinematics, check_home, check_gripper)]
+    physics = [_guarded(check, spec) for check in (check_kinematics, check_home, check_gripper, check_reach)]
     yield from physics
     if trials > 0 and all(f.ok for f in physics):
         yield from check_trials(spec.uid, trials, seed)
