@@ -9,6 +9,7 @@ trials in the trial cell.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -134,8 +135,9 @@ def check_gripper(spec: RobotSpec) -> Finding:
 
 
 def measured_reach_m(spec: RobotSpec) -> float:
-    """How far out from its turning axis, horizontally, the arm points its claw down (or leaning as far as it may)
-    at pick heights (5, 10 and 20 cm above its base): the farthest spot found in 1 cm steps."""
+    """How far out from its base, horizontally, the arm points its claw down (or leaning as far as it may) at pick
+    heights (5, 10 and 20 cm above its base), by the coordinator's own reach rule: the farthest spot found in 1 cm
+    steps out from its turning axis."""
     from robots.top_down import TopDownIK
 
     ik = TopDownIK(spec, np.eye(4))
@@ -144,7 +146,7 @@ def measured_reach_m(spec: RobotSpec) -> float:
     for z in REACH_HEIGHTS_M:
         for r in np.arange(0.05, spec.reach_m * 1.3, 0.01):
             spot = np.array([axis[0] + r, axis[1], z])
-            if ik.least_tilt([spot], None, ik.aimed_home(spot), tilts_rad=ik.reach_tilts_rad) is not None:
+            if ik.joints_for(spot, within_m=math.inf) is not None:
                 best = max(best, float(np.hypot(*spot[:2])))
     return best
 

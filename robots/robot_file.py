@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from robots.spec import DriveGains, RobotSpec
 from scenes.schema import NAME_PATTERN
-from scenes.yaml_file import DeclarationError, read_declaration, regular_file
+from scenes.yaml_file import DeclarationError, named_in, read_declaration, regular_file
 
 MAX_ROBOT_FILE_BYTES = 100_000
 PACKAGE_URI = "package://"
@@ -126,10 +126,10 @@ def load_robot_file(path: Path) -> RobotSpec:
     path = regular_file(Path(path), "robot", RobotFileError).resolve()
     label = str(path)
     decl = read_declaration(path, label, "robot", MAX_ROBOT_FILE_BYTES, RobotFile, RobotFileError)
-    urdf = _relative_to(path, decl.urdf)
+    urdf = named_in(path, decl.urdf)
     if not urdf.is_file():
         raise RobotFileError(label, "urdf", f"no such file {urdf}")
-    package_root = _relative_to(path, decl.package_root) if decl.package_root is not None else None
+    package_root = named_in(path, decl.package_root) if decl.package_root is not None else None
     if package_root is not None and not package_root.is_dir():
         raise RobotFileError(label, "package_root", f"no such folder {package_root}")
     spec = RobotSpec(
@@ -165,11 +165,6 @@ def load_robot_file(path: Path) -> RobotSpec:
     )
     check_against_urdf(spec, decl, label)
     return spec
-
-
-def _relative_to(robot_file: Path, name: str) -> Path:
-    p = Path(name).expanduser()
-    return p if p.is_absolute() else (robot_file.parent / p).resolve()
 
 
 def _names_hint(name: str, valid: list[str]) -> str:

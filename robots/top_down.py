@@ -69,13 +69,6 @@ class TopDownIK:
         n = float(np.hypot(d[0], d[1]))
         return d / n if n > 1e-9 else np.array([1.0, 0.0])
 
-    def approach_axis(self, position_world: np.ndarray, tilt_rad: float) -> np.ndarray:
-        """The world direction the tool approaches along at this spot and tilt (straight down at tilt 0)."""
-        if tilt_rad == 0.0:
-            return np.array([0.0, 0.0, -1.0])
-        u = self.outward(position_world)
-        return np.array([u[0] * math.sin(tilt_rad), u[1] * math.sin(tilt_rad), -math.cos(tilt_rad)])
-
     def natural_yaw(self, position_world: np.ndarray) -> float:
         """The tool yaw the arm reaches with least wrist roll: facing along the line from its base."""
         p_base = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
@@ -152,22 +145,18 @@ class TopDownIK:
         up = np.array([0.0, 0.0, 1.0]) - closing[2] * closing
         return up / np.linalg.norm(up)
 
-    def least_tilt(self, positions_world: list[np.ndarray], yaw_world: float | None, q_start: np.ndarray,
+    def least_tilt(self, position_world: np.ndarray, yaw_world: float | None, q_start: np.ndarray,
                    centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                   offsets: Callable[[float], list[np.ndarray]] | None = None, from_rad: float = 0.0,
-                   tilts_rad: list[float] | None = None) -> tuple[float, list[np.ndarray]] | None:
-        """The most vertical approach that reaches every position (each moved by `offsets(tilt)` if given: a hover
-        above the part along the way it rises), and the joints for each; None if no allowed tilt does."""
+                   offset: Callable[[float], np.ndarray] | None = None, from_rad: float = 0.0,
+                   tilts_rad: list[float] | None = None) -> tuple[float, np.ndarray] | None:
+        """The most vertical approach (leaning `from_rad` at least) that reaches the position (moved by
+        `offset(tilt)` if given: a hover above the part along the way it rises), and its joints; None if no
+        allowed tilt does."""
         for tilt in [t for t in (self.tilts_rad if tilts_rad is None else tilts_rad) if t >= from_rad - 1e-9]:
-            points = positions_world if offsets is None else [p + o for p, o in zip(positions_world, offsets(tilt))]
-            qs, q, ok = [], q_start, True
-            for point in points:
-                q, ok = self.solve(point, yaw_world, q, tilt, centre_tool)
-                if not ok:
-                    break
-                qs.append(q)
+            point = position_world if offset is None else position_world + offset(tilt)
+            q, ok = self.solve(point, yaw_world, q_start, tilt, centre_tool)
             if ok:
-                return tilt, qs
+                return tilt, q
         return None
 
     def aimed_home(self, position_world: np.ndarray) -> np.ndarray:
@@ -182,13 +171,14 @@ class TopDownIK:
         """True when the tool can point straight down at this spot (beyond the spec's reach: no IK needed)."""
         return self.joints_for(position_world) is not None
 
-    def joints_for(self, position_world: np.ndarray) -> np.ndarray | None:
+    def joints_for(self, position_world: np.ndarray, within_m: float | None = None) -> np.ndarray | None:
         """Arm joints pointing the claw at this spot as the skill would (straight down, else the least tilt the
-        robot allows), or None if it is out of reach."""
+        robot allows), or None if it is out of reach; spots farther from the base than `within_m` (the declared
+        `reach_m` unless given) are out of reach without IK."""
         p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
-        if math.hypot(p[0], p[1]) > self.spec.reach_m:
+        if math.hypot(p[0], p[1]) > (self.spec.reach_m if within_m is None else within_m):
             return None
         centre = self.spec.grasp_centre_tool(sum(self.spec.grasp_width_m) / 2)  # a part of middling width
-        found = self.least_tilt([np.asarray(position_world, float)[:3]], None, self.aimed_home(position_world), centre,
+        found = self.least_tilt(np.asarray(position_world, float)[:3], None, self.aimed_home(position_world), centre,
                                 tilts_rad=self.reach_tilts_rad)
-        return None if found is None else found[1][0]
+        return None if found is None else found[1]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from scenes.randomise import draw
 from scenes.schema import Arm, Scene, Station
-from scenes.yaml_file import DeclarationError, first_error, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
+from scenes.yaml_file import DeclarationError, first_error, named_in, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
 from scenes.yaml_file import yaml_text as declaration_text
 
 MIN_BASE_SEPARATION_M = 0.25
@@ -91,7 +91,7 @@ def with_robot_files(scene: Scene, path: Path, label: str, robots: Mapping[str, 
     """The scene with its robot files as absolute paths, and `robots` with theirs (each read by `read_robot_file`)."""
     if not scene.robot_files:
         return scene, robots
-    files = [str((path.parent / f).resolve()) if not Path(f).is_absolute() else f for f in scene.robot_files]
+    files = [str(named_in(path, f)) for f in scene.robot_files]
     known = dict(robots) if robots is not None else None
     for i, file in enumerate(files):
         if read_robot_file is None:

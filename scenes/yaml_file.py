@@ -30,6 +30,13 @@ def regular_file(path: Path, what: str, error: type[DeclarationError] = Declarat
     return path
 
 
+def named_in(declaring_file: Path, name: str) -> Path:
+    """A file a declaration names (a scene's robot file, a robot file's URDF): as given if absolute, else relative
+    to the declaring file's folder."""
+    p = Path(name).expanduser()
+    return p if p.is_absolute() else (Path(declaring_file).parent / p).resolve()
+
+
 def yaml_text(path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError) -> str:
     """The file's text: refused at once when larger than `max_bytes`, or when it is not UTF-8 (naming the byte)."""
     size = path.stat().st_size

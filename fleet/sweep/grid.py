@@ -18,6 +18,7 @@ import yaml
 
 from fleet.scene_loading import load_scene
 from scenes.loader import SceneError, resolve_scene_path, yaml_text
+from scenes.yaml_file import named_in
 
 
 class GridError(ValueError):
@@ -110,7 +111,7 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
     source = resolve_scene_path(scene)
     data = yaml.safe_load(yaml_text(source, str(source)))
     if isinstance(data, dict) and isinstance(data.get("robot_files"), list):  # the copy lives elsewhere: keep them found
-        data["robot_files"] = [str((source.parent / f).resolve()) if isinstance(f, str) else f for f in data["robot_files"]]
+        data["robot_files"] = [str(named_in(source, f)) if isinstance(f, str) else f for f in data["robot_files"]]
     label = f"{source} with --set {', '.join(f'{k}={v}' for k, v in overrides.items())}"
     for path, value in overrides.items():
         set_path(data, path, value, label)

@@ -106,6 +106,11 @@ class MotionRequest:
     then_after_s: tuple[float, ...] = ()
 
 
+def _rise(up: np.ndarray, up_m: float, below_m: float = 0.0) -> np.ndarray:
+    """From a spot to the claw `up_m` above it: `below_m` straight up, then `up_m` along `up` (the way it rises)."""
+    return np.array([up[0] * up_m, up[1] * up_m, below_m + up[2] * up_m])
+
+
 class PickPlaceSkill:
     """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step` returns.
 
@@ -153,7 +158,6 @@ class PickPlaceSkill:
         self._asking_since_s = 0.0  # when the current free move was first asked for
         self._detour_to: np.ndarray | None = None  # a denied transfer's end, while the arm detours home first
         self._then_cache: tuple = (None, ([], []))  # the local stage of the move last asked for
-        self._hover_world = np.zeros(3)
         self.place_yaw = 0.0
         self.pick_tilt_rad = self.place_tilt_rad = 0.0  # how far the claw leans from straight down at each end
         self.grasp_centre = (0.0, 0.0, 0.0)  # where the part sits between the jaws, tool frame (off centre: one fixed jaw)
@@ -170,17 +174,17 @@ class PickPlaceSkill:
         return self.top_down.solve(position_world, yaw_world, q_start, tilt_rad, self.grasp_centre)
 
     def _least_tilt(self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0,
-                    from_rad: float = 0.0) -> tuple[float, np.ndarray] | None:
+                    from_rad: float = 0.0) -> tuple[float, np.ndarray, np.ndarray] | None:
         """The most vertical claw (straight down where it can; leaning `from_rad` at least) that reaches `up_m`
-        above a spot (and `below_m` straight above it first), and its joints."""
-        found = self.top_down.least_tilt([spot_world], yaw_world, self.q_cmd, self.grasp_centre,
-                                         lambda tilt: [self._rise(spot_world, yaw_world, tilt, up_m, below_m)], from_rad)
-        return None if found is None else (found[0], found[1][0])
+        above a spot (and `below_m` straight above it first): its tilt, its joints and the way it rises there."""
+        def rise_at(tilt: float) -> np.ndarray:
+            return _rise(self.top_down.up_between_jaws(spot_world, yaw_world, tilt), up_m, below_m)
 
-    def _rise(self, spot_world: np.ndarray, yaw_world: float, tilt_rad: float, up_m: float, below_m: float = 0.0) -> np.ndarray:
-        """From a spot to the claw `up_m` above it: `below_m` straight up, then `up_m` the way the claw rises."""
-        up = self.top_down.up_between_jaws(spot_world, yaw_world, tilt_rad)
-        return np.array([up[0] * up_m, up[1] * up_m, below_m + up[2] * up_m])
+        found = self.top_down.least_tilt(spot_world, yaw_world, self.q_cmd, self.grasp_centre, rise_at, from_rad)
+        if found is None:
+            return None
+        tilt, q = found
+        return tilt, q, self.top_down.up_between_jaws(spot_world, yaw_world, tilt)
 
     def _natural_yaw(self, position_world: np.ndarray) -> float:
         return self.top_down.natural_yaw(position_world)
@@ -272,12 +276,10 @@ class PickPlaceSkill:
                 hover = grasp + [0.0, 0.0, t.hover_m]
                 self._fail(f"part {part.part_id} cannot be reached from above at {np.round(hover, 3).tolist()}")
                 return
-            self.pick_tilt_rad, q_hover = found
-            self._pick_up = self.top_down.up_between_jaws(grasp, self.grasp_yaw, self.pick_tilt_rad)
-            hover = grasp + self._rise(grasp, self.grasp_yaw, self.pick_tilt_rad, t.hover_m)
+            self.pick_tilt_rad, q_hover, self._pick_up = found
             seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
-        self._hover_world, self._grasp_world = hover, grasp
+        self._grasp_world = grasp
         self._begin_segment(seg, Phase.APPROACH, obs.time_s)
 
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
@@ -332,7 +334,7 @@ class PickPlaceSkill:
         elif self.phase == Phase.TRANSFER and self._detour_to is None and self.task is not None:
             place = np.asarray(self.task.place_xyz, float)
             release = place + [0, 0, self.tool_above_bottom_m + t.place_drop_m]
-            above = place + self._rise(place, self.place_yaw, self.place_tilt_rad, t.hover_m, self.tool_above_bottom_m)
+            above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
             points, yaw, tilt = [release, release, above], self.place_yaw, self.place_tilt_rad
             times = [t.lower_s, t.lower_s + t.release_s, t.lower_s + t.release_s + t.retreat_s]
         else:
@@ -580,8 +582,7 @@ class PickPlaceSkill:
         if found is None:
             self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
             return
-        self.place_tilt_rad, q_above = found
-        self._place_up = self.top_down.up_between_jaws(place, self.place_yaw, self.place_tilt_rad)
+        self.place_tilt_rad, q_above, self._place_up = found
         self._begin_segment(self._segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)
 
     def _plan_place(self) -> None:
