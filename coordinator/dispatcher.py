@@ -30,6 +30,8 @@ from robots.registry import get_robot
 from scenes.schema import Scene
 
 OVERRUN_S = 2.0  # a task this late on its estimate: its arm's end is unknown
+SETTLE_CAP_S = 10.0  # after a take-over, no grant until the arms settle or this long (sim s): longer than any granted move
+STATION_MATCH_M = 0.01  # a place position this close (x, y) to a station's is that station
 _BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
 
 
@@ -83,9 +85,9 @@ class Dispatcher:
     """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
     reassignment, the collision guard's grants and the busy-until estimates."""
 
-    def __init__(self, scene: Scene, allocator: Allocator | None = None) -> None:
+    def __init__(self, scene: Scene, allocator: Allocator | None = None, first_task_id: int = 1) -> None:
         self.scene = scene
-        self.ledger = Ledger(scene)
+        self.ledger = Ledger(scene, first_task_id)
         self.allocator = allocator or make_allocator("optimal", scene)
         self.arm_names = [a.name for a in scene.arms]
         self.guard = CollisionGuard({
@@ -111,6 +113,9 @@ class Dispatcher:
         self.min_separation_m = math.inf
         self.closest_pair: tuple[str, str] | None = None
         self.losses: list[dict] = []
+        self.unsettled: set[str] = set()  # after a take-over: arms that may still move under a grant given before it
+        self.settle_by_s = -math.inf
+        self.adopted: list[dict] = []
         self._candidates: dict[int, tuple[int, str]] = {}  # candidate id -> (task id, station), of the last `candidates`
         self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
 
@@ -143,6 +148,8 @@ class Dispatcher:
         `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost."""
         self.acts_at_tick[arm] = acts_at_tick
         self.skill[arm] = skill
+        if request_seq > 0 or skill in IDLE_SKILLS:  # holding still for a grant, or not working: no move of old
+            self.unsettled.discard(arm)
         self.guard.set_state(arm, np.asarray(q))
         if request is not None and request_seq > 0 and request_seq != self.request_seq[arm]:
             self.request_seq[arm] = request_seq
@@ -161,6 +168,7 @@ class Dispatcher:
     def arm_lost(self, arm: str, why: str, silent_for_s: float) -> list[int]:
         """An arm stopped answering: its granted path is void (it holds still), its tasks go back to the pool."""
         self.lost[arm] = self.sim_time_s
+        self.unsettled.discard(arm)  # a lost arm holds still
         self.requests.pop(arm, None)
         self.guard.release(arm)
         returned = self.ledger.arm_lost(arm, self.sim_time_s)
@@ -173,6 +181,38 @@ class Dispatcher:
     def arm_rejoined(self, arm: str) -> None:
         if self.lost.pop(arm, None) is not None:
             self.losses.append({"arm": arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
+
+    # --- taking over a running line ---------------------------------------------------
+    def take_over(self, time_s: float) -> None:
+        """This dispatcher replaces one that crashed (events replayed with `on_event`): the grants it gave are
+        unknown, so none is given until every arm was seen holding still for a grant or idle (an arm may still
+        be moving under an old grant), or `SETTLE_CAP_S` passed."""
+        self.sim_time_s = max(self.sim_time_s, time_s)
+        self.unsettled = set(self.arm_names) - set(self.lost)
+        self.settle_by_s = time_s + SETTLE_CAP_S
+
+    def adopt(self, arm: str, task_id: int, part_id: int, place_xyz: tuple[float, ...], time_s: float) -> str:
+        """The task `arm` says it works on (its controller's heartbeat) joins the ledger as that arm's, if the
+        ledger does not know it: a take-over, or an order of the crashed dispatcher that it never announced.
+        Returns why not ("" when adopted)."""
+        if task_id in self.ledger.tasks:
+            return "known"
+        station = self.station_at(place_xyz)
+        why = f"no station at {tuple(round(v, 3) for v in place_xyz)}" if station is None else self.ledger.adopt(task_id, part_id, station, arm, time_s)
+        if not why:
+            self.last_stations[arm] = self.ledger.tasks[task_id].stations
+        self.adopted.append({"arm": arm, "task_id": task_id, "part_id": part_id, "station": station, "sim_time_s": round(time_s, 3),
+                             "adopted": not why, "reason": why})
+        return why
+
+    def station_at(self, place_xyz: tuple[float, ...]) -> str | None:
+        """The station whose place position (x, y) is `place_xyz`'s, if one is."""
+        if len(place_xyz) != 3:
+            return None
+        for station in self.scene.stations:
+            if math.dist(station.pose.xyz[:2], place_xyz[:2]) < STATION_MATCH_M:
+                return station.name
+        return None
 
     # --- what the allocator sees ----------------------------------------------------
     def arm_views(self) -> list[ArmView]:
@@ -280,6 +320,9 @@ class Dispatcher:
         granted move is in the way) stays here until that move is over.
         """
         self.guard.expire(now_s)
+        if self.unsettled and now_s < self.settle_by_s:
+            return []  # taken over: an arm may still move under a grant this dispatcher never saw
+        self.unsettled.clear()
         out = []
         for arm in [a for a in self.arm_names if a in self.requests]:
             asked = self.requests[arm]
@@ -331,6 +374,7 @@ class Dispatcher:
             "grants_denied": self.guard.denied,
             "grants_given": self.grants_given,
             "tasks_reassigned": self.reassigned,
+            "tasks_adopted": self.adopted,
             "grant_waits": self.guard.waits,
             "grant_requests_open": {a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items()},
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,

@@ -25,12 +25,12 @@ PLACED_GRACE_S = 3.0
 class Ledger:
     """Parts and tasks of one run; all times are sim seconds."""
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, scene: Scene, first_task_id: int = 1) -> None:
         self.scene = scene
         self.parts: dict[int, PartRecord] = {}
         self.tasks: dict[int, Task] = {}
         self.stacks: dict[str, list[int]] = {s.name: [] for s in scene.stations if s.assembles}
-        self._next_task_id = 1
+        self._next_task_id = first_task_id  # a respawned coordinator starts past its predecessors' ids
         self._open_by_part: dict[int, int] = {}
         self._finished_at: dict[int, float] = {}  # task id -> when its arm said the skill was done
         self._station_names = {s.name for s in scene.stations}
@@ -50,6 +50,10 @@ class Ledger:
         self._leave_stack(part)
         part.location = station
         task = self._open_task(part_id)
+        if station != part.next_station and station in self._alternatives(part):  # another bin of its colour does as well
+            part.route[part.hop] = station
+            if task is not None:
+                task.retarget(station)
         if station == part.next_station:
             part.hop += 1
             if task is not None and task.target == station:
@@ -178,13 +182,39 @@ class Ledger:
             target = part.next_station
             if target is None or not self._ready(part, target):
                 continue
-            task = Task(self._next_task_id, part.part_id, part.location, target, now_s)
-            if part.hop == len(part.route) - 1:  # a sorted part's bin: any of its colour will do
-                task.alternatives = tuple(s for s in self.scene.stations_for_colour(part.feeder, part.type_index) if s != target)
-            self._next_task_id += 1
-            self.tasks[task.task_id] = task
-            self._open_by_part[part.part_id] = task.task_id
+            self._new_task(part, now_s)
         return [t for t in self.tasks.values() if t.state == TaskState.PENDING]
+
+    def _new_task(self, part: PartRecord, now_s: float, task_id: int | None = None) -> Task:
+        """A task for the part's next hop (`task_id`: one an arm already works on), pending."""
+        task_id = self._next_task_id if task_id is None else task_id
+        task = Task(task_id, part.part_id, part.location, part.next_station, now_s)
+        task.alternatives = tuple(s for s in self._alternatives(part) if s != task.target)
+        self._next_task_id = max(self._next_task_id, task_id + 1)
+        self.tasks[task.task_id] = task
+        self._open_by_part[part.part_id] = task.task_id
+        return task
+
+    def _alternatives(self, part: PartRecord) -> tuple[str, ...]:
+        """Stations as good as the part's next one: on its last hop, a sorted part's bins of its colour."""
+        if part.hop != len(part.route) - 1:
+            return ()
+        return tuple(self.scene.stations_for_colour(part.feeder, part.type_index))
+
+    def adopt(self, task_id: int, part_id: int, target: str, arm: str, now_s: float) -> str:
+        """A task `arm` already works on, as the arm tells it (a respawned coordinator takes over a running line):
+        it joins the ledger assigned to `arm`. Returns why it cannot ("" when adopted): the part is not on the
+        line, has a task already, or `target` is not where it goes next (the hop was done meanwhile)."""
+        part = self.parts.get(part_id)
+        if part is None or part.fate != PartFate.ON_LINE:
+            return f"part {part_id} is not on the line"
+        if part_id in self._open_by_part or task_id in self.tasks:
+            return f"part {part_id} has a task already"
+        if part.next_station is None or (target != part.next_station and target not in self._alternatives(part)):
+            return f"part {part_id} does not go to {target} next"
+        task = self._new_task(part, now_s, task_id)
+        self.assign(task.task_id, arm, now_s, target)
+        return ""
 
     def _ready(self, part: PartRecord, target: str) -> bool:
         """Precedence: an assembly layer needs the layers below it; a stack's bottom leaves only when whole."""

@@ -4,8 +4,10 @@ The sim server listens on a loopback endpoint; every other node connects to it.
 Nodes run in their own process groups (a Ctrl-C reaches only the launcher, which
 then stops them in order), die with the launcher even if it is killed, and
 write their end-of-run figures to JSON files that the launcher merges into one
-summary. A dead controller is reported and, with `respawn`, started again; a
-dead sim server or coordinator ends the run with one clear message.
+summary. A dead controller is reported and, with `respawn`, started again; so is a
+dead coordinator (the new one takes over the line: `fleet/nodes/coordinator_node.py`), and
+meanwhile a lockstep sim holds the line for it. A dead sim server ends the run with one clear
+message, the summary's counts from what the launcher last heard.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ from fleet.scene_loading import load_scene
 STOP_GRACE_S = 1.5
 RECORDER_GRACE_S = 120.0  # a recorder behind the line finishes writing what it heard; killing it would lose the file
 RECORDER_START_S = 60.0
+COORDINATOR_RESPAWN_TIMEOUT_S = 60.0  # with `respawn`, a lockstep sim waits this long for a coordinator (a new one starts)
+MAX_COORDINATOR_STARTS = 4  # a coordinator that keeps crashing ends the run
 
 
 @dataclass(frozen=True)
@@ -166,6 +170,8 @@ class Launcher:
             sim_args += ["--record-targets", o.record_targets]
         if o.record:
             sim_args += ["--await-recorder", str(RECORDER_START_S)]
+        if o.respawn:
+            sim_args += ["--coordinator-timeout", str(COORDINATOR_RESPAWN_TIMEOUT_S)]
         for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
             if value is not None:
                 sim_args += [flag, repr(value)]
@@ -175,6 +181,7 @@ class Launcher:
         """The coordinator and one controller per arm, connecting to the sim's endpoint."""
         o = self.options
         nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode, "--allocator", o.allocator])]
+        nodes[0].counts_starts = True  # `--incarnation N`: from the 2nd start on, it takes over the running line
         for arm in self.scene.arms:
             grants = ["--grants"] if len(self.scene.arms) > 1 else []  # a lone arm has nobody to ask about
             extra = ["--arm", arm.name, *grants] + (["--rt"] if o.realtime_priority else [])
@@ -318,9 +325,7 @@ class Launcher:
             return False
         if node.alive:  # alive but silent: a hung controller is replaced
             node.child.kill()
-        node.history.append(node.record())
-        node.start()
-        self.respawns += 1
+        self._restart(node)
         self.on_message(f"respawned {request.arm}'s controller (asked by {request.source})")
         return True
 
@@ -347,14 +352,21 @@ class Launcher:
                 return "" if code == 0 else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
             code = coordinator.poll()
             if code is not None:
-                return f"the coordinator crashed (exit {code}): {coordinator.log_tail() or 'no output'}; logs in {self.dir}"
+                if not (self.options.respawn and coordinator.starts < MAX_COORDINATOR_STARTS):
+                    return f"the coordinator crashed (exit {code}): {coordinator.log_tail() or 'no output'}; logs in {self.dir}"
+                self.on_message(f"the coordinator crashed (exit {code}); starting another to take over the line")
+                self._restart(coordinator)
             for node in self.nodes[2:]:
                 if node.role == "controller" and node.poll() is not None and self.options.respawn:
-                    node.history.append(node.record())
-                    node.start()
-                    self.respawns += 1
+                    self._restart(node)
             time.sleep(0.02)
         return ""
+
+    def _restart(self, node: Node) -> None:
+        """Start a dead node again, keeping the record of the one that died."""
+        node.history.append(node.record())
+        node.start()
+        self.respawns += 1
 
     # --- the summary ----------------------------------------------------------------
     def _read(self, node: Node) -> dict:
@@ -446,6 +458,7 @@ class Launcher:
             "arms_lost": sim.get("arms_lost", []),
             "arm_events": coord.get("arm_events", []),
             "respawns": self.respawns,
+            "coordinator_takeover": coord.get("takeover"),
             "respawn_requests": self.respawn_requests,
             "monitor": None if monitor is None else {"url": self.monitor_url} | monitor,
             "unfinished_parts": coord.get("unfinished_parts", []),

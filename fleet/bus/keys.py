@@ -100,6 +100,11 @@ class Keys:
         return f"{ROOT}/{self.run}/world/scene"
 
     @property
+    def history(self) -> str:
+        """A queryable: the sim answers with every line event so far (`EventLog`), for a coordinator that rejoins."""
+        return f"{ROOT}/{self.run}/world/history"
+
+    @property
     def respawn(self) -> str:
         """Requests to the launcher to start a controller again (`RespawnRequest`)."""
         return f"{ROOT}/{self.run}/launcher/respawn"

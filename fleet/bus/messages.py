@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import msgspec
 
-PROTOCOL_VERSION = 4
+PROTOCOL_VERSION = 5
 Floats = tuple[float, ...]
 
 
@@ -157,6 +157,9 @@ class ArmStatus(Message, frozen=True, array_like=True):
     busy_s: float = 0.0
     failure: str = ""
     incarnation: int = 0  # differs each time a controller starts: a restart is a loss and a rejoin
+    part_id: int = -1  # the assignment it works on or holds, when it has one (a respawned coordinator adopts it)
+    place_xyz: Floats = ()
+    assign_seq: int = -1  # the newest order it received (a respawned coordinator counts on from it)
     version: int = PROTOCOL_VERSION
 
 
@@ -220,6 +223,15 @@ class LineEvent(Message, frozen=True, array_like=True):
     tick: int
     detail: str = ""
     type_index: int = 0
+    version: int = PROTOCOL_VERSION
+
+
+class EventLog(Message, frozen=True, array_like=True):
+    """Sim -> a coordinator that asks (`Keys.history`): every line event published so far, in order, as of `tick`.
+    A respawned coordinator rebuilds its ledger from it."""
+
+    tick: int
+    events: tuple[LineEvent, ...]
     version: int = PROTOCOL_VERSION
 
 

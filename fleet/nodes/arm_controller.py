@@ -268,11 +268,19 @@ class ArmController:
         self.skill.latency_s = self.skill.decision_period_s + 2 * max(self.delays) / self.hz
 
     def send_heartbeat(self, sim_time_s: float) -> None:
-        """The status the coordinator watches for liveness, with what the arm is doing."""
+        """The status the coordinator watches for liveness, with what the arm is doing: its phase, and the
+        assignment it works on (or has taken and not started), which a respawned coordinator adopts."""
         self.seq += 1
+        pending, task = self.pending, self.skill.task  # read once: the heartbeat runs on its own thread
+        task_id, part_id, place = self.task_id, -1, ()
+        if pending is not None and pending.task_id is not None:
+            task_id, part_id, place = pending.task_id, pending.part_id, tuple(pending.place_xyz)
+        elif task is not None and task_id is not None:
+            part_id, place = task.part_id, tuple(task.place_xyz)
         self._status_pub.put(encode(ArmStatus(
-            self.arm, self.seq, sim_time_s, self.skill.phase.value, self.task_id, float(self.skill.progress),
-            self.busy_s, self.skill.failure_reason, self.incarnation,
+            self.arm, self.seq, sim_time_s, self.skill.phase.value, task_id, float(self.skill.progress),
+            self.busy_s, self.skill.failure_reason, self.incarnation, part_id, place,
+            -1 if self.assign_seq is None else self.assign_seq,
         )))
 
 

@@ -9,6 +9,11 @@ with a `CoordTick`, so its decisions land on the same tick in every run. An arm
 whose heartbeats stop for `heartbeat_timeout_s` (wall clock) is lost: its tasks
 go back to the pool. It never imports the simulator.
 
+A coordinator started with `--incarnation N` (N > 1: the launcher respawned it after a crash) takes
+over the running line: it rebuilds its ledger from the sim's event log (`Keys.history`), adopts
+the task each controller's heartbeat says it works on, counts its orders on from the controllers'
+and gives no grant until every arm was seen holding still or idle (grants given before are unknown).
+
     python -m fleet.nodes.coordinator_node --scene assembly_line --run demo --connect tcp/127.0.0.1:7447
 """
 
@@ -27,7 +32,8 @@ from coordinator.dispatcher import AssignOrder, CancelOrder, Decision, Dispatche
 from coordinator.guard import TimedPath
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.plausible import TickClock, arm_state_problem, parts_problem
+from fleet.bus.history import HistoryUnavailable, fetch_history
+from fleet.bus.plausible import MAX_SEQ_JUMP, TickClock, arm_state_problem, not_finite, parts_problem
 from fleet.bus.messages import (
     ArmState, ArmStatus, Assignment, CoordTick, LineEvent, LineView, MotionGrant, PartsState, Progress, separations_from_pairs,
 )
@@ -37,6 +43,8 @@ from robots.registry import get_robot
 from scenes.schema import Scene
 
 PROGRESS_PERIOD_S = 0.5
+TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
+TAKEOVER_WAIT_S = 2.0  # wall seconds a take-over waits for every arm's heartbeat (a dead controller's never comes)
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
 
 
@@ -54,9 +62,12 @@ class CoordinatorNode:
         lockstep: bool = True,
         allocator: Allocator | None = None,
         heartbeat_timeout_s: float = 0.75,
+        incarnation: int = 1,
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
-        self.dispatcher = Dispatcher(scene, allocator or make_allocator("optimal", scene))
+        self.incarnation = incarnation
+        first_task_id = (incarnation - 1) * TASK_ID_SPAN + 1
+        self.dispatcher = Dispatcher(scene, allocator or make_allocator("optimal", scene), first_task_id)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.arm_names = [a.name for a in scene.arms]
         self.period_ticks = self.dispatcher.period_ticks
@@ -76,13 +87,15 @@ class CoordinatorNode:
         self._separation_pub = session.declare_publisher(keys.coord("separation"))
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
-        self.incarnation: dict[str, int] = {}
+        self.controller_incarnation: dict[str, int] = {}
         self.heartbeat_at: dict[str, float] = {}
         self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
         self.events_seen = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
+        self._replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
+        self.takeover: dict | None = None
 
     def close(self) -> None:
         for sub in self._subs:
@@ -108,7 +121,7 @@ class CoordinatorNode:
         for key, payload in items:
             leaf = key.rsplit("/", 1)[-1]
             msg = self._decoders[leaf].decode(key, payload) if leaf in self._decoders else None
-            if msg is None:
+            if msg is None or (leaf == "events" and (msg.kind, msg.part_id, msg.tick, msg.detail) in self._replayed):
                 continue
             problem = self._problem(leaf, msg)
             if problem:
@@ -142,6 +155,54 @@ class CoordinatorNode:
             return f"a heartbeat of no arm of this line ({msg.arm!r})"
         return ""
 
+    # --- taking over a running line ---------------------------------------------------
+    def take_over(self, session: zenoh.Session, timeout_s: float = 30.0) -> dict:
+        """Rebuild from the running line (this coordinator replaces one that crashed): the sim's event log, then
+        each arm's heartbeat (the task it works on, the orders it received). Returns what was rebuilt."""
+        log = fetch_history(session, self.keys, self.drops, timeout_s)
+        for e in log.events:
+            self._replayed.add((e.kind, e.part_id, e.tick, e.detail))
+            problem = self._problem("events", e)
+            if problem:
+                self.drops.drop(self.keys.history, problem)
+            else:
+                self._on_event(e)
+        self.events_seen = len(log.events)
+        self.dispatcher.take_over(log.tick / self.scene.control_hz)
+        beats, announced = self._await_arms(TAKEOVER_WAIT_S)
+        for arm, beat in beats.items():
+            if announced.get(arm, 0) <= beat.assign_seq <= announced.get(arm, 0) + MAX_SEQ_JUMP:
+                self.assign_seq[arm] = max(self.assign_seq[arm], beat.assign_seq)  # orders after those it has
+            if beat.part_id >= 0 and beat.task_id is not None:
+                self.dispatcher.adopt(arm, beat.task_id, beat.part_id, tuple(beat.place_xyz), log.tick / self.scene.control_hz)
+        self.takeover = {
+            "incarnation": self.incarnation, "sim_time_s": round(log.tick / self.scene.control_hz, 3), "events_replayed": len(log.events),
+            "arms_heard": sorted(beats), "tasks_adopted": [a for a in self.dispatcher.adopted if a["adopted"]],
+        }
+        print(f"coordinator: took over the line at sim {self.takeover['sim_time_s']} s ({len(log.events)} events, "
+              f"{len(self.takeover['tasks_adopted'])} task(s) adopted from {len(beats)} arm(s))", file=sys.stderr, flush=True)
+        return self.takeover
+
+    def _await_arms(self, wait_s: float) -> tuple[dict[str, ArmStatus], dict[str, int]]:
+        """Each arm's newest heartbeat and the order count the sim announced to it (a frame), waiting at most
+        `wait_s` for all; what arrived meanwhile stays queued, in order, for `poll`."""
+        beats: dict[str, ArmStatus] = {}
+        announced: dict[str, int] = {}
+        held: list[tuple[str, bytes]] = []
+        deadline = time.monotonic() + wait_s
+        while (len(beats) < len(self.arm_names) or not announced) and time.monotonic() < deadline:
+            for key, payload in self._inbox.drain():
+                held.append((key, payload))
+                leaf = key.rsplit("/", 1)[-1]
+                msg = self._decoders[leaf].decode(key, payload) if leaf in ("status", "frame") else None
+                if isinstance(msg, ArmStatus) and msg.arm in self.last_tick and not not_finite(msg.place_xyz):
+                    beats[msg.arm] = msg
+                elif isinstance(msg, LineView) and not self._problem("frame", msg):
+                    announced = {s.arm: s.assign_seq for s in msg.arms}
+            self._inbox.wait(0.02)
+        self._inbox.items.extendleft(reversed(held))
+        return beats, announced
+
     def _on_event(self, e: LineEvent) -> None:
         self.events_seen += 1
         self.dispatcher.on_event(e.kind, e.part_id, e.detail, e.type_index, e.tick / self.scene.control_hz)
@@ -155,6 +216,7 @@ class CoordinatorNode:
         if s.arm not in self.last_tick or s.tick <= self.last_tick[s.arm]:
             return  # count each tick once
         self.last_tick[s.arm] = s.tick
+        self.assign_seq[s.arm] = max(self.assign_seq[s.arm], s.assign_seq)  # after a take-over: count on from the sim's
         if not s.lost:
             self._rejoining.discard(s.arm)
         request = None
@@ -174,14 +236,14 @@ class CoordinatorNode:
     def _on_status(self, s: ArmStatus) -> None:
         if s.incarnation in self._replaced.get(s.arm, ()):
             return  # a late beat of a controller already replaced: neither a loss nor a sign of life
-        known = self.incarnation.setdefault(s.arm, s.incarnation)
+        known = self.controller_incarnation.setdefault(s.arm, s.incarnation)
         if known != s.incarnation:  # the first beat of a new controller: heard now (its arrival stamp may still
             self._heard_at[s.arm] = max(self._heard_at.get(s.arm, 0.0), time.monotonic())  # be the old one's)
         previous = self.heartbeat_at.get(s.arm)
         self.heartbeat_at[s.arm] = self._heard_at.get(s.arm, time.monotonic())
         if known != s.incarnation:  # restarted faster than the heartbeat timeout: still a loss
             self._replaced.setdefault(s.arm, set()).add(known)
-            self.incarnation[s.arm] = s.incarnation
+            self.controller_incarnation[s.arm] = s.incarnation
             if s.arm not in self.dispatcher.lost:
                 self._arm_lost(s.arm, "its controller restarted", self.heartbeat_at[s.arm] - (previous or 0.0))
         if s.arm in self.dispatcher.lost:  # a respawned controller rejoined; the sim says so when it has heard it,
@@ -260,7 +322,7 @@ class CoordinatorNode:
         )))
 
     def report(self) -> dict:
-        return self.dispatcher.report() | {"dropped_messages": self.drops.total}
+        return self.dispatcher.report() | {"dropped_messages": self.drops.total, "takeover": self.takeover}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -269,15 +331,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
+    parser.add_argument("--incarnation", type=int, default=1, help="this run's Nth coordinator: from the 2nd on it takes over "
+                        "the running line (ledger rebuilt from the sim's event log and the controllers' heartbeats)")
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "coordinator")
     if opened is None:
         return 2
     args, stop, scene = opened
+    if not 1 <= args.incarnation <= 1000:
+        print(f"coordinator: --incarnation {args.incarnation} must be within 1..1000", file=sys.stderr)
+        return 2
     with open_session(BusEndpoints.from_args(args)) as session:
-        node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep", allocator=make_allocator(args.allocator, scene))
+        node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep",
+                               allocator=make_allocator(args.allocator, scene), incarnation=args.incarnation)
         node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:
+            if args.incarnation > 1:
+                try:
+                    node.take_over(session)
+                except HistoryUnavailable as exc:
+                    print(f"coordinator: cannot take over the line: {exc}", file=sys.stderr, flush=True)
+                    return 1
             while not stop.should_stop():
                 if not node.poll():
                     node.wait(0.05)

@@ -45,9 +45,10 @@ from fleet.bus.flights import FlightBook
 from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
 from fleet.bus.plausible import request_problem, seq_problem
+from fleet.bus.history import serve_history
 from fleet.bus.scene_query import serve_scene
 from fleet.bus.messages import (
-    ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, LineEvent, LineView, SimControl, SimStatus,
+    ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, EventLog, LineEvent, LineView, SimControl, SimStatus,
 )
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
 from fleet.line_watch import LineWatcher
@@ -129,6 +130,7 @@ class SimServer:
         mode: str = "lockstep",
         watchdog_s: float = 0.25,
         lockstep_timeout_s: float = 1.0,
+        coordinator_timeout_s: float | None = None,
         first_command_timeout_s: float = 30.0,
         coordinator: bool = False,
         controllers: bool = True,
@@ -140,6 +142,8 @@ class SimServer:
             raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
         self.world, self.session, self.keys, self.mode = world, session, keys, mode
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
+        # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
+        self.coordinator_timeout_s = lockstep_timeout_s if coordinator_timeout_s is None else coordinator_timeout_s
         self.first_command_timeout_s = first_command_timeout_s
         self.stop = stop
         self.controllers = controllers
@@ -174,6 +178,8 @@ class SimServer:
             session.declare_subscriber(keys.control, self._control_inbox),
         ]
         self._scene_queryable = serve_scene(session, keys, world.scene_model.model_dump_json())
+        self.event_log: list[LineEvent] = []  # every event published: a respawned coordinator rebuilds from it
+        self._history_queryable = serve_history(session, keys, lambda: EventLog(self.world.tick, tuple(self.event_log)))
         self._status_pub = session.declare_publisher(keys.sim_status)
         self._view_pub = session.declare_publisher(keys.view)
         self._frame_pub = session.declare_publisher(keys.frame)
@@ -197,6 +203,7 @@ class SimServer:
         for sub in self._subs:
             sub.undeclare()
         self._scene_queryable.undeclare()
+        self._history_queryable.undeclare()
         pubs = [*self._state_pubs.values(), *self._result_pubs.values(), self._parts_pub, self._events_pub, self._status_pub,
                 self._view_pub, self._frame_pub]
         for pub in pubs:
@@ -384,7 +391,8 @@ class SimServer:
         """Until every live controller of `links` has answered each state delivered to it (with the goals it names),
         and the coordinator each frame (`coord`), or the timeout passed; then the answers due now take effect."""
         first = not self._started
-        deadline = time.monotonic() + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
+        started = time.monotonic()
+        deadline = started + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
         republish_at = time.monotonic() + REPUBLISH_S
         while True:
             self._take_inputs()
@@ -394,11 +402,13 @@ class SimServer:
                 break
             if self.stop is not None and self.stop.should_stop():
                 return
-            if time.monotonic() > deadline:
+            now = time.monotonic()
+            if now > deadline and waiting:
                 for link in waiting:
                     self._lose(link)
-                if coord_waiting:
-                    self.stats.coordinator_lost = True
+                continue
+            if coord_waiting and now > max(deadline, started + self.coordinator_timeout_s):
+                self.stats.coordinator_lost = True
                 break
             if time.monotonic() > republish_at:  # a process that joined late, or a lost sample
                 for link in waiting:
@@ -439,7 +449,9 @@ class SimServer:
         left = False
         for e in self.watcher.update(self.world, parts):
             self.events_published[e.kind] += 1
-            self._put(self._events_pub, "events", encode(LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)))
+            event = LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)
+            self.event_log.append(event)
+            self._put(self._events_pub, "events", encode(event))
             left = left or e.kind in ("lost", "retired")
         return left
 
@@ -704,6 +716,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", type=float, default=1.0)
     parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
+    parser.add_argument("--coordinator-timeout", type=float, help="wall seconds a lockstep frame waits for the coordinator "
+                        "(default: the lockstep timeout; longer when a crashed coordinator is respawned)")
     parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
     parser.add_argument("--await-recorder", type=float, metavar="S", default=0.0, help="start the clock only once a recorder listens (wait at most S wall seconds)")
     parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
@@ -733,7 +747,7 @@ def main(argv: list[str] | None = None) -> int:
     with contextlib.closing(session):
         server = SimServer(
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator, controllers=not args.no_controllers,
-            lockstep_timeout_s=args.lockstep_timeout, stop=stop, speed=args.speed,
+            lockstep_timeout_s=args.lockstep_timeout, coordinator_timeout_s=args.coordinator_timeout, stop=stop, speed=args.speed,
         )
         if args.record_targets:
             server.target_log = []

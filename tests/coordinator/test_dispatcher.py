@@ -111,3 +111,43 @@ def test_a_sorted_part_goes_to_the_bin_of_its_colour_that_the_arm_taking_it_reac
     assert order.arm == "arm_3" and order.place_xyz[:2] == bin_3[:2]
     task = d.ledger.tasks[order.task_id]
     assert (task.target, task.alternatives) == ("bin_3", ("bin_0",)) and d.ledger.parts[0].route == ["bin_3"]
+
+
+def test_a_dispatcher_that_takes_over_adopts_the_arms_tasks_and_grants_nothing_until_the_arms_settle():
+    """A crashed coordinator's successor: the events replayed, the task an arm says it works on adopted (the part
+    gets no second task), and no grant while another arm may still move under a grant it never saw."""
+    first = Dispatcher(SCENE)
+    order = arrive(first)
+    place = first.assignment(first.ledger.tasks[order.task_id], order.arm).place_xyz
+
+    d = Dispatcher(SCENE, first_task_id=1 + (1 << 20))
+    d.on_event("arrived", 0, SCENE.feeders[0].name, 0, 1.0)
+    d.on_parts({0: part_on_belt(d, 0, 0.5)}, 2.0)
+    d.take_over(2.0)
+    assert d.adopt(order.arm, order.task_id, 0, place, 2.0) == ""
+    assert d.ledger.tasks[order.task_id].arm == order.arm and d.ledger.busy_stations() >= set(d.ledger.tasks[order.task_id].stations)
+    assert "does not go" in d.adopt("arm_1", 99, 0, place, 2.0) or "has a task" in d.adopt("arm_1", 99, 0, place, 2.0)
+    assert d.adopt(order.arm, 7, 0, (9.0, 9.0, 0.0), 2.0).startswith("no station at")
+
+    other = next(a for a in d.arm_names if a != order.arm)
+    reach_out = tuple(HOME + [0.3, 0.4, -0.3, 0, 0.2, 0])
+    for arm in d.arm_names:  # the adopted arm is mid-task and not asking: it may move under an old grant
+        d.on_arm(arm, HOME, "transfer" if arm == order.arm else "idle", 2.0)
+    d.on_arm(other, HOME, "approach", 2.0, request_seq=1, acts_at_tick=205, request=TimedPath(other, tuple(HOME), reach_out, 2.0, 3.0))
+    tick = round(2.0 * SCENE.control_hz / PERIOD) * PERIOD
+    assert not [o for o in d.decide(tick).orders if isinstance(o, (GrantOrder, AssignOrder))], "no grant, no second task for part 0"
+    d.on_arm(order.arm, HOME, "idle", 2.1)  # the adopted arm settled: grants go on
+    grants = [o for o in d.decide(tick + PERIOD).orders if isinstance(o, GrantOrder)]
+    assert [g.arm for g in grants] == [other]
+    new = d.ledger.refresh(2.2)
+    assert all(t.task_id > 1 << 20 for t in new), "a new incarnation's ids never repeat its predecessor's"
+
+
+def test_a_sorted_part_resting_in_another_bin_of_its_colour_has_done_its_hop():
+    d = Dispatcher(SCENE)
+    feeder = SCENE.feeders[0]
+    bins = SCENE.stations_for_colour(feeder.name, 0)
+    assert len(bins) >= 2, "the sorting line has two bins per colour"
+    d.on_event("arrived", 0, feeder.name, 0, 1.0)
+    d.on_event("at_station", 0, bins[1], 0, 5.0)
+    assert d.ledger.totals()["parts_completed"] == 1

@@ -3,6 +3,7 @@
 Every test checks that no process of the run is left and that the sim's port is free again.
 """
 
+import contextlib
 import json
 import os
 import signal
@@ -14,7 +15,9 @@ from pathlib import Path
 
 import pytest
 
+from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmStatus
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.launcher import Launcher, RunOptions
 
@@ -121,6 +124,47 @@ def test_a_crashed_node_ends_the_run_with_one_clear_message_and_every_part_accou
     fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
     assert summary["sim_seconds"] > 1.0 and summary["parts_spawned"] > 0, summary
     assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
+
+
+def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_with_nothing_lost():
+    """kill -9 of the coordinator while an arm carries a part: a lockstep sim holds the line, the launcher starts
+    another coordinator, which rebuilds its ledger from the sim's event log, adopts the arm's task, and the line
+    ends as a clean run does."""
+    killed = []
+
+    def kill_when_carrying(sample):  # on Zenoh's thread: the moment a heartbeat says an arm carries a part
+        beat = Decoder(ArmStatus, DropCounter()).decode(str(sample.key_expr), sample.payload.to_bytes())
+        coordinator = launcher_ref[0].nodes[1]
+        if not killed and beat is not None and beat.skill == "transfer" and beat.part_id >= 0 and beat.sim_time_s > 5.0 and coordinator.alive:
+            killed.append((coordinator.proc.pid, beat))
+            os.kill(coordinator.proc.pid, signal.SIGKILL)
+
+    def listen(progress):  # once the run is up: a session of the test's own on the run's bus
+        if not launcher_ref[1:]:
+            launcher_ref.append("listening")
+            session = listening.enter_context(open_session(BusEndpoints(connect=(launcher_ref[0].endpoint,))))
+            listening.callback(session.declare_subscriber(Keys("line").all_arms("status"), kill_when_carrying).undeclare)
+
+    launcher_ref = []
+    with contextlib.ExitStack() as listening:
+        with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True), listen) as launcher:
+            launcher_ref.append(launcher)
+            summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert killed and summary["status"] == "ok", (summary["error"], killed)
+    assert summary["respawns"] == 1
+    dead = [p for p in summary["processes"] if p["pid"] == killed[0][0]]
+    assert dead == [{"role": "coordinator", "name": "coordinator", "pid": killed[0][0], "exit_code": -9}]
+    takeover = summary["coordinator_takeover"]
+    assert takeover["incarnation"] == 2 and takeover["events_replayed"] >= 1 and takeover["sim_time_s"] >= killed[0][1].sim_time_s
+    assert takeover["arms_heard"] == summary["arm_ids"]
+    carrying = killed[0][1]
+    assert [(t["arm"], t["part_id"]) for t in takeover["tasks_adopted"]] == [(carrying.arm, carrying.part_id)], takeover
+    fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
+    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
+    assert summary["inter_arm_contacts"] == 0 and summary["dropped_messages"] == 0
+    clean, _ = run_line(duration_s=30.0, seed=5)
+    assert [summary[k] for k in ("parts_spawned", *fates)] == [clean[k] for k in ("parts_spawned", *fates)], "nothing lost"
 
 
 def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp_path):
