@@ -220,6 +220,42 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"bus flags: {text}") from None
 
 
+def check_placement_flags(args: argparse.Namespace) -> None:
+    """`--bus-config` and `--hosts`: readable, written for this scene's arms, namespaces that exist; one line if not."""
+    from fleet.bus.bus_config import BusConfigError
+    from fleet.hosts import load_hosts
+    from fleet.launcher import bus_config_for
+
+    if args.hosts and not args.bus_config:
+        raise UsageError("--hosts needs --bus-config: nodes in other namespaces reach each other only through the sim's router")
+    if args.bus_config and (args.listen or args.connect or args.zenoh_config):
+        raise UsageError("--bus-config says where every node listens or connects: leave out --listen, --connect and --zenoh-config")
+    arms = [a.name for a in load_scene(args.scene, arms=args.arms).arms]
+    try:
+        if args.bus_config:
+            bus_config_for(args.bus_config, arms)
+        if args.hosts:
+            load_hosts(args.hosts, ["sim", "coordinator", *arms, "monitor", "recorder"])
+    except (BusConfigError, DeclarationError) as exc:
+        raise UsageError(str(exc)) from None
+
+
+def cmd_bus_config(args: argparse.Namespace) -> int:
+    from fleet.bus.bus_config import BusConfigError, write_bus_configs
+
+    arms = [a.name for a in load_scene(args.scene, arms=args.arms).arms]
+    output_folder("--out", args.out, parents=True)
+    try:
+        made = write_bus_configs(args.out, args.address, args.port, arms, secure=not args.insecure)
+    except BusConfigError as exc:
+        raise UsageError(str(exc)) from None
+    how = "TLS, a login per node, access control" if made.secure else "plain TCP, no logins (a trusted network only)"
+    print(f"wrote the bus configs of {len(arms)} arm(s) to {made.directory}: the sim listens on {made.endpoint} ({how})")
+    print(f"run it: fleet run {args.scene} --bus-config {made.directory} [--hosts HOSTS.yaml]; or start each node with "
+          f"--zenoh-config {made.directory}/<node>.json5")
+    return 0
+
+
 def run_recording(args: argparse.Namespace) -> str | None:
     """Where `fleet run` records: `--record FILE`, else `DIR/recording.mcap` with `--out DIR`, else nowhere."""
     if args.out:
@@ -234,12 +270,13 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     check_run_flags(args)
     load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
+    check_placement_flags(args)
     options = RunOptions(
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
         respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
         listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
         monitor=args.monitor, monitor_host=args.host, monitor_port=args.port, record=run_recording(args),
-        latency_ms=args.latency_ms, jitter_ms=args.jitter_ms, loss=args.loss,
+        latency_ms=args.latency_ms, jitter_ms=args.jitter_ms, loss=args.loss, bus_config=args.bus_config, hosts=args.hosts,
     )
     if args.monitor:
         warning = exposure_warning(args.host)
@@ -621,7 +658,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
     p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
-    p.add_argument("--respawn", action="store_true", help="restart a controller that dies")
+    p.add_argument("--respawn", action="store_true", help="restart a controller or the coordinator that dies (a new coordinator takes over the line)")
     p.add_argument("--allocator", choices=("optimal", "auction", "greedy"), default="optimal", help="how tasks go to arms (default optimal)")
     p.add_argument("--rt", action="store_true", help="controllers ask for real-time scheduling")
     p.add_argument("--run-id", default="line", help="keeps several lines on one Zenoh network apart")
@@ -631,10 +668,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--monitor", action="store_true", help="serve the browser monitor (Viser) of this run; see --host/--port")
     p.add_argument("--record", metavar="FILE.mcap", help="record every bus message, TF, joint states and markers (rosbag2-layout MCAP)")
     p.add_argument("--out", metavar="DIR", help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots")
+    p.add_argument("--bus-config", metavar="DIR", help="the line's bus from `fleet bus-config`: the sim a router, every node logged in "
+                   "with its own config (TLS, passwords, access control)")
+    p.add_argument("--hosts", metavar="FILE", help="the network namespace each node starts in (YAML `nodes: {sim: NS, ...}`; needs --bus-config)")
     add_monitor_arguments(p)
     add_fault_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("bus-config", help="write one Zenoh config per node for a line across hosts: the sim a router with TLS, logins and access control")
+    p.add_argument("--address", required=True, help="the IP address of the sim's host, as the other hosts reach it")
+    p.add_argument("--port", type=int, default=7447, help="the port the sim's router listens on (default 7447)")
+    p.add_argument("--scene", default="assembly_line", help="the scene whose arms get a login each (default assembly_line)")
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument("--insecure", action="store_true", help="plain TCP: no TLS, no logins, no access control (a trusted network only)")
+    p.add_argument("--out", metavar="DIR", required=True, help="where to write the configs (keys and passwords readable by you only)")
+    p.set_defaults(func=cmd_bus_config)
 
     p = sub.add_parser("record", help="record a running line to an MCAP file (attaches over the bus; Ctrl-C finishes the file)")
     p.add_argument("file", help="the MCAP file to write")

@@ -22,10 +22,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fleet.bus.bus_config import BusConfigError, BusConfigSet
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
+from fleet.hosts import load_hosts
 from fleet.processes import ChildProcess, read_when_written, stop_children, write_text_atomically
 from fleet.scene_loading import load_scene
 
@@ -59,6 +61,8 @@ class RunOptions:
     monitor_port: int = 8080
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: a recorder taps the bus from the first tick (the sim waits for it)
+    bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
+    hosts: str | None = None  # a hosts file: the network namespace each node starts in (`fleet/hosts.py`)
     latency_ms: float | None = None  # network faults on every link (None: the scene's)
     jitter_ms: float | None = None
     loss: float | None = None
@@ -117,6 +121,15 @@ class RunError(RuntimeError):
     """The run could not go on (a node crashed); the message is one line for the user."""
 
 
+def bus_config_for(directory: str, arms: list[str]) -> BusConfigSet:
+    """The bus configs in `directory`, which must name exactly the scene's arms."""
+    bus = BusConfigSet.load(directory)
+    if sorted(bus.arms) != sorted(arms):
+        raise BusConfigError(f"{directory}: written for arms {', '.join(bus.arms)}, the scene has {', '.join(arms)} "
+                             f"(fleet bus-config --arms {' '.join(arms)} ...)")
+    return bus
+
+
 class Launcher:
     """Use as a context manager: `with Launcher(options) as run: summary = run.run()`; leaving stops every node."""
 
@@ -134,6 +147,9 @@ class Launcher:
         self.last_sim_time_s = 0.0
         self.scene = load_scene(options.scene, arms=options.arms, seed=options.seed)
         self.seed = self.scene.seed
+        self.bus = bus_config_for(options.bus_config, [a.name for a in self.scene.arms]) if options.bus_config else None
+        nodes = ["sim", "coordinator", *(a.name for a in self.scene.arms), "monitor", "recorder"]
+        self.hosts = load_hosts(options.hosts, nodes) if options.hosts else None
         self.on_progress = on_progress
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
@@ -144,8 +160,10 @@ class Launcher:
         self.keep_dir = options.keep_logs
 
     # --- processes ------------------------------------------------------------------
-    def _bus_args(self, listen: bool) -> list[str]:
+    def _bus_args(self, listen: bool, node: str = "") -> list[str]:
         o = self.options
+        if self.bus is not None:  # its config says where it listens or connects, and as whom
+            return ["--zenoh-config", self.bus.config_for(node)]
         args = ["--listen", self.endpoint] if listen else (["--connect", self.endpoint] if self.endpoint else [])
         for ep in o.connect:
             args += ["--connect", ep]
@@ -153,9 +171,14 @@ class Launcher:
             args += ["--zenoh-config", o.zenoh_config]
         return args
 
+    def _here(self, node: str) -> list[str]:
+        """How a node's command starts: in its network namespace when the hosts file names one."""
+        return [*(self.hosts.prefix(node) if self.hosts else []), sys.executable, "-m"]
+
     def _node(self, role: str, name: str, module: str, extra: list[str], listen: bool = False) -> Node:
         o = self.options
-        argv = [sys.executable, "-m", module, "--scene", o.scene, "--run", o.run_id, "--seed", str(self.seed), *self._bus_args(listen), *extra]
+        node = name if role == "controller" else role
+        argv = [*self._here(node), module, "--scene", o.scene, "--run", o.run_id, "--seed", str(self.seed), *self._bus_args(listen, node), *extra]
         if o.arms is not None:
             argv += ["--arms", str(o.arms)]
         report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
@@ -195,7 +218,7 @@ class Launcher:
         o = self.options
         report, log = self.dir / "monitor.json", self.dir / "monitor.log"
         argv = [
-            sys.executable, "-m", "fleet.nodes.monitor_node", "--run", o.run_id, *self._bus_args(False),
+            *self._here("monitor"), "fleet.nodes.monitor_node", "--run", o.run_id, *self._bus_args(False, "monitor"),
             "--host", o.monitor_host, "--port", str(o.monitor_port), "--url-file", str(self.dir / "monitor_url"), "--report", str(report),
         ]
         return Node("monitor", "monitor", argv, report, log)
@@ -204,9 +227,11 @@ class Launcher:
         """The recorder, attached over the bus like any other client; it adds the summary found in `summary.json`."""
         o = self.options
         report, log = self.dir / "recorder.json", self.dir / "recorder.log"
-        bus = self._bus_args(False) if self.endpoint else ["--endpoint-file", str(self.dir / "endpoint"), *self._bus_args(False)]
+        bus = self._bus_args(False, "recorder")
+        if not self.endpoint or self.bus is not None:
+            bus = ["--endpoint-file", str(self.dir / "endpoint"), *bus]
         argv = [
-            sys.executable, "-m", "fleet.nodes.recorder_node", "--run", o.run_id, *bus, "--out", str(o.record),
+            *self._here("recorder"), "fleet.nodes.recorder_node", "--run", o.run_id, *bus, "--out", str(o.record),
             "--summary-file", str(self.dir / "summary.json"), "--report", str(report), *(["--hold"] if o.mode == "lockstep" else []),
         ]
         return Node("recorder", "recorder", argv, report, log)
@@ -228,8 +253,8 @@ class Launcher:
             if self.options.record:  # beside the sim: it waits for the sim's endpoint file while both import
                 self.recorder = self.recorder_node()
                 self.recorder.start()
-            if not self.endpoint:
-                self.endpoint = self._await_endpoint(sim)
+            if not self.endpoint or self.bus is not None:  # the sim listens: clients may connect (a client that
+                self.endpoint = self._await_endpoint(sim)  # finds no router gives up)
             self.nodes += self.client_nodes()
             if self.options.monitor:
                 self.nodes.append(self.monitor_node())
@@ -268,7 +293,8 @@ class Launcher:
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         error = ""
         try:
-            with open_session(BusEndpoints(connect=(self.endpoint,))) as session:
+            mine = BusEndpoints(config_file=self.bus.config_for("launcher")) if self.bus else BusEndpoints(connect=(self.endpoint,))
+            with open_session(mine) as session:
                 keys, inbox, drops = Keys(self.options.run_id), Inbox(), DropCounter()
                 subs = [session.declare_subscriber(k, inbox) for k in (keys.coord("progress"), keys.respawn, keys.sim_status)]
                 self._decoders = {

@@ -55,9 +55,11 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def make_config(endpoints: BusEndpoints) -> zenoh.Config:
-    """A Zenoh config: peer mode, multicast scouting off, and only the given endpoints (loopback if none)."""
+    """A Zenoh config: peer mode (or the config file's), multicast scouting off, and only the given endpoints
+    (loopback if none)."""
     config = zenoh.Config.from_file(endpoints.config_file) if endpoints.config_file else zenoh.Config()
-    config.insert_json5("mode", json.dumps("peer"))
+    if not endpoints.config_file:  # a config file's mode stands (a line across hosts: the sim a router, the rest clients)
+        config.insert_json5("mode", json.dumps("peer"))
     config.insert_json5("scouting/multicast/enabled", "false")
     # every sample carries its publisher's HLC time: a recorder puts what it hears back in publish order
     config.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))

@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import json
 import math
 import sys
 import threading
@@ -722,7 +723,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--await-recorder", type=float, metavar="S", default=0.0, help="start the clock only once a recorder listens (wait at most S wall seconds)")
     parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
-    parser.add_argument("--endpoint-file", help="listen on a free loopback port and write its endpoint to this file")
+    parser.add_argument("--endpoint-file", help="write the endpoint it listens on to this file once it does (without --listen or "
+                        "--zenoh-config: a free loopback port)")
     add_fault_arguments(parser)
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "sim_server")
@@ -739,11 +741,14 @@ def main(argv: list[str] | None = None) -> int:
     world = World(scene)
     ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
     endpoints = BusEndpoints.from_args(args)
-    if args.endpoint_file:
+    if args.endpoint_file and not (endpoints.listen or endpoints.config_file):
         session, endpoint = open_listening_session(endpoints)
-        write_text_atomically(args.endpoint_file, endpoint)
     else:
-        session = zenoh.open(make_config(endpoints))
+        config = make_config(endpoints)
+        session = zenoh.open(config)
+        endpoint = ", ".join(json.loads(config.get_json("listen/endpoints")))
+    if args.endpoint_file:  # it listens: whoever waits for the file may connect now
+        write_text_atomically(args.endpoint_file, endpoint)
     with contextlib.closing(session):
         server = SimServer(
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator, controllers=not args.no_controllers,
