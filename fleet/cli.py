@@ -467,11 +467,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_record(args: argparse.Namespace) -> int:
     from fleet.nodes import recorder_node
 
-    if not args.connect:
-        raise UsageError("fleet record needs --connect ENDPOINT (fleet run prints its bus endpoint)")
+    if not (args.connect or args.zenoh_config):
+        raise UsageError("fleet record needs --connect ENDPOINT (fleet run prints its bus endpoint) or --zenoh-config FILE")
     writable_file("file", args.file)
     argv = ["--run", args.run_id, "--out", args.file, "--scene-timeout", str(args.wait), "--nice", "0"]
-    for ep in args.connect:
+    for ep in args.connect or ():
         argv += ["--connect", ep]
     if args.zenoh_config:
         argv += ["--zenoh-config", args.zenoh_config]
@@ -481,10 +481,11 @@ def cmd_record(args: argparse.Namespace) -> int:
 def cmd_monitor(args: argparse.Namespace) -> int:
     from fleet.nodes import monitor_node
 
-    if not args.connect:
-        raise SystemExit("fleet: error: fleet monitor needs --connect ENDPOINT (fleet run prints its bus endpoint; or start it with --listen)")
+    if not (args.connect or args.zenoh_config):
+        raise SystemExit("fleet: error: fleet monitor needs --connect ENDPOINT (fleet run prints its bus endpoint; or start it with --listen) "
+                         "or --zenoh-config FILE")
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
-    for ep in args.connect:
+    for ep in args.connect or ():
         argv += ["--connect", ep]
     if args.zenoh_config:
         argv += ["--zenoh-config", args.zenoh_config]

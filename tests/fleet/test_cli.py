@@ -107,3 +107,23 @@ def test_monitor_with_nobody_to_watch_fails_cleanly():
     result = fleet("monitor", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2", timeout=120)
     assert result.returncode == 1
     assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_run_refuses_bad_hosts_and_bus_config_flags_with_one_line(tmp_path):
+    bus = tmp_path / "bus"
+    assert fleet("bus-config", "--address", "127.0.0.1", "--port", "17463", "--scene", "pick_cell", "--out", str(bus)).returncode == 0
+    hosts = tmp_path / "hosts.yaml"
+    cases = [
+        (["run", "--hosts", str(hosts)], "--hosts needs --bus-config"),
+        (["run", "pick_cell", "--bus-config", str(bus), "--listen", "tcp/127.0.0.1:7447"], "leave out --listen"),
+        (["run", "sorting_line", "--bus-config", str(bus)], "written for arms arm_0, the scene has arm_0, arm_1"),
+        (["run", "pick_cell", "--bus-config", str(tmp_path)], "not a bus config directory"),
+        (["run", "pick_cell", "--bus-config", str(bus), "--hosts", str(hosts)], "nodes.arm_9: no such node; nodes: sim, coordinator, arm_0"),
+    ]
+    hosts.write_text("nodes:\n  arm_9: somewhere\n")
+    for args, says in cases:
+        result = fleet(*args)
+        assert result.returncode == 2 and says in result.stderr and len(result.stderr.strip().splitlines()) == 1, (args, result.stderr)
+    hosts.write_text("nodes:\n  sim: no_such_namespace\n")
+    result = fleet("run", "pick_cell", "--bus-config", str(bus), "--hosts", str(hosts))
+    assert result.returncode == 2 and "nodes.sim: no network namespace 'no_such_namespace'" in result.stderr

@@ -1,0 +1,75 @@
+"""`fleet bus-config`: one Zenoh config per node, the sim a router; TLS, logins and access control by default."""
+
+import json
+import stat
+import subprocess
+import sys
+import time
+
+import pytest
+import zenoh
+
+from fleet.bus.bus_config import BusConfigError, BusConfigSet, access_control, write_bus_configs
+from fleet.bus.session import BusEndpoints, make_config
+
+
+def test_each_node_gets_its_own_login_and_only_its_owner_reads_keys_and_passwords(tmp_path):
+    made = write_bus_configs(tmp_path, "127.0.0.1", 17461, ["arm_0", "arm_1"])
+    assert made.endpoint == "tls/127.0.0.1:17461" and BusConfigSet.load(tmp_path) == made
+    users = dict(line.split(":", 1) for line in (tmp_path / "users.txt").read_text().split())
+    assert sorted(users) == ["arm_0", "arm_1", "coordinator", "launcher", "monitor", "recorder"]
+    assert len(set(users.values())) == len(users), "a password per node"
+    for private in ("sim.key", "users.txt", "sim.json5", "arm_0.json5"):
+        assert stat.S_IMODE((tmp_path / private).stat().st_mode) == 0o600
+    arm_0 = json.loads((tmp_path / "arm_0.json5").read_text())
+    assert arm_0["mode"] == "client" and arm_0["transport"]["auth"]["usrpwd"]["user"] == "arm_0"
+    assert make_config(BusEndpoints(config_file=made.config_for("arm_0"))).get_json("mode") == '"client"', "the file's mode stands"
+    with pytest.raises(BusConfigError, match="nodes: sim, coordinator"):
+        made.config_for("arm_7")
+
+
+def test_the_router_lets_each_node_publish_only_its_own_keys():
+    acl = access_control(["arm_0", "arm_1"])
+    assert acl["default_permission"] == "deny"
+    publishes = {r["id"]: r["key_exprs"] for r in acl["rules"] if r["id"].startswith("publish_")}
+    assert publishes["publish_arm_0"] == ["clawfleet/*/arm/arm_0/step", "clawfleet/*/arm/arm_0/goal", "clawfleet/*/arm/arm_0/status"]
+    assert publishes["publish_coordinator"] == ["clawfleet/*/arm/*/assign", "clawfleet/*/coord/**"]
+    assert "publish_launcher" not in publishes, "the launcher only listens"
+    assert not any("state" in k or "world/events" in k for keys in publishes.values() for k in keys), "only the sim reports the line"
+    assert all("declare_queryable" not in r["messages"] for r in acl["rules"] if "ingress" in r["flows"]), "no client serves a queryable"
+
+
+def test_a_client_with_a_login_may_publish_its_keys_and_one_without_cannot_log_in(tmp_path):
+    made = write_bus_configs(tmp_path, "127.0.0.1", 17462, ["arm_0"])
+    heard = []
+    with zenoh.open(make_config(BusEndpoints(config_file=made.config_for("sim")))) as router:
+        sub = router.declare_subscriber("clawfleet/line/**", lambda s: heard.append(str(s.key_expr)))
+        with zenoh.open(make_config(BusEndpoints(config_file=made.config_for("arm_0")))) as arm_0:
+            arm_0.put("clawfleet/line/arm/arm_0/status", b"x")  # its own
+            arm_0.put("clawfleet/line/arm/arm_0/state", b"x")  # the sim's
+            arm_0.put("clawfleet/line/estop", b"x")  # the monitor's
+            deadline = time.monotonic() + 2.0
+            while not heard and time.monotonic() < deadline:
+                time.sleep(0.05)
+            time.sleep(0.3)
+        sub.undeclare()
+        config = json.loads((tmp_path / "arm_0.json5").read_text())
+        del config["transport"]["auth"]
+        (tmp_path / "anonymous.json5").write_text(json.dumps(config))
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(make_config(BusEndpoints(config_file=str(tmp_path / "anonymous.json5"))))
+    assert heard == ["clawfleet/line/arm/arm_0/status"]
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--address", "sim.local"], "an IP address of the sim's host"),
+    (["--address", "10.0.0.5", "--port", "0"], "a TCP port"),
+])
+def test_bad_bus_config_requests_are_one_line(tmp_path, argv, says):
+    done = subprocess.run([sys.executable, "-m", "fleet.cli", "bus-config", *argv, "--out", str(tmp_path / "bus")], capture_output=True, text=True)
+    assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+def test_a_folder_that_is_not_a_bus_config_is_one_line(tmp_path):
+    with pytest.raises(BusConfigError, match="not a bus config directory written by `fleet bus-config`"):
+        BusConfigSet.load(tmp_path)
