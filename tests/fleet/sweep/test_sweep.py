@@ -2,7 +2,6 @@
 Ctrl-C with nothing left behind, and the same results from a local Ray instance bound to loopback only."""
 
 import os
-import secrets
 import signal
 import subprocess
 import sys
@@ -16,6 +15,7 @@ from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
 from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
+from tests.ray_namespace import in_netns, loopback_namespace, start_head
 
 SECONDS = 8.0
 SAME = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "inter_arm_contacts", "throughput_per_min", "goal_results",
@@ -137,33 +137,11 @@ def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_
     assert pool_workers() - workers_before == set(), "a pool worker outlived the sweep"
 
 
-NETNS = "clawfleet_sweep_ray"
-RAY_TOKEN = secrets.token_hex(32)  # the test cluster's own: a fresh machine has no ~/.ray/auth_token
-
-
-def in_netns(*argv: str) -> list[str]:
-    """Run in the test's namespace, with the token the test's Ray head and its drivers share (Ray 2.60 asks for one)."""
-    return ["ip", "netns", "exec", NETNS, "env", "RAY_AUTH_MODE=token", f"RAY_AUTH_TOKEN={RAY_TOKEN}", *argv]
-
-
 @pytest.fixture
 def ray_cluster_in_a_namespace():
-    """A Ray head started in a network namespace of the test's own, whose only interface is loopback: Ray's
-    servers listen on every interface of their host, and here that is 127.0.0.1 alone."""
     pytest.importorskip("ray")
-    made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
-    if made.returncode != 0:
-        pytest.skip(f"cannot make a network namespace here: {made.stderr.strip()}")
-    try:
-        subprocess.run(in_netns("ip", "link", "set", "lo", "up"), check=True)
-        started = subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "start", "--head", "--node-ip-address", "127.0.0.1",
-                                          "--port", "6390", "--num-cpus", "2", "--include-dashboard", "false", "--disable-usage-stats"),
-                                 capture_output=True, text=True, timeout=120)
-        assert started.returncode == 0, started.stderr[-2000:]
-        yield "127.0.0.1:6390"
-    finally:
-        subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"), capture_output=True, timeout=120)
-        subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
+    with loopback_namespace():
+        yield start_head()
 
 
 def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_cluster_in_a_namespace):

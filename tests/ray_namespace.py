@@ -1,0 +1,45 @@
+"""Ray for tests, in a network namespace of the test's own whose only interface is loopback: Ray's servers
+listen on every interface of their host, and there that is 127.0.0.1 alone."""
+
+from __future__ import annotations
+
+import contextlib
+import secrets
+import subprocess
+import sys
+from collections.abc import Iterator
+
+import pytest
+
+NETNS = "clawfleet_ray"
+RAY_TOKEN = secrets.token_hex(32)  # the test cluster's own: a fresh machine has no ~/.ray/auth_token
+HEAD = "127.0.0.1:6390"
+
+
+def in_netns(*argv: str) -> list[str]:
+    """Run in the test's namespace, with the token the test's Ray head and its drivers share (Ray 2.60 asks for one)."""
+    return ["ip", "netns", "exec", NETNS, "env", "RAY_AUTH_MODE=token", f"RAY_AUTH_TOKEN={RAY_TOKEN}", *argv]
+
+
+@contextlib.contextmanager
+def loopback_namespace() -> Iterator[None]:
+    """The namespace, with its loopback up (skips the test where namespaces cannot be made)."""
+    made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
+    if made.returncode != 0:
+        pytest.skip(f"cannot make a network namespace here: {made.stderr.strip()}")
+    try:
+        subprocess.run(in_netns("ip", "link", "set", "lo", "up"), check=True)
+        yield
+    finally:
+        subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"), capture_output=True, timeout=120)
+        subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
+
+
+def start_head() -> str:
+    """A Ray head in the namespace (2 CPUs, no dashboard); its address."""
+    started = subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "start", "--head", "--node-ip-address", "127.0.0.1",
+                                      "--port", HEAD.rsplit(":", 1)[1], "--num-cpus", "2", "--include-dashboard", "false",
+                                      "--disable-usage-stats"),
+                             capture_output=True, text=True, timeout=120)
+    assert started.returncode == 0, started.stderr[-2000:]
+    return HEAD
