@@ -58,6 +58,14 @@ def episode_return(result: dict) -> float:
     return float(value) if value is not None else math.nan
 
 
+def start_ray(address: str | None, env_runners: int) -> None:
+    """Join the Ray cluster at `address`, or start a local instance on loopback only (no dashboard)."""
+    if address:
+        ray.init(address=address)
+    else:
+        ray.init(_node_ip_address="127.0.0.1", include_dashboard=False, num_cpus=max(2, env_runners + 1), log_to_driver=False)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--iterations", type=int, default=20)
@@ -70,10 +78,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--address", help="an existing Ray cluster (HOST:PORT); default: a local instance on loopback only")
     args = parser.parse_args()
-    if args.address:
-        ray.init(address=args.address)
-    else:
-        ray.init(_node_ip_address="127.0.0.1", include_dashboard=False, num_cpus=max(2, args.env_runners + 1), log_to_driver=False)
+    start_ray(args.address, args.env_runners)
     try:
         register_env(ENV_NAME, make_env)
         algo = ppo_config(args).build_algo()

@@ -19,9 +19,9 @@ from fleet.env.task_mode import allocator_actions
 POLICIES = ("random", *ALLOCATORS)
 
 
-def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float) -> dict:
-    """One episode; returns the team return and the line's part counts."""
-    env = parallel_env(task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
+def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None) -> dict:
+    """One episode (on `scene`, else the task's own); returns the team return and the line's part counts."""
+    env = parallel_env(scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
     env.reset(seed=seed)
     allocator = None if policy == "random" else make_allocator(policy, env.scene)
     rng = np.random.default_rng(seed)
@@ -42,17 +42,18 @@ def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, d
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", choices=("line", "handover"), default="line")
+    parser.add_argument("--scene", help="a bundled scene or scene file (default: the task's own, sorting_line for line)")
     parser.add_argument("--arms", type=int, default=None, help="arm count (scenes with an arm row; default: the scene's)")
     parser.add_argument("--max-cycles", type=int, default=300)
     parser.add_argument("--decision-hz", type=float, default=10.0)
     parser.add_argument("--episodes", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    table = Table(title=f"task mode on {args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at {args.decision_hz:g} Hz")
+    table = Table(title=f"task mode on {args.scene or args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at {args.decision_hz:g} Hz")
     for column in ("policy", "team return", "parts completed / spawned", "failed tasks"):
         table.add_column(column)
     for policy in POLICIES:
-        runs = [play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz) for e in range(args.episodes)]
+        runs = [play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene) for e in range(args.episodes)]
         table.add_row(
             policy, f"{np.mean([r['return'] for r in runs]):.1f}",
             f"{sum(r['completed'] for r in runs)} / {sum(r['spawned'] for r in runs)}", str(sum(r["failed"] for r in runs)),

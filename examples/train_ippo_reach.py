@@ -166,12 +166,17 @@ def train(arms: int, minutes: float, iterations: int | None, max_cycles: int, se
     return log
 
 
-def save_curve(log: list[dict], baseline: float, stem: Path) -> None:
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    with open(stem.with_suffix(".csv"), "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(log[0]))
+def write_rows(rows: list[dict], path: Path) -> None:
+    """A learning curve's rows as CSV (the columns of the first row)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
-        writer.writerows(log)
+        writer.writerows(rows)
+
+
+def save_curve(log: list[dict], baseline: float, stem: Path) -> None:
+    write_rows(log, stem.with_suffix(".csv"))
     import matplotlib
 
     matplotlib.use("Agg")

@@ -65,3 +65,14 @@ def test_rllib_multi_agent_ppo_trains_a_few_iterations_locally_and_on_a_cluster(
                                  capture_output=True, text=True, timeout=600)
         assert cluster.returncode == 0, cluster.stderr[-3000:]
         assert "with policies arm_0, arm_1 on 2 arms" in cluster.stdout
+
+
+def test_the_masked_task_allocator_trains_with_rllib_and_is_measured_against_the_allocators(tmp_path):
+    pytest.importorskip("ray.rllib")
+    argv = ["--iterations", "1", "--batch", "200", "--max-cycles", "40", "--epochs", "1", "--episodes", "1", "--curve", str(tmp_path / "curve")]
+    with loopback_namespace():
+        done = subprocess.run(in_netns(sys.executable, str(EXAMPLES / "rllib_masked_task_allocator.py"), *argv), capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert all(name in done.stdout for name in ("learned", "random", "optimal", "auction", "greedy"))
+    assert (tmp_path / "curve.csv").read_text().startswith("iteration,wall_s,env_steps,episode_return")
+    assert (tmp_path / "curve.png").stat().st_size > 1000
