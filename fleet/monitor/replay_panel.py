@@ -28,6 +28,7 @@ class ReplayPanel:
             self.speed = server.gui.add_dropdown("Replay speed", SPEEDS, initial_value="1")
             self.info = server.gui.add_markdown("")
         self.seeks = 0
+        self._shown_s = round(clock.position_s, 1)  # the slider's value as `show` last set it
         self.time.on_update(self._on_time)
         self.play.on_click(lambda _: self._toggle())
         self.speed.on_update(self._on_speed)
@@ -50,7 +51,9 @@ class ReplayPanel:
 
     def show(self) -> None:
         clock = self.player.clock
-        self.time.value = round(clock.position_s, 1)
+        position = round(clock.position_s, 1)
+        if position != self._shown_s:  # only when the replay moved: rewriting it always could undo a person's seek
+            self.time.value = self._shown_s = position  # between their move arriving and `_on_time` reading it
         text = f"{'playing' if clock.playing else 'paused'} at **{clock.position_s:.1f}** of {clock.end_s:.1f} sim s, x{clock.speed:g}"
         if self.info.content != text:
             self.info.content = text
