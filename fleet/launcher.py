@@ -36,6 +36,7 @@ RECORDER_GRACE_S = 120.0  # a recorder behind the line finishes writing what it 
 RECORDER_START_S = 60.0
 COORDINATOR_RESPAWN_TIMEOUT_S = 60.0  # with `respawn`, a lockstep sim waits this long for a coordinator (a new one starts)
 MAX_COORDINATOR_STARTS = 4  # a coordinator that keeps crashing ends the run
+HUNG_COORDINATOR_S = 10.0  # with `respawn`, a live coordinator silent this long (wall; it says its progress every 0.5 s) is replaced
 
 
 @dataclass(frozen=True)
@@ -144,6 +145,7 @@ class Launcher:
         self.respawn_requests: list[dict] = []
         self.arms_lost: tuple[str, ...] = ()
         self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died
+        self.progress_at: float | None = None  # when the running coordinator last said its progress (None: not yet)
         self.last_sim_time_s = 0.0
         self.scene = load_scene(options.scene, arms=options.arms, seed=options.seed)
         self.seed = self.scene.seed
@@ -327,7 +329,7 @@ class Launcher:
             decoder = self._decoders.get(key)
             msg = decoder.decode(key, payload) if decoder else None
             if isinstance(msg, Progress):
-                self.last_progress = msg
+                self.last_progress, self.progress_at = msg, time.monotonic()
                 if self.on_progress is not None:
                     self.on_progress(msg)
             elif isinstance(msg, SimStatus):
@@ -376,6 +378,9 @@ class Launcher:
                 if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
                     return f"the sim stopped: the coordinator did not answer within the lockstep timeout; logs in {self.dir}"
                 return "" if code == 0 else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
+            if self._hung(coordinator):
+                self.on_message(f"the coordinator said nothing for {HUNG_COORDINATOR_S:.0f} s; replacing it")
+                coordinator.child.kill()
             code = coordinator.poll()
             if code is not None:
                 if not (self.options.respawn and coordinator.starts < MAX_COORDINATOR_STARTS):
@@ -388,9 +393,17 @@ class Launcher:
             time.sleep(0.02)
         return ""
 
+    def _hung(self, coordinator: Node) -> bool:
+        """With `respawn`: the coordinator is alive but has not said its progress for `HUNG_COORDINATOR_S` since it
+        first did (one still starting, computing the line's capacity or taking over, has said nothing yet)."""
+        return (self.options.respawn and coordinator.alive and self.progress_at is not None
+                and time.monotonic() - self.progress_at > HUNG_COORDINATOR_S and coordinator.starts < MAX_COORDINATOR_STARTS)
+
     def _restart(self, node: Node) -> None:
         """Start a dead node again, keeping the record of the one that died."""
         node.history.append(node.record())
+        if node.role == "coordinator":
+            self.progress_at = None
         node.start()
         self.respawns += 1
 

@@ -167,6 +167,31 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
     assert [summary[k] for k in ("parts_spawned", *fates)] == [clean[k] for k in ("parts_spawned", *fates)], "nothing lost"
 
 
+def test_a_hung_coordinator_with_respawn_is_replaced_and_the_line_goes_on():
+    """Alive but silent (SIGSTOP): with `--respawn` the launcher replaces it once it has said nothing for 10 s,
+    and the new coordinator takes over the line, which ends as a clean run does."""
+    stopped = []
+
+    def freeze_coordinator(progress):
+        coordinator = launcher_ref[0].nodes[1]
+        if not stopped and progress.sim_time_s > 5.0:
+            stopped.append(coordinator.proc.pid)
+            os.kill(coordinator.proc.pid, signal.SIGSTOP)
+
+    launcher_ref, said = [], []
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True), freeze_coordinator, on_message=said.append) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert stopped and summary["status"] == "ok", summary["error"]
+    assert "the coordinator said nothing for 10 s; replacing it" in said
+    assert [p["exit_code"] for p in summary["processes"] if p["pid"] == stopped[0]] == [-9]
+    assert summary["coordinator_takeover"]["incarnation"] == 2
+    clean, _ = run_line(duration_s=30.0, seed=5)
+    fates = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
+    assert [summary[k] for k in fates] == [clean[k] for k in fates], "nothing lost"
+
+
 def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp_path):
     endpoint = loopback_endpoint(free_loopback_port())
     summary_file = tmp_path / "summary.json"
