@@ -15,7 +15,7 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, Assignment, LineView, PartsState, Progress, Separations, SimStatus
+from fleet.bus.messages import ArmOrder, ArmState, Assignment, LineView, PartsState, Progress, Separations, SimStatus
 
 
 @dataclass
@@ -42,7 +42,8 @@ class LiveFeed:
         self.drops = DropCounter()
         self.snapshot = LineSnapshot()
         self.taken = 0
-        watched: list[tuple[str, type]] = [(keys.view, LineView)] + [(keys.arm_assign(a), Assignment) for a in arms]
+        # an arm's orders are assignments and motion grants on one key: both are the coordinator's, the view shows assignments
+        watched: list[tuple[str, type]] = [(keys.view, LineView)] + [(keys.arm_assign(a), ArmOrder) for a in arms]
         watched += [(keys.coord("separation"), Separations), (keys.coord("progress"), Progress), (keys.sim_status, SimStatus)]
         self._subs = [(session.declare_subscriber(k, zenoh.handlers.RingChannel(1)), k, Decoder(t, self.drops)) for k, t in watched]
 

@@ -9,7 +9,7 @@ import pytest
 
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import SimStatus
+from fleet.bus.messages import Assignment, MotionGrant, SimStatus
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene, serve_scene
 from fleet.monitor.app import Monitor
@@ -92,6 +92,18 @@ def test_garbage_on_the_monitor_keys_is_dropped_and_counted(realtime_sim):
         assert wait_for(lambda: feed.take() is not None and feed.drops.total >= 2)
         session.put(keys.sim_status, encode(SimStatus(1, 0.01, "lockstep", False, False, 1.0, (0.0, 0.0), 0.0, 0)))
         assert wait_for(lambda: feed.take().status is not None)
+
+
+def test_motion_grants_on_an_arms_order_key_are_orders_not_garbage(realtime_sim):
+    """The coordinator sends assignments and motion grants on one key: the monitor takes both as well-formed."""
+    _, session, keys = realtime_sim
+    with LiveFeed(session, keys, ["arm_0", "arm_1"]) as feed:
+        time.sleep(0.1)
+        session.put(keys.arm_assign("arm_0"), encode(MotionGrant("arm_0", 1, 1, "grant")))
+        assert wait_for(lambda: feed.take() is not None and feed.taken >= 1)
+        session.put(keys.arm_assign("arm_0"), encode(Assignment("arm_0", 2, 7, 3, 0.1, (0.2, 0.0, 0.1), (0.0, 0.0, 0.0))))
+        assert wait_for(lambda: "arm_0" in feed.take().assignments)
+        assert feed.drops.total == 0
 
 
 def test_no_sim_means_a_clear_error_not_a_hang():
