@@ -127,15 +127,16 @@ def test_a_crashed_node_ends_the_run_with_one_clear_message_and_every_part_accou
 
 
 def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_with_nothing_lost():
-    """kill -9 of the coordinator while an arm carries a part: a lockstep sim holds the line, the launcher starts
+    """kill -9 of the coordinator while an arm works on a part: a lockstep sim holds the line, the launcher starts
     another coordinator, which rebuilds its ledger from the sim's event log, adopts the arm's task, and the line
     ends as a clean run does."""
     killed = []
+    WORKING = ("approach", "descend", "close", "lift", "transfer")  # phases in which the part is not about to rest at its target
 
-    def kill_when_carrying(sample):  # on Zenoh's thread: the moment a heartbeat says an arm carries a part
+    def kill_when_carrying(sample):  # on Zenoh's thread: the moment a heartbeat (every 0.2 s of wall time) says an arm works on a part
         beat = Decoder(ArmStatus, DropCounter()).decode(str(sample.key_expr), sample.payload.to_bytes())
         coordinator = launcher_ref[0].nodes[1]
-        if not killed and beat is not None and beat.skill == "transfer" and beat.part_id >= 0 and beat.sim_time_s > 5.0 and coordinator.alive:
+        if not killed and beat is not None and beat.skill in WORKING and beat.part_id >= 0 and beat.sim_time_s > 3.0 and coordinator.alive:
             killed.append((coordinator.proc.pid, beat))
             os.kill(coordinator.proc.pid, signal.SIGKILL)
 
@@ -159,7 +160,7 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
     assert takeover["incarnation"] == 2 and takeover["events_replayed"] >= 1 and takeover["sim_time_s"] >= killed[0][1].sim_time_s
     assert takeover["arms_heard"] == summary["arm_ids"]
     carrying = killed[0][1]
-    assert [(t["arm"], t["part_id"]) for t in takeover["tasks_adopted"]] == [(carrying.arm, carrying.part_id)], takeover
+    assert (carrying.arm, carrying.part_id) in [(t["arm"], t["part_id"]) for t in takeover["tasks_adopted"]], takeover
     fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
     assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
     assert summary["inter_arm_contacts"] == 0 and summary["dropped_messages"] == 0
