@@ -32,7 +32,7 @@ from rich.table import Table
 
 from fleet.env import parallel_env
 from rllib_ppo_reach import start_ray
-from task_mode_allocators import POLICIES, play
+from task_mode_allocators import POLICIES, play, run_episode
 from train_ippo_reach import write_rows
 
 ENV_NAME = "clawfleet_task_mode"
@@ -112,15 +112,8 @@ class LearnedPolicy:
 def evaluate(module, sample: bool, args: argparse.Namespace, seed: int) -> dict:
     """One episode of the learned policy on the seed the allocators play."""
     env = cell({"scene": args.scene, "task": args.task, "arms": args.arms, "max_cycles": args.max_cycles, "decision_hz": args.decision_hz})
-    obs, _ = env.reset(seed=seed)
     policy = LearnedPolicy(module, sample, seed)
-    team_return = 0.0
-    while env.agents:
-        obs, rewards, _, _, _ = env.step(policy(obs))
-        team_return += sum(rewards.values())
-    totals = env.task_model.book.ledger.totals()
-    env.close()
-    return {"return": team_return, "completed": totals["parts_completed"], "spawned": totals["parts_spawned"], "failed": totals["tasks_failed"]}
+    return run_episode(env, seed, lambda _, obs: policy(obs))
 
 
 def train(args: argparse.Namespace) -> tuple[object, list[dict]]:

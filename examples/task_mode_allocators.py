@@ -7,6 +7,7 @@ random policy, on the same seeded line. The yardstick a learned allocation polic
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 import numpy as np
 from rich.console import Console
@@ -19,24 +20,28 @@ from fleet.env.task_mode import allocator_actions
 POLICIES = ("random", *ALLOCATORS)
 
 
-def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None) -> dict:
-    """One episode (on `scene`, else the task's own); returns the team return and the line's part counts."""
-    env = parallel_env(scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
-    env.reset(seed=seed)
-    allocator = None if policy == "random" else make_allocator(policy, env.scene)
-    rng = np.random.default_rng(seed)
+def run_episode(env, seed: int, act: Callable[[object, dict], dict]) -> dict:
+    """One episode of `env` from `seed`, each step's actions from `act(env, observations)`; the team return and
+    the line's part counts. The env is closed after."""
+    obs, _ = env.reset(seed=seed)
     team_return = 0.0
     while env.agents:
-        if allocator is None:
-            actions = {a: int(rng.integers(env.action_space(a).n)) for a in env.agents}
-        else:
-            actions = allocator_actions(env.chooser, allocator, env._options)
-        _, rewards, _, _, _ = env.step(actions)
+        obs, rewards, _, _, _ = env.step(act(env, obs))
         team_return += sum(rewards.values())
     totals = env.task_model.book.ledger.totals()
     env.close()
     return {"return": team_return, "completed": totals["parts_completed"], "spawned": totals["parts_spawned"],
             "failed": totals["tasks_failed"], "sim_s": env.world.sim_time_s}
+
+
+def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None) -> dict:
+    """One episode (on `scene`, else the task's own) played by `policy` (`random` or an allocator's name)."""
+    env = parallel_env(scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
+    if policy == "random":
+        rng = np.random.default_rng(seed)
+        return run_episode(env, seed, lambda env, _: {a: int(rng.integers(env.action_space(a).n)) for a in env.agents})
+    allocator = make_allocator(policy, env.scene)
+    return run_episode(env, seed, lambda env, _: allocator_actions(env.chooser, allocator, env._options))
 
 
 def main() -> None:

@@ -223,19 +223,14 @@ def check_run_flags(args: argparse.Namespace) -> None:
 def check_placement_flags(args: argparse.Namespace) -> None:
     """`--bus-config` and `--hosts`: readable, written for this scene's arms, namespaces that exist; one line if not."""
     from fleet.bus.bus_config import BusConfigError
-    from fleet.hosts import load_hosts
-    from fleet.launcher import bus_config_for
+    from fleet.launcher import placement
 
     if args.hosts and not args.bus_config:
         raise UsageError("--hosts needs --bus-config: nodes in other namespaces reach each other only through the sim's router")
     if args.bus_config and (args.listen or args.connect or args.zenoh_config):
         raise UsageError("--bus-config says where every node listens or connects: leave out --listen, --connect and --zenoh-config")
-    arms = [a.name for a in load_scene(args.scene, arms=args.arms).arms]
     try:
-        if args.bus_config:
-            bus_config_for(args.bus_config, arms)
-        if args.hosts:
-            load_hosts(args.hosts, ["sim", "coordinator", *arms, "monitor", "recorder"])
+        placement(args.bus_config, args.hosts, load_scene(args.scene, arms=args.arms))
     except (BusConfigError, DeclarationError) as exc:
         raise UsageError(str(exc)) from None
 

@@ -27,9 +27,10 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
-from fleet.hosts import load_hosts
+from fleet.hosts import Hosts, load_hosts
 from fleet.processes import ChildProcess, read_when_written, stop_children, write_text_atomically
 from fleet.scene_loading import load_scene
+from scenes.schema import Scene
 
 STOP_GRACE_S = 1.5
 RECORDER_GRACE_S = 120.0  # a recorder behind the line finishes writing what it heard; killing it would lose the file
@@ -122,13 +123,15 @@ class RunError(RuntimeError):
     """The run could not go on (a node crashed); the message is one line for the user."""
 
 
-def bus_config_for(directory: str, arms: list[str]) -> BusConfigSet:
-    """The bus configs in `directory`, which must name exactly the scene's arms."""
-    bus = BusConfigSet.load(directory)
-    if sorted(bus.arms) != sorted(arms):
-        raise BusConfigError(f"{directory}: written for arms {', '.join(bus.arms)}, the scene has {', '.join(arms)} "
+def placement(bus_config: str | None, hosts: str | None, scene: Scene) -> tuple[BusConfigSet | None, Hosts | None]:
+    """The bus configs (`fleet bus-config`, written for exactly the scene's arms) and the hosts file of a run, each
+    if given; a `BusConfigError` or `HostsFileError` (one line) if one cannot be used."""
+    arms = [a.name for a in scene.arms]
+    bus = BusConfigSet.load(bus_config) if bus_config else None
+    if bus is not None and sorted(bus.arms) != sorted(arms):
+        raise BusConfigError(f"{bus_config}: written for arms {', '.join(bus.arms)}, the scene has {', '.join(arms)} "
                              f"(fleet bus-config --arms {' '.join(arms)} ...)")
-    return bus
+    return bus, load_hosts(hosts, ["sim", "coordinator", *arms, "monitor", "recorder"]) if hosts else None
 
 
 class Launcher:
@@ -149,9 +152,7 @@ class Launcher:
         self.last_sim_time_s = 0.0
         self.scene = load_scene(options.scene, arms=options.arms, seed=options.seed)
         self.seed = self.scene.seed
-        self.bus = bus_config_for(options.bus_config, [a.name for a in self.scene.arms]) if options.bus_config else None
-        nodes = ["sim", "coordinator", *(a.name for a in self.scene.arms), "monitor", "recorder"]
-        self.hosts = load_hosts(options.hosts, nodes) if options.hosts else None
+        self.bus, self.hosts = placement(options.bus_config, options.hosts, self.scene)
         self.on_progress = on_progress
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which

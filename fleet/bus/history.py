@@ -3,7 +3,6 @@ a coordinator that takes over a running line (respawned after a crash) asks, and
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import zenoh
@@ -11,6 +10,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EventLog
+from fleet.bus.query import first_answer
 
 
 class HistoryUnavailable(RuntimeError):
@@ -26,12 +26,7 @@ def fetch_history(session: zenoh.Session, keys: Keys, drops: DropCounter, timeou
     """The event log the running sim serves, asked until it answers or `timeout_s` passes; a reply that does not
     decode is dropped and counted (`drops`) and the next one taken."""
     decoder = Decoder(EventLog, drops)
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        for reply in session.get(keys.history, timeout=min(2.0, max(deadline - time.monotonic(), 0.1))):
-            if reply.ok is not None:
-                log = decoder.decode(keys.history, reply.ok.payload.to_bytes())
-                if log is not None:
-                    return log
-        time.sleep(0.1)
-    raise HistoryUnavailable(f"no sim of run {keys.run!r} answered on {keys.history} within {timeout_s:.0f} s")
+    log = first_answer(session, keys.history, lambda payload: decoder.decode(keys.history, payload), timeout_s, per_query_s=2.0)
+    if log is None:
+        raise HistoryUnavailable(f"no sim of run {keys.run!r} answered on {keys.history} within {timeout_s:.0f} s")
+    return log

@@ -189,12 +189,13 @@ class CoordinatorNode:
         beats: dict[str, ArmStatus] = {}
         announced: dict[str, int] = {}
         held: list[tuple[str, bytes]] = []
+        peek = {"status": Decoder(ArmStatus, DropCounter()), "frame": Decoder(LineView, DropCounter())}  # `poll` counts the bad ones
         deadline = time.monotonic() + wait_s
         while (len(beats) < len(self.arm_names) or not announced) and time.monotonic() < deadline:
             for key, payload in self._inbox.drain():
                 held.append((key, payload))
                 leaf = key.rsplit("/", 1)[-1]
-                msg = self._decoders[leaf].decode(key, payload) if leaf in ("status", "frame") else None
+                msg = peek[leaf].decode(key, payload) if leaf in peek else None
                 if isinstance(msg, ArmStatus) and msg.arm in self.last_tick and not not_finite(msg.place_xyz):
                     beats[msg.arm] = msg
                 elif isinstance(msg, LineView) and not self._problem("frame", msg):

@@ -179,7 +179,7 @@ class SimServer:
             session.declare_subscriber(keys.control, self._control_inbox),
         ]
         self._scene_queryable = serve_scene(session, keys, world.scene_model.model_dump_json())
-        self.event_log: list[LineEvent] = []  # every event published: a respawned coordinator rebuilds from it
+        self.event_log: list[LineEvent] = []  # every event published, in order (a respawned coordinator rebuilds from it)
         self._history_queryable = serve_history(session, keys, lambda: EventLog(self.world.tick, tuple(self.event_log)))
         self._status_pub = session.declare_publisher(keys.sim_status)
         self._view_pub = session.declare_publisher(keys.view)
@@ -191,7 +191,6 @@ class SimServer:
         self._events_pub = session.declare_publisher(keys.events)
         self.watcher = LineWatcher(world.scene_model)
         self.watch_every_ticks = period
-        self.events_published = Counter()
         self.count_contacts = count_contacts
         self.coordinator = coordinator
         self.coord_period_ticks = decision_period_ticks(world.scene_model)
@@ -449,7 +448,6 @@ class SimServer:
         True when some part left the stage (lost or retired), so `parts` is out of date."""
         left = False
         for e in self.watcher.update(self.world, parts):
-            self.events_published[e.kind] += 1
             event = LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)
             self.event_log.append(event)
             self._put(self._events_pub, "events", encode(event))
@@ -495,7 +493,7 @@ class SimServer:
                 else:
                     self._put(self._state_pubs[link.name], "state", encode(states[link.name]))
             parts = w.active_parts() if parts is None else parts
-            parts_msg = parts_state(w, parts, sum(self.events_published.values()))
+            parts_msg = parts_state(w, parts, len(self.event_log))
             if due:
                 seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
                 self._put(self._parts_pub, "parts", encode(seen))
@@ -522,7 +520,7 @@ class SimServer:
         if flight is not None:
             line = flight.message
             if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
-                line = msgspec.structs.replace(line, parts=msgspec.structs.replace(line.parts, events_published=sum(self.events_published.values())))
+                line = msgspec.structs.replace(line, parts=msgspec.structs.replace(line.parts, events_published=len(self.event_log)))
             flight.payload = encode(line)
             self._put(self._frame_pub, "frame", flight.payload)
         elif not self._deferred_coord:
@@ -658,7 +656,7 @@ class SimServer:
             "sim_seconds": round(self.world.sim_time_s, 6),
             "parts_spawned": sum(c.spawned for c in self.world.feeders),
             "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
-            "events": dict(sorted(self.events_published.items())),
+            "events": dict(sorted(Counter(e.kind for e in self.event_log).items())),
             "utilisation": {a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0 for a in self.links},
             "arm_time": {a: self.arm_time(a) for a in self.links},
             "inter_arm_contacts": self.stats.contact_ticks,

@@ -10,11 +10,9 @@ from pathlib import Path
 import pytest
 
 from tests.fleet.hosts_apart.namespaces import NamespacesUnavailable, hosts_on_one_switch, processes_in
+from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES
 
-QUICK_LINE = str(Path(__file__).parents[1] / "scenes_data" / "quick_line.yaml")
 INTRUDER = str(Path(__file__).parent / "intruder.py")
-WALL_FIGURES = ("wall_seconds", "loop_wall_seconds", "wall_s_by_stage", "latency_p50_ms", "latency_p99_ms", "processes",
-                "bus_messages_per_arm_per_s", "round_trip_histogram", "bus_messages_out")
 
 
 @pytest.fixture(scope="module")
