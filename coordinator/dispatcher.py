@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
-from coordinator.cadence import AVAILABLE_SKILLS, IDLE_SKILLS, decision_period_ticks
+from coordinator.cadence import AVAILABLE_SKILLS, IDLE_SKILLS, LOCAL_SKILLS, decision_period_ticks
 from coordinator.capacity import CapacityBound, capacity_bound, measured_hop_seconds
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
@@ -85,9 +85,9 @@ class Dispatcher:
     """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
     reassignment, the collision guard's grants and the busy-until estimates."""
 
-    def __init__(self, scene: Scene, allocator: Allocator | None = None, first_task_id: int = 1) -> None:
+    def __init__(self, scene: Scene, allocator: Allocator | None = None, first_task_id: int = 1, pipeline: bool = False) -> None:
         self.scene = scene
-        self.ledger = Ledger(scene, first_task_id)
+        self.ledger = Ledger(scene, first_task_id, pipeline)
         self.allocator = allocator or make_allocator("optimal", scene)
         self.arm_names = [a.name for a in scene.arms]
         self.guard = CollisionGuard({
@@ -116,6 +116,9 @@ class Dispatcher:
         self.unsettled: set[str] = set()  # after a take-over: arms that may still move under a grant given before it
         self.settle_by_s = -math.inf
         self.adopted: list[dict] = []
+        self.held_at_station_s: dict[str, float] = {}  # pipelining: how long each arm's moves waited for a fixture
+        self.held_now: dict[str, str] = {}  # arm -> the fixture its waiting move is held for, at the last decision
+        self.told_standby: set[int] = set()  # tasks whose held transfer was told to stand by (once a task)
         self._candidates: dict[int, tuple[int, str]] = {}  # candidate id -> (task id, station), of the last `candidates`
         self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
 
@@ -236,6 +239,8 @@ class Dispatcher:
         for arm, stations in self.last_stations.items():
             if self.skill[arm] not in IDLE_SKILLS and arm not in self.lost:
                 busy.update(stations)
+        if self.ledger.pipeline:
+            busy -= self.ledger.gated  # their order is the ledger's, their moves wait at `station_ahead`
         return busy
 
     def busy_arms(self) -> int:
@@ -324,7 +329,18 @@ class Dispatcher:
             return []  # taken over: an arm may still move under a grant this dispatcher never saw
         self.unsettled.clear()
         out = []
+        self.held_now = {}
         for arm in [a for a in self.arm_names if a in self.requests]:
+            station = self.station_ahead(arm)
+            if station is not None:  # pipelined: the fixture is not ready for this arm's part yet
+                self.held_now[arm] = station
+                self.held_at_station_s[arm] = self.held_at_station_s.get(arm, 0.0) + self.period_ticks / self.scene.control_hz
+                task = self.open_task(arm)
+                if self.skill[arm] == "transfer" and task.task_id not in self.told_standby:  # wait beside it, part in hand
+                    self.told_standby.add(task.task_id)
+                    del self.requests[arm]
+                    out.append(GrantOrder(arm, self.request_seq[arm], "standby", "", math.inf, None))
+                continue
             asked = self.requests[arm]
             start = max(self.acts_at_tick[arm], self.last_decision_tick + 1) / self.scene.control_hz
             path = dataclasses.replace(asked, t_start_s=start, t_end_s=start + (asked.t_end_s - asked.t_start_s))
@@ -338,6 +354,26 @@ class Dispatcher:
                                   verdict.min_separation_m, start if verdict.granted else None))
         return out
 
+    def open_task(self, arm: str) -> Task | None:
+        """The task `arm` was given and has not finished."""
+        return next((t for t in self.ledger.tasks.values() if t.arm == arm and t.state in (TaskState.ASSIGNED, TaskState.ACTIVE)), None)
+
+    def station_ahead(self, arm: str) -> str | None:
+        """The fixture `arm`'s waiting move would take it into while it is not ready (None: no such fixture): an
+        approach to take from one, a transfer to place on one. Not ready: the ledger holds the part back, or
+        another arm still grasps or places there (a move asked no grant: the guard would deny, not wait)."""
+        if not self.ledger.pipeline:
+            return None
+        task = self.open_task(arm)
+        phase = self.skill.get(arm)
+        station = task.source if task and phase == "approach" else task.target if task and phase == "transfer" else None
+        if station is None or station not in self.ledger.gated:
+            return None
+        if not self.ledger.may_enter(task, station):
+            return station
+        working_there = any(b != arm and station in self.last_stations[b] and self.skill[b] in LOCAL_SKILLS for b in self.arm_names)
+        return station if working_there else None
+
     def watch_separations(self) -> list[NearestPair]:
         """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour."""
         pairs = self.guard.nearest_pairs()
@@ -350,7 +386,7 @@ class Dispatcher:
         part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]
         station = self.scene.station(task.target)
         velocity = self.belt_velocity() if task.source == CONVEYOR else (0.0, 0.0, 0.0)
-        place = (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target))
+        place = (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target, task.part_id))
         self.last_stations[arm] = task.stations
         return AssignOrder(arm, task.task_id, task.part_id, float(part.position[2] - rec.height_m / 2), place, velocity)
 
@@ -362,6 +398,7 @@ class Dispatcher:
     def report(self) -> dict:
         return self.ledger.totals() | {
             "allocator": self.allocator.name,
+            "pipeline": self.ledger.pipeline,
             "arm_events": self.losses,
             "unfinished_parts": self.ledger.unfinished(),
             "tasks": [
@@ -376,7 +413,8 @@ class Dispatcher:
             "tasks_reassigned": self.reassigned,
             "tasks_adopted": self.adopted,
             "grant_waits": self.guard.waits,
-            "grant_requests_open": {a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items()},
+            "grant_requests_open": {a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items() if a not in self.held_now},
+            "held_at_station_s": {a: round(s, 2) for a, s in self.held_at_station_s.items()},
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "capacity": self.capacity.as_dict(),

@@ -5,6 +5,10 @@ Pure bookkeeping on sim time: the coordinator node feeds it the sim's line event
 the tasks that are ready. A part's route comes from the scene; an assembly
 fixture (`Station.assembles`) takes its layers bottom first and lets the bottom
 part move on only once the stack is whole.
+
+With `pipeline`, a fixture's next part may be given to an arm before the fixture is ready for it (the
+layer below still on its way, the assembly before it not yet taken away): the arm picks it and holds
+it, and `may_enter` says when it may move in. One part (or one assembly) ahead at most.
 """
 
 from __future__ import annotations
@@ -18,15 +22,17 @@ HELD = "held"
 EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
 MAX_ATTEMPTS = 3
-HOLDING_PHASES = ("lift", "transfer", "lower", "release")
+HOLDING_PHASES = ("lift", "standby", "transfer", "lower", "release")
 PLACED_GRACE_S = 3.0
 
 
 class Ledger:
     """Parts and tasks of one run; all times are sim seconds."""
 
-    def __init__(self, scene: Scene, first_task_id: int = 1) -> None:
+    def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = False) -> None:
         self.scene = scene
+        self.pipeline = pipeline
+        self.gated = {s.name for s in scene.stations if s.kind == "fixture"}  # one part or assembly at a time
         self.parts: dict[int, PartRecord] = {}
         self.tasks: dict[int, Task] = {}
         self.stacks: dict[str, list[int]] = {s.name: [] for s in scene.stations if s.assembles}
@@ -217,19 +223,67 @@ class Ledger:
         return ""
 
     def _ready(self, part: PartRecord, target: str) -> bool:
-        """Precedence: an assembly layer needs the layers below it; a stack's bottom leaves only when whole."""
+        """Precedence: an assembly layer needs the layers below it; a stack's bottom leaves only when whole.
+        With pipelining, layers and parts on their way count as there (their arms wait at `may_enter`)."""
         here = self.stacks.get(part.location)
         if here is not None and part.part_id in here:
-            if here[0] != part.part_id or len(here) < len(self.scene.station(part.location).assembles):
+            coming = len(self._inbound(part.location)) if self.pipeline else 0
+            if here[0] != part.part_id or len(here) + coming < len(self.scene.station(part.location).assembles):
                 return False
         stack = self.stacks.get(target)
-        if stack is not None and part.feeder in self.scene.station(target).assembles:
-            layer = self.scene.station(target).assembles.index(part.feeder)
-            if len(stack) != layer:
+        assembles = self.scene.station(target).assembles
+        if self.pipeline and target in self.gated:
+            layer, have = self._layer(part, target), self._future_layers(target)
+            return layer not in have and all(below in have for below in range(layer))
+        if stack is not None and part.feeder in assembles:
+            if len(stack) != assembles.index(part.feeder):
                 return False
             if any(t.target == target and t.state in OPEN_STATES for t in self.tasks.values()):
                 return False  # one layer on its way at a time
         return True
+
+    def _layer(self, part: PartRecord, station: str) -> int:
+        """Where `part` goes in `station`'s stack (0, the bottom, at a station that does not assemble)."""
+        assembles = self.scene.station(station).assembles
+        return assembles.index(part.feeder) if part.feeder in assembles else 0
+
+    def _inbound(self, station: str, states: tuple[TaskState, ...] = OPEN_STATES) -> list[Task]:
+        """Tasks bringing a part to `station`."""
+        return [t for t in self.tasks.values() if t.target == station and t.state in states]
+
+    def _occupants(self, station: str) -> list[int]:
+        """The parts resting at `station`: its stack, if it assembles; else every part there."""
+        if station in self.stacks:
+            return self.stacks[station]
+        return [p.part_id for p in self.parts.values() if p.location == station and p.fate == PartFate.ON_LINE]
+
+    def _future_layers(self, station: str) -> list[int]:
+        """The layers `station` will hold once the parts on their way are there and the ones an arm was sent to
+        take away are gone."""
+        present = [] if self._leaving(station) else [self._layer(self.parts[p], station) for p in self._occupants(station)]
+        return present + [self._layer(self.parts[t.part_id], station) for t in self._inbound(station)]
+
+    def _leaving(self, station: str) -> bool:
+        """What rests at `station` is whole (an assembly with every layer) and an arm was sent to take it away."""
+        here, assembles = self._occupants(station), self.scene.station(station).assembles
+        whole = len(here) >= len(assembles) if assembles else bool(here)  # a part taken along by a claw may lie on top
+        return whole and any(t.source == station and t.state in (TaskState.ASSIGNED, TaskState.ACTIVE) for t in self.tasks.values())
+
+    def may_enter(self, task: Task, station: str) -> bool:
+        """May the arm of `task` move into `station` now? Always, unless pipelining holds it: taking an assembly
+        away waits until it is whole; bringing a part waits until the layers below it are placed and the parts
+        before it (an assembly, a handed-over part) have been lifted off, and no arm is bringing one below it."""
+        if not self.pipeline or station not in self.gated:
+            return True
+        assembles = self.scene.station(station).assembles
+        here = self._occupants(station)
+        if station == task.source:
+            return not assembles or (bool(here) and here[0] == task.part_id and len(here) >= len(assembles))
+        layer = self._layer(self.parts[task.part_id], station)
+        if any(t.task_id != task.task_id and self._layer(self.parts[t.part_id], station) <= layer
+               for t in self._inbound(station, (TaskState.ASSIGNED, TaskState.ACTIVE))):
+            return False
+        return len(here) == layer
 
     def assign(self, task_id: int, arm: str, now_s: float, target: str | None = None) -> Task:
         """Give a pending task to `arm`; `target`: which of its stations (its target or an alternative) it goes to."""
@@ -248,10 +302,15 @@ class Ledger:
         task.reassignments += 1
         return task
 
-    def place_height_m(self, target: str) -> float:
-        """Where a part's bottom goes at `target`: the station's surface, on top of any stack there."""
+    def place_height_m(self, target: str, part_id: int | None = None) -> float:
+        """Where a part's bottom goes at `target`: the station's surface, on top of any stack there (with
+        pipelining, on the layers below `part_id`'s, placed or on their way, not on an assembly leaving)."""
         z = self.scene.station(target).surface_z_m
-        return z + sum(self.parts[p].height_m for p in self.stacks.get(target, []))
+        if not (self.pipeline and target in self.gated and part_id is not None):
+            return z + sum(self.parts[p].height_m for p in self.stacks.get(target, []))
+        below = ([] if self._leaving(target) else list(self._occupants(target))) + [t.part_id for t in self._inbound(target) if t.part_id != part_id]
+        layer = self._layer(self.parts[part_id], target)
+        return z + sum(self.parts[p].height_m for p in below if self._layer(self.parts[p], target) < layer)
 
     def busy_stations(self) -> set[str]:
         """Stations some assigned or running task picks from or places at (one arm at a time there)."""

@@ -268,7 +268,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_placement_flags(args)
     options = RunOptions(
         scene=args.scene, arms=args.arms, duration_s=args.duration, mode=args.mode, speed=args.speed, seed=args.seed,
-        respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator,
+        respawn=args.respawn, realtime_priority=args.rt, run_id=args.run_id, keep_logs=args.keep_logs, allocator=args.allocator, pipeline=args.pipeline,
         listen=(args.listen or [None])[0], connect=tuple(args.connect or ()), zenoh_config=args.zenoh_config,
         monitor=args.monitor, monitor_host=args.host, monitor_port=args.port, record=run_recording(args),
         latency_ms=args.latency_ms, jitter_ms=args.jitter_ms, loss=args.loss, bus_config=args.bus_config, hosts=args.hosts,
@@ -496,8 +496,9 @@ def print_run_summary(s: dict) -> None:
         ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
         ("capacity bound (per minute)", "-" if s.get("throughput_bound_per_min") is None else
          f"{s['throughput_bound_per_min']:.2f}: {s['bound_fraction']:.0%} of it achieved, limited by {s['bottleneck']['name']}"),
-        ("arms: working / waiting for a grant / idle", "; ".join(
-            f"{a} {t['working']:.0%} / {t['waiting_for_grant']:.0%} / {t['idle']:.0%}" for a, t in s.get("arm_time", {}).items()) or "-"),
+        ("arms: working / waiting for a grant (+ held at a fixture) / idle", "; ".join(
+            f"{a} {t['working']:.0%} / {t['waiting_for_grant']:.0%}{f' (+{held:.0%})' if (held := t.get('held_at_fixture', 0)) else ''} / {t['idle']:.0%}"
+            for a, t in s.get("arm_time", {}).items()) or "-"),
         ("inter-arm contacts (ticks)", str(s["inter_arm_contacts"])),
         ("min separation (m)", "-" if s["min_separation_m"] is None else f"{s['min_separation_m']:.3f}"),
         ("grants denied", str(s["grants_denied"])),
@@ -656,6 +657,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
     p.add_argument("--respawn", action="store_true", help="restart a controller or the coordinator that dies (a new coordinator takes over the line)")
     p.add_argument("--allocator", choices=("optimal", "auction", "greedy"), default="optimal", help="how tasks go to arms (default optimal)")
+    p.add_argument("--no-pipeline", dest="pipeline", action="store_false",
+                   help="give a fixture's next part to an arm only once the fixture is ready for it (default: before, the arm held at the edge)")
     p.add_argument("--rt", action="store_true", help="controllers ask for real-time scheduling")
     p.add_argument("--run-id", default="line", help="keeps several lines on one Zenoh network apart")
     p.add_argument("--summary", metavar="FILE", help="also write the summary JSON here")

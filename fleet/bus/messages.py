@@ -198,8 +198,9 @@ class Assignment(Message, frozen=True, array_like=True, tag="assign"):
 
 class MotionGrant(Message, frozen=True, array_like=True, tag="grant"):
     """Coordinator -> controller, on the assign key in the same `seq` count: the answer to motion request
-    `request_seq`: `grant` (move now), or `deny` naming the arm in the way. A `wait` is not sent: the request
-    stays with the coordinator, checked again at each decision."""
+    `request_seq`: `grant` (move now), `deny` naming the arm in the way, or `standby` (a transfer to a
+    fixture that is not ready yet: wait beside it, then ask again). A `wait` is not sent: the request stays
+    with the coordinator, checked again at each decision."""
 
     arm: str
     seq: int

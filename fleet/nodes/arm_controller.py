@@ -154,7 +154,7 @@ class ArmController:
             values = (msg.surface_z_m, *msg.place_xyz, *msg.surface_velocity)
             if len(msg.place_xyz) != 3 or len(msg.surface_velocity) != 3 or not_finite(values) or max(map(abs, values)) > 100.0:
                 return "an assignment with a place or velocity that is not a finite point"
-        elif msg.decision not in ("grant", "deny") or not_finite((msg.start_time_s, msg.min_separation_m)):
+        elif msg.decision not in ("grant", "deny", "standby") or not_finite((msg.start_time_s, msg.min_separation_m)):
             return "a motion grant that is neither grant nor deny, or with non-finite times"
         return ""
 

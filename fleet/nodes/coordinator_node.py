@@ -63,11 +63,12 @@ class CoordinatorNode:
         allocator: Allocator | None = None,
         heartbeat_timeout_s: float = 0.75,
         incarnation: int = 1,
+        pipeline: bool = True,
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
         self.incarnation = incarnation
         first_task_id = (incarnation - 1) * TASK_ID_SPAN + 1
-        self.dispatcher = Dispatcher(scene, allocator or make_allocator("optimal", scene), first_task_id)
+        self.dispatcher = Dispatcher(scene, allocator or make_allocator("optimal", scene), first_task_id, pipeline)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.arm_names = [a.name for a in scene.arms]
         self.period_ticks = self.dispatcher.period_ticks
@@ -331,6 +332,8 @@ def main(argv: list[str] | None = None) -> int:
     add_scene_arguments(parser)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
+    parser.add_argument("--no-pipeline", dest="pipeline", action="store_false",
+                        help="give a fixture's next part out only once the fixture is ready for it")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument("--incarnation", type=int, default=1, help="this run's Nth coordinator: from the 2nd on it takes over "
                         "the running line (ledger rebuilt from the sim's event log and the controllers' heartbeats)")
@@ -344,7 +347,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with open_session(BusEndpoints.from_args(args)) as session:
         node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep",
-                               allocator=make_allocator(args.allocator, scene), incarnation=args.incarnation)
+                               allocator=make_allocator(args.allocator, scene), incarnation=args.incarnation, pipeline=args.pipeline)
         node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:
             if args.incarnation > 1:

@@ -23,7 +23,7 @@ from fleet.record.mcap_file import Recording
 from fleet.record.ros_types import deserialize
 
 PHASE_COLOURS = {
-    "approach": "#4C72B0", "descend": "#55A868", "close": "#2E8B57", "lift": "#8172B2", "transfer": "#C44E52",
+    "approach": "#4C72B0", "descend": "#55A868", "close": "#2E8B57", "lift": "#8172B2", "standby": "#E8A0A2", "transfer": "#C44E52",
     "lower": "#CCB974", "release": "#DD8452", "retreat": "#64B5CD", "home": "#8C8C8C", "failed": "#000000",
 }
 HELD_COLOUR = "#BBBBBB"

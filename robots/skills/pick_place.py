@@ -44,6 +44,7 @@ class Phase(str, Enum):
     DESCEND = "descend"
     CLOSE = "close"
     LIFT = "lift"
+    STANDBY = "standby"  # a part in the claw, beside the place, until the coordinator says the place is ready
     TRANSFER = "transfer"
     LOWER = "lower"
     RELEASE = "release"
@@ -54,7 +55,7 @@ class Phase(str, Enum):
 
 
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
-SEGMENT_PHASES = (Phase.APPROACH, Phase.TRANSFER, Phase.HOME)  # free joint-space moves: the ones that need a grant
+SEGMENT_PHASES = (Phase.APPROACH, Phase.STANDBY, Phase.TRANSFER, Phase.HOME)  # free joint-space moves: the ones that need a grant
 REPLAN_AFTER_S = 0.3
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
@@ -85,6 +86,8 @@ class PickPlaceTiming:
     clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home
     home_tolerance_rad: float = 0.05  # within this of the home pose on every joint counts as home
     detour_after_s: float = 2.0  # a transfer denied this long goes home first (the arm in the way may be waiting for it)
+    standby_back: float = 0.8  # told to stand by: this fraction of the way from the place's hover point to the arm's base...
+    standby_up_m: float = 0.08  # ...and this much higher
 
     @classmethod
     def for_robot(cls, spec: RobotSpec) -> "PickPlaceTiming":
@@ -155,8 +158,11 @@ class PickPlaceSkill:
         self.plan_end_s = 0.0
         self.phase_t0 = 0.0
         self._idle_since_s: float | None = None  # when the skill last stopped being active (None: active)
-        self._asking_since_s = 0.0  # when the current free move was first asked for
+        self._denied_since_s: float | None = None  # when the current free move was first denied
         self._detour_to: np.ndarray | None = None  # a denied transfer's end, while the arm detours home first
+        self._stood_by = False  # this task's transfer was told to stand by (once a task)
+        self._transfer_to: np.ndarray | None = None  # the transfer's end, while the arm stands by
+        self.standbys = 0
         self._then_cache: tuple = (None, ([], []))  # the local stage of the move last asked for
         self.place_yaw = 0.0
         self.pick_tilt_rad = self.place_tilt_rad = 0.0  # how far the claw leans from straight down at each end
@@ -245,6 +251,7 @@ class PickPlaceSkill:
         self._now = obs.time_s
         self._idle_since_s = None
         self._detour_to = None
+        self._stood_by, self._transfer_to = False, None
         self.task, self.failure_reason = task, ""
         self.sent_goals = set()
         self._timeline = []
@@ -287,7 +294,7 @@ class PickPlaceSkill:
         self.segment = segment
         self._enter(phase, time_s)
         self.request = None
-        self._asking_since_s = time_s
+        self._denied_since_s = None
         if self.grants_required:
             self._ask(time_s)
         else:
@@ -357,14 +364,46 @@ class PickPlaceSkill:
             self.request = None
             self._go(max(time_s, start_time_s if start_time_s is not None else time_s))
             return
+        if decision == "standby":  # the place is not ready: wait beside it, then ask to place from there
+            self.request = None
+            self._stand_by(time_s)
+            return
         self.denials += 1
+        if self._denied_since_s is None:
+            self._denied_since_s = time_s
         if self.phase == Phase.APPROACH:  # nothing in hand: give the task back, the coordinator decides again
             self.request = None
             self._fail(f"motion denied: the approach would pass within the margin of {conflict_arm or 'another arm'}")
+        elif self.phase == Phase.STANDBY:  # the spot beside the place is in another arm's way: wait where it is
+            self._transfer_from_here(time_s)
         elif self._should_detour(time_s):  # the way stays blocked: make room by going home, then transfer from there
             self._detour_home(time_s)
         else:  # a part in the claw, or on the way home: ask again
             self._ask(time_s)
+
+    def _stand_by(self, time_s: float) -> None:
+        """Told to stand by (once a task, a transfer only): move to a spot `standby_back` of the way from the place's
+        hover point to the arm's base and `standby_up_m` higher, the part in the claw; from there the transfer
+        is asked for again. Where that spot cannot be reached, the transfer is asked for again from here."""
+        if self.phase != Phase.TRANSFER or self._detour_to is not None or self._stood_by or self.task is None:
+            self._ask(time_s)
+            return
+        self._stood_by, self._transfer_to = True, self.segment.q_end.copy()
+        t = self.timing
+        place = np.asarray(self.task.place_xyz, float)
+        above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
+        back = (self.top_down.base_to_world[:2, 3] - above[:2]) * t.standby_back
+        q, ok = self._ik(above + [back[0], back[1], t.standby_up_m], self.place_yaw, self._transfer_to, self.place_tilt_rad)
+        if not ok:
+            self._transfer_from_here(time_s)
+            return
+        self.standbys += 1
+        self._begin_segment(self._segment(self.q_cmd, q, time_s, t.transfer_speed), Phase.STANDBY, time_s)
+
+    def _transfer_from_here(self, time_s: float) -> None:
+        """The transfer to above the place, from where the arm is (after standing by, or instead of it)."""
+        q_to, self._transfer_to = self._transfer_to, None
+        self._begin_segment(self._segment(self.q_cmd, q_to, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
 
     def _at_home(self, q: np.ndarray) -> bool:
         return bool(np.max(np.abs(np.asarray(q, float) - np.asarray(self.spec.home_q, float))) <= self.timing.home_tolerance_rad)
@@ -373,7 +412,7 @@ class PickPlaceSkill:
         """Two arms each standing in the other's way (one waiting to transfer, one to go home or transfer) would
         wait for ever; the transfer that has waited `detour_after_s` gives way."""
         return (self.phase == Phase.TRANSFER and self._detour_to is None and not self._at_home(self.q_cmd)
-                and time_s - self._asking_since_s >= self.timing.detour_after_s - 1e-9)
+                and time_s - self._denied_since_s >= self.timing.detour_after_s - 1e-9)
 
     def _detour_home(self, time_s: float) -> None:
         self._detour_to = self.segment.q_end.copy()
@@ -402,7 +441,8 @@ class PickPlaceSkill:
         """Fraction of the primitives done, for status reports."""
         if self.phase == Phase.DONE:
             return 1.0
-        return ORDER.index(self.phase) / len(ORDER) if self.phase in ORDER else 0.0
+        phase = Phase.TRANSFER if self.phase == Phase.STANDBY else self.phase
+        return ORDER.index(phase) / len(ORDER) if phase in ORDER else 0.0
 
     @property
     def active(self) -> bool:
@@ -509,7 +549,9 @@ class PickPlaceSkill:
                 q_to, self._detour_to = self._detour_to, None
                 self._begin_segment(self._segment(self.q_cmd, q_to, now, self.timing.transfer_speed), Phase.TRANSFER, now)
             return
-        if self.phase == Phase.APPROACH and ahead <= horizon:
+        if self.phase == Phase.STANDBY and ahead <= 1e-9:
+            self._transfer_from_here(now)
+        elif self.phase == Phase.APPROACH and ahead <= horizon:
             self._plan_grasp(part, now)
         elif self.phase == Phase.TRANSFER and ahead <= horizon:
             self._plan_place()

@@ -93,6 +93,8 @@ def test_a_transfer_kept_out_makes_room_by_going_home_then_asks_again_from_there
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1)
     assert np.allclose(skill.request.q_to, place_q), "denied briefly: the same transfer asked again"
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.0 + skill.timing.detour_after_s)
+    assert skill.detours == 0, "asked 2 s ago, but denied for less: a move held back (a fixture not ready) is no blockade"
+    skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1 + skill.timing.detour_after_s)
     assert skill.detours == 1 and np.allclose(skill.request.q_to, SPEC.home_q), "kept out: home first, part in hand"
     skill.on_grant(skill.request.seq, "grant", "", 3.1)
     home_by = skill.plan_end_s
@@ -142,3 +144,29 @@ def test_an_arm_on_its_way_home_may_take_the_next_task_and_approaches_from_where
     task = PickPlaceTask(7, 0.08, (0.3, -0.55, 0.04), (0.0, 0.0, 0.0))
     skill.start(task, obs(on_the_way, 2.0), part_at(0.0))
     assert skill.phase == Phase.APPROACH and np.allclose(skill.request.q_from, on_the_way), "home given up for the approach"
+
+
+def test_a_transfer_told_to_stand_by_waits_beside_the_place_then_asks_to_place_from_there():
+    skill = transferring(at_s=1.0)
+    place_q = skill.segment.q_end.copy()
+    skill.on_grant(skill.request.seq, "standby", "", 1.1)
+    assert skill.phase == Phase.STANDBY and skill.standbys == 1 and skill.request is not None, "the move beside the place is asked for"
+    standby_q = np.asarray(skill.request.q_to)
+    tool = lambda q: (BASE @ skill.km.frame_pose(skill.km.full_q(np.asarray(q))))[:3, 3]  # noqa: E731
+    to_base = lambda q: np.linalg.norm(tool(q)[:2] - BASE[:2, 3])  # noqa: E731
+    assert to_base(standby_q) < to_base(place_q) and tool(standby_q)[2] > tool(place_q)[2], "nearer its own base, and higher"
+    skill.on_grant(skill.request.seq, "grant", "", 1.2)
+    there = skill.plan_end_s
+    skill.step(obs(standby_q, there + 0.01), {})
+    assert skill.phase == Phase.TRANSFER and np.allclose(skill.request.q_from, standby_q) and np.allclose(skill.request.q_to, place_q)
+    asked = skill.request.seq
+    skill.on_grant(asked, "standby", "", there + 0.1)
+    assert skill.phase == Phase.TRANSFER and skill.standbys == 1 and skill.request.seq == asked + 1, "once a task: asked again"
+
+
+def test_a_stand_by_move_that_is_denied_asks_for_the_transfer_from_where_the_arm_is():
+    skill = transferring(at_s=1.0)
+    place_q, here = skill.segment.q_end.copy(), skill.q_cmd.copy()
+    skill.on_grant(skill.request.seq, "standby", "", 1.1)
+    skill.on_grant(skill.request.seq, "deny", "arm_0", 1.2)
+    assert skill.phase == Phase.TRANSFER and np.allclose(skill.request.q_from, here) and np.allclose(skill.request.q_to, place_q)

@@ -1,0 +1,137 @@
+"""Pipelined fixtures: the next part of a fixture is given out before the fixture is ready for it, and its
+arm is held at the fixture's edge until it is (the assembly line's base, top and ship; the handover pad)."""
+
+import numpy as np
+
+from coordinator.allocation import PartView
+from coordinator.dispatcher import Dispatcher, GrantOrder
+from coordinator.guard import TimedPath
+from coordinator.ledger import Ledger
+from coordinator.tasks import TaskState
+from robots.registry import get_robot
+from scenes import load_scene
+
+BASE_H, FIXTURE_TOP = 0.03, 0.04
+
+
+def only(tasks):
+    assert len(tasks) == 1, tasks
+    return tasks[0]
+
+
+def by_part(tasks) -> dict:
+    return {t.part_id: t for t in tasks}
+
+
+def line() -> Ledger:
+    lg = Ledger(load_scene("assembly_line"), pipeline=True)
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.arrived(1, "tops", 0, 2.0)
+    lg.at_station(1, "tops_bin", 2.5)
+    return lg
+
+
+def test_a_top_is_given_out_while_its_base_is_on_the_way_and_waits_for_it_at_the_fixture():
+    lg = line()
+    tasks = by_part(lg.refresh(2.5))  # the top's task comes with its base's: the base is only on its way
+    base, top = tasks[0], tasks[1]
+    assert (top.source, top.target) == ("tops_bin", "fixture_0")
+    lg.assign(base.task_id, "arm_0", 3.0)
+    assert lg.place_height_m("fixture_0", top.part_id) == FIXTURE_TOP + BASE_H, "on the base to come"
+    lg.assign(top.task_id, "arm_1", 3.0)
+    assert lg.may_enter(base, "fixture_0") and not lg.may_enter(top, "fixture_0")
+    lg.at_station(0, "fixture_0", 9.0)
+    assert lg.may_enter(top, "fixture_0")
+
+
+def test_the_next_base_waits_until_the_assembly_is_whole_and_sent_away_then_until_it_is_lifted():
+    lg = line()
+    tasks = by_part(lg.refresh(2.5))
+    base, top = tasks[0], tasks[1]
+    lg.assign(base.task_id, "arm_0", 3.0)
+    lg.assign(top.task_id, "arm_1", 3.0)
+    lg.at_station(0, "fixture_0", 9.0)
+    ship = only(lg.refresh(9.0))  # the top is on its way: the ship may be planned
+    assert (ship.part_id, ship.source) == (0, "fixture_0")
+    lg.assign(ship.task_id, "arm_2", 9.0)
+    assert not lg.may_enter(ship, "fixture_0"), "no ship of half an assembly"
+    lg.arrived(2, "bases", 0, 10.0)
+    assert lg.refresh(10.0) == [], "a second base waits while the assembly is not whole"
+    lg.at_station(1, "fixture_0", 14.0)
+    assert lg.may_enter(ship, "fixture_0")
+    second = only(lg.refresh(14.0))
+    assert (second.part_id, second.target) == (2, "fixture_0")
+    assert lg.place_height_m("fixture_0", second.part_id) == FIXTURE_TOP, "on the bare fixture, not on the leaving assembly"
+    lg.assign(second.task_id, "arm_0", 14.0)
+    assert not lg.may_enter(second, "fixture_0")
+    lg.arm_report("arm_2", ship.task_id, "lift", 15.0)
+    assert lg.may_enter(second, "fixture_0")
+
+
+def test_a_top_whose_base_was_lost_does_not_keep_the_next_base_out():
+    lg = line()
+    tasks = by_part(lg.refresh(2.5))
+    base, top = tasks[0], tasks[1]
+    lg.assign(base.task_id, "arm_0", 3.0)
+    lg.assign(top.task_id, "arm_1", 3.0)
+    lg.arm_report("arm_1", top.task_id, "lift", 4.0)
+    lg.lost(0, "fell to the floor", 5.0)
+    lg.arrived(2, "bases", 0, 6.0)
+    nxt = only(lg.refresh(6.0))
+    lg.assign(nxt.task_id, "arm_0", 6.0)
+    assert lg.may_enter(nxt, "fixture_0") and not lg.may_enter(top, "fixture_0")
+
+
+def test_without_pipelining_a_top_waits_for_its_base_to_be_placed():
+    lg = Ledger(load_scene("assembly_line"))
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.arrived(1, "tops", 0, 2.0)
+    lg.at_station(1, "tops_bin", 2.5)
+    lg.assign(only(lg.refresh(2.5)).task_id, "arm_0", 3.0)
+    assert lg.refresh(3.0) == []
+
+
+def test_a_handover_pad_takes_the_next_part_once_the_one_on_it_is_lifted():
+    lg = Ledger(load_scene("handover"), pipeline=True)
+    lg.arrived(0, "parts", 0, 1.0)
+    first = only(lg.refresh(1.0))
+    lg.assign(first.task_id, "arm_0", 1.0)
+    lg.arrived(1, "parts", 0, 2.0)
+    assert lg.refresh(2.0) == [], "one part on its way to the pad at a time"
+    lg.at_station(0, "handover_pad", 8.0)
+    onward = only(lg.refresh(8.0))
+    lg.assign(onward.task_id, "arm_1", 8.0)
+    second = only(lg.refresh(8.0))
+    assert second.part_id == 1
+    lg.assign(second.task_id, "arm_0", 8.0)
+    assert not lg.may_enter(second, "handover_pad")
+    lg.arm_report("arm_1", onward.task_id, "lift", 10.0)
+    assert lg.may_enter(second, "handover_pad")
+
+
+def test_the_dispatcher_holds_a_transfer_to_a_fixture_that_is_not_ready_and_counts_the_wait():
+    scene = load_scene("assembly_line")
+    d = Dispatcher(scene, pipeline=True)
+    home = {a.name: np.asarray(get_robot(a.model).home_q, float) for a in scene.arms}
+    d.on_event("arrived", 0, "bases", 0, 1.0)
+    d.on_event("arrived", 1, "tops", 0, 2.0)
+    d.on_event("at_station", 1, "tops_bin", 0, 2.5)
+    d.on_parts({0: PartView(np.array([-1.2, 0.0, 0.1]), np.array([0.05, 0.0, 0.0])),
+                1: PartView(np.array([0.58, -0.62, 0.03]), np.zeros(3))}, 3.0)
+    tasks = by_part(d.ledger.refresh(3.0))
+    d.ledger.assign(tasks[0].task_id, "arm_0", 3.0)
+    top = tasks[1]
+    d.ledger.assign(top.task_id, "arm_1", 3.0)
+    for arm, q in home.items():
+        d.on_arm(arm, q, "idle", 3.0)
+    move = TimedPath("arm_1", tuple(home["arm_1"]), tuple(home["arm_1"] + 0.1), 3.0, 5.0)
+    d.on_arm("arm_1", home["arm_1"], "transfer", 3.0, task_id=top.task_id, request_seq=1, request=move)
+    told = [o for o in d.decide(300).orders if isinstance(o, GrantOrder)]
+    assert [(o.arm, o.decision) for o in told] == [("arm_1", "standby")], "the base is not on the fixture: wait beside it"
+    d.on_arm("arm_1", home["arm_1"], "transfer", 3.1, task_id=top.task_id, request_seq=2, request=move)
+    assert not [o for o in d.decide(310).orders if isinstance(o, GrantOrder)], "asked again: held, without a word"
+    assert d.held_now == {"arm_1": "fixture_0"} and d.held_at_station_s["arm_1"] > 0
+    d.on_event("at_station", 0, "fixture_0", 0, 9.0)
+    grants = [o for o in d.decide(320).orders if isinstance(o, GrantOrder)]
+    assert [(g.arm, g.decision) for g in grants] == [("arm_1", "grant")]
+    assert d.ledger.tasks[top.task_id].state in (TaskState.ASSIGNED, TaskState.ACTIVE)
