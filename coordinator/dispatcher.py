@@ -361,7 +361,7 @@ class Dispatcher:
     def station_ahead(self, arm: str) -> str | None:
         """The fixture `arm`'s waiting move would take it into while it is not ready (None: no such fixture): an
         approach to take from one, a transfer to place on one. Not ready: the ledger holds the part back, or
-        another arm still grasps or places there (a move asked no grant: the guard would deny, not wait)."""
+        another arm works there or is on its way in (`_at_station`)."""
         if not self.ledger.pipeline:
             return None
         task = self.open_task(arm)
@@ -371,8 +371,27 @@ class Dispatcher:
             return None
         if not self.ledger.may_enter(task, station):
             return station
-        working_there = any(b != arm and station in self.last_stations[b] and self.skill[b] in LOCAL_SKILLS for b in self.arm_names)
-        return station if working_there else None
+        return station if any(b != arm and self._at_station(b, station) for b in self.arm_names) else None
+
+    def _at_station(self, arm: str, station: str) -> bool:
+        """Is `arm` working at `station` or moving into it under a grant: taking from it (its approach granted,
+        the grasp), placing on it (its transfer granted, the place), or still grasping or placing there after its
+        task closed. One arm at a fixture at a time, whatever the ledger thinks is there: the guard checks moves,
+        but two arms working one spot leave it no safe order."""
+        phase = self.skill[arm]
+        if arm in self.lost:
+            return False
+        if station in self.last_stations[arm] and phase in LOCAL_SKILLS:
+            return True
+        task = self.open_task(arm)
+        if task is None:
+            return False
+        granted = arm not in self.requests
+        if station == task.source:
+            return phase in ("descend", "close", "lift") or (phase == "approach" and granted)
+        if station == task.target:
+            return phase in ("lower", "release", "retreat") or (phase == "transfer" and granted)
+        return False
 
     def watch_separations(self) -> list[NearestPair]:
         """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour."""

@@ -227,9 +227,14 @@ class Ledger:
         With pipelining, layers and parts on their way count as there (their arms wait at `may_enter`)."""
         here = self.stacks.get(part.location)
         if here is not None and part.part_id in here:
-            coming = len(self._inbound(part.location)) if self.pipeline else 0
-            if here[0] != part.part_id or len(here) + coming < len(self.scene.station(part.location).assembles):
+            whole = len(self.scene.station(part.location).assembles)
+            if here[0] != part.part_id or (not self.pipeline and len(here) < whole):
                 return False
+            if self.pipeline:  # every layer placed, or on its way (a second part of one layer is not the next layer)
+                have = {self._layer(self.parts[p], part.location) for p in here}
+                have |= {self._layer(self.parts[t.part_id], part.location) for t in self._inbound(part.location)}
+                if not set(range(whole)) <= have:
+                    return False
         stack = self.stacks.get(target)
         assembles = self.scene.station(target).assembles
         if self.pipeline and target in self.gated:

@@ -135,3 +135,27 @@ def test_the_dispatcher_holds_a_transfer_to_a_fixture_that_is_not_ready_and_coun
     grants = [o for o in d.decide(320).orders if isinstance(o, GrantOrder)]
     assert [(g.arm, g.decision) for g in grants] == [("arm_1", "grant")]
     assert d.ledger.tasks[top.task_id].state in (TaskState.ASSIGNED, TaskState.ACTIVE)
+
+
+def test_one_arm_at_a_fixture_at_a_time_whatever_the_ledger_holds():
+    scene = load_scene("assembly_line")
+    d = Dispatcher(scene, pipeline=True)
+    home = {a.name: np.asarray(get_robot(a.model).home_q, float) for a in scene.arms}
+    for arm, q in home.items():
+        d.on_arm(arm, q, "idle", 1.0)
+    d.on_event("arrived", 0, "bases", 0, 1.0)
+    d.on_event("arrived", 1, "tops", 0, 1.0)
+    for part, station in ((1, "tops_bin"), (0, "fixture_0"), (1, "fixture_0")):
+        d.on_event("at_station", part, station, 0, 2.0)
+    ship = only(d.ledger.refresh(2.0))
+    d.ledger.assign(ship.task_id, "arm_2", 2.0)
+    d.on_event("arrived", 2, "bases", 0, 3.0)
+    base = only(d.ledger.refresh(3.0))  # the assembly is whole and sent for: the next base may come
+    d.ledger.assign(base.task_id, "arm_0", 3.0)
+    d.on_arm("arm_0", home["arm_0"], "transfer", 4.0, task_id=base.task_id)  # its move in was granted: no request
+    d.on_arm("arm_2", home["arm_2"], "approach", 4.0, task_id=ship.task_id, request_seq=1,
+             request=TimedPath("arm_2", tuple(home["arm_2"]), tuple(home["arm_2"] + 0.1), 4.0, 5.0))
+    assert d.ledger.may_enter(ship, "fixture_0"), "the ledger would let the ship in"
+    assert d.station_ahead("arm_2") == "fixture_0", "but the base arm is on its way in"
+    d.on_arm("arm_0", home["arm_0"], "home", 6.0, task_id=base.task_id)
+    assert d.station_ahead("arm_2") is None
