@@ -222,11 +222,18 @@ class Dispatcher:
         open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
         return [
             ArmView(
-                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS, self.reach[a],
+                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS and not self._leaving_fixture(a),
+                self.reach[a],
                 tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None, a not in self.lost,
             )
             for a in self.arm_names
         ]
+
+    def _leaving_fixture(self, arm: str) -> bool:
+        """Pipelined: an arm on its way home from a fixture takes no task until home. A task taken on the way would
+        start its approach from where the way home has got to by its grant, not from where it asked: harmless
+        in open space, not next to the arm that works the fixture next."""
+        return self.ledger.pipeline and self.skill[arm] == "home" and bool(self.ledger.gated.intersection(self.last_stations[arm]))
 
     def free_in_s(self, arm: str) -> float | None:
         """About when a busy arm's task ends; None once it overran its estimate (or is lost): not planned for."""

@@ -159,3 +159,17 @@ def test_one_arm_at_a_fixture_at_a_time_whatever_the_ledger_holds():
     assert d.station_ahead("arm_2") == "fixture_0", "but the base arm is on its way in"
     d.on_arm("arm_0", home["arm_0"], "home", 6.0, task_id=base.task_id)
     assert d.station_ahead("arm_2") is None
+
+
+def test_an_arm_on_its_way_home_from_a_fixture_takes_no_task_until_home():
+    scene = load_scene("assembly_line")
+    d = Dispatcher(scene, pipeline=True)
+    q = np.asarray(get_robot("openclaw").home_q, float)
+    d.on_arm("arm_0", q, "home", 5.0)
+    d.last_stations["arm_0"] = ("fixture_0",)
+    d.last_stations["arm_1"] = ("tops_bin",)
+    d.on_arm("arm_1", q, "home", 5.0)
+    free = {v.name: v.free for v in d.arm_views()}
+    assert not free["arm_0"] and free["arm_1"], "from a fixture: home first; from a bin it may take the next task on the way"
+    d.on_arm("arm_0", q, "done", 6.0)
+    assert {v.name: v.free for v in d.arm_views()}["arm_0"]
