@@ -31,6 +31,15 @@ def line() -> Ledger:
     return lg
 
 
+def base_and_top_given_out(lg: Ledger):
+    """The base's and the top's tasks, given to arm_0 and arm_1 at once (the top's while its base travels)."""
+    tasks = by_part(lg.refresh(2.5))
+    base, top = tasks[0], tasks[1]
+    lg.assign(base.task_id, "arm_0", 3.0)
+    lg.assign(top.task_id, "arm_1", 3.0)
+    return base, top
+
+
 def test_a_top_is_given_out_while_its_base_is_on_the_way_and_waits_for_it_at_the_fixture():
     lg = line()
     tasks = by_part(lg.refresh(2.5))  # the top's task comes with its base's: the base is only on its way
@@ -46,10 +55,7 @@ def test_a_top_is_given_out_while_its_base_is_on_the_way_and_waits_for_it_at_the
 
 def test_the_next_base_waits_until_the_assembly_is_whole_and_sent_away_then_until_it_is_lifted():
     lg = line()
-    tasks = by_part(lg.refresh(2.5))
-    base, top = tasks[0], tasks[1]
-    lg.assign(base.task_id, "arm_0", 3.0)
-    lg.assign(top.task_id, "arm_1", 3.0)
+    base, top = base_and_top_given_out(lg)
     lg.at_station(0, "fixture_0", 9.0)
     ship = only(lg.refresh(9.0))  # the top is on its way: the ship may be planned
     assert (ship.part_id, ship.source) == (0, "fixture_0")
@@ -70,10 +76,7 @@ def test_the_next_base_waits_until_the_assembly_is_whole_and_sent_away_then_unti
 
 def test_a_top_whose_base_was_lost_does_not_keep_the_next_base_out():
     lg = line()
-    tasks = by_part(lg.refresh(2.5))
-    base, top = tasks[0], tasks[1]
-    lg.assign(base.task_id, "arm_0", 3.0)
-    lg.assign(top.task_id, "arm_1", 3.0)
+    base, top = base_and_top_given_out(lg)
     lg.arm_report("arm_1", top.task_id, "lift", 4.0)
     lg.lost(0, "fell to the floor", 5.0)
     lg.arrived(2, "bases", 0, 6.0)
