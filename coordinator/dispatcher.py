@@ -222,14 +222,14 @@ class Dispatcher:
         open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
         return [
             ArmView(
-                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS and not self._leaving_fixture(a),
+                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS and not self.leaving_fixture(a),
                 self.reach[a],
                 tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None, a not in self.lost,
             )
             for a in self.arm_names
         ]
 
-    def _leaving_fixture(self, arm: str) -> bool:
+    def leaving_fixture(self, arm: str) -> bool:
         """Pipelined: an arm on its way home from a fixture takes no task until home. A task taken on the way would
         start its approach from where the way home has got to by its grant, not from where it asked: harmless
         in open space, not next to the arm that works the fixture next."""
@@ -323,6 +323,12 @@ class Dispatcher:
             self.reassigned += 1
             out.append(CancelOrder(arm, task.part_id))
         return out
+
+    def answer(self, tick: int) -> list[GrantOrder]:
+        """Only the motion requests, at `tick`: for a front end whose tasks are chosen elsewhere (the env's task mode,
+        where the policy allocates)."""
+        self.last_decision_tick = tick
+        return self.answer_motion_requests(tick / self.scene.control_hz)
 
     def answer_motion_requests(self, now_s: float) -> list[GrantOrder]:
         """Check every waiting request with the guard, arms in scene order (one global order: no cycle of waits).

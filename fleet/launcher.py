@@ -431,6 +431,14 @@ class Launcher:
         }
 
     @staticmethod
+    def _lockstep_timeouts(coord: dict, controllers: list[dict]) -> dict:
+        """Lockstep waits that ran out (0.5 s of wall time) and went on without what they waited for: a decision made
+        without every event, a controller's tick planned with older parts or without an announced order. Zero in
+        a run that repeats exactly; more means the machine was too loaded for that."""
+        return {"coordinator_decisions": coord.get("decisions_on_deadline", 0),
+                "controllers": {c["arm"]: c.get("parts_late", 0) + c.get("missed_assignments", 0) for c in controllers if "arm" in c}}
+
+    @staticmethod
     def _arm_time(arm_time: dict, held_s: dict, sim_s: float) -> dict:
         """The sim's per-arm fractions, with the time an arm held still for a fixture that was not ready yet (the
         coordinator's count) told apart from waiting for a grant: holding a part at the edge is the pipeline
@@ -500,6 +508,7 @@ class Launcher:
             "tasks_reassigned": coord.get("tasks_reassigned", 0),
             "grant_requests_open": coord.get("grant_requests_open", {}),
             "held_at_station_s": coord.get("held_at_station_s", {}),
+            "lockstep_timeouts": self._lockstep_timeouts(coord, controllers),
             "goal_results": sim.get("goal_results", {}),
             "network_faults": self._faults(sim.get("network_faults", {}), controllers),
             "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),

@@ -15,6 +15,7 @@ import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates
 from coordinator.dispatcher import Dispatcher
+from coordinator.guard import TimedPath
 from coordinator.tasks import OPEN_STATES, Task, TaskState
 from fleet.observe import arm_observation, base_transform, part_observations
 from fleet.physics.tracking import TrackedArms
@@ -40,9 +41,14 @@ class TaskChooser:
     def reset(self, dispatcher: Dispatcher) -> None:
         self.dispatcher = dispatcher
         self.ledger = dispatcher.ledger
+        # a line with a fixture is pipelined, as `fleet run` does it: the arms ask for their free moves and the
+        # dispatcher answers (holding an arm at a fixture that is not ready); elsewhere the skills move unasked
+        self.grants = bool(self.ledger.gated)
+        self.ledger.pipeline = self.grants
         self.period_ticks = max(1, round(self.scene.control_hz / DEFAULT_DECISION_HZ))  # the skills decide as controllers do
         period_s = self.period_ticks / self.scene.control_hz
-        self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a), decision_period_s=period_s) for a in self.agents}
+        self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a), decision_period_s=period_s,
+                                         grants_required=self.grants) for a in self.agents}
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
         self.outcomes: dict[str, list[str]] = {a: [] for a in self.agents}
@@ -53,10 +59,15 @@ class TaskChooser:
 
     def arm_views(self) -> list[ArmView]:
         return [
-            ArmView(a, self.bases[a], self.task_of[a] is None and self.skills[a].available, self.reach[a],
-                    tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()))
+            ArmView(a, self.bases[a], self.task_of[a] is None and self.skills[a].available and not self.dispatcher.leaving_fixture(a),
+                    self.reach[a], tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()))
             for a in self.agents
         ]
+
+    def busy_stations(self) -> set[str]:
+        """Stations no new task may use now: the dispatcher's rule when pipelined (fixtures ordered by the ledger,
+        stations of arms still moving away busy), else the ledger's (stations of open tasks)."""
+        return self.dispatcher.busy_stations() if self.grants else self.ledger.busy_stations()
 
     def pending(self) -> list[Task]:
         """The tasks waiting for an arm (belt tasks with their deadlines), as the coordinator sees them now."""
@@ -67,7 +78,7 @@ class TaskChooser:
         """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
         views, parts = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
-        open_tasks = open_candidates(self.dispatcher.candidates(self.pending()), parts, self.ledger.busy_stations())
+        open_tasks = open_candidates(self.dispatcher.candidates(self.pending()), parts, self.busy_stations())
         out = {}
         for view in views:
             scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks] if view.free else []
@@ -87,7 +98,7 @@ class TaskChooser:
     def choose(self, actions: dict[str, int], options: dict[str, list[tuple[Task, float]]]) -> dict[str, str]:
         """Start each free arm's chosen task, arms in id order; a task or station already taken this step is refused.
         Returns, per arm, what became of its choice (`took`, `waited`, `refused: ...`)."""
-        busy = self.ledger.busy_stations()
+        busy = self.busy_stations()
         out = {}
         for agent in self.agents:
             k = int(actions.get(agent, WAIT))
@@ -117,8 +128,12 @@ class TaskChooser:
         self.task_of[agent] = task.task_id
 
     def command(self) -> None:
-        """Before a tick: at decision ticks every working arm's skill sends its goals; the trackers set the drive targets."""
+        """Before a tick: at decision ticks the dispatcher answers the arms' motion requests (pipelined) and every
+        working arm's skill sends its goals; the trackers set the drive targets."""
         if self.world.tick % self.period_ticks == 0:
+            if self.grants:
+                for order in self.dispatcher.answer(self.world.tick):
+                    self.skills[order.arm].on_grant(order.request_seq, order.decision, order.conflict_arm, self.world.sim_time_s, order.start_s)
             parts = part_observations(self.world)
             for agent in self.agents:
                 if self.skills[agent].active:
@@ -135,7 +150,10 @@ class TaskChooser:
             task = self.ledger.tasks[task_id] if task_id is not None else None
             was_open = task is not None and task.state in OPEN_STATES
             q = self.world.arms[agent].qpos()[: self.world.arms[agent].spec.arm_dof]
-            self.dispatcher.on_arm(agent, q, skill.phase.value, now, task_id=task_id if was_open else None, failure=skill.failure_reason)
+            asked = skill.request if self.grants else None
+            request = None if asked is None else TimedPath(agent, tuple(map(float, q)), asked.q_to, now, now + asked.duration_s, asked.then_q, asked.then_after_s)
+            self.dispatcher.on_arm(agent, q, skill.phase.value, now, task_id=task_id if was_open else None, failure=skill.failure_reason,
+                                   request_seq=asked.seq if asked else 0, request=request, acts_at_tick=self.world.tick + 1)
             if task is None:
                 continue
             if was_open and task.state not in OPEN_STATES:
@@ -156,7 +174,7 @@ class TaskChooser:
 def allocator_actions(chooser: TaskChooser, allocator: Allocator, options: dict[str, list[tuple[Task, float]]]) -> dict[str, int]:
     """What the coordinator's allocator would choose now, as `task`-mode actions (a task outside an arm's slots: wait)."""
     views, parts = chooser.arm_views(), chooser.parts()
-    pairs = allocator.allocate(chooser.dispatcher.candidates(chooser.pending()), views, parts, chooser.ledger.busy_stations())
+    pairs = allocator.allocate(chooser.dispatcher.candidates(chooser.pending()), views, parts, chooser.busy_stations())
     actions = {a: WAIT for a in chooser.agents}
     for task_id, arm in pairs:
         ids = [t.task_id for t, _ in options.get(arm, [])]

@@ -105,6 +105,7 @@ class ArmController:
         self.goals_sent = 0
         self.busy_s = 0.0
         self.missed_assignments = 0
+        self.parts_late = 0
 
     def close(self) -> None:
         for sub in self._subs:
@@ -190,7 +191,10 @@ class ArmController:
             seen = [m for m in self.parts_seen if m.tick <= tick]
             if seen and seen[-1].tick != self.parts_tick:
                 self.parts, self.parts_tick = parts_from_message(seen[-1]), seen[-1].tick
-            if (self.parts_seen and self.parts_seen[-1].tick >= tick) or time.monotonic() > deadline:
+            if self.parts_seen and self.parts_seen[-1].tick >= tick:
+                return
+            if time.monotonic() > deadline:
+                self.parts_late += 1  # planned with older parts: a lockstep run may not repeat
                 return
             self._inboxes["parts"].wait(0.01)
 
@@ -313,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
             controller.close()
             write_report(args.report, {
                 "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
-                "missed_assignments": controller.missed_assignments, "grants_denied": controller.skill.denials, "stopped_by": stop.reason,
+                "missed_assignments": controller.missed_assignments, "parts_late": controller.parts_late, "grants_denied": controller.skill.denials, "stopped_by": stop.reason,
                 "decisions": controller.decisions, "goals_sent": controller.goals_sent, "goals_resent": controller.skill.goals_resent,
             })
     return 0

@@ -94,6 +94,8 @@ class CoordinatorNode:
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
         self.events_seen = 0
+        self._events_ahead: list[tuple[str, LineEvent]] = []  # received, not yet applied (of a tick past the next decision)
+        self.decisions_on_deadline = 0
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
         self._replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
@@ -128,7 +130,7 @@ class CoordinatorNode:
             if problem:
                 self.drops.drop(key, problem)
             elif leaf == "events":
-                self._on_event(msg)
+                self._on_event(msg, key)
             elif leaf == "frame":
                 self._on_frame(msg)
             else:
@@ -141,8 +143,8 @@ class CoordinatorNode:
 
     def _problem(self, leaf: str, msg) -> str:
         """Why a decoded message cannot be true ("" if it can): it is then dropped and counted, never acted on."""
-        if leaf == "events":
-            return self.sim_clock.problem(msg.tick) or self.dispatcher.ledger.event_problem(msg.kind, msg.part_id, msg.detail, msg.type_index)
+        if leaf == "events":  # whether the line allows it is asked when it is applied (`_apply_events`)
+            return self.sim_clock.problem(msg.tick)
         if leaf == "frame":
             problem = self.sim_clock.problem(msg.tick) or parts_problem(msg.parts)
             if not problem and sorted(s.arm for s in msg.arms) != sorted(self.arm_names):
@@ -167,7 +169,8 @@ class CoordinatorNode:
             if problem:
                 self.drops.drop(self.keys.history, problem)
             else:
-                self._on_event(e)
+                self._on_event(e, self.keys.history)
+        self._apply_events(log.tick)
         self.events_seen = len(log.events)
         self.dispatcher.take_over(log.tick / self.scene.control_hz)
         beats, announced = self._await_arms(TAKEOVER_WAIT_S)
@@ -205,9 +208,26 @@ class CoordinatorNode:
         self._inbox.items.extendleft(reversed(held))
         return beats, announced
 
-    def _on_event(self, e: LineEvent) -> None:
+    def _on_event(self, e: LineEvent, key: str) -> None:
+        """Counted now, applied at the decision whose tick reaches it: a lockstep sim runs on to the next decision
+        while this one is made, and an event of a later tick that arrives first must not change it."""
         self.events_seen += 1
-        self.dispatcher.on_event(e.kind, e.part_id, e.detail, e.type_index, e.tick / self.scene.control_hz)
+        self._events_ahead.append((key, e))
+
+    def _apply_events(self, up_to_tick: int) -> None:
+        """Feed the dispatcher the events received of ticks up to `up_to_tick`, in the order they came; one the line
+        does not allow (a part arriving twice, one that never arrived) is dropped and counted."""
+        later = []
+        for key, e in self._events_ahead:
+            if e.tick > up_to_tick:
+                later.append((key, e))
+                continue
+            problem = self.dispatcher.ledger.event_problem(e.kind, e.part_id, e.detail, e.type_index)
+            if problem:
+                self.drops.drop(key, problem)
+            else:
+                self.dispatcher.on_event(e.kind, e.part_id, e.detail, e.type_index, e.tick / self.scene.control_hz)
+        self._events_ahead = later
 
     def _on_frame(self, f: LineView) -> None:
         for s in f.arms:
@@ -273,7 +293,9 @@ class CoordinatorNode:
         tick, events, deadline = self._due
         complete = self.events_seen >= events
         if complete or time.monotonic() > deadline:
+            self.decisions_on_deadline += not complete  # decided without every event: a lockstep run may not repeat
             self._due = None
+            self._apply_events(tick)
             self.publish(self.dispatcher.decide(tick))
 
     def _check_heartbeats(self) -> None:
@@ -324,7 +346,8 @@ class CoordinatorNode:
         )))
 
     def report(self) -> dict:
-        return self.dispatcher.report() | {"dropped_messages": self.drops.total, "takeover": self.takeover}
+        self._apply_events(2**62)  # the run is over: every event counts
+        return self.dispatcher.report() | {"dropped_messages": self.drops.total, "takeover": self.takeover, "decisions_on_deadline": self.decisions_on_deadline}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -144,3 +144,21 @@ def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choice
 def test_action_masks_in_the_observation_are_refused_outside_task_mode():
     with pytest.raises(ValueError, match="mask_in_observation applies to action_mode 'task'"):
         parallel_env(task="reach", action_mode="joint_delta", mask_in_observation=True)
+
+
+def test_task_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_run_does():
+    env = parallel_env(task="line", scene="assembly_line", action_mode="task", max_cycles=300, control_hz=5)
+    env.reset(seed=0)
+    chooser, policy = env.chooser, make_allocator("optimal", env.scene)
+    assert chooser.grants and all(s.grants_required for s in chooser.skills.values())
+    touching = 0
+    while env.agents:
+        _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
+        touching += sum(i["collision"] for i in infos.values())
+    dispatcher = env.task_model.book.dispatcher
+    held = dispatcher.held_at_station_s
+    assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, held  # the top waited for its base, the ship for its top
+    assert touching == 0 and dispatcher.ledger.totals()["parts_completed"] >= 3
+    plain = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=2, control_hz=5)
+    plain.reset(seed=0)
+    assert not plain.chooser.grants, "a line without a fixture: the skills move unasked, as before"
