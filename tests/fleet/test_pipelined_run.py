@@ -1,6 +1,10 @@
 """The main job's line with and without pipelined fixtures, as real processes: with it, arms are held at the
 fixture's edge (and say so in the summary) and the line finishes more; without it, nobody is held."""
 
+import json
+import subprocess
+import sys
+
 from fleet.launcher import Launcher, RunOptions
 from tests.fleet.test_run import assert_nothing_left
 
@@ -21,3 +25,17 @@ def test_pipelined_fixtures_hold_arms_at_the_edge_and_finish_more_than_arms_taki
     assert all(t["held_at_fixture"] == 0 for t in in_turns["arm_time"].values())
     assert pipelined["held_at_station_s"] and not in_turns["held_at_station_s"]
     assert pipelined["parts_completed"] > in_turns["parts_completed"], (pipelined["parts_completed"], in_turns["parts_completed"])
+
+
+def test_two_pipelined_runs_side_by_side_repeat_exactly():
+    """Two lockstep runs of one seed at once, on a machine they load: the coordinator's decisions must not depend on
+    when a later tick's event reaches it (`lockstep_timeouts` says whether a wait ran out)."""
+    argv = [sys.executable, "-m", "fleet", "run", "assembly_line", "--seed", "2", "--duration", "90", "--json"]
+    runs = [subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True) for _ in range(2)]
+    summaries = [json.loads(p.communicate(timeout=300)[0].strip().splitlines()[-1]) for p in runs]
+    assert all(p.returncode == 0 for p in runs)
+    timeouts = [s["lockstep_timeouts"] for s in summaries]
+    assert all(t["coordinator_decisions"] == 0 and not any(t["controllers"].values()) for t in timeouts), timeouts
+    same = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "grants_given", "goal_results", "held_at_station_s", "min_separation_m")
+    first, second = ({k: s[k] for k in same} for s in summaries)
+    assert first == second
