@@ -8,7 +8,9 @@ from scenes.schema import Scene
 COORD_RATE_HZ = 10.0  # coordinator decisions per second of sim time
 IDLE_SKILLS = ("idle", "done", "failed")  # skill phases of an arm that is not working on a task
 AVAILABLE_SKILLS = (*IDLE_SKILLS, "home")  # phases in which an arm may take a task: its way home is given up for it
-LOCAL_SKILLS = ("descend", "close", "lift", "lower", "release", "retreat")  # a grasp or a place: moves asked no grant
+GRASP_SKILLS = ("descend", "close", "lift")  # the grasp after an approach: moves asked no grant
+PLACE_SKILLS = ("lower", "release", "retreat")  # the place after a transfer: moves asked no grant
+LOCAL_SKILLS = (*GRASP_SKILLS, *PLACE_SKILLS)
 
 
 def decision_period_ticks(scene: Scene) -> int:

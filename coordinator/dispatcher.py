@@ -18,13 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
-from coordinator.cadence import AVAILABLE_SKILLS, IDLE_SKILLS, LOCAL_SKILLS, decision_period_ticks
+from coordinator.cadence import AVAILABLE_SKILLS, GRASP_SKILLS, IDLE_SKILLS, LOCAL_SKILLS, PLACE_SKILLS, decision_period_ticks
 from coordinator.capacity import CapacityBound, capacity_bound, measured_hop_seconds
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, NearestPair, TimedPath
 from coordinator.ledger import Ledger
-from coordinator.tasks import CONVEYOR, Task, TaskState
+from coordinator.tasks import CONVEYOR, TAKEN_STATES, Task, TaskState
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from scenes.schema import Scene
@@ -219,7 +219,7 @@ class Dispatcher:
 
     # --- what the allocator sees ----------------------------------------------------
     def arm_views(self) -> list[ArmView]:
-        open_arms = {t.arm for t in self.ledger.tasks.values() if t.state.value in ("assigned", "active")}
+        open_arms = {t.arm for t in self.ledger.open_tasks() if t.state in TAKEN_STATES}
         return [
             ArmView(
                 a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS and not self.leaving_fixture(a),
@@ -369,7 +369,7 @@ class Dispatcher:
 
     def open_task(self, arm: str) -> Task | None:
         """The task `arm` was given and has not finished."""
-        return next((t for t in self.ledger.tasks.values() if t.arm == arm and t.state in (TaskState.ASSIGNED, TaskState.ACTIVE)), None)
+        return next((t for t in self.ledger.open_tasks() if t.arm == arm and t.state in TAKEN_STATES), None)
 
     def station_ahead(self, arm: str) -> str | None:
         """The fixture `arm`'s waiting move would take it into while it is not ready (None: no such fixture): an
@@ -401,9 +401,9 @@ class Dispatcher:
             return False
         granted = arm not in self.requests
         if station == task.source:
-            return phase in ("descend", "close", "lift") or (phase == "approach" and granted)
+            return phase in GRASP_SKILLS or (phase == "approach" and granted)
         if station == task.target:
-            return phase in ("lower", "release", "retreat") or (phase == "transfer" and granted)
+            return phase in PLACE_SKILLS or (phase == "transfer" and granted)
         return False
 
     def watch_separations(self) -> list[NearestPair]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
+from coordinator.tasks import CONVEYOR, OPEN_STATES, TAKEN_STATES, PartFate, PartRecord, Task, TaskState
 from scenes.schema import Scene
 
 HELD = "held"
@@ -243,7 +243,7 @@ class Ledger:
         if stack is not None and part.feeder in assembles:
             if len(stack) != assembles.index(part.feeder):
                 return False
-            if any(t.target == target and t.state in OPEN_STATES for t in self.tasks.values()):
+            if any(t.target == target for t in self.open_tasks()):
                 return False  # one layer on its way at a time
         return True
 
@@ -252,9 +252,13 @@ class Ledger:
         assembles = self.scene.station(station).assembles
         return assembles.index(part.feeder) if part.feeder in assembles else 0
 
+    def open_tasks(self) -> list[Task]:
+        """The tasks not finished (pending, or given to an arm), without walking every task of the run."""
+        return [self.tasks[task_id] for task_id in self._open_by_part.values()]
+
     def _inbound(self, station: str, states: tuple[TaskState, ...] = OPEN_STATES) -> list[Task]:
         """Tasks bringing a part to `station`."""
-        return [t for t in self.tasks.values() if t.target == station and t.state in states]
+        return [t for t in self.open_tasks() if t.target == station and t.state in states]
 
     def _occupants(self, station: str) -> list[int]:
         """The parts resting at `station`: its stack, if it assembles; else every part there."""
@@ -262,17 +266,21 @@ class Ledger:
             return self.stacks[station]
         return [p.part_id for p in self.parts.values() if p.location == station and p.fate == PartFate.ON_LINE]
 
-    def _future_layers(self, station: str) -> list[int]:
-        """The layers `station` will hold once the parts on their way are there and the ones an arm was sent to
+    def _future_parts(self, station: str) -> list[int]:
+        """The parts `station` will hold once the parts on their way are there and the ones an arm was sent to
         take away are gone."""
-        present = [] if self._leaving(station) else [self._layer(self.parts[p], station) for p in self._occupants(station)]
-        return present + [self._layer(self.parts[t.part_id], station) for t in self._inbound(station)]
+        present = [] if self._leaving(station) else list(self._occupants(station))
+        return present + [t.part_id for t in self._inbound(station)]
+
+    def _future_layers(self, station: str) -> list[int]:
+        """The layers of `_future_parts`."""
+        return [self._layer(self.parts[p], station) for p in self._future_parts(station)]
 
     def _leaving(self, station: str) -> bool:
         """What rests at `station` is whole (an assembly with every layer) and an arm was sent to take it away."""
         here, assembles = self._occupants(station), self.scene.station(station).assembles
         whole = len(here) >= len(assembles) if assembles else bool(here)  # a part taken along by a claw may lie on top
-        return whole and any(t.source == station and t.state in (TaskState.ASSIGNED, TaskState.ACTIVE) for t in self.tasks.values())
+        return whole and any(t.source == station and t.state in TAKEN_STATES for t in self.open_tasks())
 
     def may_enter(self, task: Task, station: str) -> bool:
         """May the arm of `task` move into `station` now? Always, unless pipelining holds it: taking an assembly
@@ -286,7 +294,7 @@ class Ledger:
             return not assembles or (bool(here) and here[0] == task.part_id and len(here) >= len(assembles))
         layer = self._layer(self.parts[task.part_id], station)
         if any(t.task_id != task.task_id and self._layer(self.parts[t.part_id], station) <= layer
-               for t in self._inbound(station, (TaskState.ASSIGNED, TaskState.ACTIVE))):
+               for t in self._inbound(station, TAKEN_STATES)):
             return False
         return len(here) == layer
 
@@ -313,13 +321,12 @@ class Ledger:
         z = self.scene.station(target).surface_z_m
         if not (self.pipeline and target in self.gated and part_id is not None):
             return z + sum(self.parts[p].height_m for p in self.stacks.get(target, []))
-        below = ([] if self._leaving(target) else list(self._occupants(target))) + [t.part_id for t in self._inbound(target) if t.part_id != part_id]
         layer = self._layer(self.parts[part_id], target)
-        return z + sum(self.parts[p].height_m for p in below if self._layer(self.parts[p], target) < layer)
+        return z + sum(self.parts[p].height_m for p in self._future_parts(target) if p != part_id and self._layer(self.parts[p], target) < layer)
 
     def busy_stations(self) -> set[str]:
         """Stations some assigned or running task picks from or places at (one arm at a time there)."""
-        return {s for t in self.tasks.values() if t.state in (TaskState.ASSIGNED, TaskState.ACTIVE) for s in t.stations}
+        return {s for t in self.open_tasks() if t.state in TAKEN_STATES for s in t.stations}
 
     # --- accounting -----------------------------------------------------------------
     def totals(self) -> dict:

@@ -16,7 +16,8 @@ class TaskState(str, Enum):
     FAILED = "failed"  # the skill failed or the arm was lost; the part may get a new task
 
 
-OPEN_STATES = (TaskState.PENDING, TaskState.ASSIGNED, TaskState.ACTIVE)
+TAKEN_STATES = (TaskState.ASSIGNED, TaskState.ACTIVE)  # given to an arm, not finished
+OPEN_STATES = (TaskState.PENDING, *TAKEN_STATES)
 
 
 class PartFate(str, Enum):

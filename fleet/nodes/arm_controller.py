@@ -156,7 +156,7 @@ class ArmController:
             if len(msg.place_xyz) != 3 or len(msg.surface_velocity) != 3 or not_finite(values) or max(map(abs, values)) > 100.0:
                 return "an assignment with a place or velocity that is not a finite point"
         elif msg.decision not in ("grant", "deny", "standby") or not_finite((msg.start_time_s, msg.min_separation_m)):
-            return "a motion grant that is neither grant nor deny, or with non-finite times"
+            return "a motion grant that is neither grant, deny nor standby, or with non-finite times"
         return ""
 
     def _take_assignments(self) -> None:

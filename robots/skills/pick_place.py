@@ -403,6 +403,10 @@ class PickPlaceSkill:
     def _transfer_from_here(self, time_s: float) -> None:
         """The transfer to above the place, from where the arm is (after standing by, or instead of it)."""
         q_to, self._transfer_to = self._transfer_to, None
+        self._transfer(q_to, time_s)
+
+    def _transfer(self, q_to: np.ndarray, time_s: float) -> None:
+        """A transfer-phase free move from where the arm is to `q_to`, part in hand."""
         self._begin_segment(self._segment(self.q_cmd, q_to, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
 
     def _at_home(self, q: np.ndarray) -> bool:
@@ -417,8 +421,7 @@ class PickPlaceSkill:
     def _detour_home(self, time_s: float) -> None:
         self._detour_to = self.segment.q_end.copy()
         self.detours += 1
-        home = np.asarray(self.spec.home_q, float)
-        self._begin_segment(self._segment(self.q_cmd, home, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
+        self._transfer(np.asarray(self.spec.home_q, float), time_s)
 
     def reject(self, reason: str) -> None:
         """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
@@ -547,7 +550,7 @@ class PickPlaceSkill:
         if self._detour_to is not None:  # home reached on a detour: the transfer again, from there
             if ahead <= 1e-9:
                 q_to, self._detour_to = self._detour_to, None
-                self._begin_segment(self._segment(self.q_cmd, q_to, now, self.timing.transfer_speed), Phase.TRANSFER, now)
+                self._transfer(q_to, now)
             return
         if self.phase == Phase.STANDBY and ahead <= 1e-9:
             self._transfer_from_here(now)
