@@ -83,11 +83,12 @@ class Node:
     exit_code: int | None = None
     history: list[dict] = field(default_factory=list)  # earlier incarnations (respawned controllers)
     counts_starts: bool = False  # passes `--incarnation N` (N = 1, 2, ... each start): a controller's goal ids repeat for a seed
+    idle: bool = False  # on idle CPU time only (the recorder: the line's own processes come first)
     starts: int = 0
     child: ChildProcess = field(init=False)
 
     def __post_init__(self) -> None:
-        self.child = ChildProcess(self.argv, self.log)
+        self.child = ChildProcess(self.argv, self.log, idle=self.idle)
 
     def start(self) -> None:
         self.starts += 1
@@ -238,7 +239,7 @@ class Launcher:
             *self._here("recorder"), "fleet.nodes.recorder_node", "--run", o.run_id, *bus, "--out", str(o.record),
             "--summary-file", str(self.dir / "summary.json"), "--report", str(report), *(["--hold"] if o.mode == "lockstep" else []),
         ]
-        return Node("recorder", "recorder", argv, report, log)
+        return Node("recorder", "recorder", argv, report, log, idle=True)
 
     def finish_recording(self, summary: dict) -> dict:
         """Hand the recorder the summary and let it finish the file; what it reports."""

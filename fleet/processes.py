@@ -89,6 +89,15 @@ def node_arguments(parser: argparse.ArgumentParser, argv: list[str] | None, prog
     return None if scene is None else (args, stop, scene)
 
 
+def run_on_idle_cpu(pid: int) -> None:
+    """A process (its main thread, and the threads it starts after) on CPU time nothing else wants (SCHED_IDLE,
+    Linux); elsewhere, or where refused, it runs as it is."""
+    try:
+        os.sched_setscheduler(pid, os.SCHED_IDLE, os.sched_param(0))
+    except (AttributeError, OSError):
+        pass
+
+
 @dataclass
 class ChildProcess:
     """One child: started in its own process group (a Ctrl-C reaches only the parent), output to `log`."""
@@ -96,11 +105,14 @@ class ChildProcess:
     argv: list[str]
     log: Path
     proc: subprocess.Popen | None = None
+    idle: bool = False  # runs on idle CPU time only, from its first instruction (its imports included)
 
     def start(self) -> "ChildProcess":
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
                                          env=os.environ | {PARENT_ENV: str(os.getpid())})
+        if self.idle:
+            run_on_idle_cpu(self.proc.pid)
         return self
 
     def poll(self) -> int | None:

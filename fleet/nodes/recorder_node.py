@@ -2,8 +2,10 @@
 `fleet run --record`), off the sim's hot path.
 
 It subscribes first, asks the sim for its scene, then says it listens (`Keys.recorder_ready`) until it hears
-the line, so a sim told to await it (lockstep under `fleet run --record`) loses nothing. On SIGTERM or SIGINT
-it records what is still queued, adds the run's summary if `--summary-file` exists by then, and finishes the file.
+the line, so a sim told to await it (lockstep under `fleet run --record`) loses nothing; what writes the file
+(mcap, rosbags, Pinocchio, the arms' models) is loaded only then, so the line's start-up never waits on it.
+On SIGTERM or SIGINT it records what is still queued, adds the run's summary if `--summary-file` exists by
+then, and finishes the file.
 
     python -m fleet.nodes.recorder_node --run line --connect tcp/127.0.0.1:7447 --out run.mcap
 """
@@ -22,15 +24,15 @@ from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
 from fleet.processes import StopFlag, read_when_written, write_report
-from fleet.record.mcap_file import RecordingWriter
-from fleet.record.recorder import Recorder, recorded_keys
+from scenes.schema import Scene
 
 READY_EVERY_S = 0.1
 DRAIN_EVERY_S = 0.1
-QUIET_S = 0.1  # nothing heard for this long: the line is paused or over
-CATCH_UP_SLICE = 500  # held-back messages written per round while nothing new arrives
+QUIET_MESSAGES = 20  # a drain with fewer is a trickle (heartbeats, progress): the line is paused or over (running, it sends hundreds)
+CATCH_UP_SLICE = 500  # held-back messages written per round while the line is quiet
 HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond, they are written as they come
-DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too
+DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too (until a drain finds none)
+DRAIN_GRACE_EVERY_S = 0.02
 RECORDER_NICENESS = 5
 
 
@@ -43,6 +45,42 @@ def yield_cpu(niceness: int) -> None:
         os.nice(niceness)
 
 
+def set_idle(idle: bool) -> None:
+    """This thread on idle CPU time only (the line runs), or back to a normal share (the line is quiet or over:
+    what was held back is now what the run waits for). Where the OS refuses, it stays as it is."""
+    policy = getattr(os, "SCHED_IDLE" if idle else "SCHED_OTHER", None)
+    if policy is not None and os.sched_getscheduler(0) != policy:
+        try:
+            os.sched_setscheduler(0, policy, os.sched_param(0))
+        except OSError:
+            pass
+
+
+class LazyRecording:
+    """The file and the `Recorder` that fills it, made at first use (`recorder`): importing mcap, rosbags and
+    Pinocchio and loading the arms' models waits until the recorder has said it listens."""
+
+    def __init__(self, out: str, scene: Scene, keys: Keys) -> None:
+        self.out, self.scene, self.keys = out, scene, keys
+        self._writer = None
+        self._recorder = None
+
+    @property
+    def recorder(self):
+        if self._recorder is None:
+            from fleet.record.mcap_file import RecordingWriter
+            from fleet.record.recorder import Recorder
+
+            self._writer = RecordingWriter(self.out, self.scene.model_dump_json(), self.keys.run)
+            self._recorder = Recorder(self._writer, self.scene, self.keys)
+        return self._recorder
+
+    def close(self) -> None:
+        """Finish the file (its index) even on an error, so what was written can be read."""
+        if self._writer is not None:
+            self._writer.close()
+
+
 def read_summary(path: str | None) -> dict | None:
     if not path or not Path(path).is_file():
         return None
@@ -52,52 +90,73 @@ def read_summary(path: str | None) -> dict | None:
         return None
 
 
-def take(recorder: Recorder, backlog: deque, count: int) -> None:
+def take(recording: LazyRecording, backlog: deque, count: int) -> None:
+    if count <= 0 or not backlog:
+        return
+    recorder = recording.recorder
     for _ in range(min(count, len(backlog))):
         recorder.take(*backlog.popleft())
 
 
-def catch_up(recorder: Recorder, backlog: deque) -> bool:
+def catch_up(recording: LazyRecording, backlog: deque) -> bool:
     """One slice of the held-back messages written (raw and ROS topics); whether there was any."""
     had = bool(backlog)
-    take(recorder, backlog, CATCH_UP_SLICE)
+    take(recording, backlog, CATCH_UP_SLICE)
     return had
+
+
+def drain_to_the_end(tap: Tap) -> list[tuple[str, bytes]]:
+    """After a stop: what is still on its way, until a drain finds nothing new (at most `DRAIN_GRACE_S`)."""
+    heard = tap.drain()
+    until = time.monotonic() + DRAIN_GRACE_S
+    while time.monotonic() < until:
+        time.sleep(DRAIN_GRACE_EVERY_S)
+        batch = tap.drain()
+        heard.extend(batch)
+        if not batch:
+            break
+    return heard
 
 
 def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
     """Record until `stop`; the figures of the recording. `hold`: keep what is heard in memory while the line is
     busy and write it when it is quiet or over (a lockstep line at full speed leaves no CPU to spare)."""
-    tap = Tap(session, recorded_keys(keys))
+    tap = Tap(session, keys.recorded())
     try:
         scene = fetch_scene(session, keys, scene_timeout_s)
         ready = session.declare_publisher(keys.recorder_ready)
         started = time.monotonic()
-        with RecordingWriter(out, scene.model_dump_json(), keys.run) as writer:
-            recorder = Recorder(writer, scene, keys)
+        recording = LazyRecording(out, scene, keys)
+        try:
             backlog: deque[tuple[str, bytes]] = deque()  # heard, in publish order, not written yet
-            heard_line, ready_at, last_heard = False, 0.0, 0.0
+            heard_line, ready_at = False, 0.0
             while not stop.should_stop():
                 if not heard_line and time.monotonic() >= ready_at:
                     ready.put(b"")
                     ready_at = time.monotonic() + READY_EVERY_S
+                    recording.recorder  # loaded while the line starts, on idle CPU time
                 batch = tap.drain()
                 backlog.extend(batch)
-                if batch:
-                    heard_line, last_heard = True, time.monotonic()
+                heard_line = heard_line or bool(batch)
+                quiet = heard_line and len(batch) < QUIET_MESSAGES
+                set_idle(not quiet)
                 if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
-                    take(recorder, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
-                if heard_line and not batch and time.monotonic() - last_heard > QUIET_S and catch_up(recorder, backlog):
-                    continue  # the line is quiet (paused, or over): write what was held back meanwhile
+                    take(recording, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
+                if quiet and catch_up(recording, backlog):
+                    continue  # the line is quiet (paused, or over; heartbeats go on): write what was held back meanwhile
                 time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
-            time.sleep(DRAIN_GRACE_S)
-            backlog.extend(tap.drain())
-            take(recorder, backlog, len(backlog))
+            set_idle(False)
+            backlog.extend(drain_to_the_end(tap))
+            take(recording, backlog, len(backlog))
+            recorder = recording.recorder
             recorder.finish(read_summary(summary_file))
+        finally:
+            recording.close()
         ready.undeclare()
     finally:
         tap.close()
     return {
-        "file": out, "messages_written": writer.messages, "bus_messages": sum(recorder.stats.by_key.values()),
+        "file": out, "messages_written": recorder.writer.messages, "bus_messages": sum(recorder.stats.by_key.values()),
         "undecodable": recorder.stats.undecodable, "dropped_messages": recorder.drops.total,
         "bytes": Path(out).stat().st_size, "sim_seconds": recorder.now_s, "wall_seconds": round(time.monotonic() - started, 3),
         "stopped_by": stop.reason,
@@ -137,4 +196,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # the file, the report and the session are closed: skip tearing down the modules (a run waits on this exit)

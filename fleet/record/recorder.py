@@ -40,14 +40,6 @@ SEMANTIC_TOPICS = {  # bus message type -> ROS topic (arm ones under /<arm>)
 }
 
 
-def recorded_keys(keys: Keys) -> list[str]:
-    """The key expressions a recorder subscribes to: every key of the run but the monitors' `world/view`
-    (a copy of `world/frame` at another rate, built only while someone watches; recording it would make the sim build it)."""
-    root = keys.prefix
-    return [f"{root}/arm/**", f"{root}/world/parts", f"{root}/world/events", f"{root}/world/control", f"{root}/world/status",
-            f"{root}/world/frame", f"{root}/estop", f"{root}/coord/**", f"{root}/launcher/**"]
-
-
 @dataclass
 class RecorderStats:
     by_key: Counter = field(default_factory=Counter)
