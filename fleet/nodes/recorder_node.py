@@ -28,7 +28,8 @@ from scenes.schema import Scene
 
 READY_EVERY_S = 0.1
 DRAIN_EVERY_S = 0.1
-QUIET_MESSAGES = 20  # a drain with fewer is a trickle (heartbeats, progress): the line is paused or over (running, it sends hundreds)
+QUIET_MESSAGES = 20  # a drain with fewer is a trickle (heartbeats, progress): the line is paused or over
+RUNNING_MESSAGES = 100  # a drain with more: the line runs (a lockstep line at full speed sends hundreds; its start-up a few dozen)
 CATCH_UP_SLICE = 500  # held-back messages written per round while the line is quiet
 HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond, they are written as they come
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too (until a drain finds none)
@@ -129,7 +130,7 @@ def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float
         recording = LazyRecording(out, scene, keys)
         try:
             backlog: deque[tuple[str, bytes]] = deque()  # heard, in publish order, not written yet
-            heard_line, ready_at = False, 0.0
+            heard_line, ran, ready_at = False, False, 0.0
             while not stop.should_stop():
                 if not heard_line and time.monotonic() >= ready_at:
                     ready.put(b"")
@@ -138,7 +139,8 @@ def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float
                 batch = tap.drain()
                 backlog.extend(batch)
                 heard_line = heard_line or bool(batch)
-                quiet = heard_line and len(batch) < QUIET_MESSAGES
+                ran = ran or len(batch) >= RUNNING_MESSAGES
+                quiet = ran and len(batch) < QUIET_MESSAGES  # not before the line ran: its start-up comes first
                 set_idle(not quiet)
                 if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
                     take(recording, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
