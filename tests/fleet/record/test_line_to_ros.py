@@ -2,19 +2,11 @@
 `/tf_static`, moving ones on `/tf`), composing to Pinocchio's own tool pose."""
 
 import numpy as np
-import pinocchio as pin
 
 from fleet.bus.messages import ArmState
 from fleet.record.line_to_ros import LineToRos
 from fleet.scene_loading import load_scene
-
-
-def pose(t) -> np.ndarray:
-    q = t.transform.rotation
-    m = np.eye(4)
-    m[:3, :3] = pin.Quaternion(q.w, q.x, q.y, q.z).toRotationMatrix()
-    m[:3, 3] = (t.transform.translation.x, t.transform.translation.y, t.transform.translation.z)
-    return m
+from tests.fleet.record.tf_tree import up_to_root
 
 
 def an_arm_state(arm: str, q: list[float], sim_time_s: float) -> ArmState:
@@ -35,10 +27,7 @@ def test_fixed_links_are_static_and_moving_links_compose_to_the_tool_pose():
     assert not set(moving) & set(static), "a link is either on /tf or on /tf_static"
     assert all(t.header.stamp.sec == 1 and t.header.stamp.nanosec == 250_000_000 for t in moving.values())
 
-    by_child, frame, world_from_tool = moving | static, "arm_0/tool_link", np.eye(4)
-    while frame in by_child:
-        world_from_tool = pose(by_child[frame]) @ world_from_tool
-        frame = by_child[frame].header.frame_id
-    assert frame == "world"
+    root, world_from_tool = up_to_root("arm_0/tool_link", moving | static)
+    assert root == "world"
     base_from_tool = arm.kin.frame_pose(arm.kin.full_q(np.array(q), np.array([0.01, 0.01])))
     np.testing.assert_allclose(world_from_tool, arm.base_to_world @ base_from_tool, atol=1e-9)

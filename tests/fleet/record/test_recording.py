@@ -24,6 +24,7 @@ from fleet.processes import StopFlag
 from fleet.record.mcap_file import Recording
 from fleet.record.replay import Player
 from fleet.record.report import series_from_recording, write_report
+from tests.fleet.record.tf_tree import up_to_root
 
 SECONDS = 12.0
 ARMS = ("arm_0", "arm_1", "arm_2")
@@ -142,23 +143,13 @@ def test_rosbags_reads_joint_states_equal_to_the_run_and_a_tf_tree_that_puts_eac
             assert stamp == round(s.sim_time_s * 1e9)
             np.testing.assert_allclose(js.position, [*s.q, *s.gripper_q])
 
-    def pose(t) -> np.ndarray:
-        q = t.transform.rotation
-        m = np.eye(4)
-        m[:3, :3] = pin.Quaternion(q.w, q.x, q.y, q.z).toRotationMatrix()
-        m[:3, 3] = (t.transform.translation.x, t.transform.translation.y, t.transform.translation.z)
-        return m
-
     assert len(dynamic) >= 0.9 * SECONDS * 10, "TF at the frames' 10 Hz"
     checked = 0
     for stamp, transforms in dynamic[:: max(1, len(dynamic) // 20)]:
         by_child = {t.child_frame_id: t for t in transforms} | static
         for arm in ARMS:
-            frame, world_from_tool = f"{arm}/tool_link", np.eye(4)
-            while frame in by_child:  # up the tree to `world`
-                world_from_tool = pose(by_child[frame]) @ world_from_tool
-                frame = by_child[frame].header.frame_id
-            assert frame == "world"
+            root, world_from_tool = up_to_root(f"{arm}/tool_link", by_child)
+            assert root == "world"
             state = next(s for s in states[arm].values() if round(s.sim_time_s * 1e9) == stamp)
             np.testing.assert_allclose(world_from_tool[:3, 3], state.tool_position, atol=2e-3)
             checked += 1
