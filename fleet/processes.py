@@ -89,13 +89,19 @@ def node_arguments(parser: argparse.ArgumentParser, argv: list[str] | None, prog
     return None if scene is None else (args, stop, scene)
 
 
-def run_on_idle_cpu(pid: int) -> None:
-    """A process (its main thread, and the threads it starts after) on CPU time nothing else wants (SCHED_IDLE,
-    Linux); elsewhere, or where refused, it runs as it is."""
+def run_on_idle_cpu(idle: bool = True, pid: int = 0) -> bool:
+    """A thread on CPU time nothing else wants (SCHED_IDLE, Linux), or back to a normal share; `pid` 0 is the
+    calling thread, else a process's main thread (threads it starts after inherit it). Whether it is so now:
+    elsewhere, or where the OS refuses (leaving SCHED_IDLE needs the privilege to raise priority), it stays as it is."""
+    policy = getattr(os, "SCHED_IDLE" if idle else "SCHED_OTHER", None)
+    if policy is None:
+        return False
     try:
-        os.sched_setscheduler(pid, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):
-        pass
+        if os.sched_getscheduler(pid) != policy:
+            os.sched_setscheduler(pid, policy, os.sched_param(0))
+    except OSError:
+        return False
+    return True
 
 
 @dataclass
@@ -112,7 +118,7 @@ class ChildProcess:
             self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
                                          env=os.environ | {PARENT_ENV: str(os.getpid())})
         if self.idle:
-            run_on_idle_cpu(self.proc.pid)
+            run_on_idle_cpu(pid=self.proc.pid)
         return self
 
     def poll(self) -> int | None:

@@ -23,7 +23,7 @@ from pathlib import Path
 from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
-from fleet.processes import StopFlag, read_when_written, write_report
+from fleet.processes import StopFlag, read_when_written, run_on_idle_cpu, write_report
 from scenes.schema import Scene
 
 READY_EVERY_S = 0.1
@@ -40,21 +40,8 @@ RECORDER_NICENESS = 5
 def yield_cpu(niceness: int) -> None:
     """Run only on CPU time the line leaves idle (SCHED_IDLE, Linux), else at a lower priority: lockstep
     processes wait on each other often, and the recorder catches up in those gaps."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):
+    if not run_on_idle_cpu():
         os.nice(niceness)
-
-
-def set_idle(idle: bool) -> None:
-    """This thread on idle CPU time only (the line runs), or back to a normal share (the line is quiet or over:
-    what was held back is now what the run waits for). Where the OS refuses, it stays as it is."""
-    policy = getattr(os, "SCHED_IDLE" if idle else "SCHED_OTHER", None)
-    if policy is not None and os.sched_getscheduler(0) != policy:
-        try:
-            os.sched_setscheduler(0, policy, os.sched_param(0))
-        except OSError:
-            pass
 
 
 class LazyRecording:
@@ -141,13 +128,13 @@ def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float
                 heard_line = heard_line or bool(batch)
                 ran = ran or len(batch) >= RUNNING_MESSAGES
                 quiet = ran and len(batch) < QUIET_MESSAGES  # not before the line ran: its start-up comes first
-                set_idle(not quiet)
+                run_on_idle_cpu(not quiet)  # quiet: the run now waits on the file
                 if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
                     take(recording, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
                 if quiet and catch_up(recording, backlog):
                     continue  # the line is quiet (paused, or over; heartbeats go on): write what was held back meanwhile
                 time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
-            set_idle(False)
+            run_on_idle_cpu(False)
             backlog.extend(drain_to_the_end(tap))
             take(recording, backlog, len(backlog))
             recorder = recording.recorder

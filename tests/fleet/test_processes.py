@@ -8,8 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fleet.nodes.recorder_node import set_idle
-from fleet.processes import ChildProcess
+from fleet.processes import ChildProcess, run_on_idle_cpu
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="SCHED_IDLE is Linux's")
 
@@ -31,9 +30,9 @@ def test_a_thread_goes_idle_and_back_without_touching_the_others():
     seen = []
 
     def run():
-        set_idle(True)
+        run_on_idle_cpu(True)
         seen.append(os.sched_getscheduler(0))
-        set_idle(False)
+        run_on_idle_cpu(False)
         seen.append(os.sched_getscheduler(0))
 
     thread = threading.Thread(target=run)
