@@ -34,7 +34,7 @@ from scenes.schema import Scene
 
 STOP_GRACE_S = 1.5
 RECORDER_GRACE_S = 120.0  # a recorder behind the line finishes writing what it heard; killing it would lose the file
-RECORDER_START_S = 60.0
+RECORDER_START_S = 60.0  # the recorder waits this long for the sim's spool
 COORDINATOR_RESPAWN_TIMEOUT_S = 60.0  # with `respawn`, a lockstep sim waits this long for a coordinator (a new one starts)
 MAX_COORDINATOR_STARTS = 4  # a coordinator that keeps crashing ends the run
 HUNG_COORDINATOR_S = 10.0  # with `respawn`, a live coordinator silent this long (wall; it says its progress every 0.5 s) is replaced
@@ -196,8 +196,8 @@ class Launcher:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
         if o.record_targets:
             sim_args += ["--record-targets", o.record_targets]
-        if o.record:
-            sim_args += ["--await-recorder", str(RECORDER_START_S)]
+        if o.record:  # what the bus carries, as the sim hears it, for the recorder (no second copy on the wire)
+            sim_args += ["--spool", str(self.spool_path)]
         if o.respawn:
             sim_args += ["--coordinator-timeout", str(COORDINATOR_RESPAWN_TIMEOUT_S)]
         for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
@@ -228,16 +228,19 @@ class Launcher:
         ]
         return Node("monitor", "monitor", argv, report, log)
 
+    @property
+    def spool_path(self) -> Path:
+        return self.dir / "bus.spool"
+
     def recorder_node(self) -> Node:
-        """The recorder, attached over the bus like any other client; it adds the summary found in `summary.json`."""
+        """The recorder, reading the sim's spool as the sim writes it (`fleet/record/spool.py`); it adds the summary
+        found in `summary.json`."""
         o = self.options
         report, log = self.dir / "recorder.json", self.dir / "recorder.log"
-        bus = self._bus_args(False, "recorder")
-        if not self.endpoint or self.bus is not None:
-            bus = ["--endpoint-file", str(self.dir / "endpoint"), *bus]
         argv = [
-            *self._here("recorder"), "fleet.nodes.recorder_node", "--run", o.run_id, *bus, "--out", str(o.record),
-            "--summary-file", str(self.dir / "summary.json"), "--report", str(report), *(["--hold"] if o.mode == "lockstep" else []),
+            *self._here("recorder"), "fleet.nodes.recorder_node", "--spool", str(self.spool_path), "--scene-timeout", str(RECORDER_START_S),
+            "--out", str(o.record), "--summary-file", str(self.dir / "summary.json"), "--report", str(report),
+            *(["--hold"] if o.mode == "lockstep" else []),
         ]
         return Node("recorder", "recorder", argv, report, log, idle=True)
 
@@ -255,7 +258,7 @@ class Launcher:
             sim = self.sim_node()
             self.nodes = [sim]
             sim.start()
-            if self.options.record:  # beside the sim: it waits for the sim's endpoint file while both import
+            if self.options.record:  # beside the sim: it waits for the sim's spool while both import
                 self.recorder = self.recorder_node()
                 self.recorder.start()
             if not self.endpoint or self.bus is not None:  # the sim listens: clients may connect (a client that

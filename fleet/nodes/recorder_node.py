@@ -18,12 +18,16 @@ import os
 import sys
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
+from typing import Protocol
 
 from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
-from fleet.processes import StopFlag, read_when_written, run_on_idle_cpu, write_report
+from fleet.processes import StopFlag, run_on_idle_cpu, write_report
+from fleet.record.spool import SpoolError, SpoolReader
+from fleet.scene_loading import use_scene_robots
 from scenes.schema import Scene
 
 READY_EVERY_S = 0.1
@@ -93,63 +97,90 @@ def catch_up(recording: LazyRecording, backlog: deque) -> bool:
     return had
 
 
-def drain_to_the_end(tap: Tap) -> list[tuple[str, bytes]]:
+class Source(Protocol):
+    """Where the recorder hears the run: a tap on the bus (`Tap`), or the sim's spool file (`SpoolReader`)."""
+
+    def drain(self) -> list[tuple[str, bytes]]: ...
+
+
+def drain_to_the_end(source: Source) -> list[tuple[str, bytes]]:
     """After a stop: what is still on its way, until a drain finds nothing new (at most `DRAIN_GRACE_S`)."""
-    heard = tap.drain()
+    heard = source.drain()
     until = time.monotonic() + DRAIN_GRACE_S
     while time.monotonic() < until:
         time.sleep(DRAIN_GRACE_EVERY_S)
-        batch = tap.drain()
+        batch = source.drain()
         heard.extend(batch)
         if not batch:
             break
     return heard
 
 
-def record(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
+def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, summary_file: str | None, hold: bool = False,
+           say_ready: Callable[[], None] | None = None) -> dict:
     """Record until `stop`; the figures of the recording. `hold`: keep what is heard in memory while the line is
-    busy and write it when it is quiet or over (a lockstep line at full speed leaves no CPU to spare)."""
-    tap = Tap(session, keys.recorded())
+    busy and write it when it is quiet or over (a lockstep line at full speed leaves no CPU to spare). `say_ready`:
+    said every `READY_EVERY_S` until the line is heard (a sim told to await a recorder starts then)."""
+    started = time.monotonic()
+    recording = LazyRecording(out, scene, keys)
     try:
-        scene = fetch_scene(session, keys, scene_timeout_s)
-        ready = session.declare_publisher(keys.recorder_ready)
-        started = time.monotonic()
-        recording = LazyRecording(out, scene, keys)
-        try:
-            backlog: deque[tuple[str, bytes]] = deque()  # heard, in publish order, not written yet
-            heard_line, ran, ready_at = False, False, 0.0
-            while not stop.should_stop():
-                if not heard_line and time.monotonic() >= ready_at:
-                    ready.put(b"")
-                    ready_at = time.monotonic() + READY_EVERY_S
-                    recording.recorder  # loaded while the line starts, on idle CPU time
-                batch = tap.drain()
-                backlog.extend(batch)
-                heard_line = heard_line or bool(batch)
-                ran = ran or len(batch) >= RUNNING_MESSAGES
-                quiet = ran and len(batch) < QUIET_MESSAGES  # not before the line ran: its start-up comes first
-                run_on_idle_cpu(not quiet)  # quiet: the run now waits on the file
-                if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
-                    take(recording, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
-                if quiet and catch_up(recording, backlog):
-                    continue  # the line is quiet (paused, or over; heartbeats go on): write what was held back meanwhile
-                time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
-            run_on_idle_cpu(False)
-            backlog.extend(drain_to_the_end(tap))
-            take(recording, backlog, len(backlog))
-            recorder = recording.recorder
-            recorder.finish(read_summary(summary_file))
-        finally:
-            recording.close()
-        ready.undeclare()
+        backlog: deque[tuple[str, bytes]] = deque()  # heard, in publish order, not written yet
+        heard_line, ran, ready_at = False, False, 0.0
+        while not stop.should_stop():
+            if not heard_line and time.monotonic() >= ready_at:
+                if say_ready is not None:
+                    say_ready()
+                ready_at = time.monotonic() + READY_EVERY_S
+                recording.recorder  # loaded while the line starts, on idle CPU time
+            batch = source.drain()
+            backlog.extend(batch)
+            heard_line = heard_line or bool(batch)
+            ran = ran or len(batch) >= RUNNING_MESSAGES
+            quiet = ran and len(batch) < QUIET_MESSAGES  # not before the line ran: its start-up comes first
+            run_on_idle_cpu(not quiet)  # quiet: the run now waits on the file
+            if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
+                take(recording, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
+            if quiet and catch_up(recording, backlog):
+                continue  # the line is quiet (paused, or over; heartbeats go on): write what was held back meanwhile
+            time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
+        run_on_idle_cpu(False)
+        backlog.extend(drain_to_the_end(source))
+        take(recording, backlog, len(backlog))
+        recorder = recording.recorder
+        recorder.finish(read_summary(summary_file))
     finally:
-        tap.close()
+        recording.close()
     return {
         "file": out, "messages_written": recorder.writer.messages, "bus_messages": sum(recorder.stats.by_key.values()),
         "undecodable": recorder.stats.undecodable, "dropped_messages": recorder.drops.total,
         "bytes": Path(out).stat().st_size, "sim_seconds": recorder.now_s, "wall_seconds": round(time.monotonic() - started, 3),
         "stopped_by": stop.reason,
     }
+
+
+def record_bus(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
+    """Record what a tap on the bus hears (`fleet record`): the scene asked from the sim, then "ready" said until
+    the line is heard."""
+    with Tap(session, keys.recorded()) as tap:
+        scene = fetch_scene(session, keys, scene_timeout_s)
+        ready = session.declare_publisher(keys.recorder_ready)
+        try:
+            return record(tap, scene, keys, out, stop, summary_file, hold, say_ready=lambda: ready.put(b""))
+        finally:
+            ready.undeclare()
+
+
+def record_spool(path: str, out: str, stop: StopFlag, timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
+    """Record from the sim's spool (`fleet run --record`): the scene is in its header; no bus session at all."""
+    reader = SpoolReader(path)
+    try:
+        header = reader.wait_for_header(timeout_s, give_up=stop.should_stop)
+        if header is None:
+            raise SceneUnavailable(f"the sim wrote no spool to {path} within {timeout_s:g} s")
+        scene = use_scene_robots(Scene.model_validate_json(header.scene_json))
+        return record(reader, scene, Keys(header.run_id), out, stop, summary_file, hold)
+    finally:
+        reader.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -160,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--summary-file", help="at the end, add the run summary found in this JSON file")
     parser.add_argument("--nice", type=int, default=RECORDER_NICENESS, help="0: a normal process; else it runs on idle CPU time (SCHED_IDLE), or at this niceness where that is refused")
     parser.add_argument("--hold", action="store_true", help="write while the line is quiet or over, not as it runs (lockstep at full speed)")
-    parser.add_argument("--endpoint-file", help="connect to the endpoint written to this file (wait for it; the launcher's sim writes it)")
+    parser.add_argument("--spool", help="record the sim's spool file (its `--spool`) instead of tapping the bus; the run id and scene are in it")
     parser.add_argument("--report", help="write the recording's figures to this JSON file at exit")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
@@ -168,18 +199,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.nice:
         yield_cpu(args.nice)
     endpoints = BusEndpoints.from_args(args)
-    if args.endpoint_file:  # started beside the sim: its imports overlap the sim's start-up
-        endpoint = read_when_written(args.endpoint_file, args.scene_timeout, give_up=stop.should_stop)
-        if endpoint is None:
-            print(f"fleet record: no endpoint in {args.endpoint_file} within {args.scene_timeout:.0f} s", file=sys.stderr)
-            return 1
-        endpoints = BusEndpoints(endpoints.listen, (*endpoints.connect, endpoint), endpoints.config_file)
-    with open_session(endpoints) as session:
-        try:
-            report = record(session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file, args.hold)
-        except SceneUnavailable as exc:
-            print(f"fleet record: {exc}", file=sys.stderr)
-            return 1
+    try:
+        if args.spool:
+            report = record_spool(args.spool, args.out, stop, args.scene_timeout, args.summary_file, args.hold)
+        else:
+            with open_session(endpoints) as session:
+                report = record_bus(session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file, args.hold)
+    except (SceneUnavailable, SpoolError) as exc:
+        print(f"fleet record: {exc}", file=sys.stderr)
+        return 1
     write_report(args.report, report)
     return 0
 

@@ -56,6 +56,7 @@ from fleet.line_watch import LineWatcher
 from fleet.physics.tracking import TrackedArms
 from fleet.physics.world import PartInfo, World
 from fleet.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
+from fleet.record.spool import BusSpool
 from fleet.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
 from robots.tracker import WATCHDOG_REASON
@@ -197,6 +198,7 @@ class SimServer:
         self.assign_seqs = {name: 0 for name in world.arms}
         self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
+        self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks for the recorder
         self._started = not controllers  # every controller answered once (realtime waits until then)
 
     def close(self) -> None:
@@ -599,6 +601,8 @@ class SimServer:
             if stop is not None and stop.should_stop():
                 return
             self.publish_status()
+            if self.spool is not None:
+                self.spool.pump()
             if self.paused:
                 self._take_inputs()
                 self._inbox.wait(0.05)
@@ -718,6 +722,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--coordinator-timeout", type=float, help="wall seconds a lockstep frame waits for the coordinator "
                         "(default: the lockstep timeout; longer when a crashed coordinator is respawned)")
     parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
+    parser.add_argument("--spool", metavar="FILE", help="append every message of the run's bus, as this router hears it, to FILE (`fleet run --record` turns it into MCAP)")
     parser.add_argument("--await-recorder", type=float, metavar="S", default=0.0, help="start the clock only once a recorder listens (wait at most S wall seconds)")
     parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
@@ -745,15 +750,17 @@ def main(argv: list[str] | None = None) -> int:
         config = make_config(endpoints)
         session = zenoh.open(config)
         endpoint = ", ".join(json.loads(config.get_json("listen/endpoints")))
-    if args.endpoint_file:  # it listens: whoever waits for the file may connect now
+    spool = BusSpool(session, Keys(args.run).recorded(), args.spool, args.run, world.scene_model.model_dump_json()) if args.spool else None
+    if args.endpoint_file:  # it listens: whoever waits for the file may connect now (the spool hears them from the first)
         write_text_atomically(args.endpoint_file, endpoint)
-    with contextlib.closing(session):
+    with contextlib.closing(session), contextlib.closing(spool) if spool else contextlib.nullcontext():
         server = SimServer(
             world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator, controllers=not args.no_controllers,
             lockstep_timeout_s=args.lockstep_timeout, coordinator_timeout_s=args.coordinator_timeout, stop=stop, speed=args.speed,
         )
         if args.record_targets:
             server.target_log = []
+        server.spool = spool
         if args.await_recorder and not await_recorder(session, Keys(args.run), args.await_recorder):
             server.close()
             print(f"sim_server: no recorder said it listens within {args.await_recorder:.0f} s", file=sys.stderr)
