@@ -28,6 +28,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, open_session
 from fleet.hosts import Hosts, load_hosts
+from fleet.node_factory import NodeFactory
 from fleet.processes import ChildProcess, read_when_written, stop_children, write_text_atomically
 from fleet.scene_loading import load_scene
 from scenes.schema import Scene
@@ -66,6 +67,7 @@ class RunOptions:
     record: str | None = None  # an MCAP file: a recorder taps the bus from the first tick (the sim waits for it)
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
     hosts: str | None = None  # a hosts file: the network namespace each node starts in (`fleet/hosts.py`)
+    fork_nodes: bool = True  # nodes forked from one process that imported once (`fleet/node_factory.py`), not exec'd each
     latency_ms: float | None = None  # network faults on every link (None: the scene's)
     jitter_ms: float | None = None
     loss: float | None = None
@@ -160,6 +162,7 @@ class Launcher:
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
+        self.factory: NodeFactory | None = None  # forks the nodes (with `fork_nodes`); closed after they all stopped
         self.respawns = 0
         self.interrupted = ""
         self.keep_dir = options.keep_logs
@@ -253,21 +256,26 @@ class Launcher:
             self.on_message(f"the recorder did not finish {self.options.record}: {self.recorder.log_tail() or 'no output'}")
         return report
 
+    def _start(self, node: Node) -> Node:
+        node.child.factory = self.factory
+        node.start()
+        return node
+
     def __enter__(self) -> "Launcher":
         try:
+            if self.options.fork_nodes:
+                self.factory = NodeFactory(self.dir / "node_factory.log")
             sim = self.sim_node()
-            self.nodes = [sim]
-            sim.start()
+            self.nodes = [self._start(sim)]
             if self.options.record:  # beside the sim: it waits for the sim's spool while both import
-                self.recorder = self.recorder_node()
-                self.recorder.start()
+                self.recorder = self._start(self.recorder_node())
             if not self.endpoint or self.bus is not None:  # the sim listens: clients may connect (a client that
                 self.endpoint = self._await_endpoint(sim)  # finds no router gives up)
             self.nodes += self.client_nodes()
             if self.options.monitor:
                 self.nodes.append(self.monitor_node())
             for node in self.nodes[1:]:
-                node.start()
+                self._start(node)
         except BaseException:
             self.__exit__()
             raise
@@ -287,6 +295,8 @@ class Launcher:
         self.stop_all()
         if self.recorder is not None:
             stop_children([self.recorder.child], RECORDER_GRACE_S)
+        if self.factory is not None:
+            self.factory.close()
         if not self.keep_dir:
             shutil.rmtree(self.dir, ignore_errors=True)
 

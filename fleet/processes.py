@@ -110,10 +110,14 @@ class ChildProcess:
 
     argv: list[str]
     log: Path
-    proc: subprocess.Popen | None = None
+    proc: subprocess.Popen | None = None  # or the factory's `ForkedProc`, which answers the same calls
     idle: bool = False  # runs on idle CPU time only, from its first instruction (its imports included)
+    factory: object | None = None  # a `fleet.node_factory.NodeFactory`: forked from it where the command allows
 
     def start(self) -> "ChildProcess":
+        if self.factory is not None and self.factory.can_fork(self.argv):
+            self.proc = self.factory.spawn(self.argv, self.log, self.idle)
+            return self
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(self.argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True,
                                          env=os.environ | {PARENT_ENV: str(os.getpid())})
