@@ -143,8 +143,10 @@ class Launcher:
 
     def __init__(
         self, options: RunOptions, on_progress: Callable[[Progress], None] | None = None,
-        on_message: Callable[[str], None] | None = None,
+        on_message: Callable[[str], None] | None = None, factory: NodeFactory | None = None,
     ) -> None:
+        """`factory`: a node factory that outlives this run (a sweep's worker keeps one for all its runs); else,
+        with `fork_nodes`, the run starts its own and closes it at the end."""
         self.options = options
         self.on_message = on_message or (lambda text: print(text, file=sys.stderr, flush=True))
         self.monitor_url = ""
@@ -162,7 +164,8 @@ class Launcher:
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
-        self.factory: NodeFactory | None = None  # forks the nodes (with `fork_nodes`); closed after they all stopped
+        self.factory = factory if options.fork_nodes else None  # forks the nodes; its own is closed after they all stopped
+        self._own_factory = False
         self.respawns = 0
         self.interrupted = ""
         self.keep_dir = options.keep_logs
@@ -263,8 +266,8 @@ class Launcher:
 
     def __enter__(self) -> "Launcher":
         try:
-            if self.options.fork_nodes:
-                self.factory = NodeFactory(self.dir / "node_factory.log")
+            if self.options.fork_nodes and self.factory is None:
+                self.factory, self._own_factory = NodeFactory(self.dir / "node_factory.log"), True
             sim = self.sim_node()
             self.nodes = [self._start(sim)]
             if self.options.record:  # beside the sim: it waits for the sim's spool while both import
@@ -295,7 +298,7 @@ class Launcher:
         self.stop_all()
         if self.recorder is not None:
             stop_children([self.recorder.child], RECORDER_GRACE_S)
-        if self.factory is not None:
+        if self._own_factory:
             self.factory.close()
         if not self.keep_dir:
             shutil.rmtree(self.dir, ignore_errors=True)

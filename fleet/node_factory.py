@@ -73,9 +73,10 @@ class FactoryError(RuntimeError):
 class NodeFactory:
     """The launcher's side: `spawn(argv, log, idle)` a node, `close()` at the end (use in a `with` block)."""
 
-    def __init__(self, log: Path, preload: tuple[str, ...] = NODE_MODULES) -> None:
+    def __init__(self, log: Path | None, preload: tuple[str, ...] = NODE_MODULES) -> None:
+        """`log`: where the factory's own output goes (None: nowhere; each node has its own log either way)."""
         self.log = log
-        with open(log, "ab") as out:
+        with open(log if log is not None else os.devnull, "ab") as out:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "fleet.node_factory", *preload], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=out,
                 start_new_session=True, env=os.environ | {PARENT_ENV: str(os.getpid())},
@@ -110,13 +111,17 @@ class NodeFactory:
                 self.proc.stdin.write(json.dumps(request).encode() + b"\n")
                 self.proc.stdin.flush()
             except (BrokenPipeError, ValueError):
-                raise FactoryError(f"the node factory is gone; see {self.log}") from None
+                raise FactoryError(f"the node factory is gone{self._see}") from None
             if not self._heard.wait_for(lambda: self._replies, SPAWN_TIMEOUT_S):
-                raise FactoryError(f"the node factory did not start {module} within {SPAWN_TIMEOUT_S:.0f} s; see {self.log}")
+                raise FactoryError(f"the node factory did not start {module} within {SPAWN_TIMEOUT_S:.0f} s{self._see}")
             reply = self._replies.pop(0)
         if "error" in reply:
-            raise FactoryError(f"{reply['error']}; see {self.log}")
+            raise FactoryError(f"{reply['error']}{self._see}")
         return ForkedProc(reply["pid"], self)
+
+    @property
+    def _see(self) -> str:
+        return f"; see {self.log}" if self.log is not None else ""
 
     @staticmethod
     def can_fork(argv: list[str]) -> bool:

@@ -22,6 +22,7 @@ RUNS_DIR = "runs"
 
 _POOL_PARENT: int | None = None  # in a local pool's worker: the sweep's pid
 _INTERRUPTED = False  # in a local pool's worker: a Ctrl-C or SIGTERM came (or the sweep died): start no run after it
+_FACTORY = None  # in a worker (local or Ray): the node factory its runs fork their nodes from, kept from run to run
 
 
 def _pool_worker_start() -> None:
@@ -57,6 +58,17 @@ def run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None = No
             os._exit(0)  # its run was stopped with it; nobody is left to take a result
 
 
+def worker_factory():
+    """This worker's node factory: started at its first run and kept, so that its runs import the node modules
+    once between them, not once a run (it dies with the worker; a dead one is replaced)."""
+    global _FACTORY
+    from fleet.node_factory import NodeFactory
+
+    if _FACTORY is None or _FACTORY.proc.poll() is not None:
+        _FACTORY = NodeFactory(None)  # no log of its own: it outlives every run's folder (each node logs there)
+    return _FACTORY
+
+
 def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) -> dict:
     import tempfile
 
@@ -67,7 +79,7 @@ def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) ->
             scene = str(Path(tmp) / Path(scene).name)
             Path(scene).write_text(scene_text)
         options = RunOptions(scene=scene, arms=cell.arms, duration_s=cell.duration_s, seed=cell.seed, allocator=cell.allocator, run_id=run_id)
-        with Launcher(options, on_message=lambda _text: None) as launcher:
+        with Launcher(options, on_message=lambda _text: None, factory=worker_factory()) as launcher:
             return launcher.run()
 
 
