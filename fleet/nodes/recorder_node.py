@@ -1,13 +1,17 @@
-"""The recorder process: taps a run's bus and writes everything it hears to an MCAP file (`fleet record`,
-`fleet run --record`), off the sim's hot path.
+"""The recorder process: writes every message of a run to an MCAP file (`fleet record`, `fleet run --record`),
+off the sim's hot path.
 
-It subscribes first, asks the sim for its scene, then says it listens (`Keys.recorder_ready`) until it hears
-the line, so a sim told to await it (lockstep under `fleet run --record`) loses nothing; what writes the file
-(mcap, rosbags, Pinocchio, the arms' models) is loaded only then, so the line's start-up never waits on it.
-On SIGTERM or SIGINT it records what is still queued, adds the run's summary if `--summary-file` exists by
-then, and finishes the file.
+It hears the run one of two ways, and records both alike (`record`):
+- from the sim's spool (`--spool FILE`, what `fleet run --record` does): the sim appends every message its
+  session hears to a file; the run id and scene are in the file, and the recorder needs no bus session;
+- on the bus (`--connect ...`, `fleet record`): it subscribes first, asks the sim for its scene, then says it
+  listens (`Keys.recorder_ready`) until it hears the line, so a sim told to await it loses nothing.
+What writes the file (mcap, rosbags, Pinocchio, the arms' models) is loaded once the line is heard, so the
+line's start-up never waits on it. On SIGTERM or SIGINT it records what is still queued, adds the run's
+summary if `--summary-file` exists by then, and finishes the file.
 
     python -m fleet.nodes.recorder_node --run line --connect tcp/127.0.0.1:7447 --out run.mcap
+    python -m fleet.nodes.recorder_node --spool /tmp/clawfleet-run-xyz/bus.spool --out run.mcap
 """
 
 from __future__ import annotations
