@@ -8,7 +8,7 @@ import time
 def main(argv: list[str] | None = None) -> int:
     args = argv or []
     print(f"pid={os.getpid()} pgid={os.getpgid(0)} ppid={os.getppid()} idle={os.sched_getscheduler(0) == os.SCHED_IDLE} "
-          f"parent_env={os.environ.get('CLAWFLEET_PARENT_PID')}", flush=True)
+          f"parent_env={os.environ.get('CLAWFLEET_PARENT_PID')} comm={open('/proc/self/comm').read().strip()}", flush=True)
     if args and args[0] == "sleep":
         time.sleep(float(args[1]))
         return 0

@@ -48,7 +48,7 @@ def test_a_forked_node_has_its_own_group_its_log_and_its_exit_code(tmp_path):
         said = fields(tmp_path / "node.log")
         assert said["pid"] == str(proc.pid) and said["pgid"] == str(proc.pid), "its own process group"
         assert said["ppid"] == said["parent_env"] == str(factory.proc.pid), "it dies with the factory"
-        assert said["idle"] == "False"
+        assert said["idle"] == "False" and said["comm"] == "factory_child", "named for its module (top, ps -o comm)"
         idle = factory.spawn(command("exit", "0"), tmp_path / "idle.log", idle=True)
         assert idle.wait(timeout=30) == 0 and fields(tmp_path / "idle.log")["idle"] == "True"
         crashed = factory.spawn(command("raise"), tmp_path / "crash.log")
