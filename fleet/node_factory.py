@@ -96,6 +96,7 @@ class NodeFactory:
                 if "exit" in message:
                     self._exits[message["exit"]] = message["code"]
                 else:
+                    self._exits.pop(message.get("pid"), None)  # a pid used again (32768 of them here): not the old node's exit
                     self._replies.append(message)
                 self._heard.notify_all()
         with self._heard:  # the factory is gone: so are its children (they die with it)
@@ -196,7 +197,8 @@ def name_this_process(name: str) -> None:
             pass
 
 
-def _reap(say) -> None:
+def _reap(say, children: set[int]) -> None:
+    """Every child that exited, reaped, its exit code said, and forgotten (its pid may be used again)."""
     while True:
         try:
             pid, status = os.waitpid(-1, os.WNOHANG)
@@ -204,6 +206,7 @@ def _reap(say) -> None:
             return
         if pid == 0:
             return
+        children.discard(pid)
         say({"exit": pid, "code": os.waitstatus_to_exitcode(status)})
 
 
@@ -221,7 +224,7 @@ def _serve(preload: list[str]) -> int:
     children: set[int] = set()
     while True:
         ready, _, _ = select.select([requests], [], [], 0 if pending else REAP_EVERY_S)
-        _reap(say)
+        _reap(say, children)
         if not ready:
             if pending:
                 importlib.import_module(pending.pop(0))
@@ -251,18 +254,16 @@ def _serve(preload: list[str]) -> int:
                     os._exit(code)
         children.add(pid)
         say({"pid": pid})
-    for pid in children:
+    for pid in children:  # only nodes still running: a reaped one's pid may be someone else's by now
         try:
             os.killpg(pid, signal.SIGKILL)
         except (ProcessLookupError, PermissionError):
             pass
-    deadline = time.monotonic() + 5
-    while time.monotonic() < deadline:
+    for pid in children:
         try:
-            if os.waitpid(-1, 0)[0] == 0:
-                break
+            os.waitpid(pid, 0)
         except ChildProcessError:
-            break
+            pass
     return 0
 
 
