@@ -16,7 +16,6 @@ outlives a killed launcher; when the launcher closes the factory's input it SIGK
 
 from __future__ import annotations
 
-import ctypes
 import importlib
 import json
 import os
@@ -30,12 +29,11 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from fleet.processes import PARENT_ENV, die_with_parent, run_on_idle_cpu
+from fleet.processes import PARENT_ENV, die_with_parent, name_this_process, run_on_idle_cpu
 
 NODE_MODULES = ("fleet.nodes.sim_server", "fleet.nodes.coordinator_node", "fleet.nodes.arm_controller", "fleet.nodes.recorder_node")
 SPAWN_TIMEOUT_S = 60.0  # the factory imports a module the first time a node of it is asked for
 REAP_EVERY_S = 0.02
-PR_SET_NAME = 15
 
 
 def forkable(argv: list[str]) -> tuple[str, list[str]] | None:
@@ -185,16 +183,6 @@ def _become_node(module: str, args: list[str], log: str, idle: bool, factory: in
         traceback.print_exc()
         code = 1
     return int(code or 0)
-
-
-def name_this_process(name: str) -> None:
-    """The name `top`, `ps -o comm` and `pgrep` show (Linux keeps 15 bytes): a forked node's own module, not the
-    factory's (its command line stays the factory's)."""
-    if sys.platform.startswith("linux"):
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_NAME, name.encode()[:15], 0, 0, 0)
-        except (OSError, AttributeError):
-            pass
 
 
 def _reap(say, children: set[int]) -> None:

@@ -29,17 +29,29 @@ from scenes.loader import SceneError
 from scenes.schema import Scene
 
 PR_SET_PDEATHSIG = 1
+PR_SET_NAME = 15
 PARENT_ENV = "CLAWFLEET_PARENT_PID"  # set for every child a `ChildProcess` starts: the pid that started it
+
+
+def _prctl(option: int, value: int | bytes) -> None:
+    """Linux's prctl for this process (nothing elsewhere, or where it is refused)."""
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(option, value, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
 
 
 def die_with_parent() -> None:
     """Ask Linux to send this process SIGTERM when its parent dies (nothing elsewhere): no orphan outlives a
     killed parent, and a SIGTERM handler still gets to stop what this process started."""
-    if sys.platform.startswith("linux"):
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-        except (OSError, AttributeError):
-            pass
+    _prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def name_this_process(name: str) -> None:
+    """The name `top`, `ps -o comm` and `pgrep` show (Linux keeps 15 bytes): a node forked from another process is
+    named for its own module, not the command that started the process it was forked from."""
+    _prctl(PR_SET_NAME, name.encode()[:15])
 
 
 class StopFlag:
