@@ -64,7 +64,7 @@ class RunOptions:
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
-    record: str | None = None  # an MCAP file: a recorder taps the bus from the first tick (the sim waits for it)
+    record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
     hosts: str | None = None  # a hosts file: the network namespace each node starts in (`fleet/hosts.py`)
     fork_nodes: bool = True  # nodes forked from one process that imported once (`fleet/node_factory.py`), not exec'd each

@@ -27,11 +27,10 @@ from pathlib import Path
 from typing import Protocol
 
 from fleet.bus.keys import Keys
-from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.bus.scene_query import SceneUnavailable, fetch_scene, run_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
 from fleet.processes import StopFlag, run_on_idle_cpu, write_report
 from fleet.record.spool import SpoolError, SpoolReader
-from fleet.scene_loading import use_scene_robots
 from scenes.schema import Scene
 
 READY_EVERY_S = 0.1
@@ -54,7 +53,7 @@ def yield_cpu(niceness: int) -> None:
 
 class LazyRecording:
     """The file and the `Recorder` that fills it, made at first use (`recorder`): importing mcap, rosbags and
-    Pinocchio and loading the arms' models waits until the recorder has said it listens."""
+    Pinocchio and loading the arms' models waits until the line is heard."""
 
     def __init__(self, out: str, scene: Scene, keys: Keys) -> None:
         self.out, self.scene, self.keys = out, scene, keys
@@ -181,7 +180,7 @@ def record_spool(path: str, out: str, stop: StopFlag, timeout_s: float, summary_
         header = reader.wait_for_header(timeout_s, give_up=stop.should_stop)
         if header is None:
             raise SceneUnavailable(f"the sim wrote no spool to {path} within {timeout_s:g} s")
-        scene = use_scene_robots(Scene.model_validate_json(header.scene_json))
+        scene = run_scene(header.scene_json, header.run_id)
         return record(reader, scene, Keys(header.run_id), out, stop, summary_file, hold)
     finally:
         reader.close()

@@ -11,6 +11,7 @@ import pytest
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session, open_session
 from fleet.record.spool import BusSpool, SpoolError, SpoolReader, SpoolWriter
+from fleet.scene_loading import load_scene
 
 KEYS = Keys("spooltest")
 
@@ -89,3 +90,15 @@ def test_the_recorder_gives_one_line_when_the_sim_wrote_no_spool(tmp_path):
     assert result.returncode == 1
     assert result.stderr.strip().splitlines() == [f"fleet record: the sim wrote no spool to {tmp_path / 'missing.spool'} within 0.5 s"]
     assert not (tmp_path / "out.mcap").exists()
+
+
+def test_a_spooled_scene_whose_robot_file_is_not_here_is_one_line(tmp_path):
+    scene = load_scene("assembly_line").model_copy(update={"robot_files": [str(tmp_path / "elsewhere.yaml")]})
+    SpoolWriter(tmp_path / "bus.spool", "far", scene.model_dump_json()).close()
+    result = subprocess.run(
+        [sys.executable, "-m", "fleet.nodes.recorder_node", "--spool", str(tmp_path / "bus.spool"), "--out", str(tmp_path / "out.mcap"), "--nice", "0"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert result.returncode == 1
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("fleet record: the scene of run 'far' names a robot file that cannot be used here:") and "elsewhere.yaml" in line
