@@ -22,7 +22,7 @@ import fcl
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from robots.kinematics import KinematicModel
+from robots.kinematics import KinematicModel, PlacedFrames
 from robots.spec import RobotSpec
 
 
@@ -139,7 +139,7 @@ class ArmGeometry:
         self.shapes = link_shapes(spec)
         self._frame_ids = [self.km.frame_id(s.link) for s in self.shapes]
         self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
-        self._shape_to_link = np.array([s.transform_shape_to_link for s in self.shapes])
+        self._placed = PlacedFrames(self.km, self.base_to_world, [(s.link, s.transform_shape_to_link) for s in self.shapes])
         self.radii_m = np.array([s.radius_m for s in self.shapes])
         cover = np.concatenate([s.cover for s in self.shapes])
         self.cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])  # each sphere's shape
@@ -171,8 +171,7 @@ class ArmGeometry:
         key = q_arm.tobytes()  # comparing bytes costs a tenth of np.array_equal
         if key == self._placed_key:
             return
-        poses = np.array(self.km.frame_poses(self.km.full_q(q_arm), self._frame_ids))
-        self.transforms = self.base_to_world @ poses @ self._shape_to_link
+        self.transforms = self._placed.poses(self.km.full_q(q_arm))
         self._posed = [False] * len(self._objects)
         self._cover_centres = None
         self._placed_key = key

@@ -98,3 +98,41 @@ class KinematicModel:
 
     def clamp(self, q: np.ndarray) -> np.ndarray:
         return np.clip(q, self.lower, self.upper)
+
+
+def _se3(transform: np.ndarray) -> pin.SE3:
+    transform = np.asarray(transform, float)
+    return pin.SE3(transform[:3, :3].copy(), transform[:3, 3].copy())
+
+
+class PlacedFrames:
+    """World poses of fixed frames on an arm's links (e.g. its collision shapes), from one forward-kinematics pass.
+
+    A copy of the arm's Pinocchio model carries the base's placement in the world and one frame per pose asked
+    for, so a configuration's poses cost one pass and one read per frame: no per-frame products in numpy (the
+    collision guard places every arm of a cell this way, every env step)."""
+
+    def __init__(self, km: KinematicModel, transform_base_to_world: np.ndarray, frames: list[tuple[str, np.ndarray]]) -> None:
+        """`frames`: (link name, `transform_frame_to_link`) for each pose, in the order `poses` returns them."""
+        self.km = km
+        self.model = pin.Model(km.model)
+        base = _se3(transform_base_to_world)
+        for joint in range(1, self.model.njoints):  # joints hanging from the root move with the base
+            if self.model.parents[joint] == 0:
+                self.model.jointPlacements[joint] = base * self.model.jointPlacements[joint]
+        self.frame_ids = []
+        for i, (link, transform_frame_to_link) in enumerate(frames):
+            parent = self.model.frames[km.frame_id(link)]
+            placement = parent.placement * _se3(transform_frame_to_link)
+            if parent.parentJoint == 0:  # fixed to the root: the base placement is not in any joint
+                placement = base * placement
+            name = f"placed_{i}_{link}"
+            self.frame_ids.append(self.model.addFrame(pin.Frame(name, parent.parentJoint, placement, pin.FrameType.OP_FRAME)))
+        self.data = self.model.createData()
+
+    def poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) world poses of the frames for the full configuration `q`."""
+        pin.forwardKinematics(self.model, self.data, q)
+        update, model, data = pin.updateFramePlacement, self.model, self.data
+        return np.array([update(model, data, fid).homogeneous for fid in self.frame_ids])
+

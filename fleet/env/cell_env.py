@@ -86,8 +86,12 @@ class CellParallelEnv(ParallelEnv):
         self.guard = CollisionGuard({a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents})
         self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
         self._still = {a: np.zeros(n) for a, n in self._dof.items()}  # the joint velocity target of every action
-        self.translators = {} if action_mode == "task" else {
-            a: ActionTranslator(self.world.arms[a].spec, placements[a], action_mode) for a in self.possible_agents
+        self._arms_of_model: dict[str, list[str]] = {}  # the agents of each robot model, in agent order
+        for a in self.possible_agents:
+            self._arms_of_model.setdefault(self.world.arms[a].spec.uid, []).append(a)
+        self.translators = {} if action_mode == "task" else {  # by model: all its arms' actions in one pass
+            uid: ActionTranslator(self.world.arms[arms[0]].spec, [placements[a] for a in arms], action_mode)
+            for uid, arms in self._arms_of_model.items()
         }
         self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "task" else None
         self.actuator = None
@@ -131,7 +135,14 @@ class CellParallelEnv(ParallelEnv):
     def action_space(self, agent: str) -> gymnasium.spaces.Space:
         if self.action_mode == "task":
             return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
-        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self.translators[agent].action_size,), dtype=np.float32)
+        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self._translator(agent).action_size,), dtype=np.float32)
+
+    def _translator(self, agent: str) -> ActionTranslator:
+        return self.translators[self.world.arms[agent].spec.uid]
+
+    def joint_targets(self, agent: str) -> np.ndarray:
+        """The arm joint targets an agent's actions have reached (continuous action modes)."""
+        return self._translator(agent).q_target[self._arms_of_model[self.world.arms[agent].spec.uid].index(agent)]
 
     # --- episode ------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -142,8 +153,8 @@ class CellParallelEnv(ParallelEnv):
         self.cycles = 0
         self.task_model.home_tool = self._tools()
         self.task_model.reset(self.world, self.np_random)
-        for a, translator in self.translators.items():
-            translator.reset(self.world.arms[a].qpos()[: self._dof[a]])
+        for uid, translator in self.translators.items():
+            translator.reset(np.array([self.world.arms[a].qpos()[: self._dof[a]] for a in self._arms_of_model[uid]]))
         self._commanded_opening = {a: 1.0 for a in self.possible_agents}
         if self.actuator is not None:
             self.actuator.reset({a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents})
@@ -208,16 +219,38 @@ class CellParallelEnv(ParallelEnv):
         if self.chooser is not None:
             self._choice_results = self.chooser.choose(actions, self._options)
             return {}, {}
-        raw = {a: np.asarray(actions[a], float) if a in actions else np.zeros(self.action_space(a).shape) for a in self.agents}
-        targets = self.actuator.translate(raw) if self.actuator is not None else {a: self.translators[a].apply(raw[a]) for a in self.agents}
+        if not self.agents:
+            return {}, {}
+        rows = {uid: self._action_rows(self._arms_of_model[uid], actions, t.action_size) for uid, t in self.translators.items()}
+        remote = None
+        if self.actuator is not None:
+            remote = self.actuator.translate({a: r for uid, r_all in rows.items() for a, r in zip(self._arms_of_model[uid], r_all)})
         hits, effort = {}, {}
-        for a in self.agents:
-            arm, t, tr = self.world.arms[a], targets[a], self.translators[a]
-            arm.set_targets(t.q, self._still[a], arm.spec.gripper_targets(t.gripper_opening))
-            self._commanded_opening[a] = t.gripper_opening
-            hits[a] = bool(((t.q <= tr.lower + 1e-9) | (t.q >= tr.upper - 1e-9)).any())
-            effort[a] = EFFORT_WEIGHT * float(raw[a] @ raw[a])
+        for uid, translator in self.translators.items():
+            arms, acted = self._arms_of_model[uid], rows[uid]
+            if remote is None:
+                q, opening = translator.apply(acted)
+            else:
+                q, opening = np.array([remote[a].q for a in arms]), np.array([remote[a].gripper_opening for a in arms])
+            limits, openings = translator.at_limit(q).tolist(), opening.tolist()
+            efforts = (EFFORT_WEIGHT * np.einsum("ij,ij->i", acted, acted)).tolist()
+            for i, a in enumerate(arms):
+                arm = self.world.arms[a]
+                arm.set_targets(q[i], self._still[a], arm.spec.gripper_targets(openings[i]))
+                self._commanded_opening[a] = openings[i]
+                hits[a], effort[a] = limits[i], efforts[i]
         return hits, effort
+
+    def _action_rows(self, arms: list[str], actions: dict, size: int) -> np.ndarray:
+        """The actions of `arms` as rows (zeros for an arm that did not act); a wrong size is refused by name."""
+        rows = np.zeros((len(arms), size))
+        for i, a in enumerate(arms):
+            if a in actions:
+                action = np.asarray(actions[a], float).reshape(-1)
+                if action.size != size:
+                    raise ValueError(f"{a}: a {self.action_mode} action has {size} entries, got {action.size}")
+                rows[i] = action
+        return rows
 
     def _task_rewards(self, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
         if self.chooser is None:

@@ -62,12 +62,11 @@ def main(argv: list[str] | None = None) -> int:
                             translator.reset(msg.values)
                             q, opening = translator.q_target, translator.opening
                         else:
-                            targets = translator.apply(msg.values)
-                            q, opening = targets.q, targets.gripper_opening
+                            q, opening = translator.apply(msg.values)
                     except ValueError as exc:  # wrong action size: refused, counted, never a crash
                         drops.drop(key, str(exc))
                         continue
-                    pub.put(encode(EnvTargets(args.arm, msg.seq, tuple(float(v) for v in q), float(opening))))
+                    pub.put(encode(EnvTargets(args.arm, msg.seq, tuple(q[0].tolist()), float(opening[0]))))  # this arm: row 0
                     answered += 1
         finally:
             sub.undeclare()

@@ -93,15 +93,18 @@ class SimArm:
         n = self.spec.arm_dof
         position, velocity = np.asarray(arm_q, float).tolist(), np.asarray(arm_dq, float).tolist()
         gripper = list(map(float, gripper_q))
-        for joint, new, old in zip(self.joints, position, self._position_targets):
-            if new != old:
-                joint.set_drive_target(new)
-        for joint, new, old in zip(self.joints, velocity, self._velocity_targets):
-            if new != old:
-                joint.set_drive_velocity_target(new)
-        for joint, new, old in zip(self.joints[n:], gripper, self._gripper_targets):
-            if new != old:
-                joint.set_drive_target(new)
+        if position != self._position_targets:  # one comparison of lists before any per-joint one
+            for joint, new, old in zip(self.joints, position, self._position_targets):
+                if new != old:
+                    joint.set_drive_target(new)
+        if velocity != self._velocity_targets:
+            for joint, new, old in zip(self.joints, velocity, self._velocity_targets):
+                if new != old:
+                    joint.set_drive_velocity_target(new)
+        if gripper != self._gripper_targets:
+            for joint, new, old in zip(self.joints[n:], gripper, self._gripper_targets):
+                if new != old:
+                    joint.set_drive_target(new)
         self._position_targets, self._velocity_targets, self._gripper_targets = position, velocity, gripper
 
     def written_targets(self) -> tuple[list[float], list[float], list[float]]:

@@ -38,7 +38,7 @@ class ScriptedPick:
         info = env.world.part_info(env.task_model.part[a])
         surface = env.task_model.start_z[a]
         grasp_z = max(surface + info.height_m / 2, surface + self.tip + 0.004)
-        q_now = env.translators[a].q_target
+        q_now = env.joint_targets(a)
         goal, opening, yaw = None, 1.0, self._yaw(info)
         if self.phase == "above":
             goal = np.array([info.position[0], info.position[1], grasp_z + 0.08])
