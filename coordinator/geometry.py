@@ -137,7 +137,6 @@ class ArmGeometry:
         self.km = model or KinematicModel(spec)
         self.base_to_world = np.asarray(transform_base_to_world, float)
         self.shapes = link_shapes(spec)
-        self._frame_ids = [self.km.frame_id(s.link) for s in self.shapes]
         self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
         self._placed = PlacedFrames(self.km, self.base_to_world, [(s.link, s.transform_shape_to_link) for s in self.shapes])
         self.radii_m = np.array([s.radius_m for s in self.shapes])
@@ -159,10 +158,11 @@ class ArmGeometry:
         the farthest shape origin plus that shape's radius, and 5 cm to spare for configurations not drawn."""
         rng = np.random.default_rng(seed)
         lower, upper = self.km.lower[self.km.arm_q_index], self.km.upper[self.km.arm_q_index]
+        base = self.base_to_world[:3, 3]
         far = 0.0
         for _ in range(samples):
-            poses = self.km.frame_poses(self.km.full_q(rng.uniform(lower, upper)), self._frame_ids)
-            far = max(far, max(float(np.linalg.norm((p @ s.transform_shape_to_link)[:3, 3])) + s.radius_m for p, s in zip(poses, self.shapes)))
+            origins = self._placed.poses(self.km.full_q(rng.uniform(lower, upper)))[:, :3, 3]
+            far = max(far, float((np.linalg.norm(origins - base, axis=1) + self.radii_m).max()))
         return far + 0.05
 
     def place(self, q_arm: np.ndarray) -> None:

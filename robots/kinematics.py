@@ -86,11 +86,6 @@ class KinematicModel:
             if f.type == pin.FrameType.BODY
         }
 
-    def frame_poses(self, q: np.ndarray, frame_ids: list[int]) -> list[np.ndarray]:
-        """4x4 base-frame poses of the given frames, from one forward-kinematics pass."""
-        pin.forwardKinematics(self.model, self.data, q)
-        return [pin.updateFramePlacement(self.model, self.data, fid).homogeneous for fid in frame_ids]
-
     def frame_jacobian(self, q: np.ndarray, frame: str | int | None = None) -> np.ndarray:
         """6 x nv Jacobian of a frame, expressed in a frame at the frame's origin aligned with the base (linear; angular)."""
         fid = self.tool_frame_id if frame is None else (frame if isinstance(frame, int) else self.frame_id(frame))
@@ -114,7 +109,6 @@ class PlacedFrames:
 
     def __init__(self, km: KinematicModel, transform_base_to_world: np.ndarray, frames: list[tuple[str, np.ndarray]]) -> None:
         """`frames`: (link name, `transform_frame_to_link`) for each pose, in the order `poses` returns them."""
-        self.km = km
         self.model = pin.Model(km.model)
         base = _se3(transform_base_to_world)
         for joint in range(1, self.model.njoints):  # joints hanging from the root move with the base
@@ -135,4 +129,3 @@ class PlacedFrames:
         pin.forwardKinematics(self.model, self.data, q)
         update, model, data = pin.updateFramePlacement, self.model, self.data
         return np.array([update(model, data, fid).homogeneous for fid in self.frame_ids])
-

@@ -153,11 +153,12 @@ class CellParallelEnv(ParallelEnv):
         self.cycles = 0
         self.task_model.home_tool = self._tools()
         self.task_model.reset(self.world, self.np_random)
+        start_q = {a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents}
         for uid, translator in self.translators.items():
-            translator.reset(np.array([self.world.arms[a].qpos()[: self._dof[a]] for a in self._arms_of_model[uid]]))
+            translator.reset(np.array([start_q[a] for a in self._arms_of_model[uid]]))
         self._commanded_opening = {a: 1.0 for a in self.possible_agents}
         if self.actuator is not None:
-            self.actuator.reset({a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents})
+            self.actuator.reset(start_q)
         if self.chooser is not None:
             self.chooser.reset(self.task_model.book.dispatcher)
         self._options = self.chooser.choices() if self.chooser else {}
