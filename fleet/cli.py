@@ -623,7 +623,7 @@ def cmd_bench_lines(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_env(args: argparse.Namespace) -> int:
-    from fleet.env.bench import bench_env, bench_vector
+    from fleet.env.bench import bench_env, bench_robosuite, bench_vector
 
     if args.vector:
         table = Table("cells", "worker processes", "arms per cell", "task", "agent-steps/s", "against 1 cell in process")
@@ -634,13 +634,22 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
                           f"{r.agent_steps_per_s / rows[0].agent_steps_per_s:.2f}x")
         return print_bench(table, rows, args.json)
 
-    table = Table("arms", "task", "agent-steps/s", "env steps/s", "env time / raw physics")
+    baseline = [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []  # before and after: drift hits both
     rows = [bench_env(n, task, args.steps, distributed=args.distributed) for task in args.tasks for n in args.arms]
+    baseline += [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []
+    robosuite_rate = sum(b.agent_steps_per_s for b in baseline) / len(baseline) if baseline else None
+    table = Table("arms", "task", "agent-steps/s", "env steps/s", "env time / raw physics", *(["against robosuite"] if baseline else []))
     for r in rows:
-        table.add_row(str(r.arms), r.task, f"{r.agent_steps_per_s:,.0f}", f"{r.steps / r.env_s:,.0f}", f"{r.ratio_to_physics:.2f}")
+        table.add_row(str(r.arms), r.task, f"{r.agent_steps_per_s:,.0f}", f"{r.steps / r.env_s:,.0f}", f"{r.ratio_to_physics:.2f}",
+                      *([f"{r.agent_steps_per_s / robosuite_rate:.1f}x"] if baseline else []))
     out.print(table)
+    if baseline:
+        b = baseline[0]
+        out.print(f"robosuite {b.robosuite} {b.task} ({b.arms} Pandas, MuJoCo {b.mujoco}): "
+                  + ", ".join(f"{x.agent_steps_per_s:,.0f}" for x in baseline) + " agent-steps/s (before, after)")
     if args.json:
-        print(json.dumps([r.__dict__ | {"agent_steps_per_s": r.agent_steps_per_s, "ratio_to_physics": r.ratio_to_physics} for r in rows]))
+        env_rows = [r.__dict__ | {"agent_steps_per_s": r.agent_steps_per_s, "ratio_to_physics": r.ratio_to_physics} for r in rows]
+        print(json.dumps(env_rows if not baseline else {"env": env_rows, "robosuite": [b.__dict__ for b in baseline]}))
     return 0
 
 
@@ -816,6 +825,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--steps", type=int, default=400)
     b.add_argument("--distributed", action="store_true", help="actions through Zenoh to one process per arm")
     b.add_argument("--vector", type=int, nargs="+", metavar="N", help="N cells at once in worker processes (SuperSuit), against one in process")
+    b.add_argument("--robosuite", metavar="PYTHON", help="also time robosuite's TwoArmLift with this interpreter (one that has robosuite; "
+                   "docs/benchmarks.md says how to make one) before and after, and give each row's agent-steps/s against it")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_env)
     return parser

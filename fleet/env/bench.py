@@ -11,8 +11,11 @@ env's, so a machine whose speed drifts during the run slows both sides alike.
 
 from __future__ import annotations
 
+import json
+import subprocess
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -116,3 +119,36 @@ def bench_vector(cells: int, cpus: int, arms: int = 4, task: str = "reach", step
     finally:
         venv.close()
     return VectorRow(cells, cpus, arms, task, steps, steps * obs.shape[0], wall)
+
+
+class BaselineUnavailable(RuntimeError):
+    """The robosuite baseline could not be measured with the interpreter given (one line: why)."""
+
+
+@dataclass(frozen=True)
+class RobosuiteRow:
+    task: str
+    arms: int
+    steps: int
+    agent_steps_per_s: float
+    robosuite: str
+    mujoco: str
+
+
+ROBOSUITE_BASELINE = Path(__file__).with_name("robosuite_baseline.py")  # run as a file: it imports nothing of clawfleet
+
+
+def bench_robosuite(python: str, steps: int = 400, seed: int = 0, timeout_s: float = 600.0) -> RobosuiteRow:
+    """robosuite's TwoArmLift stepped by `python` (an interpreter that has robosuite), in this process's CPU set."""
+    try:
+        done = subprocess.run([python, str(ROBOSUITE_BASELINE), "--steps", str(steps), "--seed", str(seed)],
+                              capture_output=True, text=True, timeout=timeout_s, stdin=subprocess.DEVNULL)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise BaselineUnavailable(f"the robosuite baseline could not run with {python}: {exc}") from None
+    lines = [line for line in done.stdout.splitlines() if line.startswith("{")]  # robosuite logs to stdout too
+    if done.returncode != 0 or not lines:
+        why = (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
+        raise BaselineUnavailable(f"the robosuite baseline failed with {python}: {why}")
+    r = json.loads(lines[-1])
+    return RobosuiteRow(r["task"], r["arms"], r["steps"], r["agent_steps_per_s"], r["robosuite"], r["mujoco"])
+

@@ -127,3 +127,14 @@ def test_run_refuses_bad_hosts_and_bus_config_flags_with_one_line(tmp_path):
     hosts.write_text("nodes:\n  sim: no_such_namespace\n")
     result = fleet("run", "pick_cell", "--bus-config", str(bus), "--hosts", str(hosts))
     assert result.returncode == 2 and "nodes.sim: no network namespace 'no_such_namespace'" in result.stderr
+
+
+@pytest.mark.parametrize("python, says", [(sys.executable, "robosuite cannot be imported"), ("/nonexistent/python3", "could not run")])
+def test_bench_env_against_robosuite_without_it_is_one_line_before_any_env_runs(python, says):
+    """This environment has no robosuite (it cannot: docs/benchmarks.md makes a second one); the baseline runs
+    first, so a wrong interpreter is said at once."""
+    result = fleet("bench", "env", "--arms", "2", "--tasks", "reach", "--steps", "2000", "--robosuite", python, timeout=120)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and says in lines[0] and python in lines[0], result.stderr
+    assert "agent-steps/s" not in result.stdout  # no env row was timed
