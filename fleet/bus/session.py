@@ -131,6 +131,8 @@ class Tap:
     """Subscribers whose samples queue inside Zenoh (no Python callback per sample: a busy reader never slows the
     publishers), drained in batches in publish order (their HLC timestamps). Use in a `with` block."""
 
+    ended = False  # a bus has no end of its own (a spool has: `SpoolReader.ended`); its reader's stop ends it
+
     def __init__(self, session: zenoh.Session, key_exprs: list[str], capacity: int = 1 << 16) -> None:
         self._subs = [session.declare_subscriber(k, zenoh.handlers.FifoChannel(capacity)) for k in key_exprs]
 

@@ -42,6 +42,8 @@ HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond,
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too (until a drain finds none)
 DRAIN_GRACE_EVERY_S = 0.02
 RECORDER_NICENESS = 5
+TAIL_WORKERS = 2  # processes that write the held messages once the line is over
+SUMMARY_POLL_S = 0.01
 
 
 def yield_cpu(niceness: int) -> None:
@@ -101,7 +103,10 @@ def catch_up(recording: LazyRecording, backlog: deque) -> bool:
 
 
 class Source(Protocol):
-    """Where the recorder hears the run: a tap on the bus (`Tap`), or the sim's spool file (`SpoolReader`)."""
+    """Where the recorder hears the run: a tap on the bus (`Tap`), or the sim's spool file (`SpoolReader`).
+    `ended`: nothing more will come (the spool's end mark, written as the sim's loop ends; a tap never ends)."""
+
+    ended: bool
 
     def drain(self) -> list[tuple[str, bytes]]: ...
 
@@ -109,6 +114,8 @@ class Source(Protocol):
 def drain_to_the_end(source: Source) -> list[tuple[str, bytes]]:
     """After a stop: what is still on its way, until a drain finds nothing new (at most `DRAIN_GRACE_S`)."""
     heard = source.drain()
+    if source.ended:
+        return heard
     until = time.monotonic() + DRAIN_GRACE_S
     while time.monotonic() < until:
         time.sleep(DRAIN_GRACE_EVERY_S)
@@ -143,13 +150,18 @@ def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, s
             run_on_idle_cpu(not quiet)  # quiet: the run now waits on the file
             if not hold or len(backlog) > HOLD_AT_MOST:  # as it comes (a realtime line leaves time), or a long run
                 take(recording, backlog, len(backlog) if not hold else len(backlog) - HOLD_AT_MOST // 2)
+            if source.ended:
+                break  # the sim's loop is over: write the rest now, while the launcher stops the line
             if quiet and catch_up(recording, backlog):
                 continue  # the line is quiet (paused, or over; heartbeats go on): write what was held back meanwhile
             time.sleep(DRAIN_EVERY_S if heard_line else READY_EVERY_S)  # a batch at a time
         run_on_idle_cpu(False)
         backlog.extend(drain_to_the_end(source))
-        take(recording, backlog, len(backlog))
         recorder = recording.recorder
+        recorder.take_all(list(backlog), workers=TAIL_WORKERS)  # the line is over: both cores are free
+        backlog.clear()
+        while not stop.should_stop():  # the launcher says stop once the summary is written
+            time.sleep(SUMMARY_POLL_S)
         recorder.finish(read_summary(summary_file))
     finally:
         recording.close()

@@ -82,9 +82,12 @@ class RecordingWriter:
 
     def ros(self, topic: str, message: object, stamp_ns: int, latched: bool = False) -> None:
         """A ROS 2 message (a typestore object) on `topic`."""
-        typename = message.__msgtype__
+        self.ros_bytes(topic, message.__msgtype__, serialize(message), stamp_ns, latched)
+
+    def ros_bytes(self, topic: str, typename: str, cdr: bytes, stamp_ns: int, latched: bool = False) -> None:
+        """A ROS 2 message already serialised (CDR) on `topic`."""
         channel = self._channel(topic, "cdr", self._schema(typename), {"offered_qos_profiles": qos_profile(latched)})
-        self._add(channel, stamp_ns, serialize(message))
+        self._add(channel, stamp_ns, cdr)
 
     def raw(self, key: str, message_type: str, payload: bytes, stamp_ns: int) -> None:
         """The bytes of one bus message as they crossed the bus, on the channel named by its key."""

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
@@ -21,6 +23,7 @@ from fleet.bus.messages import (
 )
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.mcap_file import RecordingWriter
+from fleet.record.forked_build import LaterInChild, serialized
 from fleet.record.ros_types import ros_type, sim_ns, to_ros
 from scenes.schema import Scene
 
@@ -38,6 +41,21 @@ SEMANTIC_TOPICS = {  # bus message type -> ROS topic (arm ones under /<arm>)
     GoalResultMsg: "goal_results", Assignment: "assignments", MotionGrant: "grants", ArmStatus: "status",
     Progress: "/line/progress", SimStatus: "/line/sim_status", Separations: "/line/separations",
 }
+
+
+PARALLEL_AT_LEAST = 2000  # ROS messages to build before a second process pays for its start
+OWN_SHARE = 0.4  # of them built here (this process also writes every record), the rest in the forked child
+
+
+@dataclass
+class Heard:
+    """One heard bus message, decoded and stamped: the raw record, and the ROS topics it feeds (topic, maker)."""
+
+    key: str
+    message_type: str
+    payload: bytes
+    stamp_ns: int
+    derived: list[tuple[str, Callable[[], object]]] = field(default_factory=list)
 
 
 @dataclass
@@ -95,18 +113,44 @@ class Recorder:
 
     def take(self, key: str, payload: bytes) -> None:
         """Record one heard message: raw (always, even one that does not decode), and its ROS topics."""
+        heard = self._plan(key, payload)
+        self._write(heard, [serialized(make) for _, make in heard.derived])
+
+    def take_all(self, messages: list[tuple[str, bytes]], workers: int = 1) -> None:
+        """Record many heard messages (the same file as `take` on each, to the byte). With `workers` > 1 and enough
+        of them, a forked process builds and serialises the later ROS topics while this one does the earlier."""
+        planned = [self._plan(key, payload) for key, payload in messages]
+        makers = [make for heard in planned for _, make in heard.derived]
+        split = len(makers) if workers <= 1 or len(makers) < PARALLEL_AT_LEAST else round(len(makers) * OWN_SHARE)
+        with LaterInChild(makers, split) as later:
+            built = [serialized(make) for make in makers[:split]]
+            at = 0
+            for heard in planned:
+                n = len(heard.derived)
+                if at + n > len(built):
+                    built += later.collect()
+                self._write(heard, built[at : at + n])
+                at += n
+
+    def _plan(self, key: str, payload: bytes) -> "Heard":
+        """Decode and stamp one message, and say which ROS topics it makes (built later: `serialized`)."""
         message_type = self.message_type(key)
         message = self._decode(key, message_type, payload)
         stamp_s = self._stamp_s(message) if message is not None else self.now_s
         self.now_s = max(self.now_s, stamp_s)
-        stamp = sim_ns(stamp_s)
         type_name = getattr(type(message), "__name__", "") if message is not None else ""
-        self.writer.raw(key, type_name or getattr(message_type, "__name__", "") or "unknown", payload, stamp)
+        heard = Heard(key, type_name or getattr(message_type, "__name__", "") or "unknown", payload, sim_ns(stamp_s))
         self.stats.by_key[key] += 1
         if message is None:
             self.stats.undecodable += 1
         else:
-            self._derive(message, stamp)
+            heard.derived = self._derived(message)
+        return heard
+
+    def _write(self, heard: "Heard", built: list[tuple[str, bytes]]) -> None:
+        self.writer.raw(heard.key, heard.message_type, heard.payload, heard.stamp_ns)
+        for (topic, _), (typename, data) in zip(heard.derived, built):
+            self.writer.ros_bytes(topic, typename, data, heard.stamp_ns)
 
     def _is_new(self, stream: str, tick: int) -> bool:
         """A state or frame not seen before (the sim re-sends one while it waits for its answer)."""
@@ -115,16 +159,18 @@ class Recorder:
         self._last_tick[stream] = tick
         return True
 
-    def _derive(self, message: object, stamp: int) -> None:
-        w = self.writer
+    def _derived(self, message: object) -> list[tuple[str, Callable[[], object]]]:
+        """(topic, what makes its ROS message) for each ROS topic this bus message feeds."""
+        out: list[tuple[str, Callable[[], object]]] = []
         if isinstance(message, ArmState) and message.arm in self.ros.arms and self._is_new(message.arm, message.tick):
-            w.ros(f"/{message.arm}/joint_states", self.ros.joint_state(message), stamp)
+            out.append((f"/{message.arm}/joint_states", partial(self.ros.joint_state, message)))
         elif isinstance(message, LineView) and self._is_new("", message.tick):
-            w.ros("/tf", self.ros.tf([a for a in message.arms if a.arm in self.ros.arms]), stamp)
-            w.ros("/parts", self.ros.parts_markers(message.parts), stamp)
+            out.append(("/tf", partial(self.ros.tf, [a for a in message.arms if a.arm in self.ros.arms])))
+            out.append(("/parts", partial(self.ros.parts_markers, message.parts)))
         topic = SEMANTIC_TOPICS.get(type(message))
         if topic is not None:
-            w.ros(topic if topic.startswith("/") else f"/{message.arm}/{topic}", to_ros(message), stamp)
+            out.append((topic if topic.startswith("/") else f"/{message.arm}/{topic}", partial(to_ros, message)))
+        return out
 
     def finish(self, summary: dict | None) -> None:
         """The run's summary (latched, at the last sim time heard), then the file's index."""

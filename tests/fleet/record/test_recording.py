@@ -21,7 +21,9 @@ from fleet.bus.messages import ArmState
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session, open_session
 from fleet.launcher import Launcher, RunOptions
 from fleet.processes import StopFlag
-from fleet.record.mcap_file import Recording
+from fleet.record import recorder as recorder_module
+from fleet.record.mcap_file import Recording, RecordingWriter
+from fleet.record.recorder import Recorder
 from fleet.record.replay import Player
 from fleet.record.report import series_from_recording, write_report
 from tests.fleet.record.tf_tree import up_to_root
@@ -178,6 +180,32 @@ def test_the_same_seed_records_the_same_messages(recorded):
         ma = [(m.log_time, m.data) for _, m, _ in a.messages([topic])]
         mb = [(m.log_time, m.data) for _, m, _ in b.messages([topic])]
         assert ma == mb, topic
+
+
+def rewrite(source: Path, out: Path, workers: int | None) -> None:
+    """The source's raw messages recorded again: one at a time (`workers` None), or all at once by `workers`."""
+    recording = Recording(source)
+    heard = [(m.key, m.payload) for m in recording.raw_messages()]
+    with RecordingWriter(out, recording.scene_json, recording.run_id) as writer:
+        recorder = Recorder(writer, recording.scene, Keys(recording.run_id))
+        if workers is None:
+            for key, payload in heard:
+                recorder.take(key, payload)
+        else:
+            recorder.take_all(heard, workers=workers)
+        recorder.finish(None)
+
+
+def test_a_forked_builder_writes_the_same_file_as_one_message_at_a_time(recorded, tmp_path, monkeypatch):
+    _, first, _, _ = recorded
+    monkeypatch.setattr(recorder_module, "PARALLEL_AT_LEAST", 1)  # a short run: fork even for a few messages
+    one, forked = tmp_path / "one.mcap", tmp_path / "forked.mcap"
+    rewrite(first, one, None)
+    rewrite(first, forked, 2)
+    assert one.read_bytes() == forked.read_bytes()
+    again = Recording(forked)
+    assert again.message_counts["/tf"] == Recording(first).message_counts["/tf"] > 50
+    assert [m.data for _, m, _ in again.messages(["/tf"])] == [m.data for _, m, _ in Recording(first).messages(["/tf"])]
 
 
 def test_replay_drives_a_subscriber_with_the_recorded_sequence(recorded):

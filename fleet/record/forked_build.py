@@ -1,0 +1,66 @@
+"""ROS messages built and serialised in a forked process while the recorder builds others: once a lockstep line
+is over, both cores are free and the recorder's held backlog is what the run still waits on.
+
+Forked (not spawned), so the child has the makers (closures over decoded bus messages and the arms' Pinocchio
+models) without pickling them, and only CDR bytes come back; the recorder forks only where it holds no bus
+session (it reads the sim's spool), so no Zenoh thread is forked.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+
+from fleet.processes import die_with_parent
+from fleet.record.ros_types import serialize
+
+
+def serialized(make: Callable[[], object]) -> tuple[str, bytes]:
+    """(ROS type name, CDR bytes) of the message `make` builds."""
+    message = make()
+    return message.__msgtype__, serialize(message)
+
+
+class LaterInChild:
+    """`makers[split:]` built and serialised in a forked process while the caller builds the rest; `collect()`
+    waits for them (in order). Use in a `with` block: the child is gone on leaving it."""
+
+    def __init__(self, makers: list[Callable[[], object]], split: int) -> None:
+        self._later = None
+        self._executor = None
+        if split < len(makers):
+            global _CHILD_MAKERS
+            _CHILD_MAKERS = makers
+            self._executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"), initializer=_child_start)
+            self._later = self._executor.submit(_serialize_slice, split, len(makers))
+
+    def __enter__(self) -> "LaterInChild":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        global _CHILD_MAKERS
+        _CHILD_MAKERS = []
+        if self._executor is not None:
+            self._executor.shutdown(cancel_futures=True)
+
+    def collect(self) -> list[tuple[str, bytes]]:
+        if self._later is None:
+            raise RuntimeError("nothing is built in a child")
+        built, self._later = self._later.result(), None
+        return built
+
+
+_CHILD_MAKERS: list[Callable[[], object]] = []  # what a forked child builds (set just before the fork)
+
+
+def _child_start() -> None:
+    """The child dies with the recorder (the parent's SIGTERM handler, inherited, would only set a flag)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    die_with_parent()
+
+
+def _serialize_slice(start: int, stop: int) -> list[tuple[str, bytes]]:
+    return [serialized(make) for make in _CHILD_MAKERS[start:stop]]
