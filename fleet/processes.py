@@ -42,10 +42,10 @@ def _prctl(option: int, value: int | bytes) -> None:
             pass
 
 
-def die_with_parent() -> None:
-    """Ask Linux to send this process SIGTERM when its parent dies (nothing elsewhere): no orphan outlives a
+def die_with_parent(signum: int = signal.SIGTERM) -> None:
+    """Ask Linux to send this process `signum` when its parent dies (nothing elsewhere): no orphan outlives a
     killed parent, and a SIGTERM handler still gets to stop what this process started."""
-    _prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    _prctl(PR_SET_PDEATHSIG, signum)
 
 
 def name_this_process(name: str) -> None:

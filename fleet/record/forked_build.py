@@ -56,10 +56,11 @@ _CHILD_MAKERS: list[Callable[[], object]] = []  # what a forked child builds (se
 
 
 def _child_start() -> None:
-    """The child dies with the recorder (the parent's SIGTERM handler, inherited, would only set a flag)."""
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    die_with_parent()
+    """The child outlives no recorder, and only the recorder stops it: a stop said to the recorder's process group
+    (Ctrl-C, the launcher's SIGTERM while the backlog is written) must not take the child's half with it."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(signal.SIGKILL)
 
 
 def _serialize_slice(start: int, stop: int) -> list[tuple[str, bytes]]:
