@@ -11,10 +11,13 @@ from __future__ import annotations
 import multiprocessing
 import signal
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from collections import deque
+from concurrent.futures import Future, ProcessPoolExecutor
 
 from fleet.processes import die_with_parent
 from fleet.record.ros_types import serialize
+
+SLICES = 4  # the child's share comes back in this many pieces
 
 
 def serialized(make: Callable[[], object]) -> tuple[str, bytes]:
@@ -25,16 +28,17 @@ def serialized(make: Callable[[], object]) -> tuple[str, bytes]:
 
 class LaterInChild:
     """`makers[split:]` built and serialised in a forked process while the caller builds the rest; `collect()`
-    waits for them (in order). Use in a `with` block: the child is gone on leaving it."""
+    gives them back a slice at a time, in order. Use in a `with` block: the child is gone on leaving it."""
 
-    def __init__(self, makers: list[Callable[[], object]], split: int) -> None:
-        self._later = None
+    def __init__(self, makers: list[Callable[[], object]], split: int, slices: int = SLICES) -> None:
+        self._later: deque[Future] = deque()
         self._executor = None
         if split < len(makers):
             global _CHILD_MAKERS
             _CHILD_MAKERS = makers
             self._executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"), initializer=_child_start)
-            self._later = self._executor.submit(_serialize_slice, split, len(makers))
+            step = max(1, -(-(len(makers) - split) // slices))
+            self._later.extend(self._executor.submit(_serialize_slice, a, min(a + step, len(makers))) for a in range(split, len(makers), step))
 
     def __enter__(self) -> "LaterInChild":
         return self
@@ -46,10 +50,11 @@ class LaterInChild:
             self._executor.shutdown(cancel_futures=True)
 
     def collect(self) -> list[tuple[str, bytes]]:
-        if self._later is None:
-            raise RuntimeError("nothing is built in a child")
-        built, self._later = self._later.result(), None
-        return built
+        """The next slice of the child's share, in order (each comes as soon as it is built: the caller writes one
+        while the child builds the next)."""
+        if not self._later:
+            raise RuntimeError("nothing more is built in the child")
+        return self._later.popleft().result()
 
 
 _CHILD_MAKERS: list[Callable[[], object]] = []  # what a forked child builds (set just before the fork)

@@ -127,7 +127,7 @@ class Recorder:
             at = 0
             for heard in planned:
                 n = len(heard.derived)
-                if at + n > len(built):
+                while at + n > len(built):
                     built += later.collect()
                 self._write(heard, built[at : at + n])
                 at += n
