@@ -241,39 +241,45 @@ def bench_monitor(scene: str = "sorting_line", arms: int | None = 4, sim_seconds
 
 @dataclass
 class RecordRow:
-    """Lockstep runs without and with a recording: medians of the sim loop's and the whole run's wall time."""
+    """Lockstep runs without and with a recording: medians of the sim loop's wall time, the run's (from the first
+    tick's wait to the finished file: `wall_seconds` of the summary) and the whole run's (from starting the
+    processes, the recorder's included, to the finished file)."""
 
     variant: str
     loop_wall_seconds: float
     run_wall_seconds: float
+    whole_wall_seconds: float
     loop_ratio: float
     run_ratio: float
+    whole_ratio: float
     mb_per_sim_minute: float | None
     messages_per_sim_s: float | None
 
 
 def bench_record(scene: str = "assembly_line", arms: int | None = None, sim_seconds: float = 60.0, repeats: int = 3) -> list[RecordRow]:
     """`fleet run` against `fleet run --record`, interleaved: what recording costs, and how big the file grows."""
-    walls: dict[str, list[tuple[float, float]]] = {"plain": [], "recorded": []}
+    walls: dict[str, list[tuple[float, float, float]]] = {"plain": [], "recorded": []}
     sizes, messages = [], []
     with tempfile.TemporaryDirectory(prefix="clawfleet-bench-record-") as tmp:
         for i in range(repeats):
             for variant in walls:
                 path = Path(tmp) / f"run{i}.mcap" if variant == "recorded" else None
                 options = RunOptions(scene=scene, arms=arms, duration_s=sim_seconds, run_id="benchrecord", record=str(path) if path else None)
+                started = time.monotonic()
                 with Launcher(options, on_message=lambda _text: None) as launcher:
                     summary = launcher.run()
+                whole_s = time.monotonic() - started
                 if summary["status"] != "ok" or (path and not summary.get("recording")):
                     raise RuntimeError(f"the benchmark run failed: {summary['error'] or 'no recording'}")
-                walls[variant].append((summary["loop_wall_seconds"], summary["wall_seconds"]))
+                walls[variant].append((summary["loop_wall_seconds"], summary["wall_seconds"], whole_s))
                 if path:
                     sizes.append(summary["recording"]["bytes"] / 1e6 / (summary["sim_seconds"] / 60.0))
                     messages.append(summary["recording"]["messages_written"] / summary["sim_seconds"])
-    loop0, run0 = (float(np.median([w[k] for w in walls["plain"]])) for k in (0, 1))
+    plain = [float(np.median([w[k] for w in walls["plain"]])) for k in range(3)]
     rows = []
     for variant, w in walls.items():
-        loop, run = float(np.median([x[0] for x in w])), float(np.median([x[1] for x in w]))
+        medians = [float(np.median([x[k] for x in w])) for k in range(3)]
         recorded = variant == "recorded"
-        rows.append(RecordRow(variant, loop, run, loop / loop0, run / run0, float(np.median(sizes)) if recorded else None,
+        rows.append(RecordRow(variant, *medians, *(m / p for m, p in zip(medians, plain)), float(np.median(sizes)) if recorded else None,
                               float(np.median(messages)) if recorded else None))
     return rows
