@@ -42,7 +42,7 @@ HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond,
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too (until a drain finds none)
 DRAIN_GRACE_EVERY_S = 0.02
 RECORDER_NICENESS = 5
-TAIL_WORKERS = 2  # processes that write the held messages once the line is over
+TAIL_WORKERS = 2  # processes that write the held messages once the line is over (reading a spool: no session to fork)
 SUMMARY_POLL_S = 0.01
 
 
@@ -127,10 +127,11 @@ def drain_to_the_end(source: Source) -> list[tuple[str, bytes]]:
 
 
 def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, summary_file: str | None, hold: bool = False,
-           say_ready: Callable[[], None] | None = None) -> dict:
+           say_ready: Callable[[], None] | None = None, tail_workers: int = 1) -> dict:
     """Record until `stop`; the figures of the recording. `hold`: keep what is heard in memory while the line is
     busy and write it when it is quiet or over (a lockstep line at full speed leaves no CPU to spare). `say_ready`:
-    said every `READY_EVERY_S` until the line is heard (a sim told to await a recorder starts then)."""
+    said every `READY_EVERY_S` until the line is heard (a sim told to await a recorder starts then). `tail_workers`:
+    processes that write what is held once the line is over (more than one forks: only where no bus session is open)."""
     started = time.monotonic()
     recording = LazyRecording(out, scene, keys)
     try:
@@ -158,7 +159,7 @@ def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, s
         run_on_idle_cpu(False)
         backlog.extend(drain_to_the_end(source))
         recorder = recording.recorder
-        recorder.take_all(list(backlog), workers=TAIL_WORKERS)  # the line is over: both cores are free
+        recorder.take_all(list(backlog), workers=tail_workers)  # the line is over: both cores are free
         backlog.clear()
         while not stop.should_stop():  # the launcher says stop once the summary is written
             time.sleep(SUMMARY_POLL_S)
@@ -193,7 +194,7 @@ def record_spool(path: str, out: str, stop: StopFlag, timeout_s: float, summary_
         if header is None:
             raise SceneUnavailable(f"the sim wrote no spool to {path} within {timeout_s:g} s")
         scene = run_scene(header.scene_json, header.run_id)
-        return record(reader, scene, Keys(header.run_id), out, stop, summary_file, hold)
+        return record(reader, scene, Keys(header.run_id), out, stop, summary_file, hold, tail_workers=TAIL_WORKERS)
     finally:
         reader.close()
 

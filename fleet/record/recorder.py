@@ -132,7 +132,7 @@ class Recorder:
                 self._write(heard, built[at : at + n])
                 at += n
 
-    def _plan(self, key: str, payload: bytes) -> "Heard":
+    def _plan(self, key: str, payload: bytes) -> Heard:
         """Decode and stamp one message, and say which ROS topics it makes (built later: `serialized`)."""
         message_type = self.message_type(key)
         message = self._decode(key, message_type, payload)
@@ -147,7 +147,7 @@ class Recorder:
             heard.derived = self._derived(message)
         return heard
 
-    def _write(self, heard: "Heard", built: list[tuple[str, bytes]]) -> None:
+    def _write(self, heard: Heard, built: list[tuple[str, bytes]]) -> None:
         self.writer.raw(heard.key, heard.message_type, heard.payload, heard.stamp_ns)
         for (topic, _), (typename, data) in zip(heard.derived, built):
             self.writer.ros_bytes(topic, typename, data, heard.stamp_ns)
