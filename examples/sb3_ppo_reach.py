@@ -15,6 +15,7 @@ import numpy as np
 import supersuit
 import torch
 from stable_baselines3 import PPO
+from stable_baselines3.common.logger import Logger
 
 from fleet.env import parallel_env
 
@@ -54,6 +55,7 @@ def main() -> int:
     try:
         torch.manual_seed(args.seed)  # SuperSuit's SB3 vector env has no seed(): PPO(seed=...) would call it
         model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=min(256, args.n_steps * venv.num_envs), verbose=0)
+        model.set_logger(Logger(folder=None, output_formats=[]))  # SB3's default makes an empty SB3-<time> folder in /tmp
         before = mean_return(model, args.arms, args.max_cycles, seed=1000)
         start = time.perf_counter()
         model.learn(total_timesteps=args.timesteps)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -36,12 +37,13 @@ class RemoteArmsError(RuntimeError):
     """An arm's process did not answer; the message names it."""
 
 
-def _stop(procs: list[ChildProcess], session) -> None:
+def _stop(procs: list[ChildProcess], session, logs: Path) -> None:
     stop_children(procs, grace_s=5.0)
     try:
         session.close()
     except Exception:  # already closed
         pass
+    shutil.rmtree(logs, ignore_errors=True)  # the processes' logs (an error quoted their last line already)
 
 
 class RemoteActuators:
@@ -67,7 +69,7 @@ class RemoteActuators:
             if n_arms is not None:
                 argv += ["--arms", str(n_arms)]
             self.procs[arm] = ChildProcess(argv, self._logs / f"{arm}.log").start()
-        self._finalizer = weakref.finalize(self, _stop, list(self.procs.values()), self.session)
+        self._finalizer = weakref.finalize(self, _stop, list(self.procs.values()), self.session, self._logs)
         self.seq = 0
 
     def reset(self, q_by_arm: dict[str, np.ndarray]) -> None:

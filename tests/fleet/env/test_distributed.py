@@ -32,12 +32,13 @@ def test_the_bus_path_gives_the_same_observations_and_rewards_as_in_process(mode
         remote.close()
 
 
-def test_closing_stops_every_arm_process_and_frees_the_bus_port():
+def test_closing_stops_every_arm_process_frees_the_bus_port_and_leaves_no_log_folder():
     env = parallel_env(task="reach", n_arms=2, max_cycles=5, distributed=True)
     env.reset(seed=0)
-    procs, port = list(env.actuator.procs.values()), _port(env.actuator.endpoint)
-    assert len(procs) == 2 and all(p.poll() is None for p in procs)
+    procs, port, logs = list(env.actuator.procs.values()), _port(env.actuator.endpoint), env.actuator._logs
+    assert len(procs) == 2 and all(p.poll() is None for p in procs) and logs.is_dir()
     env.close()
+    assert not logs.exists()
     assert all(p.poll() is not None for p in procs)
     for p in procs:
         with pytest.raises(ProcessLookupError):
