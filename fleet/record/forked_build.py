@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import multiprocessing
 import signal
-from collections.abc import Callable
 from collections import deque
+from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 
 from fleet.processes import die_with_parent
@@ -33,10 +33,9 @@ class LaterInChild:
     def __init__(self, makers: list[Callable[[], object]], split: int, slices: int = SLICES) -> None:
         self._later: deque[Future] = deque()
         self._executor = None
-        if split < len(makers):
-            global _CHILD_MAKERS
-            _CHILD_MAKERS = makers
-            self._executor = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"), initializer=_child_start)
+        if split < len(makers):  # the makers reach the child as the fork's initializer arguments: inherited, not pickled
+            fork = multiprocessing.get_context("fork")
+            self._executor = ProcessPoolExecutor(1, mp_context=fork, initializer=_child_start, initargs=(makers,))
             step = max(1, -(-(len(makers) - split) // slices))
             self._later.extend(self._executor.submit(_serialize_slice, a, min(a + step, len(makers))) for a in range(split, len(makers), step))
 
@@ -44,8 +43,6 @@ class LaterInChild:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        global _CHILD_MAKERS
-        _CHILD_MAKERS = []
         if self._executor is not None:
             self._executor.shutdown(cancel_futures=True)
 
@@ -57,12 +54,15 @@ class LaterInChild:
         return self._later.popleft().result()
 
 
-_CHILD_MAKERS: list[Callable[[], object]] = []  # what a forked child builds (set just before the fork)
+_CHILD_MAKERS: list[Callable[[], object]] = []  # in the forked child only: what it builds
 
 
-def _child_start() -> None:
-    """The child outlives no recorder, and only the recorder stops it: a stop said to the recorder's process group
-    (Ctrl-C, the launcher's SIGTERM while the backlog is written) must not take the child's half with it."""
+def _child_start(makers: list[Callable[[], object]]) -> None:
+    """The child keeps the makers, outlives no recorder, and only the recorder stops it: a stop said to the
+    recorder's process group (Ctrl-C, the launcher's SIGTERM while the backlog is written) must not take the
+    child's half with it."""
+    global _CHILD_MAKERS
+    _CHILD_MAKERS = makers
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent(signal.SIGKILL)

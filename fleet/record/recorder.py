@@ -21,9 +21,9 @@ from fleet.bus.messages import (
     GripperGoalMsg, LineEvent, LineView, MotionGrant, PartsState, Progress, RespawnRequest, Separations, SimControl, SimStatus,
     TrajectoryGoalMsg,
 )
+from fleet.record.forked_build import LaterInChild, serialized
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.mcap_file import RecordingWriter
-from fleet.record.forked_build import LaterInChild, serialized
 from fleet.record.ros_types import ros_type, sim_ns, to_ros
 from scenes.schema import Scene
 
