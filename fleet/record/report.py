@@ -1,7 +1,7 @@
 """A run's artefacts from its recording: time series (CSV) and the plots a line engineer looks at first.
 
 - `arms.csv`: per arm and state (sim time): skill phase, task, busy, held, lost;
-- `line.csv`: at the coordinator's rate: parts spawned / completed / missed / failed, throughput so far,
+- `line.csv`: at the coordinator's rate (a one-arm line, with no separations: at the coordinator's progress reports, a few a wall second): parts spawned / completed / missed / failed, throughput so far,
   the closest separation between arms now, the latest round-trip p99;
 - `gantt.png` (every arm's phases and tasks over sim time), `line.png` (throughput and closest separation
   over time), `round_trip.png` (every state-to-answer round trip of the run, from the summary).
@@ -53,6 +53,7 @@ def series_from_recording(recording: Recording) -> RunSeries:
     decoders = {keys.arm_state(a): Decoder(ArmState, drops) for a in arms}
     decoders |= {keys.coord("progress"): Decoder(Progress, drops), keys.coord("separation"): Decoder(Separations, drops),
                  keys.sim_status: Decoder(SimStatus, drops)}
+    rows_on = Separations if keys.coord("separation") in recording.channels else Progress  # one arm: no separations
     last_tick: dict[str, int] = {}
     progress: Progress | None = None
     status: SimStatus | None = None
@@ -64,11 +65,13 @@ def series_from_recording(recording: Recording) -> RunSeries:
             series.arm_rows.append(dict(zip(ARM_FIELDS, (msg.sim_time_s, msg.arm, msg.skill, msg.task_id, busy, msg.held, msg.lost))))
         elif isinstance(msg, Progress):
             progress = msg
+            if rows_on is Progress:
+                series.line_rows.append(_line_row(msg.sim_time_s, None, progress, status))
         elif isinstance(msg, SimStatus):
             status = msg
         elif isinstance(msg, Separations):
             series.margin_m = msg.margin_m
-            series.line_rows.append(_line_row(msg, progress, status))
+            series.line_rows.append(_line_row(msg.sim_time_s, min(msg.distances_m, default=None), progress, status))
     summary_topic = "/line/summary"
     if summary_topic in recording.channels:
         for _, message, schema in recording.messages([summary_topic]):
@@ -76,13 +79,12 @@ def series_from_recording(recording: Recording) -> RunSeries:
     return series
 
 
-def _line_row(sep: Separations, progress: Progress | None, status: SimStatus | None) -> dict:
-    t = sep.sim_time_s
+def _line_row(t: float, closest_m: float | None, progress: Progress | None, status: SimStatus | None) -> dict:
     done = progress.parts_completed if progress else 0
     return dict(zip(LINE_FIELDS, (
         t, progress.parts_spawned if progress else 0, done, progress.parts_missed if progress else 0,
         progress.parts_failed if progress else 0, round(done / (t / 60.0), 3) if t > 0 else 0.0,
-        min(sep.distances_m) if sep.distances_m else None, status.latency_p99_ms if status else None,
+        closest_m, status.latency_p99_ms if status else None,
     )))
 
 
@@ -171,7 +173,10 @@ def _line_plot(series: RunSeries, path: Path) -> Path:
         bottom.axhline(series.margin_m, color="#C44E52", linestyle="--", label="guard margin")
     bottom.set_ylabel("separation (m)")
     bottom.set_xlabel("sim time (s)")
-    bottom.legend(loc="upper right", fontsize=8)
+    if bottom.get_legend_handles_labels()[0]:
+        bottom.legend(loc="upper right", fontsize=8)
+    else:
+        bottom.text(0.5, 0.5, "one arm: no separation to draw", transform=bottom.transAxes, ha="center", va="center", color="#8C8C8C")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

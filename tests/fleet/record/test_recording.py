@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -241,6 +242,20 @@ def test_the_report_writes_series_and_plots(recorded, tmp_path):
     for p in written:
         assert p.stat().st_size > 1000, p
     assert (tmp_path / "gantt.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_one_arm_line_still_gets_its_line_series_and_a_plot_without_warnings(tmp_path):
+    path = tmp_path / "pick_cell.mcap"
+    with Launcher(RunOptions(scene="pick_cell", duration_s=20.0, record=str(path), seed=0)) as launcher:
+        summary = launcher.run()
+    series = series_from_recording(Recording(path))
+    assert series.line_rows, "a one-arm line has no separations: its rows come from the coordinator's progress"
+    assert {r["closest_separation_m"] for r in series.line_rows} == {None}
+    assert series.line_rows[-1]["parts_spawned"] <= summary["parts_spawned"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # matplotlib's "no artists with labels" legend warning among them
+        write_report(series, tmp_path)
+    assert len((tmp_path / "line.csv").read_text().splitlines()) == len(series.line_rows) + 1
 
 
 @pytest.mark.parametrize("command", ["replay", "report"])
