@@ -33,17 +33,23 @@ HOVER_M = 0.1  # reach is checked this far above the part or the station surface
 REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot for an unlucky start
 CELL_MARGIN_M = 0.06
 GRID_M = 0.01
+NEAR_CELLS, NEAR_TRIES = 6, 2  # a new reach cell is first solved from the nearest reached cells this close (cells)
 URGENCY_S_PER_S = 10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
 NO_DEADLINE_HORIZON_S = 30.0  # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
 
 
 class CachedReach:
-    """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK, cached on a 1 cm grid."""
+    """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK, cached on a 1 cm grid.
+
+    A new cell near a reached one is first tried from that cell's answer (one solve, a few ms); only where that
+    does not converge does the full search run (every tilt, restarts: 100+ ms for a short arm that must lean). A
+    belt part enters a new cell every few decisions, so this keeps a decision's reach checks short."""
 
     def __init__(self, top_down: TopDownIK) -> None:
         self.top_down = top_down
         self.velocity_limit = top_down.km.velocity_limit[top_down.km.arm_q_index]
-        self._cache: dict[tuple[int, int, int], np.ndarray | None] = {}
+        self._cache: dict[tuple[int, int, int], tuple[float, np.ndarray] | None] = {}  # cell -> (tilt, joints) or None
+        self._reached: list[tuple[int, int, int]] = []  # the cells reached, in the order they were
 
     @classmethod
     def of(cls, arm: Arm) -> "CachedReach":
@@ -53,8 +59,27 @@ class CachedReach:
     def joints(self, point) -> np.ndarray | None:
         key = tuple(int(round(float(v) / GRID_M)) for v in point[:3])
         if key not in self._cache:
-            self._cache[key] = self.top_down.joints_for(np.array(key, float) * GRID_M)
-        return self._cache[key]
+            spot = np.array(key, float) * GRID_M
+            self._cache[key] = self._from_neighbour(key, spot) or self.top_down.reach_pose(spot)
+            if self._cache[key] is not None:
+                self._reached.append(key)
+        found = self._cache[key]
+        return None if found is None else found[1]
+
+    def _from_neighbour(self, key: tuple[int, int, int], spot: np.ndarray) -> tuple[float, np.ndarray] | None:
+        """The spot reached from the nearest reached cells (up to `NEAR_TRIES` of them within `NEAR_CELLS` on every
+        axis, nearest first, ties by the order they were reached: the same queries give the same cache), or None."""
+        if not self._reached:
+            return None
+        cells = np.array(self._reached)
+        offsets = cells - np.array(key)
+        close = np.flatnonzero(np.abs(offsets).max(axis=1) <= NEAR_CELLS)
+        for i in close[np.argsort((offsets[close] ** 2).sum(axis=1), kind="stable")][:NEAR_TRIES]:
+            tilt, q_near = self._cache[self._reached[i]]
+            q = self.top_down.joints_near(spot, tilt, q_near)
+            if q is not None:
+                return tilt, q
+        return None
 
     def __call__(self, point) -> bool:
         return self.joints(point) is not None

@@ -6,6 +6,7 @@ and carries the residual position and angle errors.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,9 +42,13 @@ class IKOptions:
 
 
 def _axis_error(current_axis: np.ndarray, target_axis: np.ndarray) -> np.ndarray:
-    """Rotation vector turning `current_axis` onto `target_axis` (both unit vectors, base frame)."""
-    w = np.cross(current_axis, target_axis)
-    s, c = np.linalg.norm(w), float(np.dot(current_axis, target_axis))
+    """Rotation vector turning `current_axis` onto `target_axis` (both unit vectors, base frame).
+
+    Plain floats: on 3-vectors numpy's cross and norm cost more in call overhead than the arithmetic (the solver
+    calls this every iteration)."""
+    (ax, ay, az), (bx, by, bz) = current_axis.tolist(), target_axis.tolist()
+    wx, wy, wz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    s, c = math.sqrt(wx * wx + wy * wy + wz * wz), ax * bx + ay * by + az * bz
     if s < 1e-12:
         if c > 0:
             return np.zeros(3)
@@ -51,7 +56,12 @@ def _axis_error(current_axis: np.ndarray, target_axis: np.ndarray) -> np.ndarray
         if np.linalg.norm(perp) < 1e-6:
             perp = np.cross(current_axis, [0.0, 1.0, 0.0])
         return perp / np.linalg.norm(perp) * np.pi
-    return w / s * np.arctan2(s, c)
+    k = math.atan2(s, c) / s
+    return np.array([wx * k, wy * k, wz * k])
+
+
+def _norm(v: np.ndarray) -> float:
+    return math.sqrt(float(v @ v))
 
 
 def _solve_once(
@@ -64,23 +74,27 @@ def _solve_once(
 ) -> IKResult:
     q = km.clamp(q0.copy())  # cols: the joints moved (revolute/prismatic joints: idx_v == idx_q)
     p_t, r_t = target[:3, 3], target[:3, :3]
+    axis_target = None if axis_tool is None else r_t @ axis_tool
+    model, data, frame = km.model, km.data, km.tool_frame_id
+    damping = (opts.damping**2) * np.eye(6)
+    lower, upper, step = km.lower, km.upper, opts.max_step_rad
     pos_err = ang_err = np.inf
     best_err, best_at = np.inf, 0
     for it in range(1, opts.max_iterations + 1):
-        pose = km.frame_pose(q)
-        p, r = pose[:3, 3], pose[:3, :3]
+        jac = pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[:, cols]  # forward kinematics too
+        pose = pin.updateFramePlacement(model, data, frame)  # the tool's pose at q, from that pass
+        p, r = pose.translation, pose.rotation
         e_pos = p_t - p
-        jac = km.frame_jacobian(q)[:, cols]
-        if axis_tool is None:
+        if axis_target is None:
             e_rot = pin.log3(r_t @ r.T)
             j = jac
         else:
             a = r @ axis_tool
-            e_rot = _axis_error(a, r_t @ axis_tool)
-            proj = np.eye(3) - np.outer(a, a)  # rotation about the approach axis is free
-            e_rot = proj @ e_rot
-            j = np.vstack([jac[:3], proj @ jac[3:]])
-        pos_err, ang_err = float(np.linalg.norm(e_pos)), float(np.linalg.norm(e_rot))
+            e_rot = _axis_error(a, axis_target)
+            e_rot = e_rot - a * float(a @ e_rot)  # rotation about the approach axis is free: (I - a a^T) e
+            j = jac.copy()
+            j[3:] -= np.outer(a, a @ jac[3:])
+        pos_err, ang_err = _norm(e_pos), _norm(e_rot)
         if pos_err < opts.tolerance_m and ang_err < opts.tolerance_rad:
             return IKResult(q, True, pos_err, ang_err, it)
         err = pos_err + 0.1 * ang_err
@@ -91,11 +105,9 @@ def _solve_once(
         if opts.rotation_weight != 1.0:
             e_rot, j = e_rot * opts.rotation_weight, np.vstack([j[:3], j[3:] * opts.rotation_weight])
         e = np.concatenate([e_pos, e_rot])
-        jjt = j @ j.T + (opts.damping**2) * np.eye(6)
-        dq = j.T @ np.linalg.solve(jjt, e)
-        dq = np.clip(dq, -opts.max_step_rad, opts.max_step_rad)
-        q[cols] += dq
-        q = km.clamp(q)
+        dq = j.T @ np.linalg.solve(j @ j.T + damping, e)
+        q[cols] += np.minimum(np.maximum(dq, -step), step)
+        q = np.minimum(np.maximum(q, lower), upper)  # np.clip's own overhead is twice these two ufuncs'
     return IKResult(q, False, pos_err, ang_err, opts.max_iterations)
 
 

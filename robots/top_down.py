@@ -52,6 +52,7 @@ class TopDownIK:
         self.approach_axis_only = spec.arm_dof < 6
         self.options = options
         # with its roll joint set, a short arm meets position and axis only nearly (the roll axis misses the tool point)
+        self._quick_options = dataclasses.replace(options, restarts=0)  # `solve(quick=True)`: one attempt from the start given
         self._turn_options = dataclasses.replace(options, tolerance_m=TURNED_TOLERANCE_M, tolerance_rad=TURNED_TOLERANCE_RAD, restarts=0,
                                                   rotation_weight=0.1)
         pan_origin_base, self.pan_sign = self.km.first_joint_axis()  # where the arm turns, and which way (SO-101: about -z)
@@ -90,13 +91,14 @@ class TopDownIK:
         return math.atan2(p_base[1] - o[1], p_base[0] - o[0])
 
     def solve(self, position_world: np.ndarray, yaw_world: float | None, q_start: np.ndarray,
-              tilt_rad: float = 0.0, centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[np.ndarray, bool]:
+              tilt_rad: float = 0.0, centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0), quick: bool = False) -> tuple[np.ndarray, bool]:
         """Arm joints putting the tool at `position_world` pointing down with `yaw_world` (natural if None), its
         approach axis leaned outwards by `tilt_rad`; with `centre_tool` (a point in the tool frame, e.g. between
         one-sided jaws) that point goes to `position_world` instead of the tool frame's origin.
 
         Starts from `q_start`; if that fails, once more from the home pose with the base joint
-        turned towards the spot (far turns trap a local solver). An arm of fewer than six joints
+        turned towards the spot (far turns trap a local solver); `quick`: one attempt from `q_start` only (no
+        restarts, no retry: a start next to the answer converges or the spot needs the full search). An arm of fewer than six joints
         matches the approach axis first, then the yaw too where it can (its closing axis across the part).
         """
         yaw = self.natural_yaw(position_world) if yaw_world is None else yaw_world
@@ -107,9 +109,10 @@ class TopDownIK:
                 tool_at = np.asarray(position_world, float)[:3] - rotation @ np.asarray(centre_tool, float)
                 rotation = tilted_rotation(yaw, tilt_rad, self.outward(tool_at))
         target = self.world_to_base @ transform(tool_at, rotation)
-        result = solve_ik(self.km, target, self.km.full_q(q_start), approach_axis_only=self.approach_axis_only, options=self.options)
+        options = self._quick_options if quick else self.options
+        result = solve_ik(self.km, target, self.km.full_q(q_start), approach_axis_only=self.approach_axis_only, options=options)
         aimed = self.aimed_home(position_world)
-        if not result.success and not np.array_equal(np.asarray(q_start, float), aimed):
+        if not quick and not result.success and not np.array_equal(np.asarray(q_start, float), aimed):
             retry = solve_ik(self.km, target, self.km.full_q(aimed), approach_axis_only=self.approach_axis_only, options=self.options)
             if retry.success:
                 result = retry
@@ -175,10 +178,29 @@ class TopDownIK:
         """Arm joints pointing the claw at this spot as the skill would (straight down, else the least tilt the
         robot allows), or None if it is out of reach; spots farther from the base than `within_m` (the declared
         `reach_m` unless given) are out of reach without IK."""
-        p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
-        if math.hypot(p[0], p[1]) > (self.spec.reach_m if within_m is None else within_m):
-            return None
-        centre = self.spec.grasp_centre_tool(sum(self.spec.grasp_width_m) / 2)  # a part of middling width
-        found = self.least_tilt(np.asarray(position_world, float)[:3], None, self.aimed_home(position_world), centre,
-                                tilts_rad=self.reach_tilts_rad)
+        found = self.reach_pose(position_world, within_m)
         return None if found is None else found[1]
+
+    def reach_pose(self, position_world: np.ndarray, within_m: float | None = None) -> tuple[float, np.ndarray] | None:
+        """`joints_for`'s answer with the tilt it leans by: (tilt_rad, arm joints), or None."""
+        if self.beyond(position_world, within_m):
+            return None
+        return self.least_tilt(np.asarray(position_world, float)[:3], None, self.aimed_home(position_world), self._middling_centre(),
+                               tilts_rad=self.reach_tilts_rad)
+
+    def joints_near(self, position_world: np.ndarray, tilt_rad: float, q_near: np.ndarray) -> np.ndarray | None:
+        """The joints reaching a spot next to one `reach_pose` answered (`tilt_rad`, `q_near`): one solve at that
+        tilt from those joints, no restarts; None if it does not converge (then only the full search can tell).
+        An answer is a real reach, though maybe not at the least tilt; a few ms where the search takes 100+."""
+        if self.beyond(position_world):
+            return None
+        q, ok = self.solve(np.asarray(position_world, float)[:3], None, q_near, tilt_rad, self._middling_centre(), quick=True)
+        return q if ok else None
+
+    def beyond(self, position_world: np.ndarray, within_m: float | None = None) -> bool:
+        """Whether a spot is farther from the base, horizontally, than `within_m` (the declared `reach_m` unless given)."""
+        p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
+        return math.hypot(p[0], p[1]) > (self.spec.reach_m if within_m is None else within_m)
+
+    def _middling_centre(self) -> tuple[float, float, float]:
+        return self.spec.grasp_centre_tool(sum(self.spec.grasp_width_m) / 2)  # a part of middling width
