@@ -526,6 +526,7 @@ class Launcher:
             "grant_requests_open": coord.get("grant_requests_open", {}),
             "held_at_station_s": coord.get("held_at_station_s", {}),
             "lockstep_timeouts": self._lockstep_timeouts(coord, controllers),
+            "decision_wall_ms": coord.get("decision_wall_ms", {}),
             "goal_results": sim.get("goal_results", {}),
             "network_faults": self._faults(sim.get("network_faults", {}), controllers),
             "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),

@@ -96,6 +96,8 @@ class CoordinatorNode:
         self.events_seen = 0
         self._events_ahead: list[tuple[str, LineEvent]] = []  # received, not yet applied (of a tick past the next decision)
         self.decisions_on_deadline = 0
+        self.decision_ms: list[float] = []  # wall time of each decision: what a lockstep timeout is measured against
+        self.slowest_decision_tick = -1
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
         self._replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
@@ -296,7 +298,13 @@ class CoordinatorNode:
             self.decisions_on_deadline += not complete  # decided without every event: a lockstep run may not repeat
             self._due = None
             self._apply_events(tick)
-            self.publish(self.dispatcher.decide(tick))
+            started = time.perf_counter()
+            decision = self.dispatcher.decide(tick)
+            took_ms = 1e3 * (time.perf_counter() - started)
+            if took_ms > max(self.decision_ms, default=0.0):
+                self.slowest_decision_tick = tick
+            self.decision_ms.append(took_ms)
+            self.publish(decision)
 
     def _check_heartbeats(self) -> None:
         now = time.monotonic()
@@ -347,7 +355,16 @@ class CoordinatorNode:
 
     def report(self) -> dict:
         self._apply_events(2**62)  # the run is over: every event counts
-        return self.dispatcher.report() | {"dropped_messages": self.drops.total, "takeover": self.takeover, "decisions_on_deadline": self.decisions_on_deadline}
+        return self.dispatcher.report() | {"dropped_messages": self.drops.total, "takeover": self.takeover, "decisions_on_deadline": self.decisions_on_deadline,
+                                           "decision_wall_ms": self._decision_times()}
+
+    def _decision_times(self) -> dict:
+        """Wall milliseconds a decision took (median, p99, the slowest and its tick): a lockstep run stops if one
+        takes longer than the sim's timeout."""
+        if not self.decision_ms:
+            return {}
+        p50, p99 = np.percentile(self.decision_ms, [50, 99])
+        return {"p50": round(float(p50), 3), "p99": round(float(p99), 3), "max": round(max(self.decision_ms), 3), "max_at_tick": self.slowest_decision_tick}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -64,6 +64,8 @@ from robots.skills.pick_place import DEFAULT_DECISION_HZ
 MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
+COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent coordinator: a decision may search for
+# reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
 REPUBLISH_S = 0.05  # wall seconds before a state still unanswered is sent again (a late joiner, a lost sample)
 
 
@@ -145,7 +147,7 @@ class SimServer:
         self.world, self.session, self.keys, self.mode = world, session, keys, mode
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
         # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
-        self.coordinator_timeout_s = lockstep_timeout_s if coordinator_timeout_s is None else coordinator_timeout_s
+        self.coordinator_timeout_s = max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s
         self.first_command_timeout_s = first_command_timeout_s
         self.stop = stop
         self.controllers = controllers
@@ -720,7 +722,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
     parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
     parser.add_argument("--coordinator-timeout", type=float, help="wall seconds a lockstep frame waits for the coordinator "
-                        "(default: the lockstep timeout; longer when a crashed coordinator is respawned)")
+                        f"(default: {COORDINATOR_TIMEOUT_S:g} s or the lockstep timeout if longer; longer when a crashed coordinator is respawned)")
     parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
     parser.add_argument("--spool", metavar="FILE", help="append every message of the run's bus, as this router hears it, to FILE (`fleet run --record` turns it into MCAP)")
     parser.add_argument("--await-recorder", type=float, metavar="S", default=0.0, help="start the clock only once a recorder listens (wait at most S wall seconds)")

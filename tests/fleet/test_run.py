@@ -95,7 +95,7 @@ def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_o
         coordinator = launcher_ref[0].nodes[1]
         if not stopped and progress.sim_time_s > 1.0:
             stopped.append(progress.sim_time_s)
-            os.kill(coordinator.proc.pid, signal.SIGSTOP)  # alive, silent: the sim gives up on it after 1 s
+            os.kill(coordinator.proc.pid, signal.SIGSTOP)  # alive, silent: the sim gives up on it after 3 s
 
     launcher_ref = []
     with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), freeze_coordinator) as launcher:
@@ -104,7 +104,7 @@ def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_o
     assert_nothing_left(summary, launcher.endpoint)
     assert stopped and summary["status"] == "error"
     assert summary["error"].startswith("the sim stopped: the coordinator did not answer") and "\n" not in summary["error"]
-    assert summary["sim_seconds"] < stopped[0] + 3.0, (stopped, summary["sim_seconds"])  # given up on within 1 s of wall time
+    assert summary["sim_seconds"] < stopped[0] + 3.0, (stopped, summary["sim_seconds"])  # the sim does not step while it waits
 
 
 @pytest.mark.parametrize("index, says", [(1, "the coordinator crashed (exit -9)"), (0, "the sim server crashed (exit -9)")], ids=["coordinator", "sim"])
