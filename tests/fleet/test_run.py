@@ -23,7 +23,7 @@ from fleet.launcher import Launcher, RunOptions
 
 QUICK_LINE = str(Path(__file__).parent / "scenes_data" / "quick_line.yaml")
 # wall-clock figures, and the bus message counts (samples sent while processes start may find no subscriber yet)
-WALL_FIGURES = ("wall_seconds", "loop_wall_seconds", "wall_s_by_stage", "latency_p50_ms", "latency_p99_ms", "processes", "lockstep_timeouts",
+WALL_FIGURES = ("wall_seconds", "loop_wall_seconds", "wall_s_by_stage", "decision_wall_ms", "latency_p50_ms", "latency_p99_ms", "processes", "lockstep_timeouts",
                 "bus_messages_per_arm_per_s", "round_trip_histogram", "bus_messages_out")  # re-sends and status follow the wall clock
 
 
