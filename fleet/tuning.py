@@ -23,8 +23,8 @@ from robots.spec import DriveGains, RobotSpec
 SPACE: dict[str, tuple[float, ...]] = {
     "arm_stiffness_scale": (0.5, 1.0, 2.0),
     "gripper_force_scale": (0.5, 1.0, 2.0, 4.0),
-    "approach_speed": (0.2, 0.4, 0.6),
-    "transfer_speed": (0.15, 0.3, 0.45),
+    "approach_speed": (0.2, 0.4, 0.6, 0.8, 1.0),
+    "transfer_speed": (0.15, 0.3, 0.45, 0.7, 1.0),
     "lift_s": (0.5, 0.8),
 }
 """What is searched: factors on the registered drive gains (arm stiffness and damping together; the gripper's force

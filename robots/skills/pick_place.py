@@ -79,8 +79,8 @@ class PickPlaceTiming:
     release_s: float = 0.3
     retreat_s: float = 0.3
     track_lead_s: float = 0.02
-    approach_speed: float = 0.6
-    transfer_speed: float = 0.45
+    approach_speed: float = 1.0  # fractions of each joint's velocity limit, reached at a move's peak (quintic timing)
+    transfer_speed: float = 1.0
     pregrasp_clearance_m: float = 0.024
     place_drop_m: float = 0.008
     clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home

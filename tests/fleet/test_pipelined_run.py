@@ -10,7 +10,7 @@ from tests.fleet.test_run import assert_nothing_left
 
 
 def run(pipeline: bool) -> dict:
-    with Launcher(RunOptions(scene="assembly_line", duration_s=60.0, pipeline=pipeline)) as launcher:
+    with Launcher(RunOptions(scene="assembly_line", duration_s=120.0, pipeline=pipeline)) as launcher:
         summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert summary["status"] == "ok" and summary["inter_arm_contacts"] == 0, summary
