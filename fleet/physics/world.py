@@ -20,6 +20,7 @@ from robots.registry import get_robot
 from scenes.schema import Scene, Station
 from scenes.shapes import WALL_M, belt_box, station_boxes
 
+DROP_GAP_M = 0.01  # a conveyor feeder drops a part only this far clear of the last one it dropped (beyond their sizes)
 FLOOR_TOP_M = 0.0
 
 
@@ -163,9 +164,19 @@ class World:
     def _release_due_parts(self) -> None:
         t = self.sim_time_s
         for clock in self.feeders:
-            while clock.next_time_s <= t:
+            while clock.next_time_s <= t and self._drop_clear(clock):
                 self._spawn(clock)
                 clock.advance()
+
+    def _drop_clear(self, clock: FeederClock) -> bool:
+        """Whether a conveyor feeder's drop spot is free: a part due while the last one still lies there waits for
+        the belt to carry it clear (released at the first tick it is, never dropped on top of it; the feeder's
+        later draws keep their times, so the rate stays). Into a station (a bin) parts may pile."""
+        if clock.feeder.into != "conveyor":
+            return True
+        drop = np.asarray(self.scene_model.conveyor.point_at(0.06, 0.0)[:2])
+        clear_m = max(math.hypot(p.size_m[0], p.size_m[1]) for p in clock.feeder.parts) + clock.feeder.lateral_jitter_m + DROP_GAP_M
+        return all(np.hypot(*(np.asarray(p.entity.pose.p[:2]) - drop)) >= clear_m for p in self.parts if p.active)
 
     def _spawn(self, clock: FeederClock) -> None:
         feeder = clock.feeder
