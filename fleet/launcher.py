@@ -515,6 +515,7 @@ class Launcher:
             "arm_time": self._arm_time(sim.get("arm_time", {}), coord.get("held_at_station_s", {}), sim_s),
             **self._capacity(coord.get("capacity"), completed, sim_s),
             "capacity_measured": coord.get("capacity_measured"),
+            "feeder_held_s": sim.get("feeder_held_s", {}),
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
             "min_separation_m": coord.get("min_separation_m"),

@@ -6,6 +6,8 @@ A box is `(centre_xyz, half_size_xyz)` in metres, in the frame of its station
 
 from __future__ import annotations
 
+import math
+
 from scenes.schema import FLOOR_M, Conveyor, Station
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -26,6 +28,21 @@ def station_boxes(s: Station) -> list[Box]:
         ((0.0, sy / 2 - WALL_M / 2, h / 2), (sx / 2, WALL_M / 2, h / 2)),
         ((0.0, -sy / 2 + WALL_M / 2, h / 2), (sx / 2, WALL_M / 2, h / 2)),
     ]
+
+
+def station_spots(s: Station, spacing_m: float, side_m: float) -> list[tuple[float, float]]:
+    """World (x, y) of spots `spacing_m` apart where a part `side_m` across lies inside a station's walls (a grid
+    about its centre, turned with it), nearest the centre first; at least the centre."""
+    yaw = math.radians(s.pose.yaw_deg)
+    c, si = math.cos(yaw), math.sin(yaw)
+    per_axis = []
+    for size in s.size_m[:2]:
+        span = max(0.0, size - 2 * WALL_M - side_m)  # where a part's centre may lie, along this side
+        n = int(span / spacing_m + 1e-9) + 1
+        per_axis.append([(k - (n - 1) / 2) * spacing_m for k in range(n)])
+    local = sorted(((u, v) for u in per_axis[0] for v in per_axis[1]), key=lambda uv: (uv[0] ** 2 + uv[1] ** 2, uv))
+    x0, y0 = s.pose.xyz[0], s.pose.xyz[1]
+    return [(x0 + c * u - si * v, y0 + si * u + c * v) for u, v in local]
 
 
 def belt_box(c: Conveyor) -> Box:

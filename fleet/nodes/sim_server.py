@@ -662,6 +662,7 @@ class SimServer:
             "sim_seconds": round(self.world.sim_time_s, 6),
             "parts_spawned": sum(c.spawned for c in self.world.feeders),
             "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
+            "feeder_held_s": {c.feeder.name: round(c.held_s, 2) for c in self.world.feeders if c.held_s > 0},
             "events": dict(sorted(Counter(e.kind for e in self.event_log).items())),
             "utilisation": {a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0 for a in self.links},
             "arm_time": {a: self.arm_time(a) for a in self.links},

@@ -82,6 +82,7 @@ class FeederClock:
     schedule_index: int = 0
     spawned: int = 0
     skipped_full: int = 0
+    held_s: float = 0.0  # sim seconds a due part waited upstream for a free spot to be dropped on
     slots: list[int] = field(default_factory=list)
 
     def start(self) -> None:

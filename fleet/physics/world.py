@@ -18,9 +18,9 @@ from fleet.physics.arm import SimArm, yaw_pose
 from fleet.physics.parts import FeederClock, SimPart, build_part, park
 from robots.registry import get_robot
 from scenes.schema import Scene, Station
-from scenes.shapes import WALL_M, belt_box, station_boxes
+from scenes.shapes import WALL_M, belt_box, station_boxes, station_spots
 
-DROP_GAP_M = 0.01  # a conveyor feeder drops a part only this far clear of the last one it dropped (beyond their sizes)
+DROP_GAP_M = 0.01  # a feeder drops a part only this far clear of the parts already there (beyond their sizes)
 FLOOR_TOP_M = 0.0
 
 
@@ -164,19 +164,42 @@ class World:
     def _release_due_parts(self) -> None:
         t = self.sim_time_s
         for clock in self.feeders:
-            while clock.next_time_s <= t and self._drop_clear(clock):
+            while clock.next_time_s <= t:
+                if self._drop_spot(clock) is None:
+                    clock.held_s += self.control_dt_s  # a part due waits upstream for a free spot
+                    break
                 self._spawn(clock)
                 clock.advance()
 
-    def _drop_clear(self, clock: FeederClock) -> bool:
-        """Whether a conveyor feeder's drop spot is free: a part due while the last one still lies there waits for
-        the belt to carry it clear (released at the first tick it is, never dropped on top of it; the feeder's
-        later draws keep their times, so the rate stays). Into a station (a bin) parts may pile."""
-        if clock.feeder.into != "conveyor":
-            return True
-        drop = np.asarray(self.scene_model.conveyor.point_at(0.06, 0.0)[:2])
-        clear_m = max(math.hypot(p.size_m[0], p.size_m[1]) for p in clock.feeder.parts) + clock.feeder.lateral_jitter_m + DROP_GAP_M
-        return all(np.hypot(*(np.asarray(p.entity.pose.p[:2]) - drop)) >= clear_m for p in self.parts if p.active)
+    def _drop_spot(self, clock: FeederClock, lateral_m: float = 0.0) -> tuple[float, float, float] | None:
+        """Where a feeder's next part goes down, or None while there is no free spot (the part waits upstream: it is
+        released at the first tick one frees up, never dropped onto another; the feeder's later draws keep their
+        times, so its rate stays). On the conveyor: its drop point, free once the belt has carried the last part
+        clear of it. Into a station: the free spot nearest its centre on a grid a part's footprint apart (parts lie
+        side by side in one layer, as a person or a feeder would set them down)."""
+        feeder = clock.feeder
+        spacing_m = max(math.hypot(p.size_m[0], p.size_m[1]) for p in feeder.parts) + DROP_GAP_M
+        if feeder.into == "conveyor":
+            clear = self._nobody_within(self._drop_point("conveyor"), spacing_m + feeder.lateral_jitter_m)
+            return self._drop_point("conveyor", lateral_m) if clear else None
+        station = self.scene_model.station(feeder.into)
+        side_m = max(max(p.size_m[0], p.size_m[1]) for p in feeder.parts)
+        for x, y in station_spots(station, spacing_m, side_m):
+            if self._nobody_within((x, y), 0.75 * spacing_m):
+                return x, y, self._drop_point(feeder.into)[2]
+        return None
+
+    def _drop_point(self, into: str, lateral_m: float = 0.0) -> tuple[float, float, float]:
+        """The conveyor's drop point (`lateral_m` off its centre line), or just above a station's floor at its centre."""
+        if into == "conveyor":
+            return self.scene_model.conveyor.point_at(0.06, lateral_m)
+        x, y, z = self.scene_model.station(into).pose.xyz
+        return x, y, z + WALL_M + 0.01
+
+    def _nobody_within(self, xy: tuple[float, ...], radius_m: float) -> bool:
+        """No part in play has its centre within `radius_m` of this spot, horizontally."""
+        x, y = xy[0], xy[1]
+        return all(math.hypot(p.entity.pose.p[0] - x, p.entity.pose.p[1] - y) >= radius_m for p in self.parts if p.active)
 
     def _spawn(self, clock: FeederClock) -> None:
         feeder = clock.feeder
@@ -188,12 +211,8 @@ class World:
             clock.skipped_full += 1
             self.events.append(("feeder_full", feeder.name, self.tick))
             return
-        if feeder.into == "conveyor":
-            x, y, z = self.scene_model.conveyor.point_at(0.06, lateral)
-        else:
-            x, y, z = self.scene_model.station(feeder.into).pose.xyz
-            z += WALL_M + 0.01
-        self._put(self.parts[free[0]], (x, y, z), yaw)
+        spot = self._drop_spot(clock, lateral) or self._drop_point(feeder.into, lateral)  # `spawn_now` asks for a part now
+        self._put(self.parts[free[0]], spot, yaw)
         clock.spawned += 1
 
     def _free_slots(self, clock: FeederClock, type_index: int) -> list[int]:
@@ -290,7 +309,8 @@ class World:
             part_ids=[p.part_id for p in self.parts],
             feeders=[
                 {"rng": copy.deepcopy(c.rng.bit_generator.state), "next_time_s": c.next_time_s,
-                 "schedule_index": c.schedule_index, "spawned": c.spawned, "skipped_full": c.skipped_full}
+                 "schedule_index": c.schedule_index, "spawned": c.spawned, "skipped_full": c.skipped_full,
+                 "held_s": c.held_s}
                 for c in self.feeders
             ],
             next_part_id=self.next_part_id,
@@ -328,6 +348,7 @@ class World:
             clock.schedule_index = saved["schedule_index"]
             clock.spawned = saved["spawned"]
             clock.skipped_full = saved["skipped_full"]
+            clock.held_s = saved.get("held_s", 0.0)
         self.tick = state.tick
         self.next_part_id = state.next_part_id
         self.events = list(state.events)
