@@ -35,6 +35,7 @@ CELL_MARGIN_M = 0.06
 GRID_M = 0.01
 NEAR_CELLS, NEAR_TRIES = 6, 2  # a new reach cell is first solved from the nearest reached cells this close (cells)
 URGENCY_S_PER_S = 10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
+LOOKAHEAD_S, LOOKAHEAD_STEP_S = 4.0, 0.5  # optimal: a free arm may wait this long for a belt part riding into its reach
 NO_DEADLINE_HORIZON_S = 30.0  # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
 
 
@@ -274,14 +275,38 @@ class OptimalAssignment:
         columns = free + soon
         wait_s = [0.0] * len(free) + [a.free_in_s for a in soon]
         cost = np.array([[w + cost_of(a, t, later(parts[t.part_id], w)) for a, w in zip(columns, wait_s)] for t in pending])
+        coming = self._coming(pending, free, parts, cost, cost_of)  # belt parts a free arm can take once in its reach
         cost += URGENCY_S_PER_S * np.array([[due_s(t)] for t in pending])  # more tasks than arms: the sooner due go first
         chosen = sorted(assign_min_cost(cost), key=lambda rc: (cost[rc], rc))
         busy, out = set(busy_stations), []
         for r, c in chosen:  # two tasks for one station in the same round: the cheaper goes first
-            if c >= len(free) or busy.intersection(pending[r].stations):
-                continue
+            if c >= len(free) or (r, c) in coming or busy.intersection(pending[r].stations):
+                continue  # a soon-free arm's task, or a free arm kept for a belt part still riding in
             busy.update(pending[r].stations)
             out.append((pending[r].task_id, free[c].name))
+        return out
+
+
+    @staticmethod
+    def _coming(pending: list[Task], free: list[ArmView], parts: dict[int, PartView], cost: np.ndarray, cost_of: TimeCost) -> set[tuple[int, int]]:
+        """Fill in, for each belt task a free arm cannot serve yet, the cost of waiting for its part to ride into
+        reach (within `LOOKAHEAD_S`, in `LOOKAHEAD_STEP_S` steps) and serving it then; returns those (task row, arm
+        column) pairs. An arm the assignment gives such a task stays free for it instead of starting work that
+        can wait (a tray part) and losing the belt part meanwhile."""
+        out = set()
+        for r, t in enumerate(pending):
+            if t.source != CONVEYOR:
+                continue
+            for c, a in enumerate(free):
+                if math.isfinite(cost[r, c]):
+                    continue
+                for k in range(1, int(LOOKAHEAD_S / LOOKAHEAD_STEP_S) + 1):
+                    wait = k * LOOKAHEAD_STEP_S
+                    ahead = cost_of(a, t, later(parts[t.part_id], wait))
+                    if math.isfinite(ahead):
+                        cost[r, c] = wait + ahead
+                        out.add((r, c))
+                        break
         return out
 
 

@@ -137,6 +137,20 @@ def test_optimal_leaves_shared_work_to_an_arm_about_to_be_free(mixed_cell):
         assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected
 
 
+def test_optimal_keeps_a_free_arm_for_a_belt_part_riding_into_its_reach_rather_than_start_a_tray_part(mixed_cell):
+    """arm_0's stretch of belt is a few seconds long: a red part 1 s from it is worth waiting for (the tray part can
+    wait, the belt part cannot); one 5 s away, beyond the look-ahead, is not, and arm_0 empties the tray meanwhile."""
+    scene, reach = mixed_cell
+    home = tuple(get_robot("openclaw").home_q)
+    arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home) for a in scene.arms]
+    ledger, pending, parts = red_belt_part_and_tray_part(scene, tray_first_s=1.0, belt_deadline_s=12.0)
+    part_of = lambda got: [(ledger.tasks[t].part_id, arm) for t, arm in got]
+    upstream_x = scene.arms[0].base.xyz[0] - 0.45  # not in arm_0's reach yet: it enters 0.1 m downstream
+    for speed_m_per_s, expected in ((0.09, []), (0.02, [(0, "arm_0")])):
+        parts[1] = PartView(np.array([upstream_x, 0.38, 0.095]), np.array([speed_m_per_s, 0.0, 0.0]))
+        assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected, speed_m_per_s
+
+
 def test_time_costs_use_each_arm_robots_own_timing_on_a_mixed_line():
     from coordinator.allocation import Eligibility, TimeCost
     from robots.skills.pick_place import PickPlaceTiming
