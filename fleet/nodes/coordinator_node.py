@@ -97,7 +97,7 @@ class CoordinatorNode:
         self._events_ahead: list[tuple[str, LineEvent]] = []  # received, not yet applied (of a tick past the next decision)
         self.decisions_on_deadline = 0
         self.decision_ms: list[float] = []  # wall time of each decision: what a lockstep timeout is measured against
-        self.slowest_decision_tick = -1
+        self.slowest_decision: tuple[float, int] = (-1.0, -1)  # (ms, tick) of the slowest decision so far
         self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
         self._replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
@@ -301,8 +301,8 @@ class CoordinatorNode:
             started = time.perf_counter()
             decision = self.dispatcher.decide(tick)
             took_ms = 1e3 * (time.perf_counter() - started)
-            if took_ms > max(self.decision_ms, default=0.0):
-                self.slowest_decision_tick = tick
+            if took_ms > self.slowest_decision[0]:
+                self.slowest_decision = (took_ms, tick)
             self.decision_ms.append(took_ms)
             self.publish(decision)
 
@@ -364,7 +364,8 @@ class CoordinatorNode:
         if not self.decision_ms:
             return {}
         p50, p99 = np.percentile(self.decision_ms, [50, 99])
-        return {"p50": round(float(p50), 3), "p99": round(float(p99), 3), "max": round(max(self.decision_ms), 3), "max_at_tick": self.slowest_decision_tick}
+        return {"p50": round(float(p50), 3), "p99": round(float(p99), 3), "max": round(self.slowest_decision[0], 3),
+                "max_at_tick": self.slowest_decision[1]}
 
 
 def main(argv: list[str] | None = None) -> int:
