@@ -103,6 +103,12 @@ class World:
                     clock.slots.append(slot)
             clock.start()
             self.feeders.append(clock)
+        # where each feeder sets parts down, worked out once: how far apart, and a station feeder's spots
+        self._drop_spacing_m = {f.name: max(math.hypot(p.size_m[0], p.size_m[1]) for p in f.parts) + DROP_GAP_M for f in scene.feeders}
+        self._station_spots = {
+            f.name: station_spots(scene.station(f.into), self._drop_spacing_m[f.name], max(max(p.size_m[0], p.size_m[1]) for p in f.parts))
+            for f in scene.feeders if f.into != "conveyor"
+        }
 
     # --- building -----------------------------------------------------------------
     def _static_boxes(self, name: str, boxes: list[tuple[list[float], list[float]]], pose: sapien.Pose, friction: float = 0.8) -> sapien.Entity:
@@ -178,13 +184,11 @@ class World:
         clear of it. Into a station: the free spot nearest its centre on a grid a part's footprint apart (parts lie
         side by side in one layer, as a person or a feeder would set them down)."""
         feeder = clock.feeder
-        spacing_m = max(math.hypot(p.size_m[0], p.size_m[1]) for p in feeder.parts) + DROP_GAP_M
+        spacing_m = self._drop_spacing_m[feeder.name]
         if feeder.into == "conveyor":
             clear = self._nobody_within(self._drop_point("conveyor"), spacing_m + feeder.lateral_jitter_m)
             return self._drop_point("conveyor", lateral_m) if clear else None
-        station = self.scene_model.station(feeder.into)
-        side_m = max(max(p.size_m[0], p.size_m[1]) for p in feeder.parts)
-        for x, y in station_spots(station, spacing_m, side_m):
+        for x, y in self._station_spots[feeder.name]:
             if self._nobody_within((x, y), 0.75 * spacing_m):
                 return x, y, self._drop_point(feeder.into)[2]
         return None
