@@ -9,12 +9,16 @@ station may serve more than one task at a time, and an assembly leaves its fixtu
 its parts arrive there. The bound is the most parts a minute the line can complete; the binding
 arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
 After a run, the same programme with the hop times the run measured (assignment to the part at
-rest, per arm) says what the line could do with arms as fast as they really were.
+rest, per arm) says what the line could do with arms as fast as they really were, and with the
+parts the run's feeders really released in time to be finished (`finishable_arrivals`) in place of
+the mean rates, what this run could have completed at best: a few dozen random arrivals differ
+from the mean by up to half.
 """
 
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -170,17 +174,47 @@ def _balanced(x: np.ndarray, best_per_s: float, n_r: int, a_ub: np.ndarray, b_ub
     return result.x[:n] if result.status == 0 else x
 
 
+def least_route_seconds(scene: Scene, model_s: np.ndarray) -> dict[tuple[str, int], float]:
+    """The least time each part type's whole route takes, every stage by its quickest arm (inf: no arm can make
+    one of its stages); `model_s`: the model's hop times (`CapacityBound.model_s`)."""
+    out: dict[tuple[str, int], float] = {}
+    for (feeder, type_index, _), js in _stages(route_hops(scene)).items():
+        out[(feeder, type_index)] = out.get((feeder, type_index), 0.0) + float(model_s[:, js].min(initial=math.inf))
+    return out
+
+
+def finishable_arrivals(scene: Scene, arrived: list[tuple[str, int, float]], end_s: float, model_s: np.ndarray) -> Counter:
+    """Of the parts that arrived (feeder, type, sim time), how many of each type arrived early enough to be finished by
+    `end_s` if an arm took each at once, every hop by its quickest arm."""
+    least = least_route_seconds(scene, model_s)
+    return Counter((f, t) for f, t, at_s in arrived if at_s + least.get((f, t), math.inf) <= end_s)
+
+
+def _short_pairing(pairings: list[tuple[str, int, int]], x: np.ndarray, types: list, rate: dict) -> str:
+    """The fixture whose assembly waits for a part that comes too seldom ("fixture_0 pairing"), when that and no busy
+    arm or station limits the line: its first part arrives more often than a later one, which is all taken."""
+    for station, first, later in pairings:
+        if x[later] >= rate[types[later]] - 1e-9 and x[first] < rate[types[first]] - 1e-9:
+            return f"{station} pairing"
+    return ""
+
+
 def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
-                   reach: dict[str, CachedReach] | None = None, model_s: np.ndarray | None = None) -> CapacityBound:
+                   reach: dict[str, CachedReach] | None = None, model_s: np.ndarray | None = None,
+                   arrivals_per_s: dict[tuple[str, int], float] | None = None) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
     with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's; `reach` shares
     the arms' reach caches (the coordinator's) instead of building new ones; `model_s` the model's hop times
-    (`CapacityBound.model_s` of an earlier bound of the same scene)."""
+    (`CapacityBound.model_s` of an earlier bound of the same scene); `arrivals_per_s`, per (feeder, type), replaces
+    the feeders' mean rates (a run's own arrivals: `finishable_arrivals` over its length)."""
     hops = route_hops(scene)
     views = arm_views(scene, reach)
     seconds = hop_seconds(scene, views, hops, measured_s, model_s)
     types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
-    rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
+    if arrivals_per_s is None:
+        rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
+    else:
+        rate = {k: arrivals_per_s.get(k, 0.0) for k in types}
     arrivals = 60.0 * sum(rate.values())
     stages = _stages(hops)
     dead = [js for js in stages.values() if not np.isfinite(seconds[:, js]).any()]  # no arm can make any hop of it
@@ -214,6 +248,7 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
                 row[k] = seconds[i, j]
         if row.any():
             a_ub.append(row), b_ub.append(1.0), labels.append(station.name)
+    pairings = []  # (fixture, first type, later type) of each assembly row
     for station in scene.stations:  # an assembly leaves no faster than its later parts arrive
         for later in station.assembles[1:]:
             for t_first in [t for t in types if t[0] == station.assembles[0]]:
@@ -221,6 +256,7 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
                     row = np.zeros(n)
                     row[types.index(t_first)], row[types.index(t_later)] = 1.0, -1.0
                     a_ub.append(row), b_ub.append(0.0), labels.append("")
+                    pairings.append((station.name, types.index(t_first), types.index(t_later)))
     unreachable = {(hops[js[0]].feeder, hops[js[0]].type_index) for js in dead}
     bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
     result = linprog(
@@ -236,7 +272,8 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     station_busy = {labels[k]: float(usage[k]) for k in range(len(views), len(labels)) if labels[k]}
     busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))
     limited = best < arrivals - 1e-6 - 60.0 * sum(rate[t] for t in unreachable)
+    bottleneck = (busiest[0] if busiest[1] >= 1.0 - 1e-6 else _short_pairing(pairings, x, types, rate) or busiest[0]) if limited else "arrivals"
     return CapacityBound(
-        arrivals, best, busiest[0] if limited else "arrivals", busiest[1], busiest[0], arm_busy, station_busy, unservable,
+        arrivals, best, bottleneck, busiest[1], busiest[0], arm_busy, station_busy, unservable,
         model_s=model_s if model_s is not None else (seconds if not measured_s else None),
     )

@@ -19,7 +19,7 @@ import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
 from coordinator.cadence import AVAILABLE_SKILLS, GRASP_SKILLS, IDLE_SKILLS, LOCAL_SKILLS, PLACE_SKILLS, decision_period_ticks
-from coordinator.capacity import CapacityBound, capacity_bound, measured_hop_seconds
+from coordinator.capacity import CapacityBound, capacity_bound, finishable_arrivals, measured_hop_seconds
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, NearestPair, TimedPath
@@ -451,7 +451,19 @@ class Dispatcher:
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
             "capacity": self.capacity.as_dict(),
             "capacity_measured": self.measured_capacity(),
+            "capacity_of_run": self.run_capacity(),
         }
+
+    def run_capacity(self) -> dict | None:
+        """The capacity bound with this run's own arrivals, those in time to be finished by now, in place of the mean
+        rates (None before any time passed): what this run could have completed at best."""
+        if self.sim_time_s <= 0:
+            return None
+        arrived = [(p.feeder, p.type_index, p.arrived_s) for p in self.ledger.parts.values()]
+        counts = finishable_arrivals(self.scene, arrived, self.sim_time_s, self.capacity.model_s)
+        bound = capacity_bound(self.scene, reach=self.reach, model_s=self.capacity.model_s,
+                               arrivals_per_s={k: n / self.sim_time_s for k, n in counts.items()})
+        return bound.as_dict() | {"parts_finishable": sum(counts.values()), "sim_seconds": round(self.sim_time_s, 3)}
 
     def measured_capacity(self) -> dict | None:
         """The capacity bound again with the hop times this run measured (None before any task was done)."""

@@ -444,7 +444,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         elif todo:
             run_local(todo, out_dir, jobs, on_done, scenes)
     cells_rows, written = write_results(load_results(out_dir), out_dir)
-    table = Table("allocator / overrides", "runs", "throughput /min (95% CI)", "completed", "missed", "bound fraction", "contacts")
+    table = Table("allocator / overrides", "runs", "throughput /min (95% CI)", "completed", "missed", "bound fraction", "of the run's arrivals", "contacts")
     from fleet.sweep.results import label
 
     def ci(c, figure, digits=2):
@@ -453,7 +453,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     for c in cells_rows:
         table.add_row(label(c), str(c["runs"]), ci(c, "throughput_per_min"), ci(c, "parts_completed", 1), ci(c, "parts_missed", 1),
-                      ci(c, "bound_fraction"), ci(c, "inter_arm_contacts", 1))
+                      ci(c, "bound_fraction"), ci(c, "run_bound_fraction"), ci(c, "inter_arm_contacts", 1))
     out.print(table)
     out.print(f"wrote {', '.join(p.name for p in written)} in {out_dir}")
     return 0
@@ -496,6 +496,9 @@ def print_run_summary(s: dict) -> None:
         ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
         ("capacity bound (per minute)", "-" if s.get("throughput_bound_per_min") is None else
          f"{s['throughput_bound_per_min']:.2f}: {s['bound_fraction']:.0%} of it achieved, limited by {s['bottleneck']['name']}"),
+        ("bound of this run's arrivals (per minute)", "-" if not s.get("run_bound_per_min") else
+         f"{s['run_bound_per_min']:.2f}: {s['run_bound_fraction']:.0%} of it achieved; "
+         f"{s['parts_completed']} of {s['parts_finishable']} parts that arrived in time to be finished"),
         ("arms: working / waiting for a grant (+ held at a fixture) / idle", "; ".join(
             f"{a} {t['working']:.0%} / {t['waiting_for_grant']:.0%}{f' (+{held:.0%})' if (held := t.get('held_at_fixture', 0)) else ''} / {t['idle']:.0%}"
             for a, t in s.get("arm_time", {}).items()) or "-"),

@@ -434,16 +434,22 @@ class Launcher:
             return {}
 
     @staticmethod
-    def _capacity(capacity: dict | None, completed: int, sim_s: float) -> dict:
-        """The line's capacity bound (the coordinator's) and how much of it this run achieved."""
+    def _capacity(capacity: dict | None, of_run: dict | None, completed: int, sim_s: float) -> dict:
+        """The line's capacity bound (the coordinator's) and how much of it this run achieved; the same against the
+        bound of this run's own arrivals (those in time to be finished), which a short run's luck moves."""
         if not capacity:
-            return {"throughput_bound_per_min": None, "bound_fraction": None, "bottleneck": None}
+            return {"throughput_bound_per_min": None, "bound_fraction": None, "bottleneck": None,
+                    "run_bound_per_min": None, "run_bound_fraction": None, "parts_finishable": None}
         bound = capacity["throughput_bound_per_min"]
         achieved = completed / (sim_s / 60.0) if sim_s > 0 else 0.0
         busy = capacity["arm_busy_at_bound"] | capacity["station_busy_at_bound"]
+        run_bound = of_run["throughput_bound_per_min"] if of_run else None
         return {
             "throughput_bound_per_min": bound, "bound_fraction": round(achieved / bound, 4) if bound > 0 else None,
             "bottleneck": {"name": capacity["bottleneck"], "busy_fraction_at_bound": busy.get(capacity["bottleneck"])},
+            "run_bound_per_min": run_bound,
+            "run_bound_fraction": round(achieved / run_bound, 4) if run_bound else None,
+            "parts_finishable": of_run["parts_finishable"] if of_run else None,
             "capacity": capacity,
         }
 
@@ -513,8 +519,9 @@ class Launcher:
             "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
             "utilisation": sim.get("utilisation", {}),
             "arm_time": self._arm_time(sim.get("arm_time", {}), coord.get("held_at_station_s", {}), sim_s),
-            **self._capacity(coord.get("capacity"), completed, sim_s),
+            **self._capacity(coord.get("capacity"), coord.get("capacity_of_run"), completed, sim_s),
             "capacity_measured": coord.get("capacity_measured"),
+            "capacity_of_run": coord.get("capacity_of_run"),
             "feeder_held_s": sim.get("feeder_held_s", {}),
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),

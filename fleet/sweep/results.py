@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-FIGURES = ("throughput_per_min", "parts_completed", "parts_missed", "bound_fraction", "inter_arm_contacts", "min_separation_m",
+FIGURES = ("throughput_per_min", "parts_completed", "parts_missed", "bound_fraction", "run_bound_fraction", "inter_arm_contacts", "min_separation_m",
            "grants_denied", "wall_seconds")
 
 

@@ -65,3 +65,32 @@ def test_a_sorted_part_may_go_to_any_bin_of_its_colour_and_the_work_is_spread():
     busy = list(bound.arm_busy.values())
     assert min(busy) > 0.0, bound.arm_busy  # arms 3-5 read 0% when only the first bin of a colour counted
     assert max(busy) - min(busy) < 0.02, bound.arm_busy
+
+
+def test_a_runs_own_arrivals_bound_it_and_a_part_too_late_to_finish_does_not_count():
+    """pick_cell's one arm can take every part that comes: the bound of a run is its own finishable arrivals. Of
+    three parts seen over 60 s, the one that arrived a second before the end cannot be finished and is left out."""
+    from coordinator.capacity import finishable_arrivals, least_route_seconds
+
+    scene = load_scene("pick_cell")
+    nominal = capacity_bound(scene)
+    feeder = scene.feeders[0].name
+    least = least_route_seconds(scene, nominal.model_s)
+    assert all(0 < s < 30 for s in least.values()), least
+    arrived = [(feeder, 0, 5.0), (feeder, 0, 20.0), (feeder, 0, 59.0)]
+    counts = finishable_arrivals(scene, arrived, 60.0, nominal.model_s)
+    assert sum(counts.values()) == 2
+    run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={k: n / 60.0 for k, n in counts.items()})
+    assert run.throughput_bound_per_min == pytest.approx(2.0) and run.bottleneck == "arrivals"
+    none = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={})
+    assert none.throughput_bound_per_min == pytest.approx(0.0)
+
+
+def test_a_run_with_more_bases_than_tops_is_limited_by_its_fixtures_pairing():
+    """Eight bases and six tops in 120 s: an assembly needs one of each, so six pairs (12 parts) at best, and what
+    limits is the fixture waiting for tops, not a busy arm or station."""
+    scene = load_scene("assembly_line")
+    nominal = capacity_bound(scene)
+    run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={("bases", 0): 8 / 120, ("tops", 0): 6 / 120})
+    assert run.throughput_bound_per_min == pytest.approx(6.0)
+    assert run.bottleneck == "fixture_0 pairing" and run.bottleneck_busy_fraction < 1.0

@@ -53,6 +53,9 @@ def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
     assert first["grants_given"] > 0, "every free move went through the collision guard"
     assert all(waited < 1.0 for waited in first["grant_requests_open"].values()), "nobody left waiting for a grant"
     assert first["dropped_messages"] == 0
+    assert 0 < first["parts_finishable"] <= first["parts_spawned"], "parts in time to be finished, of those released"
+    assert first["parts_completed"] <= first["run_bound_per_min"] * 18.0 / 60.0 + 1e-6, "no run beats the bound of its own arrivals"
+    assert first["run_bound_fraction"] == pytest.approx(first["throughput_per_min"] / first["run_bound_per_min"], rel=1e-3)
     assert {p["role"] for p in first["processes"]} == {"sim", "coordinator", "controller"}
     assert all(p["exit_code"] == 0 for p in first["processes"])
     second, launcher = run_line(duration_s=18.0, seed=5)
