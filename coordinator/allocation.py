@@ -58,7 +58,8 @@ class CachedReach:
         return cls(TopDownIK(get_robot(arm.model), yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK))
 
     def joints(self, point) -> np.ndarray | None:
-        key = tuple(int(round(float(v) / GRID_M)) for v in point[:3])
+        x, y, z = (point.tolist() if isinstance(point, np.ndarray) else [float(v) for v in point])[:3]
+        key = (round(x / GRID_M), round(y / GRID_M), round(z / GRID_M))  # plain floats: numpy scalars cost more here
         if key not in self._cache:
             spot = np.array(key, float) * GRID_M
             self._cache[key] = self._from_neighbour(key, spot) or self.top_down.reach_pose(spot)
@@ -297,9 +298,10 @@ class OptimalAssignment:
         for r, t in enumerate(pending):
             if t.source != CONVEYOR:
                 continue
+            station = cost_of.rules.scene.station(t.target)
             for c, a in enumerate(free):
-                if math.isfinite(cost[r, c]):
-                    continue
+                if math.isfinite(cost[r, c]) or not cost_of.rules.in_reach(a, (*station.pose.xyz[:2], station.surface_z_m)):
+                    continue  # served now, or never: the station is out of its reach wherever the part is
                 for k in range(1, int(LOOKAHEAD_S / LOOKAHEAD_STEP_S) + 1):
                     wait = k * LOOKAHEAD_STEP_S
                     ahead = cost_of(a, t, later(parts[t.part_id], wait))
