@@ -5,8 +5,8 @@ rate and must make every hop of its route (source to first station, station to s
 done by any arm that can serve it (the coordinator's own `Eligibility`: reach, and the stretch of
 belt each arm owns), taking that arm the coordinator's own time estimate (`TimeCost`, from its home
 pose: optimistic, it leaves out the way home). No arm may be busy more than all the time, no
-station may serve more than one task at a time, and an assembly leaves its fixture no faster than
-its parts arrive there. The bound is the most parts a minute the line can complete; the binding
+station may serve more than one task at a time, and an assembly takes as many parts of each feeder
+it assembles (no top is finished without its base, nor a base without its top). The bound is the most parts a minute the line can complete; the binding
 arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
 After a run, the same programme with the hop times the run measured (assignment to the part at
 rest, per arm) says what the line could do with arms as fast as they really were, and with the
@@ -190,11 +190,13 @@ def finishable_arrivals(scene: Scene, arrived: list[tuple[str, int, float]], end
     return Counter((f, t) for f, t, at_s in arrived if at_s + least.get((f, t), math.inf) <= end_s)
 
 
-def _short_pairing(pairings: list[tuple[str, int, int]], x: np.ndarray, types: list, rate: dict) -> str:
+def _short_pairing(pairings: list[tuple[str, list[int], list[int]]], x: np.ndarray, types: list, rate: dict) -> str:
     """The fixture whose assembly waits for a part that comes too seldom ("fixture_0 pairing"), when that and no busy
-    arm or station limits the line: its first part arrives more often than a later one, which is all taken."""
-    for station, first, later in pairings:
-        if x[later] >= rate[types[later]] - 1e-9 and x[first] < rate[types[first]] - 1e-9:
+    arm or station limits the line: of its feeders, one's parts are all taken and another's are not."""
+    for station, first, other in pairings:
+        short = [all(x[k] >= rate[types[k]] - 1e-9 for k in side) for side in (first, other)]
+        spare = [any(x[k] < rate[types[k]] - 1e-9 for k in side) for side in (first, other)]
+        if (short[0] and spare[1]) or (short[1] and spare[0]):
             return f"{station} pairing"
     return ""
 
@@ -248,15 +250,15 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
                 row[k] = seconds[i, j]
         if row.any():
             a_ub.append(row), b_ub.append(1.0), labels.append(station.name)
-    pairings = []  # (fixture, first type, later type) of each assembly row
-    for station in scene.stations:  # an assembly leaves no faster than its later parts arrive
+    pairings = []  # (fixture, first feeder's types, a later feeder's types) of each assembly row
+    for station in scene.stations:  # an assembly takes one part of each feeder it assembles: as many of each
+        first = [types.index(t) for t in types if t[0] == station.assembles[0]] if station.assembles else []
         for later in station.assembles[1:]:
-            for t_first in [t for t in types if t[0] == station.assembles[0]]:
-                for t_later in [t for t in types if t[0] == later]:
-                    row = np.zeros(n)
-                    row[types.index(t_first)], row[types.index(t_later)] = 1.0, -1.0
-                    a_ub.append(row), b_ub.append(0.0), labels.append("")
-                    pairings.append((station.name, types.index(t_first), types.index(t_later)))
+            other = [types.index(t) for t in types if t[0] == later]
+            row = np.zeros(n)
+            row[first], row[other] = 1.0, -1.0
+            a_eq.append(row), b_eq.append(0.0)
+            pairings.append((station.name, first, other))
     unreachable = {(hops[js[0]].feeder, hops[js[0]].type_index) for js in dead}
     bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
     result = linprog(

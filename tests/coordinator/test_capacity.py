@@ -94,3 +94,12 @@ def test_a_run_with_more_bases_than_tops_is_limited_by_its_fixtures_pairing():
     run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={("bases", 0): 8 / 120, ("tops", 0): 6 / 120})
     assert run.throughput_bound_per_min == pytest.approx(6.0)
     assert run.bottleneck == "fixture_0 pairing" and run.bottleneck_busy_fraction < 1.0
+
+
+def test_tops_without_bases_finish_nothing():
+    """Nine tops and five bases: a top is only finished on a base, so five pairs (10 parts) at best, not 14."""
+    scene = load_scene("assembly_line")
+    nominal = capacity_bound(scene)
+    run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={("bases", 0): 5 / 300, ("tops", 0): 9 / 300})
+    assert run.throughput_bound_per_min == pytest.approx(10 * 60 / 300)
+    assert run.bottleneck == "fixture_0 pairing"
