@@ -28,6 +28,7 @@ from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView, 
 from coordinator.tasks import CONVEYOR, Task
 from robots.registry import get_robot
 from scenes.schema import Scene
+from scenes.shapes import BELT_DROP_ALONG_M
 
 BELT_SAMPLE_M = 0.05  # belt pick points are tried this far apart
 
@@ -44,6 +45,16 @@ class Hop:
     stage: int = 0
 
 
+@dataclass(frozen=True)
+class HopModel:
+    """The time model's hop times, (arms, hops) in seconds (inf: the arm cannot serve the hop), and the least time
+    from a part's release to each hop done (a belt part rides from the drop point to where the arm meets it
+    first; equal to `seconds` for a hop from a station). IK at every belt sample: worked out once, reused."""
+
+    seconds: np.ndarray
+    from_release_s: np.ndarray
+
+
 @dataclass
 class CapacityBound:
     """The line's best throughput (parts a minute), what limits it, and each arm's and station's busy fraction there."""
@@ -56,7 +67,7 @@ class CapacityBound:
     arm_busy: dict[str, float] = field(default_factory=dict)
     station_busy: dict[str, float] = field(default_factory=dict)
     unservable: list[str] = field(default_factory=list)  # hops no arm can do: their parts can never be completed
-    model_s: np.ndarray | None = field(default=None, repr=False, compare=False)  # the model's hop times, to reuse
+    model: HopModel | None = field(default=None, repr=False, compare=False)  # the model's hop times, to reuse
 
     def as_dict(self) -> dict:
         return {
@@ -104,29 +115,30 @@ def arm_views(scene: Scene, reach: dict[str, CachedReach] | None = None) -> list
     return [ArmView(a.name, a.base.xyz, True, reach[a.name], tuple(get_robot(a.model).home_q)) for a in scene.arms]
 
 
-def pick_points(scene: Scene, hop: Hop) -> list[PartView]:
-    """Where a part of this hop may be picked: along the belt every `BELT_SAMPLE_M`, or at its source station."""
+def pick_points(scene: Scene, hop: Hop) -> list[tuple[float, PartView]]:
+    """Where a part of this hop may be picked, each with the least seconds it rides from its release to there: along
+    the belt every `BELT_SAMPLE_M`, or at its source station (no ride)."""
     part = scene.feeder(hop.feeder).parts[hop.type_index]
     half = part.size_m[2] / 2
     if hop.source != CONVEYOR:
         s = scene.station(hop.source)
-        return [PartView(np.array([s.pose.xyz[0], s.pose.xyz[1], s.surface_z_m + half]), np.zeros(3))]
+        return [(0.0, PartView(np.array([s.pose.xyz[0], s.pose.xyz[1], s.surface_z_m + half]), np.zeros(3)))]
     c = scene.conveyor
     velocity = np.array(c.direction) * c.speed_m_per_s
     n = max(2, int(c.length_m / BELT_SAMPLE_M) + 1)
     out = []
     for along in np.linspace(0.0, c.length_m, n):
         x, y, z = c.point_at(float(along), 0.0)
-        out.append(PartView(np.array([x, y, z + half]), velocity))
+        out.append((max(0.0, float(along) - BELT_DROP_ALONG_M) / c.speed_m_per_s, PartView(np.array([x, y, z + half]), velocity)))
     return out
 
 
 def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s: dict[tuple[str, str, str], float] | None = None,
-                model_s: np.ndarray | None = None) -> np.ndarray:
+                model: HopModel | None = None) -> np.ndarray:
     """(arms, hops): the least time each arm needs for each hop (inf: it cannot serve it); where `measured_s` has
-    the mean time an arm took for a (source, target) hop in a run, that time instead of the model's. `model_s`:
-    the model's times worked out before (IK at every belt sample: the costly part), reused."""
-    out = model_s.copy() if model_s is not None else _model_seconds(scene, views, hops)
+    the mean time an arm took for a (source, target) hop in a run, that time instead of the model's. `model`:
+    the model worked out before (`hop_model`), reused."""
+    out = (model or hop_model(scene, views, hops)).seconds.copy()
     for j, hop in enumerate(hops):
         for i, view in enumerate(views):
             seen = (measured_s or {}).get((view.name, hop.source, hop.target))
@@ -135,15 +147,19 @@ def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s:
     return out
 
 
-def _model_seconds(scene: Scene, views: list[ArmView], hops: list[Hop]) -> np.ndarray:
+def hop_model(scene: Scene, views: list[ArmView], hops: list[Hop]) -> HopModel:
+    """The time model's least time for each arm and hop, and from a part's release to that hop done."""
     cost = TimeCost(Eligibility(scene, views))
-    out = np.full((len(views), len(hops)), math.inf)
+    seconds = np.full((len(views), len(hops)), math.inf)
+    from_release = seconds.copy()
     for j, hop in enumerate(hops):
         task = Task(0, 0, hop.source, hop.target, 0.0)
         points = pick_points(scene, hop)
         for i, view in enumerate(views):
-            out[i, j] = min((cost(view, task, p) for p in points), default=math.inf)
-    return out
+            times = [(ride_s, cost(view, task, p)) for ride_s, p in points]
+            seconds[i, j] = min((t for _, t in times), default=math.inf)
+            from_release[i, j] = min((r + t for r, t in times), default=math.inf)
+    return HopModel(seconds, from_release)
 
 
 def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
@@ -174,19 +190,20 @@ def _balanced(x: np.ndarray, best_per_s: float, n_r: int, a_ub: np.ndarray, b_ub
     return result.x[:n] if result.status == 0 else x
 
 
-def least_route_seconds(scene: Scene, model_s: np.ndarray) -> dict[tuple[str, int], float]:
-    """The least time each part type's whole route takes, every stage by its quickest arm (inf: no arm can make
-    one of its stages); `model_s`: the model's hop times (`CapacityBound.model_s`)."""
+def least_route_seconds(scene: Scene, model: HopModel) -> dict[tuple[str, int], float]:
+    """The least time from a part's release to its whole route done, every stage by its quickest arm, a belt part
+    met where it first can be (inf: no arm can make one of its stages)."""
     out: dict[tuple[str, int], float] = {}
-    for (feeder, type_index, _), js in _stages(route_hops(scene)).items():
-        out[(feeder, type_index)] = out.get((feeder, type_index), 0.0) + float(model_s[:, js].min(initial=math.inf))
+    for (feeder, type_index, stage), js in _stages(route_hops(scene)).items():
+        times = model.from_release_s if stage == 0 else model.seconds
+        out[(feeder, type_index)] = out.get((feeder, type_index), 0.0) + float(times[:, js].min(initial=math.inf))
     return out
 
 
-def finishable_arrivals(scene: Scene, arrived: list[tuple[str, int, float]], end_s: float, model_s: np.ndarray) -> Counter:
+def finishable_arrivals(scene: Scene, arrived: list[tuple[str, int, float]], end_s: float, model: HopModel) -> Counter:
     """Of the parts that arrived (feeder, type, sim time), how many of each type arrived early enough to be finished by
     `end_s` if an arm took each at once, every hop by its quickest arm."""
-    least = least_route_seconds(scene, model_s)
+    least = least_route_seconds(scene, model)
     return Counter((f, t) for f, t, at_s in arrived if at_s + least.get((f, t), math.inf) <= end_s)
 
 
@@ -202,16 +219,17 @@ def _short_pairing(pairings: list[tuple[str, list[int], list[int]]], x: np.ndarr
 
 
 def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
-                   reach: dict[str, CachedReach] | None = None, model_s: np.ndarray | None = None,
+                   reach: dict[str, CachedReach] | None = None, model: HopModel | None = None,
                    arrivals_per_s: dict[tuple[str, int], float] | None = None) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
     with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's; `reach` shares
-    the arms' reach caches (the coordinator's) instead of building new ones; `model_s` the model's hop times
-    (`CapacityBound.model_s` of an earlier bound of the same scene); `arrivals_per_s`, per (feeder, type), replaces
+    the arms' reach caches (the coordinator's) instead of building new ones; `model` the model's hop times
+    (`CapacityBound.model` of an earlier bound of the same scene); `arrivals_per_s`, per (feeder, type), replaces
     the feeders' mean rates (a run's own arrivals: `finishable_arrivals` over its length)."""
     hops = route_hops(scene)
     views = arm_views(scene, reach)
-    seconds = hop_seconds(scene, views, hops, measured_s, model_s)
+    model = model or hop_model(scene, views, hops)
+    seconds = hop_seconds(scene, views, hops, measured_s, model)
     types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
     if arrivals_per_s is None:
         rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
@@ -277,5 +295,5 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     bottleneck = (busiest[0] if busiest[1] >= 1.0 - 1e-6 else _short_pairing(pairings, x, types, rate) or busiest[0]) if limited else "arrivals"
     return CapacityBound(
         arrivals, best, bottleneck, busiest[1], busiest[0], arm_busy, station_busy, unservable,
-        model_s=model_s if model_s is not None else (seconds if not measured_s else None),
+        model=model,
     )

@@ -460,8 +460,8 @@ class Dispatcher:
         if self.sim_time_s <= 0:
             return None
         arrived = [(p.feeder, p.type_index, p.arrived_s) for p in self.ledger.parts.values()]
-        counts = finishable_arrivals(self.scene, arrived, self.sim_time_s, self.capacity.model_s)
-        bound = capacity_bound(self.scene, reach=self.reach, model_s=self.capacity.model_s,
+        counts = finishable_arrivals(self.scene, arrived, self.sim_time_s, self.capacity.model)
+        bound = capacity_bound(self.scene, reach=self.reach, model=self.capacity.model,
                                arrivals_per_s={k: n / self.sim_time_s for k, n in counts.items()})
         return bound.as_dict() | {"parts_finishable": sum(counts.values()), "sim_seconds": round(self.sim_time_s, 3)}
 
@@ -470,5 +470,5 @@ class Dispatcher:
         measured = measured_hop_seconds(list(self.ledger.tasks.values()))
         if not measured:
             return None
-        return capacity_bound(self.scene, measured, self.reach, self.capacity.model_s).as_dict() | {"measured_hop_s": {
+        return capacity_bound(self.scene, measured, self.reach, self.capacity.model).as_dict() | {"measured_hop_s": {
             f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())}}

@@ -196,7 +196,7 @@ class World:
     def _drop_point(self, into: str, lateral_m: float = 0.0) -> tuple[float, float, float]:
         """The conveyor's drop point (`lateral_m` off its centre line), or just above a station's floor at its centre."""
         if into == "conveyor":
-            return self.scene_model.conveyor.point_at(0.06, lateral_m)
+            return self.scene_model.conveyor.point_at(BELT_DROP_ALONG_M, lateral_m)
         x, y, z = self.scene_model.station(into).pose.xyz
         return x, y, z + WALL_M + 0.01
 

@@ -75,14 +75,14 @@ def test_a_runs_own_arrivals_bound_it_and_a_part_too_late_to_finish_does_not_cou
     scene = load_scene("pick_cell")
     nominal = capacity_bound(scene)
     feeder = scene.feeders[0].name
-    least = least_route_seconds(scene, nominal.model_s)
+    least = least_route_seconds(scene, nominal.model)
     assert all(0 < s < 30 for s in least.values()), least
     arrived = [(feeder, 0, 5.0), (feeder, 0, 20.0), (feeder, 0, 59.0)]
-    counts = finishable_arrivals(scene, arrived, 60.0, nominal.model_s)
+    counts = finishable_arrivals(scene, arrived, 60.0, nominal.model)
     assert sum(counts.values()) == 2
-    run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={k: n / 60.0 for k, n in counts.items()})
+    run = capacity_bound(scene, model=nominal.model, arrivals_per_s={k: n / 60.0 for k, n in counts.items()})
     assert run.throughput_bound_per_min == pytest.approx(2.0) and run.bottleneck == "arrivals"
-    none = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={})
+    none = capacity_bound(scene, model=nominal.model, arrivals_per_s={})
     assert none.throughput_bound_per_min == pytest.approx(0.0)
 
 
@@ -91,7 +91,7 @@ def test_a_run_with_more_bases_than_tops_is_limited_by_its_fixtures_pairing():
     limits is the fixture waiting for tops, not a busy arm or station."""
     scene = load_scene("assembly_line")
     nominal = capacity_bound(scene)
-    run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={("bases", 0): 8 / 120, ("tops", 0): 6 / 120})
+    run = capacity_bound(scene, model=nominal.model, arrivals_per_s={("bases", 0): 8 / 120, ("tops", 0): 6 / 120})
     assert run.throughput_bound_per_min == pytest.approx(6.0)
     assert run.bottleneck == "fixture_0 pairing" and run.bottleneck_busy_fraction < 1.0
 
@@ -100,6 +100,6 @@ def test_tops_without_bases_finish_nothing():
     """Nine tops and five bases: a top is only finished on a base, so five pairs (10 parts) at best, not 14."""
     scene = load_scene("assembly_line")
     nominal = capacity_bound(scene)
-    run = capacity_bound(scene, model_s=nominal.model_s, arrivals_per_s={("bases", 0): 5 / 300, ("tops", 0): 9 / 300})
+    run = capacity_bound(scene, model=nominal.model, arrivals_per_s={("bases", 0): 5 / 300, ("tops", 0): 9 / 300})
     assert run.throughput_bound_per_min == pytest.approx(10 * 60 / 300)
     assert run.bottleneck == "fixture_0 pairing"
