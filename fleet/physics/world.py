@@ -18,7 +18,7 @@ from fleet.physics.arm import SimArm, yaw_pose
 from fleet.physics.parts import FeederClock, SimPart, build_part, park
 from robots.registry import get_robot
 from scenes.schema import Scene, Station
-from scenes.shapes import WALL_M, belt_box, station_boxes, station_spots
+from scenes.shapes import BELT_DROP_ALONG_M, WALL_M, belt_box, station_boxes, station_spots
 
 DROP_GAP_M = 0.01  # a feeder drops a part only this far clear of the parts already there (beyond their sizes)
 FLOOR_TOP_M = 0.0
