@@ -24,6 +24,7 @@ from robots.ik import IKOptions
 from robots.registry import get_robot
 from robots.skills.pick_place import PickPlaceTiming
 from robots.top_down import TopDownIK
+from robots.trajectory import JointSegment
 from scenes.schema import Arm, Scene
 
 EARLIEST_ARRIVAL_S = 0.6  # the soonest an arm can be above a part
@@ -197,6 +198,23 @@ class TimeCost:
         approach = float(np.max(np.abs(q_pick - q_now) / (v * t.approach_speed)))
         transfer = float(np.max(np.abs(q_place - q_pick) / (v * t.transfer_speed)))
         return approach + transfer + fixed_s
+
+    def cycle_s(self, arm: ArmView, task: Task, part: PartView, starts: list[np.ndarray]) -> float:
+        """The least time the arm is busy with a task, its moves timed as the pick skill times them (`JointSegment.timed`:
+        quintic, peaking at the skill's speed; the estimate above times them at their peak speed throughout), its
+        approach from the nearest of `starts` (where it may stand when given the task: home, a station it placed at)."""
+        if not self.rules.can_serve(arm, task, part):
+            return math.inf
+        t = self.timing(arm)
+        station = self.rules.scene.station(task.target)
+        q_pick = arm.reach.joints(self.rules.pick_point(task, part) + [0.0, 0.0, HOVER_M])
+        q_place = arm.reach.joints(np.array([*station.pose.xyz[:2], station.surface_z_m + HOVER_M]))
+        if q_pick is None or q_place is None:
+            return math.inf
+        v = arm.reach.velocity_limit
+        approach = min(JointSegment.timed(q, q_pick, 0.0, v, t.approach_speed).duration_s for q in starts) if starts else 0.0
+        transfer = JointSegment.timed(q_pick, q_place, 0.0, v, t.transfer_speed).duration_s
+        return approach + transfer + t.descend_s + t.close_s + t.lift_s + t.lower_s + t.release_s + t.retreat_s
 
 
 def open_candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:

@@ -17,6 +17,7 @@ from the mean by up to half.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -24,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
-from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView, TimeCost
+from coordinator.allocation import HOVER_M, ArmView, CachedReach, Eligibility, PartView, TimeCost
 from coordinator.tasks import CONVEYOR, Task
 from robots.registry import get_robot
 from scenes.schema import Scene
@@ -47,12 +48,16 @@ class Hop:
 
 @dataclass(frozen=True)
 class HopModel:
-    """The time model's hop times, (arms, hops) in seconds (inf: the arm cannot serve the hop), and the least time
-    from a part's release to each hop done (a belt part rides from the drop point to where the arm meets it
-    first; equal to `seconds` for a hop from a station). IK at every belt sample: worked out once, reused."""
+    """The least time each arm is busy with each hop, (arms, hops) in seconds (inf: the arm cannot serve the hop): its
+    moves timed as the pick skill times them, its approach from wherever it may stand when given the task (home, or
+    above a station it reaches); the least time from a part's release to each hop done (a belt part rides from the
+    drop point to where the arm meets it first); and for a belt hop, when after its release the coordinator's
+    rules let the arm be given the part (`window_s[..., 0]` to `window_s[..., 1]`, widened by a sample step each way;
+    NaN: never, or not from the belt). IK at every belt sample: worked out once, reused."""
 
     seconds: np.ndarray
     from_release_s: np.ndarray
+    window_s: np.ndarray
 
 
 @dataclass
@@ -148,18 +153,30 @@ def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s:
 
 
 def hop_model(scene: Scene, views: list[ArmView], hops: list[Hop]) -> HopModel:
-    """The time model's least time for each arm and hop, and from a part's release to that hop done."""
+    """Each arm's least busy time for each hop, the least time from a part's release to it done, and its belt window."""
     cost = TimeCost(Eligibility(scene, views))
     seconds = np.full((len(views), len(hops)), math.inf)
     from_release = seconds.copy()
+    window = np.full((len(views), len(hops), 2), math.nan)
+    step_s = BELT_SAMPLE_M / scene.conveyor.speed_m_per_s if scene.conveyor else 0.0
+    starts = {v.name: _standing_poses(scene, v) for v in views}
     for j, hop in enumerate(hops):
         task = Task(0, 0, hop.source, hop.target, 0.0)
         points = pick_points(scene, hop)
         for i, view in enumerate(views):
-            times = [(ride_s, cost(view, task, p)) for ride_s, p in points]
+            times = [(ride_s, cost.cycle_s(view, task, p, starts[view.name])) for ride_s, p in points]
             seconds[i, j] = min((t for _, t in times), default=math.inf)
             from_release[i, j] = min((r + t for r, t in times), default=math.inf)
-    return HopModel(seconds, from_release)
+            rides = [r for r, t in times if math.isfinite(t)]
+            if hop.source == CONVEYOR and rides:
+                window[i, j] = (max(0.0, min(rides) - step_s), max(rides) + step_s)
+    return HopModel(seconds, from_release, window)
+
+
+def _standing_poses(scene: Scene, view: ArmView) -> list[np.ndarray]:
+    """Where an arm may stand when it is given a task: home, or above any station it reaches (its last place)."""
+    above = [view.reach.joints(np.array([*s.pose.xyz[:2], s.surface_z_m + HOVER_M])) for s in scene.stations]
+    return [np.asarray(view.q, float), *(q for q in above if q is not None)]
 
 
 def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
@@ -207,6 +224,48 @@ def finishable_arrivals(scene: Scene, arrived: list[tuple[str, int, float]], end
     return Counter((f, t) for f, t, at_s in arrived if at_s + least.get((f, t), math.inf) <= end_s)
 
 
+@dataclass(frozen=True)
+class WindowCap:
+    """An arm alone on its stretch of belt for some part types (no other arm can take them): of the parts of those types
+    that arrived (`arrived`), the most it could take (`at_most`), each given to it inside the part's window on the
+    belt and each keeping it busy at least its least hop time."""
+
+    arm: str
+    types: tuple[tuple[str, int], ...]
+    arrived: int
+    at_most: int
+
+
+def belt_window_caps(scene: Scene, arrived: list[tuple[str, int, float]], end_s: float, model: HopModel) -> list[WindowCap]:
+    """For each arm that alone serves some belt part types, the most of this run's parts of those types it could take:
+    the most jobs one machine starts inside their windows, each start at least the least busy time after the last
+    and early enough to be done by `end_s`. Windows on one belt are one length, so a part that arrives later is due
+    later and a dynamic programme in arrival order is exact; an arm whose windows are not so gets no cap."""
+    hops = route_hops(scene)
+    names = [a.name for a in scene.arms]
+    alone: dict[int, list[tuple[tuple[str, int], list[int]]]] = {}
+    for (feeder, type_index, stage), js in _stages(hops).items():
+        servers = [i for i in range(len(names)) if np.isfinite(model.seconds[i, js]).any()]
+        if stage == 0 and hops[js[0]].source == CONVEYOR and len(servers) == 1:
+            alone.setdefault(servers[0], []).append(((feeder, type_index), js))
+    out = []
+    for i, kinds in alone.items():
+        busy_s = min(float(model.seconds[i, js].min()) for _, js in kinds)
+        spans = {key: (float(np.nanmin(model.window_s[i, js, 0])), float(np.nanmax(model.window_s[i, js, 1]))) for key, js in kinds}
+        jobs = sorted((at_s + spans[(f, t)][0], min(at_s + spans[(f, t)][1], end_s - busy_s)) for f, t, at_s in arrived if (f, t) in spans)
+        if any(later[1] < earlier[1] for earlier, later in zip(jobs, jobs[1:])):
+            continue  # windows not in arrival order: the programme would not be exact
+        least_end = [-math.inf] + [math.inf] * len(jobs)  # least_end[c]: the soonest c of the parts so far are done
+        for release_s, due_s in jobs:
+            for c in range(len(jobs) - 1, -1, -1):
+                start = max(release_s, least_end[c])
+                if start <= due_s and start + busy_s < least_end[c + 1]:
+                    least_end[c + 1] = start + busy_s
+        taken = max(c for c, end in enumerate(least_end) if end < math.inf)
+        out.append(WindowCap(names[i], tuple(k for k, _ in kinds), len(jobs), taken))
+    return out
+
+
 def _short_pairing(pairings: list[tuple[str, list[int], list[int]]], x: np.ndarray, types: list, rate: dict) -> str:
     """The fixture whose assembly waits for a part that comes too seldom ("fixture_0 pairing"), when that and no busy
     arm or station limits the line: of its feeders, one's parts are all taken and another's are not."""
@@ -220,12 +279,14 @@ def _short_pairing(pairings: list[tuple[str, list[int], list[int]]], x: np.ndarr
 
 def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
                    reach: dict[str, CachedReach] | None = None, model: HopModel | None = None,
-                   arrivals_per_s: dict[tuple[str, int], float] | None = None) -> CapacityBound:
+                   arrivals_per_s: dict[tuple[str, int], float] | None = None,
+                   type_limits: list[tuple[str, tuple[tuple[str, int], ...], float]] | None = None) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
     with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's; `reach` shares
     the arms' reach caches (the coordinator's) instead of building new ones; `model` the model's hop times
     (`CapacityBound.model` of an earlier bound of the same scene); `arrivals_per_s`, per (feeder, type), replaces
-    the feeders' mean rates (a run's own arrivals: `finishable_arrivals` over its length)."""
+    the feeders' mean rates (a run's own arrivals: `finishable_arrivals` over its length); `type_limits` caps the
+    completions of some part types together ((name, types, parts a second): an arm's belt window, `belt_window_caps`)."""
     hops = route_hops(scene)
     views = arm_views(scene, reach)
     model = model or hop_model(scene, views, hops)
@@ -277,6 +338,12 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
             row[first], row[other] = 1.0, -1.0
             a_eq.append(row), b_eq.append(0.0)
             pairings.append((station.name, first, other))
+    limit_rows = []  # (name, row index) of each cap on some part types together
+    for name, keys, most_per_s in type_limits or []:
+        row = np.zeros(n)
+        row[[types.index(k) for k in keys if k in types]] = 1.0
+        limit_rows.append((name, len(a_ub)))
+        a_ub.append(row), b_ub.append(most_per_s), labels.append("")
     unreachable = {(hops[js[0]].feeder, hops[js[0]].type_index) for js in dead}
     bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
     result = linprog(
@@ -292,7 +359,8 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     station_busy = {labels[k]: float(usage[k]) for k in range(len(views), len(labels)) if labels[k]}
     busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))
     limited = best < arrivals - 1e-6 - 60.0 * sum(rate[t] for t in unreachable)
-    bottleneck = (busiest[0] if busiest[1] >= 1.0 - 1e-6 else _short_pairing(pairings, x, types, rate) or busiest[0]) if limited else "arrivals"
+    capped = next((name for name, k in limit_rows if usage[k] >= b_ub[k] - 1e-9), "")
+    bottleneck = (busiest[0] if busiest[1] >= 1.0 - 1e-6 else _short_pairing(pairings, x, types, rate) or capped or busiest[0]) if limited else "arrivals"
     return CapacityBound(
         arrivals, best, bottleneck, busiest[1], busiest[0], arm_busy, station_busy, unservable,
         model=model,

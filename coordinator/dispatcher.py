@@ -19,7 +19,7 @@ import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
 from coordinator.cadence import AVAILABLE_SKILLS, GRASP_SKILLS, IDLE_SKILLS, LOCAL_SKILLS, PLACE_SKILLS, decision_period_ticks
-from coordinator.capacity import CapacityBound, capacity_bound, finishable_arrivals, measured_hop_seconds
+from coordinator.capacity import CapacityBound, belt_window_caps, capacity_bound, finishable_arrivals, measured_hop_seconds
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, NearestPair, TimedPath
@@ -460,10 +460,16 @@ class Dispatcher:
         if self.sim_time_s <= 0:
             return None
         arrived = [(p.feeder, p.type_index, p.arrived_s) for p in self.ledger.parts.values()]
-        counts = finishable_arrivals(self.scene, arrived, self.sim_time_s, self.capacity.model)
-        bound = capacity_bound(self.scene, reach=self.reach, model=self.capacity.model,
-                               arrivals_per_s={k: n / self.sim_time_s for k, n in counts.items()})
-        return bound.as_dict() | {"parts_finishable": sum(counts.values()), "sim_seconds": round(self.sim_time_s, 3)}
+        model = self.capacity.model
+        counts = finishable_arrivals(self.scene, arrived, self.sim_time_s, model)
+        caps = belt_window_caps(self.scene, arrived, self.sim_time_s, model)
+        bound = capacity_bound(self.scene, reach=self.reach, model=model,
+                               arrivals_per_s={k: n / self.sim_time_s for k, n in counts.items()},
+                               type_limits=[(f"{c.arm} belt window", c.types, c.at_most / self.sim_time_s) for c in caps])
+        return bound.as_dict() | {
+            "parts_finishable": sum(counts.values()), "sim_seconds": round(self.sim_time_s, 3),
+            "belt_windows": {c.arm: {"parts": c.arrived, "at_most": c.at_most} for c in caps},
+        }
 
     def measured_capacity(self) -> dict | None:
         """The capacity bound again with the hop times this run measured (None before any task was done)."""

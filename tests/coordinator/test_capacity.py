@@ -103,3 +103,33 @@ def test_tops_without_bases_finish_nothing():
     run = capacity_bound(scene, model=nominal.model, arrivals_per_s={("bases", 0): 5 / 300, ("tops", 0): 9 / 300})
     assert run.throughput_bound_per_min == pytest.approx(10 * 60 / 300)
     assert run.bottleneck == "fixture_0 pairing"
+
+
+def test_one_arm_alone_on_its_belt_cannot_take_a_burst_faster_than_it_works():
+    """pick_cell's one arm has each part in reach for a few seconds and is busy a few seconds with each: four parts
+    half a second apart cannot all be taken, the same four five seconds apart can; the run's bound says which."""
+    from coordinator.capacity import belt_window_caps
+
+    scene = load_scene("pick_cell")
+    model = capacity_bound(scene).model
+    window_s, busy_s = float(model.window_s[0, 0, 1] - model.window_s[0, 0, 0]), float(model.seconds[0].min())
+    assert busy_s < window_s < 3 * busy_s, (window_s, busy_s)  # the premise: three parts do not fit in one window
+    burst = [("trial_parts", k, 10.0 + 0.5 * k) for k in range(4)]
+    spread = [("trial_parts", k, 10.0 + 5.0 * k) for k in range(4)]
+    [cap] = belt_window_caps(scene, burst, 120.0, model)
+    assert cap.arm == "arm_0" and cap.arrived == 4 and 1 < cap.at_most < 4
+    assert belt_window_caps(scene, spread, 120.0, model)[0].at_most == 4
+    assert belt_window_caps(scene, burst, 10.0 + window_s, model)[0].at_most < cap.at_most, "the run's end cuts the last off"
+    run = capacity_bound(scene, model=model, arrivals_per_s={("trial_parts", k): 1 / 120.0 for k in range(4)},
+                         type_limits=[("arm_0 belt window", cap.types, cap.at_most / 120.0)])
+    assert run.throughput_bound_per_min == pytest.approx(cap.at_most / 2.0) and run.bottleneck == "arm_0 belt window"
+
+
+def test_a_part_type_two_arms_can_take_gets_no_window_cap():
+    from coordinator.capacity import belt_window_caps
+
+    scene = load_scene("sorting_line", arms=4)
+    model = capacity_bound(scene).model
+    caps = belt_window_caps(scene, [("mixed", t, 5.0) for t in range(3)], 60.0, model)
+    shared = {k for c in caps for k in c.types}
+    assert ("mixed", 1) not in shared, caps  # arms 1 and 2 both take colour 1 into their own bins
