@@ -3,8 +3,8 @@
 A small linear programme (`scipy.optimize.linprog`): each part type arrives at its feeder's mean
 rate and must make every hop of its route (source to first station, station to station); a hop is
 done by any arm that can serve it (the coordinator's own `Eligibility`: reach, and the stretch of
-belt each arm owns), taking that arm the coordinator's own time estimate (`TimeCost`, from its home
-pose: optimistic, it leaves out the way home). No arm may be busy more than all the time, no
+belt each arm owns), keeping that arm busy at least as long as the pick skill's own moves and
+primitives take (`TimeCost.cycle_s`), its approach from wherever it may stand when given the task. No arm may be busy more than all the time, no
 station may serve more than one task at a time, and an assembly takes as many parts of each feeder
 it assembles (no top is finished without its base, nor a base without its top). The bound is the most parts a minute the line can complete; the binding
 arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
@@ -17,7 +17,6 @@ from the mean by up to half.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections import Counter
 from dataclasses import dataclass, field
