@@ -16,3 +16,8 @@ LOCAL_SKILLS = (*GRASP_SKILLS, *PLACE_SKILLS)
 def decision_period_ticks(scene: Scene) -> int:
     """Sim ticks between two coordinator decisions."""
     return max(1, round(scene.control_hz / COORD_RATE_HZ))
+
+
+def moves_need_grants(scene: Scene) -> bool:
+    """Whether the arms ask the coordinator before each free move: whenever another arm could be in the way."""
+    return len(scene.arms) > 1

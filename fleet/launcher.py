@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from coordinator.cadence import moves_need_grants
 from fleet.bus.bus_config import BusConfigError, BusConfigSet
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
@@ -217,7 +218,7 @@ class Launcher:
         nodes = [self._node("coordinator", "coordinator", "fleet.nodes.coordinator_node", ["--mode", o.mode, "--allocator", o.allocator, *([] if o.pipeline else ["--no-pipeline"])])]
         nodes[0].counts_starts = True  # `--incarnation N`: from the 2nd start on, it takes over the running line
         for arm in self.scene.arms:
-            grants = ["--grants"] if len(self.scene.arms) > 1 else []  # a lone arm has nobody to ask about
+            grants = ["--grants"] if moves_need_grants(self.scene) else []  # a lone arm has nobody to ask about
             extra = ["--arm", arm.name, *grants] + (["--rt"] if o.realtime_priority else [])
             node = self._node("controller", arm.name, "fleet.nodes.arm_controller", extra)
             node.counts_starts = True

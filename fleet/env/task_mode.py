@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates
+from coordinator.cadence import moves_need_grants
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.tasks import OPEN_STATES, Task, TaskState
@@ -41,10 +42,10 @@ class TaskChooser:
     def reset(self, dispatcher: Dispatcher) -> None:
         self.dispatcher = dispatcher
         self.ledger = dispatcher.ledger
-        # a line with a fixture is pipelined, as `fleet run` does it: the arms ask for their free moves and the
-        # dispatcher answers (holding an arm at a fixture that is not ready); elsewhere the skills move unasked
-        self.grants = bool(self.ledger.gated)
-        self.ledger.pipeline = self.grants
+        # as `fleet run` does it: the arms ask for their free moves and the dispatcher's guard answers (on a line
+        # with a fixture, pipelined: holding an arm at a fixture that is not ready); a lone arm moves unasked
+        self.grants = moves_need_grants(self.scene)
+        self.ledger.pipeline = bool(self.ledger.gated)
         self.period_ticks = max(1, round(self.scene.control_hz / DEFAULT_DECISION_HZ))  # the skills decide as controllers do
         period_s = self.period_ticks / self.scene.control_hz
         self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a), decision_period_s=period_s,
@@ -65,9 +66,9 @@ class TaskChooser:
         ]
 
     def busy_stations(self) -> set[str]:
-        """Stations no new task may use now: the dispatcher's rule when pipelined (fixtures ordered by the ledger,
-        stations of arms still moving away busy), else the ledger's (stations of open tasks)."""
-        return self.dispatcher.busy_stations() if self.grants else self.ledger.busy_stations()
+        """Stations no new task may use now: the dispatcher's rule (stations of open tasks and of arms still moving
+        away; fixtures ordered by the ledger when pipelined), as the coordinator's."""
+        return self.dispatcher.busy_stations()
 
     def pending(self) -> list[Task]:
         """The tasks waiting for an arm (belt tasks with their deadlines), as the coordinator sees them now."""

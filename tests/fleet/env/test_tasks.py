@@ -159,6 +159,23 @@ def test_task_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_r
     held = dispatcher.held_at_station_s
     assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, held  # the top waited for its base, the ship for its top
     assert touching == 0 and dispatcher.ledger.totals()["parts_completed"] >= 3
-    plain = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=2, control_hz=5)
-    plain.reset(seed=0)
-    assert not plain.chooser.grants, "a line without a fixture: the skills move unasked, as before"
+    lone = parallel_env(task="line", scene="pick_cell", action_mode="task", max_cycles=2, control_hz=5)
+    lone.reset(seed=0)
+    assert not lone.chooser.grants, "a lone arm has nobody to ask, as in fleet run"
+
+
+def test_task_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_fleet_run_does():
+    """mixed_infeed's two arms share the rework tray and the kit bin between them: in task mode they ask for their
+    free moves as in `fleet run` (they used to move unasked there, touched and lost tasks: aborted goals, empty grasps)."""
+    env = parallel_env(task="line", scene="mixed_infeed", action_mode="task", max_cycles=600, control_hz=10)
+    env.reset(seed=1000)
+    chooser, policy = env.chooser, make_allocator("optimal", env.scene)
+    assert chooser.grants and not chooser.ledger.pipeline
+    touching = 0
+    while env.agents:
+        _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
+        touching += sum(i["collision"] for i in infos.values())
+    dispatcher = env.task_model.book.dispatcher
+    assert dispatcher.grants_given > 0 and touching == 0
+    failed = [t.reason for t in dispatcher.ledger.tasks.values() if t.state.value == "failed"]
+    assert not any("aborted" in r or "closed on nothing" in r for r in failed), failed
