@@ -240,15 +240,21 @@ class Dispatcher:
         remaining = self.busy_until_s.get(arm, -math.inf) - self.last_decision_tick / self.scene.control_hz
         return None if arm in self.lost or remaining < -OVERRUN_S else max(remaining, 0.0)
 
-    def busy_stations(self) -> set[str]:
-        """Stations in use: by open tasks, and by arms still moving away from their last task's stations."""
+    def busy_stations(self, for_arm: str | None = None) -> set[str]:
+        """Stations in use: by open tasks, and by arms still moving away from their last task's stations; `for_arm`:
+        as that arm sees them (a station it is itself moving away from is free to it: it may go straight back)."""
         busy = self.ledger.busy_stations()
         for arm, stations in self.last_stations.items():
-            if self.skill[arm] not in IDLE_SKILLS and arm not in self.lost:
+            if arm != for_arm and self.skill[arm] not in IDLE_SKILLS and arm not in self.lost:
                 busy.update(stations)
         if self.ledger.pipeline:
             busy -= self.ledger.gated  # their order is the ledger's, their moves wait at `station_ahead`
         return busy
+
+    def busy_for_all(self, arms: list[str]) -> set[str]:
+        """The stations busy for every one of `arms` (the free ones: what an allocator may be told is busy); a task
+        chosen at another station must still be checked against `busy_stations(arm)` for the arm it goes to."""
+        return set.intersection(*(self.busy_stations(a) for a in arms)) if arms else self.busy_stations()
 
     def busy_arms(self) -> int:
         return sum(s not in IDLE_SKILLS for s in self.skill.values())
@@ -266,9 +272,13 @@ class Dispatcher:
             views = self.arm_views()
             cost_s = TimeCost(Eligibility(self.scene, views))
             taken: set[int] = set()
-            for candidate_id, arm in self.allocator.allocate(self.candidates(pending), views, self.parts, self.busy_stations()):
+            candidates = {t.task_id: t for t in self.candidates(pending)}
+            busy = self.busy_for_all([v.name for v in views if v.free])
+            for candidate_id, arm in self.allocator.allocate(list(candidates.values()), views, self.parts, busy):
                 if self.real(candidate_id).task_id in taken:
                     continue  # two arms chose one task, each for another station: the first keeps it, the other waits a round
+                if self.busy_stations(arm).intersection(candidates[candidate_id].stations):
+                    continue  # a station another arm is still moving away from: free to that arm only
                 task = self.take(candidate_id, arm, now)
                 taken.add(task.task_id)
                 self.busy_until_s[arm] = now + cost_s(next(v for v in views if v.name == arm), task, self.parts[task.part_id])

@@ -65,10 +65,12 @@ class TaskChooser:
             for a in self.agents
         ]
 
-    def busy_stations(self) -> set[str]:
-        """Stations no new task may use now: the dispatcher's rule (stations of open tasks and of arms still moving
-        away; fixtures ordered by the ledger when pipelined), as the coordinator's."""
-        return self.dispatcher.busy_stations()
+    def busy_stations(self, agent: str | None = None) -> set[str]:
+        """Stations no new task may use now (for `agent`; else for every free arm): the dispatcher's rule (stations of
+        open tasks and of other arms still moving away; fixtures ordered by the ledger when pipelined)."""
+        if agent is not None:
+            return self.dispatcher.busy_stations(agent)
+        return self.dispatcher.busy_for_all([v.name for v in self.arm_views() if v.free])
 
     def pending(self) -> list[Task]:
         """The tasks waiting for an arm (belt tasks with their deadlines), as the coordinator sees them now."""
@@ -79,10 +81,11 @@ class TaskChooser:
         """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
         views, parts = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
-        open_tasks = open_candidates(self.dispatcher.candidates(self.pending()), parts, self.busy_stations())
+        candidates = self.dispatcher.candidates(self.pending())
         out = {}
         for view in views:
-            scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks] if view.free else []
+            open_tasks = open_candidates(candidates, parts, self.busy_stations(view.name)) if view.free else []
+            scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks]
             out[view.name] = [(t, s) for t, s in scored if math.isfinite(s)][:SLOTS]
         return out
 
@@ -99,7 +102,7 @@ class TaskChooser:
     def choose(self, actions: dict[str, int], options: dict[str, list[tuple[Task, float]]]) -> dict[str, str]:
         """Start each free arm's chosen task, arms in id order; a task or station already taken this step is refused.
         Returns, per arm, what became of its choice (`took`, `waited`, `refused: ...`)."""
-        busy = self.busy_stations()
+        taken: set[str] = set()
         out = {}
         for agent in self.agents:
             k = int(actions.get(agent, WAIT))
@@ -110,11 +113,11 @@ class TaskChooser:
                 out[agent] = f"refused: slot {k} is empty ({len(options[agent])} choices)"
                 continue
             task = options[agent][k - 1][0]
-            if self.dispatcher.real(task.task_id).state != TaskState.PENDING or busy.intersection(task.stations):
+            if self.dispatcher.real(task.task_id).state != TaskState.PENDING or (taken | self.busy_stations(agent)).intersection(task.stations):
                 out[agent] = f"refused: task {task.task_id} was taken by an arm before it"
                 continue
             self._start(agent, task)
-            busy.update(task.stations)
+            taken.update(task.stations)
             out[agent] = "took"
         return out
 

@@ -151,3 +151,33 @@ def test_a_sorted_part_resting_in_another_bin_of_its_colour_has_done_its_hop():
     d.on_event("arrived", 0, feeder.name, 0, 1.0)
     d.on_event("at_station", 0, bins[1], 0, 5.0)
     assert d.ledger.totals()["parts_completed"] == 1
+
+
+def test_an_arm_on_its_way_home_from_a_bin_may_go_straight_back_to_it_and_only_it():
+    """mixed_infeed: arm_0 has put a red part in bin_red and is on its way home when the next red part is in its reach
+    for a few seconds only. It is given that part at once (it used to wait until home: bin_red counted as busy while
+    its own arm moved away, and a red part close behind the last one rode off). For another arm that bin stays busy."""
+    scene = load_scene("mixed_infeed")
+    d = Dispatcher(scene)
+    belt = scene.conveyor
+    red = [t for t, p in enumerate(scene.feeder("belt_parts").parts) if p.colour == "#d04030"][0]
+
+    def on_belt(along_m: float) -> PartView:
+        x, y, z = belt.point_at(along_m)
+        return PartView(np.array([x, y, z + 0.015]), np.array(d.belt_velocity()))
+
+    d.on_event("arrived", 0, "belt_parts", red, 1.0)
+    d.on_parts({0: on_belt(0.25)}, 1.0)
+    for arm in d.arm_names:
+        d.on_arm(arm, HOME, "idle", 1.0)
+    [first] = [o for o in d.decide(100).orders if isinstance(o, AssignOrder)]
+    assert first.arm == "arm_0"
+    d.on_arm("arm_0", HOME, "transfer", 3.0, task_id=first.task_id)
+    d.on_event("arrived", 1, "belt_parts", red, 3.0)
+    d.on_event("at_station", 0, "bin_red", red, 4.0)
+    d.on_arm("arm_0", HOME, "home", 4.1, task_id=first.task_id)
+    d.on_parts({1: on_belt(0.30)}, 4.1)
+    assert d.ledger.tasks[first.task_id].state.value == "done"
+    assert "bin_red" in d.busy_stations("arm_1") and "bin_red" not in d.busy_stations("arm_0")
+    orders = [o for o in d.decide(410).orders if isinstance(o, AssignOrder)]
+    assert [(o.arm, o.part_id) for o in orders] == [("arm_0", 1)]
