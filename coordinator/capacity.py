@@ -3,8 +3,8 @@
 A small linear programme (`scipy.optimize.linprog`): each part type arrives at its feeder's mean
 rate and must make every hop of its route (source to first station, station to station); a hop is
 done by any arm that can serve it (the coordinator's own `Eligibility`: reach, and the stretch of
-belt each arm owns), keeping that arm busy at least as long as the pick skill's own moves and
-primitives take (`TimeCost.cycle_s`), its approach from wherever it may stand when given the task. No arm may be busy more than all the time, no
+belt each arm owns), keeping that arm busy at least as long as the pick skill's own transfer and
+primitives take (`TimeCost.cycle_s`; the approach left out: the arm may already be there). No arm may be busy more than all the time, no
 station may serve more than one task at a time, and an assembly takes as many parts of each feeder
 it assembles (no top is finished without its base, nor a base without its top). The bound is the most parts a minute the line can complete; the binding
 arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
-from coordinator.allocation import HOVER_M, ArmView, CachedReach, Eligibility, PartView, TimeCost
+from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView, TimeCost
 from coordinator.tasks import CONVEYOR, Task
 from robots.registry import get_robot
 from scenes.schema import Scene
@@ -48,15 +48,23 @@ class Hop:
 @dataclass(frozen=True)
 class HopModel:
     """The least time each arm is busy with each hop, (arms, hops) in seconds (inf: the arm cannot serve the hop): its
-    moves timed as the pick skill times them, its approach from wherever it may stand when given the task (home, or
-    above a station it reaches); the least time from a part's release to each hop done (a belt part rides from the
+    moves timed as the pick skill times them, its approach left out (it may be given the task right where the part
+    is, even on its way home); the least time from a part's release to each hop done (a belt part rides from the
     drop point to where the arm meets it first); and for a belt hop, when after its release the coordinator's
     rules let the arm be given the part (`window_s[..., 0]` to `window_s[..., 1]`, widened by a sample step each way;
-    NaN: never, or not from the belt). IK at every belt sample: worked out once, reused."""
+    NaN: never, or not from the belt); `after_place_s`, per arm: the end of its busy time that comes after the
+    part is set down (the retreat), which the part's own time leaves out. IK at every belt sample: worked out once,
+    reused."""
 
     seconds: np.ndarray
     from_release_s: np.ndarray
     window_s: np.ndarray
+    after_place_s: np.ndarray
+
+    @property
+    def to_rest_s(self) -> np.ndarray:
+        """(arms, hops): the least time from an arm being given a part to that part set down."""
+        return self.seconds - self.after_place_s[:, None]
 
 
 @dataclass
@@ -158,24 +166,18 @@ def hop_model(scene: Scene, views: list[ArmView], hops: list[Hop]) -> HopModel:
     from_release = seconds.copy()
     window = np.full((len(views), len(hops), 2), math.nan)
     step_s = BELT_SAMPLE_M / scene.conveyor.speed_m_per_s if scene.conveyor else 0.0
-    starts = {v.name: _standing_poses(scene, v) for v in views}
+    after_place = np.array([cost.timing(v).retreat_s for v in views])
     for j, hop in enumerate(hops):
         task = Task(0, 0, hop.source, hop.target, 0.0)
         points = pick_points(scene, hop)
         for i, view in enumerate(views):
-            times = [(ride_s, cost.cycle_s(view, task, p, starts[view.name])) for ride_s, p in points]
+            times = [(ride_s, cost.cycle_s(view, task, p, [])) for ride_s, p in points]
             seconds[i, j] = min((t for _, t in times), default=math.inf)
-            from_release[i, j] = min((r + t for r, t in times), default=math.inf)
+            from_release[i, j] = min((r + t for r, t in times), default=math.inf) - after_place[i]
             rides = [r for r, t in times if math.isfinite(t)]
             if hop.source == CONVEYOR and rides:
                 window[i, j] = (max(0.0, min(rides) - step_s), max(rides) + step_s)
-    return HopModel(seconds, from_release, window)
-
-
-def _standing_poses(scene: Scene, view: ArmView) -> list[np.ndarray]:
-    """Where an arm may stand when it is given a task: home, or above any station it reaches (its last place)."""
-    above = [view.reach.joints(np.array([*s.pose.xyz[:2], s.surface_z_m + HOVER_M])) for s in scene.stations]
-    return [np.asarray(view.q, float), *(q for q in above if q is not None)]
+    return HopModel(seconds, from_release, window, after_place)
 
 
 def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
@@ -211,7 +213,7 @@ def least_route_seconds(scene: Scene, model: HopModel) -> dict[tuple[str, int], 
     met where it first can be (inf: no arm can make one of its stages)."""
     out: dict[tuple[str, int], float] = {}
     for (feeder, type_index, stage), js in _stages(route_hops(scene)).items():
-        times = model.from_release_s if stage == 0 else model.seconds
+        times = model.from_release_s if stage == 0 else model.to_rest_s
         out[(feeder, type_index)] = out.get((feeder, type_index), 0.0) + float(times[:, js].min(initial=math.inf))
     return out
 
@@ -250,8 +252,9 @@ def belt_window_caps(scene: Scene, arrived: list[tuple[str, int, float]], end_s:
     out = []
     for i, kinds in alone.items():
         busy_s = min(float(model.seconds[i, js].min()) for _, js in kinds)
+        placed_s = busy_s - float(model.after_place_s[i])  # the last part must be set down by the end, not the arm back
         spans = {key: (float(np.nanmin(model.window_s[i, js, 0])), float(np.nanmax(model.window_s[i, js, 1]))) for key, js in kinds}
-        jobs = sorted((at_s + spans[(f, t)][0], min(at_s + spans[(f, t)][1], end_s - busy_s)) for f, t, at_s in arrived if (f, t) in spans)
+        jobs = sorted((at_s + spans[(f, t)][0], min(at_s + spans[(f, t)][1], end_s - placed_s)) for f, t, at_s in arrived if (f, t) in spans)
         if any(later[1] < earlier[1] for earlier, later in zip(jobs, jobs[1:])):
             continue  # windows not in arrival order: the programme would not be exact
         least_end = [-math.inf] + [math.inf] * len(jobs)  # least_end[c]: the soonest c of the parts so far are done

@@ -106,6 +106,7 @@ class Dispatcher:
         self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.parts: dict[int, PartView] = {}
         self.sim_time_s = 0.0
+        self.last_event_s = 0.0  # the latest line event heard (the run's end, at its report, may be later than its parts)
         self.last_decision_tick = -10**9
         self.decisions = 0
         self.grants_given = 0
@@ -141,6 +142,7 @@ class Dispatcher:
     def on_event(self, kind: str, part_id: int, detail: str, type_index: int, time_s: float) -> None:
         """A line event (`arrived`, `at_station`, `lost`, `retired`) at sim time `time_s`."""
         self.ledger.on_event(kind, part_id, detail, type_index, time_s)
+        self.last_event_s = max(self.last_event_s, time_s)
 
     def on_arm(self, arm: str, q: np.ndarray, skill: str, time_s: float, *, task_id: int | None = None, failure: str = "",
                request_seq: int = 0, request: TimedPath | None = None, acts_at_tick: int = 0,
@@ -467,17 +469,18 @@ class Dispatcher:
     def run_capacity(self) -> dict | None:
         """The capacity bound with this run's own arrivals, those in time to be finished by now, in place of the mean
         rates (None before any time passed): what this run could have completed at best."""
-        if self.sim_time_s <= 0:
+        end_s = max(self.sim_time_s, self.last_event_s)
+        if end_s <= 0:
             return None
         arrived = [(p.feeder, p.type_index, p.arrived_s) for p in self.ledger.parts.values()]
         model = self.capacity.model
-        counts = finishable_arrivals(self.scene, arrived, self.sim_time_s, model)
-        caps = belt_window_caps(self.scene, arrived, self.sim_time_s, model)
+        counts = finishable_arrivals(self.scene, arrived, end_s, model)
+        caps = belt_window_caps(self.scene, arrived, end_s, model)
         bound = capacity_bound(self.scene, reach=self.reach, model=model,
-                               arrivals_per_s={k: n / self.sim_time_s for k, n in counts.items()},
-                               type_limits=[(f"{c.arm} belt window", c.types, c.at_most / self.sim_time_s) for c in caps])
+                               arrivals_per_s={k: n / end_s for k, n in counts.items()},
+                               type_limits=[(f"{c.arm} belt window", c.types, c.at_most / end_s) for c in caps])
         return bound.as_dict() | {
-            "parts_finishable": sum(counts.values()), "sim_seconds": round(self.sim_time_s, 3),
+            "parts_finishable": sum(counts.values()), "sim_seconds": round(end_s, 3),
             "belt_windows": {c.arm: {"parts": c.arrived, "at_most": c.at_most} for c in caps},
         }
 
