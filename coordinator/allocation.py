@@ -184,37 +184,40 @@ class TimeCost:
         return self.t if self.t is not None else PickPlaceTiming.for_robot(arm.reach.top_down.spec)
 
     def __call__(self, arm: ArmView, task: Task, part: PartView) -> float:
-        if not self.rules.can_serve(arm, task, part):
+        poses = self._poses(arm, task, part)
+        if poses is None:
             return math.inf
-        t = self.timing(arm)
-        fixed_s = t.descend_s + t.close_s + t.lift_s + t.lower_s + t.release_s + t.retreat_s
-        station = self.rules.scene.station(task.target)
-        q_pick = arm.reach.joints(self.rules.pick_point(task, part) + [0.0, 0.0, HOVER_M])
-        q_place = arm.reach.joints(np.array([*station.pose.xyz[:2], station.surface_z_m + HOVER_M]))
-        if q_pick is None or q_place is None:
-            return math.inf
-        v = arm.reach.velocity_limit
+        q_pick, q_place = poses
+        t, v = self.timing(arm), arm.reach.velocity_limit
         q_now = np.asarray(arm.q, float) if arm.q else q_pick
         approach = float(np.max(np.abs(q_pick - q_now) / (v * t.approach_speed)))
         transfer = float(np.max(np.abs(q_place - q_pick) / (v * t.transfer_speed)))
-        return approach + transfer + fixed_s
+        return approach + transfer + self._primitives_s(t)
 
-    def cycle_s(self, arm: ArmView, task: Task, part: PartView, starts: list[np.ndarray]) -> float:
-        """The least time the arm is busy with a task, its moves timed as the pick skill times them (`JointSegment.timed`:
-        quintic, peaking at the skill's speed; the estimate above times them at their peak speed throughout), its
-        approach from the nearest of `starts` (where it may stand when given the task: home, a station it placed at)."""
-        if not self.rules.can_serve(arm, task, part):
+    def cycle_s(self, arm: ArmView, task: Task, part: PartView) -> float:
+        """The least time the arm is busy with a task: its transfer timed as the pick skill times it
+        (`JointSegment.timed`: quintic, peaking at the skill's speed; the estimate above times moves at their peak
+        speed throughout) and its primitives, the approach left out (it may be given the task right where it is)."""
+        poses = self._poses(arm, task, part)
+        if poses is None:
             return math.inf
         t = self.timing(arm)
+        transfer = JointSegment.timed(poses[0], poses[1], 0.0, arm.reach.velocity_limit, t.transfer_speed).duration_s
+        return transfer + self._primitives_s(t)
+
+    def _poses(self, arm: ArmView, task: Task, part: PartView) -> tuple[np.ndarray, np.ndarray] | None:
+        """The arm's joints above the pick and above the place, or None when it cannot serve the task."""
+        if not self.rules.can_serve(arm, task, part):
+            return None
         station = self.rules.scene.station(task.target)
         q_pick = arm.reach.joints(self.rules.pick_point(task, part) + [0.0, 0.0, HOVER_M])
         q_place = arm.reach.joints(np.array([*station.pose.xyz[:2], station.surface_z_m + HOVER_M]))
-        if q_pick is None or q_place is None:
-            return math.inf
-        v = arm.reach.velocity_limit
-        approach = min(JointSegment.timed(q, q_pick, 0.0, v, t.approach_speed).duration_s for q in starts) if starts else 0.0
-        transfer = JointSegment.timed(q_pick, q_place, 0.0, v, t.transfer_speed).duration_s
-        return approach + transfer + t.descend_s + t.close_s + t.lift_s + t.lower_s + t.release_s + t.retreat_s
+        return None if q_pick is None or q_place is None else (q_pick, q_place)
+
+    @staticmethod
+    def _primitives_s(t: PickPlaceTiming) -> float:
+        """The grasp and place primitives, fixed in length: descend, close, lift; lower, release, retreat."""
+        return t.descend_s + t.close_s + t.lift_s + t.lower_s + t.release_s + t.retreat_s
 
 
 def open_candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:

@@ -171,7 +171,7 @@ def hop_model(scene: Scene, views: list[ArmView], hops: list[Hop]) -> HopModel:
         task = Task(0, 0, hop.source, hop.target, 0.0)
         points = pick_points(scene, hop)
         for i, view in enumerate(views):
-            times = [(ride_s, cost.cycle_s(view, task, p, [])) for ride_s, p in points]
+            times = [(ride_s, cost.cycle_s(view, task, p)) for ride_s, p in points]
             seconds[i, j] = min((t for _, t in times), default=math.inf)
             from_release[i, j] = min((r + t for r, t in times), default=math.inf) - after_place[i]
             rides = [r for r, t in times if math.isfinite(t)]
