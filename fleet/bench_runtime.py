@@ -158,6 +158,8 @@ class LineRow:
     min_separation_m: float | None
     grants_denied: int
     grants_given: int = 0
+    bound_fraction: float | None = None  # of the line's nominal capacity bound
+    run_bound_fraction: float | None = None  # of the bound of this run's own arrivals
 
 
 def bench_lines(cases: list[tuple[str, int | None]], allocators: list[str], sim_seconds: float, seed: int = 0) -> list[LineRow]:
@@ -173,6 +175,7 @@ def bench_lines(cases: list[tuple[str, int | None]], allocators: list[str], sim_
             rows.append(LineRow(
                 s["scene"], s["arms"], allocator, s["throughput_per_min"], s["parts_completed"], s["parts_spawned"],
                 s["inter_arm_contacts"], s["min_separation_m"], s["grants_denied"], s["grants_given"],
+                s.get("bound_fraction"), s.get("run_bound_fraction"),
             ))
     return rows
 

@@ -619,11 +619,14 @@ def cmd_bench_lines(args: argparse.Namespace) -> int:
     from fleet.bench_runtime import bench_lines
 
     cases = [(c.split(":")[0], int(c.split(":")[1]) if ":" in c else None) for c in args.cases]
-    table = Table("scene", "arms", "allocator", "throughput (/min)", "completed / spawned", "contacts", "min separation (m)", "grants given / denied")
+    table = Table("scene", "arms", "allocator", "throughput (/min)", "completed / spawned", "bound fraction (of the run's own)",
+                  "contacts", "min separation (m)", "grants given / denied")
     rows = bench_lines(cases, args.allocators, args.seconds, args.seed)
     for r in rows:
         sep = "-" if r.min_separation_m is None else f"{r.min_separation_m:.3f}"
-        table.add_row(r.scene, str(r.arms), r.allocator, f"{r.throughput_per_min:.2f}", f"{r.parts_completed} / {r.parts_spawned}", str(r.contacts), sep, f"{r.grants_given} / {r.grants_denied}")
+        fraction = "-" if r.bound_fraction is None else f"{r.bound_fraction:.2f} ({'-' if r.run_bound_fraction is None else f'{r.run_bound_fraction:.2f}'})"
+        table.add_row(r.scene, str(r.arms), r.allocator, f"{r.throughput_per_min:.2f}", f"{r.parts_completed} / {r.parts_spawned}", fraction,
+                      str(r.contacts), sep, f"{r.grants_given} / {r.grants_denied}")
     return print_bench(table, rows, args.json)
 
 
