@@ -144,6 +144,8 @@ class Eligibility:
         return part.position
 
     def can_serve(self, arm: ArmView, task: Task, part: PartView) -> bool:
+        if arm.name in task.refused_by:
+            return False  # its skill found this part out of its reach as it lies
         station = self.scene.station(task.target)
         if not self.in_reach(arm, (*station.pose.xyz[:2], station.surface_z_m)):
             return False

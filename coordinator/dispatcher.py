@@ -295,7 +295,8 @@ class Dispatcher:
         for task in pending:
             out.append(task)
             for k, station in enumerate(task.alternatives, start=1):
-                copy = Task(-(task.task_id * 64 + k), task.part_id, task.source, station, task.created_s, deadline_s=task.deadline_s)
+                copy = Task(-(task.task_id * 64 + k), task.part_id, task.source, station, task.created_s, deadline_s=task.deadline_s,
+                            refused_by=task.refused_by)
                 self._candidates[copy.task_id] = (task.task_id, station)
                 out.append(copy)
         return out

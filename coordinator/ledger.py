@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections import Counter
 
 from coordinator.tasks import CONVEYOR, OPEN_STATES, TAKEN_STATES, PartFate, PartRecord, Task, TaskState
+from robots.skills.pick_place import UNREACHABLE
 from scenes.schema import Scene
 
 HELD = "held"
@@ -156,6 +157,8 @@ class Ledger:
     def _fail_attempt(self, task: Task, reason: str) -> None:
         part = self.parts[task.part_id]
         self._close(task, TaskState.FAILED, reason)
+        if UNREACHABLE in reason and task.arm is not None:  # its pose will not change: another arm must take it
+            part.refused_by.add(task.arm)
         if part.location == HELD and part.fate == PartFate.ON_LINE:
             self._put_back(part)
         part.attempts += 1
@@ -196,6 +199,7 @@ class Ledger:
         task_id = self._next_task_id if task_id is None else task_id
         task = Task(task_id, part.part_id, part.location, part.next_station, now_s)
         task.alternatives = tuple(s for s in self._alternatives(part) if s != task.target)
+        task.refused_by = tuple(sorted(part.refused_by))
         self._next_task_id = max(self._next_task_id, task_id + 1)
         self.tasks[task.task_id] = task
         self._open_by_part[part.part_id] = task.task_id

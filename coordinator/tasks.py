@@ -44,6 +44,7 @@ class PartRecord:
     reason: str = ""
     held_from: str | None = None  # where the part was when an arm took it (and the stack it was in then)
     held_stack: tuple[int, ...] = ()
+    refused_by: set[str] = field(default_factory=set)  # arms that could not grasp it as it lies (`UNREACHABLE`)
 
     @property
     def next_station(self) -> str | None:
@@ -68,6 +69,7 @@ class Task:
     done_s: float | None = None  # when the part came to rest at the target (DONE tasks)
     reassignments: int = 0
     alternatives: tuple[str, ...] = ()  # other stations that would do as the target (a sorted part: any bin of its colour)
+    refused_by: tuple[str, ...] = ()  # arms whose skill found the part out of its reach as it lies: not given it again
 
     def retarget(self, target: str) -> None:
         """Make `target` (the target or one of the alternatives) the station this task goes to."""

@@ -38,6 +38,9 @@ from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment, quintic
 
 
+UNREACHABLE = "cannot be reached from above"  # a skill's refusal of a part it cannot grasp as it lies (the coordinator remembers it)
+
+
 class Phase(str, Enum):
     IDLE = "idle"
     APPROACH = "approach"
@@ -281,7 +284,7 @@ class PickPlaceSkill:
             found = self._least_tilt(grasp, self.grasp_yaw, t.hover_m)
             if found is None:
                 hover = grasp + [0.0, 0.0, t.hover_m]
-                self._fail(f"part {part.part_id} cannot be reached from above at {np.round(hover, 3).tolist()}")
+                self._fail(f"part {part.part_id} {UNREACHABLE} at {np.round(hover, 3).tolist()}")
                 return
             self.pick_tilt_rad, q_hover, self._pick_up = found
             seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)

@@ -1,7 +1,12 @@
 """The task ledger on the assembly line: precedence, retries, lost arms and parts, every part accounted for."""
 
+import numpy as np
+
+from coordinator.allocation import Eligibility, PartView
+from coordinator.capacity import arm_views
 from coordinator.ledger import MAX_ATTEMPTS, Ledger
 from coordinator.tasks import TaskState
+from robots.skills.pick_place import UNREACHABLE
 from scenes import load_scene
 
 
@@ -119,3 +124,25 @@ def test_a_ship_that_left_the_assembly_behind_is_tried_again_with_the_stack_as_i
     assert ship.state == TaskState.FAILED and lg.stacks["fixture_0"] == [0, 1]
     again = only(lg.refresh(16.0))
     assert (again.part_id, again.source, again.target) == (0, "fixture_0", "output_tray")
+
+
+def test_an_arm_whose_skill_cannot_reach_a_part_as_it_lies_is_not_given_it_again():
+    """mixed_fleet's SO-101 refused a green part three times in a row (a 5-joint arm cannot turn its claw to every
+    part's yaw) and the part failed while the Panda downstream could have taken it: the refusal is remembered for
+    that part, so the next task for it goes to another arm. A grasp that closed on nothing is no such refusal."""
+    scene = load_scene("mixed_fleet")
+    lg = Ledger(scene)
+    lg.arrived(0, "mixed", 1, 1.0)
+    task = only(lg.refresh(1.0))
+    lg.assign(task.task_id, "arm_1", 2.0)
+    lg.arm_report("arm_1", task.task_id, "failed", 2.1, f"part 0 {UNREACHABLE} at [0.523, -0.017, 0.135]")
+    again = only(lg.refresh(2.2))
+    assert again.task_id != task.task_id and again.refused_by == ("arm_1",)
+    views = {v.name: v for v in arm_views(scene)}
+    rules = Eligibility(scene, list(views.values()))
+    x, y, z = scene.conveyor.point_at(1.1)  # where arm_1 reaches it
+    part = PartView(np.array([x, y, z + 0.015]), np.array(scene.conveyor.direction) * scene.conveyor.speed_m_per_s)
+    assert rules.can_serve(views["arm_1"], task, part) and not rules.can_serve(views["arm_1"], again, part)
+    lg.assign(again.task_id, "arm_2", 3.0)
+    lg.arm_report("arm_2", again.task_id, "failed", 3.1, "grasp of part 0 missed: the claw closed on nothing")
+    assert only(lg.refresh(3.2)).refused_by == ("arm_1",)
