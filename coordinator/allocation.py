@@ -314,25 +314,36 @@ class OptimalAssignment:
     @staticmethod
     def _coming(pending: list[Task], free: list[ArmView], parts: dict[int, PartView], cost: np.ndarray, cost_of: TimeCost) -> set[tuple[int, int]]:
         """Fill in, for each belt task a free arm cannot serve yet, the cost of waiting for its part to ride into
-        reach (within `LOOKAHEAD_S`, in `LOOKAHEAD_STEP_S` steps) and serving it then; returns those (task row, arm
-        column) pairs. An arm the assignment gives such a task stays free for it instead of starting work that
-        can wait (a tray part) and losing the belt part meanwhile."""
+        reach and serving it then (`served_after_wait`); returns those (task row, arm column) pairs. An arm the
+        assignment gives such a task stays free for it instead of starting work that can wait (a tray part) and
+        losing the belt part meanwhile."""
         out = set()
         for r, t in enumerate(pending):
-            if t.source != CONVEYOR:
-                continue
-            station = cost_of.rules.scene.station(t.target)
             for c, a in enumerate(free):
-                if math.isfinite(cost[r, c]) or not cost_of.rules.in_reach(a, (*station.pose.xyz[:2], station.surface_z_m)):
-                    continue  # served now, or never: the station is out of its reach wherever the part is
-                for k in range(1, int(LOOKAHEAD_S / LOOKAHEAD_STEP_S) + 1):
-                    wait = k * LOOKAHEAD_STEP_S
-                    ahead = cost_of(a, t, later(parts[t.part_id], wait))
-                    if math.isfinite(ahead):
-                        cost[r, c] = wait + ahead
-                        out.add((r, c))
-                        break
+                if math.isfinite(cost[r, c]):
+                    continue  # served now
+                found = served_after_wait(a, t, parts[t.part_id], cost_of)
+                if found is not None:
+                    cost[r, c] = sum(found)
+                    out.add((r, c))
         return out
+
+
+def served_after_wait(arm: ArmView, task: Task, part: PartView, cost_of: TimeCost) -> tuple[float, float] | None:
+    """For a belt task `arm` cannot serve yet: the least wait (within `LOOKAHEAD_S`, in `LOOKAHEAD_STEP_S` steps)
+    after which its part has ridden into the arm's reach, and the estimated seconds of the task then. None for a
+    part at rest, a station out of the arm's reach wherever the part is, or a part that does not come in time."""
+    if task.source != CONVEYOR:
+        return None
+    station = cost_of.rules.scene.station(task.target)
+    if not cost_of.rules.in_reach(arm, (*station.pose.xyz[:2], station.surface_z_m)):
+        return None
+    for k in range(1, int(LOOKAHEAD_S / LOOKAHEAD_STEP_S) + 1):
+        wait = k * LOOKAHEAD_STEP_S
+        ahead = cost_of(arm, task, later(part, wait))
+        if math.isfinite(ahead):
+            return wait, ahead
+    return None
 
 
 class Auction:

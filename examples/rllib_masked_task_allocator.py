@@ -31,6 +31,7 @@ from rich.console import Console
 from rich.table import Table
 
 from fleet.env import parallel_env
+from fleet.env.task_mode import WAIT
 from rllib_ppo_reach import start_ray
 from task_mode_allocators import POLICIES, play, run_episode
 from train_ippo_reach import write_rows
@@ -49,8 +50,17 @@ def for_rllib(obs: dict) -> dict:
     return {"observations": obs["observation"], "action_mask": obs["action_mask"].astype(np.float32)}
 
 
+def has_choice(obs: dict) -> bool:
+    """Whether any arm may do more than wait now."""
+    return any(o["action_mask"][1:].any() for o in obs.values())
+
+
 class MaskedTaskEnv(MultiAgentEnv):
-    """The task-mode cell as RLlib's multi-agent env, observations renamed for RLlib's action-masking module."""
+    """The task-mode cell as RLlib's multi-agent env, observations renamed for RLlib's action-masking module.
+
+    Only the steps where some arm has a choice reach RLlib: on mixed_infeed an arm may only wait at 95% of the
+    10 Hz steps (busy, or nothing to take), so those are played here with every arm waiting and their rewards
+    summed into the next step RLlib sees. The policy learns on its decisions, not on ticks it cannot act on."""
 
     def __init__(self, config: dict) -> None:
         super().__init__()
@@ -60,15 +70,32 @@ class MaskedTaskEnv(MultiAgentEnv):
         one = gym.spaces.Dict({"observations": inner["observation"], "action_mask": gym.spaces.Box(0.0, 1.0, inner["action_mask"].shape, np.float32)})
         self.observation_spaces = {a: one for a in self.agents}
         self.action_spaces = {a: self.env.action_space(a) for a in self.agents}
+        self._carried: dict[str, float] = {}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         obs, infos = self.env.reset(seed=seed, options=options)
+        self._carried = {a: 0.0 for a in self.agents}
+        obs, infos = self._to_next_choice(obs, infos, self._carried)
         return {a: for_rllib(o) for a, o in obs.items()}, infos
 
     def step(self, actions: dict):
-        obs, rewards, terminated, truncated, infos = self.env.step(actions)
+        rewards, self._carried = self._carried, {a: 0.0 for a in self.agents}
+        obs, step_rewards, terminated, truncated, infos = self.env.step(actions)
+        for a, r in step_rewards.items():
+            rewards[a] += r
+        if self.env.agents:
+            obs, infos = self._to_next_choice(obs, infos, rewards)
         terminated["__all__"], truncated["__all__"] = all(terminated.values()), all(truncated.values())
         return {a: for_rllib(o) for a, o in obs.items()}, rewards, terminated, truncated, infos
+
+    def _to_next_choice(self, obs: dict, infos: dict, rewards: dict) -> tuple[dict, dict]:
+        """Every arm waits until one has a choice or one step is left (RLlib's last step ends the episode); the rewards
+        meanwhile are added to `rewards`."""
+        while self.env.cycles < self.env.max_cycles - 1 and not has_choice(obs):
+            obs, step_rewards, _, _, infos = self.env.step({a: WAIT for a in self.env.agents})
+            for a, r in step_rewards.items():
+                rewards[a] += r
+        return obs, infos
 
     def close(self) -> None:
         self.env.close()
@@ -82,7 +109,7 @@ def ppo_config(args: argparse.Namespace) -> PPOConfig:
         .env_runners(num_env_runners=args.env_runners, rollout_fragment_length="auto")
         .multi_agent(policies={"shared"}, policy_mapping_fn=lambda agent_id, *a, **k: "shared")
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={"shared": RLModuleSpec(module_class=ActionMaskingTorchRLModule)}))
-        .training(train_batch_size_per_learner=args.batch, minibatch_size=min(256, args.batch), num_epochs=args.epochs, lr=3e-4,
+        .training(train_batch_size_per_learner=args.batch, minibatch_size=min(128, args.batch), num_epochs=args.epochs, lr=3e-4,
                   gamma=0.99, entropy_coeff=0.01)
         .debugging(seed=args.seed)
     )
@@ -164,9 +191,9 @@ def main() -> int:
     parser.add_argument("--decision-hz", type=float, default=10.0)
     parser.add_argument("--minutes", type=float, default=20.0, help="training wall time (unless --iterations)")
     parser.add_argument("--iterations", type=int, default=0)
-    parser.add_argument("--batch", type=int, default=2000, help="agent-steps per training batch")
-    parser.add_argument("--epochs", type=int, default=6)
-    parser.add_argument("--env-runners", type=int, default=1)
+    parser.add_argument("--batch", type=int, default=500, help="agent-steps per training batch (decisions: steps where no arm has a choice are not sampled)")
+    parser.add_argument("--epochs", type=int, default=8)
+    parser.add_argument("--env-runners", type=int, default=2, help="RLlib env-runner actors (sampling processes)")
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes (seeds 1000, 1001, ...)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--curve", help="write the learning curve here (STEM.csv, STEM.png)")

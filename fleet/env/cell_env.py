@@ -114,7 +114,7 @@ class CellParallelEnv(ParallelEnv):
     def observation_space(self, agent: str) -> gymnasium.spaces.Space:
         n, others = self._dof[agent], len(self.possible_agents) - 1
         if self.action_mode == "task":
-            size = n + n + 1 + 2 + 3 + 3 * others + 1 + SLOTS * SLOT_FEATURES
+            size = n + n + 1 + 2 + 3 + 3 * others + 1 + 1 + SLOTS * SLOT_FEATURES
         else:
             size = n + n + 1 + 3 + 3 + 3 * others + 1
         box = gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
@@ -296,7 +296,7 @@ class CellParallelEnv(ParallelEnv):
             if self.chooser is not None:
                 skill = self.chooser.skills[a]
                 own = [q[:n], dq[:n], [self._opening(a)], [float(self.chooser.task_of[a] is None and not skill.active), skill.progress], tools[a]]
-                extra = [self.chooser.features(self._options.get(a, []))]
+                extra = [self.chooser.features(a, self._options.get(a, []))]
             else:
                 target = targets[a] if targets else self.task_model.target(a, self.world)
                 own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates
+from coordinator.allocation import LOOKAHEAD_S, Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates, served_after_wait
 from coordinator.cadence import moves_need_grants
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
@@ -26,7 +26,7 @@ from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
 SLOTS = 4  # the first SLOTS tasks an arm can serve, oldest first, are its choices
-SLOT_FEATURES = 8  # valid, pick point xyz, place point xyz, estimated seconds / 10
+SLOT_FEATURES = 10  # valid, pick point xyz, place point xyz, estimated seconds / 10, on the belt (0/1), slack seconds / 10
 WAIT = 0  # action 0: take nothing new this step
 
 
@@ -52,6 +52,7 @@ class TaskChooser:
                                          grants_required=self.grants) for a in self.agents}
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
+        self.coming_s: dict[str, float] = {a: LOOKAHEAD_S for a in self.agents}
         self.outcomes: dict[str, list[str]] = {a: [] for a in self.agents}
 
     # --- what each arm sees ---------------------------------------------------------
@@ -78,7 +79,9 @@ class TaskChooser:
         return self.dispatcher.pending(self.world.sim_time_s)
 
     def choices(self) -> dict[str, list[tuple[Task, float]]]:
-        """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS."""
+        """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS. Also
+        sets `coming_s`: per free arm, how soon a belt part it cannot serve yet rides into its reach (as the
+        optimal allocator's look-ahead sees it; `LOOKAHEAD_S` when none does)."""
         views, parts = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
         candidates = self.dispatcher.candidates(self.pending())
@@ -87,16 +90,24 @@ class TaskChooser:
             open_tasks = open_candidates(candidates, parts, self.busy_stations(view.name)) if view.free else []
             scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks]
             out[view.name] = [(t, s) for t, s in scored if math.isfinite(s)][:SLOTS]
+            waits = [served_after_wait(view, t, parts[t.part_id], cost) for t, s in scored if not math.isfinite(s)]
+            self.coming_s[view.name] = min([w[0] for w in waits if w is not None], default=LOOKAHEAD_S)
         return out
 
-    def features(self, options: list[tuple[Task, float]]) -> np.ndarray:
-        """The choice slots as numbers: valid, pick point, place point, estimated seconds / 10."""
+    def features(self, agent: str, options: list[tuple[Task, float]]) -> np.ndarray:
+        """What an arm sees of its choices: how soon a belt part rides into its reach / `LOOKAHEAD_S`, then per slot
+        valid, pick point, place point, estimated seconds / 10, on the belt (0/1) and the slack to its deadline
+        (seconds left after the task / 10; 0 for a part at rest)."""
         out = np.zeros((SLOTS, SLOT_FEATURES))
         parts = {p.part_id: p.position for p in self.world.active_parts()}
+        now = self.world.sim_time_s
         for i, (task, seconds) in enumerate(options):
             station = self.scene.station(task.target)
-            out[i] = [1.0, *parts[task.part_id], station.pose.xyz[0], station.pose.xyz[1], station.surface_z_m, seconds / 10.0]
-        return out.ravel()
+            belt = task.deadline_s is not None
+            slack = task.deadline_s - now - seconds if belt else 0.0
+            out[i] = [1.0, *parts[task.part_id], station.pose.xyz[0], station.pose.xyz[1], station.surface_z_m, seconds / 10.0,
+                      float(belt), slack / 10.0]
+        return np.concatenate([[self.coming_s[agent] / LOOKAHEAD_S], out.ravel()])
 
     # --- acting ---------------------------------------------------------------------
     def choose(self, actions: dict[str, int], options: dict[str, list[tuple[Task, float]]]) -> dict[str, str]:
