@@ -33,7 +33,7 @@ from rich.table import Table
 from fleet.env import parallel_env
 from fleet.env.task_mode import WAIT
 from rllib_ppo_reach import start_ray
-from task_mode_allocators import POLICIES, play, run_episode
+from task_mode_allocators import POLICIES, play
 from train_ippo_reach import write_rows
 
 ENV_NAME = "clawfleet_task_mode"
@@ -50,17 +50,14 @@ def for_rllib(obs: dict) -> dict:
     return {"observations": obs["observation"], "action_mask": obs["action_mask"].astype(np.float32)}
 
 
-def has_choice(obs: dict) -> bool:
-    """Whether any arm may do more than wait now."""
-    return any(o["action_mask"][1:].any() for o in obs.values())
-
-
 class MaskedTaskEnv(MultiAgentEnv):
     """The task-mode cell as RLlib's multi-agent env, observations renamed for RLlib's action-masking module.
 
-    Only the steps where some arm has a choice reach RLlib: on mixed_infeed an arm may only wait at 95% of the
-    10 Hz steps (busy, or nothing to take), so those are played here with every arm waiting and their rewards
-    summed into the next step RLlib sees. The policy learns on its decisions, not on ticks it cannot act on."""
+    Only decisions reach RLlib: on mixed_infeed an arm may only wait at 95% of the 10 Hz steps (busy, or nothing
+    to take), and those steps are played here with every arm waiting, their rewards summed into the next step
+    RLlib sees. An arm that waits while it could take a task is asked again `wait_s` later (or when another arm
+    is asked), not at every tick: a wait is one decision, so a waiting policy does not fill its batches with
+    ticks. The policy is evaluated through the same wrapper, so it decides at the same moments."""
 
     def __init__(self, config: dict) -> None:
         super().__init__()
@@ -70,15 +67,21 @@ class MaskedTaskEnv(MultiAgentEnv):
         one = gym.spaces.Dict({"observations": inner["observation"], "action_mask": gym.spaces.Box(0.0, 1.0, inner["action_mask"].shape, np.float32)})
         self.observation_spaces = {a: one for a in self.agents}
         self.action_spaces = {a: self.env.action_space(a) for a in self.agents}
+        self.wait_ticks = max(1, round(config.get("wait_s", 0.5) * config["decision_hz"]))
         self._carried: dict[str, float] = {}
+        self._waited_at: dict[str, int] = {}
+        self._obs: dict = {}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         obs, infos = self.env.reset(seed=seed, options=options)
-        self._carried = {a: 0.0 for a in self.agents}
+        self._carried, self._waited_at = {a: 0.0 for a in self.agents}, {}
         obs, infos = self._to_next_choice(obs, infos, self._carried)
         return {a: for_rllib(o) for a, o in obs.items()}, infos
 
     def step(self, actions: dict):
+        for a, k in actions.items():
+            if k == WAIT and self._obs[a]["action_mask"][1:].any():
+                self._waited_at[a] = self.env.cycles
         rewards, self._carried = self._carried, {a: 0.0 for a in self.agents}
         obs, step_rewards, terminated, truncated, infos = self.env.step(actions)
         for a, r in step_rewards.items():
@@ -88,24 +91,40 @@ class MaskedTaskEnv(MultiAgentEnv):
         terminated["__all__"], truncated["__all__"] = all(terminated.values()), all(truncated.values())
         return {a: for_rllib(o) for a, o in obs.items()}, rewards, terminated, truncated, infos
 
+    def _asking(self, obs: dict) -> bool:
+        """Whether an arm has a choice now and did not just wait on one."""
+        return any(o["action_mask"][1:].any() and self.env.cycles - self._waited_at.get(a, -self.wait_ticks) >= self.wait_ticks
+                   for a, o in obs.items())
+
     def _to_next_choice(self, obs: dict, infos: dict, rewards: dict) -> tuple[dict, dict]:
-        """Every arm waits until one has a choice or one step is left (RLlib's last step ends the episode); the rewards
+        """Every arm waits until one asks or one step is left (RLlib's last step ends the episode); the rewards
         meanwhile are added to `rewards`."""
-        while self.env.cycles < self.env.max_cycles - 1 and not has_choice(obs):
+        while self.env.cycles < self.env.max_cycles - 1 and not self._asking(obs):
             obs, step_rewards, _, _, infos = self.env.step({a: WAIT for a in self.env.agents})
             for a, r in step_rewards.items():
                 rewards[a] += r
+        self._obs = obs
         return obs, infos
+
+    def totals(self) -> dict:
+        """The line's part counts so far (the same figures `task_mode_allocators.run_episode` reports)."""
+        totals = self.env.task_model.book.ledger.totals()
+        return {"completed": totals["parts_completed"], "spawned": totals["parts_spawned"], "failed": totals["tasks_failed"],
+                "sim_s": self.env.world.sim_time_s}
 
     def close(self) -> None:
         self.env.close()
 
 
+def env_config(args: argparse.Namespace) -> dict:
+    return {"scene": args.scene, "task": args.task, "arms": args.arms, "max_cycles": args.max_cycles, "decision_hz": args.decision_hz,
+            "wait_s": args.wait_s}
+
+
 def ppo_config(args: argparse.Namespace) -> PPOConfig:
-    env_config = {"scene": args.scene, "task": args.task, "arms": args.arms, "max_cycles": args.max_cycles, "decision_hz": args.decision_hz}
     return (
         PPOConfig()
-        .environment(ENV_NAME, env_config=env_config)
+        .environment(ENV_NAME, env_config=env_config(args))
         .env_runners(num_env_runners=args.env_runners, rollout_fragment_length="auto")
         .multi_agent(policies={"shared"}, policy_mapping_fn=lambda agent_id, *a, **k: "shared")
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={"shared": RLModuleSpec(module_class=ActionMaskingTorchRLModule)}))
@@ -116,7 +135,7 @@ def ppo_config(args: argparse.Namespace) -> PPOConfig:
 
 
 class LearnedPolicy:
-    """The trained module on the mask it is given: the most likely action (`sample=False`), or one drawn from its
+    """The trained module on the observations `MaskedTaskEnv` gives (RLlib's names): the most likely action (`sample=False`), or one drawn from its
     masked distribution as in training, from a seeded generator (`sample=True`)."""
 
     def __init__(self, module, sample: bool, seed: int = 0) -> None:
@@ -126,8 +145,8 @@ class LearnedPolicy:
     def __call__(self, obs: dict) -> dict:
         agents = list(obs)
         batch = {Columns.OBS: {
-            "observations": torch.as_tensor(np.stack([obs[a]["observation"] for a in agents])),
-            "action_mask": torch.as_tensor(np.stack([obs[a]["action_mask"] for a in agents]).astype(np.float32)),
+            "observations": torch.as_tensor(np.stack([obs[a]["observations"] for a in agents])),
+            "action_mask": torch.as_tensor(np.stack([obs[a]["action_mask"] for a in agents])),
         }}
         with torch.no_grad():
             logits = self.module.forward_inference(batch)[Columns.ACTION_DIST_INPUTS]
@@ -137,10 +156,18 @@ class LearnedPolicy:
 
 
 def evaluate(module, sample: bool, args: argparse.Namespace, seed: int) -> dict:
-    """One episode of the learned policy on the seed the allocators play."""
-    env = cell({"scene": args.scene, "task": args.task, "arms": args.arms, "max_cycles": args.max_cycles, "decision_hz": args.decision_hz})
+    """One episode of the learned policy on the seed the allocators play, deciding when it did in training."""
+    env = MaskedTaskEnv(env_config(args))
     policy = LearnedPolicy(module, sample, seed)
-    return run_episode(env, seed, lambda _, obs: policy(obs))
+    obs, _ = env.reset(seed=seed)
+    team_return, done = 0.0, False
+    while not done:
+        obs, rewards, terminated, truncated, _ = env.step(policy(obs))
+        team_return += sum(rewards.values())
+        done = terminated["__all__"] or truncated["__all__"]
+    out = {"return": team_return, **env.totals()}
+    env.close()
+    return out
 
 
 def train(args: argparse.Namespace) -> tuple[object, list[dict]]:
@@ -189,6 +216,7 @@ def main() -> int:
     parser.add_argument("--arms", type=int, default=2)
     parser.add_argument("--max-cycles", type=int, default=600, help="decisions per episode")
     parser.add_argument("--decision-hz", type=float, default=10.0)
+    parser.add_argument("--wait-s", type=float, default=0.5, help="an arm that waits while it could take a task is asked again this much later")
     parser.add_argument("--minutes", type=float, default=20.0, help="training wall time (unless --iterations)")
     parser.add_argument("--iterations", type=int, default=0)
     parser.add_argument("--batch", type=int, default=500, help="agent-steps per training batch (decisions: steps where no arm has a choice are not sampled)")
