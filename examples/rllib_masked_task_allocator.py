@@ -125,7 +125,7 @@ def ppo_config(args: argparse.Namespace) -> PPOConfig:
     return (
         PPOConfig()
         .environment(ENV_NAME, env_config=env_config(args))
-        .env_runners(num_env_runners=args.env_runners, rollout_fragment_length="auto")
+        .env_runners(num_env_runners=args.env_runners, rollout_fragment_length="auto", sample_timeout_s=600.0)  # RLlib drops a batch sampled past its 60 s default
         .multi_agent(policies={"shared"}, policy_mapping_fn=lambda agent_id, *a, **k: "shared")
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={"shared": RLModuleSpec(module_class=ActionMaskingTorchRLModule)}))
         .training(train_batch_size_per_learner=args.batch, minibatch_size=min(128, args.batch), num_epochs=args.epochs, lr=3e-4,
@@ -219,7 +219,7 @@ def main() -> int:
     parser.add_argument("--wait-s", type=float, default=0.5, help="an arm that waits while it could take a task is asked again this much later")
     parser.add_argument("--minutes", type=float, default=20.0, help="training wall time (unless --iterations)")
     parser.add_argument("--iterations", type=int, default=0)
-    parser.add_argument("--batch", type=int, default=500, help="agent-steps per training batch (decisions: steps where no arm has a choice are not sampled)")
+    parser.add_argument("--batch", type=int, default=300, help="env steps per training batch (decisions: steps where no arm has a choice are not sampled)")
     parser.add_argument("--epochs", type=int, default=8)
     parser.add_argument("--env-runners", type=int, default=2, help="RLlib env-runner actors (sampling processes)")
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes (seeds 1000, 1001, ...)")
