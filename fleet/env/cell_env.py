@@ -149,6 +149,8 @@ class CellParallelEnv(ParallelEnv):
         if seed is not None:
             self.np_random = np.random.default_rng(seed)
         self.world.restore_state(self._start)
+        # each episode its own arrivals: seed S gives those of `fleet run --seed S`; no seed, a draw from the env's stream
+        self.world.reseed_feeders(seed if seed is not None else int(self.np_random.integers(2**32)))
         self.agents = list(self.possible_agents)
         self.cycles = 0
         self.task_model.home_tool = self._tools()

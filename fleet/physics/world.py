@@ -39,6 +39,11 @@ class PartInfo:
     size_m: tuple[float, float, float]
 
 
+def feeder_streams(seed: int, n_feeders: int) -> list[np.random.Generator]:
+    """One independent random stream per feeder, all from one seed (the scene's)."""
+    return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(max(1, n_feeders))][:n_feeders]
+
+
 @dataclass
 class WorldState:
     """Everything needed to put a world back exactly: PhysX bodies, drive targets, pool and feeder clocks."""
@@ -92,9 +97,8 @@ class World:
         self.parts: list[SimPart] = []
         self.feeders: list[FeederClock] = []
         self.next_part_id = 0
-        seeds = np.random.SeedSequence(scene.seed).spawn(max(1, len(scene.feeders)))
-        for feeder, seed in zip(scene.feeders, seeds):
-            clock = FeederClock(feeder, np.random.default_rng(seed))
+        for feeder, stream in zip(scene.feeders, feeder_streams(scene.seed, len(scene.feeders))):
+            clock = FeederClock(feeder, stream)
             for _ in range(feeder.capacity):
                 for t_index, part_type in enumerate(feeder.parts):
                     slot = len(self.parts)
@@ -337,6 +341,12 @@ class World:
             chunks += [self._belt_entity.pose.p]
         chunks.append([self.tick, self.next_part_id])
         return np.concatenate([np.asarray(c, dtype=np.float64).ravel() for c in chunks])
+
+    def reseed_feeders(self, seed: int) -> None:
+        """The feeders' random streams (arrival gaps, part types, drop offsets) from `seed`, as a world built with
+        that scene seed has them: on a world restored to its start, the arrivals of `fleet run --seed SEED`."""
+        for clock, stream in zip(self.feeders, feeder_streams(seed, len(self.feeders))):
+            clock.rng = stream
 
     def restore_state(self, state: WorldState) -> None:
         """Put back a snapshot from `pack_state` (of this world or another built from the same scene)."""

@@ -11,9 +11,11 @@ from coordinator.allocation import make_allocator
 from fleet.env import parallel_env
 from fleet.env.task_mode import allocator_actions
 from fleet.env.tasks import above
+from fleet.physics.world import World
 from robots.frames import yaw_transform
 from robots.policy_actions import MAX_DELTA_RAD
 from robots.top_down import TopDownIK
+from scenes.loader import load_scene
 
 
 class ScriptedPick:
@@ -115,6 +117,27 @@ def test_task_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed
         runs.append(trace)
     assert runs[0] == runs[1]
     assert any(c.startswith("refused: slot") for step in runs[0] for c in step[2])
+
+
+def test_a_line_episode_draws_its_arrivals_from_its_seed_as_fleet_run_does():
+    """Seed S gives the arrivals of `fleet run --seed S` (a world built with scene seed S); another seed, others."""
+
+    def spawned(world) -> list[tuple]:
+        return [(e[1], e[2], e[3], round(e[4] * world.control_dt_s, 3)) for e in world.events if e[0] == "part_spawned"]
+
+    env = parallel_env(scene="mixed_infeed", task="line", action_mode="task", max_cycles=100, control_hz=10)
+    by_seed = {}
+    for seed in (3, 4, 3):
+        env.reset(seed=seed)
+        while env.agents:
+            env.step({a: 0 for a in env.agents})
+        by_seed.setdefault(seed, []).append(spawned(env.world))
+    assert by_seed[3][0] == by_seed[3][1] and by_seed[3][0] != by_seed[4][0]
+    assert len(by_seed[3][0]) >= 5
+    world = World(load_scene("mixed_infeed", seed=3))
+    while world.sim_time_s < env.world.sim_time_s:
+        world.step()
+    assert spawned(world) == by_seed[3][0]
 
 
 def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choices():
