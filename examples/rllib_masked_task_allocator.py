@@ -33,7 +33,7 @@ from rich.table import Table
 from fleet.env import parallel_env
 from fleet.env.task_mode import WAIT
 from rllib_ppo_reach import start_ray
-from task_mode_allocators import POLICIES, play
+from task_mode_allocators import POLICIES, against, play
 from train_ippo_reach import write_rows
 
 ENV_NAME = "clawfleet_task_mode"
@@ -240,12 +240,13 @@ def main() -> int:
         ray.shutdown()
     table = Table(title=f"task mode on {args.scene}, {args.arms} arms: {len(seeds)} evaluation episodes of {args.max_cycles} decisions "
                         f"at {args.decision_hz:g} Hz (seeds {seeds[0]}..{seeds[-1]})")
-    for column in ("policy", "team return", "parts completed / spawned", "parts per episode", "failed tasks"):
+    for column in ("policy", "team return", "parts completed / spawned", "parts per episode", "failed tasks", "against greedy (same seeds)"):
         table.add_column(column)
     for name, runs in results.items():
         done = [r["completed"] for r in runs]
         table.add_row(name, f"{np.mean([r['return'] for r in runs]):.1f}", f"{sum(done)} / {sum(r['spawned'] for r in runs)}",
-                      f"{np.mean(done):.2f} ± {np.std(done, ddof=1) if len(done) > 1 else 0:.2f}", str(sum(r["failed"] for r in runs)))
+                      f"{np.mean(done):.2f} ± {np.std(done, ddof=1) if len(done) > 1 else 0:.2f}", str(sum(r["failed"] for r in runs)),
+                      against(runs, results["greedy"]))
     Console(width=140).print(table)
     if args.curve:
         save_curve(curve, {n: float(np.mean([r["return"] for r in runs])) for n, runs in results.items() if not n.startswith("learned")}, Path(args.curve))

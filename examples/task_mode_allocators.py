@@ -10,6 +10,7 @@ import argparse
 from collections.abc import Callable
 
 import numpy as np
+from scipy import stats
 from rich.console import Console
 from rich.table import Table
 
@@ -34,6 +35,16 @@ def run_episode(env, seed: int, act: Callable[[object, dict], dict]) -> dict:
             "failed": totals["tasks_failed"], "sim_s": env.world.sim_time_s}
 
 
+def against(runs: list[dict], baseline: list[dict]) -> str:
+    """Parts completed against `baseline`'s on the same seeds: the mean difference per episode and its 95% interval
+    (Student's t; the seeds' own spread cancels out, as it does not in two separate means)."""
+    diffs = np.array([r["completed"] - b["completed"] for r, b in zip(runs, baseline)], float)
+    if len(diffs) < 2:
+        return f"{diffs.mean():+.2f}"
+    half = stats.t.ppf(0.975, len(diffs) - 1) * diffs.std(ddof=1) / np.sqrt(len(diffs))
+    return f"{diffs.mean():+.2f} ± {half:.2f}"
+
+
 def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None) -> dict:
     """One episode (on `scene`, else the task's own) played by `policy` (`random` or an allocator's name)."""
     env = parallel_env(scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
@@ -55,13 +66,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     table = Table(title=f"task mode on {args.scene or args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at {args.decision_hz:g} Hz")
-    for column in ("policy", "team return", "parts completed / spawned", "failed tasks"):
+    for column in ("policy", "team return", "parts completed / spawned", "failed tasks", "parts per episode against greedy (same seeds)"):
         table.add_column(column)
-    for policy in POLICIES:
-        runs = [play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene) for e in range(args.episodes)]
+    results = {policy: [play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene) for e in range(args.episodes)]
+               for policy in POLICIES}
+    for policy, runs in results.items():
         table.add_row(
             policy, f"{np.mean([r['return'] for r in runs]):.1f}",
             f"{sum(r['completed'] for r in runs)} / {sum(r['spawned'] for r in runs)}", str(sum(r["failed"] for r in runs)),
+            against(runs, results["greedy"]),
         )
     Console().print(table)
 
