@@ -25,6 +25,9 @@ def in_netns(*argv: str) -> list[str]:
 def loopback_namespace() -> Iterator[None]:
     """The namespace, with its loopback up (skips the test where namespaces cannot be made)."""
     made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
+    if made.returncode != 0 and "File exists" in made.stderr and not _pids_in_namespace():
+        subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)  # left by a run that was killed: nothing runs in it
+        made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
     if made.returncode != 0:
         pytest.skip(f"cannot make a network namespace here: {made.stderr.strip()}")
     try:
@@ -33,6 +36,11 @@ def loopback_namespace() -> Iterator[None]:
     finally:
         subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"), capture_output=True, timeout=120)
         subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
+
+
+def _pids_in_namespace() -> list[str]:
+    listed = subprocess.run(["ip", "netns", "pids", NETNS], capture_output=True, text=True)
+    return listed.stdout.split()
 
 
 def start_head() -> str:
