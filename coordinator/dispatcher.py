@@ -237,9 +237,11 @@ class Dispatcher:
         in open space, not next to the arm that works the fixture next."""
         return self.ledger.pipeline and self.skill[arm] == "home" and bool(self.ledger.gated.intersection(self.last_stations[arm]))
 
-    def free_in_s(self, arm: str) -> float | None:
-        """About when a busy arm's task ends; None once it overran its estimate (or is lost): not planned for."""
-        remaining = self.busy_until_s.get(arm, -math.inf) - self.last_decision_tick / self.scene.control_hz
+    def free_in_s(self, arm: str, now_s: float | None = None) -> float | None:
+        """About when a busy arm's task ends (from `now_s`, else the last decision); None once it overran its
+        estimate (or is lost): not planned for."""
+        now_s = self.last_decision_tick / self.scene.control_hz if now_s is None else now_s
+        remaining = self.busy_until_s.get(arm, -math.inf) - now_s
         return None if arm in self.lost or remaining < -OVERRUN_S else max(remaining, 0.0)
 
     def busy_stations(self, for_arm: str | None = None) -> set[str]:
@@ -281,10 +283,9 @@ class Dispatcher:
                     continue  # two arms chose one task, each for another station: the first keeps it, the other waits a round
                 if self.busy_stations(arm).intersection(candidates[candidate_id].stations):
                     continue  # a station another arm is still moving away from: free to that arm only
-                task = self.take(candidate_id, arm, now)
-                taken.add(task.task_id)
-                self.busy_until_s[arm] = now + cost_s(next(v for v in views if v.name == arm), task, self.parts[task.part_id])
-                orders.append(self.assignment(task, arm))
+                order = self.start(candidate_id, next(v for v in views if v.name == arm), now, cost_s)
+                taken.add(order.task_id)
+                orders.append(order)
         return Decision(tick, orders, separations)
 
     def candidates(self, pending: list[Task]) -> list[Task]:
@@ -309,6 +310,14 @@ class Dispatcher:
         """Assign the task behind a candidate to `arm`, going to the candidate's station."""
         task_id, station = self._candidates.get(candidate_id, (candidate_id, None))
         return self.ledger.assign(task_id, arm, now_s, station)
+
+    def start(self, candidate_id: int, arm: ArmView, now_s: float, cost_s: TimeCost) -> AssignOrder:
+        """Give the task behind a candidate to `arm`: take it, note when the arm should be free again (the estimate
+        the optimal allocator plans a soon-free arm with) and return the order that starts it. Every front end
+        starts tasks here (the coordinator node's decisions, the env's task mode)."""
+        task = self.take(candidate_id, arm.name, now_s)
+        self.busy_until_s[arm.name] = now_s + cost_s(arm, task, self.parts[task.part_id])
+        return self.assignment(task, arm.name)
 
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""

@@ -60,11 +60,20 @@ class TaskChooser:
         return {p.part_id: PartView(p.position, p.velocity) for p in self.world.active_parts()}
 
     def arm_views(self) -> list[ArmView]:
+        """Each arm as the allocators see it: free or not, where it stands, and a busy arm's estimated time to free
+        (the dispatcher's, from when its task started), as the coordinator node's allocator sees it."""
+        now = self.world.sim_time_s
         return [
             ArmView(a, self.bases[a], self.task_of[a] is None and self.skills[a].available and not self.dispatcher.leaving_fixture(a),
-                    self.reach[a], tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()))
+                    self.reach[a], tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()),
+                    self.dispatcher.free_in_s(a, now) if self._working(a) else None)
             for a in self.agents
         ]
+
+    def _working(self, agent: str) -> bool:
+        """The arm's task is still open (its skill may be retreating from a closed one)."""
+        task_id = self.task_of[agent]
+        return task_id is not None and self.ledger.tasks[task_id].state in OPEN_STATES
 
     def busy_stations(self, agent: str | None = None) -> set[str]:
         """Stations no new task may use now (for `agent`; else for every free arm): the dispatcher's rule (stations of
@@ -133,9 +142,11 @@ class TaskChooser:
         return out
 
     def _start(self, agent: str, candidate: Task) -> None:
-        task = self.dispatcher.take(candidate.task_id, agent, self.world.sim_time_s)
+        views = self.arm_views()
+        view = next(v for v in views if v.name == agent)
+        order = self.dispatcher.start(candidate.task_id, view, self.world.sim_time_s, TimeCost(Eligibility(self.scene, views)))
+        task = self.ledger.tasks[order.task_id]
         self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
-        order = self.dispatcher.assignment(task, agent)
         job = PickPlaceTask(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
         parts = part_observations(self.world)
         self.skills[agent].start(job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id])

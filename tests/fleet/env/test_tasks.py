@@ -140,6 +140,20 @@ def test_a_line_episode_draws_its_arrivals_from_its_seed_as_fleet_run_does():
     assert spawned(world) == by_seed[3][0]
 
 
+def test_task_mode_a_working_arm_is_planned_for_as_the_coordinator_plans_it():
+    """A busy arm's estimated time to free (the dispatcher's, from when its task started) reaches the allocators, as in
+    `fleet run`: the optimal allocator may leave a task to an arm that is about to be free."""
+    env = parallel_env(scene="mixed_infeed", task="line", action_mode="task", max_cycles=300, control_hz=10)
+    allocator = make_allocator("optimal", env.scene)
+    env.reset(seed=0)
+    seen = []
+    while env.agents and not seen:
+        env.step(allocator_actions(env.chooser, allocator, env._options))
+        seen = [v for v in env.chooser.arm_views() if not v.free and v.free_in_s is not None]
+    assert seen and 0.0 <= seen[0].free_in_s < 30.0
+    assert env.chooser.dispatcher.busy_until_s[seen[0].name] > env.world.sim_time_s - 1.0
+
+
 def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choices():
     env = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=1000, mask_in_observation=True)
     try:
