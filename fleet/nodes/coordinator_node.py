@@ -90,6 +90,7 @@ class CoordinatorNode:
         self.last_tick = {a: -1 for a in self.arm_names}
         self.controller_incarnation: dict[str, int] = {}
         self.heartbeat_at: dict[str, float] = {}
+        self._frame_at = time.monotonic()  # when the sim's last frame was read
         self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
@@ -232,6 +233,7 @@ class CoordinatorNode:
         self._events_ahead = later
 
     def _on_frame(self, f: LineView) -> None:
+        self._frame_at = time.monotonic()
         for s in f.arms:
             self._on_state(s)
         self._on_parts(f.parts)
@@ -307,7 +309,11 @@ class CoordinatorNode:
             self.publish(decision)
 
     def _check_heartbeats(self) -> None:
+        """An arm silent for `heartbeat_timeout_s` while the sim is still heard is lost. When the sim is silent too
+        (its loop ended and the line is being stopped), the silence is the line's, not the arm's."""
         now = time.monotonic()
+        if now - self._frame_at > self.heartbeat_timeout_s:
+            return
         for arm in self.heartbeat_at:
             at = self._heard_at.get(arm, self.heartbeat_at[arm])
             if arm not in self.dispatcher.lost and now - at > self.heartbeat_timeout_s:
