@@ -33,7 +33,7 @@ from rich.table import Table
 from fleet.env import parallel_env
 from fleet.env.task_mode import WAIT
 from rllib_ppo_reach import start_ray
-from task_mode_allocators import POLICIES, against, play
+from task_mode_allocators import POLICIES, against, line_totals, play
 from train_ippo_reach import write_rows
 
 ENV_NAME = "clawfleet_task_mode"
@@ -106,12 +106,6 @@ class MaskedTaskEnv(MultiAgentEnv):
         self._obs = obs
         return obs, infos
 
-    def totals(self) -> dict:
-        """The line's part counts so far (the same figures `task_mode_allocators.run_episode` reports)."""
-        totals = self.env.task_model.book.ledger.totals()
-        return {"completed": totals["parts_completed"], "spawned": totals["parts_spawned"], "failed": totals["tasks_failed"],
-                "sim_s": self.env.world.sim_time_s}
-
     def close(self) -> None:
         self.env.close()
 
@@ -165,7 +159,7 @@ def evaluate(module, sample: bool, args: argparse.Namespace, seed: int) -> dict:
         obs, rewards, terminated, truncated, _ = env.step(policy(obs))
         team_return += sum(rewards.values())
         done = terminated["__all__"] or truncated["__all__"]
-    out = {"return": team_return, **env.totals()}
+    out = {"return": team_return, **line_totals(env.env)}
     env.close()
     return out
 

@@ -29,10 +29,16 @@ def run_episode(env, seed: int, act: Callable[[object, dict], dict]) -> dict:
     while env.agents:
         obs, rewards, _, _, _ = env.step(act(env, obs))
         team_return += sum(rewards.values())
-    totals = env.task_model.book.ledger.totals()
+    out = {"return": team_return, **line_totals(env)}
     env.close()
-    return {"return": team_return, "completed": totals["parts_completed"], "spawned": totals["parts_spawned"],
-            "failed": totals["tasks_failed"], "sim_s": env.world.sim_time_s}
+    return out
+
+
+def line_totals(env) -> dict:
+    """A task-mode env's line so far: parts completed and spawned, tasks failed, sim seconds."""
+    totals = env.task_model.book.ledger.totals()
+    return {"completed": totals["parts_completed"], "spawned": totals["parts_spawned"], "failed": totals["tasks_failed"],
+            "sim_s": env.world.sim_time_s}
 
 
 def against(runs: list[dict], baseline: list[dict]) -> str:
