@@ -1,4 +1,5 @@
-"""Who does which task: the allocator interface, the rules every allocator obeys, and three allocators (optimal, auction, greedy).
+"""Who does which task: the allocator interface, the rules every allocator obeys, and three allocators (optimal,
+auction, greedy).
 
 An allocator sees the pending tasks, the arms (free or not) and where the parts
 are, and returns (task id, arm) pairs. Every allocator obeys the same rules:
@@ -35,13 +36,18 @@ REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot
 CELL_MARGIN_M = 0.06
 GRID_M = 0.01
 NEAR_CELLS, NEAR_TRIES = 6, 2  # a new reach cell is first solved from the nearest reached cells this close (cells)
-URGENCY_S_PER_S = 10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
+URGENCY_S_PER_S = (
+    10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
+)
 LOOKAHEAD_S, LOOKAHEAD_STEP_S = 4.0, 0.5  # optimal: a free arm may wait this long for a belt part riding into its reach
-NO_DEADLINE_HORIZON_S = 30.0  # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
+NO_DEADLINE_HORIZON_S = (
+    30.0  # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
+)
 
 
 class CachedReach:
-    """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK, cached on a 1 cm grid.
+    """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK, cached on a 1 cm
+    grid.
 
     A new cell near a reached one is first tried from that cell's answer (one solve, a few ms); only where that
     does not converge does the full search run (every tilt, restarts: 100+ ms for a short arm that must lean). A
@@ -54,7 +60,7 @@ class CachedReach:
         self._reached: list[tuple[int, int, int]] = []  # the cells reached, in the order they were
 
     @classmethod
-    def of(cls, arm: Arm) -> "CachedReach":
+    def of(cls, arm: Arm) -> CachedReach:
         """The reach of a scene's arm where it stands (its robot model, the reach checks' IK options)."""
         return cls(TopDownIK(get_robot(arm.model), yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK))
 
@@ -114,8 +120,9 @@ class Allocator(Protocol):
 
     name: str
 
-    def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
-        ...
+    def allocate(
+        self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]
+    ) -> list[tuple[int, str]]: ...
 
 
 def horizontal_distance_m(a, b) -> float:
@@ -135,7 +142,9 @@ class Eligibility:
 
     def owns_belt_point(self, arm: ArmView, point) -> bool:
         mine = horizontal_distance_m(arm.base_xyz, point)
-        return all(mine + CELL_MARGIN_M <= horizontal_distance_m(b, point) for n, b in self.bases.items() if n != arm.name)
+        return all(
+            mine + CELL_MARGIN_M <= horizontal_distance_m(b, point) for n, b in self.bases.items() if n != arm.name
+        )
 
     def pick_point(self, task: Task, part: PartView) -> np.ndarray:
         """Where the arm will meet the part: ahead along the belt for conveyor parts."""
@@ -224,11 +233,18 @@ class TimeCost:
 
 def open_candidates(tasks: list[Task], parts: dict[int, PartView], busy_stations: set[str]) -> list[Task]:
     """Pending tasks whose part is seen and whose stations are free, oldest first."""
-    return [t for t in sorted(tasks, key=lambda t: (t.created_s, t.task_id)) if t.part_id in parts and not busy_stations.intersection(t.stations)]
+    return [
+        t
+        for t in sorted(tasks, key=lambda t: (t.created_s, t.task_id))
+        if t.part_id in parts and not busy_stations.intersection(t.stations)
+    ]
 
 
 def one_task_at_a_time(
-    tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str],
+    tasks: list[Task],
+    arms: list[ArmView],
+    parts: dict[int, PartView],
+    busy_stations: set[str],
     score: Callable[[ArmView, Task, PartView], float],
 ) -> list[tuple[int, str]]:
     """Oldest task first, each to the free arm with the lowest score (infinite: cannot serve); one task per station."""
@@ -257,7 +273,9 @@ class GreedyNearest:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
 
-    def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
+    def allocate(
+        self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]
+    ) -> list[tuple[int, str]]:
         rules = Eligibility(self.scene, arms)
 
         def distance(arm: ArmView, task: Task, part: PartView) -> float:
@@ -288,7 +306,9 @@ class OptimalAssignment:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
 
-    def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
+    def allocate(
+        self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]
+    ) -> list[tuple[int, str]]:
         rules = Eligibility(self.scene, arms)
         cost_of = TimeCost(rules)
         free = [a for a in arms if a.free]
@@ -298,9 +318,13 @@ class OptimalAssignment:
         soon = [a for a in arms if not a.free and a.free_in_s is not None]
         columns = free + soon
         wait_s = [0.0] * len(free) + [a.free_in_s for a in soon]
-        cost = np.array([[w + cost_of(a, t, later(parts[t.part_id], w)) for a, w in zip(columns, wait_s)] for t in pending])
+        cost = np.array(
+            [[w + cost_of(a, t, later(parts[t.part_id], w)) for a, w in zip(columns, wait_s)] for t in pending]
+        )
         coming = self._coming(pending, free, parts, cost, cost_of)  # belt parts a free arm can take once in its reach
-        cost += URGENCY_S_PER_S * np.array([[due_s(t)] for t in pending])  # more tasks than arms: the sooner due go first
+        cost += URGENCY_S_PER_S * np.array(
+            [[due_s(t)] for t in pending]
+        )  # more tasks than arms: the sooner due go first
         chosen = sorted(assign_min_cost(cost), key=lambda rc: (cost[rc], rc))
         busy, out = set(busy_stations), []
         for r, c in chosen:  # two tasks for one station in the same round: the cheaper goes first
@@ -310,9 +334,10 @@ class OptimalAssignment:
             out.append((pending[r].task_id, free[c].name))
         return out
 
-
     @staticmethod
-    def _coming(pending: list[Task], free: list[ArmView], parts: dict[int, PartView], cost: np.ndarray, cost_of: TimeCost) -> set[tuple[int, int]]:
+    def _coming(
+        pending: list[Task], free: list[ArmView], parts: dict[int, PartView], cost: np.ndarray, cost_of: TimeCost
+    ) -> set[tuple[int, int]]:
         """Fill in, for each belt task a free arm cannot serve yet, the cost of waiting for its part to ride into
         reach and serving it then (`served_after_wait`); returns those (task row, arm column) pairs. An arm the
         assignment gives such a task stays free for it instead of starting work that can wait (a tray part) and
@@ -355,7 +380,9 @@ class Auction:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
 
-    def allocate(self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]) -> list[tuple[int, str]]:
+    def allocate(
+        self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]
+    ) -> list[tuple[int, str]]:
         return one_task_at_a_time(tasks, arms, parts, busy_stations, TimeCost(Eligibility(self.scene, arms)))
 
 

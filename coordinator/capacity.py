@@ -4,9 +4,11 @@ A small linear programme (`scipy.optimize.linprog`): each part type arrives at i
 rate and must make every hop of its route (source to first station, station to station); a hop is
 done by any arm that can serve it (the coordinator's own `Eligibility`: reach, and the stretch of
 belt each arm owns), keeping that arm busy at least as long as the pick skill's own transfer and
-primitives take (`TimeCost.cycle_s`; the approach left out: the arm may already be there). No arm may be busy more than all the time, no
+primitives take (`TimeCost.cycle_s`; the approach left out: the arm may already be there). No arm may be busy more than
+all the time, no
 station may serve more than one task at a time, and an assembly takes as many parts of each feeder
-it assembles (no top is finished without its base, nor a base without its top). The bound is the most parts a minute the line can complete; the binding
+it assembles (no top is finished without its base, nor a base without its top). The bound is the most parts a minute
+the line can complete; the binding
 arm or station is its bottleneck. Every time is an underestimate, so the bound is an upper one.
 After a run, the same programme with the hop times the run measured (assignment to the part at
 rest, per arm) says what the line could do with arms as fast as they really were, and with the
@@ -83,8 +85,11 @@ class CapacityBound:
 
     def as_dict(self) -> dict:
         return {
-            "arrivals_per_min": round(self.arrivals_per_min, 3), "throughput_bound_per_min": round(self.throughput_bound_per_min, 3),
-            "bottleneck": self.bottleneck, "bottleneck_busy_fraction": round(self.bottleneck_busy_fraction, 3), "busiest": self.busiest,
+            "arrivals_per_min": round(self.arrivals_per_min, 3),
+            "throughput_bound_per_min": round(self.throughput_bound_per_min, 3),
+            "bottleneck": self.bottleneck,
+            "bottleneck_busy_fraction": round(self.bottleneck_busy_fraction, 3),
+            "busiest": self.busiest,
             "arm_busy_at_bound": {a: round(v, 3) for a, v in self.arm_busy.items()},
             "station_busy_at_bound": {s: round(v, 3) for s, v in self.station_busy.items()},
             "unservable_hops": self.unservable,
@@ -141,12 +146,22 @@ def pick_points(scene: Scene, hop: Hop) -> list[tuple[float, PartView]]:
     out = []
     for along in np.linspace(0.0, c.length_m, n):
         x, y, z = c.point_at(float(along), 0.0)
-        out.append((max(0.0, float(along) - BELT_DROP_ALONG_M) / c.speed_m_per_s, PartView(np.array([x, y, z + half]), velocity)))
+        out.append(
+            (
+                max(0.0, float(along) - BELT_DROP_ALONG_M) / c.speed_m_per_s,
+                PartView(np.array([x, y, z + half]), velocity),
+            )
+        )
     return out
 
 
-def hop_seconds(scene: Scene, views: list[ArmView], hops: list[Hop], measured_s: dict[tuple[str, str, str], float] | None = None,
-                model: HopModel | None = None) -> np.ndarray:
+def hop_seconds(
+    scene: Scene,
+    views: list[ArmView],
+    hops: list[Hop],
+    measured_s: dict[tuple[str, str, str], float] | None = None,
+    model: HopModel | None = None,
+) -> np.ndarray:
     """(arms, hops): the least time each arm needs for each hop (inf: it cannot serve it); where `measured_s` has
     the mean time an arm took for a (source, target) hop in a run, that time instead of the model's. `model`:
     the model worked out before (`hop_model`), reused."""
@@ -189,8 +204,17 @@ def measured_hop_seconds(tasks: list) -> dict[tuple[str, str, str], float]:
     return {k: float(np.mean(v)) for k, v in times.items()}
 
 
-def _balanced(x: np.ndarray, best_per_s: float, n_r: int, a_ub: np.ndarray, b_ub: list[float], labels: list[str],
-              a_eq: list, b_eq: list, bounds: list) -> np.ndarray:
+def _balanced(
+    x: np.ndarray,
+    best_per_s: float,
+    n_r: int,
+    a_ub: np.ndarray,
+    b_ub: list[float],
+    labels: list[str],
+    a_eq: list,
+    b_eq: list,
+    bounds: list,
+) -> np.ndarray:
     """Of the ways to reach the bound, one that loads the busiest arm or station least (a second programme: the
     first's answer is any vertex, and with several stations for a part it may heap the work on a few arms); the
     first answer if this one does not solve."""
@@ -201,9 +225,13 @@ def _balanced(x: np.ndarray, best_per_s: float, n_r: int, a_ub: np.ndarray, b_ub
     limits = [0.0 if label else b for label, b in zip(labels, b_ub)]
     keep = np.r_[-np.ones(n_r), np.zeros(n - n_r + 1)]  # completed parts at least the bound (less a hair)
     result = linprog(
-        np.r_[np.zeros(n), 1.0], A_ub=np.vstack([rows, keep]), b_ub=[*limits, -best_per_s * (1 - 1e-9)],
-        A_eq=np.hstack([np.array(a_eq), np.zeros((len(a_eq), 1))]) if a_eq else None, b_eq=b_eq or None,
-        bounds=[*bounds, (0.0, 1.0)], method="highs",
+        np.r_[np.zeros(n), 1.0],
+        A_ub=np.vstack([rows, keep]),
+        b_ub=[*limits, -best_per_s * (1 - 1e-9)],
+        A_eq=np.hstack([np.array(a_eq), np.zeros((len(a_eq), 1))]) if a_eq else None,
+        b_eq=b_eq or None,
+        bounds=[*bounds, (0.0, 1.0)],
+        method="highs",
     )
     return result.x[:n] if result.status == 0 else x
 
@@ -237,7 +265,9 @@ class WindowCap:
     at_most: int
 
 
-def belt_window_caps(scene: Scene, arrived: list[tuple[str, int, float]], end_s: float, model: HopModel) -> list[WindowCap]:
+def belt_window_caps(
+    scene: Scene, arrived: list[tuple[str, int, float]], end_s: float, model: HopModel
+) -> list[WindowCap]:
     """For each arm that alone serves some belt part types, the most of this run's parts of those types it could take:
     the most jobs one machine starts inside their windows, each start at least the least busy time after the last
     and early enough to be done by `end_s`. Windows on one belt are one length, so a part that arrives later is due
@@ -253,8 +283,15 @@ def belt_window_caps(scene: Scene, arrived: list[tuple[str, int, float]], end_s:
     for i, kinds in alone.items():
         busy_s = min(float(model.seconds[i, js].min()) for _, js in kinds)
         placed_s = busy_s - float(model.after_place_s[i])  # the last part must be set down by the end, not the arm back
-        spans = {key: (float(np.nanmin(model.window_s[i, js, 0])), float(np.nanmax(model.window_s[i, js, 1]))) for key, js in kinds}
-        jobs = sorted((at_s + spans[(f, t)][0], min(at_s + spans[(f, t)][1], end_s - placed_s)) for f, t, at_s in arrived if (f, t) in spans)
+        spans = {
+            key: (float(np.nanmin(model.window_s[i, js, 0])), float(np.nanmax(model.window_s[i, js, 1])))
+            for key, js in kinds
+        }
+        jobs = sorted(
+            (at_s + spans[(f, t)][0], min(at_s + spans[(f, t)][1], end_s - placed_s))
+            for f, t, at_s in arrived
+            if (f, t) in spans
+        )
         if any(later[1] < earlier[1] for earlier, later in zip(jobs, jobs[1:])):
             continue  # windows not in arrival order: the programme would not be exact
         least_end = [-math.inf] + [math.inf] * len(jobs)  # least_end[c]: the soonest c of the parts so far are done
@@ -279,21 +316,28 @@ def _short_pairing(pairings: list[tuple[str, list[int], list[int]]], x: np.ndarr
     return ""
 
 
-def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] | None = None,
-                   reach: dict[str, CachedReach] | None = None, model: HopModel | None = None,
-                   arrivals_per_s: dict[tuple[str, int], float] | None = None,
-                   type_limits: list[tuple[str, tuple[tuple[str, int], ...], float]] | None = None) -> CapacityBound:
+def capacity_bound(
+    scene: Scene,
+    measured_s: dict[tuple[str, str, str], float] | None = None,
+    reach: dict[str, CachedReach] | None = None,
+    model: HopModel | None = None,
+    arrivals_per_s: dict[tuple[str, int], float] | None = None,
+    type_limits: list[tuple[str, tuple[tuple[str, int], ...], float]] | None = None,
+) -> CapacityBound:
     """The throughput bound of a scene (parts completed a minute), by linear programming over arms, hops and stations;
     with `measured_s` (from `measured_hop_seconds`), the hop times a run measured replace the model's; `reach` shares
     the arms' reach caches (the coordinator's) instead of building new ones; `model` the model's hop times
     (`CapacityBound.model` of an earlier bound of the same scene); `arrivals_per_s`, per (feeder, type), replaces
     the feeders' mean rates (a run's own arrivals: `finishable_arrivals` over its length); `type_limits` caps the
-    completions of some part types together ((name, types, parts a second): an arm's belt window, `belt_window_caps`)."""
+    completions of some part types together ((name, types, parts a second): an arm's belt window,
+    `belt_window_caps`)."""
     hops = route_hops(scene)
     views = arm_views(scene, reach)
     model = model or hop_model(scene, views, hops)
     seconds = hop_seconds(scene, views, hops, measured_s, model)
-    types = sorted({(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))})
+    types = sorted(
+        {(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))}
+    )
     if arrivals_per_s is None:
         rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
     else:
@@ -301,8 +345,11 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     arrivals = 60.0 * sum(rate.values())
     stages = _stages(hops)
     dead = [js for js in stages.values() if not np.isfinite(seconds[:, js]).any()]  # no arm can make any hop of it
-    unservable = [f"{hops[js[0]].feeder}[{hops[js[0]].type_index}]: {hops[js[0]].source} -> {' or '.join(hops[j].target for j in js)}"
-                  for js in dead]
+    unservable = [
+        f"{hops[js[0]].feeder}[{hops[js[0]].type_index}]: {hops[js[0]].source} -> "
+        f"{' or '.join(hops[j].target for j in js)}"
+        for js in dead
+    ]
     # variables: r[type] (completed parts per s), then x[arm, hop] (hops done per s) where the arm can serve the hop
     pairs = [(i, j) for i in range(len(views)) for j in range(len(hops)) if np.isfinite(seconds[i, j])]
     n_r = len(types)
@@ -349,8 +396,13 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     unreachable = {(hops[js[0]].feeder, hops[js[0]].type_index) for js in dead}
     bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
     result = linprog(
-        -np.r_[np.ones(n_r), np.zeros(len(pairs))], A_ub=np.array(a_ub) if a_ub else None, b_ub=b_ub or None,
-        A_eq=np.array(a_eq) if a_eq else None, b_eq=b_eq or None, bounds=bounds, method="highs",
+        -np.r_[np.ones(n_r), np.zeros(len(pairs))],
+        A_ub=np.array(a_ub) if a_ub else None,
+        b_ub=b_ub or None,
+        A_eq=np.array(a_eq) if a_eq else None,
+        b_eq=b_eq or None,
+        bounds=bounds,
+        method="highs",
     )
     if result.status != 0:
         raise RuntimeError(f"the capacity programme of {scene.name} did not solve: {result.message}")
@@ -362,8 +414,19 @@ def capacity_bound(scene: Scene, measured_s: dict[tuple[str, str, str], float] |
     busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))
     limited = best < arrivals - 1e-6 - 60.0 * sum(rate[t] for t in unreachable)
     capped = next((name for name, k in limit_rows if usage[k] >= b_ub[k] - 1e-9), "")
-    bottleneck = (busiest[0] if busiest[1] >= 1.0 - 1e-6 else _short_pairing(pairings, x, types, rate) or capped or busiest[0]) if limited else "arrivals"
+    bottleneck = (
+        (busiest[0] if busiest[1] >= 1.0 - 1e-6 else _short_pairing(pairings, x, types, rate) or capped or busiest[0])
+        if limited
+        else "arrivals"
+    )
     return CapacityBound(
-        arrivals, best, bottleneck, busiest[1], busiest[0], arm_busy, station_busy, unservable,
+        arrivals,
+        best,
+        bottleneck,
+        busiest[1],
+        busiest[0],
+        arm_busy,
+        station_busy,
+        unservable,
         model=model,
     )

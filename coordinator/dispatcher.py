@@ -18,8 +18,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
-from coordinator.cadence import AVAILABLE_SKILLS, GRASP_SKILLS, IDLE_SKILLS, LOCAL_SKILLS, PLACE_SKILLS, decision_period_ticks
-from coordinator.capacity import CapacityBound, belt_window_caps, capacity_bound, finishable_arrivals, measured_hop_seconds
+from coordinator.cadence import (
+    AVAILABLE_SKILLS,
+    GRASP_SKILLS,
+    IDLE_SKILLS,
+    LOCAL_SKILLS,
+    PLACE_SKILLS,
+    decision_period_ticks,
+)
+from coordinator.capacity import (
+    CapacityBound,
+    belt_window_caps,
+    capacity_bound,
+    finishable_arrivals,
+    measured_hop_seconds,
+)
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, NearestPair, TimedPath
@@ -30,7 +43,9 @@ from robots.registry import get_robot
 from scenes.schema import Scene
 
 OVERRUN_S = 2.0  # a task this late on its estimate: its arm's end is unknown
-SETTLE_CAP_S = 10.0  # after a take-over, no grant until the arms settle or this long (sim s): longer than any granted move
+SETTLE_CAP_S = (
+    10.0  # after a take-over, no grant until the arms settle or this long (sim s): longer than any granted move
+)
 STATION_MATCH_M = 0.01  # a place position this close (x, y) to a station's is that station
 _BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
 
@@ -85,14 +100,19 @@ class Dispatcher:
     """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
     reassignment, the collision guard's grants and the busy-until estimates."""
 
-    def __init__(self, scene: Scene, allocator: Allocator | None = None, first_task_id: int = 1, pipeline: bool = False) -> None:
+    def __init__(
+        self, scene: Scene, allocator: Allocator | None = None, first_task_id: int = 1, pipeline: bool = False
+    ) -> None:
         self.scene = scene
         self.ledger = Ledger(scene, first_task_id, pipeline)
         self.allocator = allocator or make_allocator("optimal", scene)
         self.arm_names = [a.name for a in scene.arms]
-        self.guard = CollisionGuard({
-            a.name: ArmGeometry(a.name, get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)) for a in scene.arms
-        })
+        self.guard = CollisionGuard(
+            {
+                a.name: ArmGeometry(a.name, get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))
+                for a in scene.arms
+            }
+        )
         self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.period_ticks = decision_period_ticks(scene)
@@ -106,8 +126,10 @@ class Dispatcher:
         self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.parts: dict[int, PartView] = {}
         self.sim_time_s = 0.0
-        self.last_event_s = 0.0  # the latest line event heard (the run's end, at its report, may be later than its parts)
-        self.last_decision_tick = -10**9
+        self.last_event_s = (
+            0.0  # the latest line event heard (the run's end, at its report, may be later than its parts)
+        )
+        self.last_decision_tick = -(10**9)
         self.decisions = 0
         self.grants_given = 0
         self.reassigned = 0
@@ -120,7 +142,9 @@ class Dispatcher:
         self.held_at_station_s: dict[str, float] = {}  # pipelining: how long each arm's moves waited for a fixture
         self.held_now: dict[str, str] = {}  # arm -> the fixture its waiting move is held for, at the last decision
         self.told_standby: set[int] = set()  # tasks whose held transfer was told to stand by (once a task)
-        self._candidates: dict[int, tuple[int, str]] = {}  # candidate id -> (task id, station), of the last `candidates`
+        self._candidates: dict[
+            int, tuple[int, str]
+        ] = {}  # candidate id -> (task id, station), of the last `candidates`
         self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
 
     def _belt_reach(self) -> float | None:
@@ -144,9 +168,21 @@ class Dispatcher:
         self.ledger.on_event(kind, part_id, detail, type_index, time_s)
         self.last_event_s = max(self.last_event_s, time_s)
 
-    def on_arm(self, arm: str, q: np.ndarray, skill: str, time_s: float, *, task_id: int | None = None, failure: str = "",
-               request_seq: int = 0, request: TimedPath | None = None, acts_at_tick: int = 0,
-               lost: bool = False, silent_for_s: float = 0.0) -> list[int] | None:
+    def on_arm(
+        self,
+        arm: str,
+        q: np.ndarray,
+        skill: str,
+        time_s: float,
+        *,
+        task_id: int | None = None,
+        failure: str = "",
+        request_seq: int = 0,
+        request: TimedPath | None = None,
+        acts_at_tick: int = 0,
+        lost: bool = False,
+        silent_for_s: float = 0.0,
+    ) -> list[int] | None:
         """An arm's state: its joints, its skill's phase and task, and the motion request it holds still for
         (`request_seq` > 0; a request is new when its number differs from the last taken: a restarted
         controller counts from 1 again). `acts_at_tick`: when an order sent now would take effect on it.
@@ -177,10 +213,16 @@ class Dispatcher:
         self.requests.pop(arm, None)
         self.guard.release(arm)
         returned = self.ledger.arm_lost(arm, self.sim_time_s)
-        self.losses.append({
-            "arm": arm, "event": "lost", "why": why, "sim_time_s": round(self.sim_time_s, 3),
-            "silent_for_s": round(silent_for_s, 3), "tasks_returned": returned,
-        })
+        self.losses.append(
+            {
+                "arm": arm,
+                "event": "lost",
+                "why": why,
+                "sim_time_s": round(self.sim_time_s, 3),
+                "silent_for_s": round(silent_for_s, 3),
+                "tasks_returned": returned,
+            }
+        )
         return returned
 
     def arm_rejoined(self, arm: str) -> None:
@@ -203,11 +245,24 @@ class Dispatcher:
         if task_id in self.ledger.tasks:
             return "known"
         station = self.station_at(place_xyz)
-        why = f"no station at {tuple(round(v, 3) for v in place_xyz)}" if station is None else self.ledger.adopt(task_id, part_id, station, arm, time_s)
+        why = (
+            f"no station at {tuple(round(v, 3) for v in place_xyz)}"
+            if station is None
+            else self.ledger.adopt(task_id, part_id, station, arm, time_s)
+        )
         if not why:
             self.last_stations[arm] = self.ledger.tasks[task_id].stations
-        self.adopted.append({"arm": arm, "task_id": task_id, "part_id": part_id, "station": station, "sim_time_s": round(time_s, 3),
-                             "adopted": not why, "reason": why})
+        self.adopted.append(
+            {
+                "arm": arm,
+                "task_id": task_id,
+                "part_id": part_id,
+                "station": station,
+                "sim_time_s": round(time_s, 3),
+                "adopted": not why,
+                "reason": why,
+            }
+        )
         return why
 
     def station_at(self, place_xyz: tuple[float, ...]) -> str | None:
@@ -224,9 +279,16 @@ class Dispatcher:
         open_arms = {t.arm for t in self.ledger.open_tasks() if t.state in TAKEN_STATES}
         return [
             ArmView(
-                a, self.bases[a], a not in self.lost and a not in open_arms and self.skill[a] in AVAILABLE_SKILLS and not self.leaving_fixture(a),
+                a,
+                self.bases[a],
+                a not in self.lost
+                and a not in open_arms
+                and self.skill[a] in AVAILABLE_SKILLS
+                and not self.leaving_fixture(a),
                 self.reach[a],
-                tuple(self.guard.state[a].tolist()), self.free_in_s(a) if a in open_arms else None, a not in self.lost,
+                tuple(self.guard.state[a].tolist()),
+                self.free_in_s(a) if a in open_arms else None,
+                a not in self.lost,
             )
             for a in self.arm_names
         ]
@@ -235,7 +297,11 @@ class Dispatcher:
         """Pipelined: an arm on its way home from a fixture takes no task until home. A task taken on the way would
         start its approach from where the way home has got to by its grant, not from where it asked: harmless
         in open space, not next to the arm that works the fixture next."""
-        return self.ledger.pipeline and self.skill[arm] == "home" and bool(self.ledger.gated.intersection(self.last_stations[arm]))
+        return (
+            self.ledger.pipeline
+            and self.skill[arm] == "home"
+            and bool(self.ledger.gated.intersection(self.last_stations[arm]))
+        )
 
     def free_in_s(self, arm: str, now_s: float | None = None) -> float | None:
         """About when a busy arm's task ends (from `now_s`, else the last decision); None once it overran its
@@ -280,7 +346,8 @@ class Dispatcher:
             busy = self.busy_for_all([v.name for v in views if v.free])
             for candidate_id, arm in self.allocator.allocate(list(candidates.values()), views, self.parts, busy):
                 if self.real(candidate_id).task_id in taken:
-                    continue  # two arms chose one task, each for another station: the first keeps it, the other waits a round
+                    # two arms chose one task, each for another station: the first keeps it, the other waits a round
+                    continue
                 if self.busy_stations(arm).intersection(candidates[candidate_id].stations):
                     continue  # a station another arm is still moving away from: free to that arm only
                 order = self.start(candidate_id, next(v for v in views if v.name == arm), now, cost_s)
@@ -296,8 +363,15 @@ class Dispatcher:
         for task in pending:
             out.append(task)
             for k, station in enumerate(task.alternatives, start=1):
-                copy = Task(-(task.task_id * 64 + k), task.part_id, task.source, station, task.created_s, deadline_s=task.deadline_s,
-                            refused_by=task.refused_by)
+                copy = Task(
+                    -(task.task_id * 64 + k),
+                    task.part_id,
+                    task.source,
+                    station,
+                    task.created_s,
+                    deadline_s=task.deadline_s,
+                    refused_by=task.refused_by,
+                )
                 self._candidates[copy.task_id] = (task.task_id, station)
                 out.append(copy)
         return out
@@ -325,7 +399,9 @@ class Dispatcher:
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)
-                task.deadline_s = belt_deadline_s(self.scene.conveyor, self.last_reach_along_belt_m, self.parts[task.part_id], now_s)
+                task.deadline_s = belt_deadline_s(
+                    self.scene.conveyor, self.last_reach_along_belt_m, self.parts[task.part_id], now_s
+                )
         return pending
 
     def reassign_late_tasks(self) -> list[CancelOrder]:
@@ -336,7 +412,9 @@ class Dispatcher:
         out = []
         for task in list(self.ledger.tasks.values()):
             arm = task.arm
-            not_started = task.state == TaskState.ASSIGNED or (task.state == TaskState.ACTIVE and self.skill.get(arm) == "approach" and arm in self.requests)
+            not_started = task.state == TaskState.ASSIGNED or (
+                task.state == TaskState.ACTIVE and self.skill.get(arm) == "approach" and arm in self.requests
+            )
             part = self.parts.get(task.part_id)
             if arm is None or part is None or not not_started or not cannot_make_it(rules, views[arm], task, part):
                 continue
@@ -369,9 +447,13 @@ class Dispatcher:
             station = self.station_ahead(arm)
             if station is not None:  # pipelined: the fixture is not ready for this arm's part yet
                 self.held_now[arm] = station
-                self.held_at_station_s[arm] = self.held_at_station_s.get(arm, 0.0) + self.period_ticks / self.scene.control_hz
+                self.held_at_station_s[arm] = (
+                    self.held_at_station_s.get(arm, 0.0) + self.period_ticks / self.scene.control_hz
+                )
                 task = self.open_task(arm)
-                if self.skill[arm] == "transfer" and task.task_id not in self.told_standby:  # wait beside it, part in hand
+                if (
+                    self.skill[arm] == "transfer" and task.task_id not in self.told_standby
+                ):  # wait beside it, part in hand
                     self.told_standby.add(task.task_id)
                     del self.requests[arm]
                     out.append(GrantOrder(arm, self.request_seq[arm], "standby", "", math.inf, None))
@@ -385,8 +467,16 @@ class Dispatcher:
                 continue
             del self.requests[arm]
             self.grants_given += verdict.granted
-            out.append(GrantOrder(arm, self.request_seq[arm], verdict.decision, verdict.conflict_arm or "",
-                                  verdict.min_separation_m, start if verdict.granted else None))
+            out.append(
+                GrantOrder(
+                    arm,
+                    self.request_seq[arm],
+                    verdict.decision,
+                    verdict.conflict_arm or "",
+                    verdict.min_separation_m,
+                    start if verdict.granted else None,
+                )
+            )
         return out
 
     def open_task(self, arm: str) -> Task | None:
@@ -456,9 +546,20 @@ class Dispatcher:
             "arm_events": self.losses,
             "unfinished_parts": self.ledger.unfinished(),
             "tasks": [
-                {"task_id": t.task_id, "part_id": t.part_id, "source": t.source, "target": t.target, "state": t.state.value,
-                 "arm": t.arm, "created_s": t.created_s, "assigned_s": t.assigned_s, "deadline_s": t.deadline_s, "done_s": t.done_s,
-                 "reassignments": t.reassignments, "reason": t.reason}
+                {
+                    "task_id": t.task_id,
+                    "part_id": t.part_id,
+                    "source": t.source,
+                    "target": t.target,
+                    "state": t.state.value,
+                    "arm": t.arm,
+                    "created_s": t.created_s,
+                    "assigned_s": t.assigned_s,
+                    "deadline_s": t.deadline_s,
+                    "done_s": t.done_s,
+                    "reassignments": t.reassignments,
+                    "reason": t.reason,
+                }
                 for t in self.ledger.tasks.values()
             ],
             "decisions": self.decisions,
@@ -467,7 +568,9 @@ class Dispatcher:
             "tasks_reassigned": self.reassigned,
             "tasks_adopted": self.adopted,
             "grant_waits": self.guard.waits,
-            "grant_requests_open": {a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items() if a not in self.held_now},
+            "grant_requests_open": {
+                a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items() if a not in self.held_now
+            },
             "held_at_station_s": {a: round(s, 2) for a, s in self.held_at_station_s.items()},
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
@@ -486,11 +589,16 @@ class Dispatcher:
         model = self.capacity.model
         counts = finishable_arrivals(self.scene, arrived, end_s, model)
         caps = belt_window_caps(self.scene, arrived, end_s, model)
-        bound = capacity_bound(self.scene, reach=self.reach, model=model,
-                               arrivals_per_s={k: n / end_s for k, n in counts.items()},
-                               type_limits=[(f"{c.arm} belt window", c.types, c.at_most / end_s) for c in caps])
+        bound = capacity_bound(
+            self.scene,
+            reach=self.reach,
+            model=model,
+            arrivals_per_s={k: n / end_s for k, n in counts.items()},
+            type_limits=[(f"{c.arm} belt window", c.types, c.at_most / end_s) for c in caps],
+        )
         return bound.as_dict() | {
-            "parts_finishable": sum(counts.values()), "sim_seconds": round(end_s, 3),
+            "parts_finishable": sum(counts.values()),
+            "sim_seconds": round(end_s, 3),
             "belt_windows": {c.arm: {"parts": c.arrived, "at_most": c.at_most} for c in caps},
         }
 
@@ -499,5 +607,8 @@ class Dispatcher:
         measured = measured_hop_seconds(list(self.ledger.tasks.values()))
         if not measured:
             return None
-        return capacity_bound(self.scene, measured, self.reach, self.capacity.model).as_dict() | {"measured_hop_s": {
-            f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())}}
+        return capacity_bound(self.scene, measured, self.reach, self.capacity.model).as_dict() | {
+            "measured_hop_s": {
+                f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())
+            }
+        }

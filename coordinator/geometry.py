@@ -39,11 +39,13 @@ class LinkShape:
 
 def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
     cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 def _origin(element: ET.Element | None) -> np.ndarray:
@@ -118,7 +120,9 @@ def link_shapes(spec: RobotSpec, inflate_m: float = 0.0) -> list[LinkShape]:
         for collision in link.findall("collision"):
             found = _geometry(collision.find("geometry"), inflate_m)
             if found is not None:
-                shapes.append(LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1], found[2]))
+                shapes.append(
+                    LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1], found[2])
+                )
     return shapes
 
 
@@ -132,16 +136,22 @@ _REACH_BOUND_M: dict[str, float] = {}  # robot model -> radius about its base ho
 class ArmGeometry:
     """One arm's collision objects in the world; `place(q)` moves them to a configuration."""
 
-    def __init__(self, name: str, spec: RobotSpec, transform_base_to_world: np.ndarray, model: KinematicModel | None = None) -> None:
+    def __init__(
+        self, name: str, spec: RobotSpec, transform_base_to_world: np.ndarray, model: KinematicModel | None = None
+    ) -> None:
         self.name, self.spec = name, spec
         self.km = model or KinematicModel(spec)
         self.base_to_world = np.asarray(transform_base_to_world, float)
         self.shapes = link_shapes(spec)
         self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
-        self._placed = PlacedFrames(self.km, self.base_to_world, [(s.link, s.transform_shape_to_link) for s in self.shapes])
+        self._placed = PlacedFrames(
+            self.km, self.base_to_world, [(s.link, s.transform_shape_to_link) for s in self.shapes]
+        )
         self.radii_m = np.array([s.radius_m for s in self.shapes])
         cover = np.concatenate([s.cover for s in self.shapes])
-        self.cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])  # each sphere's shape
+        self.cover_shape = np.repeat(
+            np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes]
+        )  # each sphere's shape
         self._cover_local = np.concatenate([cover[:, :3], np.ones((len(cover), 1))], axis=1)
         self.cover_radii_m = cover[:, 3]
         self.transforms = np.tile(np.eye(4), (len(self.shapes), 1, 1))  # each shape in the world, as placed
@@ -191,7 +201,9 @@ class ArmGeometry:
     def sphere_gaps(self, other: ArmGeometry) -> np.ndarray:
         """The gap between each cover sphere of this arm (rows) and each of `other`'s: a lower bound on the
         distance between the shapes they belong to (`cover_shape`)."""
-        return cdist(self.cover_centres, other.cover_centres) - self.cover_radii_m[:, None] - other.cover_radii_m[None, :]
+        return (
+            cdist(self.cover_centres, other.cover_centres) - self.cover_radii_m[:, None] - other.cover_radii_m[None, :]
+        )
 
     def object(self, i: int) -> fcl.CollisionObject:
         """Shape i as an FCL object at its current pose."""
@@ -223,7 +235,9 @@ class CellBounds:
         return np.minimum.reduceat(np.minimum.reduceat(shapes, self._starts, axis=0), self._starts, axis=1)
 
 
-def _nearest(a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf) -> tuple[float, fcl.DistanceResult | None]:
+def _nearest(
+    a: ArmGeometry, b: ArmGeometry, request: fcl.DistanceRequest, below_m: float = math.inf
+) -> tuple[float, fcl.DistanceResult | None]:
     """Branch and bound: shape pairs in order of their cover spheres' gap (a pair first comes up at its least
     gap); stop once no gap can beat the best (or `below_m`: then a pair farther apart than that answers inf
     without being measured). One FCL result object keeps the running minimum (and its nearest points) across

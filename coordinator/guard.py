@@ -109,7 +109,9 @@ class Verdict:
 class CollisionGuard:
     """Grants motion to arms of one cell; `set_state` keeps each arm's current joints up to date."""
 
-    def __init__(self, arms: dict[str, ArmGeometry], margin_m: float = DEFAULT_MARGIN_M, step_m: float | None = None) -> None:
+    def __init__(
+        self, arms: dict[str, ArmGeometry], margin_m: float = DEFAULT_MARGIN_M, step_m: float | None = None
+    ) -> None:
         self.arms = arms
         self._upper = np.triu_indices(len(arms), k=1)  # every pair of arms once, as (row, column) indices
         self._bounds = CellBounds(list(arms.values()))
@@ -133,7 +135,9 @@ class CollisionGuard:
             del self.grants[arm]
 
     # --- queries --------------------------------------------------------------------
-    def min_separation(self, configurations: dict[str, np.ndarray] | None = None) -> tuple[float, tuple[str, str] | None]:
+    def min_separation(
+        self, configurations: dict[str, np.ndarray] | None = None
+    ) -> tuple[float, tuple[str, str] | None]:
         """The smallest distance between any two arms (at their current states unless given).
 
         Pairs are measured nearest first by their shapes' bounding spheres; a pair whose spheres stand
@@ -174,7 +178,8 @@ class CollisionGuard:
         return out
 
     def nearest_pairs(self) -> list[NearestPair]:
-        """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among them."""
+        """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among
+        them."""
         nearest = self.nearest_other_m()
         out: dict[tuple[str, str], NearestPair] = {}
         for gap, a, b in self._pairs_by_bound():
@@ -200,19 +205,27 @@ class CollisionGuard:
 
     def closing_speed_m_per_s(self, path: TimedPath) -> float:
         """An upper bound on how fast any point of the asking arm and of the arms moving with it can approach."""
+
         def speed(p: TimedPath) -> float:
             move = QUINTIC_PEAK_SPEED * p.joint_travel_rad / max(p.t_end_s - p.t_start_s, 1e-9)
             return max(move, p.local_speed_rad_per_s()) * self.arms[p.arm].spec.reach_m
 
-        others = [p for a, p in self.grants.items() if a != path.arm and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s]
+        others = [
+            p
+            for a, p in self.grants.items()
+            if a != path.arm and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s
+        ]
         return speed(path) + max((speed(p) for p in others), default=0.0)
 
     def _neighbours(self, arm: str) -> list[str]:
         """Other arms whose bases stand close enough that their links could meet this arm's."""
         me = self.arms[arm]
         return [
-            name for name, g in self.arms.items()
-            if name != arm and np.linalg.norm(g.base_to_world[:2, 3] - me.base_to_world[:2, 3]) <= _bound_m(g) + _bound_m(me) + self.margin_m
+            name
+            for name, g in self.arms.items()
+            if name != arm
+            and np.linalg.norm(g.base_to_world[:2, 3] - me.base_to_world[:2, 3])
+            <= _bound_m(g) + _bound_m(me) + self.margin_m
         ]
 
     def check(self, path: TimedPath) -> Verdict:

@@ -46,8 +46,13 @@ class Ledger:
     def arrived(self, part_id: int, feeder: str, type_index: int, now_s: float) -> None:
         f = self.scene.feeder(feeder)
         self.parts[part_id] = PartRecord(
-            part_id, feeder, type_index, float(f.parts[type_index].size_m[2]), self.scene.route(feeder, type_index),
-            now_s, location=CONVEYOR if f.into == CONVEYOR else INCOMING,
+            part_id,
+            feeder,
+            type_index,
+            float(f.parts[type_index].size_m[2]),
+            self.scene.route(feeder, type_index),
+            now_s,
+            location=CONVEYOR if f.into == CONVEYOR else INCOMING,
         )
 
     def at_station(self, part_id: int, station: str, now_s: float) -> None:
@@ -57,7 +62,9 @@ class Ledger:
         self._leave_stack(part)
         part.location = station
         task = self._open_task(part_id)
-        if station != part.next_station and station in self._alternatives(part):  # another bin of its colour does as well
+        if station != part.next_station and station in self._alternatives(
+            part
+        ):  # another bin of its colour does as well
             part.route[part.hop] = station
             if task is not None:
                 task.retarget(station)
@@ -297,8 +304,10 @@ class Ledger:
         if station == task.source:
             return not assembles or (bool(here) and here[0] == task.part_id and len(here) >= len(assembles))
         layer = self._layer(self.parts[task.part_id], station)
-        if any(t.task_id != task.task_id and self._layer(self.parts[t.part_id], station) <= layer
-               for t in self._inbound(station, TAKEN_STATES)):
+        if any(
+            t.task_id != task.task_id and self._layer(self.parts[t.part_id], station) <= layer
+            for t in self._inbound(station, TAKEN_STATES)
+        ):
             return False
         return len(here) == layer
 
@@ -326,7 +335,11 @@ class Ledger:
         if not (self.pipeline and target in self.gated and part_id is not None):
             return z + sum(self.parts[p].height_m for p in self.stacks.get(target, []))
         layer = self._layer(self.parts[part_id], target)
-        return z + sum(self.parts[p].height_m for p in self._future_parts(target) if p != part_id and self._layer(self.parts[p], target) < layer)
+        return z + sum(
+            self.parts[p].height_m
+            for p in self._future_parts(target)
+            if p != part_id and self._layer(self.parts[p], target) < layer
+        )
 
     def busy_stations(self) -> set[str]:
         """Stations some assigned or running task picks from or places at (one arm at a time there)."""
@@ -349,5 +362,6 @@ class Ledger:
         """Each part not completed, with its fate and why: nothing is silently dropped from a summary."""
         return [
             {"part_id": p.part_id, "fate": p.fate.value, "location": p.location, "reason": p.reason}
-            for p in self.parts.values() if p.fate != PartFate.COMPLETED
+            for p in self.parts.values()
+            if p.fate != PartFate.COMPLETED
         ]

@@ -1,6 +1,6 @@
 """A random-policy rollout of the clawfleet PettingZoo env: the baseline every learning curve starts from.
 
-    python examples/random_rollout.py --arms 2 --episodes 3 --max-cycles 200
+python examples/random_rollout.py --arms 2 --episodes 3 --max-cycles 200
 """
 
 from __future__ import annotations

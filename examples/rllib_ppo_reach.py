@@ -44,7 +44,10 @@ def ppo_config(args: argparse.Namespace) -> PPOConfig:
         PPOConfig()
         .environment(ENV_NAME, env_config={"arms": args.arms, "max_cycles": args.max_cycles})
         .env_runners(num_env_runners=args.env_runners, rollout_fragment_length="auto")
-        .multi_agent(policies=set(ids), policy_mapping_fn=(lambda agent_id, *a, **k: "shared") if shared else (lambda agent_id, *a, **k: agent_id))
+        .multi_agent(
+            policies=set(ids),
+            policy_mapping_fn=(lambda agent_id, *a, **k: "shared") if shared else (lambda agent_id, *a, **k: agent_id),
+        )
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={p: RLModuleSpec() for p in ids}))
         .training(train_batch_size_per_learner=batch, minibatch_size=min(128, batch), num_epochs=args.epochs, lr=3e-4)
         .debugging(seed=args.seed)
@@ -63,7 +66,9 @@ def start_ray(address: str | None, env_runners: int) -> None:
     if address:
         ray.init(address=address)
     else:
-        ray.init(_node_ip_address="127.0.0.1", include_dashboard=False, num_cpus=max(2, env_runners + 1), log_to_driver=False)
+        ray.init(
+            _node_ip_address="127.0.0.1", include_dashboard=False, num_cpus=max(2, env_runners + 1), log_to_driver=False
+        )
 
 
 def main() -> int:
@@ -76,7 +81,9 @@ def main() -> int:
     parser.add_argument("--batch", type=int, default=1000, help="agent-steps per training batch")
     parser.add_argument("--epochs", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--address", help="an existing Ray cluster (HOST:PORT); default: a local instance on loopback only")
+    parser.add_argument(
+        "--address", help="an existing Ray cluster (HOST:PORT); default: a local instance on loopback only"
+    )
     args = parser.parse_args()
     start_ray(args.address, args.env_runners)
     try:
@@ -86,10 +93,16 @@ def main() -> int:
         for i in range(args.iterations):
             result = algo.train()
             steps = int(result.get("num_env_steps_sampled_lifetime", steps) or steps)
-            print(f"iteration {i + 1}: episode return {episode_return(result):.2f}, env steps {steps}, "
-                  f"{time.perf_counter() - start:.0f} s", flush=True)
-        print(f"trained {args.iterations} iteration(s) of PPO with policies {', '.join(policy_ids(args.arms, args.policies))} "
-              f"on {args.arms} arms")
+            print(
+                f"iteration {i + 1}: episode return {episode_return(result):.2f}, env steps {steps}, "
+                f"{time.perf_counter() - start:.0f} s",
+                flush=True,
+            )
+        print(
+            f"trained {args.iterations} iteration(s) of PPO with policies "
+            f"{', '.join(policy_ids(args.arms, args.policies))} "
+            f"on {args.arms} arms"
+        )
         algo.stop()
     finally:
         ray.shutdown()

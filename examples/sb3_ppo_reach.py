@@ -54,8 +54,12 @@ def main() -> int:
     venv = make_vec_env(args.cells, args.cpus, args.arms, args.max_cycles)
     try:
         torch.manual_seed(args.seed)  # SuperSuit's SB3 vector env has no seed(): PPO(seed=...) would call it
-        model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=min(256, args.n_steps * venv.num_envs), verbose=0)
-        model.set_logger(Logger(folder=None, output_formats=[]))  # SB3's default makes an empty SB3-<time> folder in /tmp
+        model = PPO(
+            "MlpPolicy", venv, n_steps=args.n_steps, batch_size=min(256, args.n_steps * venv.num_envs), verbose=0
+        )
+        model.set_logger(
+            Logger(folder=None, output_formats=[])
+        )  # SB3's default makes an empty SB3-<time> folder in /tmp
         before = mean_return(model, args.arms, args.max_cycles, seed=1000)
         start = time.perf_counter()
         model.learn(total_timesteps=args.timesteps)
@@ -63,8 +67,10 @@ def main() -> int:
         after = mean_return(model, args.arms, args.max_cycles, seed=1000)
     finally:
         venv.close()
-    print(f"trained {args.timesteps} agent-steps on {args.cells} cell(s) x {args.arms} arms in {wall:.0f} s "
-          f"({args.timesteps / wall:,.0f} agent-steps/s); mean return per arm {before:.1f} -> {after:.1f}")
+    print(
+        f"trained {args.timesteps} agent-steps on {args.cells} cell(s) x {args.arms} arms in {wall:.0f} s "
+        f"({args.timesteps / wall:,.0f} agent-steps/s); mean return per arm {before:.1f} -> {after:.1f}"
+    )
     if args.save:
         model.save(args.save)
     return 0

@@ -10,9 +10,9 @@ import argparse
 from collections.abc import Callable
 
 import numpy as np
-from scipy import stats
 from rich.console import Console
 from rich.table import Table
+from scipy import stats
 
 from coordinator.allocation import ALLOCATORS, make_allocator
 from fleet.env import parallel_env
@@ -37,8 +37,12 @@ def run_episode(env, seed: int, act: Callable[[object, dict], dict]) -> dict:
 def line_totals(env) -> dict:
     """A task-mode env's line so far: parts completed and spawned, tasks failed, sim seconds."""
     totals = env.task_model.book.ledger.totals()
-    return {"completed": totals["parts_completed"], "spawned": totals["parts_spawned"], "failed": totals["tasks_failed"],
-            "sim_s": env.world.sim_time_s}
+    return {
+        "completed": totals["parts_completed"],
+        "spawned": totals["parts_spawned"],
+        "failed": totals["tasks_failed"],
+        "sim_s": env.world.sim_time_s,
+    }
 
 
 def against(runs: list[dict], baseline: list[dict]) -> str:
@@ -51,9 +55,13 @@ def against(runs: list[dict], baseline: list[dict]) -> str:
     return f"{diffs.mean():+.2f} ± {half:.2f}"
 
 
-def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None) -> dict:
+def play(
+    policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None
+) -> dict:
     """One episode (on `scene`, else the task's own) played by `policy` (`random` or an allocator's name)."""
-    env = parallel_env(scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz)
+    env = parallel_env(
+        scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz
+    )
     if policy == "random":
         rng = np.random.default_rng(seed)
         return run_episode(env, seed, lambda env, _: {a: int(rng.integers(env.action_space(a).n)) for a in env.agents})
@@ -64,22 +72,44 @@ def play(policy: str, task: str, arms: int | None, max_cycles: int, seed: int, d
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", choices=("line", "handover"), default="line")
-    parser.add_argument("--scene", help="a bundled scene or scene file (default: the task's own, sorting_line for line)")
-    parser.add_argument("--arms", type=int, default=None, help="arm count (scenes with an arm row; default: the scene's)")
+    parser.add_argument(
+        "--scene", help="a bundled scene or scene file (default: the task's own, sorting_line for line)"
+    )
+    parser.add_argument(
+        "--arms", type=int, default=None, help="arm count (scenes with an arm row; default: the scene's)"
+    )
     parser.add_argument("--max-cycles", type=int, default=300)
     parser.add_argument("--decision-hz", type=float, default=10.0)
     parser.add_argument("--episodes", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    table = Table(title=f"task mode on {args.scene or args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at {args.decision_hz:g} Hz")
-    for column in ("policy", "team return", "parts completed / spawned", "failed tasks", "parts per episode against greedy (same seeds)"):
+    table = Table(
+        title=(
+            f"task mode on {args.scene or args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at "
+            f"{args.decision_hz:g} Hz"
+        )
+    )
+    for column in (
+        "policy",
+        "team return",
+        "parts completed / spawned",
+        "failed tasks",
+        "parts per episode against greedy (same seeds)",
+    ):
         table.add_column(column)
-    results = {policy: [play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene) for e in range(args.episodes)]
-               for policy in POLICIES}
+    results = {
+        policy: [
+            play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene)
+            for e in range(args.episodes)
+        ]
+        for policy in POLICIES
+    }
     for policy, runs in results.items():
         table.add_row(
-            policy, f"{np.mean([r['return'] for r in runs]):.1f}",
-            f"{sum(r['completed'] for r in runs)} / {sum(r['spawned'] for r in runs)}", str(sum(r["failed"] for r in runs)),
+            policy,
+            f"{np.mean([r['return'] for r in runs]):.1f}",
+            f"{sum(r['completed'] for r in runs)} / {sum(r['spawned'] for r in runs)}",
+            str(sum(r["failed"] for r in runs)),
             against(runs, results["greedy"]),
         )
     Console().print(table)

@@ -60,8 +60,12 @@ class ActorCritic(nn.Module):
 
     def __init__(self, obs_size: int, act_size: int, hidden: int) -> None:
         super().__init__()
-        self.pi = nn.Sequential(nn.Linear(obs_size, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, act_size))
-        self.v = nn.Sequential(nn.Linear(obs_size, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, 1))
+        self.pi = nn.Sequential(
+            nn.Linear(obs_size, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, act_size)
+        )
+        self.v = nn.Sequential(
+            nn.Linear(obs_size, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh(), nn.Linear(hidden, 1)
+        )
         self.log_std = nn.Parameter(torch.full((act_size,), -0.5))
 
     def dist(self, obs: torch.Tensor) -> torch.distributions.Normal:
@@ -84,8 +88,14 @@ def collect(env, agents, net, norm, steps, state):
         rew = np.array([rewards[a] for a in agents])
         returns_now += rew
         done = not env.agents
-        for k, v in (("obs", x), ("act", act), ("logp", logp), ("rew", torch.as_tensor(rew, dtype=torch.float32)),
-                     ("done", torch.full((len(agents),), float(done))), ("val", val)):
+        for k, v in (
+            ("obs", x),
+            ("act", act),
+            ("logp", logp),
+            ("rew", torch.as_tensor(rew, dtype=torch.float32)),
+            ("done", torch.full((len(agents),), float(done))),
+            ("val", val),
+        ):
             buf[k].append(v)
         if done:
             finished.append(float(returns_now.mean()))
@@ -120,7 +130,11 @@ def update(net, opt, batch, adv, ret, cfg: PPOConfig) -> None:
             d = net.dist(obs[idx])
             ratio = (d.log_prob(act[idx]).sum(-1) - logp_old[idx]).exp()
             surrogate = torch.min(ratio * adv[idx], ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * adv[idx])
-            loss = -surrogate.mean() + 0.5 * (net.v(obs[idx]).squeeze(-1) - ret[idx]).pow(2).mean() - cfg.entropy * d.entropy().sum(-1).mean()
+            loss = (
+                -surrogate.mean()
+                + 0.5 * (net.v(obs[idx]).squeeze(-1) - ret[idx]).pow(2).mean()
+                - cfg.entropy * d.entropy().sum(-1).mean()
+            )
             opt.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(net.parameters(), 0.5)
@@ -158,8 +172,12 @@ def train(arms: int, minutes: float, iterations: int | None, max_cycles: int, se
         update(net, opt, batch, adv, ret, cfg)
         recent = (recent + finished)[-10:]
         k += 1
-        row = {"iteration": k, "wall_s": round(time.monotonic() - started, 1), "agent_steps": k * cfg.steps_per_iteration * len(agents),
-               "mean_return": round(float(np.mean(recent)), 3) if recent else None}
+        row = {
+            "iteration": k,
+            "wall_s": round(time.monotonic() - started, 1),
+            "agent_steps": k * cfg.steps_per_iteration * len(agents),
+            "mean_return": round(float(np.mean(recent)), 3) if recent else None,
+        }
         log.append(row)
         print(row, flush=True)
     env.close()

@@ -117,7 +117,9 @@ class CheckedGoal:
     goal_tolerance: np.ndarray
 
 
-def check_goal(goal: TrajectoryGoal, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray) -> CheckedGoal | GoalResult:
+def check_goal(
+    goal: TrajectoryGoal, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray
+) -> CheckedGoal | GoalResult:
     """The goal in the arm's joint order, or a rejection naming what is wrong (INVALID_JOINTS or INVALID_GOAL)."""
 
     def reject(code: ResultCode, reason: str) -> GoalResult:
@@ -135,7 +137,11 @@ def check_goal(goal: TrajectoryGoal, joint_names: tuple[str, ...], lower: np.nda
     if len(goal.times_from_start_s) != len(goal.positions):
         return reject(ResultCode.INVALID_GOAL, f"{len(goal.positions)} points but {len(goal.times_from_start_s)} times")
     arrays = {}
-    for what, rows in (("positions", goal.positions), ("velocities", goal.velocities), ("accelerations", goal.accelerations)):
+    for what, rows in (
+        ("positions", goal.positions),
+        ("velocities", goal.velocities),
+        ("accelerations", goal.accelerations),
+    ):
         if what != "positions" and len(rows) == 0:
             arrays[what] = None
             continue
@@ -158,7 +164,9 @@ def check_goal(goal: TrajectoryGoal, joint_names: tuple[str, ...], lower: np.nda
     beyond = np.nonzero(np.any((pos < lower - LIMIT_SLACK_RAD) | (pos > upper + LIMIT_SLACK_RAD), axis=0))[0]
     if beyond.size:
         j = int(beyond[0])
-        return reject(ResultCode.INVALID_GOAL, f"positions beyond the limits of {joint_names[j]} [{lower[j]:.4g}, {upper[j]:.4g}]")
+        return reject(
+            ResultCode.INVALID_GOAL, f"positions beyond the limits of {joint_names[j]} [{lower[j]:.4g}, {upper[j]:.4g}]"
+        )
     path = _per_joint(goal.path_tolerance_rad, n, "path tolerance")
     end = _per_joint(goal.goal_tolerance_rad, n, "goal tolerance")
     for tol in (path, end):
@@ -189,8 +197,15 @@ class Spline:
     grid_dq: np.ndarray | None = None
 
     @classmethod
-    def through(cls, t0_s: float, q0: np.ndarray, dq0: np.ndarray, ddq0: np.ndarray, checked: CheckedGoal,
-                period_s: float | None = None) -> "Spline":
+    def through(
+        cls,
+        t0_s: float,
+        q0: np.ndarray,
+        dq0: np.ndarray,
+        ddq0: np.ndarray,
+        checked: CheckedGoal,
+        period_s: float | None = None,
+    ) -> Spline:
         """From state (q0, dq0, ddq0) at `t0_s` through the goal's points (same order of derivatives at every knot)."""
         order = 1 + (checked.velocities is not None) + (checked.accelerations is not None)
         rows = [checked.positions] + [a for a in (checked.velocities, checked.accelerations) if a is not None]
@@ -203,7 +218,9 @@ class Spline:
             values = np.concatenate([np.stack(start)[None], points])
         poly = BPoly.from_derivatives(knots, values)
         dpoly = poly.derivative()
-        spline = cls(float(knots[0]), float(knots[-1]), poly, dpoly, dpoly.derivative(), checked.positions[-1].copy(), period_s)
+        spline = cls(
+            float(knots[0]), float(knots[-1]), poly, dpoly, dpoly.derivative(), checked.positions[-1].copy(), period_s
+        )
         if period_s:
             k0, k1 = math.ceil(spline.t0_s / period_s - 1e-6), math.floor(spline.t_end_s / period_s + 1e-6)
             if k1 >= k0:
@@ -231,11 +248,23 @@ class Spline:
         return q, dq
 
 
-def rest_to_rest(goal_id: int, joint_names: tuple[str, ...], q_end: np.ndarray, duration_s: float, start_time_s: float | None,
-                 **tolerances: tuple[float, ...]) -> TrajectoryGoal:
+def rest_to_rest(
+    goal_id: int,
+    joint_names: tuple[str, ...],
+    q_end: np.ndarray,
+    duration_s: float,
+    start_time_s: float | None,
+    **tolerances: tuple[float, ...],
+) -> TrajectoryGoal:
     """One point at rest (zero velocity and acceleration): from a resting arm, a quintic move in `duration_s`."""
     n = len(joint_names)
     return TrajectoryGoal(
-        goal_id, tuple(joint_names), (float(duration_s),), (tuple(map(float, q_end)),), ((0.0,) * n,), ((0.0,) * n,),
-        start_time_s, **tolerances,
+        goal_id,
+        tuple(joint_names),
+        (float(duration_s),),
+        (tuple(map(float, q_end)),),
+        ((0.0,) * n,),
+        ((0.0,) * n,),
+        start_time_s,
+        **tolerances,
     )

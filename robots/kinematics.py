@@ -38,8 +38,13 @@ class KinematicModel:
             q = self.full_q(np.asarray(self.spec.home_q, float))
             joint = self.model.getJointId(self.spec.arm_joints[0])
             pin.computeJointJacobians(self.model, self.data, q)
-            column = pin.getJointJacobian(self.model, self.data, joint, pin.ReferenceFrame.WORLD)[:, self.model.joints[joint].idx_v]
-            self._pan = (self.data.oMi[joint].translation.copy(), 1.0 if column[5] >= 0 else -1.0)  # angular part: the axis
+            column = pin.getJointJacobian(self.model, self.data, joint, pin.ReferenceFrame.WORLD)[
+                :, self.model.joints[joint].idx_v
+            ]
+            self._pan = (
+                self.data.oMi[joint].translation.copy(),
+                1.0 if column[5] >= 0 else -1.0,
+            )  # angular part: the axis
         return self._pan
 
     @property
@@ -87,7 +92,8 @@ class KinematicModel:
         }
 
     def frame_jacobian(self, q: np.ndarray, frame: str | int | None = None) -> np.ndarray:
-        """6 x nv Jacobian of a frame, expressed in a frame at the frame's origin aligned with the base (linear; angular)."""
+        """6 x nv Jacobian of a frame, expressed in a frame at the frame's origin aligned with the base (linear;
+        angular)."""
         fid = self.tool_frame_id if frame is None else (frame if isinstance(frame, int) else self.frame_id(frame))
         return pin.computeFrameJacobian(self.model, self.data, q, fid, pin.LOCAL_WORLD_ALIGNED)
 
@@ -107,7 +113,9 @@ class PlacedFrames:
     for, so a configuration's poses cost one pass and one read per frame: no per-frame products in numpy (the
     collision guard places every arm of a cell this way, every env step)."""
 
-    def __init__(self, km: KinematicModel, transform_base_to_world: np.ndarray, frames: list[tuple[str, np.ndarray]]) -> None:
+    def __init__(
+        self, km: KinematicModel, transform_base_to_world: np.ndarray, frames: list[tuple[str, np.ndarray]]
+    ) -> None:
         """`frames`: (link name, `transform_frame_to_link`) for each pose, in the order `poses` returns them."""
         self.model = pin.Model(km.model)
         base = _se3(transform_base_to_world)
@@ -121,7 +129,9 @@ class PlacedFrames:
             if parent.parentJoint == 0:  # fixed to the root: the base placement is not in any joint
                 placement = base * placement
             name = f"placed_{i}_{link}"
-            self.frame_ids.append(self.model.addFrame(pin.Frame(name, parent.parentJoint, placement, pin.FrameType.OP_FRAME)))
+            self.frame_ids.append(
+                self.model.addFrame(pin.Frame(name, parent.parentJoint, placement, pin.FrameType.OP_FRAME))
+            )
         self.data = self.model.createData()
 
     def poses(self, q: np.ndarray) -> np.ndarray:

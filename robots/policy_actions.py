@@ -40,7 +40,9 @@ class ActionTranslator:
     def __init__(self, spec: RobotSpec, transforms_base_to_world: np.ndarray | list[np.ndarray], mode: str) -> None:
         """`transforms_base_to_world`: one 4x4 transform, or one per arm."""
         if mode not in CONTINUOUS_MODES:
-            raise ValueError(f"action mode {mode!r} has no joint-target translation; valid: {', '.join(CONTINUOUS_MODES)}")
+            raise ValueError(
+                f"action mode {mode!r} has no joint-target translation; valid: {', '.join(CONTINUOUS_MODES)}"
+            )
         self.mode = mode
         self.kinematics = KinematicModel(spec)
         n = spec.arm_dof
@@ -62,10 +64,19 @@ class ActionTranslator:
         """Move the targets by one action per arm (rows; a vector for one arm), each entry clipped to [-1, 1];
         returns the joint targets (a row per arm) and the gripper openings. Both are new arrays each call."""
         actions = np.asarray(actions, float)
-        if actions.shape != (self.arms, self.action_size) and not (self.arms == 1 and actions.shape == (self.action_size,)):
-            raise ValueError(f"a {self.mode} action has {self.action_size} entries (one row per arm, {self.arms} here), got shape {actions.shape}")
-        actions = np.minimum(np.maximum(actions.reshape(self.arms, -1), -1.0), 1.0)  # np.clip's own overhead is twice these two ufuncs'
-        self.q_target = np.minimum(np.maximum(self.q_target + self._joint_steps(actions[:, :-1]), self.lower), self.upper)
+        if actions.shape != (self.arms, self.action_size) and not (
+            self.arms == 1 and actions.shape == (self.action_size,)
+        ):
+            raise ValueError(
+                f"a {self.mode} action has {self.action_size} entries (one row per arm, {self.arms} here), got shape "
+                f"{actions.shape}"
+            )
+        actions = np.minimum(
+            np.maximum(actions.reshape(self.arms, -1), -1.0), 1.0
+        )  # np.clip's own overhead is twice these two ufuncs'
+        self.q_target = np.minimum(
+            np.maximum(self.q_target + self._joint_steps(actions[:, :-1]), self.lower), self.upper
+        )
         self.opening = (actions[:, -1] + 1.0) / 2.0
         return self.q_target, self.opening
 
@@ -74,7 +85,8 @@ class ActionTranslator:
         return ((q <= self._inside_lower) | (q >= self._inside_upper)).any(axis=-1)
 
     def _joint_steps(self, actions: np.ndarray) -> np.ndarray:
-        """Joint target changes, a row per arm: direct, or from a claw step in the world frame by damped least squares."""
+        """Joint target changes, a row per arm: direct, or from a claw step in the world frame by damped least
+        squares."""
         if self.mode == "joint_delta":
             return actions * MAX_DELTA_RAD
         km = self.kinematics

@@ -61,7 +61,9 @@ def _entry_point_spec(entry: metadata.EntryPoint) -> RobotSpec:
     if isinstance(target, (str, Path)):
         return load_robot_file(Path(target))
     if not isinstance(target, RobotSpec):
-        raise TypeError(f"names a {type(target).__name__}, not a RobotSpec, a function returning one or a robot file path")
+        raise TypeError(
+            f"names a {type(target).__name__}, not a RobotSpec, a function returning one or a robot file path"
+        )
     return target
 
 
@@ -179,7 +181,13 @@ SO101 = register(
         carry_tilted=True,
         max_approach_tilt_deg=60.0,  # 5 joints, a short reach: it cannot point straight down over a belt
         # a short arm: low hovers keep the claw within its reach; speeds and lift by `fleet tune` (docs/benchmarks.md)
-        pick_timing={"hover_m": 0.04, "lift_m": 0.06, "approach_speed": 0.6, "transfer_speed": 0.15, "lift_s": 0.8},  # fleet tune's best
+        pick_timing={
+            "hover_m": 0.04,
+            "lift_m": 0.06,
+            "approach_speed": 0.6,
+            "transfer_speed": 0.15,
+            "lift_s": 0.8,
+        },  # fleet tune's best
         package_prefix="package://example-robot-data/robots/",
         needs_extra="models",
     )

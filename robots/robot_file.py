@@ -110,7 +110,7 @@ class RobotFile(_Strict):
         return v
 
     @model_validator(mode="after")
-    def _rows(self) -> "RobotFile":
+    def _rows(self) -> RobotFile:
         lo, hi = self.grasp_width_m
         if lo >= hi:
             raise ValueError(f"grasp_width_m: the smallest width ({lo:g}) must be below the largest ({hi:g})")
@@ -170,7 +170,9 @@ def load_robot_file(path: Path) -> RobotSpec:
 def _names_hint(name: str, valid: list[str]) -> str:
     close = difflib.get_close_matches(name, valid, n=3)
     shown = close if close else valid[:40]
-    return ("did you mean " if close else "valid: ") + ", ".join(shown) + (" ..." if not close and len(valid) > 40 else "")
+    return (
+        ("did you mean " if close else "valid: ") + ", ".join(shown) + (" ..." if not close and len(valid) > 40 else "")
+    )
 
 
 def _check_meshes(spec: RobotSpec, label: str) -> None:
@@ -183,8 +185,12 @@ def _check_meshes(spec: RobotSpec, label: str) -> None:
             name = (mesh.get("filename") or "").removeprefix("file://")
             path = Path(name) if Path(name).is_absolute() else urdf_dir / name
             if not name or name.startswith(PACKAGE_URI) or not path.is_file():
-                raise RobotFileError(label, "urdf", f"link {link.get('name')!r} names a mesh that is not there: {name or '(no filename)'}"
-                                     + (" (give package_root for package:// URIs)" if name.startswith(PACKAGE_URI) else ""))
+                raise RobotFileError(
+                    label,
+                    "urdf",
+                    f"link {link.get('name')!r} names a mesh that is not there: {name or '(no filename)'}"
+                    + (" (give package_root for package:// URIs)" if name.startswith(PACKAGE_URI) else ""),
+                )
 
 
 def check_against_urdf(spec: RobotSpec, decl: RobotFile, label: str) -> None:
@@ -201,18 +207,29 @@ def check_against_urdf(spec: RobotSpec, decl: RobotFile, label: str) -> None:
     for field, names in (("arm_joints", decl.arm_joints), ("gripper_joints", decl.gripper_joints)):
         for i, name in enumerate(names):
             if name not in joints:
-                raise RobotFileError(label, f"{field}.{i}", f"no movable joint {name!r} in the URDF; {_names_hint(name, joints)}")
+                raise RobotFileError(
+                    label, f"{field}.{i}", f"no movable joint {name!r} in the URDF; {_names_hint(name, joints)}"
+                )
             if model.joints[model.getJointId(name)].nq != 1:
-                raise RobotFileError(label, f"{field}.{i}", f"joint {name!r} is not a single revolute or prismatic joint")
+                raise RobotFileError(
+                    label, f"{field}.{i}", f"joint {name!r} is not a single revolute or prismatic joint"
+                )
     frames = [f.name for f in model.frames]
     if not model.existFrame(decl.tool_frame):
-        raise RobotFileError(label, "tool_frame", f"no frame {decl.tool_frame!r} in the URDF; {_names_hint(decl.tool_frame, frames)}")
+        raise RobotFileError(
+            label, "tool_frame", f"no frame {decl.tool_frame!r} in the URDF; {_names_hint(decl.tool_frame, frames)}"
+        )
     links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     for i, name in enumerate(decl.finger_links):
         if name not in links:
-            raise RobotFileError(label, f"finger_links.{i}", f"no link {name!r} in the URDF; {_names_hint(name, links)}")
-    rows = [("home_q", decl.home_q, decl.arm_joints), ("gripper_open_q", decl.gripper_open_q, decl.gripper_joints),
-            ("gripper_closed_q", decl.gripper_closed_q, decl.gripper_joints)]
+            raise RobotFileError(
+                label, f"finger_links.{i}", f"no link {name!r} in the URDF; {_names_hint(name, links)}"
+            )
+    rows = [
+        ("home_q", decl.home_q, decl.arm_joints),
+        ("gripper_open_q", decl.gripper_open_q, decl.gripper_joints),
+        ("gripper_closed_q", decl.gripper_closed_q, decl.gripper_joints),
+    ]
     rows += [(f"keyframes.{k}", v, decl.arm_joints) for k, v in decl.keyframes.items()]
     for field, values, names in rows:
         if len(values) != len(names):
@@ -221,6 +238,8 @@ def check_against_urdf(spec: RobotSpec, decl: RobotFile, label: str) -> None:
             j = model.joints[model.getJointId(name)].idx_q
             lo, hi = float(model.lowerPositionLimit[j]), float(model.upperPositionLimit[j])
             if not lo - LIMIT_SLACK <= value <= hi + LIMIT_SLACK:
-                raise RobotFileError(label, f"{field}.{i}", f"{value:g} is beyond joint {name!r}'s limits [{lo:g}, {hi:g}]")
+                raise RobotFileError(
+                    label, f"{field}.{i}", f"{value:g} is beyond joint {name!r}'s limits [{lo:g}, {hi:g}]"
+                )
     if decl.gripper_open_q == decl.gripper_closed_q:
         raise RobotFileError(label, "gripper_closed_q", "equal to gripper_open_q: the gripper would never move")

@@ -46,7 +46,8 @@ class RobotSpec:
     fingertip_below_tool_m: float = 0.0
     package_prefix: str | None = None
     package_root_dir: Path | None = None
-    """Where `package_prefix` URIs resolve (default: the folder two above the URDF's, as example-robot-data lays out)."""
+    """Where `package_prefix` URIs resolve (default: the folder two above the URDF's, as example-robot-data lays
+    out)."""
     keyframes: dict[str, tuple[float, ...]] = field(default_factory=dict)
     needs_extra: str | None = None
     fixed_jaw_face_m: float | None = None
@@ -62,9 +63,11 @@ class RobotSpec:
     pick_timing: dict[str, float] = field(default_factory=dict)
     """This robot's values for fields of the pick skill's timing (`PickPlaceTiming`: speeds, hover and lift heights)."""
     max_approach_tilt_deg: float = 0.0
-    """How far from straight down the claw may lean (outwards, away from the base) where straight down is out of reach."""
+    """How far from straight down the claw may lean (outwards, away from the base) where straight down is out of
+    reach."""
     match_yaw: bool = True
-    """An arm of fewer than six joints also turns its claw to the grasp's yaw where it can (else only the approach axis)."""
+    """An arm of fewer than six joints also turns its claw to the grasp's yaw where it can (else only the approach
+    axis)."""
     declared_in: str = "clawfleet"
     """Where the declaration came from: clawfleet itself, a robot file's path, or an entry point."""
 
@@ -87,7 +90,9 @@ class RobotSpec:
     def grasp_centre_tool(self, width_m: float) -> tuple[float, float, float]:
         """Where a part `width_m` wide sits between the jaws, in the tool frame (the origin for symmetric jaws)."""
         k = 0.0 if self.fixed_jaw_face_m is None else self.fixed_jaw_face_m - width_m / 2
-        return tuple(float(c * k - a * self.grip_depth_m) for c, a in zip(self.closing_axis_tool, self.approach_axis_tool))
+        return tuple(
+            float(c * k - a * self.grip_depth_m) for c, a in zip(self.closing_axis_tool, self.approach_axis_tool)
+        )
 
     def urdf_text(self) -> str:
         """The URDF with package URIs resolved and <mimic> removed: every joint is driven on its own."""

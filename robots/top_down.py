@@ -23,7 +23,6 @@ from robots.ik import IKOptions, IKResult, solve_ik
 from robots.kinematics import KinematicModel
 from robots.spec import RobotSpec
 
-
 TILT_STEP_DEG = 5.0
 REACH_TILT_STEP_DEG = 15.0  # a reach check needs only to know that some tilt reaches: it tries every third
 YAW_TOLERANCE_RAD = 0.05  # a short arm's claw turned to within this of the asked yaw counts as turned
@@ -44,7 +43,13 @@ def tilted_rotation(yaw_rad: float, tilt_rad: float, outward_xy: np.ndarray) -> 
 class TopDownIK:
     """IK for top-down tool poses of an arm whose base stands at `transform_base_to_world`."""
 
-    def __init__(self, spec: RobotSpec, transform_base_to_world: np.ndarray, model: KinematicModel | None = None, options: IKOptions = IKOptions(restarts=2)) -> None:
+    def __init__(
+        self,
+        spec: RobotSpec,
+        transform_base_to_world: np.ndarray,
+        model: KinematicModel | None = None,
+        options: IKOptions = IKOptions(restarts=2),
+    ) -> None:
         self.spec = spec
         self.km = model or KinematicModel(spec)
         self.base_to_world = np.asarray(transform_base_to_world, float)
@@ -52,16 +57,25 @@ class TopDownIK:
         self.approach_axis_only = spec.arm_dof < 6
         self.options = options
         # with its roll joint set, a short arm meets position and axis only nearly (the roll axis misses the tool point)
-        self._quick_options = dataclasses.replace(options, restarts=0)  # `solve(quick=True)`: one attempt from the start given
-        self._turn_options = dataclasses.replace(options, tolerance_m=TURNED_TOLERANCE_M, tolerance_rad=TURNED_TOLERANCE_RAD, restarts=0,
-                                                  rotation_weight=0.1)
-        pan_origin_base, self.pan_sign = self.km.first_joint_axis()  # where the arm turns, and which way (SO-101: about -z)
+        self._quick_options = dataclasses.replace(
+            options, restarts=0
+        )  # `solve(quick=True)`: one attempt from the start given
+        self._turn_options = dataclasses.replace(
+            options, tolerance_m=TURNED_TOLERANCE_M, tolerance_rad=TURNED_TOLERANCE_RAD, restarts=0, rotation_weight=0.1
+        )
+        pan_origin_base, self.pan_sign = (
+            self.km.first_joint_axis()
+        )  # where the arm turns, and which way (SO-101: about -z)
         self.pan_origin_world = (self.base_to_world @ np.append(pan_origin_base, 1.0))[:3]
         self.yaw_offset = self._home_yaw_offset()
         step = math.radians(TILT_STEP_DEG)
-        self.tilts_rad = [0.0] + [step * k for k in range(1, int(spec.max_approach_tilt_deg / TILT_STEP_DEG + 1e-9) + 1)]
+        self.tilts_rad = [0.0] + [
+            step * k for k in range(1, int(spec.max_approach_tilt_deg / TILT_STEP_DEG + 1e-9) + 1)
+        ]
         every = round(REACH_TILT_STEP_DEG / TILT_STEP_DEG)  # reach checks try fewer tilts, each one the skill tries too
-        self.reach_tilts_rad = self.tilts_rad[::every] + ([self.tilts_rad[-1]] if (len(self.tilts_rad) - 1) % every else [])
+        self.reach_tilts_rad = self.tilts_rad[::every] + (
+            [self.tilts_rad[-1]] if (len(self.tilts_rad) - 1) % every else []
+        )
 
     def outward(self, position_world: np.ndarray) -> np.ndarray:
         """Horizontal direction from the arm's turning axis to the spot (world frame): where a tilted approach leans,
@@ -90,15 +104,23 @@ class TopDownIK:
         o = self.km.first_joint_axis()[0]
         return math.atan2(p_base[1] - o[1], p_base[0] - o[0])
 
-    def solve(self, position_world: np.ndarray, yaw_world: float | None, q_start: np.ndarray,
-              tilt_rad: float = 0.0, centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0), quick: bool = False) -> tuple[np.ndarray, bool]:
+    def solve(
+        self,
+        position_world: np.ndarray,
+        yaw_world: float | None,
+        q_start: np.ndarray,
+        tilt_rad: float = 0.0,
+        centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        quick: bool = False,
+    ) -> tuple[np.ndarray, bool]:
         """Arm joints putting the tool at `position_world` pointing down with `yaw_world` (natural if None), its
         approach axis leaned outwards by `tilt_rad`; with `centre_tool` (a point in the tool frame, e.g. between
         one-sided jaws) that point goes to `position_world` instead of the tool frame's origin.
 
         Starts from `q_start`; if that fails, once more from the home pose with the base joint
         turned towards the spot (far turns trap a local solver); `quick`: one attempt from `q_start` only (no
-        restarts, no retry: a start next to the answer converges or the spot needs the full search). An arm of fewer than six joints
+        restarts, no retry: a start next to the answer converges or the spot needs the full search). An arm of fewer
+        than six joints
         matches the approach axis first, then the yaw too where it can (its closing axis across the part).
         """
         yaw = self.natural_yaw(position_world) if yaw_world is None else yaw_world
@@ -110,10 +132,14 @@ class TopDownIK:
                 rotation = tilted_rotation(yaw, tilt_rad, self.outward(tool_at))
         target = self.world_to_base @ transform(tool_at, rotation)
         options = self._quick_options if quick else self.options
-        result = solve_ik(self.km, target, self.km.full_q(q_start), approach_axis_only=self.approach_axis_only, options=options)
+        result = solve_ik(
+            self.km, target, self.km.full_q(q_start), approach_axis_only=self.approach_axis_only, options=options
+        )
         aimed = self.aimed_home(position_world)
         if not quick and not result.success and not np.array_equal(np.asarray(q_start, float), aimed):
-            retry = solve_ik(self.km, target, self.km.full_q(aimed), approach_axis_only=self.approach_axis_only, options=self.options)
+            retry = solve_ik(
+                self.km, target, self.km.full_q(aimed), approach_axis_only=self.approach_axis_only, options=self.options
+            )
             if retry.success:
                 result = retry
         if result.success and self.approach_axis_only and self.spec.match_yaw:
@@ -135,7 +161,9 @@ class TopDownIK:
             q[last] = wrap_angle(q[last] + sign * turn)
             if not km.lower[last] <= q[last] <= km.upper[last]:
                 continue
-            again = solve_ik(km, target, q, approach_axis_only=True, options=self._turn_options, locked=(self.spec.arm_dof - 1,))
+            again = solve_ik(
+                km, target, q, approach_axis_only=True, options=self._turn_options, locked=(self.spec.arm_dof - 1,)
+            )
             turned = km.frame_pose(again.q)[:3, :3][:, 0]
             if again.success and float(np.dot(turned, x_want)) > math.cos(YAW_TOLERANCE_RAD):
                 return again
@@ -144,14 +172,22 @@ class TopDownIK:
     def up_between_jaws(self, position_world: np.ndarray, yaw_world: float, tilt_rad: float) -> np.ndarray:
         """The way up that keeps the jaws where they are across the part: straight up, less its part along the
         closing axis (a tilted claw turned across a part would otherwise slide a jaw onto the part's top)."""
-        closing = tilted_rotation(yaw_world, tilt_rad, self.outward(position_world)) @ np.asarray(self.spec.closing_axis_tool, float)
+        closing = tilted_rotation(yaw_world, tilt_rad, self.outward(position_world)) @ np.asarray(
+            self.spec.closing_axis_tool, float
+        )
         up = np.array([0.0, 0.0, 1.0]) - closing[2] * closing
         return up / np.linalg.norm(up)
 
-    def least_tilt(self, position_world: np.ndarray, yaw_world: float | None, q_start: np.ndarray,
-                   centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                   offset: Callable[[float], np.ndarray] | None = None, from_rad: float = 0.0,
-                   tilts_rad: list[float] | None = None) -> tuple[float, np.ndarray] | None:
+    def least_tilt(
+        self,
+        position_world: np.ndarray,
+        yaw_world: float | None,
+        q_start: np.ndarray,
+        centre_tool: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        offset: Callable[[float], np.ndarray] | None = None,
+        from_rad: float = 0.0,
+        tilts_rad: list[float] | None = None,
+    ) -> tuple[float, np.ndarray] | None:
         """The most vertical approach (leaning `from_rad` at least) that reaches the position (moved by
         `offset(tilt)` if given: a hover above the part along the way it rises), and its joints; None if no
         allowed tilt does."""
@@ -185,8 +221,13 @@ class TopDownIK:
         """`joints_for`'s answer with the tilt it leans by: (tilt_rad, arm joints), or None."""
         if self.beyond(position_world, within_m):
             return None
-        return self.least_tilt(np.asarray(position_world, float)[:3], None, self.aimed_home(position_world), self._middling_centre(),
-                               tilts_rad=self.reach_tilts_rad)
+        return self.least_tilt(
+            np.asarray(position_world, float)[:3],
+            None,
+            self.aimed_home(position_world),
+            self._middling_centre(),
+            tilts_rad=self.reach_tilts_rad,
+        )
 
     def joints_near(self, position_world: np.ndarray, tilt_rad: float, q_near: np.ndarray) -> np.ndarray | None:
         """The joints reaching a spot next to one `reach_pose` answered (`tilt_rad`, `q_near`): one solve at that
@@ -194,11 +235,14 @@ class TopDownIK:
         An answer is a real reach, though maybe not at the least tilt; a few ms where the search takes 100+."""
         if self.beyond(position_world):
             return None
-        q, ok = self.solve(np.asarray(position_world, float)[:3], None, q_near, tilt_rad, self._middling_centre(), quick=True)
+        q, ok = self.solve(
+            np.asarray(position_world, float)[:3], None, q_near, tilt_rad, self._middling_centre(), quick=True
+        )
         return q if ok else None
 
     def beyond(self, position_world: np.ndarray, within_m: float | None = None) -> bool:
-        """Whether a spot is farther from the base, horizontally, than `within_m` (the declared `reach_m` unless given)."""
+        """Whether a spot is farther from the base, horizontally, than `within_m` (the declared `reach_m` unless
+        given)."""
         p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
         return math.hypot(p[0], p[1]) > (self.spec.reach_m if within_m is None else within_m)
 

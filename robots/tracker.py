@@ -18,7 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from robots.joint_trajectory import (
-    ArmGoal, CheckedGoal, GoalResult, GoalStatus, GripperGoal, ResultCode, Spline, check_goal,
+    ArmGoal,
+    CheckedGoal,
+    GoalResult,
+    GoalStatus,
+    GripperGoal,
+    ResultCode,
+    Spline,
+    check_goal,
 )
 
 GRIPPER_REACHED = 0.03  # opening units: within this of the target the claw has reached it
@@ -31,7 +38,9 @@ WATCHDOG_REASON = "watchdog: the controller missed its deadline"
 class _Active:
     checked: CheckedGoal
     spline: Spline
-    ended: bool = False  # its result is out (preempted by a goal that starts later): it drives the arm, unchecked, until then
+    ended: bool = (
+        False  # its result is out (preempted by a goal that starts later): it drives the arm, unchecked, until then
+    )
 
 
 @dataclass
@@ -44,8 +53,17 @@ class _Gripper:
 class ArmTracker:
     """One arm: joint names and limits in the arm's order, the gripper's opening read through `opening_of`."""
 
-    def __init__(self, joint_names: tuple[str, ...], lower: np.ndarray, upper: np.ndarray, hold_q: np.ndarray,
-                 *, opening_of=None, default_effort_n: float = 0.0, servo_period_s: float | None = None) -> None:
+    def __init__(
+        self,
+        joint_names: tuple[str, ...],
+        lower: np.ndarray,
+        upper: np.ndarray,
+        hold_q: np.ndarray,
+        *,
+        opening_of=None,
+        default_effort_n: float = 0.0,
+        servo_period_s: float | None = None,
+    ) -> None:
         self.joint_names = tuple(joint_names)
         self.servo_period_s = servo_period_s  # ticks at multiples of it read the trajectory from a grid built once
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
@@ -62,7 +80,10 @@ class ArmTracker:
         self.watchdog_deadline_s = math.inf
         self.clamped = 0
         self.last: GoalResult | None = None  # the newest trajectory result, echoed in the arm's state
-        self.desired_now: tuple[np.ndarray, np.ndarray] = (self.hold_q.copy(), np.zeros_like(self.hold_q))  # the last targets
+        self.desired_now: tuple[np.ndarray, np.ndarray] = (
+            self.hold_q.copy(),
+            np.zeros_like(self.hold_q),
+        )  # the last targets
 
     # --- goals in -------------------------------------------------------------------
     def submit(self, goal: ArmGoal, now_s: float) -> list[GoalResult]:
@@ -70,15 +91,36 @@ class ArmTracker:
         if isinstance(goal, GripperGoal):
             return self._submit_gripper(goal, now_s)
         if self.estop:
-            return self._note([GoalResult(goal.goal_id, "trajectory", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, "emergency stop engaged", now_s)])
+            return self._note(
+                [
+                    GoalResult(
+                        goal.goal_id,
+                        "trajectory",
+                        GoalStatus.REJECTED,
+                        ResultCode.INVALID_GOAL,
+                        "emergency stop engaged",
+                        now_s,
+                    )
+                ]
+            )
         checked = check_goal(goal, self.joint_names, self.lower, self.upper)
         if isinstance(checked, GoalResult):
             return self._note([dataclasses.replace(checked, time_s=now_s)])
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
         q0, dq0, ddq0 = self._path_at(start)
         new = _Active(checked, Spline.through(start, q0, dq0, ddq0, checked, self.servo_period_s))
-        out = [self._end(old, "trajectory", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, f"preempted by goal {goal.goal_id}", now_s)
-               for old in (self.active, self.next) if old is not None and not old.ended]
+        out = [
+            self._end(
+                old,
+                "trajectory",
+                GoalStatus.PREEMPTED,
+                ResultCode.SUCCESSFUL,
+                f"preempted by goal {goal.goal_id}",
+                now_s,
+            )
+            for old in (self.active, self.next)
+            if old is not None and not old.ended
+        ]
         if start <= now_s:
             self.active, self.next = new, None
         else:
@@ -89,7 +131,10 @@ class ArmTracker:
 
     def _submit_gripper(self, goal: GripperGoal, now_s: float) -> list[GoalResult]:
         def reject(reason: str) -> list[GoalResult]:
-            return self._note([GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, reason, now_s)])
+            return self._note(
+                [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, reason, now_s)]
+            )
+
         if self.estop:
             return reject("emergency stop engaged")
         if not (math.isfinite(goal.opening) and 0.0 <= goal.opening <= 1.0):
@@ -99,8 +144,18 @@ class ArmTracker:
         if goal.start_time_s is not None and not math.isfinite(goal.start_time_s):
             return reject("start time is not finite")
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
-        out = [GoalResult(g.goal.goal_id, "gripper", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, f"preempted by goal {goal.goal_id}", now_s)
-               for g in (self.gripper, self.next_gripper) if g is not None]
+        out = [
+            GoalResult(
+                g.goal.goal_id,
+                "gripper",
+                GoalStatus.PREEMPTED,
+                ResultCode.SUCCESSFUL,
+                f"preempted by goal {goal.goal_id}",
+                now_s,
+            )
+            for g in (self.gripper, self.next_gripper)
+            if g is not None
+        ]
         self.gripper, self.next_gripper = None, _Gripper(goal, start)  # the claw keeps its opening until the start
         if start <= now_s:
             self._start_gripper()
@@ -110,8 +165,11 @@ class ArmTracker:
         self.gripper, self.next_gripper = self.next_gripper, None
         g = self.gripper.goal
         self.opening = g.opening
-        self.effort_n = min(g.max_effort_n, self.default_effort_n) if g.max_effort_n > 0 and self.default_effort_n > 0 else (
-            g.max_effort_n or self.default_effort_n)
+        self.effort_n = (
+            min(g.max_effort_n, self.default_effort_n)
+            if g.max_effort_n > 0 and self.default_effort_n > 0
+            else (g.max_effort_n or self.default_effort_n)
+        )
 
     # --- each tick ------------------------------------------------------------------
     def _path_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -164,7 +222,12 @@ class ArmTracker:
             over = np.abs(want - q) > a.checked.path_tolerance
             if over.any():
                 j = int(np.argmax(over))
-                return self.abort(now_s, q, f"{self.joint_names[j]} {abs(want[j] - q[j]):.3f} rad off its path", ResultCode.PATH_TOLERANCE_VIOLATED)
+                return self.abort(
+                    now_s,
+                    q,
+                    f"{self.joint_names[j]} {abs(want[j] - q[j]):.3f} rad off its path",
+                    ResultCode.PATH_TOLERANCE_VIOLATED,
+                )
             return []
         err = np.abs(q - spline.q_end)
         if np.all(err <= a.checked.goal_tolerance):
@@ -173,11 +236,22 @@ class ArmTracker:
         if now_s > spline.t_end_s + goal.goal_time_tolerance_s:
             j = int(np.argmax(err - np.where(np.isfinite(a.checked.goal_tolerance), a.checked.goal_tolerance, 0)))
             self.hold_q, self.active = spline.q_end.copy(), None
-            return [GoalResult(goal.goal_id, "trajectory", GoalStatus.ABORTED, ResultCode.GOAL_TOLERANCE_VIOLATED,
-                               f"{self.joint_names[j]} {err[j]:.3f} rad from its goal {goal.goal_time_tolerance_s:g} s after the end", now_s)]
+            return [
+                GoalResult(
+                    goal.goal_id,
+                    "trajectory",
+                    GoalStatus.ABORTED,
+                    ResultCode.GOAL_TOLERANCE_VIOLATED,
+                    f"{self.joint_names[j]} {err[j]:.3f} rad from its goal {goal.goal_time_tolerance_s:g} s after the "
+                    "end",
+                    now_s,
+                )
+            ]
         return []
 
-    def _check_gripper(self, g: _Gripper, now_s: float, gripper_q: np.ndarray, gripper_dq: np.ndarray) -> list[GoalResult]:
+    def _check_gripper(
+        self, g: _Gripper, now_s: float, gripper_q: np.ndarray, gripper_dq: np.ndarray
+    ) -> list[GoalResult]:
         opening = self.opening_of(np.asarray(gripper_q, float))
         speed = abs(self.opening_of(np.asarray(gripper_q, float) + np.asarray(gripper_dq, float)) - opening)
         reached = abs(opening - g.goal.opening) <= GRIPPER_REACHED
@@ -187,15 +261,34 @@ class ArmTracker:
         if not (reached and still) and not settled:
             return []
         self.gripper = None
-        return [GoalResult(g.goal.goal_id, "gripper", GoalStatus.SUCCEEDED, ResultCode.SUCCESSFUL,
-                           "" if reached else f"stalled at opening {opening:.3f}", now_s, reached=reached, stalled=not reached)]
+        return [
+            GoalResult(
+                g.goal.goal_id,
+                "gripper",
+                GoalStatus.SUCCEEDED,
+                ResultCode.SUCCESSFUL,
+                "" if reached else f"stalled at opening {opening:.3f}",
+                now_s,
+                reached=reached,
+                stalled=not reached,
+            )
+        ]
 
     # --- safety ---------------------------------------------------------------------
-    def abort(self, now_s: float, q: np.ndarray, reason: str, code: ResultCode = ResultCode.ABORTED) -> list[GoalResult]:
+    def abort(
+        self, now_s: float, q: np.ndarray, reason: str, code: ResultCode = ResultCode.ABORTED
+    ) -> list[GoalResult]:
         """Abort every active or pending goal (arm and gripper) and hold the arm where it is now."""
-        out = [self._end(x, "trajectory", GoalStatus.ABORTED, code, reason, now_s) for x in (self.active, self.next) if x is not None and not x.ended]
-        out += [GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
-                for g in (self.gripper, self.next_gripper) if g is not None and code == ResultCode.ABORTED]
+        out = [
+            self._end(x, "trajectory", GoalStatus.ABORTED, code, reason, now_s)
+            for x in (self.active, self.next)
+            if x is not None and not x.ended
+        ]
+        out += [
+            GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
+            for g in (self.gripper, self.next_gripper)
+            if g is not None and code == ResultCode.ABORTED
+        ]
         if code == ResultCode.ABORTED:
             self.gripper = self.next_gripper = None
         self.active = self.next = None
@@ -226,7 +319,9 @@ class ArmTracker:
         a = self.next or self.active
         return a.checked.goal.goal_id if a is not None else 0
 
-    def _end(self, a: _Active, kind: str, status: GoalStatus, code: ResultCode, reason: str, now_s: float) -> GoalResult:
+    def _end(
+        self, a: _Active, kind: str, status: GoalStatus, code: ResultCode, reason: str, now_s: float
+    ) -> GoalResult:
         return GoalResult(a.checked.goal.goal_id, kind, status, code, reason, now_s)
 
     def _note(self, results: list[GoalResult]) -> list[GoalResult]:
@@ -234,4 +329,3 @@ class ArmTracker:
             if r.kind == "trajectory":
                 self.last = r
         return results
-

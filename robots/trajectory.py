@@ -33,7 +33,7 @@ class JointSegment:
         velocity_limit: np.ndarray,
         speed_fraction: float = 0.6,
         min_duration_s: float = 0.25,
-    ) -> "JointSegment":
+    ) -> JointSegment:
         """A segment as fast as `speed_fraction` of every joint's velocity limit allows."""
         delta = np.abs(np.asarray(q_end) - np.asarray(q_start))
         needed = float(np.max(delta * QUINTIC_PEAK_SPEED / (velocity_limit * speed_fraction))) if delta.size else 0.0

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-
 from scenes.randomise import draw
 from scenes.schema import Arm, Scene, Station
 from scenes.yaml_file import DeclarationError, first_error, named_in, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
@@ -86,8 +85,13 @@ def load_scene(
     return scene
 
 
-def with_robot_files(scene: Scene, path: Path, label: str, robots: Mapping[str, RobotFacts] | None,
-                     read_robot_file: RobotFileReader | None) -> tuple[Scene, Mapping[str, RobotFacts] | None]:
+def with_robot_files(
+    scene: Scene,
+    path: Path,
+    label: str,
+    robots: Mapping[str, RobotFacts] | None,
+    read_robot_file: RobotFileReader | None,
+) -> tuple[Scene, Mapping[str, RobotFacts] | None]:
     """The scene with its robot files as absolute paths, and `robots` with theirs (each read by `read_robot_file`)."""
     if not scene.robot_files:
         return scene, robots
@@ -110,7 +114,9 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
     row = scene.arm_row
     if row is None:
         if count is not None and count != len(scene.arms):
-            raise SceneError(label, "arms", f"this scene has a fixed set of {len(scene.arms)} arms; --arms does not apply")
+            raise SceneError(
+                label, "arms", f"this scene has a fixed set of {len(scene.arms)} arms; --arms does not apply"
+            )
         return scene
     n = row.count if count is None else count
     if not 1 <= n <= row.max_count:
@@ -167,38 +173,58 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
         if f.into == "conveyor" and scene.conveyor is None:
             raise SceneError(label, f"feeders.{i}.into", "feeds the conveyor, but the scene has none")
         if f.into != "conveyor" and f.into not in station_names:
-            raise SceneError(label, f"feeders.{i}.into", f"no station {f.into!r}; stations: {', '.join(sorted(station_names))}")
+            raise SceneError(
+                label, f"feeders.{i}.into", f"no station {f.into!r}; stations: {', '.join(sorted(station_names))}"
+            )
     for i, f in enumerate(scene.feeders):
         for k, stop in enumerate(f.route):
             if stop not in station_names:
-                raise SceneError(label, f"feeders.{i}.route.{k}", f"no station {stop!r}; stations: {', '.join(sorted(station_names))}")
+                raise SceneError(
+                    label,
+                    f"feeders.{i}.route.{k}",
+                    f"no station {stop!r}; stations: {', '.join(sorted(station_names))}",
+                )
         if not f.route:
             for t, part in enumerate(f.parts):
                 if not scene.route(f.name, t):
                     raise SceneError(
-                        label, f"feeders.{i}.route",
-                        f"empty, and no station accepts colour {part.colour} of parts.{t}: give a route or a station's accepts_colour",
+                        label,
+                        f"feeders.{i}.route",
+                        f"empty, and no station accepts colour {part.colour} of parts.{t}: give a route or a "
+                        "station's accepts_colour",
                     )
     feeder_names = {f.name for f in scene.feeders}
     for i, s in enumerate(scene.stations):
         for k, name in enumerate(s.assembles):
             if name not in feeder_names:
-                raise SceneError(label, f"stations.{i}.assembles.{k}", f"no feeder {name!r}; feeders: {', '.join(sorted(feeder_names))}")
+                raise SceneError(
+                    label,
+                    f"stations.{i}.assembles.{k}",
+                    f"no feeder {name!r}; feeders: {', '.join(sorted(feeder_names))}",
+                )
             if s.name not in scene.feeder(name).route:
-                raise SceneError(label, f"stations.{i}.assembles.{k}", f"feeder {name!r} never visits {s.name!r}: add it to that feeder's route")
+                raise SceneError(
+                    label,
+                    f"stations.{i}.assembles.{k}",
+                    f"feeder {name!r} never visits {s.name!r}: add it to that feeder's route",
+                )
     for i, a in enumerate(scene.arms):
         for j in range(i):
             d = _horizontal_distance(a.base.xyz, scene.arms[j].base.xyz)
             if d < MIN_BASE_SEPARATION_M:
                 raise SceneError(
-                    label, f"arms.{i}.base.xyz",
-                    f"arm {a.name!r} stands {d:.3f} m from {scene.arms[j].name!r}; bases need {MIN_BASE_SEPARATION_M} m",
+                    label,
+                    f"arms.{i}.base.xyz",
+                    f"arm {a.name!r} stands {d:.3f} m from {scene.arms[j].name!r}; bases need {MIN_BASE_SEPARATION_M} "
+                    "m",
                 )
     if robots is None:
         return
     for i, a in enumerate(scene.arms):
         if a.model not in robots:
-            raise SceneError(label, f"arms.{i}.model", f"unknown robot model {a.model!r}; valid models: {', '.join(sorted(robots))}")
+            raise SceneError(
+                label, f"arms.{i}.model", f"unknown robot model {a.model!r}; valid models: {', '.join(sorted(robots))}"
+            )
     for i, s in enumerate(scene.stations):
         if not any(_horizontal_distance(s.pose.xyz, a.base.xyz) <= robots[a.model].reach_m for a in scene.arms):
             raise SceneError(label, f"stations.{i}.pose", f"station {s.name!r} is out of every arm's reach")

@@ -45,16 +45,32 @@ def draw(scene: Scene) -> Scene:
     gains, noise = take("arm_gain_scale", 0.1, 10.0), take("part_pose_noise_m", 0.0, 0.05, default=0.0)
     feeders = []
     for f in scene.feeders:
-        parts = [p.model_copy(update={
-            "friction": p.friction if friction is None else friction,
-            "mass_kg": min(max(p.mass_kg * mass, 0.0051), 1.0),
-            "size_m": tuple(min(max(s * size, 0.005), 0.2) for s in p.size_m),
-        }) for p in f.parts]
+        parts = [
+            p.model_copy(
+                update={
+                    "friction": p.friction if friction is None else friction,
+                    "mass_kg": min(max(p.mass_kg * mass, 0.0051), 1.0),
+                    "size_m": tuple(min(max(s * size, 0.005), 0.2) for s in p.size_m),
+                }
+            )
+            for p in f.parts
+        ]
         a = f.arrival
-        arrival = a.model_copy(update={"rate_per_min": min(a.rate_per_min * arrivals, 600.0)} if a.rate_per_min is not None
-                               else {"schedule_s": [t / arrivals for t in a.schedule_s]})
+        arrival = a.model_copy(
+            update={"rate_per_min": min(a.rate_per_min * arrivals, 600.0)}
+            if a.rate_per_min is not None
+            else {"schedule_s": [t / arrivals for t in a.schedule_s]}
+        )
         feeders.append(f.model_copy(update={"parts": parts, "arrival": arrival}))
-    update = {"feeders": feeders, "randomise": None, "randomised": drawn, "drive_gain_scale": gains, "part_pose_noise_m": noise}
+    update = {
+        "feeders": feeders,
+        "randomise": None,
+        "randomised": drawn,
+        "drive_gain_scale": gains,
+        "part_pose_noise_m": noise,
+    }
     if scene.conveyor is not None:
-        update["conveyor"] = scene.conveyor.model_copy(update={"speed_m_per_s": min(scene.conveyor.speed_m_per_s * belt, 0.5)})
+        update["conveyor"] = scene.conveyor.model_copy(
+            update={"speed_m_per_s": min(scene.conveyor.speed_m_per_s * belt, 0.5)}
+        )
     return scene.revalidated(**update)

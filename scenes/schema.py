@@ -42,7 +42,8 @@ class Pose2D(Strict):
 
 
 class Conveyor(Strict):
-    """A straight belt; parts ride along its local +x at `speed_m_per_s`. `pose` is the belt's start, top centre line."""
+    """A straight belt; parts ride along its local +x at `speed_m_per_s`. `pose` is the belt's start, top centre
+    line."""
 
     pose: Pose2D
     length_m: float = Field(gt=0.2, le=20.0)
@@ -80,7 +81,7 @@ class PartType(Strict):
         return v
 
     @model_validator(mode="after")
-    def _round_cylinder(self) -> "PartType":
+    def _round_cylinder(self) -> PartType:
         if self.kind == "cylinder" and self.size_m[0] != self.size_m[1]:
             raise ValueError("a cylinder's size_m is [diameter, diameter, height]: the first two must be equal")
         return self
@@ -99,7 +100,7 @@ class Arrival(Strict):
     first_at_s: float = Field(1.0, ge=0)
 
     @model_validator(mode="after")
-    def _exactly_one(self) -> "Arrival":
+    def _exactly_one(self) -> Arrival:
         if (self.rate_per_min is None) == (self.schedule_s is None):
             raise ValueError("give exactly one of rate_per_min or schedule_s")
         return self
@@ -171,7 +172,7 @@ class Draw(Strict):
     normal: tuple[float, float] | None = None
 
     @model_validator(mode="after")
-    def _one_distribution(self) -> "Draw":
+    def _one_distribution(self) -> Draw:
         if (self.uniform is None) == (self.normal is None):
             raise ValueError("give exactly one of uniform: [low, high] or normal: [mean, std]")
         values = self.uniform or self.normal
@@ -214,7 +215,8 @@ class LinkFaults(Strict):
 
 class Network(LinkFaults):
     """Network faults on the bus (`fleet/bus/faults.py`): the defaults for every link, and per link (an arm's name or
-    `coordinator`) a replacement. In lockstep they act in sim time and repeat exactly for a seed; in realtime in wall time."""
+    `coordinator`) a replacement. In lockstep they act in sim time and repeat exactly for a seed; in realtime in wall
+    time."""
 
     links: dict[str, LinkFaults] = {}
 
@@ -229,7 +231,8 @@ class Scene(Strict):
     name: Name
     description: str = ""
     physics_hz: float = Field(200.0, ge=60, le=5000)
-    """200 Hz holds friction grasps (`fleet trials`: 100 of 100 from 100 Hz up, docs/benchmarks.md) at 40% of 500 Hz's cost."""
+    """200 Hz holds friction grasps (`fleet trials`: 100 of 100 from 100 Hz up, docs/benchmarks.md) at 40% of 500 Hz's
+    cost."""
     control_hz: float = Field(100.0, ge=1, le=500)
     solver_position_iterations: int = Field(20, ge=1, le=255)
     """PhysX position iterations per step for every body and arm: 20 holds friction grasps; a cell with no
@@ -251,10 +254,11 @@ class Scene(Strict):
     network: Network | None = None
     """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
     robot_files: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field([], max_length=16)
-    """Robot declaration files (YAML, docs/robots.md) whose uids this scene's arms may name; relative to the scene file."""
+    """Robot declaration files (YAML, docs/robots.md) whose uids this scene's arms may name; relative to the scene
+    file."""
 
     @model_validator(mode="after")
-    def _consistent(self) -> "Scene":
+    def _consistent(self) -> Scene:
         if self.control_hz > self.physics_hz:
             raise ValueError("control_hz must not exceed physics_hz")
         ratio = self.physics_hz / self.control_hz

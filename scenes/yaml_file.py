@@ -37,7 +37,9 @@ def named_in(declaring_file: Path, name: str) -> Path:
     return p if p.is_absolute() else (Path(declaring_file).parent / p).resolve()
 
 
-def yaml_text(path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError) -> str:
+def yaml_text(
+    path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError
+) -> str:
     """The file's text: refused at once when larger than `max_bytes`, or when it is not UTF-8 (naming the byte)."""
     size = path.stat().st_size
     if size > max_bytes:
@@ -46,10 +48,12 @@ def yaml_text(path: Path, label: str, what: str, max_bytes: int, error: type[Dec
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise error(label, "", f"not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r})") from None
+        raise error(label, "", f"not UTF-8 text (byte {exc.start}: {raw[exc.start : exc.start + 1]!r})") from None
 
 
-def yaml_mapping(path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError) -> dict:
+def yaml_mapping(
+    path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError
+) -> dict:
     """The file's top-level mapping of fields; one-line errors for size, encoding, YAML syntax and shape."""
     text = yaml_text(path, label, what, max_bytes, error)
     try:
@@ -69,8 +73,14 @@ def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, st
     return ".".join(str(p) for p in err["loc"]) or top, err["msg"]
 
 
-def read_declaration(path: Path, label: str, what: str, max_bytes: int, model: type[Model],
-                     error: type[DeclarationError] = DeclarationError) -> Model:
+def read_declaration(
+    path: Path,
+    label: str,
+    what: str,
+    max_bytes: int,
+    model: type[Model],
+    error: type[DeclarationError] = DeclarationError,
+) -> Model:
     """The file's fields validated by `model`; the first problem as one line naming the field."""
     data = yaml_mapping(path, label, what, max_bytes, error)
     try:

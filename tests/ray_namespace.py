@@ -26,7 +26,9 @@ def loopback_namespace() -> Iterator[None]:
     """The namespace, with its loopback up (skips the test where namespaces cannot be made)."""
     made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
     if made.returncode != 0 and "File exists" in made.stderr and not _pids_in_namespace():
-        subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)  # left by a run that was killed: nothing runs in it
+        subprocess.run(
+            ["ip", "netns", "del", NETNS], capture_output=True
+        )  # left by a run that was killed: nothing runs in it
         made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
     if made.returncode != 0:
         pytest.skip(f"cannot make a network namespace here: {made.stderr.strip()}")
@@ -34,7 +36,9 @@ def loopback_namespace() -> Iterator[None]:
         subprocess.run(in_netns("ip", "link", "set", "lo", "up"), check=True)
         yield
     finally:
-        subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"), capture_output=True, timeout=120)
+        subprocess.run(
+            in_netns(sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"), capture_output=True, timeout=120
+        )
         subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
 
 
@@ -45,9 +49,26 @@ def _pids_in_namespace() -> list[str]:
 
 def start_head() -> str:
     """A Ray head in the namespace (2 CPUs, no dashboard); its address."""
-    started = subprocess.run(in_netns(sys.executable, "-m", "ray.scripts.scripts", "start", "--head", "--node-ip-address", "127.0.0.1",
-                                      "--port", HEAD.rsplit(":", 1)[1], "--num-cpus", "2", "--include-dashboard", "false",
-                                      "--disable-usage-stats"),
-                             capture_output=True, text=True, timeout=120)
+    started = subprocess.run(
+        in_netns(
+            sys.executable,
+            "-m",
+            "ray.scripts.scripts",
+            "start",
+            "--head",
+            "--node-ip-address",
+            "127.0.0.1",
+            "--port",
+            HEAD.rsplit(":", 1)[1],
+            "--num-cpus",
+            "2",
+            "--include-dashboard",
+            "false",
+            "--disable-usage-stats",
+        ),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert started.returncode == 0, started.stderr[-2000:]
     return HEAD

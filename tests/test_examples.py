@@ -14,7 +14,9 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 def test_random_rollout_runs():
     result = subprocess.run(
         [sys.executable, str(EXAMPLES / "random_rollout.py"), "--arms", "2", "--episodes", "1", "--max-cycles", "10"],
-        capture_output=True, text=True, timeout=300,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert result.returncode == 0, result.stderr
     assert "episode 0: mean return per arm" in result.stdout
@@ -22,9 +24,21 @@ def test_random_rollout_runs():
 
 def test_ippo_training_runs_and_writes_its_curve(tmp_path):
     result = subprocess.run(
-        [sys.executable, str(EXAMPLES / "train_ippo_reach.py"), "--iterations", "2", "--steps", "64", "--max-cycles", "20",
-         "--curve", str(tmp_path / "curve")],
-        capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            str(EXAMPLES / "train_ippo_reach.py"),
+            "--iterations",
+            "2",
+            "--steps",
+            "64",
+            "--max-cycles",
+            "20",
+            "--curve",
+            str(tmp_path / "curve"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert "random policy:" in result.stdout
@@ -34,8 +48,19 @@ def test_ippo_training_runs_and_writes_its_curve(tmp_path):
 
 def test_task_mode_comparison_runs():
     result = subprocess.run(
-        [sys.executable, str(EXAMPLES / "task_mode_allocators.py"), "--arms", "2", "--max-cycles", "20", "--episodes", "1"],
-        capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            str(EXAMPLES / "task_mode_allocators.py"),
+            "--arms",
+            "2",
+            "--max-cycles",
+            "20",
+            "--episodes",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert all(p in result.stdout for p in ("random", "optimal", "auction", "greedy"))
@@ -43,9 +68,23 @@ def test_task_mode_comparison_runs():
 
 def test_stable_baselines3_ppo_through_supersuit_trains_a_few_iterations():
     result = subprocess.run(
-        [sys.executable, str(EXAMPLES / "sb3_ppo_reach.py"), "--cells", "2", "--cpus", "2", "--timesteps", "1024", "--n-steps", "64",
-         "--max-cycles", "20"],
-        capture_output=True, text=True, timeout=600,
+        [
+            sys.executable,
+            str(EXAMPLES / "sb3_ppo_reach.py"),
+            "--cells",
+            "2",
+            "--cpus",
+            "2",
+            "--timesteps",
+            "1024",
+            "--n-steps",
+            "64",
+            "--max-cycles",
+            "20",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert "trained 1024 agent-steps on 2 cell(s) x 2 arms" in result.stdout and "mean return per arm" in result.stdout
@@ -57,21 +96,56 @@ def test_rllib_multi_agent_ppo_trains_a_few_iterations_locally_and_on_a_cluster(
     pytest.importorskip("ray.rllib")
     quick = ["--iterations", "2", "--batch", "200", "--max-cycles", "20", "--epochs", "1", "--env-runners", "1"]
     with loopback_namespace():
-        local = subprocess.run(in_netns(sys.executable, str(EXAMPLES / "rllib_ppo_reach.py"), *quick), capture_output=True, text=True, timeout=600)
+        local = subprocess.run(
+            in_netns(sys.executable, str(EXAMPLES / "rllib_ppo_reach.py"), *quick),
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert local.returncode == 0, local.stderr[-3000:]
         assert "iteration 2: episode return" in local.stdout and "with policies shared on 2 arms" in local.stdout
         address = start_head()
-        cluster = subprocess.run(in_netns(sys.executable, str(EXAMPLES / "rllib_ppo_reach.py"), *quick, "--policies", "per-arm", "--address", address),
-                                 capture_output=True, text=True, timeout=600)
+        cluster = subprocess.run(
+            in_netns(
+                sys.executable,
+                str(EXAMPLES / "rllib_ppo_reach.py"),
+                *quick,
+                "--policies",
+                "per-arm",
+                "--address",
+                address,
+            ),
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert cluster.returncode == 0, cluster.stderr[-3000:]
         assert "with policies arm_0, arm_1 on 2 arms" in cluster.stdout
 
 
 def test_the_masked_task_allocator_trains_with_rllib_and_is_measured_against_the_allocators(tmp_path):
     pytest.importorskip("ray.rllib")
-    argv = ["--iterations", "1", "--batch", "200", "--max-cycles", "40", "--epochs", "1", "--episodes", "1", "--curve", str(tmp_path / "curve")]
+    argv = [
+        "--iterations",
+        "1",
+        "--batch",
+        "200",
+        "--max-cycles",
+        "40",
+        "--epochs",
+        "1",
+        "--episodes",
+        "1",
+        "--curve",
+        str(tmp_path / "curve"),
+    ]
     with loopback_namespace():
-        done = subprocess.run(in_netns(sys.executable, str(EXAMPLES / "rllib_masked_task_allocator.py"), *argv), capture_output=True, text=True, timeout=600)
+        done = subprocess.run(
+            in_netns(sys.executable, str(EXAMPLES / "rllib_masked_task_allocator.py"), *argv),
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
     assert done.returncode == 0, done.stderr[-3000:]
     assert all(name in done.stdout for name in ("learned", "random", "optimal", "auction", "greedy"))
     assert (tmp_path / "curve.csv").read_text().startswith("iteration,wall_s,env_steps,episode_return")

@@ -61,20 +61,28 @@ class BusConfigSet:
         return str(self.directory / f"{node}.json5")
 
     @classmethod
-    def load(cls, directory: str | Path) -> "BusConfigSet":
+    def load(cls, directory: str | Path) -> BusConfigSet:
         path = Path(directory) / MANIFEST
         try:
             manifest = json.loads(path.read_text())
-            made = cls(Path(directory).resolve(), manifest["endpoint"], bool(manifest["secure"]), tuple(manifest["arms"]))
+            made = cls(
+                Path(directory).resolve(), manifest["endpoint"], bool(manifest["secure"]), tuple(manifest["arms"])
+            )
         except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise BusConfigError(f"{path}: not a bus config directory written by `fleet bus-config` ({exc.__class__.__name__}: {exc})") from None
+            raise BusConfigError(
+                f"{path}: not a bus config directory written by `fleet bus-config` ({exc.__class__.__name__}: {exc})"
+            ) from None
         missing = [n for n in ("sim", *SERVICE_NODES, *made.arms) if not Path(made.config_for(n)).is_file()]
         if missing:
-            raise BusConfigError(f"{directory}: no config for {', '.join(missing)} (write it again with `fleet bus-config`)")
+            raise BusConfigError(
+                f"{directory}: no config for {', '.join(missing)} (write it again with `fleet bus-config`)"
+            )
         return made
 
 
-def write_bus_configs(out: str | Path, address: str, port: int, arms: list[str], *, secure: bool = True, valid_days: int = 365) -> BusConfigSet:
+def write_bus_configs(
+    out: str | Path, address: str, port: int, arms: list[str], *, secure: bool = True, valid_days: int = 365
+) -> BusConfigSet:
     """One Zenoh config per node in `out`: the sim a router listening on `address:port`, every other node a
     client of it; with `secure`, TLS, logins and access control (private keys and passwords readable by the
     owner only)."""
@@ -86,7 +94,9 @@ def write_bus_configs(out: str | Path, address: str, port: int, arms: list[str],
         raise BusConfigError(f"--port {port}: a TCP port, 1..65535")
     bad = [a for a in arms if not is_valid_name(a) or a in ("sim", *SERVICE_NODES)]
     if bad or not arms:
-        raise BusConfigError(f"arm ids {bad or arms}: need at least one, lower-case identifiers, none named like a node")
+        raise BusConfigError(
+            f"arm ids {bad or arms}: need at least one, lower-case identifiers, none named like a node"
+        )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     endpoint = f"{'tls' if secure else 'tcp'}/{address}:{port}"
@@ -97,14 +107,21 @@ def write_bus_configs(out: str | Path, address: str, port: int, arms: list[str],
         _write_private(out / "users.txt", "".join(f"{n}:{p}\n" for n, p in passwords.items()))
     router = {"mode": "router", "listen": {"endpoints": [endpoint]}, "connect": {"endpoints": []}}
     if secure:
-        router["transport"] = {"link": {"tls": tls | {"listen_certificate": str(out / "sim.pem"), "listen_private_key": str(out / "sim.key")}},
-                               "auth": {"usrpwd": {"dictionary_file": str(out / "users.txt")}}}
+        router["transport"] = {
+            "link": {
+                "tls": tls | {"listen_certificate": str(out / "sim.pem"), "listen_private_key": str(out / "sim.key")}
+            },
+            "auth": {"usrpwd": {"dictionary_file": str(out / "users.txt")}},
+        }
         router["access_control"] = access_control(arms)
     _write_private(out / "sim.json5", json.dumps(router, indent=2))
     for node in nodes[1:]:
         client = {"mode": "client", "connect": {"endpoints": [endpoint]}}
         if secure:
-            client["transport"] = {"link": {"tls": tls}, "auth": {"usrpwd": {"user": node, "password": passwords[node]}}}
+            client["transport"] = {
+                "link": {"tls": tls},
+                "auth": {"usrpwd": {"user": node, "password": passwords[node]}},
+            }
         _write_private(out / f"{node}.json5", json.dumps(client, indent=2))
     (out / MANIFEST).write_text(json.dumps({"endpoint": endpoint, "secure": secure, "arms": list(arms)}, indent=2))
     return BusConfigSet(out.resolve(), endpoint, secure, tuple(arms))
@@ -115,16 +132,35 @@ def access_control(arms: list[str]) -> dict:
     publish only its own keys (`PUBLISHES`); nothing else, and no client may serve a queryable."""
     keys = lambda patterns, arm="": [f"{ANY_RUN}/{p.format(arm=arm)}" for p in patterns]  # noqa: E731
     rules = [
-        {"id": "deliver", "permission": "allow", "flows": ["egress"],
-         "messages": ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply"], "key_exprs": [f"{ROOT}/**"]},
-        {"id": "listen", "permission": "allow", "flows": ["ingress"], "messages": ["declare_subscriber", "query"], "key_exprs": [f"{ROOT}/**"]},
+        {
+            "id": "deliver",
+            "permission": "allow",
+            "flows": ["egress"],
+            "messages": ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply"],
+            "key_exprs": [f"{ROOT}/**"],
+        },
+        {
+            "id": "listen",
+            "permission": "allow",
+            "flows": ["ingress"],
+            "messages": ["declare_subscriber", "query"],
+            "key_exprs": [f"{ROOT}/**"],
+        },
     ]
     subjects = [{"id": "everyone", "usernames": [*SERVICE_NODES, *arms]}]
     policies = [{"rules": ["deliver", "listen"], "subjects": ["everyone"]}]
     publishers = {n: keys(PUBLISHES[n]) for n in SERVICE_NODES} | {a: keys(PUBLISHES["controller"], a) for a in arms}
     for node, exprs in publishers.items():
         if exprs:
-            rules.append({"id": f"publish_{node}", "permission": "allow", "flows": ["ingress"], "messages": ["put"], "key_exprs": exprs})
+            rules.append(
+                {
+                    "id": f"publish_{node}",
+                    "permission": "allow",
+                    "flows": ["ingress"],
+                    "messages": ["put"],
+                    "key_exprs": exprs,
+                }
+            )
             subjects.append({"id": node, "usernames": [node]})
             policies.append({"rules": [f"publish_{node}"], "subjects": [node]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
@@ -135,22 +171,51 @@ def _write_certificates(out: Path, ip: ipaddress.IPv4Address | ipaddress.IPv6Add
     now = datetime.datetime.now(datetime.timezone.utc)
     ca_key, sim_key = ec.generate_private_key(ec.SECP256R1()), ec.generate_private_key(ec.SECP256R1())
     ca_name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "clawfleet bus CA")])
-    valid = dict(not_valid_before=now - datetime.timedelta(minutes=5), not_valid_after=now + datetime.timedelta(days=valid_days))
-    ca = (x509.CertificateBuilder(subject_name=ca_name, issuer_name=ca_name, public_key=ca_key.public_key(),
-                                  serial_number=x509.random_serial_number(), **valid)
-          .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
-          .add_extension(x509.KeyUsage(digital_signature=True, key_cert_sign=True, crl_sign=True, content_commitment=False,
-                                       key_encipherment=False, data_encipherment=False, key_agreement=False,
-                                       encipher_only=False, decipher_only=False), critical=True)
-          .sign(ca_key, hashes.SHA256()))
-    sim = (x509.CertificateBuilder(subject_name=x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "sim")]), issuer_name=ca_name,
-                                   public_key=sim_key.public_key(), serial_number=x509.random_serial_number(), **valid)
-           .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ip)]), critical=False)
-           .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
-           .sign(ca_key, hashes.SHA256()))
+    valid = dict(
+        not_valid_before=now - datetime.timedelta(minutes=5), not_valid_after=now + datetime.timedelta(days=valid_days)
+    )
+    ca = (
+        x509.CertificateBuilder(
+            subject_name=ca_name,
+            issuer_name=ca_name,
+            public_key=ca_key.public_key(),
+            serial_number=x509.random_serial_number(),
+            **valid,
+        )
+        .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
+        .add_extension(
+            x509.KeyUsage(
+                digital_signature=True,
+                key_cert_sign=True,
+                crl_sign=True,
+                content_commitment=False,
+                key_encipherment=False,
+                data_encipherment=False,
+                key_agreement=False,
+                encipher_only=False,
+                decipher_only=False,
+            ),
+            critical=True,
+        )
+        .sign(ca_key, hashes.SHA256())
+    )
+    sim = (
+        x509.CertificateBuilder(
+            subject_name=x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "sim")]),
+            issuer_name=ca_name,
+            public_key=sim_key.public_key(),
+            serial_number=x509.random_serial_number(),
+            **valid,
+        )
+        .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ip)]), critical=False)
+        .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+        .sign(ca_key, hashes.SHA256())
+    )
     (out / "ca.pem").write_bytes(ca.public_bytes(serialization.Encoding.PEM))
     (out / "sim.pem").write_bytes(sim.public_bytes(serialization.Encoding.PEM))
-    pkcs8 = sim_key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption())
+    pkcs8 = sim_key.private_bytes(
+        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
+    )
     _write_private(out / "sim.key", pkcs8.decode())
     return {"root_ca_certificate": str(out / "ca.pem")}
 

@@ -60,14 +60,21 @@ class Decoder(Generic[T]):
 
     def __init__(self, message_type: type[T], drops: DropCounter) -> None:
         self.message_type = message_type
-        self.type_name = getattr(message_type, "__name__", None) or " | ".join(t.__name__ for t in message_type.__args__)
+        self.type_name = getattr(message_type, "__name__", None) or " | ".join(
+            t.__name__ for t in message_type.__args__
+        )
         self._decoder = msgspec.msgpack.Decoder(message_type)
         self.drops = drops
 
     def decode(self, key: str, payload: bytes) -> T | None:
         try:
             message = self._decoder.decode(payload)
-        except (msgspec.MsgspecError, UnicodeDecodeError, ValueError, OverflowError) as exc:  # bad UTF-8 is not a DecodeError
+        except (
+            msgspec.MsgspecError,
+            UnicodeDecodeError,
+            ValueError,
+            OverflowError,
+        ) as exc:  # bad UTF-8 is not a DecodeError
             self.drops.drop(key, f"malformed {self.type_name}: {str(exc)[:120]}")
             return None
         if message.version != PROTOCOL_VERSION:  # type: ignore[attr-defined]

@@ -119,9 +119,19 @@ class DelayLine:
 def add_fault_arguments(parser: argparse.ArgumentParser) -> None:
     """The flags that put faults on every link (replacing the scene's `network`)."""
     group = parser.add_argument_group("network faults (every link between the sim and the other processes, each way)")
-    group.add_argument("--latency-ms", type=float, default=None, metavar="MS", help="mean one-way delay (sim time in lockstep)")
-    group.add_argument("--jitter-ms", type=float, default=None, metavar="MS", help="standard deviation of the delay (messages may overtake)")
-    group.add_argument("--loss", type=float, default=None, metavar="P", help="probability that a message is lost, 0 to 1")
+    group.add_argument(
+        "--latency-ms", type=float, default=None, metavar="MS", help="mean one-way delay (sim time in lockstep)"
+    )
+    group.add_argument(
+        "--jitter-ms",
+        type=float,
+        default=None,
+        metavar="MS",
+        help="standard deviation of the delay (messages may overtake)",
+    )
+    group.add_argument(
+        "--loss", type=float, default=None, metavar="P", help="probability that a message is lost, 0 to 1"
+    )
 
 
 def network_from_args(args: argparse.Namespace) -> Network | None:

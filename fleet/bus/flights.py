@@ -51,14 +51,24 @@ class FlightBook:
         up = self.link.passage("up") if lockstep else None
         d = ticks_for(down.delay_s, self.hz)
         up_ticks = ticks_for(up.delay_s, self.hz) if up is not None else 0
-        flight = Flight(tick, message, tick + d, now_wall_s + down.delay_s, tick + d + period_ticks + up_ticks,
-                        up is not None and up.lost)
+        flight = Flight(
+            tick,
+            message,
+            tick + d,
+            now_wall_s + down.delay_s,
+            tick + d + period_ticks + up_ticks,
+            up is not None and up.lost,
+        )
         self.flights[tick] = flight
         return flight
 
     def deliver(self, tick: int, now_wall_s: float, lockstep: bool) -> Flight | None:
         """The flight that reaches its process now: the newest of those due (older ones are overtaken)."""
-        due = [f for f in self.flights.values() if not f.delivered and (f.deliver_tick <= tick if lockstep else f.deliver_at_s <= now_wall_s)]
+        due = [
+            f
+            for f in self.flights.values()
+            if not f.delivered and (f.deliver_tick <= tick if lockstep else f.deliver_at_s <= now_wall_s)
+        ]
         if not due:
             return None
         newest = max(due, key=lambda f: f.tick)

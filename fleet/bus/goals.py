@@ -16,9 +16,17 @@ def goal_message(arm: str, goal: ArmGoal) -> ArmGoalMsg:
         return GripperGoalMsg(arm, goal.goal_id, goal.opening, goal.max_effort_n, goal.start_time_s)
     flat = lambda rows: tuple(float(v) for row in rows for v in row)  # noqa: E731
     return TrajectoryGoalMsg(
-        arm, goal.goal_id, tuple(goal.joint_names), tuple(map(float, goal.times_from_start_s)), flat(goal.positions),
-        flat(goal.velocities), flat(goal.accelerations), goal.start_time_s, tuple(goal.path_tolerance_rad),
-        tuple(goal.goal_tolerance_rad), goal.goal_time_tolerance_s,
+        arm,
+        goal.goal_id,
+        tuple(goal.joint_names),
+        tuple(map(float, goal.times_from_start_s)),
+        flat(goal.positions),
+        flat(goal.velocities),
+        flat(goal.accelerations),
+        goal.start_time_s,
+        tuple(goal.path_tolerance_rad),
+        tuple(goal.goal_tolerance_rad),
+        goal.goal_time_tolerance_s,
     )
 
 
@@ -36,18 +44,30 @@ def goal_from_message(msg: ArmGoalMsg) -> ArmGoal | GoalResult:
         return tuple(tuple(values[i * n : (i + 1) * n]) for i in range(points))
 
     fields = {}
-    for what, values, optional in (("positions", msg.positions, False), ("velocities", msg.velocities, True),
-                                   ("accelerations", msg.accelerations, True)):
+    for what, values, optional in (
+        ("positions", msg.positions, False),
+        ("velocities", msg.velocities, True),
+        ("accelerations", msg.accelerations, True),
+    ):
         out = rows(values, what, optional)
         if isinstance(out, str):
             return GoalResult(msg.goal_id, "trajectory", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, out)
         fields[what] = out
     return TrajectoryGoal(
-        msg.goal_id, tuple(msg.joint_names), tuple(msg.times_from_start_s), fields["positions"], fields["velocities"],
-        fields["accelerations"], msg.start_time_s, tuple(msg.path_tolerance_rad), tuple(msg.goal_tolerance_rad),
+        msg.goal_id,
+        tuple(msg.joint_names),
+        tuple(msg.times_from_start_s),
+        fields["positions"],
+        fields["velocities"],
+        fields["accelerations"],
+        msg.start_time_s,
+        tuple(msg.path_tolerance_rad),
+        tuple(msg.goal_tolerance_rad),
         msg.goal_time_tolerance_s,
     )
 
 
 def result_message(arm: str, r: GoalResult) -> GoalResultMsg:
-    return GoalResultMsg(arm, r.goal_id, r.kind, r.status.value, int(r.code), r.reason, float(r.time_s), r.reached, r.stalled)
+    return GoalResultMsg(
+        arm, r.goal_id, r.kind, r.status.value, int(r.code), r.reason, float(r.time_s), r.reached, r.stalled
+    )

@@ -26,7 +26,9 @@ def fetch_history(session: zenoh.Session, keys: Keys, drops: DropCounter, timeou
     """The event log the running sim serves, asked until it answers or `timeout_s` passes; a reply that does not
     decode is dropped and counted (`drops`) and the next one taken."""
     decoder = Decoder(EventLog, drops)
-    log = first_answer(session, keys.history, lambda payload: decoder.decode(keys.history, payload), timeout_s, per_query_s=2.0)
+    log = first_answer(
+        session, keys.history, lambda payload: decoder.decode(keys.history, payload), timeout_s, per_query_s=2.0
+    )
     if log is None:
         raise HistoryUnavailable(f"no sim of run {keys.run!r} answered on {keys.history} within {timeout_s:.0f} s")
     return log

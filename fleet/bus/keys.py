@@ -118,10 +118,20 @@ class Keys:
 
     def recorded(self) -> list[str]:
         """The key expressions a recorder subscribes to: every key of the run but the monitors' `world/view` (a copy
-        of `world/frame` at another rate, built only while someone watches; recording it would make the sim build it)."""
+        of `world/frame` at another rate, built only while someone watches; recording it would make the sim build
+        it)."""
         root = self.prefix
-        return [f"{root}/arm/**", self.parts, self.events, self.control, self.sim_status, self.frame, self.estop,
-                f"{root}/coord/**", f"{root}/launcher/**"]
+        return [
+            f"{root}/arm/**",
+            self.parts,
+            self.events,
+            self.control,
+            self.sim_status,
+            self.frame,
+            self.estop,
+            f"{root}/coord/**",
+            f"{root}/launcher/**",
+        ]
 
     @staticmethod
     def arm_of(key: str) -> str:

@@ -80,7 +80,9 @@ class ControllerStep(Message, frozen=True, array_like=True):
     skill: str = "idle"
     progress: float = 0.0
     failure: str = ""
-    request_seq: int = 0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
+    request_seq: int = (
+        0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
+    )
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
     # the local stage after the move, which asks no grant of its own: poses (flattened, one row per joint vector)
@@ -175,7 +177,9 @@ class PartsState(Message, frozen=True, array_like=True):
     quaternions_wxyz: Floats
     velocities: Floats
     sizes_m: Floats
-    events_published: int = 0  # line events the sim had published up to this tick: a reader knows if one is still on its way
+    events_published: int = (
+        0  # line events the sim had published up to this tick: a reader knows if one is still on its way
+    )
     version: int = PROTOCOL_VERSION
 
 
@@ -267,7 +271,8 @@ class EStop(Message, frozen=True, array_like=True):
 
 
 class SimControl(Message, frozen=True, array_like=True):
-    """Anyone -> sim: pause or resume the clock, or change the realtime speed factor (None leaves a setting as it is)."""
+    """Anyone -> sim: pause or resume the clock, or change the realtime speed factor (None leaves a setting as it
+    is)."""
 
     source: str
     paused: bool | None = None
@@ -334,8 +339,12 @@ class RespawnRequest(Message, frozen=True, array_like=True):
 def separations_from_pairs(sim_time_s: float, pairs: list, margin_m: float) -> Separations:
     """A `Separations` message from the guard's nearest pairs (objects with a, b, distance_m, point_a, point_b)."""
     return Separations(
-        sim_time_s, tuple(p.a for p in pairs), tuple(p.b for p in pairs), tuple(float(p.distance_m) for p in pairs),
-        tuple(float(v) for p in pairs for v in (*p.point_a, *p.point_b)), margin_m,
+        sim_time_s,
+        tuple(p.a for p in pairs),
+        tuple(p.b for p in pairs),
+        tuple(float(p.distance_m) for p in pairs),
+        tuple(float(v) for p in pairs for v in (*p.point_a, *p.point_b)),
+        margin_m,
     )
 
 
@@ -360,5 +369,25 @@ class EnvTargets(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
-MESSAGE_TYPES = (ArmState, ControllerStep, TrajectoryGoalMsg, GripperGoalMsg, GoalResultMsg, ArmStatus, PartsState, Assignment, MotionGrant, LineEvent, CoordTick, Progress, EStop,
-                 SimControl, SimStatus, Separations, LineView, RespawnRequest, EnvAction, EnvTargets)
+MESSAGE_TYPES = (
+    ArmState,
+    ControllerStep,
+    TrajectoryGoalMsg,
+    GripperGoalMsg,
+    GoalResultMsg,
+    ArmStatus,
+    PartsState,
+    Assignment,
+    MotionGrant,
+    LineEvent,
+    CoordTick,
+    Progress,
+    EStop,
+    SimControl,
+    SimStatus,
+    Separations,
+    LineView,
+    RespawnRequest,
+    EnvAction,
+    EnvTargets,
+)

@@ -53,8 +53,19 @@ def arm_state_problem(state, arm: str, n_joints: int) -> str:
         return f"a state of {state.arm!r} on {arm}'s key"
     if len(state.q) != n_joints or len(state.dq) != n_joints:
         return f"a state with {len(state.q)} joints (the arm has {n_joints})"
-    if not_finite((state.sim_time_s, *state.q, *state.dq, *state.gripper_q, *state.tool_position, *state.request_q_to,
-                    state.request_duration_s, *state.desired_q, *state.desired_dq)):
+    if not_finite(
+        (
+            state.sim_time_s,
+            *state.q,
+            *state.dq,
+            *state.gripper_q,
+            *state.tool_position,
+            *state.request_q_to,
+            state.request_duration_s,
+            *state.desired_q,
+            *state.desired_dq,
+        )
+    ):
         return "a state with NaN or infinite values"
     return request_problem(state, n_joints)
 
@@ -67,7 +78,10 @@ def request_problem(msg, n_joints: int) -> str:
         return "a motion request with a duration that is not 0..600 s or non-finite joints"
     then_q, then_s = msg.request_then_q, msg.request_then_after_s
     if len(then_q) != len(then_s) * n_joints or not_finite((*then_q, *then_s)):
-        return f"a motion request whose local stage has {len(then_q)} joint values for {len(then_s)} times, or non-finite ones"
+        return (
+            f"a motion request whose local stage has {len(then_q)} joint values for {len(then_s)} times, "
+            "or non-finite ones"
+        )
     if any(b <= a for a, b in zip((0.0, *then_s), then_s)) or (then_s and then_s[-1] > 60.0):
         return "a motion request whose local stage times do not increase within 0..60 s"
     return ""
@@ -76,8 +90,14 @@ def request_problem(msg, n_joints: int) -> str:
 def parts_problem(parts) -> str:
     """A `PartsState` whose arrays do not fit its part ids, or with non-finite values."""
     k = len(parts.part_ids)
-    sizes = (len(parts.feeders), len(parts.type_indices), len(parts.positions) // 3, len(parts.quaternions_wxyz) // 4,
-             len(parts.velocities) // 3, len(parts.sizes_m) // 3)
+    sizes = (
+        len(parts.feeders),
+        len(parts.type_indices),
+        len(parts.positions) // 3,
+        len(parts.quaternions_wxyz) // 4,
+        len(parts.velocities) // 3,
+        len(parts.sizes_m) // 3,
+    )
     if any(s != k for s in sizes) or len(parts.positions) != 3 * k:
         return "parts whose arrays do not fit their ids"
     if not_finite((parts.sim_time_s, *parts.positions, *parts.velocities, *parts.sizes_m)):

@@ -11,8 +11,9 @@ import zenoh
 T = TypeVar("T")
 
 
-def first_answer(session: zenoh.Session, key: str, take: Callable[[bytes], T | None], timeout_s: float,
-                 per_query_s: float = 1.0) -> T | None:
+def first_answer(
+    session: zenoh.Session, key: str, take: Callable[[bytes], T | None], timeout_s: float, per_query_s: float = 1.0
+) -> T | None:
     """The first reply on `key` that `take` turns into something (None: not usable, the next one is taken),
     asked again until `timeout_s` passes; None if no usable reply came in time."""
     deadline = time.monotonic() + timeout_s

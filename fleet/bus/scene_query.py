@@ -7,7 +7,7 @@ import zenoh
 
 from fleet.bus.keys import Keys
 from fleet.bus.query import first_answer
-from fleet.scene_loading import use_scene_robots
+from fleet.common.scene_loading import use_scene_robots
 from scenes.schema import Scene
 from scenes.yaml_file import DeclarationError
 

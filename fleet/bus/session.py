@@ -42,23 +42,37 @@ class BusEndpoints:
     config_file: str | None = None
 
     @classmethod
-    def from_args(cls, args: argparse.Namespace) -> "BusEndpoints":
+    def from_args(cls, args: argparse.Namespace) -> BusEndpoints:
         return cls(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config)
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
     """The bus flags every fleet program shares."""
     group = parser.add_argument_group("bus (Zenoh)")
-    group.add_argument("--listen", action="append", metavar="ENDPOINT", help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)")
-    group.add_argument("--connect", action="append", metavar="ENDPOINT", help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
-    group.add_argument("--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file; --listen/--connect override its endpoints")
+    group.add_argument(
+        "--listen",
+        action="append",
+        metavar="ENDPOINT",
+        help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)",
+    )
+    group.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)",
+    )
+    group.add_argument(
+        "--zenoh-config", metavar="FILE", help="a Zenoh JSON5 config file; --listen/--connect override its endpoints"
+    )
 
 
 def make_config(endpoints: BusEndpoints) -> zenoh.Config:
     """A Zenoh config: peer mode (or the config file's), multicast scouting off, and only the given endpoints
     (loopback if none)."""
     config = zenoh.Config.from_file(endpoints.config_file) if endpoints.config_file else zenoh.Config()
-    if not endpoints.config_file:  # a config file's mode stands (a line across hosts: the sim a router, the rest clients)
+    if (
+        not endpoints.config_file
+    ):  # a config file's mode stands (a line across hosts: the sim a router, the rest clients)
         config.insert_json5("mode", json.dumps("peer"))
     config.insert_json5("scouting/multicast/enabled", "false")
     # every sample carries its publisher's HLC time: a recorder puts what it hears back in publish order
@@ -92,7 +106,9 @@ def open_listening_session(endpoints: BusEndpoints, attempts: int = 5) -> tuple[
     for attempt in range(attempts):
         endpoint = loopback_endpoint(free_loopback_port())
         try:
-            return zenoh.open(make_config(BusEndpoints((endpoint,), endpoints.connect, endpoints.config_file))), endpoint
+            return zenoh.open(
+                make_config(BusEndpoints((endpoint,), endpoints.connect, endpoints.config_file))
+            ), endpoint
         except zenoh.ZError as exc:
             if "already in use" not in str(exc) or attempt == attempts - 1:
                 raise
@@ -136,7 +152,7 @@ class Tap:
     def __init__(self, session: zenoh.Session, key_exprs: list[str], capacity: int = 1 << 16) -> None:
         self._subs = [session.declare_subscriber(k, zenoh.handlers.FifoChannel(capacity)) for k in key_exprs]
 
-    def __enter__(self) -> "Tap":
+    def __enter__(self) -> Tap:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -153,6 +169,13 @@ class Tap:
         for sub in self._subs:
             while (sample := sub.try_recv()) is not None:
                 stamp = sample.timestamp
-                batch.append((stamp.get_time_as_ntp64() if stamp is not None else 0, len(batch), str(sample.key_expr), sample.payload.to_bytes()))
+                batch.append(
+                    (
+                        stamp.get_time_as_ntp64() if stamp is not None else 0,
+                        len(batch),
+                        str(sample.key_expr),
+                        sample.payload.to_bytes(),
+                    )
+                )
         batch.sort()
         return [(key, payload) for _, _, key, payload in batch]

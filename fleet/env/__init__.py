@@ -1,8 +1,8 @@
 """clawfleet as a PettingZoo environment: `parallel_env(**kwargs)`, `env(**kwargs)` (AEC) and `raw_env`.
 
-    from fleet.env import parallel_env
-    env = parallel_env(scene="sorting_line", n_arms=2, task="reach", max_cycles=200)
-    observations, infos = env.reset(seed=0)
+from fleet.env import parallel_env
+env = parallel_env(scene="sorting_line", n_arms=2, task="reach", max_cycles=200)
+observations, infos = env.reset(seed=0)
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The line as a PettingZoo parallel environment: one agent per arm, the same ids as on the bus.
 
-The world is the same SAPIEN world `fleet run` uses (`fleet.physics.world.World`),
+The world is the same SAPIEN world `fleet run` uses (`fleet.sim.world.World`),
 stepped in process (or, with `distributed=True`, with each arm's action turned into
 joint targets by its own process over Zenoh); minimum separations come from the
 coordinator's collision guard (python-fcl), contacts from the physics, tasks in
@@ -20,13 +20,13 @@ from pettingzoo import ParallelEnv
 
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
+from fleet.common.scene_loading import load_scene
 from fleet.env.task_mode import SLOT_FEATURES, SLOTS, TaskChooser
 from fleet.env.tasks import SUCCESS_BONUS, TASKS, EnvTask, make_task
-from fleet.physics.render import require_render
-from fleet.physics.world import World
+from fleet.sim.render import require_render
+from fleet.sim.world import World
 from robots.frames import yaw_transform
 from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
-from fleet.scene_loading import load_scene
 
 ACTION_MODES = (*CONTINUOUS_MODES, "task")
 TASK_MODE_TASKS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
@@ -56,12 +56,23 @@ class CellParallelEnv(ParallelEnv):
         mask_in_observation: bool = False,
     ) -> None:
         self._init_kwargs = dict(
-            scene=scene, n_arms=n_arms, task=task, action_mode=action_mode, control_hz=control_hz, max_cycles=max_cycles,
-            render_mode=render_mode, distributed=distributed, monitor_port=monitor_port, mask_in_observation=mask_in_observation,
+            scene=scene,
+            n_arms=n_arms,
+            task=task,
+            action_mode=action_mode,
+            control_hz=control_hz,
+            max_cycles=max_cycles,
+            render_mode=render_mode,
+            distributed=distributed,
+            monitor_port=monitor_port,
+            mask_in_observation=mask_in_observation,
         )
         check_options(task, action_mode, render_mode, max_cycles, control_hz, distributed)
         if mask_in_observation and action_mode != "task":
-            raise ValueError(f"mask_in_observation applies to action_mode 'task' (choices that can be invalid); {action_mode!r} has none")
+            raise ValueError(
+                f"mask_in_observation applies to action_mode 'task' (choices that can be invalid); {action_mode!r} "
+                "has none"
+            )
         self.mask_in_observation = mask_in_observation
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
@@ -83,16 +94,22 @@ class CellParallelEnv(ParallelEnv):
         self._start = self.world.pack_state()
         self.agents: list[str] = []
         placements = {a.name: yaw_transform(a.base.xyz, a.base.yaw_rad) for a in self.scene.arms}
-        self.guard = CollisionGuard({a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents})
+        self.guard = CollisionGuard(
+            {a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents}
+        )
         self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
         self._still = {a: np.zeros(n) for a, n in self._dof.items()}  # the joint velocity target of every action
         self._arms_of_model: dict[str, list[str]] = {}  # the agents of each robot model, in agent order
         for a in self.possible_agents:
             self._arms_of_model.setdefault(self.world.arms[a].spec.uid, []).append(a)
-        self.translators = {} if action_mode == "task" else {  # by model: all its arms' actions in one pass
-            uid: ActionTranslator(self.world.arms[arms[0]].spec, [placements[a] for a in arms], action_mode)
-            for uid, arms in self._arms_of_model.items()
-        }
+        self.translators = (
+            {}
+            if action_mode == "task"
+            else {  # by model: all its arms' actions in one pass
+                uid: ActionTranslator(self.world.arms[arms[0]].spec, [placements[a] for a in arms], action_mode)
+                for uid, arms in self._arms_of_model.items()
+            }
+        )
         self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "task" else None
         self.actuator = None
         if distributed:
@@ -110,7 +127,7 @@ class CellParallelEnv(ParallelEnv):
         return (_rebuild, (self._init_kwargs,))
 
     # --- spaces -----------------------------------------------------------------------
-    @functools.lru_cache(maxsize=None)
+    @functools.cache
     def observation_space(self, agent: str) -> gymnasium.spaces.Space:
         n, others = self._dof[agent], len(self.possible_agents) - 1
         if self.action_mode == "task":
@@ -131,7 +148,7 @@ class CellParallelEnv(ParallelEnv):
         mask[1 : 1 + len(self._options.get(agent, []))] = 1
         return mask
 
-    @functools.lru_cache(maxsize=None)
+    @functools.cache
     def action_space(self, agent: str) -> gymnasium.spaces.Space:
         if self.action_mode == "task":
             return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
@@ -149,7 +166,8 @@ class CellParallelEnv(ParallelEnv):
         if seed is not None:
             self.np_random = np.random.default_rng(seed)
         self.world.restore_state(self._start)
-        # each episode its own arrivals: seed S gives those of `fleet run --seed S`; no seed, a draw from the env's stream
+        # each episode its own arrivals: seed S gives those of `fleet run --seed S`; no seed, a draw from the env's
+        # stream
         self.world.reseed_feeders(seed if seed is not None else int(self.np_random.integers(2**32)))
         self.agents = list(self.possible_agents)
         self.cycles = 0
@@ -193,11 +211,20 @@ class CellParallelEnv(ParallelEnv):
         for a in self.agents:
             near_miss, at_limit = separation[a] < DEFAULT_MARGIN_M, limit_hits.get(a, False)
             rewards[a] = float(
-                rewards[a] + TEAM_WEIGHT * team - (NEAR_MISS_PENALTY if near_miss else 0.0)
-                - (CONTACT_PENALTY if a in touching else 0.0) - (LIMIT_PENALTY if at_limit else 0.0) - effort.get(a, 0.0)
+                rewards[a]
+                + TEAM_WEIGHT * team
+                - (NEAR_MISS_PENALTY if near_miss else 0.0)
+                - (CONTACT_PENALTY if a in touching else 0.0)
+                - (LIMIT_PENALTY if at_limit else 0.0)
+                - effort.get(a, 0.0)
             )
-            infos[a] = {"success": successes[a], "collision": a in touching, "near_miss": near_miss,
-                        "separation_m": min(separation[a], SEPARATION_CAP_M), "joint_limit": at_limit}
+            infos[a] = {
+                "success": successes[a],
+                "collision": a in touching,
+                "near_miss": near_miss,
+                "separation_m": min(separation[a], SEPARATION_CAP_M),
+                "joint_limit": at_limit,
+            }
             if self.chooser is None:
                 infos[a]["distance_m"] = math.dist(tools[a], targets[a])
         if self.chooser is not None:
@@ -224,10 +251,15 @@ class CellParallelEnv(ParallelEnv):
             return {}, {}
         if not self.agents:
             return {}, {}
-        rows = {uid: self._action_rows(self._arms_of_model[uid], actions, t.action_size) for uid, t in self.translators.items()}
+        rows = {
+            uid: self._action_rows(self._arms_of_model[uid], actions, t.action_size)
+            for uid, t in self.translators.items()
+        }
         remote = None
         if self.actuator is not None:
-            remote = self.actuator.translate({a: r for uid, r_all in rows.items() for a, r in zip(self._arms_of_model[uid], r_all)})
+            remote = self.actuator.translate(
+                {a: r for uid, r_all in rows.items() for a, r in zip(self._arms_of_model[uid], r_all)}
+            )
         hits, effort = {}, {}
         for uid, translator in self.translators.items():
             arms, acted = self._arms_of_model[uid], rows[uid]
@@ -255,7 +287,9 @@ class CellParallelEnv(ParallelEnv):
                 rows[i] = action
         return rows
 
-    def _task_rewards(self, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
+    def _task_rewards(
+        self, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]
+    ) -> tuple[dict[str, float], dict[str, bool]]:
         if self.chooser is None:
             return self.task_model.progress(self.world, tools, targets)
         gained = self.task_model.book.net_gain()
@@ -269,7 +303,8 @@ class CellParallelEnv(ParallelEnv):
 
     # --- observations -----------------------------------------------------------------
     def _joints(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Every arm's joint positions and velocities now (read once a step: observations and separations share them)."""
+        """Every arm's joint positions and velocities now (read once a step: observations and separations share
+        them)."""
         return {a: (self.world.arms[a].qpos(), self.world.arms[a].qvel()) for a in self.possible_agents}
 
     def _separations(self, joints: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, float]:
@@ -285,8 +320,11 @@ class CellParallelEnv(ParallelEnv):
         return {a: np.asarray(self.world.arms[a].tool_pose_world().p, float) for a in self.possible_agents}
 
     def _observe(
-        self, separation: dict[str, float] | None = None, tools: dict[str, np.ndarray] | None = None,
-        joints: dict[str, tuple[np.ndarray, np.ndarray]] | None = None, targets: dict[str, np.ndarray] | None = None,
+        self,
+        separation: dict[str, float] | None = None,
+        tools: dict[str, np.ndarray] | None = None,
+        joints: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+        targets: dict[str, np.ndarray] | None = None,
     ) -> dict[str, np.ndarray]:
         joints = joints or self._joints()
         separation = separation or self._separations(joints)
@@ -297,7 +335,13 @@ class CellParallelEnv(ParallelEnv):
             others = [tools[b] for b in self.possible_agents if b != a]
             if self.chooser is not None:
                 skill = self.chooser.skills[a]
-                own = [q[:n], dq[:n], [self._opening(a)], [float(self.chooser.task_of[a] is None and not skill.active), skill.progress], tools[a]]
+                own = [
+                    q[:n],
+                    dq[:n],
+                    [self._opening(a)],
+                    [float(self.chooser.task_of[a] is None and not skill.active), skill.progress],
+                    tools[a],
+                ]
                 extra = [self.chooser.features(a, self._options.get(a, []))]
             else:
                 target = targets[a] if targets else self.task_model.target(a, self.world)
@@ -316,7 +360,8 @@ class CellParallelEnv(ParallelEnv):
         return float((np.mean(g) - spec.gripper_closed[0]) / (spec.gripper_open[0] - spec.gripper_closed[0]))
 
     def state(self) -> np.ndarray:
-        """Everything for a centralised critic: every arm's joints, velocities, tool and target, and the parts' positions."""
+        """Everything for a centralised critic: every arm's joints, velocities, tool and target, and the parts'
+        positions."""
         chunks = []
         for a in self.possible_agents:
             arm = self.world.arms[a]
@@ -348,20 +393,27 @@ class CellParallelEnv(ParallelEnv):
             self.actuator = None
 
 
-def _rebuild(kwargs: dict) -> "CellParallelEnv":
+def _rebuild(kwargs: dict) -> CellParallelEnv:
     return CellParallelEnv(**kwargs)
 
 
-def check_options(task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float, distributed: bool = False) -> None:
+def check_options(
+    task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float, distributed: bool = False
+) -> None:
     """Refuse impossible settings up front, each with what is valid."""
     for name, value, valid in (("task", task, tuple(TASKS)), ("action_mode", action_mode, ACTION_MODES)):
         if value not in valid:
             raise ValueError(f"{name} {value!r} is not available; valid: {', '.join(valid)}")
     if action_mode == "task" and task not in TASK_MODE_TASKS:
-        raise ValueError(f"action_mode 'task' chooses among the line's pending tasks; task {task!r} has none to choose (valid with 'task': {', '.join(TASK_MODE_TASKS)})")
+        raise ValueError(
+            f"action_mode 'task' chooses among the line's pending tasks; task {task!r} has none to choose (valid with "
+            f"'task': {', '.join(TASK_MODE_TASKS)})"
+        )
     if distributed and action_mode not in CONTINUOUS_MODES:
-        raise ValueError(f"distributed=True carries continuous actions ({', '.join(CONTINUOUS_MODES)}) to the arms' processes; "
-                         f"in action_mode {action_mode!r} the skills run in process: use distributed=False")
+        raise ValueError(
+            f"distributed=True carries continuous actions ({', '.join(CONTINUOUS_MODES)}) to the arms' processes; "
+            f"in action_mode {action_mode!r} the skills run in process: use distributed=False"
+        )
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise ValueError(f"render_mode {render_mode!r}: valid render modes are {', '.join(RENDER_MODES)}")
     if max_cycles < 1:

@@ -2,7 +2,7 @@
 
     python -m fleet.env.conformance          # prints one line per configuration, exits 1 on a failure
 
-The test suite runs the same checks (tests/fleet/test_env.py); shipping them in the
+The test suite runs the same checks (tests/fleet/env/test_conformance.py); shipping them in the
 package lets anyone check a scene or setting of their own the same way.
 """
 
@@ -30,9 +30,12 @@ def check(task: str, action_mode: str, n_arms: int | None = 2, cycles: int = 40,
     api_test(env(**options), num_cycles=cycles)
     parallel_seed_test(lambda: parallel_env(**options), num_cycles=cycles)
     without_cycles = {k: v for k, v in options.items() if k != "max_cycles"}
-    max_cycles_test(types.SimpleNamespace(
-        parallel_env=functools.partial(parallel_env, **without_cycles), env=functools.partial(env, **without_cycles),
-    ))
+    max_cycles_test(
+        types.SimpleNamespace(
+            parallel_env=functools.partial(parallel_env, **without_cycles),
+            env=functools.partial(env, **without_cycles),
+        )
+    )
 
 
 def main() -> int:

@@ -24,7 +24,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EnvAction, EnvTargets
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session
-from fleet.processes import ChildProcess, stop_children
+from fleet.common.processes import ChildProcess, stop_children
 from robots.policy_actions import CONTINUOUS_MODES, JointTargets
 
 START_TIMEOUT_S = 60.0
@@ -51,8 +51,10 @@ class RemoteActuators:
 
     def __init__(self, scene: str, n_arms: int | None, arms: list[str], action_mode: str) -> None:
         if action_mode not in CONTINUOUS_MODES:
-            raise ValueError(f"distributed=True carries continuous actions ({', '.join(CONTINUOUS_MODES)}) to the arms' processes; "
-                             f"in action_mode {action_mode!r} the skills run in process: use distributed=False")
+            raise ValueError(
+                f"distributed=True carries continuous actions ({', '.join(CONTINUOUS_MODES)}) to the arms' processes; "
+                f"in action_mode {action_mode!r} the skills run in process: use distributed=False"
+            )
         self.arms = arms
         self.keys = Keys(f"env_{os.getpid()}_{next(_runs)}")
         self.session, self.endpoint = open_listening_session(BusEndpoints())
@@ -64,8 +66,21 @@ class RemoteActuators:
         self._logs = Path(tempfile.mkdtemp(prefix="clawfleet_env_"))
         self.procs: dict[str, ChildProcess] = {}
         for arm in arms:
-            argv = [sys.executable, "-m", "fleet.nodes.env_arm_node", "--scene", scene, "--run", self.keys.run, "--arm", arm,
-                    "--action-mode", action_mode, "--connect", self.endpoint]
+            argv = [
+                sys.executable,
+                "-m",
+                "fleet.nodes.env_arm_node",
+                "--scene",
+                scene,
+                "--run",
+                self.keys.run,
+                "--arm",
+                arm,
+                "--action-mode",
+                action_mode,
+                "--connect",
+                self.endpoint,
+            ]
             if n_arms is not None:
                 argv += ["--arms", str(n_arms)]
             self.procs[arm] = ChildProcess(argv, self._logs / f"{arm}.log").start()
@@ -81,7 +96,9 @@ class RemoteActuators:
         answers = self._round({a: ("act", v) for a, v in actions.items()}, STEP_TIMEOUT_S, resend=False)
         return {a: JointTargets(np.asarray(m.q, float), m.gripper_opening) for a, m in answers.items()}
 
-    def _round(self, requests: dict[str, tuple[str, np.ndarray]], timeout_s: float, resend: bool) -> dict[str, EnvTargets]:
+    def _round(
+        self, requests: dict[str, tuple[str, np.ndarray]], timeout_s: float, resend: bool
+    ) -> dict[str, EnvTargets]:
         self.seq += 1
         seq, answers = self.seq, {}
         deadline, sent_at = time.monotonic() + timeout_s, -1e9
@@ -93,7 +110,9 @@ class RemoteActuators:
             if now - sent_at > (RESEND_EVERY_S if resend else 1e9):
                 for arm, (kind, values) in requests.items():
                     if arm not in answers:
-                        self._pubs[arm].put(encode(EnvAction(arm, seq, kind, tuple(float(v) for v in np.ravel(values)))))
+                        self._pubs[arm].put(
+                            encode(EnvAction(arm, seq, kind, tuple(float(v) for v in np.ravel(values))))
+                        )
                 sent_at = now
             self._inbox.wait(0.05)
             for key, payload in self._inbox.drain():

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from coordinator.dispatcher import Dispatcher
 from coordinator.ledger import Ledger
-from fleet.line_watch import LineWatcher
-from fleet.physics.world import World
+from fleet.sim.line_watch import LineWatcher
+from fleet.sim.world import World
 from scenes.schema import Scene
 
 

@@ -13,20 +13,32 @@ import math
 
 import numpy as np
 
-from coordinator.allocation import LOOKAHEAD_S, Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, open_candidates, served_after_wait
+from coordinator.allocation import (
+    LOOKAHEAD_S,
+    Allocator,
+    ArmView,
+    CachedReach,
+    Eligibility,
+    PartView,
+    TimeCost,
+    open_candidates,
+    served_after_wait,
+)
 from coordinator.cadence import moves_need_grants
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.tasks import OPEN_STATES, Task, TaskState
-from fleet.observe import arm_observation, base_transform, part_observations
-from fleet.physics.tracking import TrackedArms
-from fleet.physics.world import World
+from fleet.sim.observe import arm_observation, base_transform, part_observations
+from fleet.sim.tracking import TrackedArms
+from fleet.sim.world import World
 from robots.skills.interface import PickPlaceTask
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
 SLOTS = 4  # the first SLOTS tasks an arm can serve, oldest first, are its choices
-SLOT_FEATURES = 10  # valid, pick point xyz, place point xyz, estimated seconds / 10, on the belt (0/1), slack seconds / 10
+SLOT_FEATURES = (
+    10  # valid, pick point xyz, place point xyz, estimated seconds / 10, on the belt (0/1), slack seconds / 10
+)
 WAIT = 0  # action 0: take nothing new this step
 
 
@@ -46,10 +58,19 @@ class TaskChooser:
         # with a fixture, pipelined: holding an arm at a fixture that is not ready); a lone arm moves unasked
         self.grants = moves_need_grants(self.scene)
         self.ledger.pipeline = bool(self.ledger.gated)
-        self.period_ticks = max(1, round(self.scene.control_hz / DEFAULT_DECISION_HZ))  # the skills decide as controllers do
+        self.period_ticks = max(
+            1, round(self.scene.control_hz / DEFAULT_DECISION_HZ)
+        )  # the skills decide as controllers do
         period_s = self.period_ticks / self.scene.control_hz
-        self.skills = {a: PickPlaceSkill(self.world.arms[a].spec, base_transform(self.world, a), decision_period_s=period_s,
-                                         grants_required=self.grants) for a in self.agents}
+        self.skills = {
+            a: PickPlaceSkill(
+                self.world.arms[a].spec,
+                base_transform(self.world, a),
+                decision_period_s=period_s,
+                grants_required=self.grants,
+            )
+            for a in self.agents
+        }
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
         self.coming_s: dict[str, float] = {a: LOOKAHEAD_S for a in self.agents}
@@ -64,9 +85,14 @@ class TaskChooser:
         (the dispatcher's, from when its task started), as the coordinator node's allocator sees it."""
         now = self.world.sim_time_s
         return [
-            ArmView(a, self.bases[a], self.task_of[a] is None and self.skills[a].available and not self.dispatcher.leaving_fixture(a),
-                    self.reach[a], tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()),
-                    self.dispatcher.free_in_s(a, now) if self._working(a) else None)
+            ArmView(
+                a,
+                self.bases[a],
+                self.task_of[a] is None and self.skills[a].available and not self.dispatcher.leaving_fixture(a),
+                self.reach[a],
+                tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()),
+                self.dispatcher.free_in_s(a, now) if self._working(a) else None,
+            )
             for a in self.agents
         ]
 
@@ -114,8 +140,16 @@ class TaskChooser:
             station = self.scene.station(task.target)
             belt = task.deadline_s is not None
             slack = task.deadline_s - now - seconds if belt else 0.0
-            out[i] = [1.0, *parts[task.part_id], station.pose.xyz[0], station.pose.xyz[1], station.surface_z_m, seconds / 10.0,
-                      float(belt), slack / 10.0]
+            out[i] = [
+                1.0,
+                *parts[task.part_id],
+                station.pose.xyz[0],
+                station.pose.xyz[1],
+                station.surface_z_m,
+                seconds / 10.0,
+                float(belt),
+                slack / 10.0,
+            ]
         return np.concatenate([[self.coming_s[agent] / LOOKAHEAD_S], out.ravel()])
 
     # --- acting ---------------------------------------------------------------------
@@ -133,7 +167,9 @@ class TaskChooser:
                 out[agent] = f"refused: slot {k} is empty ({len(options[agent])} choices)"
                 continue
             task = options[agent][k - 1][0]
-            if self.dispatcher.real(task.task_id).state != TaskState.PENDING or (taken | self.busy_stations(agent)).intersection(task.stations):
+            if self.dispatcher.real(task.task_id).state != TaskState.PENDING or (
+                taken | self.busy_stations(agent)
+            ).intersection(task.stations):
                 out[agent] = f"refused: task {task.task_id} was taken by an arm before it"
                 continue
             self._start(agent, task)
@@ -144,12 +180,16 @@ class TaskChooser:
     def _start(self, agent: str, candidate: Task) -> None:
         views = self.arm_views()
         view = next(v for v in views if v.name == agent)
-        order = self.dispatcher.start(candidate.task_id, view, self.world.sim_time_s, TimeCost(Eligibility(self.scene, views)))
+        order = self.dispatcher.start(
+            candidate.task_id, view, self.world.sim_time_s, TimeCost(Eligibility(self.scene, views))
+        )
         task = self.ledger.tasks[order.task_id]
         self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
         job = PickPlaceTask(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
         parts = part_observations(self.world)
-        self.skills[agent].start(job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id])
+        self.skills[agent].start(
+            job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id]
+        )
         self.tracked.decide(agent, self.skills[agent], parts)
         self.task_of[agent] = task.task_id
 
@@ -159,7 +199,9 @@ class TaskChooser:
         if self.world.tick % self.period_ticks == 0:
             if self.grants:
                 for order in self.dispatcher.answer(self.world.tick):
-                    self.skills[order.arm].on_grant(order.request_seq, order.decision, order.conflict_arm, self.world.sim_time_s, order.start_s)
+                    self.skills[order.arm].on_grant(
+                        order.request_seq, order.decision, order.conflict_arm, self.world.sim_time_s, order.start_s
+                    )
             parts = part_observations(self.world)
             for agent in self.agents:
                 if self.skills[agent].active:
@@ -167,7 +209,8 @@ class TaskChooser:
         self.tracked.apply()
 
     def report(self) -> None:
-        """After a tick: the trackers' results; each arm's skill phase goes to the ledger; a closed task frees its arm."""
+        """After a tick: the trackers' results; each arm's skill phase goes to the ledger; a closed task frees its
+        arm."""
         self.tracked.update()
         now = self.world.sim_time_s
         for agent in self.agents:
@@ -177,28 +220,55 @@ class TaskChooser:
             was_open = task is not None and task.state in OPEN_STATES
             q = self.world.arms[agent].qpos()[: self.world.arms[agent].spec.arm_dof]
             asked = skill.request if self.grants else None
-            request = None if asked is None else TimedPath(agent, tuple(map(float, q)), asked.q_to, now, now + asked.duration_s, asked.then_q, asked.then_after_s)
-            self.dispatcher.on_arm(agent, q, skill.phase.value, now, task_id=task_id if was_open else None, failure=skill.failure_reason,
-                                   request_seq=asked.seq if asked else 0, request=request, acts_at_tick=self.world.tick + 1)
+            request = (
+                None
+                if asked is None
+                else TimedPath(
+                    agent,
+                    tuple(map(float, q)),
+                    asked.q_to,
+                    now,
+                    now + asked.duration_s,
+                    asked.then_q,
+                    asked.then_after_s,
+                )
+            )
+            self.dispatcher.on_arm(
+                agent,
+                q,
+                skill.phase.value,
+                now,
+                task_id=task_id if was_open else None,
+                failure=skill.failure_reason,
+                request_seq=asked.seq if asked else 0,
+                request=request,
+                acts_at_tick=self.world.tick + 1,
+            )
             if task is None:
                 continue
             if was_open and task.state not in OPEN_STATES:
                 self.outcomes[agent].append(task.state.value)
-            if task.state not in OPEN_STATES and skill.available:  # the skill finishes its retreat first (home may be given up)
+            if (
+                task.state not in OPEN_STATES and skill.available
+            ):  # the skill finishes its retreat first (home may be given up)
                 self.task_of[agent] = None
         if self.world.tick % self.period_ticks == 0:
             self._take_back_late_tasks()
 
     def _take_back_late_tasks(self) -> None:
-        """The coordinator's rule: a belt task its arm has not started on and can no longer meet goes back to the pool."""
+        """The coordinator's rule: a belt task its arm has not started on and can no longer meet goes back to the
+        pool."""
         self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
         for cancel in self.dispatcher.reassign_late_tasks():
             self.skills[cancel.arm].cancel("the part can no longer be met")
             self.task_of[cancel.arm] = None
 
 
-def allocator_actions(chooser: TaskChooser, allocator: Allocator, options: dict[str, list[tuple[Task, float]]]) -> dict[str, int]:
-    """What the coordinator's allocator would choose now, as `task`-mode actions (a task outside an arm's slots: wait)."""
+def allocator_actions(
+    chooser: TaskChooser, allocator: Allocator, options: dict[str, list[tuple[Task, float]]]
+) -> dict[str, int]:
+    """What the coordinator's allocator would choose now, as `task`-mode actions (a task outside an arm's slots:
+    wait)."""
     views, parts = chooser.arm_views(), chooser.parts()
     pairs = allocator.allocate(chooser.dispatcher.candidates(chooser.pending()), views, parts, chooser.busy_stations())
     actions = {a: WAIT for a in chooser.agents}

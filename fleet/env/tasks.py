@@ -14,8 +14,8 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from fleet.env.line_book import LineBook
-from fleet.physics.world import World
-from fleet.trials import part_in_bin
+from fleet.robot_tools.trials import part_in_bin
+from fleet.sim.world import World
 from scenes.schema import Arrival, Scene, Station
 
 HOVER_M = 0.10  # a carried part's goal point is this far above the station's surface
@@ -41,7 +41,9 @@ def above(station: Station) -> np.ndarray:
     return np.array([station.pose.xyz[0], station.pose.xyz[1], station.surface_z_m + HOVER_M])
 
 
-def belt_spot_near(scene: Scene, xyz: tuple[float, float, float], along_m: float = 0.0, lateral_m: float = 0.0) -> tuple[float, float, float]:
+def belt_spot_near(
+    scene: Scene, xyz: tuple[float, float, float], along_m: float = 0.0, lateral_m: float = 0.0
+) -> tuple[float, float, float]:
     """The belt-top point nearest a base, moved `along_m` along the belt and `lateral_m` across it."""
     c = scene.conveyor
     cos, sin = math.cos(c.pose.yaw_rad), math.sin(c.pose.yaw_rad)
@@ -67,8 +69,7 @@ class EnvTask(ABC):
         """Raise ValueError naming what the scene lacks for this task."""
 
     @abstractmethod
-    def reset(self, world: World, rng: np.random.Generator) -> None:
-        ...
+    def reset(self, world: World, rng: np.random.Generator) -> None: ...
 
     def on_tick(self, world: World) -> None:
         """After every control tick (the line's bookkeeping)."""
@@ -78,7 +79,9 @@ class EnvTask(ABC):
         """Where `agent`'s claw should go now (world frame)."""
 
     @abstractmethod
-    def progress(self, world: World, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]) -> tuple[dict[str, float], dict[str, bool]]:
+    def progress(
+        self, world: World, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]
+    ) -> tuple[dict[str, float], dict[str, bool]]:
         """Per arm: this step's task reward, and whether the task counts as achieved (`tools` and `targets`: each
         claw's position and `target` now, as the env computed them for this step's observations)."""
 
@@ -104,7 +107,9 @@ class Reach(EnvTask):
             arm = world.scene_model.arm(a)
             forward, side, up = rng.uniform([0.25, -0.15, 0.12], [0.45, 0.15, 0.30])
             c, s = math.cos(arm.base.yaw_rad), math.sin(arm.base.yaw_rad)
-            self.centres[a] = np.array([arm.base.xyz[0] + c * forward - s * side, arm.base.xyz[1] + s * forward + c * side, up])
+            self.centres[a] = np.array(
+                [arm.base.xyz[0] + c * forward - s * side, arm.base.xyz[1] + s * forward + c * side, up]
+            )
             self.phases[a] = float(rng.uniform(0, 2 * math.pi))
 
     def target(self, agent: str, world: World) -> np.ndarray:
@@ -125,7 +130,9 @@ class PickPlace(EnvTask):
 
     def check(self, scene: Scene) -> None:
         if scene.conveyor is None or not scene.feeders or not scene.stations:
-            raise ValueError(f"task pick_place needs a scene with a conveyor, a feeder and stations; {scene.name} lacks one")
+            raise ValueError(
+                f"task pick_place needs a scene with a conveyor, a feeder and stations; {scene.name} lacks one"
+            )
 
     def prepare(self, scene: Scene) -> Scene:
         return without_arrivals(scene, belt_speed_m_per_s=0.0)
@@ -136,9 +143,13 @@ class PickPlace(EnvTask):
         self.part, self.goal, self.start_z = {}, {}, {}
         for i, a in enumerate(self.agents):
             base = scene.arm(a).base.xyz
-            self.goal[a] = min(scene.stations, key=lambda s: math.hypot(s.pose.xyz[0] - base[0], s.pose.xyz[1] - base[1]))
+            self.goal[a] = min(
+                scene.stations, key=lambda s: math.hypot(s.pose.xyz[0] - base[0], s.pose.xyz[1] - base[1])
+            )
             spot = belt_spot_near(scene, base, float(rng.uniform(-0.06, 0.06)), float(rng.uniform(-0.03, 0.03)))
-            self.part[a] = world.place_part(feeder.name, i % len(feeder.parts), spot, float(rng.uniform(-math.pi, math.pi)))
+            self.part[a] = world.place_part(
+                feeder.name, i % len(feeder.parts), spot, float(rng.uniform(-math.pi, math.pi))
+            )
             self.start_z[a] = spot[2]
 
     def _lifted(self, agent: str, world: World) -> bool:
@@ -154,9 +165,11 @@ class PickPlace(EnvTask):
             part = world.part_info(self.part[a]).position
             done = part_in_bin(world, self.part[a], self.goal[a].name)
             lifted = self._lifted(a, world)
-            rewards[a] = closeness(float(np.linalg.norm(tools[a] - part))) + (
-                1.0 + closeness(float(np.linalg.norm(part - above(self.goal[a])))) if lifted else 0.0
-            ) + (SUCCESS_BONUS if done else 0.0)
+            rewards[a] = (
+                closeness(float(np.linalg.norm(tools[a] - part)))
+                + (1.0 + closeness(float(np.linalg.norm(part - above(self.goal[a])))) if lifted else 0.0)
+                + (SUCCESS_BONUS if done else 0.0)
+            )
             success[a] = done
         return rewards, success
 
@@ -171,7 +184,10 @@ class Handover(EnvTask):
         if len(scene.arms) != 2:
             raise ValueError(f"task handover needs exactly 2 arms; the scene has {len(scene.arms)} (n_arms=2)")
         if scene.conveyor is None or not scene.feeders or len(scene.route(scene.feeders[0].name, 0)) < 2:
-            raise ValueError(f"task handover needs a conveyor and a feeder whose route passes a shared station first (scene 'handover'); {scene.name} has none")
+            raise ValueError(
+                "task handover needs a conveyor and a feeder whose route passes a shared station first (scene "
+                f"'handover'); {scene.name} has none"
+            )
 
     def prepare(self, scene: Scene) -> Scene:
         return without_arrivals(scene, belt_speed_m_per_s=0.0)
@@ -185,7 +201,9 @@ class Handover(EnvTask):
         self.giver = min(self.agents, key=lambda a: self._belt_gap(scene, bases[a]))
         self.taker = next(a for a in self.agents if a != self.giver)
         self.bases = bases
-        spot = belt_spot_near(scene, bases[self.giver], float(rng.uniform(-0.05, 0.05)), float(rng.uniform(-0.03, 0.03)))
+        spot = belt_spot_near(
+            scene, bases[self.giver], float(rng.uniform(-0.05, 0.05)), float(rng.uniform(-0.03, 0.03))
+        )
         self.part = world.place_part(feeder.name, 0, spot, float(rng.uniform(-math.pi, math.pi)))
         self.start_z = spot[2]
         self.book = LineBook(scene)
@@ -227,9 +245,14 @@ class Handover(EnvTask):
             team = 2.0 if completed else 0.0
             rewards = {a: team for a in self.agents}
         else:
-            team = 0.5 * closeness(float(np.linalg.norm(part - above(self.shared)))) + closeness(float(np.linalg.norm(part - above(self.goal))))
+            team = 0.5 * closeness(float(np.linalg.norm(part - above(self.shared)))) + closeness(
+                float(np.linalg.norm(part - above(self.goal)))
+            )
             holder = self._holder(part)
-            rewards = {a: team + (closeness(float(np.linalg.norm(tools[a] - part))) if a == holder else 0.0) for a in self.agents}
+            rewards = {
+                a: team + (closeness(float(np.linalg.norm(tools[a] - part))) if a == holder else 0.0)
+                for a in self.agents
+            }
         if completed:
             rewards = {a: r + SUCCESS_BONUS for a, r in rewards.items()}
         return rewards, {a: completed for a in self.agents}

@@ -1,7 +1,7 @@
 """`render_mode="human"`: the env's cell on the browser monitor's 3D view (Viser), drawn from the world in process.
 
 The same `CellView` as `fleet monitor`, fed with the same messages the sim server
-publishes (`fleet.world_messages`), without a bus. Binds 127.0.0.1 by default.
+publishes (`fleet.sim.world_messages`), without a bus. Binds 127.0.0.1 by default.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from fleet.bus.messages import separations_from_pairs
 from fleet.bus.session import LOOPBACK
 from fleet.monitor.cell_view import CellView
 from fleet.monitor.feed import LineSnapshot
-from fleet.physics.world import World
-from fleet.world_messages import arm_state, parts_state
+from fleet.sim.world import World
+from fleet.sim.world_messages import arm_state, parts_state
 from scenes.schema import Scene
 
 

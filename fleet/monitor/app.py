@@ -9,19 +9,21 @@ import viser
 import zenoh
 
 from fleet.bus.keys import Keys
+from fleet.common.processes import StopFlag
 from fleet.monitor.cell_view import CellView
 from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
 from fleet.monitor.options import DEFAULT_HOST, DEFAULT_PORT, DEFAULT_RATE_HZ
 from fleet.monitor.panel import Panel
-from fleet.processes import StopFlag
 from scenes.schema import Scene
 
 
 class Monitor:
     """Use in a `with` block: the Viser server, the bus subscribers and publishers are released on leaving."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, scene: Scene, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT) -> None:
+    def __init__(
+        self, session: zenoh.Session, keys: Keys, scene: Scene, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT
+    ) -> None:
         self.host = host
         self.server = viser.ViserServer(host=host, port=port, label=f"clawfleet · {scene.name}", verbose=False)
         try:
@@ -52,7 +54,7 @@ class Monitor:
     def url(self) -> str:
         return f"http://{self.host}:{self.port}"
 
-    def __enter__(self) -> "Monitor":
+    def __enter__(self) -> Monitor:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -45,7 +45,15 @@ def arm_colour(index: int) -> tuple[int, int, int]:
 class ArmModel:
     """One arm drawn from its URDF's visual geometry, under `/arms/<id>` placed at its base."""
 
-    def __init__(self, server: viser.ViserServer, name: str, spec: RobotSpec, xyz: tuple[float, float, float], yaw_rad: float, rgb: tuple[int, int, int]) -> None:
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        name: str,
+        spec: RobotSpec,
+        xyz: tuple[float, float, float],
+        yaw_rad: float,
+        rgb: tuple[int, int, int],
+    ) -> None:
         import yourdfpy
 
         self.name, self.spec = name, spec
@@ -58,8 +66,16 @@ class ArmModel:
         joints = {j: i for i, j in enumerate((*spec.arm_joints, *spec.gripper_joints))}
         self._order = [joints[j] for j in self.urdf.get_actuated_joint_names()]
         # labels sit at the root of the scene tree: Viser does not draw a label parented to a frame
-        self.label = server.scene.add_label(f"/labels/{name}", name, position=(xyz[0], xyz[1], xyz[2] + 0.6), anchor="bottom-center", font_screen_scale=1.2)
-        self.ring = server.scene.add_cylinder(f"/arms/{name}/ring", radius=0.09, height=0.004, color=rgb, position=(0.0, 0.0, 0.002))
+        self.label = server.scene.add_label(
+            f"/labels/{name}",
+            name,
+            position=(xyz[0], xyz[1], xyz[2] + 0.6),
+            anchor="bottom-center",
+            font_screen_scale=1.2,
+        )
+        self.ring = server.scene.add_cylinder(
+            f"/arms/{name}/ring", radius=0.09, height=0.004, color=rgb, position=(0.0, 0.0, 0.002)
+        )
         self._last_q: tuple[float, ...] | None = None
         self.update_cfg(np.asarray(spec.home_q), np.asarray(spec.gripper_open))
 
@@ -85,7 +101,9 @@ class CellView:
     def __init__(self, server: viser.ViserServer, scene: Scene) -> None:
         self.server, self.scene = server, scene
         server.scene.set_up_direction("+z")
-        server.scene.add_grid("/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5, position=(0.0, -0.3, 0.0))
+        server.scene.add_grid(
+            "/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5, position=(0.0, -0.3, 0.0)
+        )
         self._draw_static()
         self._aim_camera()
         self.arm_index = {a.name: i for i, a in enumerate(scene.arms)}
@@ -97,7 +115,14 @@ class CellView:
         self.parts: dict[int, viser.SceneNodeHandle] = {}
         self.highlights: dict[int, viser.SceneNodeHandle] = {}
         self.separation_lines: viser.SceneNodeHandle | None = None
-        self.contact_label = server.scene.add_label("/labels/contact", "", position=(0.0, -0.3, 0.8), visible=False, anchor="bottom-center", font_screen_scale=1.5)
+        self.contact_label = server.scene.add_label(
+            "/labels/contact",
+            "",
+            position=(0.0, -0.3, 0.8),
+            visible=False,
+            anchor="bottom-center",
+            font_screen_scale=1.5,
+        )
 
     def _aim_camera(self) -> None:
         """Look at the middle of the cell from the front, far enough to see every arm."""
@@ -115,19 +140,33 @@ class CellView:
     def _draw_static(self) -> None:
         c = self.scene.conveyor
         if c is not None:
-            frame = self.server.scene.add_frame("/conveyor", show_axes=False, position=c.pose.xyz, wxyz=yaw_wxyz(c.pose.yaw_rad))
+            frame = self.server.scene.add_frame(
+                "/conveyor", show_axes=False, position=c.pose.xyz, wxyz=yaw_wxyz(c.pose.yaw_rad)
+            )
             centre, half = belt_box(c)
-            self.server.scene.add_box(f"{frame.name}/belt", color=BELT_RGB, dimensions=tuple(2 * h for h in half), position=centre)
+            self.server.scene.add_box(
+                f"{frame.name}/belt", color=BELT_RGB, dimensions=tuple(2 * h for h in half), position=centre
+            )
         for s in self.scene.stations:
             self._draw_station(s)
 
     def _draw_station(self, s: Station) -> None:
-        frame = self.server.scene.add_frame(f"/stations/{s.name}", show_axes=False, position=s.pose.xyz, wxyz=yaw_wxyz(s.pose.yaw_rad))
+        frame = self.server.scene.add_frame(
+            f"/stations/{s.name}", show_axes=False, position=s.pose.xyz, wxyz=yaw_wxyz(s.pose.yaw_rad)
+        )
         rgb = STATION_RGB[s.kind]
         for i, (centre, half) in enumerate(station_boxes(s)):
-            self.server.scene.add_box(f"{frame.name}/box_{i}", color=rgb, dimensions=tuple(2 * h for h in half), position=centre)
+            self.server.scene.add_box(
+                f"{frame.name}/box_{i}", color=rgb, dimensions=tuple(2 * h for h in half), position=centre
+            )
         x, y, z = s.pose.xyz
-        self.server.scene.add_label(f"/labels/{s.name}", s.name, position=(x, y, z + s.size_m[2] + 0.03), anchor="bottom-center", font_screen_scale=0.8)
+        self.server.scene.add_label(
+            f"/labels/{s.name}",
+            s.name,
+            position=(x, y, z + s.size_m[2] + 0.03),
+            anchor="bottom-center",
+            font_screen_scale=0.8,
+        )
 
     # --- live ---------------------------------------------------------------------
     def show(self, snap: LineSnapshot) -> None:
@@ -176,7 +215,10 @@ class CellView:
         for pid, arm in wanted.items():
             if pid not in self.highlights:
                 self.highlights[pid] = self.server.scene.add_box(
-                    f"/parts/{pid}/assigned", color=arm_colour(self.arm_index.get(arm, 0)), dimensions=(0.08, 0.08, 0.08), wireframe=True,
+                    f"/parts/{pid}/assigned",
+                    color=arm_colour(self.arm_index.get(arm, 0)),
+                    dimensions=(0.08, 0.08, 0.08),
+                    wireframe=True,
                 )
 
     def _show_separations(self, snap: LineSnapshot) -> None:
@@ -185,11 +227,14 @@ class CellView:
         if s is None or not s.distances_m:
             return
         points = np.asarray(s.points, np.float32).reshape(-1, 2, 3)
-        colours = np.array([
-            NEAR_RGB if d < s.margin_m else (CLOSE_RGB if d < 3 * s.margin_m else SAFE_RGB) for d in s.distances_m
-        ], np.uint8)[:, None, :].repeat(2, axis=1)
+        colours = np.array(
+            [NEAR_RGB if d < s.margin_m else (CLOSE_RGB if d < 3 * s.margin_m else SAFE_RGB) for d in s.distances_m],
+            np.uint8,
+        )[:, None, :].repeat(2, axis=1)
         if self.separation_lines is None:
-            self.separation_lines = self.server.scene.add_line_segments("/separations", points, colours, thickness=4.0, thickness_units="screen")
+            self.separation_lines = self.server.scene.add_line_segments(
+                "/separations", points, colours, thickness=4.0, thickness_units="screen"
+            )
         else:
             self.separation_lines.points, self.separation_lines.colors = points, colours
 

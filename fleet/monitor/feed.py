@@ -42,12 +42,20 @@ class LiveFeed:
         self.drops = DropCounter()
         self.snapshot = LineSnapshot()
         self.taken = 0
-        # an arm's orders are assignments and motion grants on one key: both are the coordinator's, the view shows assignments
+        # an arm's orders are assignments and motion grants on one key: both are the coordinator's, the view shows
+        # assignments
         watched: list[tuple[str, type]] = [(keys.view, LineView)] + [(keys.arm_assign(a), ArmOrder) for a in arms]
-        watched += [(keys.coord("separation"), Separations), (keys.coord("progress"), Progress), (keys.sim_status, SimStatus)]
-        self._subs = [(session.declare_subscriber(k, zenoh.handlers.RingChannel(1)), k, Decoder(t, self.drops)) for k, t in watched]
+        watched += [
+            (keys.coord("separation"), Separations),
+            (keys.coord("progress"), Progress),
+            (keys.sim_status, SimStatus),
+        ]
+        self._subs = [
+            (session.declare_subscriber(k, zenoh.handlers.RingChannel(1)), k, Decoder(t, self.drops))
+            for k, t in watched
+        ]
 
-    def __enter__(self) -> "LiveFeed":
+    def __enter__(self) -> LiveFeed:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -50,19 +50,30 @@ def figures_markdown(snap: LineSnapshot) -> str:
         return "waiting for the sim..."
     state = "E-STOP" if st.estop else ("paused" if st.paused else "running")
     rows = [
-        ("sim time", f"{st.sim_time_s:.1f} s ({st.mode}, {state}" + (f", x{st.speed:g})" if st.mode == "realtime" else ")")),
+        (
+            "sim time",
+            f"{st.sim_time_s:.1f} s ({st.mode}, {state}" + (f", x{st.speed:g})" if st.mode == "realtime" else ")"),
+        ),
     ]
     if pr is not None:
         minutes = max(pr.sim_time_s, 1e-9) / 60.0
         rows += [
-            ("parts", f"{pr.parts_spawned} in · {pr.parts_completed} done · {pr.parts_missed} missed · {pr.parts_failed} failed"),
+            (
+                "parts",
+                f"{pr.parts_spawned} in · {pr.parts_completed} done · {pr.parts_missed} missed · {pr.parts_failed} "
+                "failed",
+            ),
             ("throughput", f"{pr.parts_completed / minutes:.2f} / min"),
             ("grants denied", str(pr.grants_denied)),
             ("min separation", f"{pr.min_separation_m * 100:.1f} cm" if pr.min_separation_m >= 0 else "-"),
         ]
     rows += [
         ("control latency p99", f"{st.latency_p99_ms:.2f} ms"),
-        ("contacts", f"{st.contact_ticks} ticks" + (f" (last {', '.join(st.contact_pairs)} at {st.last_contact_s:.1f} s)" if st.contact_ticks else "")),
+        (
+            "contacts",
+            f"{st.contact_ticks} ticks"
+            + (f" (last {', '.join(st.contact_pairs)} at {st.last_contact_s:.1f} s)" if st.contact_ticks else ""),
+        ),
         ("arms lost", ", ".join(st.arms_lost) or "none"),
         ("dropped messages", str(st.dropped_messages)),
     ]
@@ -89,17 +100,25 @@ class Panel:
         with self.gui.add_folder("Plots"):
             empty = np.zeros(0)
             self.throughput_plot = self.gui.add_uplot(
-                (empty, empty), (viser.uplot.Series(label="sim s"), viser.uplot.Series(label="parts/min", stroke="#2070d0", width=2)),
-                title="throughput", aspect=2.0,
+                (empty, empty),
+                (viser.uplot.Series(label="sim s"), viser.uplot.Series(label="parts/min", stroke="#2070d0", width=2)),
+                title="throughput",
+                aspect=2.0,
             )
             self.separation_plot = self.gui.add_uplot(
-                (empty, empty), (viser.uplot.Series(label="sim s"), viser.uplot.Series(label="min separation m", stroke="#d03020", width=2)),
-                title="closest arms", aspect=2.0,
+                (empty, empty),
+                (
+                    viser.uplot.Series(label="sim s"),
+                    viser.uplot.Series(label="min separation m", stroke="#d03020", width=2),
+                ),
+                title="closest arms",
+                aspect=2.0,
             )
             self.utilisation_plot = self.gui.add_uplot(
                 (empty,) * (len(self.arms) + 1),
                 (viser.uplot.Series(label="sim s"), *(viser.uplot.Series(label=a, width=2) for a in self.arms)),
-                title="utilisation", aspect=2.0,
+                title="utilisation",
+                aspect=2.0,
             )
 
     def _build_controls(self) -> None:

@@ -21,7 +21,10 @@ class ReplayPanel:
         clock = player.clock
         with server.gui.add_folder("Replay", order=-1):
             self.time = server.gui.add_slider(
-                "Sim time (s)", min=round(clock.start_s, 1), max=round(max(clock.end_s, clock.start_s + 0.1), 1), step=0.1,
+                "Sim time (s)",
+                min=round(clock.start_s, 1),
+                max=round(max(clock.end_s, clock.start_s + 0.1), 1),
+                step=0.1,
                 initial_value=round(clock.position_s, 1),
             )
             self.play = server.gui.add_button("Play / pause", icon=viser.Icon.PLAYER_PLAY)
@@ -54,6 +57,7 @@ class ReplayPanel:
         position = round(clock.position_s, 1)
         if position != self._shown_s:  # only when the replay moved: rewriting it always could undo a person's seek
             self.time.value = self._shown_s = position  # between their move arriving and `_on_time` reading it
-        text = f"{'playing' if clock.playing else 'paused'} at **{clock.position_s:.1f}** of {clock.end_s:.1f} sim s, x{clock.speed:g}"
+        state = "playing" if clock.playing else "paused"
+        text = f"{state} at **{clock.position_s:.1f}** of {clock.end_s:.1f} sim s, x{clock.speed:g}"
         if self.info.content != text:
             self.info.content = text

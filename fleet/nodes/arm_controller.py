@@ -17,10 +17,10 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from collections import deque
 import sys
 import threading
 import time
+from collections import deque
 
 import numpy as np
 import zenoh
@@ -28,10 +28,10 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
-from fleet.bus.plausible import TickClock, arm_state_problem, not_finite, parts_problem, seq_problem
 from fleet.bus.messages import ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, MotionGrant, PartsState
+from fleet.bus.plausible import TickClock, arm_state_problem, not_finite, parts_problem, seq_problem
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.processes import add_scene_arguments, node_arguments, write_report
+from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
@@ -48,8 +48,13 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
     for i, pid in enumerate(msg.part_ids):
         size = tuple(msg.sizes_m[3 * i : 3 * i + 3])
         out[pid] = PartObservation(
-            pid, np.array(msg.positions[3 * i : 3 * i + 3]), np.array(msg.quaternions_wxyz[4 * i : 4 * i + 4]),
-            np.array(msg.velocities[3 * i : 3 * i + 3]), float(min(size[0], size[1])), float(size[2]), size,
+            pid,
+            np.array(msg.positions[3 * i : 3 * i + 3]),
+            np.array(msg.quaternions_wxyz[4 * i : 4 * i + 4]),
+            np.array(msg.velocities[3 * i : 3 * i + 3]),
+            float(min(size[0], size[1])),
+            float(size[2]),
+            size,
         )
     return out
 
@@ -57,25 +62,44 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
 class ArmController:
     """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, scene: Scene, *, grants: bool = False,
-                 rate_hz: float = DEFAULT_DECISION_HZ, incarnation: int | None = None) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        keys: Keys,
+        arm: str,
+        scene: Scene,
+        *,
+        grants: bool = False,
+        rate_hz: float = DEFAULT_DECISION_HZ,
+        incarnation: int | None = None,
+    ) -> None:
         decl = next((a for a in scene.arms if a.name == arm), None)
         if decl is None:
-            raise SystemExit(f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}")
+            raise SystemExit(
+                f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}"
+            )
         if not (math.isfinite(rate_hz) and 0 < rate_hz <= scene.control_hz):
-            raise SystemExit(f"arm_controller: --rate-hz {rate_hz:g} must be within (0, {scene.control_hz:g}] (the scene's servo rate)")
+            raise SystemExit(
+                f"arm_controller: --rate-hz {rate_hz:g} must be within (0, {scene.control_hz:g}] (the scene's servo "
+                "rate)"
+            )
         self.arm, self.keys, self.session = arm, keys, session
         self.spec = get_robot(decl.model)
         self.period_ticks = max(1, round(scene.control_hz / rate_hz))
         self.hz = scene.control_hz
-        self.skill = PickPlaceSkill(self.spec, yaw_transform(decl.base.xyz, decl.base.yaw_rad), grants_required=grants,
-                                    decision_period_s=self.period_ticks / scene.control_hz)
+        self.skill = PickPlaceSkill(
+            self.spec,
+            yaw_transform(decl.base.xyz, decl.base.yaw_rad),
+            grants_required=grants,
+            decision_period_s=self.period_ticks / scene.control_hz,
+        )
         # differs each time a controller starts: the launcher counts its starts (so a seed repeats exactly), else random
         self.incarnation = incarnation if incarnation is not None else int.from_bytes(os.urandom(4), "little")
         self.skill.goal_id = (self.incarnation & 0x7FFFFFFF) << 20  # goal ids never repeat across a respawn
         self.drops = DropCounter()
         self._decoders = {
-            "state": Decoder(ArmState, self.drops), "parts": Decoder(PartsState, self.drops),
+            "state": Decoder(ArmState, self.drops),
+            "parts": Decoder(PartsState, self.drops),
             "assign": Decoder(ArmOrder, self.drops),
         }
         self.wake = threading.Event()
@@ -141,7 +165,9 @@ class ArmController:
             return problem
         if isinstance(msg, PartsState):
             return parts_problem(msg)
-        announced = seq_problem(msg.assign_seq, self.assign_seq) if msg.assign_seq != -1 else ""  # -1: orders act on arrival
+        announced = (
+            seq_problem(msg.assign_seq, self.assign_seq) if msg.assign_seq != -1 else ""
+        )  # -1: orders act on arrival
         return arm_state_problem(msg, self.arm, self.spec.arm_dof) or announced
 
     def _order_problem(self, msg) -> str:
@@ -153,7 +179,12 @@ class ArmController:
             return problem
         if isinstance(msg, Assignment):
             values = (msg.surface_z_m, *msg.place_xyz, *msg.surface_velocity)
-            if len(msg.place_xyz) != 3 or len(msg.surface_velocity) != 3 or not_finite(values) or max(map(abs, values)) > 100.0:
+            if (
+                len(msg.place_xyz) != 3
+                or len(msg.surface_velocity) != 3
+                or not_finite(values)
+                or max(map(abs, values)) > 100.0
+            ):
                 return "an assignment with a place or velocity that is not a finite point"
         elif msg.decision not in ("grant", "deny", "standby") or not_finite((msg.start_time_s, msg.min_separation_m)):
             return "a motion grant that is neither grant, deny nor standby, or with non-finite times"
@@ -227,8 +258,14 @@ class ArmController:
                 self._inboxes["parts"].items.extend(raw[-64:])  # keep the newest for when a task comes
         self._expect_latency(state)
         obs = ArmObservation(
-            state.sim_time_s, np.array(state.q), np.array(state.dq), np.array(state.gripper_q),
-            state.result_goal_id, state.result_status, state.result_reason, goal_id=state.goal_id,
+            state.sim_time_s,
+            np.array(state.q),
+            np.array(state.dq),
+            np.array(state.gripper_q),
+            state.result_goal_id,
+            state.result_status,
+            state.result_reason,
+            goal_id=state.goal_id,
         )
         if self.pending is not None and self.skill.available:
             a, self.pending = self.pending, None
@@ -240,7 +277,9 @@ class ArmController:
             else:
                 self.skill.start(task, obs, part)
         for g in self.grants:
-            self.skill.on_grant(g.request_seq, g.decision, g.conflict_arm, obs.time_s, g.start_time_s if g.start_time_s >= 0 else None)
+            self.skill.on_grant(
+                g.request_seq, g.decision, g.conflict_arm, obs.time_s, g.start_time_s if g.start_time_s >= 0 else None
+            )
         self.grants.clear()
         if self.skill.active:
             self.busy_s += self.skill.decision_period_s
@@ -252,12 +291,25 @@ class ArmController:
         self.goals_sent += len(goals)
         phase, progress = self.skill.phase.value, float(self.skill.progress)
         request = self.skill.request if self.skill.active else None
-        self._step_pub.put(encode(ControllerStep(
-            self.arm, state.tick, state.tick + self.period_ticks, tuple(g.goal_id for g in goals), self.task_id, phase, progress,
-            self.skill.failure_reason if phase == "failed" else "",
-            request.seq if request else 0, request.q_to if request else (), request.duration_s if request else 0.0,
-            tuple(v for q in request.then_q for v in q) if request else (), request.then_after_s if request else (),
-        )))
+        self._step_pub.put(
+            encode(
+                ControllerStep(
+                    self.arm,
+                    state.tick,
+                    state.tick + self.period_ticks,
+                    tuple(g.goal_id for g in goals),
+                    self.task_id,
+                    phase,
+                    progress,
+                    self.skill.failure_reason if phase == "failed" else "",
+                    request.seq if request else 0,
+                    request.q_to if request else (),
+                    request.duration_s if request else 0.0,
+                    tuple(v for q in request.then_q for v in q) if request else (),
+                    request.then_after_s if request else (),
+                )
+            )
+        )
         self.answered.append(state.tick)
         self.decisions += 1
         self.sim_time_s = state.sim_time_s
@@ -281,21 +333,45 @@ class ArmController:
             task_id, part_id, place = pending.task_id, pending.part_id, tuple(pending.place_xyz)
         elif task is not None and task_id is not None:
             part_id, place = task.part_id, tuple(task.place_xyz)
-        self._status_pub.put(encode(ArmStatus(
-            self.arm, self.seq, sim_time_s, self.skill.phase.value, task_id, float(self.skill.progress),
-            self.busy_s, self.skill.failure_reason, self.incarnation, part_id, place,
-            -1 if self.assign_seq is None else self.assign_seq,
-        )))
+        self._status_pub.put(
+            encode(
+                ArmStatus(
+                    self.arm,
+                    self.seq,
+                    sim_time_s,
+                    self.skill.phase.value,
+                    task_id,
+                    float(self.skill.progress),
+                    self.busy_s,
+                    self.skill.failure_reason,
+                    self.incarnation,
+                    part_id,
+                    place,
+                    -1 if self.assign_seq is None else self.assign_seq,
+                )
+            )
+        )
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-arm-controller", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
     parser.add_argument("--arm", required=True)
-    parser.add_argument("--grants", action="store_true", help="ask the coordinator for a motion grant before each free move")
-    parser.add_argument("--rate-hz", type=float, default=DEFAULT_DECISION_HZ, help="decisions per sim second: the states this controller asks for (default 20)")
-    parser.add_argument("--incarnation", type=int, default=None, help="this start's number (the launcher counts them; default random)")
-    parser.add_argument("--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning")
+    parser.add_argument(
+        "--grants", action="store_true", help="ask the coordinator for a motion grant before each free move"
+    )
+    parser.add_argument(
+        "--rate-hz",
+        type=float,
+        default=DEFAULT_DECISION_HZ,
+        help="decisions per sim second: the states this controller asks for (default 20)",
+    )
+    parser.add_argument(
+        "--incarnation", type=int, default=None, help="this start's number (the launcher counts them; default random)"
+    )
+    parser.add_argument(
+        "--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning"
+    )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "arm_controller")
@@ -305,7 +381,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.rt:
         request_realtime_priority()
     with open_session(BusEndpoints.from_args(args)) as session:
-        controller = ArmController(session, Keys(args.run), args.arm, scene, grants=args.grants, rate_hz=args.rate_hz, incarnation=args.incarnation)
+        controller = ArmController(
+            session,
+            Keys(args.run),
+            args.arm,
+            scene,
+            grants=args.grants,
+            rate_hz=args.rate_hz,
+            incarnation=args.incarnation,
+        )
         beats = Heartbeat(controller)  # liveness on its own thread and clock, however long a decision takes
         try:
             while not stop.should_stop():
@@ -315,11 +399,21 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             beats.stop()
             controller.close()
-            write_report(args.report, {
-                "arm": args.arm, "busy_s": round(controller.busy_s, 6), "dropped_messages": controller.drops.total,
-                "missed_assignments": controller.missed_assignments, "parts_late": controller.parts_late, "grants_denied": controller.skill.denials, "stopped_by": stop.reason,
-                "decisions": controller.decisions, "goals_sent": controller.goals_sent, "goals_resent": controller.skill.goals_resent,
-            })
+            write_report(
+                args.report,
+                {
+                    "arm": args.arm,
+                    "busy_s": round(controller.busy_s, 6),
+                    "dropped_messages": controller.drops.total,
+                    "missed_assignments": controller.missed_assignments,
+                    "parts_late": controller.parts_late,
+                    "grants_denied": controller.skill.denials,
+                    "stopped_by": stop.reason,
+                    "decisions": controller.decisions,
+                    "goals_sent": controller.goals_sent,
+                    "goals_resent": controller.skill.goals_resent,
+                },
+            )
     return 0
 
 
@@ -350,7 +444,9 @@ def request_realtime_priority() -> None:
         priority = (os.sched_get_priority_min(os.SCHED_FIFO) + os.sched_get_priority_max(os.SCHED_FIFO)) // 2
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (AttributeError, PermissionError, OSError) as exc:
-        print(f"arm_controller: warning: real-time priority refused ({exc}); running at normal priority", file=sys.stderr)
+        print(
+            f"arm_controller: warning: real-time priority refused ({exc}); running at normal priority", file=sys.stderr
+        )
 
 
 if __name__ == "__main__":

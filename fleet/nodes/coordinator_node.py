@@ -31,14 +31,23 @@ from coordinator.allocation import ALLOCATORS, Allocator, PartView, make_allocat
 from coordinator.dispatcher import AssignOrder, CancelOrder, Decision, Dispatcher, GrantOrder
 from coordinator.guard import TimedPath
 from fleet.bus.codec import Decoder, DropCounter, encode
-from fleet.bus.keys import Keys
 from fleet.bus.history import HistoryUnavailable, fetch_history
-from fleet.bus.plausible import MAX_SEQ_JUMP, TickClock, arm_state_problem, not_finite, parts_problem
+from fleet.bus.keys import Keys
 from fleet.bus.messages import (
-    ArmState, ArmStatus, Assignment, CoordTick, LineEvent, LineView, MotionGrant, PartsState, Progress, separations_from_pairs,
+    ArmState,
+    ArmStatus,
+    Assignment,
+    CoordTick,
+    LineEvent,
+    LineView,
+    MotionGrant,
+    PartsState,
+    Progress,
+    separations_from_pairs,
 )
+from fleet.bus.plausible import MAX_SEQ_JUMP, TickClock, arm_state_problem, not_finite, parts_problem
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.processes import add_scene_arguments, node_arguments, write_report
+from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from robots.registry import get_robot
 from scenes.schema import Scene
 
@@ -74,12 +83,16 @@ class CoordinatorNode:
         self.period_ticks = self.dispatcher.period_ticks
         self.drops = DropCounter()
         self._decoders = {
-            "events": Decoder(LineEvent, self.drops), "frame": Decoder(LineView, self.drops), "status": Decoder(ArmStatus, self.drops),
+            "events": Decoder(LineEvent, self.drops),
+            "frame": Decoder(LineView, self.drops),
+            "status": Decoder(ArmStatus, self.drops),
         }
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
         self._inbox = Inbox()  # one queue for everything: messages are handled in arrival order
-        self._subs = [session.declare_subscriber(k, self._inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))]
+        self._subs = [
+            session.declare_subscriber(k, self._inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))
+        ]
         self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
         self._subs.append(session.declare_subscriber(keys.all_arms("status"), self._on_heartbeat_arrival))
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
@@ -95,11 +108,15 @@ class CoordinatorNode:
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
         self.events_seen = 0
-        self._events_ahead: list[tuple[str, LineEvent]] = []  # received, not yet applied (of a tick past the next decision)
+        self._events_ahead: list[
+            tuple[str, LineEvent]
+        ] = []  # received, not yet applied (of a tick past the next decision)
         self.decisions_on_deadline = 0
         self.decision_ms: list[float] = []  # wall time of each decision: what a lockstep timeout is measured against
         self.slowest_decision: tuple[float, int] = (-1.0, -1)  # (ms, tick) of the slowest decision so far
-        self._due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline) of a pending decision
+        self._due: tuple[int, int, float] | None = (
+            None  # (tick, events published by then, wall deadline) of a pending decision
+        )
         self._replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
 
@@ -153,7 +170,11 @@ class CoordinatorNode:
             if not problem and sorted(s.arm for s in msg.arms) != sorted(self.arm_names):
                 problem = "a frame whose arms are not this line's"
             for s in msg.arms if not problem else ():
-                problem = problem or arm_state_problem(s, s.arm, self._dof[s.arm]) or ("" if s.tick == msg.tick else "a frame mixing ticks")
+                problem = (
+                    problem
+                    or arm_state_problem(s, s.arm, self._dof[s.arm])
+                    or ("" if s.tick == msg.tick else "a frame mixing ticks")
+                )
             if not problem:
                 self.sim_clock.believe(msg.tick)
             return problem
@@ -181,13 +202,22 @@ class CoordinatorNode:
             if announced.get(arm, 0) <= beat.assign_seq <= announced.get(arm, 0) + MAX_SEQ_JUMP:
                 self.assign_seq[arm] = max(self.assign_seq[arm], beat.assign_seq)  # orders after those it has
             if beat.part_id >= 0 and beat.task_id is not None:
-                self.dispatcher.adopt(arm, beat.task_id, beat.part_id, tuple(beat.place_xyz), log.tick / self.scene.control_hz)
+                self.dispatcher.adopt(
+                    arm, beat.task_id, beat.part_id, tuple(beat.place_xyz), log.tick / self.scene.control_hz
+                )
         self.takeover = {
-            "incarnation": self.incarnation, "sim_time_s": round(log.tick / self.scene.control_hz, 3), "events_replayed": len(log.events),
-            "arms_heard": sorted(beats), "tasks_adopted": [a for a in self.dispatcher.adopted if a["adopted"]],
+            "incarnation": self.incarnation,
+            "sim_time_s": round(log.tick / self.scene.control_hz, 3),
+            "events_replayed": len(log.events),
+            "arms_heard": sorted(beats),
+            "tasks_adopted": [a for a in self.dispatcher.adopted if a["adopted"]],
         }
-        print(f"coordinator: took over the line at sim {self.takeover['sim_time_s']} s ({len(log.events)} events, "
-              f"{len(self.takeover['tasks_adopted'])} task(s) adopted from {len(beats)} arm(s))", file=sys.stderr, flush=True)
+        print(
+            f"coordinator: took over the line at sim {self.takeover['sim_time_s']} s ({len(log.events)} events, "
+            f"{len(self.takeover['tasks_adopted'])} task(s) adopted from {len(beats)} arm(s))",
+            file=sys.stderr,
+            flush=True,
+        )
         return self.takeover
 
     def _await_arms(self, wait_s: float) -> tuple[dict[str, ArmStatus], dict[str, int]]:
@@ -196,7 +226,10 @@ class CoordinatorNode:
         beats: dict[str, ArmStatus] = {}
         announced: dict[str, int] = {}
         held: list[tuple[str, bytes]] = []
-        peek = {"status": Decoder(ArmStatus, DropCounter()), "frame": Decoder(LineView, DropCounter())}  # `poll` counts the bad ones
+        peek = {
+            "status": Decoder(ArmStatus, DropCounter()),
+            "frame": Decoder(LineView, DropCounter()),
+        }  # `poll` counts the bad ones
         deadline = time.monotonic() + wait_s
         while (len(beats) < len(self.arm_names) or not announced) and time.monotonic() < deadline:
             for key, payload in self._inbox.drain():
@@ -248,13 +281,28 @@ class CoordinatorNode:
         request = None
         if s.request_seq > 0 and len(s.request_q_to) == len(s.q):
             n = len(s.q)
-            then_q = tuple(tuple(s.request_then_q[k:k + n]) for k in range(0, len(s.request_then_q), n))
-            request = TimedPath(s.arm, s.q, s.request_q_to, s.sim_time_s, s.sim_time_s + s.request_duration_s,
-                                then_q, tuple(s.request_then_after_s))
+            then_q = tuple(tuple(s.request_then_q[k : k + n]) for k in range(0, len(s.request_then_q), n))
+            request = TimedPath(
+                s.arm,
+                s.q,
+                s.request_q_to,
+                s.sim_time_s,
+                s.sim_time_s + s.request_duration_s,
+                then_q,
+                tuple(s.request_then_after_s),
+            )
         returned = self.dispatcher.on_arm(
-            s.arm, np.asarray(s.q), s.skill, s.sim_time_s, task_id=s.task_id, failure=s.failure, request_seq=s.request_seq,
-            request=request, acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later
-            lost=s.lost and s.arm not in self._rejoining, silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
+            s.arm,
+            np.asarray(s.q),
+            s.skill,
+            s.sim_time_s,
+            task_id=s.task_id,
+            failure=s.failure,
+            request_seq=s.request_seq,
+            request=request,
+            acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later
+            lost=s.lost and s.arm not in self._rejoining,
+            silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
         )
         if returned is not None:
             self._tell_lost(s.arm, "the sim stopped hearing its controller", returned)
@@ -277,10 +325,13 @@ class CoordinatorNode:
         self.dispatcher.arm_rejoined(s.arm)
 
     def _on_parts(self, p: PartsState) -> None:
-        self.dispatcher.on_parts({
-            pid: PartView(np.array(p.positions[3 * i : 3 * i + 3]), np.array(p.velocities[3 * i : 3 * i + 3]))
-            for i, pid in enumerate(p.part_ids)
-        }, p.sim_time_s)
+        self.dispatcher.on_parts(
+            {
+                pid: PartView(np.array(p.positions[3 * i : 3 * i + 3]), np.array(p.velocities[3 * i : 3 * i + 3]))
+                for i, pid in enumerate(p.part_ids)
+            },
+            p.sim_time_s,
+        )
         last = self.dispatcher.last_decision_tick
         due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - last >= self.period_ticks
         if due and p.tick > last and (self._due is None or self._due[0] != p.tick):  # a re-sent frame: once
@@ -324,14 +375,21 @@ class CoordinatorNode:
 
     @staticmethod
     def _tell_lost(arm: str, why: str, returned: list[int]) -> None:
-        print(f"coordinator: arm {arm} lost ({why}); {len(returned)} task(s) back in the pool", file=sys.stderr, flush=True)
+        print(
+            f"coordinator: arm {arm} lost ({why}); {len(returned)} task(s) back in the pool",
+            file=sys.stderr,
+            flush=True,
+        )
 
     # --- outputs --------------------------------------------------------------------
     def publish(self, decision: Decision) -> None:
-        """A decision's orders on each arm's `assign` key (one `seq` count per arm), then the lockstep barrier's answer."""
+        """A decision's orders on each arm's `assign` key (one `seq` count per arm), then the lockstep barrier's
+        answer."""
         if len(self.arm_names) > 1:
             now_s = decision.tick / self.scene.control_hz
-            self._separation_pub.put(encode(separations_from_pairs(now_s, decision.separations, self.dispatcher.guard.margin_m)))
+            self._separation_pub.put(
+                encode(separations_from_pairs(now_s, decision.separations, self.dispatcher.guard.margin_m))
+            )
         for order in decision.orders:
             self.assign_seq[order.arm] += 1
             self._assign_pubs[order.arm].put(encode(self._message(order, self.assign_seq[order.arm])))
@@ -340,29 +398,49 @@ class CoordinatorNode:
     def _message(self, order, seq: int) -> Assignment | MotionGrant:
         if isinstance(order, GrantOrder):
             return MotionGrant(
-                order.arm, seq, order.request_seq, order.decision, order.conflict_arm,
+                order.arm,
+                seq,
+                order.request_seq,
+                order.decision,
+                order.conflict_arm,
                 order.min_separation_m if math.isfinite(order.min_separation_m) else -1.0,
                 order.start_s if order.start_s is not None else -1.0,
             )
         if isinstance(order, CancelOrder):
             return Assignment(order.arm, seq, None, order.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
         assert isinstance(order, AssignOrder)
-        return Assignment(order.arm, seq, order.task_id, order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
+        return Assignment(
+            order.arm, seq, order.task_id, order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity
+        )
 
     def publish_progress(self) -> None:
         self._progress_at = time.monotonic()
         d = self.dispatcher
         t = d.ledger.totals()
         closest = d.min_separation_m if math.isfinite(d.min_separation_m) else -1.0
-        self._progress_pub.put(encode(Progress(
-            d.sim_time_s, t["parts_spawned"], t["parts_completed"], t["parts_missed"], d.busy_arms(),
-            t.get("parts_failed", 0), d.guard.denied, closest,
-        )))
+        self._progress_pub.put(
+            encode(
+                Progress(
+                    d.sim_time_s,
+                    t["parts_spawned"],
+                    t["parts_completed"],
+                    t["parts_missed"],
+                    d.busy_arms(),
+                    t.get("parts_failed", 0),
+                    d.guard.denied,
+                    closest,
+                )
+            )
+        )
 
     def report(self) -> dict:
         self._apply_events(2**62)  # the run is over: every event counts
-        return self.dispatcher.report() | {"dropped_messages": self.drops.total, "takeover": self.takeover, "decisions_on_deadline": self.decisions_on_deadline,
-                                           "decision_wall_ms": self._decision_times()}
+        return self.dispatcher.report() | {
+            "dropped_messages": self.drops.total,
+            "takeover": self.takeover,
+            "decisions_on_deadline": self.decisions_on_deadline,
+            "decision_wall_ms": self._decision_times(),
+        }
 
     def _decision_times(self) -> dict:
         """Wall milliseconds a decision took (median, p99, the slowest and its tick): a lockstep run stops if one
@@ -370,8 +448,12 @@ class CoordinatorNode:
         if not self.decision_ms:
             return {}
         p50, p99 = np.percentile(self.decision_ms, [50, 99])
-        return {"p50": round(float(p50), 3), "p99": round(float(p99), 3), "max": round(self.slowest_decision[0], 3),
-                "max_at_tick": self.slowest_decision[1]}
+        return {
+            "p50": round(float(p50), 3),
+            "p99": round(float(p99), 3),
+            "max": round(self.slowest_decision[0], 3),
+            "max_at_tick": self.slowest_decision[1],
+        }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -379,11 +461,20 @@ def main(argv: list[str] | None = None) -> int:
     add_scene_arguments(parser)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
-    parser.add_argument("--no-pipeline", dest="pipeline", action="store_false",
-                        help="give a fixture's next part out only once the fixture is ready for it")
+    parser.add_argument(
+        "--no-pipeline",
+        dest="pipeline",
+        action="store_false",
+        help="give a fixture's next part out only once the fixture is ready for it",
+    )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
-    parser.add_argument("--incarnation", type=int, default=1, help="this run's Nth coordinator: from the 2nd on it takes over "
-                        "the running line (ledger rebuilt from the sim's event log and the controllers' heartbeats)")
+    parser.add_argument(
+        "--incarnation",
+        type=int,
+        default=1,
+        help="this run's Nth coordinator: from the 2nd on it takes over "
+        "the running line (ledger rebuilt from the sim's event log and the controllers' heartbeats)",
+    )
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "coordinator")
     if opened is None:
@@ -393,9 +484,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"coordinator: --incarnation {args.incarnation} must be within 1..1000", file=sys.stderr)
         return 2
     with open_session(BusEndpoints.from_args(args)) as session:
-        node = CoordinatorNode(session, Keys(args.run), scene, lockstep=args.mode == "lockstep",
-                               allocator=make_allocator(args.allocator, scene), incarnation=args.incarnation, pipeline=args.pipeline)
-        node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
+        node = CoordinatorNode(
+            session,
+            Keys(args.run),
+            scene,
+            lockstep=args.mode == "lockstep",
+            allocator=make_allocator(args.allocator, scene),
+            incarnation=args.incarnation,
+            pipeline=args.pipeline,
+        )
+        _ = node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:
             if args.incarnation > 1:
                 try:

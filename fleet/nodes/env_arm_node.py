@@ -18,7 +18,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EnvAction, EnvTargets
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.processes import add_scene_arguments, node_arguments, write_report
+from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
 from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 from robots.registry import get_robot
@@ -40,7 +40,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyError as exc:
         print(f"fleet-env-arm: {exc.args[0]}", file=sys.stderr)
         return 2
-    translator = ActionTranslator(get_robot(decl.model), yaw_transform(decl.base.xyz, decl.base.yaw_rad), args.action_mode)
+    translator = ActionTranslator(
+        get_robot(decl.model), yaw_transform(decl.base.xyz, decl.base.yaw_rad), args.action_mode
+    )
     keys, drops, answered = Keys(args.run), DropCounter(), 0
     decoder = Decoder(EnvAction, drops)
     with open_session(BusEndpoints.from_args(args)) as session:
@@ -66,12 +68,17 @@ def main(argv: list[str] | None = None) -> int:
                     except ValueError as exc:  # wrong action size: refused, counted, never a crash
                         drops.drop(key, str(exc))
                         continue
-                    pub.put(encode(EnvTargets(args.arm, msg.seq, tuple(q[0].tolist()), float(opening[0]))))  # this arm: row 0
+                    pub.put(
+                        encode(EnvTargets(args.arm, msg.seq, tuple(q[0].tolist()), float(opening[0])))
+                    )  # this arm: row 0
                     answered += 1
         finally:
             sub.undeclare()
             pub.undeclare()
-            write_report(args.report, {"arm": args.arm, "answered": answered, "dropped_messages": drops.total, "stopped_by": stop.reason})
+            write_report(
+                args.report,
+                {"arm": args.arm, "answered": answered, "dropped_messages": drops.total, "stopped_by": stop.reason},
+            )
     return 0
 
 

@@ -13,12 +13,11 @@ import os
 import sys
 
 from fleet.bus.keys import Keys
-from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
+from fleet.common.processes import StopFlag, write_report, write_text_atomically
 from fleet.monitor.app import Monitor, print_url
 from fleet.monitor.options import DEFAULT_RATE_HZ, add_monitor_arguments, exposure_warning
-from fleet.processes import StopFlag, write_report, write_text_atomically
-
 
 MONITOR_NICENESS = 10
 
@@ -28,8 +27,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run", default="line", help="run id of the line to watch")
     add_monitor_arguments(parser)
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, help="page updates per second")
-    parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim to say its scene")
-    parser.add_argument("--nice", type=int, default=MONITOR_NICENESS, help="scheduling niceness: a viewer yields the CPU to the line it watches")
+    parser.add_argument(
+        "--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim to say its scene"
+    )
+    parser.add_argument(
+        "--nice",
+        type=int,
+        default=MONITOR_NICENESS,
+        help="scheduling niceness: a viewer yields the CPU to the line it watches",
+    )
     parser.add_argument("--url-file", help="write the page's URL to this file once it serves")
     parser.add_argument("--report", help="write the monitor's figures to this JSON file at exit")
     add_bus_arguments(parser)
@@ -54,11 +60,19 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 monitor.run(stop, args.rate)
             finally:
-                write_report(args.report, {
-                    "url": monitor.url, "frames": monitor.frames, "frames_per_s": round(monitor.frames_per_s, 2),
-                    "messages_taken": monitor.feed.taken, "most_pages_open": monitor.most_pages_open, "dropped_messages": monitor.feed.drops.total,
-                    "controls_sent": monitor.controls.sent, "stopped_by": stop.reason,
-                })
+                write_report(
+                    args.report,
+                    {
+                        "url": monitor.url,
+                        "frames": monitor.frames,
+                        "frames_per_s": round(monitor.frames_per_s, 2),
+                        "messages_taken": monitor.feed.taken,
+                        "most_pages_open": monitor.most_pages_open,
+                        "dropped_messages": monitor.feed.drops.total,
+                        "controls_sent": monitor.controls.sent,
+                        "stopped_by": stop.reason,
+                    },
+                )
     return 0
 
 

@@ -29,14 +29,16 @@ from typing import Protocol
 from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene, run_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
-from fleet.processes import StopFlag, run_on_idle_cpu, write_report
+from fleet.common.processes import StopFlag, run_on_idle_cpu, write_report
 from fleet.record.spool import SpoolError, SpoolReader
 from scenes.schema import Scene
 
 READY_EVERY_S = 0.1
 DRAIN_EVERY_S = 0.1
 QUIET_MESSAGES = 20  # a drain with fewer is a trickle (heartbeats, progress): the line is paused or over
-RUNNING_MESSAGES = 100  # a drain with more: the line runs (a lockstep line at full speed sends hundreds; its start-up a few dozen)
+RUNNING_MESSAGES = (
+    100  # a drain with more: the line runs (a lockstep line at full speed sends hundreds; its start-up a few dozen)
+)
 CATCH_UP_SLICE = 500  # held-back messages written per round while the line is quiet
 HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond, they are written as they come
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too (until a drain finds none)
@@ -126,8 +128,17 @@ def drain_to_the_end(source: Source) -> list[tuple[str, bytes]]:
     return heard
 
 
-def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, summary_file: str | None, hold: bool = False,
-           say_ready: Callable[[], None] | None = None, tail_workers: int = 1) -> dict:
+def record(
+    source: Source,
+    scene: Scene,
+    keys: Keys,
+    out: str,
+    stop: StopFlag,
+    summary_file: str | None,
+    hold: bool = False,
+    say_ready: Callable[[], None] | None = None,
+    tail_workers: int = 1,
+) -> dict:
     """Record until `stop`; the figures of the recording. `hold`: keep what is heard in memory while the line is
     busy and write it when it is quiet or over (a lockstep line at full speed leaves no CPU to spare). `say_ready`:
     said every `READY_EVERY_S` until the line is heard (a sim told to await a recorder starts then). `tail_workers`:
@@ -142,7 +153,7 @@ def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, s
                 if say_ready is not None:
                     say_ready()
                 ready_at = time.monotonic() + READY_EVERY_S
-                recording.recorder  # loaded while the line starts, on idle CPU time
+                _ = recording.recorder  # loaded while the line starts, on idle CPU time
             batch = source.drain()
             backlog.extend(batch)
             heard_line = heard_line or bool(batch)
@@ -167,14 +178,21 @@ def record(source: Source, scene: Scene, keys: Keys, out: str, stop: StopFlag, s
     finally:
         recording.close()
     return {
-        "file": out, "messages_written": recorder.writer.messages, "bus_messages": sum(recorder.stats.by_key.values()),
-        "undecodable": recorder.stats.undecodable, "dropped_messages": recorder.drops.total,
-        "bytes": Path(out).stat().st_size, "sim_seconds": recorder.now_s, "wall_seconds": round(time.monotonic() - started, 3),
+        "file": out,
+        "messages_written": recorder.writer.messages,
+        "bus_messages": sum(recorder.stats.by_key.values()),
+        "undecodable": recorder.stats.undecodable,
+        "dropped_messages": recorder.drops.total,
+        "bytes": Path(out).stat().st_size,
+        "sim_seconds": recorder.now_s,
+        "wall_seconds": round(time.monotonic() - started, 3),
         "stopped_by": stop.reason,
     }
 
 
-def record_bus(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
+def record_bus(
+    session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: float, summary_file: str | None, hold: bool = False
+) -> dict:
     """Record what a tap on the bus hears (`fleet record`): the scene asked from the sim, then "ready" said until
     the line is heard."""
     with Tap(session, keys.recorded()) as tap:
@@ -186,7 +204,9 @@ def record_bus(session, keys: Keys, out: str, stop: StopFlag, scene_timeout_s: f
             ready.undeclare()
 
 
-def record_spool(path: str, out: str, stop: StopFlag, timeout_s: float, summary_file: str | None, hold: bool = False) -> dict:
+def record_spool(
+    path: str, out: str, stop: StopFlag, timeout_s: float, summary_file: str | None, hold: bool = False
+) -> dict:
     """Record from the sim's spool (`fleet run --record`): the scene is in its header; no bus session at all."""
     reader = SpoolReader(path)
     try:
@@ -203,11 +223,27 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-recorder", description=__doc__.splitlines()[0])
     parser.add_argument("--run", default="line", help="run id of the line to record")
     parser.add_argument("--out", required=True, help="the MCAP file to write")
-    parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim to say its scene")
+    parser.add_argument(
+        "--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim to say its scene"
+    )
     parser.add_argument("--summary-file", help="at the end, add the run summary found in this JSON file")
-    parser.add_argument("--nice", type=int, default=RECORDER_NICENESS, help="0: a normal process; else it runs on idle CPU time (SCHED_IDLE), or at this niceness where that is refused")
-    parser.add_argument("--hold", action="store_true", help="write while the line is quiet or over, not as it runs (lockstep at full speed)")
-    parser.add_argument("--spool", help="record the sim's spool file (its `--spool`) instead of tapping the bus; the run id and scene are in it")
+    parser.add_argument(
+        "--nice",
+        type=int,
+        default=RECORDER_NICENESS,
+        help=(
+            "0: a normal process; else it runs on idle CPU time (SCHED_IDLE), or at this niceness where that is refused"
+        ),
+    )
+    parser.add_argument(
+        "--hold",
+        action="store_true",
+        help="write while the line is quiet or over, not as it runs (lockstep at full speed)",
+    )
+    parser.add_argument(
+        "--spool",
+        help="record the sim's spool file (its `--spool`) instead of tapping the bus; the run id and scene are in it",
+    )
     parser.add_argument("--report", help="write the recording's figures to this JSON file at exit")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
@@ -220,7 +256,9 @@ def main(argv: list[str] | None = None) -> int:
             report = record_spool(args.spool, args.out, stop, args.scene_timeout, args.summary_file, args.hold)
         else:
             with open_session(endpoints) as session:
-                report = record_bus(session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file, args.hold)
+                report = record_bus(
+                    session, Keys(args.run), args.out, stop, args.scene_timeout, args.summary_file, args.hold
+                )
     except (SceneUnavailable, SpoolError) as exc:
         print(f"fleet record: {exc}", file=sys.stderr)
         return 1
@@ -232,4 +270,6 @@ if __name__ == "__main__":
     code = main()
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(code)  # the file, the report and the session are closed: skip tearing down the modules (a run waits on this exit)
+    os._exit(
+        code
+    )  # the file, the report and the session are closed: skip tearing down the modules (a run waits on this exit)

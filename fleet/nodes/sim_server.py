@@ -1,6 +1,6 @@
 """The sim server: owns the physics world and every arm's trajectory tracker; states to each controller at its rate.
 
-Each arm's tracker (`robots.tracker`, through `fleet.physics.tracking`) follows the
+Each arm's tracker (`robots.tracker`, through `fleet.sim.tracking`) follows the
 trajectory goals on the arm's `goal` key at the servo rate (the scene's `control_hz`)
 and publishes one result per goal; the physics runs `physics_hz / control_hz` steps a
 tick. Each controller gets its arm's state at the ticks it asks for (`ControllerStep.
@@ -44,23 +44,33 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.faults import DelayLine, add_fault_arguments, faults_report, links_for, network_from_args
 from fleet.bus.flights import FlightBook
 from fleet.bus.goals import goal_from_message, result_message
-from fleet.bus.keys import Keys
-from fleet.bus.plausible import request_problem, seq_problem
 from fleet.bus.history import serve_history
-from fleet.bus.scene_query import serve_scene
+from fleet.bus.keys import Keys
 from fleet.bus.messages import (
-    ArmGoalMsg, ArmState, ControllerStep, CoordTick, EStop, EventLog, LineEvent, LineView, SimControl, SimStatus,
+    ArmGoalMsg,
+    ArmState,
+    ControllerStep,
+    CoordTick,
+    EStop,
+    EventLog,
+    LineEvent,
+    LineView,
+    SimControl,
+    SimStatus,
 )
+from fleet.bus.plausible import request_problem, seq_problem
+from fleet.bus.scene_query import serve_scene
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
-from fleet.line_watch import LineWatcher
-from fleet.physics.tracking import TrackedArms
-from fleet.physics.world import PartInfo, World
-from fleet.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
+from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
-from fleet.world_messages import arm_state, parts_state
+from fleet.sim.line_watch import LineWatcher
+from fleet.sim.tracking import TrackedArms
+from fleet.sim.world import PartInfo, World
+from fleet.sim.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
-from robots.tracker import WATCHDOG_REASON
 from robots.skills.pick_place import DEFAULT_DECISION_HZ
+from robots.tracker import WATCHDOG_REASON
+
 MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
@@ -147,7 +157,9 @@ class SimServer:
         self.world, self.session, self.keys, self.mode = world, session, keys, mode
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
         # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
-        self.coordinator_timeout_s = max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s
+        self.coordinator_timeout_s = (
+            max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s
+        )
         self.first_command_timeout_s = first_command_timeout_s
         self.stop = stop
         self.controllers = controllers
@@ -182,7 +194,9 @@ class SimServer:
             session.declare_subscriber(keys.control, self._control_inbox),
         ]
         self._scene_queryable = serve_scene(session, keys, world.scene_model.model_dump_json())
-        self.event_log: list[LineEvent] = []  # every event published, in order (a respawned coordinator rebuilds from it)
+        self.event_log: list[
+            LineEvent
+        ] = []  # every event published, in order (a respawned coordinator rebuilds from it)
         self._history_queryable = serve_history(session, keys, lambda: EventLog(self.world.tick, tuple(self.event_log)))
         self._status_pub = session.declare_publisher(keys.sim_status)
         self._view_pub = session.declare_publisher(keys.view)
@@ -200,7 +214,9 @@ class SimServer:
         self.assign_seqs = {name: 0 for name in world.arms}
         self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
-        self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks for the recorder
+        self.spool: BusSpool | None = (
+            None  # with `--spool`: what the bus carries, appended between ticks for the recorder
+        )
         self._started = not controllers  # every controller answered once (realtime waits until then)
 
     def close(self) -> None:
@@ -208,8 +224,15 @@ class SimServer:
             sub.undeclare()
         self._scene_queryable.undeclare()
         self._history_queryable.undeclare()
-        pubs = [*self._state_pubs.values(), *self._result_pubs.values(), self._parts_pub, self._events_pub, self._status_pub,
-                self._view_pub, self._frame_pub]
+        pubs = [
+            *self._state_pubs.values(),
+            *self._result_pubs.values(),
+            self._parts_pub,
+            self._events_pub,
+            self._status_pub,
+            self._view_pub,
+            self._frame_pub,
+        ]
         for pub in pubs:
             pub.undeclare()
 
@@ -246,12 +269,18 @@ class SimServer:
             if msg is None:
                 continue
             if len(msg.assign_seqs) != len(self.links):
-                self.drops.drop(key, f"coordinator tick with {len(msg.assign_seqs)} arms, the scene has {len(self.links)}")
+                self.drops.drop(
+                    key, f"coordinator tick with {len(msg.assign_seqs)} arms, the scene has {len(self.links)}"
+                )
                 continue
             if msg.tick > self.world.tick:
-                self.drops.drop(key, f"coordinator tick {msg.tick} answers a frame not sent yet (now {self.world.tick})")
+                self.drops.drop(
+                    key, f"coordinator tick {msg.tick} answers a frame not sent yet (now {self.world.tick})"
+                )
                 continue
-            problem = next((p for n, q in zip(self.links, msg.assign_seqs) if (p := seq_problem(q, self.assign_seqs[n]))), "")
+            problem = next(
+                (p for n, q in zip(self.links, msg.assign_seqs) if (p := seq_problem(q, self.assign_seqs[n]))), ""
+            )
             if problem:
                 self.drops.drop(key, problem)
                 continue
@@ -306,7 +335,9 @@ class SimServer:
             if msg.goal_id in link.discard_goals:  # its answer was lost on the way: so was it
                 link.discard_goals.discard(msg.goal_id)
             else:
-                link.goals.append(msg)  # applied with the answer naming it (or at the arm's next due tick), so a lockstep run repeats
+                link.goals.append(
+                    msg
+                )  # applied with the answer naming it (or at the arm's next due tick), so a lockstep run repeats
             return
         passage = link.book.link.passage("up")
         if not passage.lost:
@@ -314,7 +345,9 @@ class SimServer:
 
     def _submit(self, link: ArmLink, msg) -> None:
         goal = goal_from_message(msg)
-        if isinstance(goal, GoalResult):  # refused before reaching the tracker: stamped here (the tracker stamps its own)
+        if isinstance(
+            goal, GoalResult
+        ):  # refused before reaching the tracker: stamped here (the tracker stamps its own)
             self._publish_results(link.name, [dataclasses.replace(goal, time_s=self.world.sim_time_s)])
         else:
             self._publish_results(link.name, self.tracked.submit(link.name, goal))
@@ -325,7 +358,8 @@ class SimServer:
             return
         self.stats.messages_in["step"] += 1
         problem = request_problem(msg, self.world.arms[link.name].spec.arm_dof) or (
-            "" if math.isfinite(msg.progress) else "an answer with a non-finite progress")
+            "" if math.isfinite(msg.progress) else "an answer with a non-finite progress"
+        )
         if problem:
             self.drops.drop(key, problem)
             return
@@ -380,7 +414,9 @@ class SimServer:
         if latest:
             link.next_tick = msg.tick + period
         hz = self.world.scene_model.control_hz
-        self.tracked.trackers[link.name].watch(max(link.next_tick, self.world.tick) / hz + self.watchdog_s + self._round_trip_s(link))
+        self.tracked.trackers[link.name].watch(
+            max(link.next_tick, self.world.tick) / hz + self.watchdog_s + self._round_trip_s(link)
+        )
         link.watchdog_held = False
         if link.lost:
             link.lost = False
@@ -400,7 +436,7 @@ class SimServer:
         republish_at = time.monotonic() + REPUBLISH_S
         while True:
             self._take_inputs()
-            waiting = [l for l in links if not l.lost and not l.ready()]
+            waiting = [link for link in links if not link.lost and not link.ready()]
             coord_waiting = coord and not self.stats.coordinator_lost and self.coord_book.awaiting() is not None
             if not waiting and not coord_waiting:
                 break
@@ -431,7 +467,7 @@ class SimServer:
         if coord:
             for flight in self.coord_book.due_answers(self.world.tick):
                 self._apply_coord(flight.answer)
-        if not self._started and all(l.last_step is not None or l.lost for l in self.links.values()):
+        if not self._started and all(link.last_step is not None or link.lost for link in self.links.values()):
             self._started = True  # realtime: from here on answers apply when they arrive
 
     def _lose(self, link: ArmLink) -> None:
@@ -439,7 +475,9 @@ class SimServer:
         link.lost = True
         link.book.clear()
         self.stats.lost.append(link.name)
-        self._publish_results(link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)"))
+        self._publish_results(
+            link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)")
+        )
 
     # --- outputs --------------------------------------------------------------------
     def _publish_results(self, arm: str, results: list[GoalResult]) -> None:
@@ -464,20 +502,33 @@ class SimServer:
         desired_q, desired_dq = tracker.desired_now
         last = tracker.last
         return arm_state(
-            self.world, name, held=self.estop or link.lost or link.watchdog_held, lost=link.lost,
-            task_id=step.task_id if step else None, skill=step.skill if step else "idle", progress=step.progress if step else 0.0,
+            self.world,
+            name,
+            held=self.estop or link.lost or link.watchdog_held,
+            lost=link.lost,
+            task_id=step.task_id if step else None,
+            skill=step.skill if step else "idle",
+            progress=step.progress if step else 0.0,
             assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1,
-            failure=step.failure if step else "", request_seq=step.request_seq if step else 0,
-            request_q_to=step.request_q_to if step else (), request_duration_s=step.request_duration_s if step else 0.0,
-            request_then_q=step.request_then_q if step else (), request_then_after_s=step.request_then_after_s if step else (),
-            goal_id=tracker.goal_id, desired_q=tuple(map(float, desired_q)), desired_dq=tuple(map(float, desired_dq)),
-            result_goal_id=last.goal_id if last else 0, result_status=last.status.value if last else "",
-            result_code=int(last.code) if last else 0, result_reason=last.reason if last else "", next_tick=link.next_tick,
+            failure=step.failure if step else "",
+            request_seq=step.request_seq if step else 0,
+            request_q_to=step.request_q_to if step else (),
+            request_duration_s=step.request_duration_s if step else 0.0,
+            request_then_q=step.request_then_q if step else (),
+            request_then_after_s=step.request_then_after_s if step else (),
+            goal_id=tracker.goal_id,
+            desired_q=tuple(map(float, desired_q)),
+            desired_dq=tuple(map(float, desired_dq)),
+            result_goal_id=last.goal_id if last else 0,
+            result_status=last.status.value if last else "",
+            result_code=int(last.code) if last else 0,
+            result_reason=last.reason if last else "",
+            next_tick=link.next_tick,
             period_ticks=link.period_ticks,
         )
 
     def _due(self) -> list[ArmLink]:
-        return [l for l in self.links.values() if l.next_tick <= self.world.tick]
+        return [link for link in self.links.values() if link.next_tick <= self.world.tick]
 
     def publish_states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
         """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
@@ -489,7 +540,11 @@ class SimServer:
         frame = self.coordinator and tick % self.coord_period_ticks == 0
         view = tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching  # built only while watched
         if due or frame or view:
-            states = {name: self._state(name) for name in w.arms} if (frame or view) else {l.name: self._state(l.name) for l in due}
+            states = (
+                {name: self._state(name) for name in w.arms}
+                if (frame or view)
+                else {link.name: self._state(link.name) for link in due}
+            )
             now = time.monotonic()
             for link in due:
                 if self.controllers:  # someone must answer it (without controllers the states are feedback only)
@@ -515,7 +570,11 @@ class SimServer:
         for link in self.links.values():
             flight = link.book.deliver(tick, now, self._deferred)
             if flight is not None:
-                state = flight.message if flight.tick == tick else msgspec.structs.replace(flight.message, delivered_tick=tick)
+                state = (
+                    flight.message
+                    if flight.tick == tick
+                    else msgspec.structs.replace(flight.message, delivered_tick=tick)
+                )
                 flight.payload = encode(state)
                 self._put(self._state_pubs[link.name], "state", flight.payload)
             elif not self._deferred:
@@ -524,7 +583,9 @@ class SimServer:
         if flight is not None:
             line = flight.message
             if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
-                line = msgspec.structs.replace(line, parts=msgspec.structs.replace(line.parts, events_published=len(self.event_log)))
+                line = msgspec.structs.replace(
+                    line, parts=msgspec.structs.replace(line.parts, events_published=len(self.event_log))
+                )
             flight.payload = encode(line)
             self._put(self._frame_pub, "frame", flight.payload)
         elif not self._deferred_coord:
@@ -549,10 +610,20 @@ class SimServer:
         tick = self.world.tick
         t1 = time.perf_counter()
         started = self._started
-        links = [l for l in self.links.values() if l.next_tick <= tick or l.book.arrives(tick) or l.book.applies(tick)] if self._deferred else []
+        links = (
+            [
+                link
+                for link in self.links.values()
+                if link.next_tick <= tick or link.book.arrives(tick) or link.book.applies(tick)
+            ]
+            if self._deferred
+            else []
+        )
         # the coordinator's answers take effect with the next states out after them (frames: its period apart)
         frame = self.coordinator and tick % self.coord_period_ticks == 0
-        coord = self._deferred_coord and (frame or self.coord_book.arrives(tick) or (bool(links) and self.coord_book.applies(tick)))
+        coord = self._deferred_coord and (
+            frame or self.coord_book.arrives(tick) or (bool(links) and self.coord_book.applies(tick))
+        )
         if links or coord:
             self._wait_for_answers(links, coord)
         else:
@@ -597,7 +668,12 @@ class SimServer:
         stop = stop or self.stop
         if speed is not None:
             self.speed = speed
-        start_wall, start_sim, speed_then, started_then = time.monotonic(), self.world.sim_time_s, self.speed, self._started
+        start_wall, start_sim, speed_then, started_then = (
+            time.monotonic(),
+            self.world.sim_time_s,
+            self.speed,
+            self._started,
+        )
         done = 0
         while done < ticks:
             if stop is not None and stop.should_stop():
@@ -617,8 +693,15 @@ class SimServer:
             if self.stats.coordinator_lost and self.mode == "lockstep":
                 return  # its decisions would never be announced again: end the run rather than stall it
             if self.mode == "realtime":
-                if self._started != started_then or self.speed != speed_then:  # the clock starts once every process answered
-                    start_wall, start_sim, speed_then, started_then = time.monotonic(), self.world.sim_time_s, self.speed, self._started
+                if (
+                    self._started != started_then or self.speed != speed_then
+                ):  # the clock starts once every process answered
+                    start_wall, start_sim, speed_then, started_then = (
+                        time.monotonic(),
+                        self.world.sim_time_s,
+                        self.speed,
+                        self._started,
+                    )
                 ahead = (self.world.sim_time_s - start_sim) / self.speed - (time.monotonic() - start_wall)
                 if ahead > 0:
                     self._inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
@@ -633,20 +716,37 @@ class SimServer:
         self._status_at = now
         st, ticks = self.stats, max(self.stats.ticks, 1)
         recent = st.recent_round_trip_ms
-        self._put(self._status_pub, "status", encode(SimStatus(
-            self.world.tick, self.world.sim_time_s, self.mode, self.paused, self.estop, self.speed,
-            tuple(st.busy_ticks[a] / ticks for a in self.links),
-            float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
-            st.contact_ticks, st.last_contact_pairs, st.last_contact_s,
-            tuple(l.name for l in self.links.values() if l.lost), self.drops.total,
-        )))
+        self._put(
+            self._status_pub,
+            "status",
+            encode(
+                SimStatus(
+                    self.world.tick,
+                    self.world.sim_time_s,
+                    self.mode,
+                    self.paused,
+                    self.estop,
+                    self.speed,
+                    tuple(st.busy_ticks[a] / ticks for a in self.links),
+                    float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
+                    st.contact_ticks,
+                    st.last_contact_pairs,
+                    st.last_contact_s,
+                    tuple(link.name for link in self.links.values() if link.lost),
+                    self.drops.total,
+                )
+            ),
+        )
 
     def arm_time(self, arm: str) -> dict[str, float]:
         """Fractions of the run an arm worked, held still waiting for a motion grant, or had no task."""
         ticks = max(self.stats.ticks, 1)
         busy, waiting = self.stats.busy_ticks[arm], self.stats.grant_wait_ticks[arm]
-        return {"working": round((busy - waiting) / ticks, 4), "waiting_for_grant": round(waiting / ticks, 4),
-                "idle": round(1 - busy / ticks, 4)}
+        return {
+            "working": round((busy - waiting) / ticks, 4),
+            "waiting_for_grant": round(waiting / ticks, 4),
+            "idle": round(1 - busy / ticks, 4),
+        }
 
     def messages_per_arm_per_s(self) -> dict[str, float]:
         """Bus messages per arm per sim second, by key leaf, both ways (the sim's own count)."""
@@ -664,7 +764,10 @@ class SimServer:
             "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
             "feeder_held_s": {c.feeder.name: round(c.held_s, 2) for c in self.world.feeders if c.held_s > 0},
             "events": dict(sorted(Counter(e.kind for e in self.event_log).items())),
-            "utilisation": {a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0 for a in self.links},
+            "utilisation": {
+                a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0
+                for a in self.links
+            },
             "arm_time": {a: self.arm_time(a) for a in self.links},
             "inter_arm_contacts": self.stats.contact_ticks,
             "contact_pairs": sorted("-".join(p) for p in self.stats.contact_pairs),
@@ -720,17 +823,52 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=120.0, help="sim seconds")
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--speed", type=float, default=1.0)
-    parser.add_argument("--coordinator", action="store_true", help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)")
-    parser.add_argument("--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost")
-    parser.add_argument("--coordinator-timeout", type=float, help="wall seconds a lockstep frame waits for the coordinator "
-                        f"(default: {COORDINATOR_TIMEOUT_S:g} s or the lockstep timeout if longer; longer when a crashed coordinator is respawned)")
-    parser.add_argument("--record-targets", metavar="FILE", help="save every tick's drive targets (.npz): `fleet bench run` replays them")
-    parser.add_argument("--spool", metavar="FILE", help="append every message of the run's bus, as this router hears it, to FILE (`fleet run --record` turns it into MCAP)")
-    parser.add_argument("--await-recorder", type=float, metavar="S", default=0.0, help="start the clock only once a recorder listens (wait at most S wall seconds)")
-    parser.add_argument("--no-controllers", action="store_true", help="wait for no controller: arms follow goals from anyone (no watchdog)")
+    parser.add_argument(
+        "--coordinator",
+        action="store_true",
+        help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)",
+    )
+    parser.add_argument(
+        "--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost"
+    )
+    parser.add_argument(
+        "--coordinator-timeout",
+        type=float,
+        help="wall seconds a lockstep frame waits for the coordinator "
+        f"(default: {COORDINATOR_TIMEOUT_S:g} s or the lockstep timeout if longer; longer when a crashed coordinator "
+        "is respawned)",
+    )
+    parser.add_argument(
+        "--record-targets",
+        metavar="FILE",
+        help="save every tick's drive targets (.npz): `fleet bench run` replays them",
+    )
+    parser.add_argument(
+        "--spool",
+        metavar="FILE",
+        help=(
+            "append every message of the run's bus, as this router hears it, to FILE (`fleet run --record` turns it "
+            "into MCAP)"
+        ),
+    )
+    parser.add_argument(
+        "--await-recorder",
+        type=float,
+        metavar="S",
+        default=0.0,
+        help="start the clock only once a recorder listens (wait at most S wall seconds)",
+    )
+    parser.add_argument(
+        "--no-controllers",
+        action="store_true",
+        help="wait for no controller: arms follow goals from anyone (no watchdog)",
+    )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
-    parser.add_argument("--endpoint-file", help="write the endpoint it listens on to this file once it does (without --listen or "
-                        "--zenoh-config: a free loopback port)")
+    parser.add_argument(
+        "--endpoint-file",
+        help="write the endpoint it listens on to this file once it does (without --listen or "
+        "--zenoh-config: a free loopback port)",
+    )
     add_fault_arguments(parser)
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "sim_server")
@@ -753,13 +891,27 @@ def main(argv: list[str] | None = None) -> int:
         config = make_config(endpoints)
         session = zenoh.open(config)
         endpoint = ", ".join(json.loads(config.get_json("listen/endpoints")))
-    spool = BusSpool(session, Keys(args.run).recorded(), args.spool, args.run, world.scene_model.model_dump_json()) if args.spool else None
-    if args.endpoint_file:  # it listens: whoever waits for the file may connect now (the spool hears them from the first)
+    spool = (
+        BusSpool(session, Keys(args.run).recorded(), args.spool, args.run, world.scene_model.model_dump_json())
+        if args.spool
+        else None
+    )
+    if (
+        args.endpoint_file
+    ):  # it listens: whoever waits for the file may connect now (the spool hears them from the first)
         write_text_atomically(args.endpoint_file, endpoint)
     with contextlib.closing(session), contextlib.closing(spool) if spool else contextlib.nullcontext():
         server = SimServer(
-            world, session, Keys(args.run), mode=args.mode, coordinator=args.coordinator, controllers=not args.no_controllers,
-            lockstep_timeout_s=args.lockstep_timeout, coordinator_timeout_s=args.coordinator_timeout, stop=stop, speed=args.speed,
+            world,
+            session,
+            Keys(args.run),
+            mode=args.mode,
+            coordinator=args.coordinator,
+            controllers=not args.no_controllers,
+            lockstep_timeout_s=args.lockstep_timeout,
+            coordinator_timeout_s=args.coordinator_timeout,
+            stop=stop,
+            speed=args.speed,
         )
         if args.record_targets:
             server.target_log = []
@@ -773,7 +925,11 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             if args.record_targets:
                 save_target_log(args.record_targets, server.target_log)
-            lost = "the coordinator did not answer within the lockstep timeout" if server.stats.coordinator_lost and args.mode == "lockstep" else ""
+            lost = (
+                "the coordinator did not answer within the lockstep timeout"
+                if server.stats.coordinator_lost and args.mode == "lockstep"
+                else ""
+            )
             report = server.report() | {"stopped_by": stop.reason or lost or "duration"}
             server.close()
             write_report(args.report, report)

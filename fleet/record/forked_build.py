@@ -14,7 +14,7 @@ from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 
-from fleet.processes import die_with_parent
+from fleet.common.processes import die_with_parent
 from fleet.record.ros_types import serialize
 
 SLICES = 4  # the child's share comes back in this many pieces
@@ -33,13 +33,18 @@ class LaterInChild:
     def __init__(self, makers: list[Callable[[], object]], split: int, slices: int = SLICES) -> None:
         self._later: deque[Future] = deque()
         self._executor = None
-        if split < len(makers):  # the makers reach the child as the fork's initializer arguments: inherited, not pickled
+        if split < len(
+            makers
+        ):  # the makers reach the child as the fork's initializer arguments: inherited, not pickled
             fork = multiprocessing.get_context("fork")
             self._executor = ProcessPoolExecutor(1, mp_context=fork, initializer=_child_start, initargs=(makers,))
             step = max(1, -(-(len(makers) - split) // slices))
-            self._later.extend(self._executor.submit(_serialize_slice, a, min(a + step, len(makers))) for a in range(split, len(makers), step))
+            self._later.extend(
+                self._executor.submit(_serialize_slice, a, min(a + step, len(makers)))
+                for a in range(split, len(makers), step)
+            )
 
-    def __enter__(self) -> "LaterInChild":
+    def __enter__(self) -> LaterInChild:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -30,7 +30,9 @@ STATION_RGBA = {"fixture": (0.59, 0.59, 0.63, 1.0), "bin": (0.43, 0.51, 0.65, 1.
 
 def _header(sim_time_s: float, frame_id: str, stamp: object | None = None):
     """A header in `frame_id`; `stamp` (a `builtin_interfaces/Time`) shared by the messages of one tick, else made."""
-    return ros_type("std_msgs/msg/Header")(stamp=stamp if stamp is not None else time_msg(sim_time_s), frame_id=frame_id)
+    return ros_type("std_msgs/msg/Header")(
+        stamp=stamp if stamp is not None else time_msg(sim_time_s), frame_id=frame_id
+    )
 
 
 Vector3, Quaternion = ros_type("geometry_msgs/msg/Vector3"), ros_type("geometry_msgs/msg/Quaternion")
@@ -38,13 +40,16 @@ Transform, TransformStamped = ros_type("geometry_msgs/msg/Transform"), ros_type(
 
 
 def _transform_msg(pose: pin.SE3 | np.ndarray):
-    """`geometry_msgs/Transform` of a pose (SE3 or 4x4 matrix); Pinocchio's XYZQUAT is x, y, z, qx, qy, qz, qw, as ROS."""
+    """`geometry_msgs/Transform` of a pose (SE3 or 4x4 matrix); Pinocchio's XYZQUAT is x, y, z, qx, qy, qz, qw, as
+    ROS."""
     x, y, z, qx, qy, qz, qw = pin.SE3ToXYZQUAT(pose if isinstance(pose, pin.SE3) else pin.SE3(pose)).tolist()
     return Transform(translation=Vector3(x=x, y=y, z=z), rotation=Quaternion(x=qx, y=qy, z=qz, w=qw))
 
 
 def _stamped(sim_time_s: float, parent: str, child: str, pose: pin.SE3 | np.ndarray, stamp: object | None = None):
-    return TransformStamped(header=_header(sim_time_s, parent, stamp), child_frame_id=child, transform=_transform_msg(pose))
+    return TransformStamped(
+        header=_header(sim_time_s, parent, stamp), child_frame_id=child, transform=_transform_msg(pose)
+    )
 
 
 @dataclass(frozen=True)
@@ -72,7 +77,9 @@ class ArmTf:
         self.links = [self._link(i) for i in bodies[1:]]
         moves = [frames[link.frame].parentJoint != frames[link.parent_frame].parentJoint for link in self.links]
         self.fixed_links = [link for link, moving in zip(self.links, moves) if not moving]  # on /tf_static
-        self._named_links = [(link, self.frame(link.parent), self.frame(link.name)) for link, moving in zip(self.links, moves) if moving]
+        self._named_links = [
+            (link, self.frame(link.parent), self.frame(link.name)) for link, moving in zip(self.links, moves) if moving
+        ]
 
     def _link(self, index: int) -> _Link:
         frames = self.kin.model.frames
@@ -90,7 +97,12 @@ class ArmTf:
         model, data = self.kin.model, self.kin.data
         pin.framesForwardKinematics(model, data, pin.neutral(model))
         return [_stamped(sim_time_s, WORLD, self.frame(self.root_link), self.base_to_world)] + [
-            _stamped(sim_time_s, self.frame(link.parent), self.frame(link.name), data.oMf[link.parent_frame].actInv(data.oMf[link.frame]))
+            _stamped(
+                sim_time_s,
+                self.frame(link.parent),
+                self.frame(link.name),
+                data.oMf[link.parent_frame].actInv(data.oMf[link.frame]),
+            )
             for link in self.fixed_links
         ]
 
@@ -106,11 +118,15 @@ class ArmTf:
         ]
 
     def joint_state(self, state: ArmState):
-        """Positions of every joint by its URDF name; velocities of the arm joints (the claw's are not measured: NaN)."""
+        """Positions of every joint by its URDF name; velocities of the arm joints (the claw's are not measured:
+        NaN)."""
         position = np.asarray((*state.q, *state.gripper_q), dtype=np.float64)
         velocity = np.asarray((*state.dq, *([math.nan] * len(state.gripper_q))), dtype=np.float64)
         return ros_type("sensor_msgs/msg/JointState")(
-            header=_header(state.sim_time_s, ""), name=list(self.joint_names), position=position, velocity=velocity,
+            header=_header(state.sim_time_s, ""),
+            name=list(self.joint_names),
+            position=position,
+            velocity=velocity,
             effort=np.zeros(0, dtype=np.float64),
         )
 
@@ -120,24 +136,50 @@ def _unused_marker_fields() -> dict:
     """The fields a plain shape marker leaves empty (no lifetime, texture or mesh); made once, shared by every marker
     (messages are only read, when serialised)."""
     return dict(
-        lifetime=ros_type("builtin_interfaces/msg/Duration")(sec=0, nanosec=0), frame_locked=False, points=[], colors=[],
-        texture_resource="", texture=ros_type("sensor_msgs/msg/CompressedImage")(header=_header(0.0, ""), format="", data=np.zeros(0, np.uint8)),
-        uv_coordinates=[], text="", mesh_resource="",
-        mesh_file=ros_type("visualization_msgs/msg/MeshFile")(filename="", data=np.zeros(0, np.uint8)), mesh_use_embedded_materials=False,
+        lifetime=ros_type("builtin_interfaces/msg/Duration")(sec=0, nanosec=0),
+        frame_locked=False,
+        points=[],
+        colors=[],
+        texture_resource="",
+        texture=ros_type("sensor_msgs/msg/CompressedImage")(
+            header=_header(0.0, ""), format="", data=np.zeros(0, np.uint8)
+        ),
+        uv_coordinates=[],
+        text="",
+        mesh_resource="",
+        mesh_file=ros_type("visualization_msgs/msg/MeshFile")(filename="", data=np.zeros(0, np.uint8)),
+        mesh_use_embedded_materials=False,
     )
 
 
-def _marker(sim_time_s: float, ns: str, marker_id: int, kind: int, matrix: np.ndarray, scale: tuple, rgba: tuple, action: int = 0,
-            stamp: object | None = None):
+def _marker(
+    sim_time_s: float,
+    ns: str,
+    marker_id: int,
+    kind: int,
+    matrix: np.ndarray,
+    scale: tuple,
+    rgba: tuple,
+    action: int = 0,
+    stamp: object | None = None,
+):
     """One `visualization_msgs/Marker` in `world` (no texture, no mesh, no lifetime: it stays until replaced)."""
     t = _transform_msg(matrix)
     pose = ros_type("geometry_msgs/msg/Pose")(
-        position=ros_type("geometry_msgs/msg/Point")(x=t.translation.x, y=t.translation.y, z=t.translation.z), orientation=t.rotation,
+        position=ros_type("geometry_msgs/msg/Point")(x=t.translation.x, y=t.translation.y, z=t.translation.z),
+        orientation=t.rotation,
     )
     return ros_type("visualization_msgs/msg/Marker")(
-        header=_header(sim_time_s, WORLD, stamp), ns=ns, id=marker_id, type=kind, action=action, pose=pose,
+        header=_header(sim_time_s, WORLD, stamp),
+        ns=ns,
+        id=marker_id,
+        type=kind,
+        action=action,
+        pose=pose,
         scale=ros_type("geometry_msgs/msg/Vector3")(x=float(scale[0]), y=float(scale[1]), z=float(scale[2])),
-        color=ros_type("std_msgs/msg/ColorRGBA")(r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3])),
+        color=ros_type("std_msgs/msg/ColorRGBA")(
+            r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3])
+        ),
         **_unused_marker_fields(),
     )
 
@@ -149,7 +191,8 @@ def _translation(xyz) -> np.ndarray:
 
 
 class LineToRos:
-    """Builds the ROS messages of one scene's line: static TF and cell markers once, then per state and per parts message."""
+    """Builds the ROS messages of one scene's line: static TF and cell markers once, then per state and per parts
+    message."""
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
@@ -160,7 +203,9 @@ class LineToRos:
         self.CUBE, self.CYLINDER, self.DELETEALL = marker.CUBE, marker.CYLINDER, marker.DELETEALL
 
     def tf_static(self):
-        return ros_type("tf2_msgs/msg/TFMessage")(transforms=[t for arm in self.arms.values() for t in arm.static_transforms()])
+        return ros_type("tf2_msgs/msg/TFMessage")(
+            transforms=[t for arm in self.arms.values() for t in arm.static_transforms()]
+        )
 
     def tf(self, states: list[ArmState]):
         """Every moving link of the given arms (one tick of the line) in one message."""
@@ -168,7 +213,9 @@ class LineToRos:
         for s in states:
             if s.sim_time_s not in stamps:
                 stamps[s.sim_time_s] = time_msg(s.sim_time_s)
-        return ros_type("tf2_msgs/msg/TFMessage")(transforms=[t for s in states for t in self.arms[s.arm].transforms(s, stamps[s.sim_time_s])])
+        return ros_type("tf2_msgs/msg/TFMessage")(
+            transforms=[t for s in states for t in self.arms[s.arm].transforms(s, stamps[s.sim_time_s])]
+        )
 
     def joint_state(self, state: ArmState):
         return self.arms[state.arm].joint_state(state)
@@ -179,22 +226,55 @@ class LineToRos:
         c = self.scene.conveyor
         if c is not None:
             centre, half = belt_box(c)
-            markers.append(_marker(0.0, "belt", 0, self.CUBE, yaw_transform(c.pose.xyz, c.pose.yaw_rad) @ _translation(centre), [2 * h for h in half], BELT_RGBA))
+            markers.append(
+                _marker(
+                    0.0,
+                    "belt",
+                    0,
+                    self.CUBE,
+                    yaw_transform(c.pose.xyz, c.pose.yaw_rad) @ _translation(centre),
+                    [2 * h for h in half],
+                    BELT_RGBA,
+                )
+            )
         for s in self.scene.stations:
             place = yaw_transform(s.pose.xyz, s.pose.yaw_rad)
             for i, (centre, half) in enumerate(station_boxes(s)):
-                markers.append(_marker(0.0, f"stations/{s.name}", i, self.CUBE, place @ _translation(centre), [2 * h for h in half], STATION_RGBA[s.kind]))
+                markers.append(
+                    _marker(
+                        0.0,
+                        f"stations/{s.name}",
+                        i,
+                        self.CUBE,
+                        place @ _translation(centre),
+                        [2 * h for h in half],
+                        STATION_RGBA[s.kind],
+                    )
+                )
         return ros_type("visualization_msgs/msg/MarkerArray")(markers=markers)
 
     def parts_markers(self, parts: PartsState):
         """Every part on the line now, replacing those of the previous message."""
         t, stamp = parts.sim_time_s, time_msg(parts.sim_time_s)
-        markers = [_marker(t, "parts", 0, self.CUBE, np.eye(4), (1, 1, 1), (0, 0, 0, 0), action=self.DELETEALL, stamp=stamp)]
+        markers = [
+            _marker(t, "parts", 0, self.CUBE, np.eye(4), (1, 1, 1), (0, 0, 0, 0), action=self.DELETEALL, stamp=stamp)
+        ]
         for i, part_id in enumerate(parts.part_ids):
             key = (parts.feeders[i], parts.type_indices[i])
             pose = np.eye(4)
             pose[:3, :3] = pin.Quaternion(*parts.quaternions_wxyz[4 * i : 4 * i + 4]).toRotationMatrix()  # w, x, y, z
             pose[:3, 3] = parts.positions[3 * i : 3 * i + 3]
             kind = self.CYLINDER if self.part_kind.get(key) == "cylinder" else self.CUBE
-            markers.append(_marker(t, "parts", part_id, kind, pose, parts.sizes_m[3 * i : 3 * i + 3], self.part_rgba.get(key, (0.8, 0.8, 0.8, 1.0)), stamp=stamp))
+            markers.append(
+                _marker(
+                    t,
+                    "parts",
+                    part_id,
+                    kind,
+                    pose,
+                    parts.sizes_m[3 * i : 3 * i + 3],
+                    self.part_rgba.get(key, (0.8, 0.8, 0.8, 1.0)),
+                    stamp=stamp,
+                )
+            )
         return ros_type("visualization_msgs/msg/MarkerArray")(markers=markers)

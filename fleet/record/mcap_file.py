@@ -27,13 +27,16 @@ MAGIC = b"\x89MCAP0\r\n"
 RAW_ENCODING = "msgpack"
 METADATA = "clawfleet"
 LIBRARY = "clawfleet"
-_QOS = ("- history: 3\n  depth: 0\n  reliability: 1\n  durability: {durability}\n  deadline: {{sec: 0, nsec: 0}}\n"
-        "  lifespan: {{sec: 0, nsec: 0}}\n  liveliness: 1\n  liveliness_lease_duration: {{sec: 0, nsec: 0}}\n"
-        "  avoid_ros_namespace_conventions: false\n")
+_QOS = (
+    "- history: 3\n  depth: 0\n  reliability: 1\n  durability: {durability}\n  deadline: {{sec: 0, nsec: 0}}\n"
+    "  lifespan: {{sec: 0, nsec: 0}}\n  liveliness: 1\n  liveliness_lease_duration: {{sec: 0, nsec: 0}}\n"
+    "  avoid_ros_namespace_conventions: false\n"
+)
 
 
 def qos_profile(latched: bool) -> str:
-    """rosbag2's `offered_qos_profiles` YAML: reliable, keep all; transient_local (1) for latched topics, else volatile (2)."""
+    """rosbag2's `offered_qos_profiles` YAML: reliable, keep all; transient_local (1) for latched topics, else volatile
+    (2)."""
     return _QOS.format(durability=1 if latched else 2)
 
 
@@ -45,14 +48,16 @@ class RecordingWriter:
         self._stream: IO[bytes] = open(self.path, "wb")
         self._writer = Writer(self._stream, compression=CompressionType.ZSTD)
         self._writer.start(profile="ros2", library=LIBRARY)
-        self._writer.add_metadata(METADATA, {"scene": scene_json, "run_id": run_id, "protocol_version": str(PROTOCOL_VERSION)})
+        self._writer.add_metadata(
+            METADATA, {"scene": scene_json, "run_id": run_id, "protocol_version": str(PROTOCOL_VERSION)}
+        )
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
         self.messages = 0
         self.closed = False
 
-    def __enter__(self) -> "RecordingWriter":
+    def __enter__(self) -> RecordingWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -136,11 +141,13 @@ class Recording:
         stats = summary.statistics
         self.start_ns = stats.message_start_time if stats else 0
         self.end_ns = stats.message_end_time if stats else 0
-        self.message_counts = {summary.channels[cid].topic: n for cid, n in (stats.channel_message_counts.items() if stats else ())}
+        self.message_counts = {
+            summary.channels[cid].topic: n for cid, n in (stats.channel_message_counts.items() if stats else ())
+        }
 
     @property
     def scene(self):
-        from fleet.scene_loading import use_scene_robots
+        from fleet.common.scene_loading import use_scene_robots
         from scenes.schema import Scene
 
         return use_scene_robots(Scene.model_validate_json(self.scene_json))
@@ -152,7 +159,10 @@ class Recording:
     def raw_messages(self, keys: list[str] | None = None, start_ns: int | None = None) -> Iterator[RawMessage]:
         """Raw bus messages in time order (of one channel: in the order they were heard)."""
         topics = keys if keys is not None else self.raw_keys
-        yield from (RawMessage(channel.topic, message.data, message.log_time) for _, channel, message in self._iter(topics, start_ns))
+        yield from (
+            RawMessage(channel.topic, message.data, message.log_time)
+            for _, channel, message in self._iter(topics, start_ns)
+        )
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, object, str]]:
         """(topic, mcap message, schema name) for the given topics, in time order."""

@@ -2,7 +2,8 @@
 topics derived from them. No I/O but the writer: the recorder node feeds it what it hears.
 
 TF comes from the sim's frames (every arm at one tick, at the coordinator's rate: 10 Hz), joint states from each
-arm's own states (its controller's rate: 20 Hz). Stamps are sim time: a message's own (`sim_time_s`, or its tick) where it carries one, else the newest sim time
+arm's own states (its controller's rate: 20 Hz). Stamps are sim time: a message's own (`sim_time_s`, or its tick) where
+it carries one, else the newest sim time
 heard before it (goals, orders, e-stops), so nothing is stamped before the message that caused it.
 """
 
@@ -17,8 +18,27 @@ from functools import partial
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import (
-    ArmGoalMsg, ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, CoordTick, EnvAction, EnvTargets, EStop, GoalResultMsg,
-    GripperGoalMsg, LineEvent, LineView, MotionGrant, PartsState, Progress, RespawnRequest, Separations, SimControl, SimStatus,
+    ArmGoalMsg,
+    ArmOrder,
+    ArmState,
+    ArmStatus,
+    Assignment,
+    ControllerStep,
+    CoordTick,
+    EnvAction,
+    EnvTargets,
+    EStop,
+    GoalResultMsg,
+    GripperGoalMsg,
+    LineEvent,
+    LineView,
+    MotionGrant,
+    PartsState,
+    Progress,
+    RespawnRequest,
+    Separations,
+    SimControl,
+    SimStatus,
     TrajectoryGoalMsg,
 )
 from fleet.record.forked_build import LaterInChild, serialized
@@ -28,18 +48,38 @@ from fleet.record.ros_types import ros_type, sim_ns, to_ros
 from scenes.schema import Scene
 
 ARM_LEAVES = {
-    "state": ArmState, "step": ControllerStep, "goal": ArmGoalMsg, "result": GoalResultMsg, "status": ArmStatus,
-    "assign": ArmOrder, "env_action": EnvAction, "env_targets": EnvTargets,
+    "state": ArmState,
+    "step": ControllerStep,
+    "goal": ArmGoalMsg,
+    "result": GoalResultMsg,
+    "status": ArmStatus,
+    "assign": ArmOrder,
+    "env_action": EnvAction,
+    "env_targets": EnvTargets,
 }
 LINE_LEAVES = {
-    "world/parts": PartsState, "world/events": LineEvent, "world/control": SimControl, "world/status": SimStatus,
-    "world/frame": LineView, "estop": EStop, "coord/tick": CoordTick, "coord/progress": Progress,
-    "coord/separation": Separations, "launcher/respawn": RespawnRequest,
+    "world/parts": PartsState,
+    "world/events": LineEvent,
+    "world/control": SimControl,
+    "world/status": SimStatus,
+    "world/frame": LineView,
+    "estop": EStop,
+    "coord/tick": CoordTick,
+    "coord/progress": Progress,
+    "coord/separation": Separations,
+    "launcher/respawn": RespawnRequest,
 }
 SEMANTIC_TOPICS = {  # bus message type -> ROS topic (arm ones under /<arm>)
-    LineEvent: "/line/events", TrajectoryGoalMsg: "trajectory_goals", GripperGoalMsg: "gripper_goals",
-    GoalResultMsg: "goal_results", Assignment: "assignments", MotionGrant: "grants", ArmStatus: "status",
-    Progress: "/line/progress", SimStatus: "/line/sim_status", Separations: "/line/separations",
+    LineEvent: "/line/events",
+    TrajectoryGoalMsg: "trajectory_goals",
+    GripperGoalMsg: "gripper_goals",
+    GoalResultMsg: "goal_results",
+    Assignment: "assignments",
+    MotionGrant: "grants",
+    ArmStatus: "status",
+    Progress: "/line/progress",
+    SimStatus: "/line/sim_status",
+    Separations: "/line/separations",
 }
 
 
@@ -91,7 +131,7 @@ class Recorder:
         """The bus message type a key carries (None: a key this recorder does not know)."""
         if not key.startswith(self._prefix):
             return None
-        rest = key[len(self._prefix):]
+        rest = key[len(self._prefix) :]
         if rest.startswith("arm/"):
             return ARM_LEAVES.get(rest.rsplit("/", 1)[-1])
         return LINE_LEAVES.get(rest)
@@ -105,7 +145,9 @@ class Recorder:
 
     def _stamp_s(self, message: object) -> float:
         """The message's own sim time where it has one, else the newest heard."""
-        if isinstance(message, (ArmState, LineView, PartsState, GoalResultMsg, ArmStatus, Progress, SimStatus, Separations)):
+        if isinstance(
+            message, (ArmState, LineView, PartsState, GoalResultMsg, ArmStatus, Progress, SimStatus, Separations)
+        ):
             return message.sim_time_s
         if isinstance(message, (LineEvent, ControllerStep, CoordTick)):
             return message.tick / self.control_hz
@@ -176,5 +218,10 @@ class Recorder:
         """The run's summary (latched, at the last sim time heard), then the file's index."""
         if summary is not None:
             w = self.writer
-            w.ros("/line/summary", ros_type("std_msgs/msg/String")(data=json.dumps(summary, sort_keys=True)), sim_ns(self.now_s), latched=True)
+            w.ros(
+                "/line/summary",
+                ros_type("std_msgs/msg/String")(data=json.dumps(summary, sort_keys=True)),
+                sim_ns(self.now_s),
+                latched=True,
+            )
         self.writer.close()

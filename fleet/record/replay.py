@@ -22,7 +22,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import SimControl
 from fleet.bus.scene_query import serve_scene
 from fleet.bus.session import Inbox
-from fleet.processes import StopFlag
+from fleet.common.processes import StopFlag
 from fleet.record.mcap_file import RawMessage, Recording
 
 STEP_S = 0.01  # wall seconds between publishing rounds
@@ -53,11 +53,15 @@ class PlaybackClock:
 class Player:
     """Publishes a recording's raw bus messages on `keys` (use in a `with` block: its publishers are undeclared)."""
 
-    def __init__(self, recording: Recording, session: zenoh.Session, keys: Keys, from_s: float | None = None, speed: float = 1.0) -> None:
+    def __init__(
+        self, recording: Recording, session: zenoh.Session, keys: Keys, from_s: float | None = None, speed: float = 1.0
+    ) -> None:
         self.recording, self.session, self.keys = recording, session, keys
         source = Keys(recording.run_id).prefix
         self.messages: list[RawMessage] = [
-            RawMessage(keys.prefix + m.key[len(source):], m.payload, m.stamp_ns) for m in recording.raw_messages() if m.key.startswith(source)
+            RawMessage(keys.prefix + m.key[len(source) :], m.payload, m.stamp_ns)
+            for m in recording.raw_messages()
+            if m.key.startswith(source)
         ]
         self.stamps_s = [m.stamp_ns / 1e9 for m in self.messages]
         start, end = recording.start_ns / 1e9, recording.end_ns / 1e9
@@ -72,7 +76,7 @@ class Player:
         self._control_sub = session.declare_subscriber(keys.control, self._control_inbox)
         self._control_decoder = Decoder(SimControl, DropCounter())
 
-    def __enter__(self) -> "Player":
+    def __enter__(self) -> Player:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -97,7 +101,7 @@ class Player:
         """Publish every message stamped up to `t_s` not published yet; how many."""
         with self._lock:
             end = bisect.bisect_right(self.stamps_s, t_s)
-            for message in self.messages[self.next_index:end]:
+            for message in self.messages[self.next_index : end]:
                 self._publish(message)
             count, self.next_index = max(0, end - self.next_index), max(self.next_index, end)
             return count

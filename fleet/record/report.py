@@ -1,7 +1,8 @@
 """A run's artefacts from its recording: time series (CSV) and the plots a line engineer looks at first.
 
 - `arms.csv`: per arm and state (sim time): skill phase, task, busy, held, lost;
-- `line.csv`: at the coordinator's rate (a one-arm line, with no separations: at the coordinator's progress reports, a few a wall second): parts spawned / completed / missed / failed, throughput so far,
+- `line.csv`: at the coordinator's rate (a one-arm line, with no separations: at the coordinator's progress reports, a
+few a wall second): parts spawned / completed / missed / failed, throughput so far,
   the closest separation between arms now, the latest round-trip p99;
 - `gantt.png` (every arm's phases and tasks over sim time), `line.png` (throughput and closest separation
   over time), `round_trip.png` (every state-to-answer round trip of the run, from the summary).
@@ -23,13 +24,30 @@ from fleet.record.mcap_file import Recording
 from fleet.record.ros_types import deserialize
 
 PHASE_COLOURS = {
-    "approach": "#4C72B0", "descend": "#55A868", "close": "#2E8B57", "lift": "#8172B2", "standby": "#E8A0A2", "transfer": "#C44E52",
-    "lower": "#CCB974", "release": "#DD8452", "retreat": "#64B5CD", "home": "#8C8C8C", "failed": "#000000",
+    "approach": "#4C72B0",
+    "descend": "#55A868",
+    "close": "#2E8B57",
+    "lift": "#8172B2",
+    "standby": "#E8A0A2",
+    "transfer": "#C44E52",
+    "lower": "#CCB974",
+    "release": "#DD8452",
+    "retreat": "#64B5CD",
+    "home": "#8C8C8C",
+    "failed": "#000000",
 }
 HELD_COLOUR = "#BBBBBB"
 ARM_FIELDS = ("sim_time_s", "arm", "skill", "task_id", "busy", "held", "lost")
-LINE_FIELDS = ("sim_time_s", "parts_spawned", "parts_completed", "parts_missed", "parts_failed", "throughput_per_min",
-               "closest_separation_m", "round_trip_p99_ms")
+LINE_FIELDS = (
+    "sim_time_s",
+    "parts_spawned",
+    "parts_completed",
+    "parts_missed",
+    "parts_failed",
+    "throughput_per_min",
+    "closest_separation_m",
+    "round_trip_p99_ms",
+)
 
 
 @dataclass
@@ -51,8 +69,11 @@ def series_from_recording(recording: Recording) -> RunSeries:
     series = RunSeries(arms, end_s=recording.end_ns / 1e9)
     drops = DropCounter()
     decoders = {keys.arm_state(a): Decoder(ArmState, drops) for a in arms}
-    decoders |= {keys.coord("progress"): Decoder(Progress, drops), keys.coord("separation"): Decoder(Separations, drops),
-                 keys.sim_status: Decoder(SimStatus, drops)}
+    decoders |= {
+        keys.coord("progress"): Decoder(Progress, drops),
+        keys.coord("separation"): Decoder(Separations, drops),
+        keys.sim_status: Decoder(SimStatus, drops),
+    }
     rows_on = Separations if keys.coord("separation") in recording.channels else Progress  # one arm: no separations
     last_tick: dict[str, int] = {}
     progress: Progress | None = None
@@ -62,7 +83,9 @@ def series_from_recording(recording: Recording) -> RunSeries:
         if isinstance(msg, ArmState) and msg.tick > last_tick.get(msg.arm, -1):
             last_tick[msg.arm] = msg.tick
             busy = msg.skill not in ("idle", "done")
-            series.arm_rows.append(dict(zip(ARM_FIELDS, (msg.sim_time_s, msg.arm, msg.skill, msg.task_id, busy, msg.held, msg.lost))))
+            series.arm_rows.append(
+                dict(zip(ARM_FIELDS, (msg.sim_time_s, msg.arm, msg.skill, msg.task_id, busy, msg.held, msg.lost)))
+            )
         elif isinstance(msg, Progress):
             progress = msg
             if rows_on is Progress:
@@ -81,11 +104,21 @@ def series_from_recording(recording: Recording) -> RunSeries:
 
 def _line_row(t: float, closest_m: float | None, progress: Progress | None, status: SimStatus | None) -> dict:
     done = progress.parts_completed if progress else 0
-    return dict(zip(LINE_FIELDS, (
-        t, progress.parts_spawned if progress else 0, done, progress.parts_missed if progress else 0,
-        progress.parts_failed if progress else 0, round(done / (t / 60.0), 3) if t > 0 else 0.0,
-        closest_m, status.latency_p99_ms if status else None,
-    )))
+    return dict(
+        zip(
+            LINE_FIELDS,
+            (
+                t,
+                progress.parts_spawned if progress else 0,
+                done,
+                progress.parts_missed if progress else 0,
+                progress.parts_failed if progress else 0,
+                round(done / (t / 60.0), 3) if t > 0 else 0.0,
+                closest_m,
+                status.latency_p99_ms if status else None,
+            ),
+        )
+    )
 
 
 def phase_segments(rows: list[dict], arm: str, end_s: float) -> list[tuple[float, float, str, int | None, bool]]:
@@ -94,7 +127,9 @@ def phase_segments(rows: list[dict], arm: str, end_s: float) -> list[tuple[float
     mine = [r for r in rows if r["arm"] == arm]
     ends = [r["sim_time_s"] for r in mine[1:]] + ([max(end_s, mine[-1]["sim_time_s"])] if mine else [])
     segments = []
-    for key, run in groupby(zip(mine, ends), key=lambda pair: (pair[0]["skill"], pair[0]["task_id"], pair[0]["held"] or pair[0]["lost"])):
+    for key, run in groupby(
+        zip(mine, ends), key=lambda pair: (pair[0]["skill"], pair[0]["task_id"], pair[0]["held"] or pair[0]["lost"])
+    ):
         run = list(run)
         start = run[0][0]["sim_time_s"]
         segments.append((start, run[-1][1] - start, *key))
@@ -116,7 +151,10 @@ def write_report(series: RunSeries, out_dir: str | Path) -> list[Path]:
     matplotlib.use("Agg")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    written = [_write_csv(out / "arms.csv", ARM_FIELDS, series.arm_rows), _write_csv(out / "line.csv", LINE_FIELDS, series.line_rows)]
+    written = [
+        _write_csv(out / "arms.csv", ARM_FIELDS, series.arm_rows),
+        _write_csv(out / "line.csv", LINE_FIELDS, series.line_rows),
+    ]
     written.append(_gantt(series, out / "gantt.png"))
     written.append(_line_plot(series, out / "line.png"))
     written.append(_round_trip_plot(series, out / "round_trip.png"))
@@ -131,7 +169,9 @@ def _gantt(series: RunSeries, path: Path) -> Path:
     for row, arm in enumerate(series.arms):
         for start, length, skill, task, held in phase_segments(series.arm_rows, arm, series.end_s):
             if held:
-                ax.broken_barh([(start, length)], (row - 0.4, 0.8), facecolors=HELD_COLOUR, hatch="//", edgecolor="#888888")
+                ax.broken_barh(
+                    [(start, length)], (row - 0.4, 0.8), facecolors=HELD_COLOUR, hatch="//", edgecolor="#888888"
+                )
             elif skill in PHASE_COLOURS:
                 ax.broken_barh([(start, length)], (row - 0.4, 0.8), facecolors=PHASE_COLOURS[skill])
                 if task is not None and skill == "approach" and length > 0.02 * max(series.end_s, 1e-9):
@@ -142,8 +182,12 @@ def _gantt(series: RunSeries, path: Path) -> Path:
     ax.set_xlabel("sim time (s)")
     title = "every arm's phases (task ids at each approach; blank: idle; hatched: held or lost)"
     ax.set_title(title, fontsize=10)
-    handles = [Patch(facecolor=c, label=p) for p, c in PHASE_COLOURS.items()] + [Patch(facecolor=HELD_COLOUR, hatch="//", label="held")]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=len(handles), fontsize=7, frameon=False)
+    handles = [Patch(facecolor=c, label=p) for p, c in PHASE_COLOURS.items()] + [
+        Patch(facecolor=HELD_COLOUR, hatch="//", label="held")
+    ]
+    ax.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=len(handles), fontsize=7, frameon=False
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -160,13 +204,17 @@ def _line_plot(series: RunSeries, path: Path) -> Path:
     top.plot(t, [r["parts_missed"] for r in series.line_rows], label="missed", color="#C44E52")
     top.set_ylabel("parts")
     rate = top.twinx()
-    rate.plot(t, [r["throughput_per_min"] for r in series.line_rows], color="#8172B2", alpha=0.6, label="throughput so far")
+    rate.plot(
+        t, [r["throughput_per_min"] for r in series.line_rows], color="#8172B2", alpha=0.6, label="throughput so far"
+    )
     rate.set_ylabel("parts / sim minute")
     if series.summary and series.summary.get("throughput_bound_per_min"):
         rate.axhline(series.summary["throughput_bound_per_min"], color="#8172B2", linestyle=":", label="capacity bound")
     lines = top.get_legend_handles_labels()[0] + rate.get_legend_handles_labels()[0]
     top.legend(lines, [h.get_label() for h in lines], loc="upper left", fontsize=8)
-    closest = [(r["sim_time_s"], r["closest_separation_m"]) for r in series.line_rows if r["closest_separation_m"] is not None]
+    closest = [
+        (r["sim_time_s"], r["closest_separation_m"]) for r in series.line_rows if r["closest_separation_m"] is not None
+    ]
     if closest:
         bottom.plot(*zip(*closest), color="#4C72B0", label="closest arms")
     if series.margin_m is not None:
@@ -176,7 +224,15 @@ def _line_plot(series: RunSeries, path: Path) -> Path:
     if bottom.get_legend_handles_labels()[0]:
         bottom.legend(loc="upper right", fontsize=8)
     else:
-        bottom.text(0.5, 0.5, "one arm: no separation to draw", transform=bottom.transAxes, ha="center", va="center", color="#8C8C8C")
+        bottom.text(
+            0.5,
+            0.5,
+            "one arm: no separation to draw",
+            transform=bottom.transAxes,
+            ha="center",
+            va="center",
+            color="#8C8C8C",
+        )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -197,7 +253,9 @@ def _round_trip_plot(series: RunSeries, path: Path) -> Path:
         s = series.summary
         ax.set_title(f"p50 {s.get('latency_p50_ms')} ms, p99 {s.get('latency_p99_ms')} ms", fontsize=10)
     else:
-        ax.text(0.5, 0.5, "no round trips in this recording's summary", ha="center", va="center", transform=ax.transAxes)
+        ax.text(
+            0.5, 0.5, "no round trips in this recording's summary", ha="center", va="center", transform=ax.transAxes
+        )
         ax.set_axis_off()
     fig.tight_layout()
     fig.savefig(path, dpi=110)

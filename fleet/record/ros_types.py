@@ -80,7 +80,9 @@ def bus_type(message_type: type[Message]) -> str:
 @cache
 def _fields(message_type: type[Message]) -> tuple[tuple[str, mi.Type, object], ...]:
     """(name, type, value for None) of every field but `version`."""
-    return tuple((f.name, f.type, _field_type(f.type)[1]) for f in mi.type_info(message_type).fields if f.name != "version")
+    return tuple(
+        (f.name, f.type, _field_type(f.type)[1]) for f in mi.type_info(message_type).fields if f.name != "version"
+    )
 
 
 def to_ros(message: Message) -> object:

@@ -117,7 +117,7 @@ class SpoolReader:
             (length,) = _LENGTH.unpack_from(buffer, at)
             if len(buffer) - at - _LENGTH.size < length:
                 break
-            frames.append(bytes(buffer[at + _LENGTH.size: at + _LENGTH.size + length]))
+            frames.append(bytes(buffer[at + _LENGTH.size : at + _LENGTH.size + length]))
             at += _LENGTH.size + length
         del buffer[:at]
         return frames
@@ -134,7 +134,9 @@ class SpoolReader:
                 except msgspec.DecodeError:
                     raise SpoolError(f"{self.path}: not a bus spool") from None
                 if self.header.version != SPOOL_VERSION:
-                    raise SpoolError(f"{self.path}: spool version {self.header.version}, this reader reads {SPOOL_VERSION}")
+                    raise SpoolError(
+                        f"{self.path}: spool version {self.header.version}, this reader reads {SPOOL_VERSION}"
+                    )
                 self._pending = frames[1:]
                 break
             if time.monotonic() >= deadline or give_up():

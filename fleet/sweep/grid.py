@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from fleet.scene_loading import load_scene
+from fleet.common.scene_loading import load_scene
 from scenes.loader import SceneError, resolve_scene_path, yaml_text
 from scenes.yaml_file import named_in
 
@@ -33,7 +33,7 @@ class Override:
     values: tuple
 
     @classmethod
-    def parse(cls, text: str) -> "Override":
+    def parse(cls, text: str) -> Override:
         path, sep, values = text.partition("=")
         if not sep or not path or not values:
             raise GridError(f"--set {text!r}: write FIELD.PATH=VALUE[,VALUE...], e.g. conveyor.speed_m_per_s=0.05,0.1")
@@ -58,7 +58,13 @@ class RunCell:
     @property
     def group(self) -> dict:
         """The cell's arguments but its seed: runs of one group are averaged."""
-        return {"scene": self.scene, "arms": self.arms, "allocator": self.allocator, "duration_s": self.duration_s, **self.overrides}
+        return {
+            "scene": self.scene,
+            "arms": self.arms,
+            "allocator": self.allocator,
+            "duration_s": self.duration_s,
+            **self.overrides,
+        }
 
     @property
     def run_id(self) -> str:
@@ -110,7 +116,9 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
         return scene
     source = resolve_scene_path(scene)
     data = yaml.safe_load(yaml_text(source, str(source)))
-    if isinstance(data, dict) and isinstance(data.get("robot_files"), list):  # the copy lives elsewhere: keep them found
+    if isinstance(data, dict) and isinstance(
+        data.get("robot_files"), list
+    ):  # the copy lives elsewhere: keep them found
         data["robot_files"] = [str(named_in(source, f)) if isinstance(f, str) else f for f in data["robot_files"]]
     label = f"{source} with --set {', '.join(f'{k}={v}' for k, v in overrides.items())}"
     for path, value in overrides.items():
@@ -135,8 +143,14 @@ def scenes_for(cells: list[RunCell], folder: Path) -> dict[str, str]:
     return {c.run_id: made[json.dumps([c.scene, c.overrides], sort_keys=True, default=str)] for c in cells}
 
 
-def grid(scene: str, seeds: list[int], allocators: list[str], duration_s: float, arms: int | None = None,
-         overrides: list[Override] = ()) -> list[RunCell]:
+def grid(
+    scene: str,
+    seeds: list[int],
+    allocators: list[str],
+    duration_s: float,
+    arms: int | None = None,
+    overrides: list[Override] = (),
+) -> list[RunCell]:
     """Every combination, seeds innermost (so the first runs already cover every group)."""
     paths = [o.path for o in overrides]
     combos = itertools.product(allocators, *(o.values for o in overrides))

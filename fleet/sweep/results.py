@@ -14,8 +14,17 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-FIGURES = ("throughput_per_min", "parts_completed", "parts_missed", "bound_fraction", "run_bound_fraction", "inter_arm_contacts", "min_separation_m",
-           "grants_denied", "wall_seconds")
+FIGURES = (
+    "throughput_per_min",
+    "parts_completed",
+    "parts_missed",
+    "bound_fraction",
+    "run_bound_fraction",
+    "inter_arm_contacts",
+    "min_separation_m",
+    "grants_denied",
+    "wall_seconds",
+)
 
 
 def _scalar(value: object) -> bool:
@@ -27,8 +36,14 @@ def run_rows(results: list[dict]) -> list[dict]:
     rows = []
     for r in results:
         cell, summary = r["cell"], r["summary"]
-        row = {"run_id": _run_id(cell), "scene": cell["scene"], "arms": cell["arms"], "allocator": cell["allocator"], "seed": cell["seed"],
-               "duration_s": cell["duration_s"]}
+        row = {
+            "run_id": _run_id(cell),
+            "scene": cell["scene"],
+            "arms": cell["arms"],
+            "allocator": cell["allocator"],
+            "seed": cell["seed"],
+            "duration_s": cell["duration_s"],
+        }
         row |= {f"set:{k}": v for k, v in sorted(cell["overrides"].items())}
         row |= {k: v for k, v in sorted(summary.items()) if _scalar(v) and k not in row}
         rows.append(row)
@@ -42,7 +57,11 @@ def _run_id(cell: dict) -> str:
 
 
 def group_key(row: dict) -> tuple:
-    return tuple((k, json.dumps(row[k])) for k in sorted(row) if k in ("scene", "arms", "allocator", "duration_s") or k.startswith("set:"))
+    return tuple(
+        (k, json.dumps(row[k]))
+        for k in sorted(row)
+        if k in ("scene", "arms", "allocator", "duration_s") or k.startswith("set:")
+    )
 
 
 def mean_ci(values: list[float]) -> tuple[float, float]:
@@ -63,12 +82,17 @@ def cell_rows(rows: list[dict]) -> list[dict]:
         groups.setdefault(group_key(row), []).append(row)
     out = []
     for key, members in groups.items():
-        cell = {k: json.loads(v) for k, v in key} | {"runs": len(members), "seeds": " ".join(str(m["seed"]) for m in sorted(members, key=lambda m: m["seed"]))}
+        cell = {k: json.loads(v) for k, v in key} | {
+            "runs": len(members),
+            "seeds": " ".join(str(m["seed"]) for m in sorted(members, key=lambda m: m["seed"])),
+        }
         for figure in FIGURES:
             mean, half = mean_ci([m.get(figure) for m in members])
             cell[f"{figure}_mean"], cell[f"{figure}_ci95"] = round(mean, 4), round(half, 4)
         out.append(cell)
-    return sorted(out, key=lambda c: json.dumps([c.get(k) for k in sorted(c) if not k.endswith(("_mean", "_ci95"))], default=str))
+    return sorted(
+        out, key=lambda c: json.dumps([c.get(k) for k in sorted(c) if not k.endswith(("_mean", "_ci95"))], default=str)
+    )
 
 
 def pair_rows(rows: list[dict], figure: str = "throughput_per_min") -> list[dict]:
@@ -82,17 +106,25 @@ def pair_rows(rows: list[dict], figure: str = "throughput_per_min") -> list[dict
     for rest, by_allocator in groups.items():
         names = sorted(by_allocator)
         for i, a in enumerate(names):
-            for b in names[i + 1:]:
+            for b in names[i + 1 :]:
                 seeds = sorted(set(by_allocator[a]) & set(by_allocator[b]))
                 x = np.asarray([by_allocator[a][s] for s in seeds], float)
                 y = np.asarray([by_allocator[b][s] for s in seeds], float)
                 mean, half = mean_ci(list(x - y))
                 p = float(stats.ttest_rel(x, y).pvalue) if len(seeds) > 1 and np.any(x != y) else math.nan
-                out.append({k: json.loads(v) for k, v in rest} | {
-                    "first": a, "second": b, "seeds": len(seeds), f"{figure}_first": round(float(x.mean()), 4) if seeds else math.nan,
-                    f"{figure}_second": round(float(y.mean()), 4) if seeds else math.nan,
-                    "difference_mean": round(mean, 4), "difference_ci95": round(half, 4), "p_value": round(p, 5),
-                })
+                out.append(
+                    {k: json.loads(v) for k, v in rest}
+                    | {
+                        "first": a,
+                        "second": b,
+                        "seeds": len(seeds),
+                        f"{figure}_first": round(float(x.mean()), 4) if seeds else math.nan,
+                        f"{figure}_second": round(float(y.mean()), 4) if seeds else math.nan,
+                        "difference_mean": round(mean, 4),
+                        "difference_ci95": round(half, 4),
+                        "p_value": round(p, 5),
+                    }
+                )
     return out
 
 
@@ -142,8 +174,14 @@ def plot_against(cells: list[dict], field: str, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6, 4))
     for allocator in sorted({c["allocator"] for c in cells}):
         mine = sorted((c for c in cells if c["allocator"] == allocator), key=lambda c: c[f"set:{field}"])
-        ax.errorbar([c[f"set:{field}"] for c in mine], [c["throughput_per_min_mean"] for c in mine],
-                    yerr=[0 if math.isnan(c["throughput_per_min_ci95"]) else c["throughput_per_min_ci95"] for c in mine], capsize=4, marker="o", label=allocator)
+        ax.errorbar(
+            [c[f"set:{field}"] for c in mine],
+            [c["throughput_per_min_mean"] for c in mine],
+            yerr=[0 if math.isnan(c["throughput_per_min_ci95"]) else c["throughput_per_min_ci95"] for c in mine],
+            capsize=4,
+            marker="o",
+            label=allocator,
+        )
     ax.set_xlabel(field)
     ax.set_ylabel("parts per sim minute (mean, 95% CI)")
     ax.legend(fontsize=8)

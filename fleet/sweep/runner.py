@@ -14,7 +14,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict
 from pathlib import Path
 
-from fleet.processes import die_with_parent
+from fleet.common.processes import die_with_parent
 from fleet.sweep.grid import RunCell, scenes_for
 
 RUNS_DIR = "runs"
@@ -62,7 +62,7 @@ def worker_factory():
     """This worker's node factory: started at its first run and kept, so that its runs import the node modules
     once between them, not once a run (it dies with the worker; a dead one is replaced)."""
     global _FACTORY
-    from fleet.node_factory import NodeFactory
+    from fleet.run.node_factory import NodeFactory
 
     if _FACTORY is None or _FACTORY.proc.poll() is not None:
         _FACTORY = NodeFactory(None)  # no log of its own: it outlives every run's folder (each node logs there)
@@ -72,13 +72,20 @@ def worker_factory():
 def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) -> dict:
     import tempfile
 
-    from fleet.launcher import Launcher, RunOptions
+    from fleet.run.launcher import Launcher, RunOptions
 
     with tempfile.TemporaryDirectory(prefix="clawfleet-sweep-") as tmp:
         if scene_text is not None:
             scene = str(Path(tmp) / Path(scene).name)
             Path(scene).write_text(scene_text)
-        options = RunOptions(scene=scene, arms=cell.arms, duration_s=cell.duration_s, seed=cell.seed, allocator=cell.allocator, run_id=run_id)
+        options = RunOptions(
+            scene=scene,
+            arms=cell.arms,
+            duration_s=cell.duration_s,
+            seed=cell.seed,
+            allocator=cell.allocator,
+            run_id=run_id,
+        )
         with Launcher(options, on_message=lambda _text: None, factory=worker_factory()) as launcher:
             return launcher.run()
 
@@ -109,8 +116,15 @@ def load_results(out: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted((out / RUNS_DIR).glob("*.json"))]
 
 
-def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[RunCell, dict], None], scenes: dict[str, str] | None = None) -> None:
-    """`jobs` runs at a time in worker processes (spawned: no inherited bus state). `scenes`: `scenes_for(cells)`, if made already."""
+def run_local(
+    cells: list[RunCell],
+    out: Path,
+    jobs: int,
+    on_done: Callable[[RunCell, dict], None],
+    scenes: dict[str, str] | None = None,
+) -> None:
+    """`jobs` runs at a time in worker processes (spawned: no inherited bus state). `scenes`: `scenes_for(cells)`, if
+    made already."""
     scenes = scenes or scenes_for(cells, out / "scenes")
     context = multiprocessing.get_context("spawn")
     # a worker dies with the sweep (SIGTERM, kill -9 alike): its run's launcher stops that run's processes
@@ -130,7 +144,13 @@ def run_local(cells: list[RunCell], out: Path, jobs: int, on_done: Callable[[Run
             raise
 
 
-def run_ray(cells: list[RunCell], out: Path, address: str, on_done: Callable[[RunCell, dict], None], scenes: dict[str, str] | None = None) -> dict:
+def run_ray(
+    cells: list[RunCell],
+    out: Path,
+    address: str,
+    on_done: Callable[[RunCell, dict], None],
+    scenes: dict[str, str] | None = None,
+) -> dict:
     """Each run a Ray task on the cluster at `address` (one CPU each; a run's processes live on the node that
     runs it). What Ray reported. No local Ray is started here: Ray's servers listen on every interface of the
     machine they run on (Ray 2.60, whatever `node_ip_address` says), so where to run one is the user's call."""
@@ -141,8 +161,14 @@ def run_ray(cells: list[RunCell], out: Path, address: str, on_done: Callable[[Ru
         ray.init(address=address, log_to_driver=False)
     except (ConnectionError, RuntimeError) as exc:
         said = str(exc).strip().splitlines()
-        hint = " (a cluster with token authentication: set RAY_AUTH_MODE=token here too)" if "auth" in str(exc).lower() else ""
-        raise RuntimeError(f"cannot reach the Ray cluster at {address}: {said[-1] if said else type(exc).__name__}{hint}") from None
+        hint = (
+            " (a cluster with token authentication: set RAY_AUTH_MODE=token here too)"
+            if "auth" in str(exc).lower()
+            else ""
+        )
+        raise RuntimeError(
+            f"cannot reach the Ray cluster at {address}: {said[-1] if said else type(exc).__name__}{hint}"
+        ) from None
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(run_cell)
         texts = {c.run_id: Path(scenes[c.run_id]).read_text() if c.overrides else None for c in cells}

@@ -37,8 +37,8 @@ from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment, quintic
 
-
-UNREACHABLE = "cannot be reached from above"  # a skill's refusal of a part it cannot grasp as it lies (the coordinator remembers it)
+# a skill's refusal of a part it cannot grasp as it lies (the coordinator remembers it)
+UNREACHABLE = "cannot be reached from above"
 
 
 class Phase(str, Enum):
@@ -58,14 +58,31 @@ class Phase(str, Enum):
 
 
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
-SEGMENT_PHASES = (Phase.APPROACH, Phase.STANDBY, Phase.TRANSFER, Phase.HOME)  # free joint-space moves: the ones that need a grant
+SEGMENT_PHASES = (
+    Phase.APPROACH,
+    Phase.STANDBY,
+    Phase.TRANSFER,
+    Phase.HOME,
+)  # free joint-space moves: the ones that need a grant
 REPLAN_AFTER_S = 0.3
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
-ORDER = [Phase.APPROACH, Phase.DESCEND, Phase.CLOSE, Phase.LIFT, Phase.TRANSFER, Phase.LOWER, Phase.RELEASE, Phase.RETREAT, Phase.HOME]
+ORDER = [
+    Phase.APPROACH,
+    Phase.DESCEND,
+    Phase.CLOSE,
+    Phase.LIFT,
+    Phase.TRANSFER,
+    Phase.LOWER,
+    Phase.RELEASE,
+    Phase.RETREAT,
+    Phase.HOME,
+]
 FAILED_STATUSES = ("aborted", "rejected")
 LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
-MAX_KNOT_JUMP_RAD = 0.5  # a Cartesian path's knot that would turn a joint further than this from the one before is not kept
+MAX_KNOT_JUMP_RAD = (
+    0.5  # a Cartesian path's knot that would turn a joint further than this from the one before is not kept
+)
 MAX_RESENDS = 2  # a batch of goals lost again after this many sends ends the task failed
 
 
@@ -88,12 +105,16 @@ class PickPlaceTiming:
     place_drop_m: float = 0.008
     clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home
     home_tolerance_rad: float = 0.05  # within this of the home pose on every joint counts as home
-    detour_after_s: float = 2.0  # a transfer denied this long goes home first (the arm in the way may be waiting for it)
-    standby_back: float = 0.8  # told to stand by: this fraction of the way from the place's hover point to the arm's base...
+    detour_after_s: float = (
+        2.0  # a transfer denied this long goes home first (the arm in the way may be waiting for it)
+    )
+    standby_back: float = (
+        0.8  # told to stand by: this fraction of the way from the place's hover point to the arm's base...
+    )
     standby_up_m: float = 0.08  # ...and this much higher
 
     @classmethod
-    def for_robot(cls, spec: RobotSpec) -> "PickPlaceTiming":
+    def for_robot(cls, spec: RobotSpec) -> PickPlaceTiming:
         """The default timing with the robot's own values (`RobotSpec.pick_timing`)."""
         return dataclasses.replace(cls(), **spec.pick_timing)
 
@@ -118,7 +139,8 @@ def _rise(up: np.ndarray, up_m: float, below_m: float = 0.0) -> np.ndarray:
 
 
 class PickPlaceSkill:
-    """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step` returns.
+    """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step`
+    returns.
 
     `decision_period_s` is how often `step` is called; `latency_s` how long after a decision its goals
     reach the tracker (a controller's answer takes effect at its next due tick: one period, the
@@ -156,7 +178,9 @@ class PickPlaceSkill:
         self.sent_goals: set[int] = set()  # trajectory goals of the current task
         self._outbox: list[ArmGoal] = []
         self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
-        self._unconfirmed: list[tuple[float, int, list[ArmGoal]]] = []  # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
+        self._unconfirmed: list[
+            tuple[float, int, list[ArmGoal]]
+        ] = []  # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
         self.goals_resent = 0
         self.plan_end_s = 0.0
         self.phase_t0 = 0.0
@@ -169,9 +193,15 @@ class PickPlaceSkill:
         self._then_cache: tuple = (None, ([], []))  # the local stage of the move last asked for
         self.place_yaw = 0.0
         self.pick_tilt_rad = self.place_tilt_rad = 0.0  # how far the claw leans from straight down at each end
-        self.grasp_centre = (0.0, 0.0, 0.0)  # where the part sits between the jaws, tool frame (off centre: one fixed jaw)
+        self.grasp_centre = (
+            0.0,
+            0.0,
+            0.0,
+        )  # where the part sits between the jaws, tool frame (off centre: one fixed jaw)
         self._grasp_world = np.zeros(3)
-        self._pick_up = self._place_up = np.array([0.0, 0.0, 1.0])  # the way the claw rises from the part, from the place
+        self._pick_up = self._place_up = np.array(
+            [0.0, 0.0, 1.0]
+        )  # the way the claw rises from the part, from the place
         self.detours = 0
 
     @property
@@ -179,13 +209,17 @@ class PickPlaceSkill:
         return tuple(self.spec.arm_joints)
 
     # --- geometry -------------------------------------------------------------------
-    def _ik(self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray, tilt_rad: float) -> tuple[np.ndarray, bool]:
+    def _ik(
+        self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray, tilt_rad: float
+    ) -> tuple[np.ndarray, bool]:
         return self.top_down.solve(position_world, yaw_world, q_start, tilt_rad, self.grasp_centre)
 
-    def _least_tilt(self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0,
-                    from_rad: float = 0.0) -> tuple[float, np.ndarray, np.ndarray] | None:
+    def _least_tilt(
+        self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0, from_rad: float = 0.0
+    ) -> tuple[float, np.ndarray, np.ndarray] | None:
         """The most vertical claw (straight down where it can; leaning `from_rad` at least) that reaches `up_m`
         above a spot (and `below_m` straight above it first): its tilt, its joints and the way it rises there."""
+
         def rise_at(tilt: float) -> np.ndarray:
             return _rise(self.top_down.up_between_jaws(spot_world, yaw_world, tilt), up_m, below_m)
 
@@ -224,7 +258,9 @@ class PickPlaceSkill:
         return self.goal_id
 
     def _send_move(self, q_end: np.ndarray, duration_s: float, start_s: float) -> None:
-        goal = rest_to_rest(self._next_id(), self.joint_names, q_end, duration_s, start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,))
+        goal = rest_to_rest(
+            self._next_id(), self.joint_names, q_end, duration_s, start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,)
+        )
         self.sent_goals.add(goal.goal_id)
         self._outbox.append(goal)
 
@@ -233,8 +269,14 @@ class PickPlaceSkill:
         dq = np.gradient(qs, times_s, axis=0) if len(times_s) > 1 else np.zeros_like(qs)
         dq[-1] = 0.0  # every stage ends at rest
         goal = TrajectoryGoal(
-            self._next_id(), self.joint_names, tuple(map(float, times_s)), tuple(tuple(map(float, q)) for q in qs),
-            tuple(tuple(map(float, v)) for v in dq), (), start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,),
+            self._next_id(),
+            self.joint_names,
+            tuple(map(float, times_s)),
+            tuple(tuple(map(float, q)) for q in qs),
+            tuple(tuple(map(float, v)) for v in dq),
+            (),
+            start_s,
+            path_tolerance_rad=(PATH_TOLERANCE_RAD,),
         )
         self.sent_goals.add(goal.goal_id)
         self._outbox.append(goal)
@@ -245,7 +287,9 @@ class PickPlaceSkill:
         return soonest if start_s is None else max(start_s, soonest)
 
     def _send_gripper(self, opening: float, start_s: float | None) -> None:
-        self._outbox.append(GripperGoal(self._next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, self._earliest(start_s)))
+        self._outbox.append(
+            GripperGoal(self._next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, self._earliest(start_s))
+        )
 
     # --- the state machine ----------------------------------------------------------
     def start(self, task: PickPlaceTask, obs: ArmObservation, part: PartObservation) -> None:
@@ -323,8 +367,13 @@ class PickPlaceSkill:
             self._then_cache = (key, self._local_stage_after(seg.q_end))
         then_after_s, then_q = self._then_cache[1]
         self.request = MotionRequest(
-            self._request_seq, tuple(map(float, self.q_cmd)), tuple(map(float, seg.q_end)), float(seg.duration_s), time_s,
-            tuple(tuple(map(float, q)) for q in then_q), tuple(then_after_s),
+            self._request_seq,
+            tuple(map(float, self.q_cmd)),
+            tuple(map(float, seg.q_end)),
+            float(seg.duration_s),
+            time_s,
+            tuple(tuple(map(float, q)) for q in then_q),
+            tuple(then_after_s),
         )
 
     def _local_stage_after(self, q_end: np.ndarray) -> tuple[list[float], list[np.ndarray]]:
@@ -357,7 +406,9 @@ class PickPlaceSkill:
             qs.append(q)
         return [*times, times[-1] + late], [*qs, qs[-1]]
 
-    def on_grant(self, request_seq: int, decision: str, conflict_arm: str, time_s: float, start_time_s: float | None = None) -> None:
+    def on_grant(
+        self, request_seq: int, decision: str, conflict_arm: str, time_s: float, start_time_s: float | None = None
+    ) -> None:
         """The coordinator's answer to request `request_seq` (stale answers are ignored): grant (from `start_time_s`,
         else now), or deny naming the arm in the way."""
         if self.request is None or request_seq != self.request.seq or not self.active:
@@ -396,7 +447,9 @@ class PickPlaceSkill:
         place = np.asarray(self.task.place_xyz, float)
         above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
         back = (self.top_down.base_to_world[:2, 3] - above[:2]) * t.standby_back
-        q, ok = self._ik(above + [back[0], back[1], t.standby_up_m], self.place_yaw, self._transfer_to, self.place_tilt_rad)
+        q, ok = self._ik(
+            above + [back[0], back[1], t.standby_up_m], self.place_yaw, self._transfer_to, self.place_tilt_rad
+        )
         if not ok:
             self._transfer_from_here(time_s)
             return
@@ -413,13 +466,19 @@ class PickPlaceSkill:
         self._begin_segment(self._segment(self.q_cmd, q_to, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
 
     def _at_home(self, q: np.ndarray) -> bool:
-        return bool(np.max(np.abs(np.asarray(q, float) - np.asarray(self.spec.home_q, float))) <= self.timing.home_tolerance_rad)
+        return bool(
+            np.max(np.abs(np.asarray(q, float) - np.asarray(self.spec.home_q, float))) <= self.timing.home_tolerance_rad
+        )
 
     def _should_detour(self, time_s: float) -> bool:
         """Two arms each standing in the other's way (one waiting to transfer, one to go home or transfer) would
         wait for ever; the transfer that has waited `detour_after_s` gives way."""
-        return (self.phase == Phase.TRANSFER and self._detour_to is None and not self._at_home(self.q_cmd)
-                and time_s - self._denied_since_s >= self.timing.detour_after_s - 1e-9)
+        return (
+            self.phase == Phase.TRANSFER
+            and self._detour_to is None
+            and not self._at_home(self.q_cmd)
+            and time_s - self._denied_since_s >= self.timing.detour_after_s - 1e-9
+        )
 
     def _detour_home(self, time_s: float) -> None:
         self._detour_to = self.segment.q_end.copy()
@@ -503,8 +562,12 @@ class PickPlaceSkill:
         self._now = now_s
         first = min(g.start_time_s for g in goals if g.start_time_s is not None)
         shift = max(0.0, self._earliest() - first)
-        again = [dataclasses.replace(g, goal_id=self._next_id(), start_time_s=None if g.start_time_s is None else g.start_time_s + shift)
-                 for g in goals]
+        again = [
+            dataclasses.replace(
+                g, goal_id=self._next_id(), start_time_s=None if g.start_time_s is None else g.start_time_s + shift
+            )
+            for g in goals
+        ]
         self.sent_goals.update(g.goal_id for g in again if isinstance(g, TrajectoryGoal))
         self.plan_end_s += shift
         self._timeline = [(t + shift, p) for t, p in self._timeline]
@@ -529,7 +592,9 @@ class PickPlaceSkill:
         self.sent_goals, self._timeline, self._unconfirmed = set(), [], []
         self.q_cmd = q.copy()
         self._idle_since_s = None
-        self._begin_segment(self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s)
+        self._begin_segment(
+            self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s
+        )
 
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
         now = self._now = obs.time_s

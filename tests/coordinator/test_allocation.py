@@ -48,7 +48,10 @@ def test_unknown_allocator_lists_the_valid_ones():
 @pytest.fixture(scope="module")
 def sorting_cell():
     scene = load_scene("sorting_line", arms=3)
-    reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))) for a in scene.arms}
+    reach = {
+        a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)))
+        for a in scene.arms
+    }
     return scene, reach
 
 
@@ -79,7 +82,9 @@ def test_optimal_serves_the_part_due_first_when_tasks_outnumber_arms(sorting_cel
     arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home) for a in scene.arms]
     x0 = scene.arms[0].base.xyz[0]
     parts = {
-        0: PartView(np.array([x0 - 0.20, 0.0, 0.095]), np.array([0.06, 0.0, 0.0])),  # farther from the bin: 5.2 s of work
+        0: PartView(
+            np.array([x0 - 0.20, 0.0, 0.095]), np.array([0.06, 0.0, 0.0])
+        ),  # farther from the bin: 5.2 s of work
         1: PartView(np.array([x0 + 0.10, 0.0, 0.095]), np.array([0.06, 0.0, 0.0])),  # nearer the bin: 4.6 s
     }
     for pid in parts:
@@ -94,7 +99,10 @@ def test_optimal_serves_the_part_due_first_when_tasks_outnumber_arms(sorting_cel
 @pytest.fixture(scope="module")
 def mixed_cell():
     scene = load_scene("mixed_infeed")
-    reach = {a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))) for a in scene.arms}
+    reach = {
+        a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)))
+        for a in scene.arms
+    }
     return scene, reach
 
 
@@ -133,7 +141,12 @@ def test_optimal_leaves_shared_work_to_an_arm_about_to_be_free(mixed_cell):
     ledger, pending, parts = red_belt_part_and_tray_part(scene, tray_first_s=1.0, belt_deadline_s=40.0)
     part_of = lambda got: [(ledger.tasks[t].part_id, arm) for t, arm in got]
     for free_in_s, expected in ((0.3, [(1, "arm_0")]), (None, [(0, "arm_0")])):
-        arms = [ArmView(a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home, None if a.name == "arm_0" else free_in_s) for a in scene.arms]
+        arms = [
+            ArmView(
+                a.name, a.base.xyz, a.name == "arm_0", reach[a.name], home, None if a.name == "arm_0" else free_in_s
+            )
+            for a in scene.arms
+        ]
         assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected
 
 
@@ -148,7 +161,9 @@ def test_optimal_keeps_a_free_arm_for_a_belt_part_riding_into_its_reach_rather_t
     upstream_x = scene.arms[0].base.xyz[0] - 0.45  # not in arm_0's reach yet: it enters 0.1 m downstream
     for speed_m_per_s, expected in ((0.09, []), (0.02, [(0, "arm_0")])):
         parts[1] = PartView(np.array([upstream_x, 0.38, 0.095]), np.array([speed_m_per_s, 0.0, 0.0]))
-        assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected, speed_m_per_s
+        assert part_of(make_allocator("optimal", scene).allocate(pending, arms, parts, set())) == expected, (
+            speed_m_per_s
+        )
 
 
 def test_time_costs_use_each_arm_robots_own_timing_on_a_mixed_line():
@@ -184,7 +199,9 @@ def test_reach_cells_solved_from_a_reached_neighbour_give_the_full_searchs_answe
     cells = [np.round(p / 0.01) * 0.01 for p in along_belt]
     assert [a is not None for a in answers] == [full.joints_for(c) is not None for c in cells]
     reached = sum(a is not None for a in answers)
-    assert reached >= 10 and len(searches) <= len(along_belt) - reached + 1, "each reached cell after the first came from a neighbour"
+    assert reached >= 10 and len(searches) <= len(along_belt) - reached + 1, (
+        "each reached cell after the first came from a neighbour"
+    )
     centre = np.asarray(spec.grasp_centre_tool(sum(spec.grasp_width_m) / 2))
     for c, q in zip(cells, answers):
         if q is not None:  # a real reach: the claw's grasp centre is at the spot

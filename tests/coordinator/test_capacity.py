@@ -44,8 +44,13 @@ def test_hop_times_a_run_measured_replace_the_models_and_slower_arms_lower_the_b
 
     scene = load_scene("assembly_line")
     done = []
-    for k, (arm, source, target, seconds) in enumerate([("arm_1", "tops_bin", "fixture_0", 12.0), ("arm_1", "tops_bin", "fixture_0", 14.0),
-                                                         ("arm_0", "conveyor", "fixture_0", 7.0)]):
+    for k, (arm, source, target, seconds) in enumerate(
+        [
+            ("arm_1", "tops_bin", "fixture_0", 12.0),
+            ("arm_1", "tops_bin", "fixture_0", 14.0),
+            ("arm_0", "conveyor", "fixture_0", 7.0),
+        ]
+    ):
         task = Task(k, k, source, target, 0.0, state=TaskState.DONE, arm=arm, assigned_s=10.0 * k)
         task.done_s = 10.0 * k + seconds
         done.append(task)
@@ -119,9 +124,15 @@ def test_one_arm_alone_on_its_belt_cannot_take_a_burst_faster_than_it_works():
     [cap] = belt_window_caps(scene, burst, 120.0, model)
     assert cap.arm == "arm_0" and cap.arrived == 4 and 1 < cap.at_most < 4
     assert belt_window_caps(scene, spread, 120.0, model)[0].at_most == 4
-    assert belt_window_caps(scene, burst, 10.0 + window_s, model)[0].at_most < cap.at_most, "the run's end cuts the last off"
-    run = capacity_bound(scene, model=model, arrivals_per_s={("trial_parts", k): 1 / 120.0 for k in range(4)},
-                         type_limits=[("arm_0 belt window", cap.types, cap.at_most / 120.0)])
+    assert belt_window_caps(scene, burst, 10.0 + window_s, model)[0].at_most < cap.at_most, (
+        "the run's end cuts the last off"
+    )
+    run = capacity_bound(
+        scene,
+        model=model,
+        arrivals_per_s={("trial_parts", k): 1 / 120.0 for k in range(4)},
+        type_limits=[("arm_0 belt window", cap.types, cap.at_most / 120.0)],
+    )
     assert run.throughput_bound_per_min == pytest.approx(cap.at_most / 2.0) and run.bottleneck == "arm_0 belt window"
 
 

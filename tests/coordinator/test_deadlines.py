@@ -21,7 +21,13 @@ def cell():
     scene = load_scene("sorting_line", arms=3)
     home = tuple(get_robot("openclaw").home_q)
     arms = [
-        ArmView(a.name, a.base.xyz, True, CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))), home)
+        ArmView(
+            a.name,
+            a.base.xyz,
+            True,
+            CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))),
+            home,
+        )
         for a in scene.arms
     ]
     return scene, arms

@@ -53,15 +53,36 @@ def test_a_motion_request_is_granted_from_when_the_arm_acts_and_a_restarted_cont
     d = Dispatcher(SCENE)
     reach_out = tuple(HOME + [0.3, 0.4, -0.3, 0, 0.2, 0])
     at_home(d, 0.0)
-    d.on_arm("arm_0", HOME, "approach", 0.9, request_seq=5, acts_at_tick=95,
-             request=TimedPath("arm_0", tuple(HOME), reach_out, 0.9, 1.9))
+    d.on_arm(
+        "arm_0",
+        HOME,
+        "approach",
+        0.9,
+        request_seq=5,
+        acts_at_tick=95,
+        request=TimedPath("arm_0", tuple(HOME), reach_out, 0.9, 1.9),
+    )
     (grant,) = d.decide(90).orders
     assert grant == GrantOrder("arm_0", 5, "grant", "", grant.min_separation_m, 0.95)
-    d.on_arm("arm_0", HOME, "approach", 1.0, request_seq=5, acts_at_tick=105,
-             request=TimedPath("arm_0", tuple(HOME), reach_out, 1.0, 2.0))
+    d.on_arm(
+        "arm_0",
+        HOME,
+        "approach",
+        1.0,
+        request_seq=5,
+        acts_at_tick=105,
+        request=TimedPath("arm_0", tuple(HOME), reach_out, 1.0, 2.0),
+    )
     assert d.decide(100).orders == [], "the same request is answered once"
-    d.on_arm("arm_0", HOME, "home", 1.1, request_seq=1, acts_at_tick=115,  # a new controller counts from 1 again
-             request=TimedPath("arm_0", tuple(HOME), tuple(HOME), 1.1, 1.5))
+    d.on_arm(
+        "arm_0",
+        HOME,
+        "home",
+        1.1,
+        request_seq=1,
+        acts_at_tick=115,  # a new controller counts from 1 again
+        request=TimedPath("arm_0", tuple(HOME), tuple(HOME), 1.1, 1.5),
+    )
     assert [o.request_seq for o in d.decide(110).orders] == [1]
 
 
@@ -91,8 +112,16 @@ def test_the_same_inputs_give_the_same_decisions():
     def run() -> list:
         d = Dispatcher(SCENE)
         order = arrive(d)
-        d.on_arm(order.arm, HOME, "approach", 1.1, task_id=order.task_id, request_seq=1, acts_at_tick=115,
-                 request=TimedPath(order.arm, tuple(HOME), tuple(HOME + 0.2), 1.1, 2.0))
+        d.on_arm(
+            order.arm,
+            HOME,
+            "approach",
+            1.1,
+            task_id=order.task_id,
+            request_seq=1,
+            acts_at_tick=115,
+            request=TimedPath(order.arm, tuple(HOME), tuple(HOME + 0.2), 1.1, 2.0),
+        )
         return [order, *d.decide(110).orders, d.report()["tasks"]]
 
     assert run() == run()
@@ -125,7 +154,9 @@ def test_a_dispatcher_that_takes_over_adopts_the_arms_tasks_and_grants_nothing_u
     d.on_parts({0: part_on_belt(d, 0, 0.5)}, 2.0)
     d.take_over(2.0)
     assert d.adopt(order.arm, order.task_id, 0, place, 2.0) == ""
-    assert d.ledger.tasks[order.task_id].arm == order.arm and d.ledger.busy_stations() >= set(d.ledger.tasks[order.task_id].stations)
+    assert d.ledger.tasks[order.task_id].arm == order.arm and d.ledger.busy_stations() >= set(
+        d.ledger.tasks[order.task_id].stations
+    )
     assert d.adopt("arm_1", 99, 0, place, 2.0) == "part 0 has a task already", "a part is never adopted twice"
     assert d.adopt(order.arm, 7, 0, (9.0, 9.0, 0.0), 2.0).startswith("no station at")
 
@@ -133,9 +164,19 @@ def test_a_dispatcher_that_takes_over_adopts_the_arms_tasks_and_grants_nothing_u
     reach_out = tuple(HOME + [0.3, 0.4, -0.3, 0, 0.2, 0])
     for arm in d.arm_names:  # the adopted arm is mid-task and not asking: it may move under an old grant
         d.on_arm(arm, HOME, "transfer" if arm == order.arm else "idle", 2.0)
-    d.on_arm(other, HOME, "approach", 2.0, request_seq=1, acts_at_tick=205, request=TimedPath(other, tuple(HOME), reach_out, 2.0, 3.0))
+    d.on_arm(
+        other,
+        HOME,
+        "approach",
+        2.0,
+        request_seq=1,
+        acts_at_tick=205,
+        request=TimedPath(other, tuple(HOME), reach_out, 2.0, 3.0),
+    )
     tick = round(2.0 * SCENE.control_hz / PERIOD) * PERIOD
-    assert not [o for o in d.decide(tick).orders if isinstance(o, (GrantOrder, AssignOrder))], "no grant, no second task for part 0"
+    assert not [o for o in d.decide(tick).orders if isinstance(o, (GrantOrder, AssignOrder))], (
+        "no grant, no second task for part 0"
+    )
     d.on_arm(order.arm, HOME, "idle", 2.1)  # the adopted arm settled: grants go on
     grants = [o for o in d.decide(tick + PERIOD).orders if isinstance(o, GrantOrder)]
     assert [g.arm for g in grants] == [other]

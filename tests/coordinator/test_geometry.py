@@ -14,7 +14,8 @@ def every_pair_distance_m(a: ArmGeometry, b: ArmGeometry) -> float:
     request = fcl.DistanceRequest()
     return min(
         fcl.distance(a.object(i), b.object(j), request, fcl.DistanceResult())
-        for i in range(len(a.shapes)) for j in range(len(b.shapes))
+        for i in range(len(a.shapes))
+        for j in range(len(b.shapes))
     )
 
 
@@ -37,13 +38,19 @@ def test_separation_equals_python_fcl_over_every_shape_pair():
 
 @pytest.mark.parametrize("robot", ["openclaw", "panda"])
 def test_each_shape_lies_inside_its_cover_of_spheres(robot):
-    """Points sampled in each shape (in its own frame), its corners and rims included, are inside one of its cover spheres."""
+    """Points sampled in each shape (in its own frame), its corners and rims included, are inside one of its cover
+    spheres."""
     rng = np.random.default_rng(1)
     for shape in link_shapes(get_robot(robot)):
         g = shape.geometry
         if isinstance(g, fcl.Box):
             half = np.array(g.side) / 2
-            points = np.vstack([rng.uniform(-half, half, size=(400, 3)), half * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])])
+            points = np.vstack(
+                [
+                    rng.uniform(-half, half, size=(400, 3)),
+                    half * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]),
+                ]
+            )
         elif isinstance(g, fcl.Cylinder):
             angle, radius = rng.uniform(0, 2 * np.pi, 400), g.radius * np.sqrt(rng.uniform(0, 1, 400))
             radius[:100] = g.radius  # on the rim
@@ -52,5 +59,7 @@ def test_each_shape_lies_inside_its_cover_of_spheres(robot):
             points = np.column_stack([radius * np.cos(angle), radius * np.sin(angle), z])
         else:
             continue  # spheres are their own cover; a mesh's cover is built from its vertices
-        inside = np.linalg.norm(points[:, None, :] - shape.cover[None, :, :3], axis=2) <= shape.cover[None, :, 3] + 1e-12
+        inside = (
+            np.linalg.norm(points[:, None, :] - shape.cover[None, :, :3], axis=2) <= shape.cover[None, :, 3] + 1e-12
+        )
         assert inside.any(axis=1).all(), shape.link

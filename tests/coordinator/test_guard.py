@@ -58,7 +58,9 @@ def test_a_thin_link_passing_through_between_two_coarse_samples_is_caught():
 
 def test_the_crossing_case_resolves_without_deadlock():
     """Both arms want to reach into the shared middle at once: one is granted, the other waits, then goes."""
-    guard = CollisionGuard(two_arms(gap_m=1.0))  # one arm reaching out is clear of the other folded; both reaching touch
+    guard = CollisionGuard(
+        two_arms(gap_m=1.0)
+    )  # one arm reaching out is clear of the other folded; both reaching touch
     out_0 = TimedPath("arm_0", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)
     back_0 = TimedPath("arm_0", tuple(REACH_OUT), tuple(HOME), 1.0, 2.0)
     out_1 = TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)
@@ -83,7 +85,10 @@ def test_nearest_other_with_a_cap_is_the_exact_distance_or_the_cap():
     """The capped query skips what cannot come under the cap; what it returns is min(exact distance, cap)."""
     spec = get_robot("openclaw")
     bases = [(0.0, 0.0), (0.55, 0.0), (1.1, 0.0), (3.0, 0.0)]  # the last one stands far from the rest
-    arms = {f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, y, 0.0), np.pi * (i % 2))) for i, (x, y) in enumerate(bases)}
+    arms = {
+        f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, y, 0.0), np.pi * (i % 2)))
+        for i, (x, y) in enumerate(bases)
+    }
     guard = CollisionGuard(arms)
     lower, upper = np.array([-1.5, -0.3, -0.3, -1.0, -0.8, -1.0]), np.array([1.5, 1.2, 1.2, 1.0, 0.8, 1.0])
     rng = np.random.default_rng(3)
@@ -108,8 +113,14 @@ def test_the_local_stage_after_a_move_is_checked_and_held_by_its_grant():
     halfway = (HOME + REACH_OUT) / 2
     move_only = TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0)
     assert guard.check(move_only).granted
-    with_stage = TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0, then_q=(tuple(halfway), tuple(REACH_OUT)), then_after_s=(0.5, 1.0))
-    assert with_stage.t_done_s == 2.0 and np.allclose(with_stage.at(1.5), halfway) and np.allclose(with_stage.at(9.0), REACH_OUT)
+    with_stage = TimedPath(
+        "arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0, then_q=(tuple(halfway), tuple(REACH_OUT)), then_after_s=(0.5, 1.0)
+    )
+    assert (
+        with_stage.t_done_s == 2.0
+        and np.allclose(with_stage.at(1.5), halfway)
+        and np.allclose(with_stage.at(9.0), REACH_OUT)
+    )
     verdict = guard.check(with_stage)
     assert verdict.decision == "deny" and verdict.at_time_s > 1.0, "the clash is in the local stage, after the move"
     guard.set_state("arm_1", HOME)

@@ -56,8 +56,14 @@ def test_a_failed_grasp_is_retried_then_given_up_with_the_reason():
         lg.arm_report("arm_0", task.task_id, "failed", 2.5 + attempt, "the claw closed on nothing")
         assert task.state == TaskState.FAILED
     assert lg.refresh(10.0) == []
-    assert lg.unfinished() == [{"part_id": 0, "fate": "failed", "location": "conveyor",
-                                "reason": f"{MAX_ATTEMPTS} attempts failed; last: the claw closed on nothing"}]
+    assert lg.unfinished() == [
+        {
+            "part_id": 0,
+            "fate": "failed",
+            "location": "conveyor",
+            "reason": f"{MAX_ATTEMPTS} attempts failed; last: the claw closed on nothing",
+        }
+    ]
 
 
 def test_a_lost_arms_task_goes_back_to_the_pool_unless_the_part_is_in_its_claw():

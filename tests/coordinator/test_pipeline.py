@@ -67,7 +67,9 @@ def test_the_next_base_waits_until_the_assembly_is_whole_and_sent_away_then_unti
     assert lg.may_enter(ship, "fixture_0")
     second = only(lg.refresh(14.0))
     assert (second.part_id, second.target) == (2, "fixture_0")
-    assert lg.place_height_m("fixture_0", second.part_id) == FIXTURE_TOP, "on the bare fixture, not on the leaving assembly"
+    assert lg.place_height_m("fixture_0", second.part_id) == FIXTURE_TOP, (
+        "on the bare fixture, not on the leaving assembly"
+    )
     lg.assign(second.task_id, "arm_0", 14.0)
     assert not lg.may_enter(second, "fixture_0")
     lg.arm_report("arm_2", ship.task_id, "lift", 15.0)
@@ -119,8 +121,13 @@ def test_the_dispatcher_holds_a_transfer_to_a_fixture_that_is_not_ready_and_coun
     d.on_event("arrived", 0, "bases", 0, 1.0)
     d.on_event("arrived", 1, "tops", 0, 2.0)
     d.on_event("at_station", 1, "tops_bin", 0, 2.5)
-    d.on_parts({0: PartView(np.array([-1.2, 0.0, 0.1]), np.array([0.05, 0.0, 0.0])),
-                1: PartView(np.array([0.58, -0.62, 0.03]), np.zeros(3))}, 3.0)
+    d.on_parts(
+        {
+            0: PartView(np.array([-1.2, 0.0, 0.1]), np.array([0.05, 0.0, 0.0])),
+            1: PartView(np.array([0.58, -0.62, 0.03]), np.zeros(3)),
+        },
+        3.0,
+    )
     tasks = by_part(d.ledger.refresh(3.0))
     d.ledger.assign(tasks[0].task_id, "arm_0", 3.0)
     top = tasks[1]
@@ -130,7 +137,9 @@ def test_the_dispatcher_holds_a_transfer_to_a_fixture_that_is_not_ready_and_coun
     move = TimedPath("arm_1", tuple(home["arm_1"]), tuple(home["arm_1"] + 0.1), 3.0, 5.0)
     d.on_arm("arm_1", home["arm_1"], "transfer", 3.0, task_id=top.task_id, request_seq=1, request=move)
     told = [o for o in d.decide(300).orders if isinstance(o, GrantOrder)]
-    assert [(o.arm, o.decision) for o in told] == [("arm_1", "standby")], "the base is not on the fixture: wait beside it"
+    assert [(o.arm, o.decision) for o in told] == [("arm_1", "standby")], (
+        "the base is not on the fixture: wait beside it"
+    )
     d.on_arm("arm_1", home["arm_1"], "transfer", 3.1, task_id=top.task_id, request_seq=2, request=move)
     assert not [o for o in d.decide(310).orders if isinstance(o, GrantOrder)], "asked again: held, without a word"
     assert d.held_now == {"arm_1": "fixture_0"} and d.held_at_station_s["arm_1"] > 0
@@ -156,8 +165,15 @@ def test_one_arm_at_a_fixture_at_a_time_whatever_the_ledger_holds():
     base = only(d.ledger.refresh(3.0))  # the assembly is whole and sent for: the next base may come
     d.ledger.assign(base.task_id, "arm_0", 3.0)
     d.on_arm("arm_0", home["arm_0"], "transfer", 4.0, task_id=base.task_id)  # its move in was granted: no request
-    d.on_arm("arm_2", home["arm_2"], "approach", 4.0, task_id=ship.task_id, request_seq=1,
-             request=TimedPath("arm_2", tuple(home["arm_2"]), tuple(home["arm_2"] + 0.1), 4.0, 5.0))
+    d.on_arm(
+        "arm_2",
+        home["arm_2"],
+        "approach",
+        4.0,
+        task_id=ship.task_id,
+        request_seq=1,
+        request=TimedPath("arm_2", tuple(home["arm_2"]), tuple(home["arm_2"] + 0.1), 4.0, 5.0),
+    )
     assert d.ledger.may_enter(ship, "fixture_0"), "the ledger would let the ship in"
     assert d.station_ahead("arm_2") == "fixture_0", "but the base arm is on its way in"
     d.on_arm("arm_0", home["arm_0"], "home", 6.0, task_id=base.task_id)
@@ -173,6 +189,8 @@ def test_an_arm_on_its_way_home_from_a_fixture_takes_no_task_until_home():
     d.last_stations["arm_1"] = ("tops_bin",)
     d.on_arm("arm_1", q, "home", 5.0)
     free = {v.name: v.free for v in d.arm_views()}
-    assert not free["arm_0"] and free["arm_1"], "from a fixture: home first; from a bin it may take the next task on the way"
+    assert not free["arm_0"] and free["arm_1"], (
+        "from a fixture: home first; from a bin it may take the next task on the way"
+    )
     d.on_arm("arm_0", q, "done", 6.0)
     assert {v.name: v.free for v in d.arm_views()}["arm_0"]

@@ -12,8 +12,17 @@ from collections.abc import Iterator
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import (
-    ArmState, ArmStatus, Assignment, ControllerStep, CoordTick, GripperGoalMsg, LineEvent, LineView, MotionGrant,
-    PartsState, TrajectoryGoalMsg,
+    ArmState,
+    ArmStatus,
+    Assignment,
+    ControllerStep,
+    CoordTick,
+    GripperGoalMsg,
+    LineEvent,
+    LineView,
+    MotionGrant,
+    PartsState,
+    TrajectoryGoalMsg,
 )
 
 FAR = 10**18
@@ -28,8 +37,17 @@ class BusFuzzer:
         self.rng = random.Random(seed)
 
     def messages(self, count: int) -> Iterator[tuple[str, bytes]]:
-        makers = [self._event, self._frame, self._parts, self._coord_tick, self._state, self._step, self._order,
-                  self._goal, self._status]
+        makers = [
+            self._event,
+            self._frame,
+            self._parts,
+            self._coord_tick,
+            self._state,
+            self._step,
+            self._order,
+            self._goal,
+            self._status,
+        ]
         for _ in range(count):
             key, payload = self.rng.choice(makers)()
             roll = self.rng.random()
@@ -53,7 +71,9 @@ class BusFuzzer:
     def _event(self):
         kind = self.rng.choice(("arrived", "at_station", "lost", "retired", "exploded"))
         part = self.rng.randrange(10**6, 10**9)  # no such part
-        return self.keys.events, encode(LineEvent(kind, part, self.rng.choice((FAR, -5)), self.rng.choice(("nope", "bin_x", "")), -1))
+        return self.keys.events, encode(
+            LineEvent(kind, part, self.rng.choice((FAR, -5)), self.rng.choice(("nope", "bin_x", "")), -1)
+        )
 
     def _state(self, arm: str | None = None) -> tuple[str, bytes]:
         arm = arm or self._arm()
@@ -61,7 +81,9 @@ class BusFuzzer:
         tick = FAR if wrong == 0 else self.rng.randrange(0, 100)
         q = self._joints(ok=wrong != 1)
         dq = tuple(self._bad() for _ in range(self.n)) if wrong == 2 else self._joints(ok=True)
-        msg = ArmState(arm, tick, 1e16 if wrong == 0 else 0.5, q, dq, (0.0, 0.0), (0.0,) * 3, (1.0, 0.0, 0.0, 0.0), lost=True)
+        msg = ArmState(
+            arm, tick, 1e16 if wrong == 0 else 0.5, q, dq, (0.0, 0.0), (0.0,) * 3, (1.0, 0.0, 0.0, 0.0), lost=True
+        )
         return self.keys.arm_state(arm), encode(msg)
 
     def _frame(self):
@@ -71,8 +93,17 @@ class BusFuzzer:
     def _parts(self):
         k = self.rng.randrange(1, 4)
         wrong = self.rng.randrange(2)
-        msg = PartsState(FAR if wrong == 0 else self.rng.randrange(0, 50), 0.5, tuple(range(10**6, 10**6 + k)), ("x",) * k, (0,) * k,
-                         (self._bad(),) * (3 * k) if wrong else (0.0,) * (3 * k + 1), (1.0, 0.0, 0.0, 0.0) * k, (0.0,) * (3 * k), (0.05,) * (3 * k))
+        msg = PartsState(
+            FAR if wrong == 0 else self.rng.randrange(0, 50),
+            0.5,
+            tuple(range(10**6, 10**6 + k)),
+            ("x",) * k,
+            (0,) * k,
+            (self._bad(),) * (3 * k) if wrong else (0.0,) * (3 * k + 1),
+            (1.0, 0.0, 0.0, 0.0) * k,
+            (0.0,) * (3 * k),
+            (0.05,) * (3 * k),
+        )
         return self.keys.parts, encode(msg)
 
     def _coord_tick(self):
@@ -80,8 +111,19 @@ class BusFuzzer:
 
     def _step(self):
         arm = self._arm()
-        msg = ControllerStep(arm, self.rng.randrange(0, 50), FAR, (), None, "approach", 0.1, "", self.rng.randrange(1, 99),
-                             (self._bad(),) * self.n, 1.0)
+        msg = ControllerStep(
+            arm,
+            self.rng.randrange(0, 50),
+            FAR,
+            (),
+            None,
+            "approach",
+            0.1,
+            "",
+            self.rng.randrange(1, 99),
+            (self._bad(),) * self.n,
+            1.0,
+        )
         return self.keys.arm_step(arm), encode(msg)
 
     def _order(self):
@@ -96,7 +138,9 @@ class BusFuzzer:
     def _goal(self):
         arm = self._arm()
         if self.rng.random() < 0.5:
-            msg = TrajectoryGoalMsg(arm, self.rng.randrange(1, 10**6), ("no_such_joint",) * self.n, (0.5,), (self._bad(),) * self.n)
+            msg = TrajectoryGoalMsg(
+                arm, self.rng.randrange(1, 10**6), ("no_such_joint",) * self.n, (0.5,), (self._bad(),) * self.n
+            )
         else:
             msg = GripperGoalMsg(arm, self.rng.randrange(1, 10**6), self._bad())
         return self.keys.arm_goal(arm), encode(msg)

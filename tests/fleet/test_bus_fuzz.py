@@ -7,7 +7,7 @@ import time
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, open_session
-from fleet.launcher import Launcher, RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import get_robot
 from tests.fleet.bus_fuzz import BusFuzzer
 from tests.fleet.test_bus_lies import COUNTED
@@ -52,5 +52,9 @@ def test_ten_thousand_wrong_messages_on_every_key_change_nothing():
     assert fuzzed["status"] == "ok" and fuzzed["parts_completed"] >= 2
     assert fuzzed["dropped_messages"] > MESSAGES / 4, "dropped and counted by whoever received them"
     strip = lambda s: {k: v for k, v in s.items() if k not in COUNTED + REFUSED_GOALS}  # noqa: E731
-    diff = {k: (clean.get(k), fuzzed.get(k)) for k in set(strip(clean)) | set(strip(fuzzed)) if clean.get(k) != fuzzed.get(k)}
+    diff = {
+        k: (clean.get(k), fuzzed.get(k))
+        for k in set(strip(clean)) | set(strip(fuzzed))
+        if clean.get(k) != fuzzed.get(k)
+    }
     assert not diff, "the line ran exactly as without them"

@@ -8,7 +8,7 @@ from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, Assignment, ControllerStep, CoordTick, LineEvent, LineView, PartsState
 from fleet.bus.session import BusEndpoints, open_session
-from fleet.launcher import Launcher, RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES, assert_nothing_left
 
 FAR = 10**18
@@ -17,7 +17,9 @@ COUNTED = WALL_FIGURES + ("dropped_messages", "bus_messages_per_arm_per_s")
 
 def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:
     nan = math.nan
-    state = lambda arm: ArmState(arm, FAR, 1e16, (nan,) * 6, (nan,) * 6, (0.0, 0.0), (0.0,) * 3, (1.0, 0.0, 0.0, 0.0), lost=True)  # noqa: E731
+    state = lambda arm: ArmState(
+        arm, FAR, 1e16, (nan,) * 6, (nan,) * 6, (0.0, 0.0), (0.0,) * 3, (1.0, 0.0, 0.0, 0.0), lost=True
+    )  # noqa: E731
     parts = PartsState(FAR, 1e16, (), (), (), (), (), (), ())
     out = [
         (keys.events, encode(LineEvent("arrived", 1_000_000_000, 0, "feeder_nope", -5))),
@@ -28,8 +30,12 @@ def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:
     ]
     for arm in arms:
         out.append((keys.arm_state(arm), encode(state(arm))))
-        out.append((keys.arm_step(arm), encode(ControllerStep(arm, 0, 5, (), None, "approach", 0.1, "", 1, (nan,) * 6, 1.0))))
-        out.append((keys.arm_assign(arm), encode(Assignment(arm, 2**63 - 1, 7, 0, 0.1, (nan, 0.0, 0.0), (0.0, 0.0, 0.0)))))
+        out.append(
+            (keys.arm_step(arm), encode(ControllerStep(arm, 0, 5, (), None, "approach", 0.1, "", 1, (nan,) * 6, 1.0)))
+        )
+        out.append(
+            (keys.arm_assign(arm), encode(Assignment(arm, 2**63 - 1, 7, 0, 0.1, (nan, 0.0, 0.0), (0.0, 0.0, 0.0))))
+        )
         out.append((keys.arm_assign(arm), encode(Assignment(arm, 3, 7, 0, 0.1, (math.inf, 0.0, 0.0), (0.0, 0.0, 0.0)))))
     return out
 
@@ -43,7 +49,8 @@ def run(with_lies: bool) -> tuple[dict, int]:
         with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
 
             def tell(progress) -> None:
-                # while every process surely runs; progress comes every 0.5 s of wall time, many sim seconds on a fast line
+                # while every process surely runs; progress comes every 0.5 s of wall time, many sim seconds on a fast
+                # line
                 if with_lies and 1.0 < progress.sim_time_s < 15.0 and len(told) < 5:
                     for key, payload in lies(keys, arms):
                         session.put(key, payload)

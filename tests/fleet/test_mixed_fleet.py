@@ -3,7 +3,7 @@ time costs, the monitor's scene and the env take them side by side; the line run
 
 import pytest
 
-from fleet.launcher import Launcher, RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import is_available
 from tests.fleet.test_run import assert_nothing_left
 
@@ -15,10 +15,14 @@ def test_three_models_share_a_line_in_lockstep_with_zero_contacts():
         summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert summary["status"] == "ok" and summary["inter_arm_contacts"] == 0, summary.get("error")
-    assert summary["parts_completed"] >= 4 and summary["parts_missed"] == 0, {k: summary[k] for k in ("parts_spawned", "parts_completed", "parts_missed")}
+    assert summary["parts_completed"] >= 4 and summary["parts_missed"] == 0, {
+        k: summary[k] for k in ("parts_spawned", "parts_completed", "parts_missed")
+    }
     assert all(summary["arm_time"][arm]["working"] > 0.05 for arm in ("arm_0", "arm_1", "arm_2")), summary["arm_time"]
     coordinator = next(p for p in summary["processes"] if p["role"] == "coordinator")
-    assert coordinator["exit_code"] == 0 and summary["throughput_bound_per_min"] == 6.0, "its figures written in the stop's grace"
+    assert coordinator["exit_code"] == 0 and summary["throughput_bound_per_min"] == 6.0, (
+        "its figures written in the stop's grace"
+    )
 
 
 def test_the_env_drives_arms_of_different_models_side_by_side():
@@ -38,8 +42,8 @@ def test_the_monitor_draws_arms_of_different_models_from_their_own_urdfs():
     import numpy as np
     import viser
 
+    from fleet.common.scene_loading import load_scene
     from fleet.monitor.cell_view import CellView
-    from fleet.scene_loading import load_scene
     from robots.registry import get_robot
 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
@@ -48,6 +52,8 @@ def test_the_monitor_draws_arms_of_different_models_from_their_own_urdfs():
         for name, model in (("arm_0", "openclaw"), ("arm_1", "so101"), ("arm_2", "panda")):
             arm, spec = view.arms[name], get_robot(model)
             assert sorted(arm.urdf.get_actuated_joint_names()) == sorted((*spec.arm_joints, *spec.gripper_joints))
-            arm.update_cfg(np.asarray(spec.home_q) * 0.5, np.asarray(spec.gripper_closed))  # each moves with its own joints
+            arm.update_cfg(
+                np.asarray(spec.home_q) * 0.5, np.asarray(spec.gripper_closed)
+            )  # each moves with its own joints
     finally:
         server.stop()

@@ -5,7 +5,7 @@ import json
 import subprocess
 import sys
 
-from fleet.launcher import Launcher, RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.test_run import assert_nothing_left
 
 
@@ -24,7 +24,10 @@ def test_pipelined_fixtures_hold_arms_at_the_edge_and_finish_more_than_arms_taki
     assert held["arm_1"] > 0 and held["arm_2"] > 0, held  # the top waited for its base, the ship for its top
     assert all(t["held_at_fixture"] == 0 for t in in_turns["arm_time"].values())
     assert pipelined["held_at_station_s"] and not in_turns["held_at_station_s"]
-    assert pipelined["parts_completed"] > in_turns["parts_completed"], (pipelined["parts_completed"], in_turns["parts_completed"])
+    assert pipelined["parts_completed"] > in_turns["parts_completed"], (
+        pipelined["parts_completed"],
+        in_turns["parts_completed"],
+    )
 
 
 def test_two_pipelined_runs_side_by_side_repeat_exactly():
@@ -36,6 +39,15 @@ def test_two_pipelined_runs_side_by_side_repeat_exactly():
     assert all(p.returncode == 0 for p in runs)
     timeouts = [s["lockstep_timeouts"] for s in summaries]
     assert all(t["coordinator_decisions"] == 0 and not any(t["controllers"].values()) for t in timeouts), timeouts
-    same = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "grants_given", "goal_results", "held_at_station_s", "min_separation_m")
+    same = (
+        "parts_spawned",
+        "parts_completed",
+        "parts_missed",
+        "parts_failed",
+        "grants_given",
+        "goal_results",
+        "held_at_station_s",
+        "min_separation_m",
+    )
     first, second = ({k: s[k] for k in same} for s in summaries)
     assert first == second

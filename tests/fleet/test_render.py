@@ -2,7 +2,7 @@
 
 import pytest
 
-from fleet.physics.render import RenderUnavailable, render_device, require_render
+from fleet.sim.render import RenderUnavailable, render_device, require_render
 
 
 def test_detection_answers_with_a_reason():

@@ -19,12 +19,23 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmStatus
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
-from fleet.launcher import Launcher, RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 
 QUICK_LINE = str(Path(__file__).parent / "scenes_data" / "quick_line.yaml")
 # wall-clock figures, and the bus message counts (samples sent while processes start may find no subscriber yet)
-WALL_FIGURES = ("wall_seconds", "loop_wall_seconds", "wall_s_by_stage", "decision_wall_ms", "latency_p50_ms", "latency_p99_ms", "processes", "lockstep_timeouts",
-                "bus_messages_per_arm_per_s", "round_trip_histogram", "bus_messages_out")  # re-sends and status follow the wall clock
+WALL_FIGURES = (
+    "wall_seconds",
+    "loop_wall_seconds",
+    "wall_s_by_stage",
+    "decision_wall_ms",
+    "latency_p50_ms",
+    "latency_p99_ms",
+    "processes",
+    "lockstep_timeouts",
+    "bus_messages_per_arm_per_s",
+    "round_trip_histogram",
+    "bus_messages_out",
+)  # re-sends and status follow the wall clock
 
 
 def assert_nothing_left(summary: dict, endpoint: str) -> None:
@@ -54,8 +65,12 @@ def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
     assert all(waited < 1.0 for waited in first["grant_requests_open"].values()), "nobody left waiting for a grant"
     assert first["dropped_messages"] == 0
     assert 0 < first["parts_finishable"] <= first["parts_spawned"], "parts in time to be finished, of those released"
-    assert first["parts_completed"] <= first["run_bound_per_min"] * 18.0 / 60.0 + 1e-6, "no run beats the bound of its own arrivals"
-    assert first["run_bound_fraction"] == pytest.approx(first["throughput_per_min"] / first["run_bound_per_min"], rel=1e-3)
+    assert first["parts_completed"] <= first["run_bound_per_min"] * 18.0 / 60.0 + 1e-6, (
+        "no run beats the bound of its own arrivals"
+    )
+    assert first["run_bound_fraction"] == pytest.approx(
+        first["throughput_per_min"] / first["run_bound_per_min"], rel=1e-3
+    )
     assert {p["role"] for p in first["processes"]} == {"sim", "coordinator", "controller"}
     assert all(p["exit_code"] == 0 for p in first["processes"])
     second, launcher = run_line(duration_s=18.0, seed=5)
@@ -74,7 +89,9 @@ def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawne
             os.kill(node.proc.pid, signal.SIGKILL)
 
     launcher_ref = []
-    options = RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True)  # the respawned process takes seconds to start
+    options = RunOptions(
+        scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True
+    )  # the respawned process takes seconds to start
     with Launcher(options, kill_arm_0) as launcher:
         launcher_ref.append(launcher)
         summary = launcher.run()
@@ -87,8 +104,19 @@ def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawne
     assert events, (summary["arm_events"], summary["arms_lost"], killed)
     assert [e["event"] for e in events] == ["lost", "rejoined"], events  # one loss, one rejoin: nothing counted twice
     assert events[0]["silent_for_s"] < 1.0
-    assert summary["parts_completed"] >= 1, {k: summary[k] for k in ("parts_spawned", "parts_missed", "parts_failed", "parts_in_progress",
-                                                                    "arm_events", "arm_time", "tasks_reassigned", "unfinished_parts")}
+    assert summary["parts_completed"] >= 1, {
+        k: summary[k]
+        for k in (
+            "parts_spawned",
+            "parts_missed",
+            "parts_failed",
+            "parts_in_progress",
+            "arm_events",
+            "arm_time",
+            "tasks_reassigned",
+            "unfinished_parts",
+        )
+    }
 
 
 def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_of_stalling_it():
@@ -106,13 +134,23 @@ def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_o
         summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert stopped and summary["status"] == "error"
-    assert summary["error"].startswith("the sim stopped: the coordinator did not answer") and "\n" not in summary["error"]
-    assert summary["sim_seconds"] < stopped[0] + 3.0, (stopped, summary["sim_seconds"])  # the sim does not step while it waits
+    assert (
+        summary["error"].startswith("the sim stopped: the coordinator did not answer") and "\n" not in summary["error"]
+    )
+    assert summary["sim_seconds"] < stopped[0] + 3.0, (
+        stopped,
+        summary["sim_seconds"],
+    )  # the sim does not step while it waits
 
 
-@pytest.mark.parametrize("index, says", [(1, "the coordinator crashed (exit -9)"), (0, "the sim server crashed (exit -9)")], ids=["coordinator", "sim"])
+@pytest.mark.parametrize(
+    "index, says",
+    [(1, "the coordinator crashed (exit -9)"), (0, "the sim server crashed (exit -9)")],
+    ids=["coordinator", "sim"],
+)
 def test_a_crashed_node_ends_the_run_with_one_clear_message_and_every_part_accounted_for(index, says):
     """A dead coordinator or sim: one line why, and the counts from what the launcher last heard."""
+
     def kill(progress):
         if progress.sim_time_s > 3.0 and launcher_ref[0].nodes[index].alive:
             os.kill(launcher_ref[0].nodes[index].proc.pid, signal.SIGKILL)
@@ -126,7 +164,9 @@ def test_a_crashed_node_ends_the_run_with_one_clear_message_and_every_part_accou
     assert "\n" not in summary["error"]
     fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
     assert summary["sim_seconds"] > 1.0 and summary["parts_spawned"] > 0, summary
-    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
+    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {
+        k: summary[k] for k in ("parts_spawned", *fates)
+    }
 
 
 def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_with_nothing_lost():
@@ -134,12 +174,27 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
     another coordinator, which rebuilds its ledger from the sim's event log, adopts the arm's task, and the line
     ends as a clean run does."""
     killed = []
-    WORKING = ("approach", "descend", "close", "lift", "transfer")  # phases in which the part is not about to rest at its target
+    WORKING = (
+        "approach",
+        "descend",
+        "close",
+        "lift",
+        "transfer",
+    )  # phases in which the part is not about to rest at its target
 
-    def kill_when_carrying(sample):  # on Zenoh's thread: the moment a heartbeat (every 0.2 s of wall time) says an arm works on a part
+    def kill_when_carrying(
+        sample,
+    ):  # on Zenoh's thread: the moment a heartbeat (every 0.2 s of wall time) says an arm works on a part
         beat = Decoder(ArmStatus, DropCounter()).decode(str(sample.key_expr), sample.payload.to_bytes())
         coordinator = launcher_ref[0].nodes[1]
-        if not killed and beat is not None and beat.skill in WORKING and beat.part_id >= 0 and beat.sim_time_s > 3.0 and coordinator.alive:
+        if (
+            not killed
+            and beat is not None
+            and beat.skill in WORKING
+            and beat.part_id >= 0
+            and beat.sim_time_s > 3.0
+            and coordinator.alive
+        ):
             killed.append((coordinator.proc.pid, beat))
             os.kill(coordinator.proc.pid, signal.SIGKILL)
 
@@ -147,7 +202,9 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
         if not launcher_ref[1:]:
             launcher_ref.append("listening")
             session = listening.enter_context(open_session(BusEndpoints(connect=(launcher_ref[0].endpoint,))))
-            listening.callback(session.declare_subscriber(Keys("line").all_arms("status"), kill_when_carrying).undeclare)
+            listening.callback(
+                session.declare_subscriber(Keys("line").all_arms("status"), kill_when_carrying).undeclare
+            )
 
     launcher_ref = []
     with contextlib.ExitStack() as listening:
@@ -160,15 +217,23 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
     dead = [p for p in summary["processes"] if p["pid"] == killed[0][0]]
     assert dead == [{"role": "coordinator", "name": "coordinator", "pid": killed[0][0], "exit_code": -9}]
     takeover = summary["coordinator_takeover"]
-    assert takeover["incarnation"] == 2 and takeover["events_replayed"] >= 1 and takeover["sim_time_s"] >= killed[0][1].sim_time_s
+    assert (
+        takeover["incarnation"] == 2
+        and takeover["events_replayed"] >= 1
+        and takeover["sim_time_s"] >= killed[0][1].sim_time_s
+    )
     assert takeover["arms_heard"] == summary["arm_ids"]
     carrying = killed[0][1]
     assert (carrying.arm, carrying.part_id) in [(t["arm"], t["part_id"]) for t in takeover["tasks_adopted"]], takeover
     fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
-    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {k: summary[k] for k in ("parts_spawned", *fates)}
+    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {
+        k: summary[k] for k in ("parts_spawned", *fates)
+    }
     assert summary["inter_arm_contacts"] == 0 and summary["dropped_messages"] == 0
     clean, _ = run_line(duration_s=30.0, seed=5)
-    assert [summary[k] for k in ("parts_spawned", *fates)] == [clean[k] for k in ("parts_spawned", *fates)], "nothing lost"
+    assert [summary[k] for k in ("parts_spawned", *fates)] == [clean[k] for k in ("parts_spawned", *fates)], (
+        "nothing lost"
+    )
 
 
 def test_a_hung_coordinator_with_respawn_is_replaced_and_the_line_goes_on():
@@ -183,7 +248,9 @@ def test_a_hung_coordinator_with_respawn_is_replaced_and_the_line_goes_on():
             os.kill(coordinator.proc.pid, signal.SIGSTOP)
 
     launcher_ref, said = [], []
-    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True), freeze_coordinator, on_message=said.append) as launcher:
+    with Launcher(
+        RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True), freeze_coordinator, on_message=said.append
+    ) as launcher:
         launcher_ref.append(launcher)
         summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
@@ -200,9 +267,23 @@ def test_garbage_on_every_command_key_is_counted_and_ctrl_c_stops_everything(tmp
     endpoint = loopback_endpoint(free_loopback_port())
     summary_file = tmp_path / "summary.json"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "fleet", "run", QUICK_LINE, "--duration", "600", "--listen", endpoint,
-         "--run-id", "garbage", "--summary", str(summary_file)],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        [
+            sys.executable,
+            "-m",
+            "fleet",
+            "run",
+            QUICK_LINE,
+            "--duration",
+            "600",
+            "--listen",
+            endpoint,
+            "--run-id",
+            "garbage",
+            "--summary",
+            str(summary_file),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
     )
     try:
         keys = Keys("garbage")
@@ -274,7 +355,10 @@ def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_
             summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert steps == ["asked for a live one", "killed"]
-    assert [(r["done"], r["reason"]) for r in summary["respawn_requests"]] == [(False, "its controller is alive and heard"), (True, "")]
+    assert [(r["done"], r["reason"]) for r in summary["respawn_requests"]] == [
+        (False, "its controller is alive and heard"),
+        (True, ""),
+    ]
     assert summary["respawns"] == 1
     assert any("refused" in m for m in messages) and any("respawned arm_0" in m for m in messages)
     assert [p["exit_code"] for p in summary["processes"] if p["name"] == "arm_0"] == [-9, 0]
@@ -303,10 +387,14 @@ def test_a_controller_killed_for_good_makes_exactly_its_arm_lost_and_the_line_go
 def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_path):
     import yaml
 
-    data = yaml.safe_load(Path(QUICK_LINE).read_text()) | {"randomise": {
-        "part_friction": {"uniform": [0.7, 1.1]}, "belt_speed_scale": {"uniform": [0.8, 1.2]},
-        "arm_gain_scale": {"uniform": [0.9, 1.1]}, "part_pose_noise_m": {"uniform": [0.0005, 0.002]},
-    }}
+    data = yaml.safe_load(Path(QUICK_LINE).read_text()) | {
+        "randomise": {
+            "part_friction": {"uniform": [0.7, 1.1]},
+            "belt_speed_scale": {"uniform": [0.8, 1.2]},
+            "arm_gain_scale": {"uniform": [0.9, 1.1]},
+            "part_pose_noise_m": {"uniform": [0.0005, 0.002]},
+        }
+    }
     scene = tmp_path / "randomised_line.yaml"
     scene.write_text(yaml.safe_dump(data))
     runs = []
@@ -315,7 +403,12 @@ def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_pat
             runs.append(launcher.run())
         assert_nothing_left(runs[-1], launcher.endpoint)
     first, second = runs
-    assert first["status"] == "ok" and set(first["randomised"]) == {"part_friction", "belt_speed_scale", "arm_gain_scale", "part_pose_noise_m"}
+    assert first["status"] == "ok" and set(first["randomised"]) == {
+        "part_friction",
+        "belt_speed_scale",
+        "arm_gain_scale",
+        "part_pose_noise_m",
+    }
     assert first["parts_completed"] >= 1, first["unfinished_parts"]
     strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
     assert strip(first) == strip(second), "every process drew the same values from the seed, and the noise repeats"

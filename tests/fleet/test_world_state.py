@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fleet.physics.world import World
+from fleet.sim.world import World
 from scenes import load_scene
 
 

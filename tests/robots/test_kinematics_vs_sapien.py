@@ -2,7 +2,7 @@
 
 import pytest
 
-from fleet.robot_check import kinematics_agree
+from fleet.robot_tools.robot_check import kinematics_agree
 from robots.registry import get_robot, robot_names
 
 TOL = 1e-5

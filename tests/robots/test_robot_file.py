@@ -1,4 +1,5 @@
-"""A robot declared in a YAML file: the same facts as a registered one, and one line naming file and field per mistake."""
+"""A robot declared in a YAML file: the same facts as a registered one, and one line naming file and field per
+mistake."""
 
 import dataclasses
 from pathlib import Path
@@ -10,10 +11,31 @@ from robots.registry import get_robot, is_available, register_file
 from robots.robot_file import RobotFileError, load_robot_file
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "robots" / "my_claw.yaml"
-FACTS = ("arm_joints", "gripper_joints", "tool_frame", "home_q", "gripper_open", "gripper_closed", "grasp_width_m", "reach_m",
-         "arm_gains", "gripper_gains", "finger_links", "finger_friction", "approach_axis_tool", "closing_axis_tool",
-         "width_per_gripper_unit_m", "fingertip_below_tool_m", "keyframes", "max_approach_tilt_deg", "fixed_jaw_face_m",
-         "grip_depth_m", "carry_tilted", "match_yaw", "pick_timing")
+FACTS = (
+    "arm_joints",
+    "gripper_joints",
+    "tool_frame",
+    "home_q",
+    "gripper_open",
+    "gripper_closed",
+    "grasp_width_m",
+    "reach_m",
+    "arm_gains",
+    "gripper_gains",
+    "finger_links",
+    "finger_friction",
+    "approach_axis_tool",
+    "closing_axis_tool",
+    "width_per_gripper_unit_m",
+    "fingertip_below_tool_m",
+    "keyframes",
+    "max_approach_tilt_deg",
+    "fixed_jaw_face_m",
+    "grip_depth_m",
+    "carry_tilted",
+    "match_yaw",
+    "pick_timing",
+)
 
 
 def written(tmp_path: Path, change: dict, name: str = "arm.yaml") -> Path:
@@ -38,26 +60,32 @@ def test_the_example_file_declares_the_openclaw_under_a_new_uid():
     assert spec.urdf_text() == builtin.urdf_text()
 
 
-@pytest.mark.parametrize("change, field, says", [
-    ({"tool_fram": "tool_link"}, "tool_fram", "Extra inputs are not permitted"),
-    ({"uid": None}, "uid", "Field required"),
-    ({"uid": "My Arm"}, "uid", "should match pattern"),
-    ({"arm_joints": ["shoulder_pan", "shoulder_lift", "elbw", "forearm_roll", "wrist_pitch", "wrist_roll"]},
-     "arm_joints.2", "no movable joint 'elbw' in the URDF; did you mean elbow"),
-    ({"tool_frame": "tool"}, "tool_frame", "no frame 'tool' in the URDF; did you mean tool_link"),
-    ({"finger_links": ["finger_left_link", "finger_rite_link"]}, "finger_links.1", "no link 'finger_rite_link'"),
-    ({"home_q": [0.0, -0.2, 1.9]}, "home_q", "3 values for 6 joints"),
-    ({"home_q": [0.0, -0.2, 9.0, 0.0, 1.44, 0.0]}, "home_q.2", "9 is beyond joint 'elbow''s limits"),
-    ({"gripper_closed_q": [0.035, 0.035]}, "gripper_closed_q", "equal to gripper_open_q"),
-    ({"gripper_open_q": [0.035, 0.5]}, "gripper_open_q.1", "beyond joint 'finger_right''s limits"),
-    ({"grasp_width_m": [0.06, 0.02]}, "(top level)", "must be below the largest"),
-    ({"approach_axis_tool": [0, 0, 2]}, "approach_axis_tool", "unit vector"),
-    ({"home_q": [0.0, "nan", 1.9, 0.0, 1.44, 0.0]}, "home_q.1", "finite number"),
-    ({"urdf": "nowhere/arm.urdf"}, "urdf", "no such file"),
-    ({"keyframes": {"up": [0, 0]}}, "keyframes.up", "2 values for 6 joints"),
-    ({"pick_timing": {"hover": 0.05}}, "pick_timing", "no timing field 'hover'; fields: hover_m"),
-    ({"max_approach_tilt_deg": 90}, "max_approach_tilt_deg", "less than or equal to 80"),
-])
+@pytest.mark.parametrize(
+    "change, field, says",
+    [
+        ({"tool_fram": "tool_link"}, "tool_fram", "Extra inputs are not permitted"),
+        ({"uid": None}, "uid", "Field required"),
+        ({"uid": "My Arm"}, "uid", "should match pattern"),
+        (
+            {"arm_joints": ["shoulder_pan", "shoulder_lift", "elbw", "forearm_roll", "wrist_pitch", "wrist_roll"]},
+            "arm_joints.2",
+            "no movable joint 'elbw' in the URDF; did you mean elbow",
+        ),
+        ({"tool_frame": "tool"}, "tool_frame", "no frame 'tool' in the URDF; did you mean tool_link"),
+        ({"finger_links": ["finger_left_link", "finger_rite_link"]}, "finger_links.1", "no link 'finger_rite_link'"),
+        ({"home_q": [0.0, -0.2, 1.9]}, "home_q", "3 values for 6 joints"),
+        ({"home_q": [0.0, -0.2, 9.0, 0.0, 1.44, 0.0]}, "home_q.2", "9 is beyond joint 'elbow''s limits"),
+        ({"gripper_closed_q": [0.035, 0.035]}, "gripper_closed_q", "equal to gripper_open_q"),
+        ({"gripper_open_q": [0.035, 0.5]}, "gripper_open_q.1", "beyond joint 'finger_right''s limits"),
+        ({"grasp_width_m": [0.06, 0.02]}, "(top level)", "must be below the largest"),
+        ({"approach_axis_tool": [0, 0, 2]}, "approach_axis_tool", "unit vector"),
+        ({"home_q": [0.0, "nan", 1.9, 0.0, 1.44, 0.0]}, "home_q.1", "finite number"),
+        ({"urdf": "nowhere/arm.urdf"}, "urdf", "no such file"),
+        ({"keyframes": {"up": [0, 0]}}, "keyframes.up", "2 values for 6 joints"),
+        ({"pick_timing": {"hover": 0.05}}, "pick_timing", "no timing field 'hover'; fields: hover_m"),
+        ({"max_approach_tilt_deg": 90}, "max_approach_tilt_deg", "less than or equal to 80"),
+    ],
+)
 def test_each_kind_of_mistake_is_one_line_naming_the_file_and_field(tmp_path, change, field, says):
     path = written(tmp_path, change)
     with pytest.raises(RobotFileError) as info:
@@ -71,14 +99,22 @@ def test_files_that_are_not_robot_declarations_are_refused_in_one_line(tmp_path)
     (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
     (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'></robot>")
     openclaw = (EXAMPLE.parent / yaml.safe_load(EXAMPLE.read_text())["urdf"]).resolve().read_text()
-    (tmp_path / "no_mesh.urdf").write_text(openclaw.replace("<collision>", '<collision><geometry><mesh filename="gone.stl"/></geometry></collision><collision>', 1))
+    (tmp_path / "no_mesh.urdf").write_text(
+        openclaw.replace(
+            "<collision>", '<collision><geometry><mesh filename="gone.stl"/></geometry></collision><collision>', 1
+        )
+    )
     cases = {
         tmp_path / "binary.yaml": "not UTF-8 text (byte 7",
         tmp_path / "list.yaml": "a robot file must hold a mapping of fields",
         tmp_path: "a directory, not a robot file",
         tmp_path / "missing.yaml": "no such file",
-        written(tmp_path, {"urdf": str(tmp_path / "broken.urdf")}, "bad_urdf.yaml"): "urdf: not a URDF Pinocchio can read",
-        written(tmp_path, {"urdf": str(tmp_path / "no_mesh.urdf")}, "no_mesh.yaml"): "names a mesh that is not there: gone.stl",
+        written(
+            tmp_path, {"urdf": str(tmp_path / "broken.urdf")}, "bad_urdf.yaml"
+        ): "urdf: not a URDF Pinocchio can read",
+        written(
+            tmp_path, {"urdf": str(tmp_path / "no_mesh.urdf")}, "no_mesh.yaml"
+        ): "names a mesh that is not there: gone.stl",
     }
     for path, says in cases.items():
         with pytest.raises(RobotFileError) as info:
@@ -103,8 +139,13 @@ def test_an_arm_from_another_package_with_package_uris_loads_as_the_registered_o
     urdf = spec.urdf_path()
     facts = {f: getattr(spec, f) for f in FACTS}
     renamed = {"home_q": "home_q", "gripper_open": "gripper_open_q", "gripper_closed": "gripper_closed_q"}
-    data = {renamed.get(f, f): (dataclasses.asdict(v) if dataclasses.is_dataclass(v) else list(v) if isinstance(v, tuple) else v)
-            for f, v in facts.items() if v is not None}
+    data = {
+        renamed.get(f, f): (
+            dataclasses.asdict(v) if dataclasses.is_dataclass(v) else list(v) if isinstance(v, tuple) else v
+        )
+        for f, v in facts.items()
+        if v is not None
+    }
     # its URDF names meshes as package://example-robot-data/robots/...: the packages lie in share/
     data.update(uid=f"my_{uid}", urdf=str(urdf), package_root=str(urdf.parents[4]))
     path = tmp_path / f"my_{uid}.yaml"

@@ -6,7 +6,15 @@ import math
 import numpy as np
 import pytest
 
-from robots.joint_trajectory import GoalStatus, GripperGoal, ResultCode, Spline, TrajectoryGoal, check_goal, rest_to_rest
+from robots.joint_trajectory import (
+    GoalStatus,
+    GripperGoal,
+    ResultCode,
+    Spline,
+    TrajectoryGoal,
+    check_goal,
+    rest_to_rest,
+)
 from robots.tracker import ArmTracker
 from robots.trajectory import JointSegment
 
@@ -19,26 +27,34 @@ def tracker(**kw) -> ArmTracker:
     return ArmTracker(NAMES, LOWER, UPPER, np.zeros(3), servo_period_s=DT, **kw)
 
 
-def goal(goal_id=1, times=(0.5, 1.0), positions=((0.2, 0.0, 0.0), (0.4, 0.1, 0.0)), joint_names=NAMES, **kw) -> TrajectoryGoal:
+def goal(
+    goal_id=1, times=(0.5, 1.0), positions=((0.2, 0.0, 0.0), (0.4, 0.1, 0.0)), joint_names=NAMES, **kw
+) -> TrajectoryGoal:
     return TrajectoryGoal(goal_id, joint_names, times, positions, **kw)
 
 
-@pytest.mark.parametrize("bad, code, words", [
-    (dict(joint_names=("a", "b", "x")), ResultCode.INVALID_JOINTS, "unknown joint names ['x']"),
-    (dict(joint_names=("a", "b")), ResultCode.INVALID_JOINTS, "this arm's joints are a, b, c"),
-    (dict(times_from_start_s=(1.0, 0.5)), ResultCode.INVALID_GOAL, "strictly increasing"),
-    (dict(times_from_start_s=(0.5, 0.5)), ResultCode.INVALID_GOAL, "strictly increasing"),
-    (dict(positions=((0.2, 0.0, 0.0), (3.0, 0.0, 0.0))), ResultCode.INVALID_GOAL, "beyond the limits of a"),
-    (dict(positions=((0.2, math.nan, 0.0), (0.4, 0.1, 0.0))), ResultCode.INVALID_GOAL, "NaN"),
-    (dict(positions=((0.2, 0.0), (0.4, 0.1))), ResultCode.INVALID_GOAL, "3 values"),
-    (dict(positions=()), ResultCode.INVALID_GOAL, "no points"),
-    (dict(velocities=(), accelerations=((0.0,) * 3,) * 2), ResultCode.INVALID_GOAL, "need velocities"),
-    (dict(path_tolerance_rad=(0.1, 0.1)), ResultCode.INVALID_GOAL, "one per joint"),
-    (dict(start_time_s=math.inf), ResultCode.INVALID_GOAL, "start time"),
-])
+@pytest.mark.parametrize(
+    "bad, code, words",
+    [
+        (dict(joint_names=("a", "b", "x")), ResultCode.INVALID_JOINTS, "unknown joint names ['x']"),
+        (dict(joint_names=("a", "b")), ResultCode.INVALID_JOINTS, "this arm's joints are a, b, c"),
+        (dict(times_from_start_s=(1.0, 0.5)), ResultCode.INVALID_GOAL, "strictly increasing"),
+        (dict(times_from_start_s=(0.5, 0.5)), ResultCode.INVALID_GOAL, "strictly increasing"),
+        (dict(positions=((0.2, 0.0, 0.0), (3.0, 0.0, 0.0))), ResultCode.INVALID_GOAL, "beyond the limits of a"),
+        (dict(positions=((0.2, math.nan, 0.0), (0.4, 0.1, 0.0))), ResultCode.INVALID_GOAL, "NaN"),
+        (dict(positions=((0.2, 0.0), (0.4, 0.1))), ResultCode.INVALID_GOAL, "3 values"),
+        (dict(positions=()), ResultCode.INVALID_GOAL, "no points"),
+        (dict(velocities=(), accelerations=((0.0,) * 3,) * 2), ResultCode.INVALID_GOAL, "need velocities"),
+        (dict(path_tolerance_rad=(0.1, 0.1)), ResultCode.INVALID_GOAL, "one per joint"),
+        (dict(start_time_s=math.inf), ResultCode.INVALID_GOAL, "start time"),
+    ],
+)
 def test_an_invalid_goal_is_refused_with_its_code_and_reason_and_the_arm_holds(bad, code, words):
     t = tracker()
-    fields = dict(goal_id=1, joint_names=NAMES, times_from_start_s=(0.5, 1.0), positions=((0.2, 0.0, 0.0), (0.4, 0.1, 0.0))) | bad
+    fields = (
+        dict(goal_id=1, joint_names=NAMES, times_from_start_s=(0.5, 1.0), positions=((0.2, 0.0, 0.0), (0.4, 0.1, 0.0)))
+        | bad
+    )
     (result,) = t.submit(TrajectoryGoal(**fields), now_s=0.0)
     assert result.status == GoalStatus.REJECTED and result.code == code and words in result.reason
     q, dq = t.desired(0.5)
@@ -46,7 +62,9 @@ def test_an_invalid_goal_is_refused_with_its_code_and_reason_and_the_arm_holds(b
 
 
 def test_joints_may_come_in_any_order_and_are_put_in_the_arms():
-    checked = check_goal(goal(joint_names=("c", "a", "b"), positions=((0.3, 0.1, 0.2), (0.0, 0.0, 0.0))), NAMES, LOWER, UPPER)
+    checked = check_goal(
+        goal(joint_names=("c", "a", "b"), positions=((0.3, 0.1, 0.2), (0.0, 0.0, 0.0))), NAMES, LOWER, UPPER
+    )
     assert np.allclose(checked.positions[0], [0.1, 0.2, 0.3])
 
 
@@ -71,7 +89,12 @@ def test_cubic_and_quintic_splines_pass_through_every_point_with_its_velocity():
     times, positions = (0.5, 1.0, 1.6), ((0.2, 0.0, 0.0), (0.4, 0.1, 0.0), (0.1, 0.3, -0.2))
     velocities = ((0.5, 0.2, 0.0), (0.0, 0.3, -0.1), (0.0, 0.0, 0.0))
     for accelerations in ((), ((0.0,) * 3,) * 3):
-        checked = check_goal(goal(times=times, positions=positions, velocities=velocities, accelerations=accelerations), NAMES, LOWER, UPPER)
+        checked = check_goal(
+            goal(times=times, positions=positions, velocities=velocities, accelerations=accelerations),
+            NAMES,
+            LOWER,
+            UPPER,
+        )
         spline = Spline.through(2.0, np.zeros(3), np.zeros(3), np.zeros(3), checked, DT)
         for t_s, p, v in zip(times, positions, velocities):
             q, dq = spline.state(2.0 + t_s)
@@ -98,13 +121,22 @@ def test_a_joint_off_its_path_aborts_the_goal_and_the_arm_holds_where_it_is():
     t.desired(0.5)
     stuck = np.array([0.1, 0.0, 0.0])  # blocked well short of where the path wants it
     (result,) = t.update(0.5, stuck, np.zeros(1), np.zeros(1))
-    assert result.code == ResultCode.PATH_TOLERANCE_VIOLATED and result.status == GoalStatus.ABORTED and "a " in result.reason
+    assert (
+        result.code == ResultCode.PATH_TOLERANCE_VIOLATED
+        and result.status == GoalStatus.ABORTED
+        and "a " in result.reason
+    )
     assert np.allclose(t.desired(0.6)[0], stuck) and t.goal_id == 0
 
 
 def test_an_arm_that_never_gets_there_ends_goal_tolerance_violated():
     t = tracker()
-    t.submit(rest_to_rest(4, NAMES, np.array([0.5, 0.0, 0.0]), 0.5, None, goal_tolerance_rad=(0.01,), goal_time_tolerance_s=0.2), 0.0)
+    t.submit(
+        rest_to_rest(
+            4, NAMES, np.array([0.5, 0.0, 0.0]), 0.5, None, goal_tolerance_rad=(0.01,), goal_time_tolerance_s=0.2
+        ),
+        0.0,
+    )
     short = np.array([0.4, 0.0, 0.0])
     assert t.update(0.6, short, np.zeros(1), np.zeros(1)) == [], "within the goal time tolerance: still waiting"
     (result,) = t.update(0.75, short, np.zeros(1), np.zeros(1))
@@ -117,7 +149,10 @@ def test_estop_aborts_every_goal_holds_and_refuses_new_ones_until_released():
     t.submit(GripperGoal(6, 0.0, start_time_s=0.0), 0.0)
     here = t.desired(0.3)[0].copy()
     results = t.set_estop(True, 0.3, here)
-    assert {(r.goal_id, r.status, r.code) for r in results} == {(5, GoalStatus.ABORTED, ResultCode.ABORTED), (6, GoalStatus.ABORTED, ResultCode.ABORTED)}
+    assert {(r.goal_id, r.status, r.code) for r in results} == {
+        (5, GoalStatus.ABORTED, ResultCode.ABORTED),
+        (6, GoalStatus.ABORTED, ResultCode.ABORTED),
+    }
     assert all(r.reason == "emergency stop" for r in results)
     assert np.allclose(t.desired(0.8)[0], here)
     (refused,) = t.submit(rest_to_rest(7, NAMES, np.zeros(3), 1.0, None), 0.4)

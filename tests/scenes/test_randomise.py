@@ -35,18 +35,30 @@ def test_a_seed_draws_one_set_of_values_within_the_ranges_and_applies_them(tmp_p
     assert 0.5 <= a.randomised["part_friction"] <= 1.0 and 0.0 <= a.randomised["part_pose_noise_m"] <= 0.003
     assert all(p.friction == a.randomised["part_friction"] for f in a.feeders for p in f.parts)
     assert a.conveyor.speed_m_per_s == pytest.approx(plain.conveyor.speed_m_per_s * a.randomised["belt_speed_scale"])
-    assert a.feeders[0].parts[0].mass_kg == pytest.approx(plain.feeders[0].parts[0].mass_kg * a.randomised["part_mass_scale"])
-    assert a.drive_gain_scale == a.randomised["arm_gain_scale"] and a.part_pose_noise_m == a.randomised["part_pose_noise_m"]
+    assert a.feeders[0].parts[0].mass_kg == pytest.approx(
+        plain.feeders[0].parts[0].mass_kg * a.randomised["part_mass_scale"]
+    )
+    assert (
+        a.drive_gain_scale == a.randomised["arm_gain_scale"]
+        and a.part_pose_noise_m == a.randomised["part_pose_noise_m"]
+    )
     assert a.randomise is None, "a drawn scene is concrete"
     assert plain.randomised == {}
 
 
-@pytest.mark.parametrize("ranges, field, words", [
-    ({"part_friction": {"uniform": [1.0, 0.5]}}, "randomise.part_friction", "above high"),
-    ({"belt_speed_scale": {"uniform": [0.9, 1.1], "normal": [1.0, 0.1]}}, "randomise.belt_speed_scale", "exactly one"),
-    ({"part_mass_scale": {"normal": [1.0, -0.1]}}, "randomise.part_mass_scale", "negative"),
-    ({"part_colour": {"uniform": [0, 1]}}, "randomise.part_colour", "Extra inputs"),
-])
+@pytest.mark.parametrize(
+    "ranges, field, words",
+    [
+        ({"part_friction": {"uniform": [1.0, 0.5]}}, "randomise.part_friction", "above high"),
+        (
+            {"belt_speed_scale": {"uniform": [0.9, 1.1], "normal": [1.0, 0.1]}},
+            "randomise.belt_speed_scale",
+            "exactly one",
+        ),
+        ({"part_mass_scale": {"normal": [1.0, -0.1]}}, "randomise.part_mass_scale", "negative"),
+        ({"part_colour": {"uniform": [0, 1]}}, "randomise.part_colour", "Extra inputs"),
+    ],
+)
 def test_a_bad_range_names_its_file_and_field(tmp_path, ranges, field, words):
     path = randomised(tmp_path, ranges)
     with pytest.raises(SceneError) as err:

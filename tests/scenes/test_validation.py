@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet.scene_loading import robot_facts
+from fleet.common.scene_loading import robot_facts
 from scenes import SceneError, bundled_scene_names, load_scene
 from scenes.loader import BUNDLED_DIR
 
@@ -41,6 +41,7 @@ def set_(keys, value):
         for k in keys[:-1]:
             d = d[k]
         d[keys[-1]] = value
+
     return edit
 
 
@@ -48,18 +49,43 @@ CASES = [
     ("unknown field", lambda d: d.update(conveyer={}), "conveyer", "Extra inputs"),
     ("missing field", lambda d: d["conveyor"].pop("length_m"), "conveyor.length_m", "Field required"),
     ("out of range", set_(["physics_hz"], 5), "physics_hz", "greater than or equal"),
-    ("no solver iterations", set_(["solver_position_iterations"], 0), "solver_position_iterations", "greater than or equal"),
+    (
+        "no solver iterations",
+        set_(["solver_position_iterations"], 0),
+        "solver_position_iterations",
+        "greater than or equal",
+    ),
     ("negative speed", set_(["conveyor", "speed_m_per_s"], -1), "conveyor.speed_m_per_s", "greater than or equal"),
     ("unknown model", set_(["arms", 1, "model"], "ur99"), "arms.1.model", "valid models: openclaw"),
     ("bases overlap", set_(["arms", 1, "base", "xyz"], [-0.25, -0.35, 0.0]), "arms.1.base.xyz", "bases need"),
-    ("station unreachable", set_(["stations", 2, "pose", "xyz"], [3.0, 3.0, 0.0]), "stations.2.pose", "out of every arm's reach"),
-    ("conveyor unreachable", set_(["conveyor", "pose", "xyz"], [-1.0, 3.0, 0.08]), "conveyor.pose", "no stretch of the conveyor"),
+    (
+        "station unreachable",
+        set_(["stations", 2, "pose", "xyz"], [3.0, 3.0, 0.0]),
+        "stations.2.pose",
+        "out of every arm's reach",
+    ),
+    (
+        "conveyor unreachable",
+        set_(["conveyor", "pose", "xyz"], [-1.0, 3.0, 0.08]),
+        "conveyor.pose",
+        "no stretch of the conveyor",
+    ),
     ("duplicate arm", set_(["arms", 1, "name"], "arm_0"), "arms.1.name", "duplicate"),
     ("feeder into nothing", set_(["feeders", 1, "into"], "nowhere"), "feeders.1.into", "no station"),
     ("control not dividing physics", set_(["control_hz"], 150), "(top level)", "whole multiple"),
     ("loss of one or more", set_(["network"], {"loss": 1.0}), "network.loss", "less than 1"),
-    ("negative latency on a link", set_(["network"], {"links": {"arm_0": {"latency_ms": -1}}}), "network.links.arm_0.latency_ms", "greater than or equal"),
-    ("a link to nobody", set_(["network"], {"links": {"arm_9": {"loss": 0.1}}}), "network.links.arm_9", "links: arm_0, arm_1, arm_2, coordinator"),
+    (
+        "negative latency on a link",
+        set_(["network"], {"links": {"arm_0": {"latency_ms": -1}}}),
+        "network.links.arm_0.latency_ms",
+        "greater than or equal",
+    ),
+    (
+        "a link to nobody",
+        set_(["network"], {"links": {"arm_9": {"loss": 0.1}}}),
+        "network.links.arm_9",
+        "links: arm_0, arm_1, arm_2, coordinator",
+    ),
 ]
 
 

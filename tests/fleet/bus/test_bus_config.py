@@ -23,7 +23,9 @@ def test_each_node_gets_its_own_login_and_only_its_owner_reads_keys_and_password
         assert stat.S_IMODE((tmp_path / private).stat().st_mode) == 0o600
     arm_0 = json.loads((tmp_path / "arm_0.json5").read_text())
     assert arm_0["mode"] == "client" and arm_0["transport"]["auth"]["usrpwd"]["user"] == "arm_0"
-    assert make_config(BusEndpoints(config_file=made.config_for("arm_0"))).get_json("mode") == '"client"', "the file's mode stands"
+    assert make_config(BusEndpoints(config_file=made.config_for("arm_0"))).get_json("mode") == '"client"', (
+        "the file's mode stands"
+    )
     with pytest.raises(BusConfigError, match="nodes: sim, coordinator"):
         made.config_for("arm_7")
 
@@ -32,11 +34,19 @@ def test_the_router_lets_each_node_publish_only_its_own_keys():
     acl = access_control(["arm_0", "arm_1"])
     assert acl["default_permission"] == "deny"
     publishes = {r["id"]: r["key_exprs"] for r in acl["rules"] if r["id"].startswith("publish_")}
-    assert publishes["publish_arm_0"] == ["clawfleet/*/arm/arm_0/step", "clawfleet/*/arm/arm_0/goal", "clawfleet/*/arm/arm_0/status"]
+    assert publishes["publish_arm_0"] == [
+        "clawfleet/*/arm/arm_0/step",
+        "clawfleet/*/arm/arm_0/goal",
+        "clawfleet/*/arm/arm_0/status",
+    ]
     assert publishes["publish_coordinator"] == ["clawfleet/*/arm/*/assign", "clawfleet/*/coord/**"]
     assert "publish_launcher" not in publishes, "the launcher only listens"
-    assert not any("state" in k or "world/events" in k for keys in publishes.values() for k in keys), "only the sim reports the line"
-    assert all("declare_queryable" not in r["messages"] for r in acl["rules"] if "ingress" in r["flows"]), "no client serves a queryable"
+    assert not any("state" in k or "world/events" in k for keys in publishes.values() for k in keys), (
+        "only the sim reports the line"
+    )
+    assert all("declare_queryable" not in r["messages"] for r in acl["rules"] if "ingress" in r["flows"]), (
+        "no client serves a queryable"
+    )
 
 
 def test_a_client_with_a_login_may_publish_its_keys_and_one_without_cannot_log_in(tmp_path):
@@ -61,12 +71,19 @@ def test_a_client_with_a_login_may_publish_its_keys_and_one_without_cannot_log_i
     assert heard == ["clawfleet/line/arm/arm_0/status"]
 
 
-@pytest.mark.parametrize("argv, says", [
-    (["--address", "sim.local"], "an IP address of the sim's host"),
-    (["--address", "10.0.0.5", "--port", "0"], "a TCP port"),
-])
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["--address", "sim.local"], "an IP address of the sim's host"),
+        (["--address", "10.0.0.5", "--port", "0"], "a TCP port"),
+    ],
+)
 def test_bad_bus_config_requests_are_one_line(tmp_path, argv, says):
-    done = subprocess.run([sys.executable, "-m", "fleet.cli", "bus-config", *argv, "--out", str(tmp_path / "bus")], capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-m", "fleet", "bus-config", *argv, "--out", str(tmp_path / "bus")],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
 
 

@@ -5,26 +5,86 @@ import pytest
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
-    ArmState, ArmStatus, Assignment, ControllerStep, CoordTick, EStop, GoalResultMsg, GripperGoalMsg, LineEvent, MESSAGE_TYPES,
-    PartsState, Progress, EnvAction, EnvTargets, LineView, MotionGrant, RespawnRequest, Separations, SimControl, SimStatus,
+    MESSAGE_TYPES,
+    ArmState,
+    ArmStatus,
+    Assignment,
+    ControllerStep,
+    CoordTick,
+    EnvAction,
+    EnvTargets,
+    EStop,
+    GoalResultMsg,
+    GripperGoalMsg,
+    LineEvent,
+    LineView,
+    MotionGrant,
+    PartsState,
+    Progress,
+    RespawnRequest,
+    Separations,
+    SimControl,
+    SimStatus,
     TrajectoryGoalMsg,
 )
 
 EXAMPLES = [
     ArmState("arm_0", 12, 0.12, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), True),
-    ArmState("arm_1", 13, 0.13, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), False, True, 4, "lift", 0.5, 3),
-    ArmState("arm_1", 15, 0.15, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0), goal_id=7,
-             desired_q=(0.11,) * 6, desired_dq=(0.01,) * 6, result_goal_id=6, result_status="preempted", next_tick=20, period_ticks=5),
+    ArmState(
+        "arm_1",
+        13,
+        0.13,
+        (0.1,) * 6,
+        (0.0,) * 6,
+        (0.02, 0.02),
+        (0.3, 0.1, 0.2),
+        (1.0, 0.0, 0.0, 0.0),
+        False,
+        True,
+        4,
+        "lift",
+        0.5,
+        3,
+    ),
+    ArmState(
+        "arm_1",
+        15,
+        0.15,
+        (0.1,) * 6,
+        (0.0,) * 6,
+        (0.02, 0.02),
+        (0.3, 0.1, 0.2),
+        (1.0, 0.0, 0.0, 0.0),
+        goal_id=7,
+        desired_q=(0.11,) * 6,
+        desired_dq=(0.01,) * 6,
+        result_goal_id=6,
+        result_status="preempted",
+        next_tick=20,
+        period_ticks=5,
+    ),
     ControllerStep("arm_1", 12, 17),
     ControllerStep("arm_1", 12, 17, (41, 42), 4, "descend", 0.25),
     TrajectoryGoalMsg("arm_0", 41, ("a", "b"), (0.5, 1.0), (0.1, 0.2, 0.3, 0.4)),
-    TrajectoryGoalMsg("arm_0", 41, ("a", "b"), (0.5,), (0.1, 0.2), (0.0, 0.0), (0.0, 0.0), 3.25, (0.3,), (0.01, 0.02), 0.2),
+    TrajectoryGoalMsg(
+        "arm_0", 41, ("a", "b"), (0.5,), (0.1, 0.2), (0.0, 0.0), (0.0, 0.0), 3.25, (0.3,), (0.01, 0.02), 0.2
+    ),
     GripperGoalMsg("arm_0", 42, 0.0, 20.0, 3.75),
     GoalResultMsg("arm_0", 41, "trajectory", "aborted", -4, "shoulder_lift 0.3 rad off its path", 4.5),
     GoalResultMsg("arm_0", 42, "gripper", "succeeded", 0, "", 4.9, False, True),
     ArmStatus("arm_2", 7, 3.5, "descend", 4, 0.25),
     ArmStatus("arm_2", 8, 3.6, "failed", 4, 0.25, 2.5, "the claw closed on nothing"),
-    PartsState(3, 0.03, (1, 2), ("bases", "tops"), (0, 0), (0.0,) * 6, (1.0, 0, 0, 0) * 2, (0.05, 0, 0) * 2, (0.05, 0.05, 0.03) * 2),
+    PartsState(
+        3,
+        0.03,
+        (1, 2),
+        ("bases", "tops"),
+        (0, 0),
+        (0.0,) * 6,
+        (1.0, 0, 0, 0) * 2,
+        (0.05, 0, 0) * 2,
+        (0.05, 0.05, 0.03) * 2,
+    ),
     Assignment("arm_0", 1, 9, 17, 0.08, (0.3, -0.5, 0.04), (0.05, 0.0, 0.0)),
     Assignment("arm_0", 2, None, 17, 0.08, (0.3, -0.5, 0.04), (0.0, 0.0, 0.0)),
     LineEvent("at_station", 17, 400, "fixture_0"),
@@ -43,8 +103,12 @@ EXAMPLES = [
     EnvAction("arm_0", 5, "act", (0.1, -1.0, 0.0, 1.0)),
     EnvTargets("arm_0", 5, (0.2,) * 6, 1.0),
     MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
-    LineView(3, 0.03, (ArmState("arm_0", 3, 0.03, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0)),),
-             PartsState(3, 0.03, (1,), ("bases",), (0,), (0.0,) * 3, (1.0, 0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0.03))),
+    LineView(
+        3,
+        0.03,
+        (ArmState("arm_0", 3, 0.03, (0.1,) * 6, (0.0,) * 6, (0.02, 0.02), (0.3, 0.1, 0.2), (1.0, 0.0, 0.0, 0.0)),),
+        PartsState(3, 0.03, (1,), ("bases",), (0,), (0.0,) * 3, (1.0, 0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0.03)),
+    ),
 ]
 
 
@@ -69,7 +133,9 @@ def test_arm_state_is_compact():
     assert len(encode(state)) < 0.5 * len(msgspec.json.encode(msgspec.structs.asdict(state)))
 
 
-@pytest.mark.parametrize("payload", [b"", b"\x00\x01garbage", b"\xff" * 40, encode(EXAMPLES[0])[:-5], encode(EStop(True, "x"))])
+@pytest.mark.parametrize(
+    "payload", [b"", b"\x00\x01garbage", b"\xff" * 40, encode(EXAMPLES[0])[:-5], encode(EStop(True, "x"))]
+)
 def test_malformed_payloads_are_dropped_and_counted(payload):
     drops = DropCounter()
     assert Decoder(ControllerStep, drops).decode("clawfleet/r/arm/arm_0/step", payload) is None

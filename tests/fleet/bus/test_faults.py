@@ -80,9 +80,14 @@ def test_an_answer_lost_on_the_way_back_is_recorded_then_forgotten():
     assert book.awaiting() is None and book.due_answers(10_000) == []
 
 
-@pytest.mark.parametrize("flags, problem", [
-    (["--loss", "1.5"], "--loss 1.5"), (["--latency-ms", "-1"], "--latency-ms -1"), (["--jitter-ms", "nan"], "--jitter-ms nan"),
-])
+@pytest.mark.parametrize(
+    "flags, problem",
+    [
+        (["--loss", "1.5"], "--loss 1.5"),
+        (["--latency-ms", "-1"], "--latency-ms -1"),
+        (["--jitter-ms", "nan"], "--jitter-ms nan"),
+    ],
+)
 def test_bad_fault_flags_name_the_flag(flags, problem):
     parser = argparse.ArgumentParser()
     add_fault_arguments(parser)

@@ -11,7 +11,7 @@ from coordinator.allocation import make_allocator
 from fleet.env import parallel_env
 from fleet.env.task_mode import allocator_actions
 from fleet.env.tasks import above
-from fleet.physics.world import World
+from fleet.sim.world import World
 from robots.frames import yaw_transform
 from robots.policy_actions import MAX_DELTA_RAD
 from robots.top_down import TopDownIK
@@ -33,7 +33,10 @@ class ScriptedPick:
         w, x, y, z = info.quaternion_wxyz
         part_yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
         natural = self.ik.natural_yaw(info.position)
-        return min((part_yaw + k * math.pi / 2 for k in range(-4, 5)), key=lambda c: abs(math.remainder(c - natural, 2 * math.pi)))
+        return min(
+            (part_yaw + k * math.pi / 2 for k in range(-4, 5)),
+            key=lambda c: abs(math.remainder(c - natural, 2 * math.pi)),
+        )
 
     def act(self) -> np.ndarray:
         env, a = self.env, self.agent
@@ -113,7 +116,13 @@ def test_task_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed
         rng = np.random.default_rng(0)
         while env.agents:
             obs, rewards, _, _, infos = env.step({a: int(rng.integers(0, 5)) for a in env.agents})
-            trace.append((tuple(np.concatenate(list(obs.values()))), tuple(rewards.values()), tuple(i["choice"] for i in infos.values())))
+            trace.append(
+                (
+                    tuple(np.concatenate(list(obs.values()))),
+                    tuple(rewards.values()),
+                    tuple(i["choice"] for i in infos.values()),
+                )
+            )
         runs.append(trace)
     assert runs[0] == runs[1]
     assert any(c.startswith("refused: slot") for step in runs[0] for c in step[2])
@@ -164,10 +173,14 @@ def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choice
         while env.agents:
             for a in env.agents:
                 mask = observations[a]["action_mask"]
-                assert np.array_equal(mask, infos[a]["action_mask"]) and mask[0] == 1, "the mask in both places; waiting always allowed"
+                assert np.array_equal(mask, infos[a]["action_mask"]) and mask[0] == 1, (
+                    "the mask in both places; waiting always allowed"
+                )
                 options = env._options.get(a, [])
                 assert mask[1:].sum() == len(options)
-                assert all(t.state.value == "pending" and math.isfinite(seconds) for t, seconds in options), "each valid slot is a task the arm can serve"
+                assert all(t.state.value == "pending" and math.isfinite(seconds) for t, seconds in options), (
+                    "each valid slot is a task the arm can serve"
+                )
             actions = {a: int(rng.choice(np.flatnonzero(observations[a]["action_mask"]))) for a in env.agents}
             observations, _, _, _, infos = env.step(actions)
             choices = [info.get("choice", "") for info in infos.values()]
@@ -194,7 +207,9 @@ def test_task_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_r
         touching += sum(i["collision"] for i in infos.values())
     dispatcher = env.task_model.book.dispatcher
     held = dispatcher.held_at_station_s
-    assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, held  # the top waited for its base, the ship for its top
+    assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, (
+        held
+    )  # the top waited for its base, the ship for its top
     assert touching == 0 and dispatcher.ledger.totals()["parts_completed"] >= 3
     lone = parallel_env(task="line", scene="pick_cell", action_mode="task", max_cycles=2, control_hz=5)
     lone.reset(seed=0)
@@ -203,7 +218,8 @@ def test_task_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_r
 
 def test_task_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_fleet_run_does():
     """mixed_infeed's two arms share the rework tray and the kit bin between them: in task mode they ask for their
-    free moves as in `fleet run` (they used to move unasked there, touched and lost tasks: aborted goals, empty grasps)."""
+    free moves as in `fleet run` (they used to move unasked there, touched and lost tasks: aborted goals, empty
+    grasps)."""
     env = parallel_env(task="line", scene="mixed_infeed", action_mode="task", max_cycles=600, control_hz=10)
     env.reset(seed=1000)
     chooser, policy = env.chooser, make_allocator("optimal", env.scene)

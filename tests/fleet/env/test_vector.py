@@ -28,7 +28,10 @@ def test_each_cell_of_a_vector_runs_as_the_single_env_of_its_seed_and_closing_fr
         for _ in range(SETTINGS["max_cycles"] - 1):
             actions = rng.uniform(-1, 1, (4, *venv.action_space.shape)).astype(np.float32)
             obs, rewards, *_ = venv.step(actions)
-            stepped = [env.step({a: actions[2 * i + j] for j, a in enumerate(("arm_0", "arm_1"))}) for i, env in enumerate(singles)]
+            stepped = [
+                env.step({a: actions[2 * i + j] for j, a in enumerate(("arm_0", "arm_1"))})
+                for i, env in enumerate(singles)
+            ]
             assert np.allclose(obs, rows([s[0] for s in stepped]))
             assert np.allclose(rewards, [s[1][a] for s in stepped for a in ("arm_0", "arm_1")])
         assert len(multiprocessing.active_children()) >= 2, "the cells ran in worker processes"

@@ -8,7 +8,9 @@ from fleet.env import parallel_env
 
 
 def test_human_render_serves_the_cell_and_frees_its_port_on_close():
-    env = parallel_env(task="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=10, render_mode="human", monitor_port=0)
+    env = parallel_env(
+        task="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=10, render_mode="human", monitor_port=0
+    )
     env.reset(seed=0)
     while env.agents:
         env.step({a: env.action_space(a).sample() for a in env.agents})

@@ -2,7 +2,8 @@
 
 It connects (retrying until the line's router is up), listens to arm_0's states to show that it is
 on the bus, and for `--seconds` publishes what would stop or move the arm if believed: an e-stop,
-a pause, a trajectory goal, an assignment and a state for arm_0, and a line event losing a part. Prints one JSON line: whether the
+a pause, a trajectory goal, an assignment and a state for arm_0, and a line event losing a part. Prints one JSON line:
+whether the
 router let it in, the states it heard and the messages it sent.
 """
 
@@ -31,7 +32,10 @@ def fakes(keys: Keys) -> list[tuple[str, bytes]]:
         (keys.control, encode(SimControl("intruder", paused=True))),
         (keys.arm_goal("arm_0"), encode(goal)),
         (keys.arm_assign("arm_0"), encode(Assignment("arm_0", 1, 424242, 0, 0.1, (0.0, 0.0, 0.2), (0.0, 0.0, 0.0)))),
-        (keys.arm_state("arm_0"), encode(ArmState("arm_0", 1, 0.01, target, (0.0,) * 6, (0.0, 0.0), (0.3, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0)))),
+        (
+            keys.arm_state("arm_0"),
+            encode(ArmState("arm_0", 1, 0.01, target, (0.0,) * 6, (0.0, 0.0), (0.3, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0))),
+        ),
         (keys.events, encode(LineEvent("lost", 0, 1, "taken by the intruder"))),
     ]
 

@@ -26,8 +26,20 @@ def hosts():
 
 def bus_configs(tmp_path: Path, hosts, secure: bool) -> str:
     out = tmp_path / ("secure" if secure else "plain")
-    argv = ["bus-config", "--address", hosts["simhost"].address, "--port", "7447", "--scene", QUICK_LINE, "--out", str(out)]
-    made = subprocess.run([sys.executable, "-m", "fleet.cli", *argv, *([] if secure else ["--insecure"])], capture_output=True, text=True)
+    argv = [
+        "bus-config",
+        "--address",
+        hosts["simhost"].address,
+        "--port",
+        "7447",
+        "--scene",
+        QUICK_LINE,
+        "--out",
+        str(out),
+    ]
+    made = subprocess.run(
+        [sys.executable, "-m", "fleet", *argv, *([] if secure else ["--insecure"])], capture_output=True, text=True
+    )
     assert made.returncode == 0, made.stderr
     return str(out)
 
@@ -42,7 +54,12 @@ def hosts_file(tmp_path: Path, hosts) -> str:
 def run_from_the_desk(hosts, bus: str, hosts_yaml: str) -> subprocess.Popen:
     """`fleet run` started on the desk host; the launcher starts each node on its own host."""
     argv = ["run", QUICK_LINE, "--duration", "18", "--seed", "5", "--bus-config", bus, "--hosts", hosts_yaml, "--json"]
-    return subprocess.Popen(hosts["desk"].run(sys.executable, "-m", "fleet.cli", *argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        hosts["desk"].run(sys.executable, "-m", "fleet", *argv),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def summary_of(proc: subprocess.Popen, timeout_s: float = 180.0) -> dict:
@@ -58,7 +75,9 @@ def summary_of(proc: subprocess.Popen, timeout_s: float = 180.0) -> dict:
     return {k: v for k, v in summary.items() if k not in WALL_FIGURES}
 
 
-def test_a_line_on_separate_hosts_runs_as_on_one_and_with_tls_logins_and_acl_no_intruder_stops_or_moves_an_arm(tmp_path, hosts):
+def test_a_line_on_separate_hosts_runs_as_on_one_and_with_tls_logins_and_acl_no_intruder_stops_or_moves_an_arm(
+    tmp_path, hosts
+):
     hosts_yaml = hosts_file(tmp_path, hosts)
     plain = summary_of(run_from_the_desk(hosts, bus_configs(tmp_path, hosts, secure=False), hosts_yaml))
     assert plain["status"] == "ok" and plain["parts_completed"] >= 2 and plain["inter_arm_contacts"] == 0
@@ -69,11 +88,19 @@ def test_a_line_on_separate_hosts_runs_as_on_one_and_with_tls_logins_and_acl_no_
     del config["transport"]["auth"]
     no_login.write_text(json.dumps(config))
     line = run_from_the_desk(hosts, secure_bus, hosts_yaml)
-    intruders = [subprocess.Popen(hosts["armhost"].run(sys.executable, INTRUDER, "--config", config, "--seconds", "3", "--connect-within", c),
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-                 for config, c in ((str(Path(secure_bus, "arm_1.json5")), "60"), (str(no_login), "8"))]
+    intruders = [
+        subprocess.Popen(
+            hosts["armhost"].run(sys.executable, INTRUDER, "--config", config, "--seconds", "3", "--connect-within", c),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for config, c in ((str(Path(secure_bus, "arm_1.json5")), "60"), (str(no_login), "8"))
+    ]
     try:
-        as_arm_1, without_login = [json.loads(p.communicate(timeout=120)[0].strip().splitlines()[-1]) for p in intruders]
+        as_arm_1, without_login = [
+            json.loads(p.communicate(timeout=120)[0].strip().splitlines()[-1]) for p in intruders
+        ]
         secure = summary_of(line)
     finally:
         for proc in (*intruders, line):
@@ -82,7 +109,9 @@ def test_a_line_on_separate_hosts_runs_as_on_one_and_with_tls_logins_and_acl_no_
                 proc.wait(30)
 
     assert without_login["connected"] is False, "the router lets in no one without a login"
-    assert as_arm_1["connected"] and as_arm_1["heard_states"] > 0 and as_arm_1["sent"] > 0, "logged in as arm_1: it hears the line"
+    assert as_arm_1["connected"] and as_arm_1["heard_states"] > 0 and as_arm_1["sent"] > 0, (
+        "logged in as arm_1: it hears the line"
+    )
     assert secure == plain, "e-stop, pause, goals and orders for arm_0 from arm_1's login never reached anyone"
     for host in hosts.values():
         assert processes_in(host.netns) == [], f"processes left on {host.netns}"

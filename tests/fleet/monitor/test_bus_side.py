@@ -10,14 +10,14 @@ import pytest
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Assignment, MotionGrant, SimStatus
-from fleet.bus.session import BusEndpoints, open_session
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene, serve_scene
+from fleet.bus.session import BusEndpoints, open_session
 from fleet.monitor.app import Monitor
 from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
 from fleet.monitor.options import exposure_warning
 from fleet.nodes.sim_server import SimServer
-from fleet.physics.world import World
+from fleet.sim.world import World
 from scenes import load_scene
 
 
@@ -35,7 +35,9 @@ def realtime_sim():
     """A realtime sim server of the handover cell (no controllers: arms held) ticking in a thread."""
     keys = Keys("mon")
     with open_session(BusEndpoints()) as session:
-        server = SimServer(World(load_scene("handover")), session, keys, mode="realtime", first_command_timeout_s=0.2, speed=1.0)
+        server = SimServer(
+            World(load_scene("handover")), session, keys, mode="realtime", first_command_timeout_s=0.2, speed=1.0
+        )
         stop = threading.Event()
 
         class Stop:
@@ -101,7 +103,9 @@ def test_motion_grants_on_an_arms_order_key_are_orders_not_garbage(realtime_sim)
         time.sleep(0.1)
         session.put(keys.arm_assign("arm_0"), encode(MotionGrant("arm_0", 1, 1, "grant")))
         assert wait_for(lambda: feed.take() is not None and feed.taken >= 1)
-        session.put(keys.arm_assign("arm_0"), encode(Assignment("arm_0", 2, 7, 3, 0.1, (0.2, 0.0, 0.1), (0.0, 0.0, 0.0))))
+        session.put(
+            keys.arm_assign("arm_0"), encode(Assignment("arm_0", 2, 7, 3, 0.1, (0.2, 0.0, 0.1), (0.0, 0.0, 0.0)))
+        )
         assert wait_for(lambda: "arm_0" in feed.take().assignments)
         assert feed.drops.total == 0
 
@@ -117,7 +121,9 @@ def test_a_scene_whose_robot_file_is_not_here_is_a_clear_error(tmp_path):
     with open_session(BusEndpoints()) as session:
         queryable = serve_scene(session, Keys("far"), scene.model_dump_json())
         try:
-            with pytest.raises(SceneUnavailable, match=r"names a robot file that cannot be used here: .*elsewhere.yaml: no such file"):
+            with pytest.raises(
+                SceneUnavailable, match=r"names a robot file that cannot be used here: .*elsewhere.yaml: no such file"
+            ):
                 fetch_scene(session, Keys("far"), timeout_s=2.0)
         finally:
             queryable.undeclare()

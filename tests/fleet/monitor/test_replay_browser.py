@@ -12,12 +12,12 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import LineView
 from fleet.bus.session import BusEndpoints, free_loopback_port, open_listening_session
-from fleet.launcher import Launcher, RunOptions
+from fleet.common.processes import StopFlag
 from fleet.monitor.app import Monitor
 from fleet.monitor.replay_panel import ReplayPanel
-from fleet.processes import StopFlag
 from fleet.record.mcap_file import Recording
 from fleet.record.replay import Player
+from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.monitor.test_browser import BROWSER_ARGS, CHROMIUM, wait_http
 
 
@@ -43,7 +43,9 @@ def wait_for(condition, timeout_s: float, what: str) -> None:
         time.sleep(0.1)
 
 
-@pytest.mark.skipif(not os.path.exists(CHROMIUM), reason="needs Debian's chromium (apt-get install chromium; .ci/run does)")
+@pytest.mark.skipif(
+    not os.path.exists(CHROMIUM), reason="needs Debian's chromium (apt-get install chromium; .ci/run does)"
+)
 def test_the_replay_slider_jumps_to_a_time_and_the_page_draws_the_arms_there(tmp_path):
     from playwright.sync_api import sync_playwright
 
@@ -53,11 +55,18 @@ def test_the_replay_slider_jumps_to_a_time_and_the_page_draws_the_arms_there(tmp
     recording = Recording(path)
     keys, port, stop = Keys("line"), free_loopback_port(), StopFlag(watch_parent=False)
     session, _ = open_listening_session(BusEndpoints())
-    with session, Player(recording, session, keys) as player, Monitor(session, keys, recording.scene, "127.0.0.1", port) as monitor:
+    with (
+        session,
+        Player(recording, session, keys) as player,
+        Monitor(session, keys, recording.scene, "127.0.0.1", port) as monitor,
+    ):
         panel = ReplayPanel(monitor.server, player)
         monitor.extras.append(panel)
         player.clock.playing = False  # paused at the start: only the slider moves it
-        threads = [threading.Thread(target=player.run, args=(stop, False)), threading.Thread(target=monitor.run, args=(stop,))]
+        threads = [
+            threading.Thread(target=player.run, args=(stop, False)),
+            threading.Thread(target=monitor.run, args=(stop,)),
+        ]
         for t in threads:
             t.start()
         try:
@@ -74,13 +83,27 @@ def test_the_replay_slider_jumps_to_a_time_and_the_page_draws_the_arms_there(tmp
                         seeks = panel.seeks
                         slider.focus()
                         page.keyboard.press(key)
-                        wait_for(lambda: panel.seeks > seeks, 30, f"the page's {key} on the slider did not reach the player")
-                        wait_for(lambda: abs(player.clock.position_s - t_s) < 0.1, 10, f"{key} on the slider did not seek to {t_s:.1f} s")
+                        wait_for(
+                            lambda seeks=seeks: panel.seeks > seeks,
+                            30,
+                            f"the page's {key} on the slider did not reach the player",
+                        )
+                        wait_for(
+                            lambda t_s=t_s: abs(player.clock.position_s - t_s) < 0.1,
+                            10,
+                            f"{key} on the slider did not seek to {t_s:.1f} s",
+                        )
                         want = frame_at(recording, player.clock.position_s)
                         for arm_state in want.arms:
                             expected = np.round(np.concatenate([arm_state.q, arm_state.gripper_q]), 4)
-                            wait_for(lambda: drawn_q(monitor, arm_state.arm) is not None and np.allclose(drawn_q(monitor, arm_state.arm), expected, atol=1e-3),
-                                     30, f"{arm_state.arm} is not drawn as recorded at {t_s:.1f} s")
+                            wait_for(
+                                lambda arm_state=arm_state, expected=expected: (
+                                    drawn_q(monitor, arm_state.arm) is not None
+                                    and np.allclose(drawn_q(monitor, arm_state.arm), expected, atol=1e-3)
+                                ),
+                                30,
+                                f"{arm_state.arm} is not drawn as recorded at {t_s:.1f} s",
+                            )
                         page.get_by_text(f"{player.clock.position_s:.1f}", exact=True).first.wait_for(timeout=30_000)
                 finally:
                     browser.close()

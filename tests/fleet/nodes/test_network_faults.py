@@ -17,8 +17,8 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, ControllerStep
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.nodes.sim_server import SimServer
-from fleet.physics.world import World
-from fleet.trials import trial_scene
+from fleet.robot_tools.trials import trial_scene
+from fleet.sim.world import World
 from robots.joint_trajectory import TrajectoryGoal
 from scenes.schema import Network
 
@@ -29,7 +29,15 @@ class GoalSender:
     """Answers every state of `arm_0`; with the states of `goal_ticks` (all ticks: with every `every`-th state
     answered) it sends a short trajectory goal and names it."""
 
-    def __init__(self, session, keys: Keys, goal_ticks: set[int] | None, joints: tuple[str, ...], home: np.ndarray, every: int = 4) -> None:
+    def __init__(
+        self,
+        session,
+        keys: Keys,
+        goal_ticks: set[int] | None,
+        joints: tuple[str, ...],
+        home: np.ndarray,
+        every: int = 4,
+    ) -> None:
         self.session, self.keys, self.goal_ticks, self.joints, self.home = session, keys, goal_ticks, joints, home
         self.every = every
         self.inbox = Inbox()
@@ -50,7 +58,11 @@ class GoalSender:
                     continue
                 self.answered.add(state.tick)
                 goal_ids = ()
-                chosen = state.tick in self.goal_ticks if self.goal_ticks is not None else len(self.answered) % self.every == 0
+                chosen = (
+                    state.tick in self.goal_ticks
+                    if self.goal_ticks is not None
+                    else len(self.answered) % self.every == 0
+                )
                 if chosen:
                     goal_id = 100 + state.tick
                     target = self.home + 0.02 * (len(self.goal_of_tick) % 2)
@@ -58,7 +70,10 @@ class GoalSender:
                     self.session.put(self.keys.arm_goal("arm_0"), encode(goal_message("arm_0", goal)))
                     self.goal_of_tick[state.tick] = goal_id
                     goal_ids = (goal_id,)
-                self.session.put(self.keys.arm_step("arm_0"), encode(ControllerStep("arm_0", state.tick, state.tick + PERIOD_TICKS, goal_ids)))
+                self.session.put(
+                    self.keys.arm_step("arm_0"),
+                    encode(ControllerStep("arm_0", state.tick, state.tick + PERIOD_TICKS, goal_ids)),
+                )
 
     def close(self) -> None:
         self.stop.set()
@@ -66,8 +81,13 @@ class GoalSender:
         self.sub.undeclare()
 
 
-def landing_ticks(network: Network | None, goal_ticks: set[int] | None, ticks: int, mode: str = "lockstep",
-                  wall_at: dict[int, float] | None = None) -> tuple[dict[int, int], SimServer]:
+def landing_ticks(
+    network: Network | None,
+    goal_ticks: set[int] | None,
+    ticks: int,
+    mode: str = "lockstep",
+    wall_at: dict[int, float] | None = None,
+) -> tuple[dict[int, int], SimServer]:
     """Run the pick cell `ticks` ticks with `network`'s faults; the tick at which each goal reached the tracker
     (and in `wall_at`, the wall time each tick was done)."""
     scene = trial_scene("openclaw", 0).model_copy(update={"network": network})
@@ -75,7 +95,10 @@ def landing_ticks(network: Network | None, goal_ticks: set[int] | None, ticks: i
     keys = Keys("nf")
     endpoint = loopback_endpoint(free_loopback_port())
     spec = world.arms["arm_0"].spec
-    with open_session(BusEndpoints(listen=(endpoint,))) as server_session, open_session(BusEndpoints(connect=(endpoint,))) as client_session:
+    with (
+        open_session(BusEndpoints(listen=(endpoint,))) as server_session,
+        open_session(BusEndpoints(connect=(endpoint,))) as client_session,
+    ):
         server = SimServer(world, server_session, keys, mode=mode, lockstep_timeout_s=2.0, first_command_timeout_s=10.0)
         sender = GoalSender(client_session, keys, goal_ticks, spec.arm_joints, np.asarray(spec.home_q, float))
         time.sleep(0.3)  # the two sessions find each other
@@ -101,7 +124,9 @@ def test_a_command_lands_the_injected_ticks_later_in_lockstep():
     assert plain == {10: 10 + PERIOD_TICKS}, "without faults an answer takes effect one period after its state"
     assert delayed == {10: 10 + 3 + PERIOD_TICKS + 3}, "30 ms each way at 100 Hz: 3 ticks out, 3 ticks back"
     report = server.report()["network_faults"]["arm_0"]
-    assert report["down"]["mean_delay_ms"] == pytest.approx(30.0) and report["up"]["mean_delay_ms"] == pytest.approx(30.0)
+    assert report["down"]["mean_delay_ms"] == pytest.approx(30.0) and report["up"]["mean_delay_ms"] == pytest.approx(
+        30.0
+    )
     assert server.stats.lost == []
 
 
@@ -121,10 +146,14 @@ def test_lost_messages_are_counted_never_waited_for_and_repeat_for_the_seed():
 
 def test_in_realtime_the_faults_act_in_wall_time():
     wall_at: dict[int, float] = {}
-    landed, server = landing_ticks(Network(latency_ms=100, jitter_ms=10, loss=0.1), None, 300, mode="realtime", wall_at=wall_at)
+    landed, server = landing_ticks(
+        Network(latency_ms=100, jitter_ms=10, loss=0.1), None, 300, mode="realtime", wall_at=wall_at
+    )
     report = server.report()["network_faults"]["arm_0"]
     assert report["down"]["lost"] > 0 and 90 < report["down"]["mean_delay_ms"] < 110
     trips = [wall_at[t] - wall_at[sent] for sent, t in landed.items() if t is not None and sent in wall_at]
     assert trips, "some goals landed"
-    assert min(trips) >= 0.2 - 0.06, "no command lands before its state went out and its answer came back (100 ms each way, 3 sigma jitter)"
+    assert min(trips) >= 0.2 - 0.06, (
+        "no command lands before its state went out and its answer came back (100 ms each way, 3 sigma jitter)"
+    )
     assert server.stats.lost == []

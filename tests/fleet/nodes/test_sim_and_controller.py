@@ -10,7 +10,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -20,13 +19,25 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import Assignment, LineEvent
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.nodes.sim_server import SimServer
-from fleet.physics.world import WALL_M, World
-from fleet.trials import trial_scene
+from fleet.robot_tools.trials import trial_scene
+from fleet.sim.world import WALL_M, World
 
 
 def start_controller(endpoint: str) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "fleet.nodes.arm_controller", "--scene", "pick_cell", "--arm", "arm_0", "--run", "t", "--connect", endpoint],
+        [
+            sys.executable,
+            "-m",
+            "fleet.nodes.arm_controller",
+            "--scene",
+            "pick_cell",
+            "--arm",
+            "arm_0",
+            "--run",
+            "t",
+            "--connect",
+            endpoint,
+        ],
     )
 
 
@@ -50,10 +61,20 @@ def test_pick_over_the_bus_then_garbage_then_a_lost_controller():
             server.run_ticks(30)
             assert server.stats.lost == []
             station = world.scene_model.station("bin_0")
-            session.put(keys.arm_assign("arm_0"), encode(Assignment(
-                "arm_0", 1, 1, part_id, world.scene_model.conveyor.pose.xyz[2],
-                (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M), tuple(world.belt_velocity()),
-            )))
+            session.put(
+                keys.arm_assign("arm_0"),
+                encode(
+                    Assignment(
+                        "arm_0",
+                        1,
+                        1,
+                        part_id,
+                        world.scene_model.conveyor.pose.xyz[2],
+                        (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M),
+                        tuple(world.belt_velocity()),
+                    )
+                ),
+            )
             for _ in range(25):
                 session.put(keys.arm_step("arm_0"), os.urandom(24))
                 server.run_ticks(50)
@@ -92,15 +113,29 @@ def test_a_controller_killed_mid_trajectory_leaves_its_arm_held_within_a_period_
             part_id = world.spawn_now("trial_parts")
             server.run_ticks(30)
             station = world.scene_model.station("bin_0")
-            session.put(keys.arm_assign("arm_0"), encode(Assignment(
-                "arm_0", 1, 1, part_id, world.scene_model.conveyor.pose.xyz[2],
-                (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M), tuple(world.belt_velocity()),
-            )))
+            session.put(
+                keys.arm_assign("arm_0"),
+                encode(
+                    Assignment(
+                        "arm_0",
+                        1,
+                        1,
+                        part_id,
+                        world.scene_model.conveyor.pose.xyz[2],
+                        (station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M),
+                        tuple(world.belt_velocity()),
+                    )
+                ),
+            )
             tracker = server.tracked.trackers["arm_0"]
             for _ in range(800):  # until the arm is in the middle of a long move
                 server.run_ticks(1)
                 a = tracker.active
-                if a is not None and a.spline.t_end_s - world.sim_time_s > 0.5 and np.abs(world.arms["arm_0"].qvel()[:6]).max() > 0.3:
+                if (
+                    a is not None
+                    and a.spline.t_end_s - world.sim_time_s > 0.5
+                    and np.abs(world.arms["arm_0"].qvel()[:6]).max() > 0.3
+                ):
                     break
             else:
                 raise AssertionError("the arm never made a long move")

@@ -12,8 +12,8 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, EStop, GoalResultMsg, TrajectoryGoalMsg
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.nodes.sim_server import SimServer
-from fleet.physics.world import World
-from fleet.trials import trial_scene
+from fleet.robot_tools.trials import trial_scene
+from fleet.sim.world import World
 from robots.joint_trajectory import GripperGoal, TrajectoryGoal, rest_to_rest
 from scenes import load_scene
 
@@ -26,15 +26,19 @@ class Client:
     def __init__(self, session, server: SimServer, keys: Keys) -> None:
         self.session, self.server, self.keys = session, server, keys
         self.results, self.states = Inbox(), Inbox()
-        self._subs = [session.declare_subscriber(keys.all_arms("result"), self.results),
-                      session.declare_subscriber(keys.all_arms("state"), self.states)]
+        self._subs = [
+            session.declare_subscriber(keys.all_arms("result"), self.results),
+            session.declare_subscriber(keys.all_arms("state"), self.states),
+        ]
         self.heard: list[GoalResultMsg] = []
         self.feedback: list[ArmState] = []
         self.sent = 0
 
     def send(self, arm: str, goal) -> None:
         """Publish a goal and run the sim until it has taken it."""
-        self.session.put(self.keys.arm_goal(arm), encode(goal if isinstance(goal, TrajectoryGoalMsg) else goal_message(arm, goal)))
+        self.session.put(
+            self.keys.arm_goal(arm), encode(goal if isinstance(goal, TrajectoryGoalMsg) else goal_message(arm, goal))
+        )
         self.sent += 1
         self.run_until(lambda: self.server.stats.messages_in["goal"] >= self.sent, "the goal never arrived")
 
@@ -70,7 +74,10 @@ def cell(request):
     world = World(trial_scene("openclaw", 0) if scene == "pick_cell" else load_scene(scene))
     keys = Keys("tg")
     endpoint = loopback_endpoint(free_loopback_port())
-    with open_session(BusEndpoints(listen=(endpoint,))) as server_session, open_session(BusEndpoints(connect=(endpoint,))) as client_session:
+    with (
+        open_session(BusEndpoints(listen=(endpoint,))) as server_session,
+        open_session(BusEndpoints(connect=(endpoint,))) as client_session,
+    ):
         server = SimServer(world, server_session, keys, mode="lockstep", controllers=False)
         client = Client(client_session, server, keys)
         time.sleep(0.3)  # the two sessions find each other
@@ -91,8 +98,15 @@ def test_a_trajectory_is_followed_within_tolerance_and_ends_successful_with_feed
     spec = world.arms["arm_0"].spec
     home = np.asarray(spec.home_q, float)
     waypoints = [home + [0.3, -0.1, 0.1, 0.0, 0.0, 0.2], home + [0.6, 0.0, -0.1, 0.0, 0.1, 0.4]]
-    goal = TrajectoryGoal(11, spec.arm_joints, (1.0, 2.0), tuple(map(tuple, waypoints)), ((0.3, 0.0, 0.0, 0.0, 0.05, 0.2), (0.0,) * 6),
-                          path_tolerance_rad=(0.1,), goal_tolerance_rad=(0.01,))
+    goal = TrajectoryGoal(
+        11,
+        spec.arm_joints,
+        (1.0, 2.0),
+        tuple(map(tuple, waypoints)),
+        ((0.3, 0.0, 0.0, 0.0, 0.05, 0.2), (0.0,) * 6),
+        path_tolerance_rad=(0.1,),
+        goal_tolerance_rad=(0.01,),
+    )
     client.send("arm_0", goal)
     result = client.result(11)
     assert (result.status, result.code, result.kind) == ("succeeded", 0, "trajectory")
@@ -113,7 +127,11 @@ def test_each_kind_of_invalid_goal_is_refused_with_its_code_and_reason_and_the_a
     home = tuple(spec.home_q)
     names = tuple(spec.arm_joints)
     bad = {
-        21: (TrajectoryGoalMsg("arm_0", 21, (*names[:5], "elbow_2"), (1.0,), home), -2, "unknown joint names ['elbow_2']"),
+        21: (
+            TrajectoryGoalMsg("arm_0", 21, (*names[:5], "elbow_2"), (1.0,), home),
+            -2,
+            "unknown joint names ['elbow_2']",
+        ),
         22: (TrajectoryGoalMsg("arm_0", 22, names, (1.0, 0.5), home + home), -1, "strictly increasing"),
         23: (TrajectoryGoalMsg("arm_0", 23, names, (1.0,), (9.0, *home[1:])), -1, "beyond the limits of shoulder_pan"),
         24: (TrajectoryGoalMsg("arm_0", 24, names, (1.0,), (float("nan"), *home[1:])), -1, "NaN"),
@@ -160,7 +178,9 @@ def test_estop_aborts_every_active_goal_and_refuses_new_ones(cell):
     world, server, client = cell
     for i, arm in enumerate(("arm_0", "arm_1")):
         spec = world.arms[arm].spec
-        client.send(arm, rest_to_rest(51 + i, spec.arm_joints, np.asarray(spec.home_q) + [0.6, 0, 0, 0, 0, 0], 3.0, None))
+        client.send(
+            arm, rest_to_rest(51 + i, spec.arm_joints, np.asarray(spec.home_q) + [0.6, 0, 0, 0, 0, 0], 3.0, None)
+        )
     server.run_ticks(30)
     client.session.put(client.keys.estop, encode(EStop(True, "test")))
     client.run_until(lambda: server.estop, "the e-stop never arrived")
@@ -170,7 +190,10 @@ def test_estop_aborts_every_active_goal_and_refuses_new_ones(cell):
     q = {a: arm_q(world, a).copy() for a in ("arm_0", "arm_1")}
     server.run_ticks(50)
     assert all(np.abs(arm_q(world, a) - q[a]).max() < 0.02 for a in q), "every arm holds"
-    client.send("arm_0", rest_to_rest(53, world.arms["arm_0"].spec.arm_joints, np.asarray(world.arms["arm_0"].spec.home_q), 1.0, None))
+    client.send(
+        "arm_0",
+        rest_to_rest(53, world.arms["arm_0"].spec.arm_joints, np.asarray(world.arms["arm_0"].spec.home_q), 1.0, None),
+    )
     refused = client.result(53)
     assert refused.status == "rejected" and "emergency stop" in refused.reason
 

@@ -9,7 +9,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, ControllerStep, GoalResultMsg
 from fleet.bus.session import BusEndpoints, Inbox, open_session
 from fleet.nodes.sim_server import SimServer
-from fleet.physics.world import World
+from fleet.sim.world import World
 from robots.joint_trajectory import rest_to_rest
 from scenes import load_scene
 
@@ -30,12 +30,18 @@ def test_a_silent_controller_trips_the_watchdog_mid_trajectory_and_a_mute_one_is
                 return
             ids = ()
             if not talking["sent"]:
-                session.put(keys.arm_goal("arm_0"), encode(goal_message("arm_0", rest_to_rest(1, spec.arm_joints, target, 4.0, None))))
+                session.put(
+                    keys.arm_goal("arm_0"),
+                    encode(goal_message("arm_0", rest_to_rest(1, spec.arm_joints, target, 4.0, None))),
+                )
                 talking["sent"], ids = True, (1,)
             session.put(keys.arm_step("arm_0"), encode(ControllerStep("arm_0", state.tick, state.tick + 5, ids)))
 
         results = Inbox()
-        subs = [session.declare_subscriber(keys.arm_state("arm_0"), answer), session.declare_subscriber(keys.all_arms("result"), results)]
+        subs = [
+            session.declare_subscriber(keys.arm_state("arm_0"), answer),
+            session.declare_subscriber(keys.all_arms("result"), results),
+        ]
         try:
             server.run_ticks(100, speed=2.0)
             assert server.stats.lost == ["arm_1"], "an arm whose controller never answered is lost, and held"
@@ -48,7 +54,9 @@ def test_a_silent_controller_trips_the_watchdog_mid_trajectory_and_a_mute_one_is
             heard = [decode.decode(k, p) for k, p in results.drain()]
             stop = next(r for r in heard if r.goal_id == 1)
             assert stop.status == "aborted" and stop.reason.startswith("watchdog"), stop
-            assert stop.sim_time_s - silent_at <= 0.05 + 0.1 + 0.02, "stopped within one period plus the watchdog deadline"
+            assert stop.sim_time_s - silent_at <= 0.05 + 0.1 + 0.02, (
+                "stopped within one period plus the watchdog deadline"
+            )
             assert server.stats.watchdog_holds["arm_0"] == 1
             q = world.arms["arm_0"].qpos()[:6]
             server.run_ticks(30, speed=2.0)

@@ -4,14 +4,22 @@
 import numpy as np
 
 from fleet.bus.messages import ArmState
+from fleet.common.scene_loading import load_scene
 from fleet.record.line_to_ros import LineToRos
-from fleet.scene_loading import load_scene
 from tests.fleet.record.tf_tree import up_to_root
 
 
 def an_arm_state(arm: str, q: list[float], sim_time_s: float) -> ArmState:
-    return ArmState(arm=arm, tick=10, sim_time_s=sim_time_s, q=q, dq=[0.0] * 6, gripper_q=[0.01, 0.01], tool_position=[0.0] * 3,
-                    tool_quaternion_wxyz=[1.0, 0.0, 0.0, 0.0])
+    return ArmState(
+        arm=arm,
+        tick=10,
+        sim_time_s=sim_time_s,
+        q=q,
+        dq=[0.0] * 6,
+        gripper_q=[0.01, 0.01],
+        tool_position=[0.0] * 3,
+        tool_quaternion_wxyz=[1.0, 0.0, 0.0, 0.0],
+    )
 
 
 def test_fixed_links_are_static_and_moving_links_compose_to_the_tool_pose():

@@ -20,18 +20,29 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session, open_session
-from fleet.launcher import Launcher, RunOptions
-from fleet.processes import StopFlag
+from fleet.common.processes import StopFlag
 from fleet.record import recorder as recorder_module
 from fleet.record.mcap_file import Recording, RecordingWriter
 from fleet.record.recorder import Recorder
 from fleet.record.replay import Player
 from fleet.record.report import series_from_recording, write_report
+from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.record.tf_tree import up_to_root
 
 SECONDS = 12.0
 ARMS = ("arm_0", "arm_1", "arm_2")
-SIM_CLOCKED = ("state", "step", "goal", "result", "assign", "world/events", "world/frame", "world/parts", "coord/tick", "coord/separation")
+SIM_CLOCKED = (
+    "state",
+    "step",
+    "goal",
+    "result",
+    "assign",
+    "world/events",
+    "world/frame",
+    "world/parts",
+    "coord/tick",
+    "coord/separation",
+)
 
 
 def record_run(path: Path) -> dict:
@@ -75,9 +86,14 @@ def test_every_channel_is_there_with_its_ros_2_schema(recorded):
     schemas = {s.id: s for s in summary.schemas.values()}
     channels = {c.topic: c for c in summary.channels.values()}
     expected = {
-        "/tf": "tf2_msgs/msg/TFMessage", "/tf_static": "tf2_msgs/msg/TFMessage", "/cell": "visualization_msgs/msg/MarkerArray",
-        "/parts": "visualization_msgs/msg/MarkerArray", "/line/events": "clawfleet_msgs/msg/LineEvent", "/line/summary": "std_msgs/msg/String",
-        "/arm_0/trajectory_goals": "clawfleet_msgs/msg/TrajectoryGoalMsg", "/arm_0/goal_results": "clawfleet_msgs/msg/GoalResultMsg",
+        "/tf": "tf2_msgs/msg/TFMessage",
+        "/tf_static": "tf2_msgs/msg/TFMessage",
+        "/cell": "visualization_msgs/msg/MarkerArray",
+        "/parts": "visualization_msgs/msg/MarkerArray",
+        "/line/events": "clawfleet_msgs/msg/LineEvent",
+        "/line/summary": "std_msgs/msg/String",
+        "/arm_0/trajectory_goals": "clawfleet_msgs/msg/TrajectoryGoalMsg",
+        "/arm_0/goal_results": "clawfleet_msgs/msg/GoalResultMsg",
         "/arm_0/assignments": "clawfleet_msgs/msg/Assignment",
     }
     expected |= {f"/{a}/joint_states": "sensor_msgs/msg/JointState" for a in ARMS}
@@ -87,7 +103,9 @@ def test_every_channel_is_there_with_its_ros_2_schema(recorded):
         schema = schemas[channels[topic].schema_id]
         assert (schema.name, schema.encoding, channels[topic].message_encoding) == (typename, "ros2msg", "cdr")
     for latched in ("/tf_static", "/cell", "/line/summary", "/arm_0/robot_description"):
-        assert "durability: 1" in channels[latched].metadata["offered_qos_profiles"], f"{latched} is latched (transient local)"
+        assert "durability: 1" in channels[latched].metadata["offered_qos_profiles"], (
+            f"{latched} is latched (transient local)"
+        )
     assert "clawfleet/line/world/view" not in channels, "the monitors' copy of the frames is not recorded"
     for key in ("clawfleet/line/arm/arm_0/state", "clawfleet/line/world/frame", "clawfleet/line/coord/tick"):
         assert channels[key].message_encoding == "msgpack" and channels[key].schema_id == 0
@@ -163,7 +181,7 @@ def test_each_arms_urdf_in_the_file_parses(recorded):
     _, path, _, _ = recorded
     recording = Recording(path)
     for a in ARMS:
-        (_, message, schema), = recording.messages([f"/{a}/robot_description"])
+        ((_, message, schema),) = recording.messages([f"/{a}/robot_description"])
         from fleet.record.ros_types import deserialize
 
         model = pin.buildModelFromXML(deserialize(message.data, schema).data)
@@ -217,7 +235,10 @@ def test_replay_drives_a_subscriber_with_the_recorded_sequence(recorded):
     session, endpoint = open_listening_session(BusEndpoints())
     with session, open_session(BusEndpoints(connect=(endpoint,))) as listener:
         inbox, views = Inbox(), Inbox()
-        subs = [listener.declare_subscriber(keys.arm_state("arm_0"), inbox), listener.declare_subscriber(keys.view, views)]
+        subs = [
+            listener.declare_subscriber(keys.arm_state("arm_0"), inbox),
+            listener.declare_subscriber(keys.view, views),
+        ]
         time.sleep(0.5)  # the subscription reaches the player's session
         with Player(recording, session, keys, speed=20.0) as player:
             started = time.monotonic()
@@ -227,7 +248,9 @@ def test_replay_drives_a_subscriber_with_the_recorded_sequence(recorded):
         for sub in subs:
             sub.undeclare()
     assert [p for _, p in inbox.drain()] == expected
-    assert len(views.drain()) == recording.message_counts["clawfleet/line/world/frame"], "frames go out as the monitors' view too"
+    assert len(views.drain()) == recording.message_counts["clawfleet/line/world/frame"], (
+        "frames go out as the monitors' view too"
+    )
     assert SECONDS / 20.0 * 0.8 < took < SECONDS / 20.0 + 3.0, f"paced by sim time at x20: {took:.2f} s"
 
 
@@ -265,9 +288,15 @@ def test_a_truncated_or_foreign_file_is_one_line_and_exit_2(recorded, tmp_path, 
     cut.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     foreign = tmp_path / "notes.mcap"
     foreign.write_text("not a recording\n")
-    for bad, says in ((cut, "cut short or damaged"), (foreign, "not an MCAP file"), (tmp_path / "none.mcap", "no such recording")):
+    for bad, says in (
+        (cut, "cut short or damaged"),
+        (foreign, "not an MCAP file"),
+        (tmp_path / "none.mcap", "no such recording"),
+    ):
         extra = ["--out", str(tmp_path / "out")] if command == "report" else []
-        done = subprocess.run([sys.executable, "-m", "fleet.cli", command, str(bad), *extra], capture_output=True, text=True, timeout=60)
+        done = subprocess.run(
+            [sys.executable, "-m", "fleet", command, str(bad), *extra], capture_output=True, text=True, timeout=60
+        )
         assert done.returncode == 2, done.stderr
         assert says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
 
@@ -276,12 +305,20 @@ def test_fleet_record_taps_a_line_already_running_and_finishes_the_file_on_ctrl_
     from fleet.bus.session import free_loopback_port, loopback_endpoint
 
     endpoint = loopback_endpoint(free_loopback_port())
-    line = subprocess.Popen([sys.executable, "-m", "fleet.cli", "run", "--duration", "600", "--mode", "realtime", "--listen", endpoint],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    line = subprocess.Popen(
+        [sys.executable, "-m", "fleet", "run", "--duration", "600", "--mode", "realtime", "--listen", endpoint],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     path = tmp_path / "tap.mcap"
     try:
-        tap = subprocess.Popen([sys.executable, "-m", "fleet.cli", "record", "--connect", endpoint, "--wait", "60", str(path)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        tap = subprocess.Popen(
+            [sys.executable, "-m", "fleet", "record", "--connect", endpoint, "--wait", "60", str(path)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         deadline = time.monotonic() + 90
         while not (path.is_file() and path.stat().st_size > 20_000):
             assert time.monotonic() < deadline and tap.poll() is None, "the recorder wrote nothing"

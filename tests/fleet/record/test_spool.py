@@ -10,8 +10,8 @@ import pytest
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session, open_session
+from fleet.common.scene_loading import load_scene
 from fleet.record.spool import BusSpool, SpoolError, SpoolReader, SpoolWriter
-from fleet.scene_loading import load_scene
 
 KEYS = Keys("spooltest")
 
@@ -29,7 +29,7 @@ def test_a_reader_follows_the_file_while_it_grows_and_knows_when_it_is_whole(tmp
     heard = []
     for cut in range(0, len(whole), 7):  # the file grows 7 bytes at a time: frames are cut anywhere
         with open(growing, "ab") as f:
-            f.write(whole[cut:cut + 7])
+            f.write(whole[cut : cut + 7])
         if reader.header is None:
             reader.wait_for_header(0.0)
         else:
@@ -60,7 +60,10 @@ def test_the_routers_spool_hears_its_own_messages_and_those_it_routes_between_cl
     path = tmp_path / "bus.spool"
     with router:
         spool = BusSpool(router, KEYS.recorded(), path, KEYS.run, "{}")
-        with open_session(BusEndpoints(connect=(endpoint,))) as coordinator, open_session(BusEndpoints(connect=(endpoint,))) as controller:
+        with (
+            open_session(BusEndpoints(connect=(endpoint,))) as coordinator,
+            open_session(BusEndpoints(connect=(endpoint,))) as controller,
+        ):
             heard = Inbox()
             sub = controller.declare_subscriber(KEYS.arm_step("arm_0"), heard)
             time.sleep(0.5)  # the subscriptions reach the router
@@ -83,12 +86,27 @@ def test_the_routers_spool_hears_its_own_messages_and_those_it_routes_between_cl
 
 def test_the_recorder_gives_one_line_when_the_sim_wrote_no_spool(tmp_path):
     result = subprocess.run(
-        [sys.executable, "-m", "fleet.nodes.recorder_node", "--spool", str(tmp_path / "missing.spool"), "--scene-timeout", "0.5",
-         "--out", str(tmp_path / "out.mcap"), "--nice", "0"],
-        capture_output=True, text=True, timeout=60,
+        [
+            sys.executable,
+            "-m",
+            "fleet.nodes.recorder_node",
+            "--spool",
+            str(tmp_path / "missing.spool"),
+            "--scene-timeout",
+            "0.5",
+            "--out",
+            str(tmp_path / "out.mcap"),
+            "--nice",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert result.returncode == 1
-    assert result.stderr.strip().splitlines() == [f"fleet record: the sim wrote no spool to {tmp_path / 'missing.spool'} within 0.5 s"]
+    assert result.stderr.strip().splitlines() == [
+        f"fleet record: the sim wrote no spool to {tmp_path / 'missing.spool'} within 0.5 s"
+    ]
     assert not (tmp_path / "out.mcap").exists()
 
 
@@ -96,9 +114,24 @@ def test_a_spooled_scene_whose_robot_file_is_not_here_is_one_line(tmp_path):
     scene = load_scene("assembly_line").model_copy(update={"robot_files": [str(tmp_path / "elsewhere.yaml")]})
     SpoolWriter(tmp_path / "bus.spool", "far", scene.model_dump_json()).close()
     result = subprocess.run(
-        [sys.executable, "-m", "fleet.nodes.recorder_node", "--spool", str(tmp_path / "bus.spool"), "--out", str(tmp_path / "out.mcap"), "--nice", "0"],
-        capture_output=True, text=True, timeout=60,
+        [
+            sys.executable,
+            "-m",
+            "fleet.nodes.recorder_node",
+            "--spool",
+            str(tmp_path / "bus.spool"),
+            "--out",
+            str(tmp_path / "out.mcap"),
+            "--nice",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert result.returncode == 1
     (line,) = result.stderr.strip().splitlines()
-    assert line.startswith("fleet record: the scene of run 'far' names a robot file that cannot be used here:") and "elsewhere.yaml" in line
+    assert (
+        line.startswith("fleet record: the scene of run 'far' names a robot file that cannot be used here:")
+        and "elsewhere.yaml" in line
+    )

@@ -10,7 +10,7 @@ import time
 import pytest
 from scipy import stats
 
-from fleet.launcher import Launcher, RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
 from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
 from fleet.sweep.runner import load_results, run_local
@@ -18,8 +18,17 @@ from scenes.loader import SceneError, load_scene
 from tests.ray_namespace import in_netns, loopback_namespace, start_head
 
 SECONDS = 8.0
-SAME = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "inter_arm_contacts", "throughput_per_min", "goal_results",
-        "grants_given", "min_separation_m")
+SAME = (
+    "parts_spawned",
+    "parts_completed",
+    "parts_missed",
+    "parts_failed",
+    "inter_arm_contacts",
+    "throughput_per_min",
+    "goal_results",
+    "grants_given",
+    "min_separation_m",
+)
 
 
 def test_seeds_and_overrides_parse_and_a_bad_one_says_how():
@@ -33,17 +42,36 @@ def test_seeds_and_overrides_parse_and_a_bad_one_says_how():
 
 
 def test_the_grid_covers_every_combination_seeds_innermost():
-    cells = grid("assembly_line", [0, 1], ["optimal", "greedy"], 10.0, overrides=[Override("conveyor.speed_m_per_s", (0.05, 0.08))])
+    cells = grid(
+        "assembly_line",
+        [0, 1],
+        ["optimal", "greedy"],
+        10.0,
+        overrides=[Override("conveyor.speed_m_per_s", (0.05, 0.08))],
+    )
     assert len(cells) == 8 and len({c.run_id for c in cells}) == 8
     assert [c.seed for c in cells[:4]] == [0, 0, 0, 0], "every group's first seed comes first"
-    assert cells[0].run_id == grid("assembly_line", [0, 1], ["optimal", "greedy"], 10.0, overrides=[Override("conveyor.speed_m_per_s", (0.05, 0.08))])[0].run_id
+    assert (
+        cells[0].run_id
+        == grid(
+            "assembly_line",
+            [0, 1],
+            ["optimal", "greedy"],
+            10.0,
+            overrides=[Override("conveyor.speed_m_per_s", (0.05, 0.08))],
+        )[0].run_id
+    )
 
 
 def test_an_override_is_checked_like_a_scene_file(tmp_path):
-    path = scene_with("assembly_line", {"conveyor.speed_m_per_s": 0.07, "feeders.0.arrival.rate_per_min": 2.0}, tmp_path)
+    path = scene_with(
+        "assembly_line", {"conveyor.speed_m_per_s": 0.07, "feeders.0.arrival.rate_per_min": 2.0}, tmp_path
+    )
     scene = load_scene(path)
     assert scene.conveyor.speed_m_per_s == 0.07 and scene.feeders[0].arrival.rate_per_min == 2.0
-    with pytest.raises(SceneError, match=r"assembly_line.yaml with --set conveyor.speed_m_per_s=9.0: conveyor.speed_m_per_s: .*0.5"):
+    with pytest.raises(
+        SceneError, match=r"assembly_line.yaml with --set conveyor.speed_m_per_s=9.0: conveyor.speed_m_per_s: .*0.5"
+    ):
         scene_with("assembly_line", {"conveyor.speed_m_per_s": 9.0}, tmp_path)
     with pytest.raises(SceneError, match=r"feeders.7: give a list index from 0 to"):
         scene_with("assembly_line", {"feeders.7.capacity": 3}, tmp_path)
@@ -51,21 +79,32 @@ def test_an_override_is_checked_like_a_scene_file(tmp_path):
 
 def test_mean_and_interval():
     mean, half = mean_ci([1.0, 2.0, 3.0])
-    assert mean == 2.0 and half == pytest.approx(4.303 * 1.0 / 3 ** 0.5, rel=1e-3)
+    assert mean == 2.0 and half == pytest.approx(4.303 * 1.0 / 3**0.5, rel=1e-3)
     assert mean_ci([5.0])[1] != mean_ci([5.0])[1], "one run has no interval (NaN)"
 
 
 def test_allocators_are_compared_pairwise_over_the_same_seeds():
     def row(allocator: str, seed: int, throughput: float, belt: float = 0.05) -> dict:
-        return {"scene": "x", "arms": None, "allocator": allocator, "duration_s": 60.0, "seed": seed,
-                "set:conveyor.speed_m_per_s": belt, "throughput_per_min": throughput}
+        return {
+            "scene": "x",
+            "arms": None,
+            "allocator": allocator,
+            "duration_s": 60.0,
+            "seed": seed,
+            "set:conveyor.speed_m_per_s": belt,
+            "throughput_per_min": throughput,
+        }
 
-    rows = [row("optimal", s, 10.0 + s + 1.0) for s in range(4)] + [row("greedy", s, 10.0 + s + (0.5 if s % 2 else 1.5)) for s in range(4)]
+    rows = [row("optimal", s, 10.0 + s + 1.0) for s in range(4)] + [
+        row("greedy", s, 10.0 + s + (0.5 if s % 2 else 1.5)) for s in range(4)
+    ]
     rows += [row("greedy", 9, 3.0, belt=0.1)]  # another group with one allocator: no pair
     (pair,) = pair_rows(rows)
     assert (pair["first"], pair["second"], pair["seeds"]) == ("greedy", "optimal", 4)
     assert pair["difference_mean"] == 0.0 and pair["set:conveyor.speed_m_per_s"] == 0.05
-    assert pair["p_value"] == pytest.approx(stats.ttest_rel([11.5, 11.5, 13.5, 13.5], [11, 12, 13, 14]).pvalue, abs=1e-5)
+    assert pair["p_value"] == pytest.approx(
+        stats.ttest_rel([11.5, 11.5, 13.5, 13.5], [11, 12, 13, 14]).pvalue, abs=1e-5
+    )
     assert pair["difference_ci95"] == pytest.approx(mean_ci([0.5, -0.5, 0.5, -0.5])[1], abs=1e-4)
 
 
@@ -94,7 +133,21 @@ def fleet_processes() -> set[int]:
 
 def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missing(tmp_path):
     before = fleet_processes()
-    argv = [sys.executable, "-m", "fleet.cli", "sweep", "assembly_line", "--seeds", "0-3", "--duration", str(SECONDS), "--jobs", "2", "--out", str(tmp_path)]
+    argv = [
+        sys.executable,
+        "-m",
+        "fleet",
+        "sweep",
+        "assembly_line",
+        "--seeds",
+        "0-3",
+        "--duration",
+        str(SECONDS),
+        "--jobs",
+        "2",
+        "--out",
+        str(tmp_path),
+    ]
     sweep = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     runs = tmp_path / "runs"
     deadline = time.monotonic() + 180
@@ -122,7 +175,21 @@ def pool_workers() -> set[int]:
 
 def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_path):
     before, workers_before = fleet_processes(), pool_workers()
-    argv = [sys.executable, "-m", "fleet.cli", "sweep", "assembly_line", "--seeds", "0-3", "--duration", "60", "--jobs", "2", "--out", str(tmp_path)]
+    argv = [
+        sys.executable,
+        "-m",
+        "fleet",
+        "sweep",
+        "assembly_line",
+        "--seeds",
+        "0-3",
+        "--duration",
+        "60",
+        "--jobs",
+        "2",
+        "--out",
+        str(tmp_path),
+    ]
     sweep = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.monotonic() + 120
     while len(fleet_processes() - before) < 2:  # runs under way
@@ -145,11 +212,31 @@ def ray_cluster_in_a_namespace():
 
 
 def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_cluster_in_a_namespace):
-    argv = ["sweep", "assembly_line", "--seeds", "2-3", "--duration", str(SECONDS), "--set", "conveyor.speed_m_per_s=0.05"]
-    pool = subprocess.run([sys.executable, "-m", "fleet.cli", *argv, "--jobs", "2", "--out", str(tmp_path / "pool")], capture_output=True, text=True, timeout=300)
+    argv = [
+        "sweep",
+        "assembly_line",
+        "--seeds",
+        "2-3",
+        "--duration",
+        str(SECONDS),
+        "--set",
+        "conveyor.speed_m_per_s=0.05",
+    ]
+    pool = subprocess.run(
+        [sys.executable, "-m", "fleet", *argv, "--jobs", "2", "--out", str(tmp_path / "pool")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert pool.returncode == 0, pool.stderr[-2000:]
-    on_ray = subprocess.run(in_netns(sys.executable, "-m", "fleet.cli", *argv, "--ray", ray_cluster_in_a_namespace, "--out", str(tmp_path / "ray")),
-                            capture_output=True, text=True, timeout=300)
+    on_ray = subprocess.run(
+        in_netns(
+            sys.executable, "-m", "fleet", *argv, "--ray", ray_cluster_in_a_namespace, "--out", str(tmp_path / "ray")
+        ),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert on_ray.returncode == 0, on_ray.stderr[-2000:]
     assert "on the Ray cluster at 127.0.0.1:6390" in " ".join(on_ray.stderr.split())
     figures = lambda folder: {r["cell"]["seed"]: same_figures(r["summary"]) for r in load_results(folder)}  # noqa: E731
@@ -157,9 +244,17 @@ def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_cluster_
 
 
 def test_a_bad_sweep_flag_is_one_line_and_runs_nothing(tmp_path):
-    for extra, says in ((["--set", "conveyor.speed_m_per_s=3"], "conveyor.speed_m_per_s: Input should be less than or equal to 0.5"),
-                        (["--seeds", "4-1"], "--seeds '4-1'"), (["--set", "conveyor"], "FIELD.PATH=VALUE"), (["--jobs", "0", "--duration", "nan"], "--duration nan")):
-        done = subprocess.run([sys.executable, "-m", "fleet.cli", "sweep", "assembly_line", *extra, "--out", str(tmp_path / "out")],
-                              capture_output=True, text=True, timeout=60)
+    for extra, says in (
+        (["--set", "conveyor.speed_m_per_s=3"], "conveyor.speed_m_per_s: Input should be less than or equal to 0.5"),
+        (["--seeds", "4-1"], "--seeds '4-1'"),
+        (["--set", "conveyor"], "FIELD.PATH=VALUE"),
+        (["--jobs", "0", "--duration", "nan"], "--duration nan"),
+    ):
+        done = subprocess.run(
+            [sys.executable, "-m", "fleet", "sweep", "assembly_line", *extra, "--out", str(tmp_path / "out")],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not (tmp_path / "out" / "runs").exists()

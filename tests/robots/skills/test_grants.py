@@ -37,7 +37,9 @@ def test_the_approach_waits_for_its_grant_then_moves():
     request = skill.request
     assert np.allclose(request.q_from, SPEC.home_q) and request.duration_s > 0
     first = skill.step(obs(SPEC.home_q, 0.0), {7: part_at(0.0)})
-    assert [type(g) for g in first] == [GripperGoal], "the claw opens for the part; the arm holds, sending no trajectory"
+    assert [type(g) for g in first] == [GripperGoal], (
+        "the claw opens for the part; the arm holds, sending no trajectory"
+    )
     for k in range(1, 20):  # no answer yet: still no trajectory
         assert skill.step(obs(SPEC.home_q, k * DT), {7: part_at(0.0)}) == []
     skill.on_grant(request.seq + 5, "grant", "", 0.2)  # a stale or foreign answer changes nothing
@@ -93,7 +95,9 @@ def test_a_transfer_kept_out_makes_room_by_going_home_then_asks_again_from_there
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1)
     assert np.allclose(skill.request.q_to, place_q), "denied briefly: the same transfer asked again"
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.0 + skill.timing.detour_after_s)
-    assert skill.detours == 0, "asked 2 s ago, but denied for less: a move held back (a fixture not ready) is no blockade"
+    assert skill.detours == 0, (
+        "asked 2 s ago, but denied for less: a move held back (a fixture not ready) is no blockade"
+    )
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1 + skill.timing.detour_after_s)
     assert skill.detours == 1 and np.allclose(skill.request.q_to, SPEC.home_q), "kept out: home first, part in hand"
     skill.on_grant(skill.request.seq, "grant", "", 3.1)
@@ -121,13 +125,21 @@ def test_a_request_carries_the_local_stage_that_follows_it_without_a_grant():
     skill = started()
     request = skill.request
     t = skill.timing
-    assert len(request.then_q) == 4 and request.then_after_s[:3] == (t.descend_s, t.descend_s + t.close_s, t.descend_s + t.close_s + t.lift_s)
+    assert len(request.then_q) == 4 and request.then_after_s[:3] == (
+        t.descend_s,
+        t.descend_s + t.close_s,
+        t.descend_s + t.close_s + t.lift_s,
+    )
     assert request.then_after_s[3] > request.then_after_s[2], "held a little longer: the grasp may start late"
-    z = [skill.km.frame_pose(skill.km.full_q(np.asarray(q)))[2, 3] for q in (request.q_to, *request.then_q)]  # the base stands on z = 0
+    z = [
+        skill.km.frame_pose(skill.km.full_q(np.asarray(q)))[2, 3] for q in (request.q_to, *request.then_q)
+    ]  # the base stands on z = 0
     assert z[1] < z[0] - 0.05 and z[3] > z[2] + 0.05, "down from the hover to the part, then lifted"
     moving = transferring()
     place = moving.request
-    assert len(place.then_q) == 4 and np.allclose(place.then_q[0], place.then_q[1]), "lowered, held while the claw opens"
+    assert len(place.then_q) == 4 and np.allclose(place.then_q[0], place.then_q[1]), (
+        "lowered, held while the claw opens"
+    )
     tool = [(BASE @ moving.km.frame_pose(moving.km.full_q(np.asarray(q))))[:3, 3] for q in place.then_q]
     assert np.allclose(tool[0][:2], moving.task.place_xyz[:2], atol=0.005), "lowered onto the place"
     assert tool[2][2] > tool[0][2] + 0.05, "and back up"
@@ -143,25 +155,37 @@ def test_an_arm_on_its_way_home_may_take_the_next_task_and_approaches_from_where
     on_the_way = (np.asarray(SPEC.home_q) + away) / 2
     task = PickPlaceTask(7, 0.08, (0.3, -0.55, 0.04), (0.0, 0.0, 0.0))
     skill.start(task, obs(on_the_way, 2.0), part_at(0.0))
-    assert skill.phase == Phase.APPROACH and np.allclose(skill.request.q_from, on_the_way), "home given up for the approach"
+    assert skill.phase == Phase.APPROACH and np.allclose(skill.request.q_from, on_the_way), (
+        "home given up for the approach"
+    )
 
 
 def test_a_transfer_told_to_stand_by_waits_beside_the_place_then_asks_to_place_from_there():
     skill = transferring(at_s=1.0)
     place_q = skill.segment.q_end.copy()
     skill.on_grant(skill.request.seq, "standby", "", 1.1)
-    assert skill.phase == Phase.STANDBY and skill.standbys == 1 and skill.request is not None, "the move beside the place is asked for"
+    assert skill.phase == Phase.STANDBY and skill.standbys == 1 and skill.request is not None, (
+        "the move beside the place is asked for"
+    )
     standby_q = np.asarray(skill.request.q_to)
     tool = lambda q: (BASE @ skill.km.frame_pose(skill.km.full_q(np.asarray(q))))[:3, 3]  # noqa: E731
     to_base = lambda q: np.linalg.norm(tool(q)[:2] - BASE[:2, 3])  # noqa: E731
-    assert to_base(standby_q) < to_base(place_q) and tool(standby_q)[2] > tool(place_q)[2], "nearer its own base, and higher"
+    assert to_base(standby_q) < to_base(place_q) and tool(standby_q)[2] > tool(place_q)[2], (
+        "nearer its own base, and higher"
+    )
     skill.on_grant(skill.request.seq, "grant", "", 1.2)
     there = skill.plan_end_s
     skill.step(obs(standby_q, there + 0.01), {})
-    assert skill.phase == Phase.TRANSFER and np.allclose(skill.request.q_from, standby_q) and np.allclose(skill.request.q_to, place_q)
+    assert (
+        skill.phase == Phase.TRANSFER
+        and np.allclose(skill.request.q_from, standby_q)
+        and np.allclose(skill.request.q_to, place_q)
+    )
     asked = skill.request.seq
     skill.on_grant(asked, "standby", "", there + 0.1)
-    assert skill.phase == Phase.TRANSFER and skill.standbys == 1 and skill.request.seq == asked + 1, "once a task: asked again"
+    assert skill.phase == Phase.TRANSFER and skill.standbys == 1 and skill.request.seq == asked + 1, (
+        "once a task: asked again"
+    )
 
 
 def test_a_stand_by_move_that_is_denied_asks_for_the_transfer_from_where_the_arm_is():
@@ -169,4 +193,8 @@ def test_a_stand_by_move_that_is_denied_asks_for_the_transfer_from_where_the_arm
     place_q, here = skill.segment.q_end.copy(), skill.q_cmd.copy()
     skill.on_grant(skill.request.seq, "standby", "", 1.1)
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.2)
-    assert skill.phase == Phase.TRANSFER and np.allclose(skill.request.q_from, here) and np.allclose(skill.request.q_to, place_q)
+    assert (
+        skill.phase == Phase.TRANSFER
+        and np.allclose(skill.request.q_from, here)
+        and np.allclose(skill.request.q_to, place_q)
+    )

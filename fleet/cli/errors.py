@@ -1,0 +1,51 @@
+"""What every command shares: the errors a user causes (one line, exit 2), the consoles, output paths."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from rich.console import Console
+
+from robots.registry import (
+    MissingModelsError,
+    UnknownRobotError,
+)
+from scenes.yaml_file import DeclarationError
+
+out = Console()
+err = Console(stderr=True)
+
+
+class UsageError(ValueError):
+    """A flag that cannot work: one line, exit 2, before anything starts."""
+
+
+def user_errors() -> tuple[type[BaseException], ...]:
+    """Errors a user causes: one line, exit 2 (a bad recording's only once the recording module is loaded: it imports
+    mcap)."""
+    errors: tuple[type[BaseException], ...] = (DeclarationError, UnknownRobotError, MissingModelsError, UsageError)
+    recording = sys.modules.get("fleet.record.mcap_file")
+    return errors + ((recording.RecordingError,) if recording else ())
+
+
+def output_folder(flag: str, path: str, parents: bool = True) -> Path:
+    """A folder to write results into, made if missing (with its parents, or refused when `parents` is False
+    and the parent is missing); refused in one line when the path is a file."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{flag} {path}: exists and is not a folder")
+    if not parents and not folder.parent.is_dir():
+        raise UsageError(f"{flag} {path}: no folder {folder.parent}")
+    folder.mkdir(parents=parents, exist_ok=True)
+    return folder
+
+
+def writable_file(flag: str, path: str) -> Path:
+    """A file path whose folder exists (refused in one line otherwise)."""
+    target = Path(path)
+    if target.is_dir():
+        raise UsageError(f"{flag} {path}: is a directory; give a file name, e.g. run.mcap")
+    if not target.parent.is_dir():
+        raise UsageError(f"{flag} {path}: no folder {target.parent}")
+    return target

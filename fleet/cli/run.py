@@ -1,0 +1,347 @@
+"""`fleet run` and `fleet bus-config`: run a line as OS processes and print its summary; write a line's bus configs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from pathlib import Path
+
+from rich.progress import (
+    BarColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+)
+from rich.table import Table
+
+from fleet.bus.faults import add_fault_arguments
+from fleet.bus.session import add_bus_arguments
+from fleet.cli.errors import (
+    UsageError,
+    err,
+    out,
+    output_folder,
+    writable_file,
+)
+from fleet.common.scene_loading import load_scene
+from fleet.monitor.options import add_monitor_arguments, exposure_warning
+from scenes.yaml_file import DeclarationError
+
+
+def check_run_flags(args: argparse.Namespace) -> None:
+    """Every `fleet run` flag that cannot work, refused in one line before any process starts."""
+    from fleet.bus.faults import network_from_args
+    from fleet.bus.keys import Keys
+    from fleet.bus.session import BusEndpoints, make_config
+
+    if not (math.isfinite(args.duration) and 0 < args.duration <= 7 * 24 * 3600):
+        raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
+    if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
+        raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
+    try:
+        network_from_args(args)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    try:
+        Keys(args.run_id)
+    except ValueError as exc:
+        raise UsageError(f"--run-id: {exc}") from None
+    if args.zenoh_config and not Path(args.zenoh_config).is_file():
+        raise UsageError(f"--zenoh-config {args.zenoh_config}: not a readable file")
+    for flag, endpoints in (("--listen", args.listen or ()), ("--connect", args.connect or ())):
+        for ep in endpoints:
+            proto, _, rest = ep.partition("/")
+            if proto not in ("tcp", "udp", "tls", "quic", "unixsock-stream", "ws") or not rest:
+                raise UsageError(f"{flag} {ep!r}: an endpoint looks like tcp/127.0.0.1:7447")
+    try:
+        make_config(BusEndpoints(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config))
+    except Exception as exc:  # zenoh's own parser: keep its message, not its source locations
+        said = re.search(r'msg: "([^"]*)"', str(exc))
+        text = re.sub(r"\s+at /\S+", "", said.group(1) if said else (str(exc).splitlines() or [type(exc).__name__])[0])
+        raise UsageError(f"bus flags: {text}") from None
+
+
+def check_placement_flags(args: argparse.Namespace) -> None:
+    """`--bus-config` and `--hosts`: readable, written for this scene's arms, namespaces that exist; one line if not."""
+    from fleet.bus.bus_config import BusConfigError
+    from fleet.run.launcher import placement
+
+    if args.hosts and not args.bus_config:
+        raise UsageError(
+            "--hosts needs --bus-config: nodes in other namespaces reach each other only through the sim's router"
+        )
+    if args.bus_config and (args.listen or args.connect or args.zenoh_config):
+        raise UsageError(
+            "--bus-config says where every node listens or connects: leave out --listen, --connect and --zenoh-config"
+        )
+    try:
+        placement(args.bus_config, args.hosts, load_scene(args.scene, arms=args.arms))
+    except (BusConfigError, DeclarationError) as exc:
+        raise UsageError(str(exc)) from None
+
+
+def cmd_bus_config(args: argparse.Namespace) -> int:
+    from fleet.bus.bus_config import BusConfigError, write_bus_configs
+
+    arms = [a.name for a in load_scene(args.scene, arms=args.arms).arms]
+    output_folder("--out", args.out, parents=True)
+    try:
+        made = write_bus_configs(args.out, args.address, args.port, arms, secure=not args.insecure)
+    except BusConfigError as exc:
+        raise UsageError(str(exc)) from None
+    how = "TLS, a login per node, access control" if made.secure else "plain TCP, no logins (a trusted network only)"
+    print(
+        f"wrote the bus configs of {len(arms)} arm(s) to {made.directory}: the sim listens on {made.endpoint} ({how})"
+    )
+    print(
+        f"run it: fleet run {args.scene} --bus-config {made.directory} [--hosts HOSTS.yaml]; or start each node with "
+        f"--zenoh-config {made.directory}/<node>.json5"
+    )
+    return 0
+
+
+def run_recording(args: argparse.Namespace) -> str | None:
+    """Where `fleet run` records: `--record FILE`, else `DIR/recording.mcap` with `--out DIR`, else nowhere."""
+    if args.out:
+        output_folder("--out", args.out, parents=False)
+    if args.record:
+        return str(writable_file("--record", args.record))
+    return str(Path(args.out) / "recording.mcap") if args.out else None
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from fleet.run.launcher import Launcher, RunOptions
+
+    check_run_flags(args)
+    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
+    check_placement_flags(args)
+    options = RunOptions(
+        scene=args.scene,
+        arms=args.arms,
+        duration_s=args.duration,
+        mode=args.mode,
+        speed=args.speed,
+        seed=args.seed,
+        respawn=args.respawn,
+        realtime_priority=args.rt,
+        run_id=args.run_id,
+        keep_logs=args.keep_logs,
+        allocator=args.allocator,
+        pipeline=args.pipeline,
+        listen=(args.listen or [None])[0],
+        connect=tuple(args.connect or ()),
+        zenoh_config=args.zenoh_config,
+        monitor=args.monitor,
+        monitor_host=args.host,
+        monitor_port=args.port,
+        record=run_recording(args),
+        latency_ms=args.latency_ms,
+        jitter_ms=args.jitter_ms,
+        loss=args.loss,
+        bus_config=args.bus_config,
+        hosts=args.hosts,
+    )
+    if args.monitor:
+        warning = exposure_warning(args.host)
+        if warning:
+            err.print(warning, style="bold yellow", markup=False, highlight=False)
+    with Progress(
+        TextColumn("[bold]{task.fields[scene]}"),
+        BarColumn(),
+        TextColumn("sim {task.completed:.1f}/{task.total:.0f} s"),
+        TextColumn("parts {task.fields[done]}/{task.fields[spawned]} done, {task.fields[rate]:.1f}/min"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=False,
+    ) as progress:
+        bar = progress.add_task("run", total=args.duration, scene=args.scene, done=0, spawned=0, rate=0.0)
+
+        def on_progress(p) -> None:
+            rate = p.parts_completed / (p.sim_time_s / 60) if p.sim_time_s > 0 else 0.0
+            progress.update(bar, completed=p.sim_time_s, done=p.parts_completed, spawned=p.parts_spawned, rate=rate)
+
+        with Launcher(
+            options, on_progress, on_message=lambda text: progress.console.print(text, markup=False, highlight=False)
+        ) as launcher:
+            progress.console.print(
+                f"bus: {launcher.endpoint} (watch it: fleet monitor --connect {launcher.endpoint} --run {args.run_id})",
+                markup=False,
+                highlight=False,
+            )
+            summary = launcher.run()
+            if args.keep_logs:
+                err.print(f"logs and reports kept in {launcher.dir}")
+        progress.update(
+            bar, completed=summary["sim_seconds"], done=summary["parts_completed"], spawned=summary["parts_spawned"]
+        )
+    print_run_summary(summary)
+    if args.out:
+        write_run_artefacts(summary, Path(args.out))
+    if args.summary:
+        Path(args.summary).write_text(json.dumps(summary, indent=1) + "\n")
+    if args.json:
+        print(json.dumps(summary))
+    if summary["status"] == "error":
+        print(f"fleet: error: {summary['error']}", file=sys.stderr)
+        return 1
+    return 130 if summary["status"] == "interrupted" else 0
+
+
+def write_run_artefacts(summary: dict, out_dir: Path) -> None:
+    """`fleet run --out DIR`: the summary, and the time series and plots made from the run's recording."""
+    from fleet.record.mcap_file import Recording
+    from fleet.record.report import series_from_recording, write_report
+
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if (summary.get("recording") or {}).get("file"):
+        written = write_report(series_from_recording(Recording(summary["recording"]["file"])), out_dir)
+        err.print(
+            f"artefacts in {out_dir}: summary.json, {Path(summary['recording']['file']).name}, "
+            f"{', '.join(p.name for p in written)}",
+            markup=False,
+            highlight=False,
+        )
+    else:
+        err.print(f"the recorder wrote nothing: only summary.json in {out_dir}", markup=False, highlight=False)
+
+
+def print_run_summary(s: dict) -> None:
+    table = Table(
+        "figure", "value", title=f"{s['scene']}: {s['arms']} arms, {s['mode']}, seed {s['seed']} ({s['status']})"
+    )
+    rows = [
+        ("sim / wall seconds", f"{s['sim_seconds']:.1f} / {s['wall_seconds']:.1f}"),
+        ("parts spawned / completed", f"{s['parts_spawned']} / {s['parts_completed']}"),
+        ("missed / failed / on the line", f"{s['parts_missed']} / {s['parts_failed']} / {s['parts_in_progress']}"),
+        ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
+        (
+            "capacity bound (per minute)",
+            "-"
+            if s.get("throughput_bound_per_min") is None
+            else f"{s['throughput_bound_per_min']:.2f}: {s['bound_fraction']:.0%} of it achieved, "
+            f"limited by {s['bottleneck']['name']}",
+        ),
+        (
+            "bound of this run's arrivals (per minute)",
+            "-"
+            if not s.get("run_bound_per_min")
+            else f"{s['run_bound_per_min']:.2f}: {s['run_bound_fraction']:.0%} of it achieved; "
+            f"{s['parts_completed']} of {s['parts_finishable']} parts that arrived in time to be finished",
+        ),
+        (
+            "arms: working / waiting for a grant (+ held at a fixture) / idle",
+            "; ".join(
+                f"{a} {t['working']:.0%} / "
+                f"{t['waiting_for_grant']:.0%}{f' (+{held:.0%})' if (held := t.get('held_at_fixture', 0)) else ''} "
+                f"/ {t['idle']:.0%}"
+                for a, t in s.get("arm_time", {}).items()
+            )
+            or "-",
+        ),
+        ("inter-arm contacts (ticks)", str(s["inter_arm_contacts"])),
+        ("min separation (m)", "-" if s["min_separation_m"] is None else f"{s['min_separation_m']:.3f}"),
+        ("grants denied", str(s["grants_denied"])),
+        ("round trip p50 / p99 (ms)", f"{s['latency_p50_ms']} / {s['latency_p99_ms']}"),
+        ("dropped messages", str(s["dropped_messages"])),
+        ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
+    ]
+    for row in rows:
+        table.add_row(*row)
+    out.print(table)
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """This group's sub-commands."""
+    p = sub.add_parser("run", help="run the line: sim server, coordinator and one controller per arm as processes")
+    p.add_argument(
+        "scene", nargs="?", default="assembly_line", help="bundled scene name or scene file (default assembly_line)"
+    )
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument("--duration", type=float, default=120.0, help="sim seconds to run (default 120)")
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
+    p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
+    p.add_argument(
+        "--respawn",
+        action="store_true",
+        help="restart a controller or the coordinator that dies (a new coordinator takes over the line)",
+    )
+    p.add_argument(
+        "--allocator",
+        choices=("optimal", "auction", "greedy"),
+        default="optimal",
+        help="how tasks go to arms (default optimal)",
+    )
+    p.add_argument(
+        "--no-pipeline",
+        dest="pipeline",
+        action="store_false",
+        help=(
+            "give a fixture's next part to an arm only once the fixture is ready for it (default: before, the arm "
+            "held at the edge)"
+        ),
+    )
+    p.add_argument("--rt", action="store_true", help="controllers ask for real-time scheduling")
+    p.add_argument("--run-id", default="line", help="keeps several lines on one Zenoh network apart")
+    p.add_argument("--summary", metavar="FILE", help="also write the summary JSON here")
+    p.add_argument("--keep-logs", action="store_true", help="keep each process's log and report (the path is printed)")
+    p.add_argument("--json", action="store_true", help="last stdout line: the summary as one JSON object")
+    p.add_argument(
+        "--monitor", action="store_true", help="serve the browser monitor (Viser) of this run; see --host/--port"
+    )
+    p.add_argument(
+        "--record",
+        metavar="FILE.mcap",
+        help="record every bus message, TF, joint states and markers (rosbag2-layout MCAP)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots",
+    )
+    p.add_argument(
+        "--bus-config",
+        metavar="DIR",
+        help="the line's bus from `fleet bus-config`: the sim a router, every node logged in "
+        "with its own config (TLS, passwords, access control)",
+    )
+    p.add_argument(
+        "--hosts",
+        metavar="FILE",
+        help="the network namespace each node starts in (YAML `nodes: {sim: NS, ...}`; needs --bus-config)",
+    )
+    add_monitor_arguments(p)
+    add_fault_arguments(p)
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser(
+        "bus-config",
+        help=(
+            "write one Zenoh config per node for a line across hosts: the sim a router with TLS, logins and access "
+            "control"
+        ),
+    )
+    p.add_argument("--address", required=True, help="the IP address of the sim's host, as the other hosts reach it")
+    p.add_argument("--port", type=int, default=7447, help="the port the sim's router listens on (default 7447)")
+    p.add_argument(
+        "--scene", default="assembly_line", help="the scene whose arms get a login each (default assembly_line)"
+    )
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument(
+        "--insecure",
+        action="store_true",
+        help="plain TCP: no TLS, no logins, no access control (a trusted network only)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="where to write the configs (keys and passwords readable by you only)",
+    )
+    p.set_defaults(func=cmd_bus_config)

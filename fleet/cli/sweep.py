@@ -1,0 +1,155 @@
+"""`fleet sweep`: a grid of runs over seeds, allocators and scene overrides."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import math
+import os
+
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+)
+from rich.table import Table
+
+from fleet.cli.errors import (
+    UsageError,
+    err,
+    out,
+    output_folder,
+)
+from fleet.common.scene_loading import load_scene
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scenes_for
+    from fleet.sweep.results import write_results
+    from fleet.sweep.runner import finished, load_results, run_local, run_ray
+
+    if not (math.isfinite(args.duration) and 0 < args.duration <= 24 * 3600):
+        raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a day)")
+    jobs = args.jobs or os.cpu_count() or 1
+    if args.ray and importlib.util.find_spec("ray") is None:
+        raise UsageError("--ray needs Ray: pip install 'clawfleet[rl]' (or pip install ray)")
+    if jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: at least 1")
+    try:
+        overrides = [Override.parse(t) for t in args.set or ()] + [
+            Override(f"network.{field}", tuple(values))
+            for field, values in (("latency_ms", args.latency_ms), ("jitter_ms", args.jitter_ms), ("loss", args.loss))
+            if values
+        ]
+        cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, overrides)
+    except GridError as exc:
+        raise UsageError(str(exc)) from None
+    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything runs
+    out_dir = output_folder("--out", args.out)
+    scenes = scenes_for(cells, out_dir / "scenes")  # a bad --set: one line, before anything runs
+    done = finished(out_dir, cells)
+    todo = [c for c in cells if c.run_id not in done]
+    err.print(
+        f"sweep: {len(cells)} runs ({len(done)} already in {out_dir}), {len(todo)} to go, "
+        f"{f'on the Ray cluster at {args.ray}' if args.ray else f'{jobs} at a time'}",
+        markup=False,
+        highlight=False,
+    )
+    with Progress(
+        TextColumn("sweep"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[last]}"),
+        TimeElapsedColumn(),
+        console=err,
+        transient=False,
+    ) as progress:
+        bar = progress.add_task("runs", total=len(cells), completed=len(done), last="")
+
+        def on_done(cell, summary) -> None:
+            progress.update(
+                bar,
+                advance=1,
+                last=(
+                    f"seed {cell.seed} {cell.allocator}: {summary.get('throughput_per_min', 0):.2f}/min "
+                    f"({summary.get('status')})"
+                ),
+            )
+
+        if todo and args.ray:
+            run_ray(todo, out_dir, args.ray, on_done, scenes)
+        elif todo:
+            run_local(todo, out_dir, jobs, on_done, scenes)
+    cells_rows, written = write_results(load_results(out_dir), out_dir)
+    table = Table(
+        "allocator / overrides",
+        "runs",
+        "throughput /min (95% CI)",
+        "completed",
+        "missed",
+        "bound fraction",
+        "of the run's arrivals",
+        "contacts",
+    )
+    from fleet.sweep.results import label
+
+    def ci(c, figure, digits=2):
+        mean, half = c[f"{figure}_mean"], c[f"{figure}_ci95"]
+        return "-" if mean != mean else (f"{mean:.{digits}f}" + ("" if half != half else f" ± {half:.{digits}f}"))
+
+    for c in cells_rows:
+        table.add_row(
+            label(c),
+            str(c["runs"]),
+            ci(c, "throughput_per_min"),
+            ci(c, "parts_completed", 1),
+            ci(c, "parts_missed", 1),
+            ci(c, "bound_fraction"),
+            ci(c, "run_bound_fraction"),
+            ci(c, "inter_arm_contacts", 1),
+        )
+    out.print(table)
+    out.print(f"wrote {', '.join(p.name for p in written)} in {out_dir}")
+    return 0
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """This group's sub-commands."""
+    p = sub.add_parser(
+        "sweep", help="a grid of runs over seeds, allocators and scene overrides, in parallel (or on Ray), resumable"
+    )
+    p.add_argument("scene", help="bundled scene name or scene file")
+    p.add_argument("--seeds", default="0-4", help="a range (0-19) or a list (1,4,9); default 0-4")
+    p.add_argument("--allocator", nargs="+", default=["optimal"], choices=("optimal", "auction", "greedy"))
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="FIELD.PATH=V1,V2",
+        help="a scene field and the values it takes (repeatable), e.g. conveyor.speed_m_per_s=0.05,0.1",
+    )
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument("--duration", type=float, default=60.0, help="sim seconds per run (default 60)")
+    p.add_argument(
+        "--latency-ms",
+        type=float,
+        nargs="+",
+        metavar="MS",
+        help="bus latency levels, each way on every link (network.latency_ms)",
+    )
+    p.add_argument("--jitter-ms", type=float, nargs="+", metavar="MS", help="bus jitter levels (network.jitter_ms)")
+    p.add_argument("--loss", type=float, nargs="+", metavar="P", help="bus loss levels (network.loss)")
+    p.add_argument("--jobs", type=int, default=None, help="runs at a time on this machine (default: its cores)")
+    p.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run each run as a Ray task on the Ray cluster at ADDRESS (e.g. 127.0.0.1:6379; docs/running.md)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="results: runs/*.json, runs.csv, cells.csv, plots; a run already there is not run again",
+    )
+    p.set_defaults(func=cmd_sweep)

@@ -1,0 +1,117 @@
+"""A seeded search over a robot's drive gains and pick timing, each setting judged by the same seeded pick trials:
+what `fleet tune` runs, so that every registered robot's values come from measurement, not from guesses.
+
+The first candidate is the robot as registered; the others are drawn from `SPACE` with the search's seed. Each
+is registered under a uid of its own (`<uid>__tune<k>`) and tried on trials `seed .. seed + trials - 1`; the
+best places the most parts, then takes the least sim time per trial.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleet.robot_tools.trials import run_trials
+from robots.registry import get_robot, register, robot_names
+from robots.skills.pick_place import PickPlaceTiming
+from robots.spec import DriveGains, RobotSpec
+
+SPACE: dict[str, tuple[float, ...]] = {
+    "arm_stiffness_scale": (0.5, 1.0, 2.0),
+    "gripper_force_scale": (0.5, 1.0, 2.0, 4.0),
+    "approach_speed": (0.2, 0.4, 0.6, 0.8, 1.0),
+    "transfer_speed": (0.15, 0.3, 0.45, 0.7, 1.0),
+    "lift_s": (0.5, 0.8),
+}
+"""What is searched: factors on the registered drive gains (arm stiffness and damping together; the gripper's force
+limit), the skill's speeds (fractions of the joints' velocity limits) and the lift's duration (seconds)."""
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One setting tried: factors on the registered gains and the pick timing values it sets."""
+
+    arm_stiffness_scale: float = 1.0
+    gripper_force_scale: float = 1.0
+    approach_speed: float | None = None
+    transfer_speed: float | None = None
+    lift_s: float | None = None
+
+    def spec_for(self, spec: RobotSpec, uid: str) -> RobotSpec:
+        """The robot with this setting, under `uid`."""
+        a, g = spec.arm_gains, spec.gripper_gains
+        timing = dict(spec.pick_timing)
+        for name in ("approach_speed", "transfer_speed", "lift_s"):
+            value = getattr(self, name)
+            if value is not None:
+                timing[name] = value
+        return dataclasses.replace(
+            spec,
+            uid=uid,
+            arm_gains=DriveGains(
+                a.stiffness * self.arm_stiffness_scale, a.damping * self.arm_stiffness_scale, a.force_limit
+            ),
+            gripper_gains=DriveGains(g.stiffness, g.damping, g.force_limit * self.gripper_force_scale),
+            pick_timing=timing,
+        )
+
+    def describe(self, spec: RobotSpec) -> dict[str, float]:
+        """The values this setting gives the robot, as a robot file or `RobotSpec` would carry them."""
+        tuned = self.spec_for(spec, spec.uid)
+        timing = PickPlaceTiming.for_robot(tuned)
+        return {
+            "arm_stiffness": tuned.arm_gains.stiffness,
+            "arm_damping": tuned.arm_gains.damping,
+            "gripper_force_limit": tuned.gripper_gains.force_limit,
+            "approach_speed": timing.approach_speed,
+            "transfer_speed": timing.transfer_speed,
+            "lift_s": timing.lift_s,
+        }
+
+
+@dataclass(frozen=True)
+class Tried:
+    """A candidate's trials: how many placed their part and the mean sim seconds a trial took."""
+
+    candidate: Candidate
+    successes: int
+    trials: int
+    mean_sim_s: float
+    failures: tuple[str, ...]
+
+    @property
+    def rank_key(self) -> tuple[float, float]:
+        return (-self.successes, self.mean_sim_s)
+
+
+def candidates(count: int, seed: int) -> list[Candidate]:
+    """The registered robot first, then `count - 1` distinct settings drawn from `SPACE` with `seed`."""
+    grid = list(itertools.product(*SPACE.values()))
+    rng = np.random.default_rng(seed)
+    picks = rng.choice(len(grid), size=min(count - 1, len(grid)), replace=False) if count > 1 else []
+    return [Candidate()] + [Candidate(**dict(zip(SPACE, (float(v) for v in grid[i])))) for i in picks]
+
+
+def search(
+    uid: str, count: int, trials: int, seed: int, on_tried: Callable[[Tried], None] | None = None
+) -> list[Tried]:
+    """Try `count` candidates on `trials` seeded trials each; best first."""
+    spec = get_robot(uid)
+    results = []
+    for k, cand in enumerate(candidates(count, seed)):
+        name = f"{uid}__tune{k}"
+        if name not in robot_names():
+            register(cand.spec_for(spec, name))
+        runs = run_trials(name, trials, seed)
+        failed = tuple(f"seed {r.seed}: {r.phase}: {r.reason}" for r in runs if not r.success)
+        tried = Tried(
+            cand, sum(r.success for r in runs), len(runs), float(np.mean([r.sim_seconds for r in runs])), failed
+        )
+        results.append(tried)
+        if on_tried is not None:
+            on_tried(tried)
+    return sorted(results, key=lambda t: t.rank_key)

@@ -1,0 +1,98 @@
+"""Every arm of a world under its tracker (`robots.tracker`): goals in, drive targets each tick, results out.
+
+The one way joint trajectories reach the physics: the sim server, `fleet trials` and the
+PettingZoo env's task mode all drive their arms through this class.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fleet.sim.observe import arm_observation
+from fleet.sim.world import World
+from robots.joint_trajectory import ArmGoal, GoalResult
+from robots.skills.interface import PartObservation
+from robots.skills.pick_place import PickPlaceSkill
+from robots.tracker import ArmTracker
+
+
+class TrackedArms:
+    """Trackers by arm id over a world; call `apply()` before each tick's physics and `update()` after it."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        self.trackers: dict[str, ArmTracker] = {}
+        for name, arm in world.arms.items():
+            spec, n = arm.spec, arm.spec.arm_dof
+            lower, upper = arm.joint_limits()
+            c, o = np.asarray(spec.gripper_closed, float), np.asarray(spec.gripper_open, float)
+            span = np.where(np.abs(o - c) > 1e-12, o - c, 1.0)
+            self.trackers[name] = ArmTracker(
+                tuple(spec.arm_joints),
+                lower[:n],
+                upper[:n],
+                arm.qpos()[:n],
+                opening_of=lambda g, c=c, span=span: float(np.mean((g - c) / span)),
+                default_effort_n=spec.gripper_gains.force_limit,
+                servo_period_s=world.control_dt_s,
+            )
+        self._effort = {name: t.effort_n for name, t in self.trackers.items()}
+        self._opening: dict[str, float] = {}
+        self._held: dict[str, np.ndarray | None] = {}  # the hold point last written, per arm holding still
+        self._gripper_q: dict[str, tuple[float, ...]] = {}
+
+    def submit(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
+        """Hand `arm`'s tracker a goal now; the refusal or the preempted goals' results come back."""
+        return self.trackers[arm].submit(goal, self.world.sim_time_s)
+
+    def decide(self, arm: str, skill: PickPlaceSkill, parts: dict[int, PartObservation]) -> None:
+        """One decision of `arm`'s skill in process, as a controller makes it over the bus: it sees the arm (with its
+        tracker's newest result) and the parts, and its goals go to the arm's tracker."""
+        for goal in skill.step(arm_observation(self.world, arm, self.trackers[arm]), parts):
+            self.submit(arm, goal)
+
+    def apply(self) -> None:
+        """Drive targets for this tick from every tracker (its trajectory, or where it holds)."""
+        now = self.world.sim_time_s
+        for name, tracker in self.trackers.items():
+            arm = self.world.arms[name]
+            holding = tracker.idle
+            if holding and self._held.get(name) is tracker.hold_q:
+                continue  # holding where it held last tick: the drives already have these targets
+            self._held[name] = tracker.hold_q if holding else None
+            q, dq = tracker.desired(now)
+            if tracker.effort_n != self._effort[name]:
+                arm.set_gripper_effort(tracker.effort_n)
+                self._effort[name] = tracker.effort_n
+            opening = tracker.gripper_opening()
+            if opening != self._opening.get(name):
+                self._gripper_q[name], self._opening[name] = arm.spec.gripper_targets(opening), opening
+            arm.set_targets(q, dq, self._gripper_q[name])
+
+    def update(self) -> dict[str, list[GoalResult]]:
+        """After the tick's physics: each arm's finished goals (tolerances, ends, watchdog)."""
+        now, out = self.world.sim_time_s, {}
+        for name, tracker in self.trackers.items():
+            if tracker.idle and now <= tracker.watchdog_deadline_s:
+                continue  # nothing to check: no joints to read
+            arm = self.world.arms[name]
+            q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
+            results = tracker.update(now, q[:n], q[n:], dq[n:])
+            if results:
+                out[name] = results
+        return out
+
+    def abort(self, arm: str, reason: str) -> list[GoalResult]:
+        """Stop `arm` where it is now, aborting its goals with `reason`."""
+        a = self.world.arms[arm]
+        return self.trackers[arm].abort(self.world.sim_time_s, a.qpos()[: a.spec.arm_dof], reason)
+
+    def set_estop(self, engaged: bool) -> dict[str, list[GoalResult]]:
+        """Engage or release the e-stop on every arm; engaging aborts every goal and holds every arm."""
+        out = {}
+        for name, tracker in self.trackers.items():
+            a = self.world.arms[name]
+            results = tracker.set_estop(engaged, self.world.sim_time_s, a.qpos()[: a.spec.arm_dof])
+            if results:
+                out[name] = results
+        return out

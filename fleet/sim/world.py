@@ -1,0 +1,400 @@
+"""The physics world: a physics-only SAPIEN scene built from a scene file.
+
+One world serves `fleet trials`, the sim server and the PettingZoo env. It
+needs no render device: no visual shapes are added. Time advances by control
+ticks of `scene.substeps` physics steps; drive targets are set once per tick.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import sapien
+
+from fleet.sim.arm import SimArm, yaw_pose
+from fleet.sim.parts import FeederClock, SimPart, build_part, park
+from robots.registry import get_robot
+from scenes.schema import Scene, Station
+from scenes.shapes import BELT_DROP_ALONG_M, WALL_M, belt_box, station_boxes, station_spots
+
+DROP_GAP_M = 0.01  # a feeder drops a part only this far clear of the parts already there (beyond their sizes)
+FLOOR_TOP_M = 0.0
+
+
+@dataclass(frozen=True)
+class PartInfo:
+    """What the world tells about one active part (world frame, quaternion wxyz)."""
+
+    part_id: int
+    feeder: str
+    type_index: int
+    position: np.ndarray
+    quaternion_wxyz: np.ndarray
+    velocity: np.ndarray
+    width_m: float
+    height_m: float
+    size_m: tuple[float, float, float]
+
+
+def feeder_streams(seed: int, n_feeders: int) -> list[np.random.Generator]:
+    """One independent random stream per feeder, all from one seed (the scene's)."""
+    return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(max(1, n_feeders))][:n_feeders]
+
+
+@dataclass
+class WorldState:
+    """Everything needed to put a world back exactly: PhysX bodies, drive targets, pool and feeder clocks."""
+
+    physx: bytes
+    tick: int
+    drive_targets: dict[str, np.ndarray]
+    drive_velocity_targets: dict[str, np.ndarray]
+    part_ids: list[int | None]
+    feeders: list[dict]
+    next_part_id: int
+    events: list[tuple] = field(default_factory=list)
+
+
+def configure_physx(scene: Scene) -> None:
+    """Global PhysX settings for a world: gravity, determinism, the scene's solver iterations (20 for friction
+    grasps)."""
+    sapien.physx.set_scene_config(
+        gravity=np.array(scene.gravity_m_per_s2, dtype=np.float32),
+        enable_enhanced_determinism=True,
+        enable_pcm=True,
+        enable_tgs=True,
+    )
+    sapien.physx.set_body_config(
+        solver_position_iterations=scene.solver_position_iterations, solver_velocity_iterations=2, sleep_threshold=0.0
+    )
+    sapien.physx.set_shape_config(contact_offset=0.004, rest_offset=0.0)
+
+
+class World:
+    """A cell in SAPIEN: arms by id, the conveyor, stations and a pool of parts per feeder."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene_model = scene
+        configure_physx(scene)
+        self.physx = sapien.physx.PhysxCpuSystem()
+        self.scene = sapien.Scene([self.physx])
+        self.scene.set_timestep(1.0 / scene.physics_hz)
+        self.substeps = scene.substeps
+        self.control_dt_s = 1.0 / scene.control_hz
+        self.tick = 0
+        self.events: list[tuple] = []
+        self._build_floor()
+        self.belt = self._build_conveyor()
+        for station in scene.stations:
+            self._build_station(station)
+        self.arms: dict[str, SimArm] = {}
+        for i, arm in enumerate(scene.arms):
+            spec = get_robot(arm.model)
+            self.arms[arm.name] = SimArm(
+                self.scene, spec, arm.name, yaw_pose(arm.base.xyz, arm.base.yaw_rad), i, scene.drive_gain_scale
+            )
+        self._arm_of_body = {link: name for name, a in self.arms.items() for link in a.articulation.get_links()}
+        self.parts: list[SimPart] = []
+        self.feeders: list[FeederClock] = []
+        self.next_part_id = 0
+        for feeder, stream in zip(scene.feeders, feeder_streams(scene.seed, len(scene.feeders))):
+            clock = FeederClock(feeder, stream)
+            for _ in range(feeder.capacity):
+                for t_index, part_type in enumerate(feeder.parts):
+                    slot = len(self.parts)
+                    entity, body = build_part(self.scene, part_type, slot, f"{feeder.name}_{slot}")
+                    self.parts.append(SimPart(slot, feeder.name, t_index, part_type, entity, body))
+                    clock.slots.append(slot)
+            clock.start()
+            self.feeders.append(clock)
+        # where each feeder sets parts down, worked out once: how far apart, and a station feeder's spots
+        self._drop_spacing_m = {
+            f.name: max(math.hypot(p.size_m[0], p.size_m[1]) for p in f.parts) + DROP_GAP_M for f in scene.feeders
+        }
+        self._station_spots = {
+            f.name: station_spots(
+                scene.station(f.into), self._drop_spacing_m[f.name], max(max(p.size_m[0], p.size_m[1]) for p in f.parts)
+            )
+            for f in scene.feeders
+            if f.into != "conveyor"
+        }
+
+    # --- building -----------------------------------------------------------------
+    def _static_boxes(
+        self, name: str, boxes: list[tuple[list[float], list[float]]], pose: sapien.Pose, friction: float = 0.8
+    ) -> sapien.Entity:
+        material = sapien.physx.PhysxMaterial(friction, friction, 0.0)
+        builder = self.scene.create_actor_builder()
+        for centre, half in boxes:
+            builder.add_box_collision(pose=sapien.Pose(centre), half_size=half, material=material)
+        builder.set_name(name)
+        entity = builder.build_static()
+        entity.set_pose(pose)
+        return entity
+
+    def _build_floor(self) -> None:
+        self._static_boxes("floor", [([0, 0, -0.05], [20, 20, 0.05])], sapien.Pose())
+
+    def _build_conveyor(self) -> sapien.physx.PhysxRigidDynamicComponent | None:
+        """The belt: a kinematic slab that moves at belt speed within each tick and is set back each tick."""
+        c = self.scene_model.conveyor
+        if c is None:
+            return None
+        self._belt_home = yaw_pose(c.pose.xyz, c.pose.yaw_rad)
+        builder = self.scene.create_actor_builder()
+        material = sapien.physx.PhysxMaterial(0.9, 0.9, 0.0)
+        centre, half = belt_box(c)
+        builder.add_box_collision(pose=sapien.Pose(centre), half_size=half, material=material)
+        builder.set_name("conveyor_belt")
+        entity = builder.build_kinematic()
+        entity.set_pose(self._belt_home)
+        self._belt_entity = entity
+        self._belt_step = np.array(c.direction) * c.speed_m_per_s * self.scene.get_timestep()
+        home = self._belt_home.p
+        self._belt_targets = [
+            sapien.Pose(home + self._belt_step * k, self._belt_home.q) for k in range(1, self.substeps + 1)
+        ]
+        return entity.find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+
+    def _build_station(self, s: Station) -> None:
+        boxes = station_boxes(s)
+        self._static_boxes(s.name, boxes, yaw_pose(s.pose.xyz, s.pose.yaw_rad))
+
+    # --- time ---------------------------------------------------------------------
+    @property
+    def sim_time_s(self) -> float:
+        return self.tick * self.control_dt_s
+
+    def step(self, ticks: int = 1) -> None:
+        """Advance `ticks` control ticks: release due parts, then the physics steps with the belt running."""
+        for _ in range(ticks):
+            self._release_due_parts()
+            if self.belt is not None and self._belt_step.any():  # a stopped belt is a plain kinematic box
+                self._belt_entity.set_pose(self._belt_home)
+                for target in self._belt_targets:
+                    self.belt.set_kinematic_target(target)
+                    self.scene.step()
+            else:
+                for _ in range(self.substeps):
+                    self.scene.step()
+            self.tick += 1
+
+    # --- parts --------------------------------------------------------------------
+    def _release_due_parts(self) -> None:
+        t = self.sim_time_s
+        for clock in self.feeders:
+            while clock.next_time_s <= t:
+                if self._drop_spot(clock) is None:
+                    clock.held_s += self.control_dt_s  # a part due waits upstream for a free spot
+                    break
+                self._spawn(clock)
+                clock.advance()
+
+    def _drop_spot(self, clock: FeederClock, lateral_m: float = 0.0) -> tuple[float, float, float] | None:
+        """Where a feeder's next part goes down, or None while there is no free spot (the part waits upstream: it is
+        released at the first tick one frees up, never dropped onto another; the feeder's later draws keep their
+        times, so its rate stays). On the conveyor: its drop point, free once the belt has carried the last part
+        clear of it. Into a station: the free spot nearest its centre on a grid a part's footprint apart (parts lie
+        side by side in one layer, as a person or a feeder would set them down)."""
+        feeder = clock.feeder
+        spacing_m = self._drop_spacing_m[feeder.name]
+        if feeder.into == "conveyor":
+            clear = self._nobody_within(self._drop_point("conveyor"), spacing_m + feeder.lateral_jitter_m)
+            return self._drop_point("conveyor", lateral_m) if clear else None
+        for x, y in self._station_spots[feeder.name]:
+            if self._nobody_within((x, y), 0.75 * spacing_m):
+                return x, y, self._drop_point(feeder.into)[2]
+        return None
+
+    def _drop_point(self, into: str, lateral_m: float = 0.0) -> tuple[float, float, float]:
+        """The conveyor's drop point (`lateral_m` off its centre line), or just above a station's floor at its
+        centre."""
+        if into == "conveyor":
+            return self.scene_model.conveyor.point_at(BELT_DROP_ALONG_M, lateral_m)
+        x, y, z = self.scene_model.station(into).pose.xyz
+        return x, y, z + WALL_M + 0.01
+
+    def _nobody_within(self, xy: tuple[float, ...], radius_m: float) -> bool:
+        """No part in play has its centre within `radius_m` of this spot, horizontally."""
+        x, y = xy[0], xy[1]
+        return all(
+            math.hypot(p.entity.pose.p[0] - x, p.entity.pose.p[1] - y) >= radius_m for p in self.parts if p.active
+        )
+
+    def _spawn(self, clock: FeederClock) -> None:
+        feeder = clock.feeder
+        type_index = int(clock.rng.integers(len(feeder.parts)))
+        lateral = float(clock.rng.uniform(-1, 1)) * feeder.lateral_jitter_m
+        yaw = float(clock.rng.uniform(-math.pi, math.pi))
+        free = self._free_slots(clock, type_index)
+        if not free:
+            clock.skipped_full += 1
+            self.events.append(("feeder_full", feeder.name, self.tick))
+            return
+        spot = self._drop_spot(clock, lateral) or self._drop_point(
+            feeder.into, lateral
+        )  # `spawn_now` asks for a part now
+        self._put(self.parts[free[0]], spot, yaw)
+        clock.spawned += 1
+
+    def _free_slots(self, clock: FeederClock, type_index: int) -> list[int]:
+        """The feeder's pooled parts of this type not in play now (indices into `self.parts`)."""
+        return [s for s in clock.slots if self.parts[s].part_id is None and self.parts[s].type_index == type_index]
+
+    def _put(self, part: SimPart, surface_xyz: tuple[float, float, float], yaw_rad: float) -> int:
+        """Set a pooled part down, bottom on `surface_xyz`, give it the next id and log its spawn."""
+        x, y, z = surface_xyz
+        part.entity.set_pose(yaw_pose((x, y, z + part.height_m / 2 + 0.001), yaw_rad))
+        part.body.set_kinematic(False)
+        part.body.set_linear_velocity([0.0, 0.0, 0.0])
+        part.body.set_angular_velocity([0.0, 0.0, 0.0])
+        part.part_id = self.next_part_id
+        self.next_part_id += 1
+        self.events.append(("part_spawned", part.part_id, part.feeder, part.type_index, self.tick))
+        return part.part_id
+
+    def place_part(
+        self, feeder_name: str, type_index: int, surface_xyz: tuple[float, float, float], yaw_rad: float = 0.0
+    ) -> int:
+        """Set a free part of a feeder's pool down at a chosen spot (the env's tasks); returns its id."""
+        clock = self._clock(feeder_name)
+        free = self._free_slots(clock, type_index)
+        if not free:
+            raise RuntimeError(f"feeder {feeder_name!r} has no free part of type {type_index} left in its pool")
+        return self._put(self.parts[free[0]], surface_xyz, yaw_rad)
+
+    def _clock(self, feeder_name: str) -> FeederClock:
+        clock = next((c for c in self.feeders if c.feeder.name == feeder_name), None)
+        if clock is None:
+            raise KeyError(f"no feeder {feeder_name!r}; feeders: {', '.join(c.feeder.name for c in self.feeders)}")
+        return clock
+
+    def spawn_now(self, feeder_name: str) -> int:
+        """Release one part from a feeder at once (trials and tests); returns its id."""
+        clock = self._clock(feeder_name)
+        before = self.next_part_id
+        self._spawn(clock)
+        if self.next_part_id == before:
+            raise RuntimeError(f"feeder {feeder_name!r} has no free part left in its pool")
+        return before
+
+    def retire_part(self, part_id: int) -> None:
+        """Take a finished or lost part off the stage, back into its pool."""
+        part = self._part(part_id)
+        park(part.entity, part.body, part.slot)
+        part.part_id = None
+        self.events.append(("part_retired", part_id, self.tick))
+
+    def _part(self, part_id: int) -> SimPart:
+        for p in self.parts:
+            if p.part_id == part_id:
+                return p
+        raise KeyError(f"no active part {part_id}")
+
+    def part_info(self, part_id: int) -> PartInfo:
+        return self._info(self._part(part_id))
+
+    @staticmethod
+    def _info(p: SimPart) -> PartInfo:
+        pose = p.entity.pose
+        return PartInfo(
+            p.part_id,
+            p.feeder,
+            p.type_index,
+            np.asarray(pose.p, float),
+            np.asarray(pose.q, float),
+            np.asarray(p.body.linear_velocity, float),
+            p.width_m,
+            p.height_m,
+            tuple(p.part_type.size_m),
+        )
+
+    def active_parts(self) -> list[PartInfo]:
+        return [self._info(p) for p in self.parts if p.part_id is not None]
+
+    def belt_velocity(self) -> np.ndarray:
+        c = self.scene_model.conveyor
+        if c is None:
+            return np.zeros(3)
+        return np.array(c.direction) * c.speed_m_per_s
+
+    # --- contacts -----------------------------------------------------------------
+    def inter_arm_contacts(self) -> list[tuple[str, str]]:
+        """Pairs of arms whose links touch now, as the physics sees it."""
+        pairs = []
+        for contact in self.physx.get_contacts():
+            a = self._arm_of_body.get(contact.bodies[0])
+            b = self._arm_of_body.get(contact.bodies[1])
+            if a and b and a != b and any(pt.impulse.any() or pt.separation < 0 for pt in contact.points):
+                pairs.append(tuple(sorted((a, b))))
+        return sorted(set(pairs))
+
+    # --- state --------------------------------------------------------------------
+    def pack_state(self) -> WorldState:
+        """A snapshot of the whole world; `restore_state` on this or a fresh world of the same scene puts it back."""
+        return WorldState(
+            physx=self.physx.pack(),
+            tick=self.tick,
+            drive_targets={n: a.drive_targets() for n, a in self.arms.items()},
+            drive_velocity_targets={n: a.drive_velocity_targets() for n, a in self.arms.items()},
+            part_ids=[p.part_id for p in self.parts],
+            feeders=[
+                {
+                    "rng": copy.deepcopy(c.rng.bit_generator.state),
+                    "next_time_s": c.next_time_s,
+                    "schedule_index": c.schedule_index,
+                    "spawned": c.spawned,
+                    "skipped_full": c.skipped_full,
+                    "held_s": c.held_s,
+                }
+                for c in self.feeders
+            ],
+            next_part_id=self.next_part_id,
+            events=list(self.events),
+        )
+
+    def observable_state(self) -> np.ndarray:
+        """Every observable quantity as one vector: arm joints, velocities and targets, part and belt poses and
+        velocities.
+
+        A restored world matches an uninterrupted one on this exactly; the packed PhysX
+        bytes may differ in solver bookkeeping that no observation depends on.
+        """
+        chunks = []
+        for arm in self.arms.values():
+            chunks += [arm.qpos(), arm.qvel(), arm.drive_targets(), arm.drive_velocity_targets()]
+        for part in self.parts:
+            pose = part.entity.pose
+            chunks += [pose.p, pose.q, part.body.linear_velocity, part.body.angular_velocity]
+        if self.belt is not None:
+            chunks += [self._belt_entity.pose.p]
+        chunks.append([self.tick, self.next_part_id])
+        return np.concatenate([np.asarray(c, dtype=np.float64).ravel() for c in chunks])
+
+    def reseed_feeders(self, seed: int) -> None:
+        """The feeders' random streams (arrival gaps, part types, drop offsets) from `seed`, as a world built with
+        that scene seed has them: on a world restored to its start, the arrivals of `fleet run --seed SEED`."""
+        for clock, stream in zip(self.feeders, feeder_streams(seed, len(self.feeders))):
+            clock.rng = stream
+
+    def restore_state(self, state: WorldState) -> None:
+        """Put back a snapshot from `pack_state` (of this world or another built from the same scene)."""
+        for part, part_id in zip(self.parts, state.part_ids):
+            part.part_id = part_id
+            part.body.set_kinematic(part_id is None)
+        self.physx.unpack(state.physx)
+        for name, arm in self.arms.items():
+            arm.restore_targets(state.drive_targets[name], state.drive_velocity_targets[name])
+        for clock, saved in zip(self.feeders, state.feeders):
+            clock.rng.bit_generator.state = copy.deepcopy(saved["rng"])
+            clock.next_time_s = saved["next_time_s"]
+            clock.schedule_index = saved["schedule_index"]
+            clock.spawned = saved["spawned"]
+            clock.skipped_full = saved["skipped_full"]
+            clock.held_s = saved.get("held_s", 0.0)
+        self.tick = state.tick
+        self.next_part_id = state.next_part_id
+        self.events = list(state.events)

@@ -1,0 +1,164 @@
+"""The `fleet` command as a user runs it: real subprocesses, exit codes and one-line errors."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from scenes import bundled_scene_names
+
+
+def fleet(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize("name", bundled_scene_names())
+def test_check_prints_ok_for_bundled_scenes(name):
+    result = fleet("check", name)
+    assert result.returncode == 0, result.stderr
+    first, bound = result.stdout.strip().splitlines()
+    assert first == "ok" and bound.startswith("capacity: at best ") and "parts/min" in bound
+
+
+def test_check_broken_scene_is_one_line_exit_2(tmp_path):
+    path = tmp_path / "cell.yaml"
+    path.write_text("name: cell\narms:\n  - {name: arm_0, model: openclaw, base: {xyz: [0, 0]}}\n")
+    result = fleet("check", str(path))
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert str(path) in lines[0] and "arms.0.base.xyz" in lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_unknown_robot_exits_2_listing_valid_names():
+    result = fleet("trials", "--robot", "ur99", "--trials", "1")
+    assert result.returncode == 2
+    assert "openclaw" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_robots_and_scenes_list():
+    robots = fleet("robots")
+    assert robots.returncode == 0 and "openclaw" in robots.stdout
+    scenes = fleet("scenes")
+    assert scenes.returncode == 0 and "sorting_line" in scenes.stdout
+
+
+def test_trials_json_last_line():
+    result = fleet("trials", "--robot", "openclaw", "--trials", "2", "--seed", "7", "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert set(summary) == {"robot", "trials", "successes", "success_rate", "physics_hz", "solver_iterations"}
+    assert summary["trials"] == 2 and summary["robot"] == "openclaw"
+    assert summary["successes"] == 2
+    assert (summary["physics_hz"], summary["solver_iterations"]) == (200.0, 20), "the trial cell's own physics"
+
+
+def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line():
+    result = fleet("trials", "--trials", "1", "--physics-hz", "250")
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert (
+        result.stderr.strip() == "fleet: error: scene: Value error, physics_hz must be a whole multiple of control_hz"
+    )
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["run", "no_such_scene"], "no such scene"),
+        (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
+        (["run", "--allocator", "fastest"], "invalid choice"),
+        (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be lower-case"),
+        (["run", "--listen", "garbage"], "--listen 'garbage': an endpoint looks like tcp/127.0.0.1:7447"),
+        (["run", "--duration", "nan"], "--duration nan: give a positive number"),
+        (["run", "--duration", "inf"], "--duration inf: give a positive number"),
+        (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
+        (["run", "--monitor", "--port", "99999"], "--port 99999: a TCP port is 0 to 65535"),
+        (["run", "--loss", "1.5"], "--loss 1.5: Input should be less than 1"),
+        (["run", "--latency-ms", "-5"], "--latency-ms -5: Input should be greater than or equal to 0"),
+        (["check", "/dev/null"], "/dev/null: not a regular file"),
+        (["check", "/"], "/: a directory, not a scene file"),
+    ],
+)
+def test_run_refuses_bad_input_with_one_line_and_starts_nothing(args, says):
+    result = fleet(*args)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert says in lines[-1] and "Traceback" not in result.stderr
+    assert "sim" not in result.stderr.split("error")[0]  # no progress bar: nothing was started
+
+
+def test_check_refuses_binary_and_oversized_files_at_once(tmp_path):
+    binary, big = tmp_path / "binary.yaml", tmp_path / "big.yaml"
+    binary.write_bytes(b"name: x\n\xff\xfe\x00junk")
+    big.write_text("description: " + "x" * 1_200_000 + "\n")
+    result = fleet("check", str(binary))
+    assert (
+        result.returncode == 2 and result.stderr.strip() == f"fleet: error: {binary}: not UTF-8 text (byte 8: b'\\xff')"
+    )
+    result = fleet("check", str(big))
+    assert result.returncode == 2 and "larger than a scene can be (1,000,000 bytes at most)" in result.stderr
+    assert result.stderr.count("\n") == 1
+
+
+def test_monitor_needs_an_endpoint_and_says_so_in_one_line():
+    result = fleet("monitor")
+    assert result.returncode != 0
+    assert result.stderr.strip().count("\n") == 0 and "--connect" in result.stderr
+
+
+def test_monitor_with_nobody_to_watch_fails_cleanly():
+    from fleet.bus.session import free_loopback_port, loopback_endpoint
+
+    result = fleet(
+        "monitor", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2", timeout=120
+    )
+    assert result.returncode == 1
+    assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_run_refuses_bad_hosts_and_bus_config_flags_with_one_line(tmp_path):
+    bus = tmp_path / "bus"
+    assert (
+        fleet(
+            "bus-config", "--address", "127.0.0.1", "--port", "17463", "--scene", "pick_cell", "--out", str(bus)
+        ).returncode
+        == 0
+    )
+    hosts = tmp_path / "hosts.yaml"
+    cases = [
+        (["run", "--hosts", str(hosts)], "--hosts needs --bus-config"),
+        (["run", "pick_cell", "--bus-config", str(bus), "--listen", "tcp/127.0.0.1:7447"], "leave out --listen"),
+        (["run", "sorting_line", "--bus-config", str(bus)], "written for arms arm_0, the scene has arm_0, arm_1"),
+        (["run", "pick_cell", "--bus-config", str(tmp_path)], "not a bus config directory"),
+        (
+            ["run", "pick_cell", "--bus-config", str(bus), "--hosts", str(hosts)],
+            "nodes.arm_9: no such node; nodes: sim, coordinator, arm_0",
+        ),
+    ]
+    hosts.write_text("nodes:\n  arm_9: somewhere\n")
+    for args, says in cases:
+        result = fleet(*args)
+        assert result.returncode == 2 and says in result.stderr and len(result.stderr.strip().splitlines()) == 1, (
+            args,
+            result.stderr,
+        )
+    hosts.write_text("nodes:\n  sim: no_such_namespace\n")
+    result = fleet("run", "pick_cell", "--bus-config", str(bus), "--hosts", str(hosts))
+    assert result.returncode == 2 and "nodes.sim: no network namespace 'no_such_namespace'" in result.stderr
+
+
+@pytest.mark.parametrize(
+    "python, says", [(sys.executable, "robosuite cannot be imported"), ("/nonexistent/python3", "could not run")]
+)
+def test_bench_env_against_robosuite_without_it_is_one_line_before_any_env_runs(python, says):
+    """This environment has no robosuite (it cannot: docs/benchmarks.md makes a second one); the baseline runs
+    first, so a wrong interpreter is said at once."""
+    result = fleet(
+        "bench", "env", "--arms", "2", "--tasks", "reach", "--steps", "2000", "--robosuite", python, timeout=120
+    )
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and says in lines[0] and python in lines[0], result.stderr
+    assert "agent-steps/s" not in result.stdout  # no env row was timed

@@ -1,0 +1,164 @@
+"""The house rules of `docs/conventions.md`, checked on the source with `ast`: which package may import which,
+no loose module at `fleet/`'s top, no import from a lower layer of `fleet/` to a higher one, and no cycle."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LIBRARIES = ("scenes", "robots", "coordinator", "fleet")
+
+# Each of fleet/'s packages and the layer it stands on: a package imports only packages of lower layers (and itself).
+FLEET_LAYERS: dict[str, int] = {
+    "fleet.common": 0,
+    "fleet.bus": 1,
+    "fleet.sim": 2,
+    "fleet.record": 2,
+    "fleet.monitor": 3,
+    "fleet.robot_tools": 3,
+    "fleet.nodes": 4,
+    "fleet.env": 4,
+    "fleet.run": 5,
+    "fleet.sweep": 6,
+    "fleet.bench": 6,
+    "fleet.cli": 7,
+    "fleet.__main__": 8,
+}
+# What each library may import of the others (DESIGN.md's rules of the house).
+MAY_IMPORT: dict[str, set[str]] = {
+    "scenes": set(),
+    "robots": {"scenes"},
+    "coordinator": {"robots", "scenes"},
+    "fleet": {"robots", "coordinator", "scenes"},
+}
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path) -> set[str]:
+    """Every module this file imports, absolute, at any depth (a deferred import counts as much as a top one)."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                found.add(".".join(base + ([node.module] if node.module else [])))
+            else:
+                found.add(node.module or "")
+    return found
+
+
+def _sources(library: str) -> list[Path]:
+    return sorted((ROOT / library).rglob("*.py"))
+
+
+def _fleet_package(module: str) -> str:
+    return ".".join(module.split(".")[:2])
+
+
+def test_libraries_import_only_what_the_house_allows():
+    broken = []
+    for library in LIBRARIES:
+        allowed = MAY_IMPORT[library] | {library}
+        for path in _sources(library):
+            for imported in _imports(path):
+                top = imported.split(".")[0]
+                if top in LIBRARIES and top not in allowed:
+                    broken.append(f"{path.relative_to(ROOT)} imports {imported}")
+                if library in ("robots", "coordinator", "scenes") and top in ("sapien", "zenoh"):
+                    broken.append(f"{path.relative_to(ROOT)} imports {imported}: {library}/ is a library")
+    assert not broken, "\n".join(broken)
+
+
+def test_fleet_has_no_loose_module_at_its_top():
+    loose = [p.name for p in (ROOT / "fleet").glob("*.py") if p.name not in ("__init__.py", "__main__.py")]
+    assert not loose, f"fleet/ keeps its modules in packages: {loose}"
+    packages = {f"fleet.{p.name}" for p in (ROOT / "fleet").iterdir() if (p / "__init__.py").exists()}
+    assert packages == set(FLEET_LAYERS) - {"fleet.__main__"}, "every package of fleet/ has its layer in this test"
+    for package in packages:
+        init = ROOT / package.replace(".", "/") / "__init__.py"
+        assert ast.get_docstring(ast.parse(init.read_text())), f"{package} says in a docstring what lives there"
+
+
+def test_fleet_imports_run_down_the_layers_only():
+    upward = []
+    for path in _sources("fleet"):
+        mine = _fleet_package(_module_name(path))
+        for imported in _imports(path):
+            theirs = _fleet_package(imported)
+            if theirs.startswith("fleet.") and theirs != mine and FLEET_LAYERS[theirs] >= FLEET_LAYERS[mine]:
+                upward.append(
+                    f"{path.relative_to(ROOT)} ({mine}, layer {FLEET_LAYERS[mine]}) imports {imported} (layer "
+                    f"{FLEET_LAYERS[theirs]})"
+                )
+    assert not upward, "\n".join(upward)
+
+
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_no_import_cycle_between_modules(library):
+    graph: dict[str, set[str]] = {}
+    for path in _sources(library):
+        graph[_module_name(path)] = set()
+    for path in _sources(library):
+        graph[_module_name(path)] = {m for m in _imports(path) if m in graph and m != _module_name(path)}
+    # A package's __init__ importing its own modules is how a package exposes them, not a cycle of design.
+    for name, targets in graph.items():
+        graph[name] = {t for t in targets if not t.startswith(name + ".")}
+    cycle = _find_cycle(graph)
+    assert cycle is None, " -> ".join(cycle or [])
+
+
+def _find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt) :] + [nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
+
+
+def test_ruff_finds_nothing_to_lint_or_format():
+    """`ruff check` and `ruff format --check` (settings in pyproject.toml, line length 120) are clean."""
+    import shutil
+    import subprocess
+    import sys
+
+    ruff = shutil.which("ruff", path=str(Path(sys.executable).parent)) or shutil.which("ruff")
+    assert ruff, "ruff comes with the test extra"
+    for argv in ([ruff, "check", "."], [ruff, "format", "--check", "."]):
+        done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, f"{' '.join(argv[1:])}:\n{done.stdout}{done.stderr}"
+
+
+def test_ci_runs_the_readme_commands_as_written():
+    """The README opens with two commands; `.ci/run` runs the test command exactly and the main job (briefly)."""
+    readme = (ROOT / "README.md").read_text()
+    blocks = [b.split("```")[0].strip() for b in readme.split("```bash\n")[1:3]]
+    main_job, tests = blocks
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert tests in ci.splitlines(), "the README's test command, line for line"
+    assert any(line.startswith(main_job) for line in ci.splitlines()), "the README's main job"
+    assert "venv" in main_job and "venv" in tests, "both commands make the virtualenv they install into"
