@@ -18,14 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost, make_allocator
-from coordinator.cadence import (
-    AVAILABLE_SKILLS,
-    GRASP_SKILLS,
-    IDLE_SKILLS,
-    LOCAL_SKILLS,
-    PLACE_SKILLS,
-    decision_period_ticks,
-)
+from coordinator.cadence import decision_period_ticks
 from coordinator.capacity import (
     CapacityBound,
     belt_window_caps,
@@ -39,6 +32,7 @@ from coordinator.guard import CollisionGuard, NearestPair, TimedPath
 from coordinator.ledger import Ledger
 from coordinator.tasks import CONVEYOR, TAKEN_STATES, Task, TaskState
 from robots.frames import yaw_transform
+from robots.phase import AVAILABLE_PHASES, GRASP_PHASES, IDLE_PHASES, LOCAL_PHASES, PLACE_PHASES, Phase
 from robots.registry import get_robot
 from scenes.schema import Scene
 
@@ -116,7 +110,7 @@ class Dispatcher:
         self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.period_ticks = decision_period_ticks(scene)
-        self.skill = {a: "idle" for a in self.arm_names}
+        self.skill = {a: Phase.IDLE for a in self.arm_names}
         self.acts_at_tick = {a: 0 for a in self.arm_names}  # when an order sent now takes effect on each arm
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
         self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
@@ -177,6 +171,7 @@ class Dispatcher:
         *,
         task_id: int | None = None,
         failure: str = "",
+        failure_code: str = "",
         request_seq: int = 0,
         request: TimedPath | None = None,
         acts_at_tick: int = 0,
@@ -189,7 +184,7 @@ class Dispatcher:
         `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost."""
         self.acts_at_tick[arm] = acts_at_tick
         self.skill[arm] = skill
-        if request_seq > 0 or skill in IDLE_SKILLS:  # holding still for a grant, or not working: no move of old
+        if request_seq > 0 or skill in IDLE_PHASES:  # holding still for a grant, or not working: no move of old
             self.unsettled.discard(arm)
         self.guard.set_state(arm, np.asarray(q))
         if request is not None and request_seq > 0 and request_seq != self.request_seq[arm]:
@@ -198,7 +193,7 @@ class Dispatcher:
         returned = None
         if lost and arm not in self.lost:
             returned = self.arm_lost(arm, "the sim stopped hearing its controller", silent_for_s)
-        self.ledger.arm_report(arm, task_id, skill, time_s, failure)
+        self.ledger.arm_report(arm, task_id, skill, time_s, failure, failure_code)
         return returned
 
     def on_parts(self, parts: dict[int, PartView], time_s: float) -> None:
@@ -283,7 +278,7 @@ class Dispatcher:
                 self.bases[a],
                 a not in self.lost
                 and a not in open_arms
-                and self.skill[a] in AVAILABLE_SKILLS
+                and self.skill[a] in AVAILABLE_PHASES
                 and not self.leaving_fixture(a),
                 self.reach[a],
                 tuple(self.guard.state[a].tolist()),
@@ -299,7 +294,7 @@ class Dispatcher:
         in open space, not next to the arm that works the fixture next."""
         return (
             self.ledger.pipeline
-            and self.skill[arm] == "home"
+            and self.skill[arm] == Phase.HOME
             and bool(self.ledger.gated.intersection(self.last_stations[arm]))
         )
 
@@ -315,7 +310,7 @@ class Dispatcher:
         as that arm sees them (a station it is itself moving away from is free to it: it may go straight back)."""
         busy = self.ledger.busy_stations()
         for arm, stations in self.last_stations.items():
-            if arm != for_arm and self.skill[arm] not in IDLE_SKILLS and arm not in self.lost:
+            if arm != for_arm and self.skill[arm] not in IDLE_PHASES and arm not in self.lost:
                 busy.update(stations)
         if self.ledger.pipeline:
             busy -= self.ledger.gated  # their order is the ledger's, their moves wait at `station_ahead`
@@ -327,7 +322,7 @@ class Dispatcher:
         return set.intersection(*(self.busy_stations(a) for a in arms)) if arms else self.busy_stations()
 
     def busy_arms(self) -> int:
-        return sum(s not in IDLE_SKILLS for s in self.skill.values())
+        return sum(s not in IDLE_PHASES for s in self.skill.values())
 
     # --- decisions ------------------------------------------------------------------
     def decide(self, tick: int) -> Decision:
@@ -413,7 +408,7 @@ class Dispatcher:
         for task in list(self.ledger.tasks.values()):
             arm = task.arm
             not_started = task.state == TaskState.ASSIGNED or (
-                task.state == TaskState.ACTIVE and self.skill.get(arm) == "approach" and arm in self.requests
+                task.state == TaskState.ACTIVE and self.skill.get(arm) == Phase.APPROACH and arm in self.requests
             )
             part = self.parts.get(task.part_id)
             if arm is None or part is None or not not_started or not cannot_make_it(rules, views[arm], task, part):
@@ -452,7 +447,7 @@ class Dispatcher:
                 )
                 task = self.open_task(arm)
                 if (
-                    self.skill[arm] == "transfer" and task.task_id not in self.told_standby
+                    self.skill[arm] == Phase.TRANSFER and task.task_id not in self.told_standby
                 ):  # wait beside it, part in hand
                     self.told_standby.add(task.task_id)
                     del self.requests[arm]
@@ -491,7 +486,13 @@ class Dispatcher:
             return None
         task = self.open_task(arm)
         phase = self.skill.get(arm)
-        station = task.source if task and phase == "approach" else task.target if task and phase == "transfer" else None
+        station = (
+            task.source
+            if task and phase == Phase.APPROACH
+            else task.target
+            if task and phase == Phase.TRANSFER
+            else None
+        )
         if station is None or station not in self.ledger.gated:
             return None
         if not self.ledger.may_enter(task, station):
@@ -506,16 +507,16 @@ class Dispatcher:
         phase = self.skill[arm]
         if arm in self.lost:
             return False
-        if station in self.last_stations[arm] and phase in LOCAL_SKILLS:
+        if station in self.last_stations[arm] and phase in LOCAL_PHASES:
             return True
         task = self.open_task(arm)
         if task is None:
             return False
         granted = arm not in self.requests
         if station == task.source:
-            return phase in GRASP_SKILLS or (phase == "approach" and granted)
+            return phase in GRASP_PHASES or (phase == Phase.APPROACH and granted)
         if station == task.target:
-            return phase in PLACE_SKILLS or (phase == "transfer" and granted)
+            return phase in PLACE_PHASES or (phase == Phase.TRANSFER and granted)
         return False
 
     def watch_separations(self) -> list[NearestPair]:

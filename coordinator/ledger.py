@@ -16,14 +16,14 @@ from __future__ import annotations
 from collections import Counter
 
 from coordinator.tasks import CONVEYOR, OPEN_STATES, TAKEN_STATES, PartFate, PartRecord, Task, TaskState
-from robots.skills.pick_place import UNREACHABLE
+from robots.failures import FailureCode
+from robots.phase import HOLDING_PHASES, IDLE_PHASES, Phase
 from scenes.schema import Scene
 
 HELD = "held"
 EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
 MAX_ATTEMPTS = 3
-HOLDING_PHASES = ("lift", "standby", "transfer", "lower", "release")
 PLACED_GRACE_S = 3.0
 
 
@@ -130,8 +130,11 @@ class Ledger:
             self.lost(part_id, detail, now_s)
 
     # --- arms -----------------------------------------------------------------------
-    def arm_report(self, arm: str, task_id: int | None, skill: str, now_s: float, failure: str = "") -> None:
-        """What an arm's skill says it is doing (echoed by the sim each tick)."""
+    def arm_report(
+        self, arm: str, task_id: int | None, skill: str, now_s: float, failure: str = "", failure_code: str = ""
+    ) -> None:
+        """What an arm's skill says it is doing (echoed by the sim each tick); a failure's code decides what
+        follows, its text explains."""
         task = self.tasks.get(task_id) if task_id is not None else None
         if task is None or task.arm != arm or task.state not in OPEN_STATES:
             return
@@ -140,11 +143,11 @@ class Ledger:
             part.held_from, part.held_stack = part.location, tuple(self.stacks.get(part.location, ()))
             self._leave_stack(part)
             part.location = HELD
-        if task.state == TaskState.ASSIGNED and skill not in ("idle", "done", "failed"):
+        if task.state == TaskState.ASSIGNED and skill not in IDLE_PHASES:
             task.state = TaskState.ACTIVE
-        if skill == "failed":
-            self._fail_attempt(task, failure or "the arm's skill failed")
-        elif skill == "done":
+        if skill == Phase.FAILED:
+            self._fail_attempt(task, failure or "the arm's skill failed", failure_code)
+        elif skill == Phase.DONE:
             first = self._finished_at.setdefault(task.task_id, now_s)
             if now_s - first > PLACED_GRACE_S:
                 self._fail_attempt(task, f"placed, but never seen resting at {task.target}")
@@ -161,10 +164,12 @@ class Ledger:
                     part.fate, part.reason = PartFate.FAILED, f"in the claw of lost arm {arm}"
         return ids
 
-    def _fail_attempt(self, task: Task, reason: str) -> None:
+    def _fail_attempt(self, task: Task, reason: str, code: str = "") -> None:
         part = self.parts[task.part_id]
         self._close(task, TaskState.FAILED, reason)
-        if UNREACHABLE in reason and task.arm is not None:  # its pose will not change: another arm must take it
+        if (
+            code == FailureCode.UNREACHABLE and task.arm is not None
+        ):  # its pose will not change: another arm must take it
             part.refused_by.add(task.arm)
         if part.location == HELD and part.fate == PartFate.ON_LINE:
             self._put_back(part)

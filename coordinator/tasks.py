@@ -44,7 +44,9 @@ class PartRecord:
     reason: str = ""
     held_from: str | None = None  # where the part was when an arm took it (and the stack it was in then)
     held_stack: tuple[int, ...] = ()
-    refused_by: set[str] = field(default_factory=set)  # arms that could not grasp it as it lies (`UNREACHABLE`)
+    refused_by: set[str] = field(
+        default_factory=set
+    )  # arms that could not grasp it as it lies (`FailureCode.UNREACHABLE`)
 
     @property
     def next_station(self) -> str | None:

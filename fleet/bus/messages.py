@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import msgspec
 
-PROTOCOL_VERSION = 5
+from robots.phase import Phase
+
+PROTOCOL_VERSION = 6
 Floats = tuple[float, ...]
 
 
@@ -46,10 +48,11 @@ class ArmState(Message, frozen=True, array_like=True):
     held: bool = False
     lost: bool = False
     task_id: int | None = None
-    skill: str = "idle"
+    skill: str = Phase.IDLE.value
     progress: float = 0.0
     assign_seq: int = 0
     failure: str = ""
+    failure_code: str = ""  # `robots.failures.FailureCode` of `failure` ("" when none)
     request_seq: int = 0  # echo of the controller's motion request (see ControllerStep)
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
@@ -77,9 +80,10 @@ class ControllerStep(Message, frozen=True, array_like=True):
     next_tick: int
     goal_ids: tuple[int, ...] = ()
     task_id: int | None = None
-    skill: str = "idle"
+    skill: str = Phase.IDLE.value
     progress: float = 0.0
     failure: str = ""
+    failure_code: str = ""
     request_seq: int = (
         0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
     )

@@ -20,6 +20,7 @@ from pettingzoo import ParallelEnv
 
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
+from coordinator.tasks import TaskState
 from fleet.common.scene_loading import load_scene
 from fleet.env.task_mode import SLOT_FEATURES, SLOTS, TaskChooser
 from fleet.env.tasks import SUCCESS_BONUS, TASKS, EnvTask, make_task
@@ -296,9 +297,9 @@ class CellParallelEnv(ParallelEnv):
         rewards, successes = {}, {}
         for a in self.agents:
             outcomes, self.chooser.outcomes[a] = self.chooser.outcomes[a], []
-            own = sum(1.0 if o == "done" else -1.0 for o in outcomes)
+            own = sum(1.0 if o == TaskState.DONE else -1.0 for o in outcomes)
             rewards[a] = own + SUCCESS_BONUS * gained
-            successes[a] = "done" in outcomes
+            successes[a] = TaskState.DONE in outcomes
         return rewards, successes
 
     # --- observations -----------------------------------------------------------------

@@ -74,7 +74,7 @@ class TaskChooser:
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
         self.coming_s: dict[str, float] = {a: LOOKAHEAD_S for a in self.agents}
-        self.outcomes: dict[str, list[str]] = {a: [] for a in self.agents}
+        self.outcomes: dict[str, list[TaskState]] = {a: [] for a in self.agents}
 
     # --- what each arm sees ---------------------------------------------------------
     def parts(self) -> dict[int, PartView]:
@@ -240,6 +240,7 @@ class TaskChooser:
                 now,
                 task_id=task_id if was_open else None,
                 failure=skill.failure_reason,
+                failure_code=skill.failure_code,
                 request_seq=asked.seq if asked else 0,
                 request=request,
                 acts_at_tick=self.world.tick + 1,
@@ -247,7 +248,7 @@ class TaskChooser:
             if task is None:
                 continue
             if was_open and task.state not in OPEN_STATES:
-                self.outcomes[agent].append(task.state.value)
+                self.outcomes[agent].append(task.state)
             if (
                 task.state not in OPEN_STATES and skill.available
             ):  # the skill finishes its retreat first (home may be given up)

@@ -17,6 +17,7 @@ from viser.extras import ViserUrdf
 
 from fleet.bus.messages import ArmState
 from fleet.monitor.feed import LineSnapshot
+from robots.phase import Phase
 from robots.registry import get_robot
 from robots.spec import RobotSpec
 from scenes.schema import Scene, Station
@@ -89,7 +90,7 @@ class ArmModel:
     def show(self, state: ArmState) -> None:
         self.update_cfg(np.asarray(state.q), np.asarray(state.gripper_q))
         what = "LOST" if state.lost else ("held" if state.held else state.skill)
-        task = f" · task {state.task_id}" if state.task_id is not None and state.skill not in ("idle",) else ""
+        task = f" · task {state.task_id}" if state.task_id is not None and state.skill != Phase.IDLE else ""
         text = f"{self.name} · {what}{task}"
         if self.label.text != text:
             self.label.text = text

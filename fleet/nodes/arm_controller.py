@@ -33,6 +33,7 @@ from fleet.bus.plausible import TickClock, arm_state_problem, not_finite, parts_
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from robots.frames import yaw_transform
+from robots.phase import Phase
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
@@ -301,7 +302,8 @@ class ArmController:
                     self.task_id,
                     phase,
                     progress,
-                    self.skill.failure_reason if phase == "failed" else "",
+                    self.skill.failure_reason if phase == Phase.FAILED else "",
+                    self.skill.failure_code if phase == Phase.FAILED else "",
                     request.seq if request else 0,
                     request.q_to if request else (),
                     request.duration_s if request else 0.0,

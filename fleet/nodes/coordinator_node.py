@@ -298,6 +298,7 @@ class CoordinatorNode:
             s.sim_time_s,
             task_id=s.task_id,
             failure=s.failure,
+            failure_code=s.failure_code,
             request_seq=s.request_seq,
             request=request,
             acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later

@@ -39,7 +39,7 @@ import msgspec
 import numpy as np
 import zenoh
 
-from coordinator.cadence import IDLE_SKILLS, decision_period_ticks
+from coordinator.cadence import decision_period_ticks
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.faults import DelayLine, add_fault_arguments, faults_report, links_for, network_from_args
 from fleet.bus.flights import FlightBook
@@ -68,6 +68,7 @@ from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import PartInfo, World
 from fleet.sim.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
+from robots.phase import IDLE_PHASES, Phase
 from robots.skills.pick_place import DEFAULT_DECISION_HZ
 from robots.tracker import WATCHDOG_REASON
 
@@ -507,10 +508,11 @@ class SimServer:
             held=self.estop or link.lost or link.watchdog_held,
             lost=link.lost,
             task_id=step.task_id if step else None,
-            skill=step.skill if step else "idle",
+            skill=step.skill if step else Phase.IDLE,
             progress=step.progress if step else 0.0,
             assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1,
             failure=step.failure if step else "",
+            failure_code=step.failure_code if step else "",
             request_seq=step.request_seq if step else 0,
             request_q_to=step.request_q_to if step else (),
             request_duration_s=step.request_duration_s if step else 0.0,
@@ -642,7 +644,7 @@ class SimServer:
                 self.stats.watchdog_holds[name] += 1
             self._publish_results(name, rs)
         for name, link in self.links.items():
-            if link.last_step is not None and link.last_step.skill not in IDLE_SKILLS and not link.lost:
+            if link.last_step is not None and link.last_step.skill not in IDLE_PHASES and not link.lost:
                 self.stats.busy_ticks[name] += 1
                 if link.last_step.request_seq > 0:
                     self.stats.grant_wait_ticks[name] += 1
@@ -707,6 +709,21 @@ class SimServer:
                     self._inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
                     self.stats.wall_s["pacing"] += ahead
         self.publish_status(force=True)
+
+    def settle(self) -> None:
+        """Lockstep, after the last tick: wait (at most the lockstep timeout) for the answers to the states and frames
+        already delivered, and the goals they name, so that the run ends on the bus the same way every time (a
+        recording of it too). They take no effect: the run is over."""
+        if not (self._deferred or self._deferred_coord):
+            return
+        deadline = time.monotonic() + self.lockstep_timeout_s
+        while time.monotonic() < deadline:
+            self._take_inputs()
+            arms_in = all(link.lost or link.ready() for link in self.links.values()) or not self._deferred
+            coord_in = not self._deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
+            if arms_in and coord_in:
+                return
+            self._inbox.wait(0.01)
 
     def publish_status(self, force: bool = False) -> None:
         """The clock's settings and running figures, every `STATUS_PERIOD_S` of wall time."""
@@ -922,6 +939,8 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         try:
             server.run_ticks(ticks)
+            if not stop.should_stop() and server.world.tick >= ticks:
+                server.settle()
         finally:
             if args.record_targets:
                 save_target_log(args.record_targets, server.target_log)

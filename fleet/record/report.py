@@ -22,19 +22,20 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, Progress, Separations, SimStatus
 from fleet.record.mcap_file import Recording
 from fleet.record.ros_types import deserialize
+from robots.phase import Phase
 
 PHASE_COLOURS = {
-    "approach": "#4C72B0",
-    "descend": "#55A868",
-    "close": "#2E8B57",
-    "lift": "#8172B2",
-    "standby": "#E8A0A2",
-    "transfer": "#C44E52",
-    "lower": "#CCB974",
-    "release": "#DD8452",
-    "retreat": "#64B5CD",
-    "home": "#8C8C8C",
-    "failed": "#000000",
+    Phase.APPROACH: "#4C72B0",
+    Phase.DESCEND: "#55A868",
+    Phase.CLOSE: "#2E8B57",
+    Phase.LIFT: "#8172B2",
+    Phase.STANDBY: "#E8A0A2",
+    Phase.TRANSFER: "#C44E52",
+    Phase.LOWER: "#CCB974",
+    Phase.RELEASE: "#DD8452",
+    Phase.RETREAT: "#64B5CD",
+    Phase.HOME: "#8C8C8C",
+    Phase.FAILED: "#000000",
 }
 HELD_COLOUR = "#BBBBBB"
 ARM_FIELDS = ("sim_time_s", "arm", "skill", "task_id", "busy", "held", "lost")
@@ -82,7 +83,7 @@ def series_from_recording(recording: Recording) -> RunSeries:
         msg = decoders[raw.key].decode(raw.key, raw.payload)
         if isinstance(msg, ArmState) and msg.tick > last_tick.get(msg.arm, -1):
             last_tick[msg.arm] = msg.tick
-            busy = msg.skill not in ("idle", "done")
+            busy = msg.skill not in (Phase.IDLE, Phase.DONE)
             series.arm_rows.append(
                 dict(zip(ARM_FIELDS, (msg.sim_time_s, msg.arm, msg.skill, msg.task_id, busy, msg.held, msg.lost)))
             )
@@ -174,7 +175,7 @@ def _gantt(series: RunSeries, path: Path) -> Path:
                 )
             elif skill in PHASE_COLOURS:
                 ax.broken_barh([(start, length)], (row - 0.4, 0.8), facecolors=PHASE_COLOURS[skill])
-                if task is not None and skill == "approach" and length > 0.02 * max(series.end_s, 1e-9):
+                if task is not None and skill == Phase.APPROACH and length > 0.02 * max(series.end_s, 1e-9):
                     ax.text(start, row, f" {task}", va="center", ha="left", fontsize=7, color="white")
     ax.set_yticks(range(len(series.arms)), series.arms)
     ax.invert_yaxis()

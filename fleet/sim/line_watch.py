@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleet.sim.world import PartInfo, World
+from fleet.sim.world_events import PartSpawned, WorldEvent
 from scenes.schema import Scene, Station
 
 REST_SPEED_M_PER_S = 0.02
@@ -83,7 +84,9 @@ class LineWatcher:
     def update(self, world: World, parts: list[PartInfo]) -> list[Event]:
         tick, now = world.tick, world.sim_time_s
         events = [
-            Event("arrived", e[1], tick, e[2], e[3]) for e in self._new_world_events(world) if e[0] == "part_spawned"
+            Event("arrived", e.part_id, tick, e.feeder, e.type_index)
+            for e in self._new_world_events(world)
+            if isinstance(e, PartSpawned)
         ]
         retire: list[tuple[int, str]] = []
         active = {p.part_id for p in parts}
@@ -113,5 +116,5 @@ class LineWatcher:
         self._world_events_seen = len(world.events)
         return events
 
-    def _new_world_events(self, world: World) -> list[tuple]:
+    def _new_world_events(self, world: World) -> list[WorldEvent]:
         return world.events[self._world_events_seen :]

@@ -16,6 +16,7 @@ import sapien
 
 from fleet.sim.arm import SimArm, yaw_pose
 from fleet.sim.parts import FeederClock, SimPart, build_part, park
+from fleet.sim.world_events import FeederFull, PartRetired, PartSpawned, WorldEvent
 from robots.registry import get_robot
 from scenes.schema import Scene, Station
 from scenes.shapes import BELT_DROP_ALONG_M, WALL_M, belt_box, station_boxes, station_spots
@@ -55,7 +56,7 @@ class WorldState:
     part_ids: list[int | None]
     feeders: list[dict]
     next_part_id: int
-    events: list[tuple] = field(default_factory=list)
+    events: list[WorldEvent] = field(default_factory=list)
 
 
 def configure_physx(scene: Scene) -> None:
@@ -85,7 +86,7 @@ class World:
         self.substeps = scene.substeps
         self.control_dt_s = 1.0 / scene.control_hz
         self.tick = 0
-        self.events: list[tuple] = []
+        self.events: list[WorldEvent] = []
         self._build_floor()
         self.belt = self._build_conveyor()
         for station in scene.stations:
@@ -232,7 +233,7 @@ class World:
         free = self._free_slots(clock, type_index)
         if not free:
             clock.skipped_full += 1
-            self.events.append(("feeder_full", feeder.name, self.tick))
+            self.events.append(FeederFull(feeder.name, self.tick))
             return
         spot = self._drop_spot(clock, lateral) or self._drop_point(
             feeder.into, lateral
@@ -253,7 +254,7 @@ class World:
         part.body.set_angular_velocity([0.0, 0.0, 0.0])
         part.part_id = self.next_part_id
         self.next_part_id += 1
-        self.events.append(("part_spawned", part.part_id, part.feeder, part.type_index, self.tick))
+        self.events.append(PartSpawned(part.part_id, part.feeder, part.type_index, self.tick))
         return part.part_id
 
     def place_part(
@@ -286,7 +287,7 @@ class World:
         part = self._part(part_id)
         park(part.entity, part.body, part.slot)
         part.part_id = None
-        self.events.append(("part_retired", part_id, self.tick))
+        self.events.append(PartRetired(part_id, self.tick))
 
     def _part(self, part_id: int) -> SimPart:
         for p in self.parts:

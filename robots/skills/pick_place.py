@@ -25,59 +25,27 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from enum import Enum
 
 import numpy as np
 
+from robots.failures import Failure, FailureCode
 from robots.frames import rotation_from_wxyz, wrap_angle
 from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
 from robots.kinematics import KinematicModel
+from robots.phase import ORDER, Phase
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment, quintic
 
-# a skill's refusal of a part it cannot grasp as it lies (the coordinator remembers it)
+# the words of a skill's refusal of a part it cannot grasp as it lies (`FailureCode.UNREACHABLE`)
 UNREACHABLE = "cannot be reached from above"
 
 
-class Phase(str, Enum):
-    IDLE = "idle"
-    APPROACH = "approach"
-    DESCEND = "descend"
-    CLOSE = "close"
-    LIFT = "lift"
-    STANDBY = "standby"  # a part in the claw, beside the place, until the coordinator says the place is ready
-    TRANSFER = "transfer"
-    LOWER = "lower"
-    RELEASE = "release"
-    RETREAT = "retreat"
-    HOME = "home"
-    DONE = "done"
-    FAILED = "failed"
-
-
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
-SEGMENT_PHASES = (
-    Phase.APPROACH,
-    Phase.STANDBY,
-    Phase.TRANSFER,
-    Phase.HOME,
-)  # free joint-space moves: the ones that need a grant
 REPLAN_AFTER_S = 0.3
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
-ORDER = [
-    Phase.APPROACH,
-    Phase.DESCEND,
-    Phase.CLOSE,
-    Phase.LIFT,
-    Phase.TRANSFER,
-    Phase.LOWER,
-    Phase.RELEASE,
-    Phase.RETREAT,
-    Phase.HOME,
-]
 FAILED_STATUSES = ("aborted", "rejected")
 LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
 MAX_KNOT_JUMP_RAD = (
@@ -171,7 +139,7 @@ class PickPlaceSkill:
         self.km = model or KinematicModel(spec)
         self.top_down = TopDownIK(spec, transform_base_to_world, self.km)
         self.phase = Phase.IDLE
-        self.failure_reason = ""
+        self.failure: Failure | None = None  # why the last task failed
         self.task: PickPlaceTask | None = None
         self.ik_failures = 0
         self.goal_id = 0  # ids of the goals this skill sends: increasing over its whole life
@@ -299,7 +267,7 @@ class PickPlaceSkill:
         self._idle_since_s = None
         self._detour_to = None
         self._stood_by, self._transfer_to = False, None
-        self.task, self.failure_reason = task, ""
+        self.task, self.failure = task, None
         self.sent_goals = set()
         self._timeline = []
         self._unconfirmed = []
@@ -328,7 +296,9 @@ class PickPlaceSkill:
             found = self._least_tilt(grasp, self.grasp_yaw, t.hover_m)
             if found is None:
                 hover = grasp + [0.0, 0.0, t.hover_m]
-                self._fail(f"part {part.part_id} {UNREACHABLE} at {np.round(hover, 3).tolist()}")
+                self._fail(
+                    FailureCode.UNREACHABLE, f"part {part.part_id} {UNREACHABLE} at {np.round(hover, 3).tolist()}"
+                )
                 return
             self.pick_tilt_rad, q_hover, self._pick_up = found
             seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
@@ -427,7 +397,10 @@ class PickPlaceSkill:
             self._denied_since_s = time_s
         if self.phase == Phase.APPROACH:  # nothing in hand: give the task back, the coordinator decides again
             self.request = None
-            self._fail(f"motion denied: the approach would pass within the margin of {conflict_arm or 'another arm'}")
+            self._fail(
+                FailureCode.MOTION_DENIED,
+                f"motion denied: the approach would pass within the margin of {conflict_arm or 'another arm'}",
+            )
         elif self.phase == Phase.STANDBY:  # the spot beside the place is in another arm's way: wait where it is
             self._transfer_from_here(time_s)
         elif self._should_detour(time_s):  # the way stays blocked: make room by going home, then transfer from there
@@ -487,19 +460,29 @@ class PickPlaceSkill:
 
     def reject(self, reason: str) -> None:
         """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
-        self._fail(reason)
+        self._fail(FailureCode.REJECTED, reason)
 
     def cancel(self, reason: str) -> None:
         """Stop the current task; the arm finishes the goal it is on and holds there with the claw as it is."""
-        self._fail(reason)
+        self._fail(FailureCode.CANCELLED, reason)
 
     def _enter(self, phase: Phase, time_s: float) -> None:
         self.phase, self.phase_t0 = phase, time_s
 
-    def _fail(self, reason: str) -> None:
-        self.phase, self.failure_reason = Phase.FAILED, reason
+    def _fail(self, code: FailureCode, reason: str) -> None:
+        self.phase, self.failure = Phase.FAILED, Failure(code, reason)
         self.request = None
         self._timeline = []
+
+    @property
+    def failure_reason(self) -> str:
+        """The sentence of the last failure ("" when none)."""
+        return self.failure.reason if self.failure else ""
+
+    @property
+    def failure_code(self) -> str:
+        """The code of the last failure ("" when none), as the bus carries it."""
+        return self.failure.code.value if self.failure else ""
 
     @property
     def progress(self) -> float:
@@ -551,7 +534,7 @@ class PickPlaceSkill:
                 keep.append((sent_s, sends, goals))
                 continue
             if sends > MAX_RESENDS:
-                self._fail(f"trajectory goal {newest} was lost on the bus {sends} times")
+                self._fail(FailureCode.GOAL_LOST, f"trajectory goal {newest} was lost on the bus {sends} times")
                 return False
             keep.append((obs.time_s, sends + 1, self._resend(goals, obs.time_s)))
         self._unconfirmed = keep
@@ -588,7 +571,7 @@ class PickPlaceSkill:
         if self._at_home(q):
             return
         self._now = obs.time_s
-        self.task, self.failure_reason = None, ""
+        self.task, self.failure = None, None
         self.sent_goals, self._timeline, self._unconfirmed = set(), [], []
         self.q_cmd = q.copy()
         self._idle_since_s = None
@@ -599,7 +582,10 @@ class PickPlaceSkill:
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
         now = self._now = obs.time_s
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
-            self._fail(f"trajectory goal {obs.result_goal_id} {obs.result_status}: {obs.result_reason}")
+            self._fail(
+                FailureCode.GOAL_FAILED,
+                f"trajectory goal {obs.result_goal_id} {obs.result_status}: {obs.result_reason}",
+            )
             return
         if not self._resend_lost(obs):
             return
@@ -651,7 +637,7 @@ class PickPlaceSkill:
         """Descend onto the part following it, close, lift: one goal from the approach's end, and the close."""
         t = self.timing
         if part is None:
-            self._fail(f"part {self.task.part_id} vanished before the grasp")
+            self._fail(FailureCode.PART_VANISHED, f"part {self.task.part_id} vanished before the grasp")
             return
         start = self._earliest(self.plan_end_s)
         seen_at = now
@@ -684,7 +670,9 @@ class PickPlaceSkill:
         t, now = self.timing, obs.time_s
         if self._gripper_opening(obs) < 0.03:
             self._send_gripper(1.0, None)
-            self._fail(f"grasp of part {self.task.part_id} missed: the claw closed on nothing")
+            self._fail(
+                FailureCode.GRASP_MISSED, f"grasp of part {self.task.part_id} missed: the claw closed on nothing"
+            )
             return
         place = np.asarray(self.task.place_xyz, float)
         self.place_yaw = self._natural_yaw(place)
@@ -693,7 +681,7 @@ class PickPlaceSkill:
             found = self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m, self.pick_tilt_rad)
         found = found or self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m)
         if found is None:
-            self._fail(f"place position {np.round(place, 3).tolist()} cannot be reached")
+            self._fail(FailureCode.PLACE_UNREACHABLE, f"place position {np.round(place, 3).tolist()} cannot be reached")
             return
         self.place_tilt_rad, q_above, self._place_up = found
         self._begin_segment(self._segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)

@@ -6,6 +6,7 @@ from coordinator.allocation import Eligibility, PartView
 from coordinator.capacity import arm_views
 from coordinator.ledger import MAX_ATTEMPTS, Ledger
 from coordinator.tasks import TaskState
+from robots.failures import FailureCode
 from robots.skills.pick_place import UNREACHABLE
 from scenes import load_scene
 
@@ -141,7 +142,9 @@ def test_an_arm_whose_skill_cannot_reach_a_part_as_it_lies_is_not_given_it_again
     lg.arrived(0, "mixed", 1, 1.0)
     task = only(lg.refresh(1.0))
     lg.assign(task.task_id, "arm_1", 2.0)
-    lg.arm_report("arm_1", task.task_id, "failed", 2.1, f"part 0 {UNREACHABLE} at [0.523, -0.017, 0.135]")
+    lg.arm_report(
+        "arm_1", task.task_id, "failed", 2.1, f"part 0 {UNREACHABLE} at [0.523, -0.017, 0.135]", FailureCode.UNREACHABLE
+    )
     again = only(lg.refresh(2.2))
     assert again.task_id != task.task_id and again.refused_by == ("arm_1",)
     views = {v.name: v for v in arm_views(scene)}
@@ -150,5 +153,12 @@ def test_an_arm_whose_skill_cannot_reach_a_part_as_it_lies_is_not_given_it_again
     part = PartView(np.array([x, y, z + 0.015]), np.array(scene.conveyor.direction) * scene.conveyor.speed_m_per_s)
     assert rules.can_serve(views["arm_1"], task, part) and not rules.can_serve(views["arm_1"], again, part)
     lg.assign(again.task_id, "arm_2", 3.0)
-    lg.arm_report("arm_2", again.task_id, "failed", 3.1, "grasp of part 0 missed: the claw closed on nothing")
+    lg.arm_report(
+        "arm_2",
+        again.task_id,
+        "failed",
+        3.1,
+        "grasp of part 0 missed: the claw closed on nothing",
+        FailureCode.GRASP_MISSED,
+    )
     assert only(lg.refresh(3.2)).refused_by == ("arm_1",)

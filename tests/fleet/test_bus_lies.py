@@ -31,7 +31,10 @@ def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:
     for arm in arms:
         out.append((keys.arm_state(arm), encode(state(arm))))
         out.append(
-            (keys.arm_step(arm), encode(ControllerStep(arm, 0, 5, (), None, "approach", 0.1, "", 1, (nan,) * 6, 1.0)))
+            (
+                keys.arm_step(arm),
+                encode(ControllerStep(arm, 0, 5, (), None, "approach", 0.1, "", "", 1, (nan,) * 6, 1.0)),
+            )
         )
         out.append(
             (keys.arm_assign(arm), encode(Assignment(arm, 2**63 - 1, 7, 0, 0.1, (nan, 0.0, 0.0), (0.0, 0.0, 0.0))))

@@ -12,6 +12,7 @@ from fleet.env import parallel_env
 from fleet.env.task_mode import allocator_actions
 from fleet.env.tasks import above
 from fleet.sim.world import World
+from fleet.sim.world_events import PartSpawned
 from robots.frames import yaw_transform
 from robots.policy_actions import MAX_DELTA_RAD
 from robots.top_down import TopDownIK
@@ -132,7 +133,11 @@ def test_a_line_episode_draws_its_arrivals_from_its_seed_as_fleet_run_does():
     """Seed S gives the arrivals of `fleet run --seed S` (a world built with scene seed S); another seed, others."""
 
     def spawned(world) -> list[tuple]:
-        return [(e[1], e[2], e[3], round(e[4] * world.control_dt_s, 3)) for e in world.events if e[0] == "part_spawned"]
+        return [
+            (e.part_id, e.feeder, e.type_index, round(e.tick * world.control_dt_s, 3))
+            for e in world.events
+            if isinstance(e, PartSpawned)
+        ]
 
     env = parallel_env(scene="mixed_infeed", task="line", action_mode="task", max_cycles=100, control_hz=10)
     by_seed = {}

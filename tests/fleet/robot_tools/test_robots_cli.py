@@ -9,7 +9,7 @@ from pathlib import Path
 
 import yaml
 
-ROOT = Path(__file__).parents[2]
+ROOT = Path(__file__).parents[3]
 EXAMPLE = ROOT / "examples" / "robots" / "my_claw.yaml"
 QUICK_LINE = ROOT / "tests" / "fleet" / "scenes_data" / "quick_line.yaml"
 
