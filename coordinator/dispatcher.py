@@ -136,9 +136,8 @@ class Dispatcher:
         self.held_at_station_s: dict[str, float] = {}  # pipelining: how long each arm's moves waited for a fixture
         self.held_now: dict[str, str] = {}  # arm -> the fixture its waiting move is held for, at the last decision
         self.told_standby: set[int] = set()  # tasks whose held transfer was told to stand by (once a task)
-        self._candidates: dict[
-            int, tuple[int, str]
-        ] = {}  # candidate id -> (task id, station), of the last `candidates`
+        # candidate id -> (task id, station), of the last `candidates`
+        self._candidates: dict[int, tuple[int, str]] = {}
         self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
 
     def _belt_reach(self) -> float | None:
@@ -446,9 +445,8 @@ class Dispatcher:
                     self.held_at_station_s.get(arm, 0.0) + self.period_ticks / self.scene.control_hz
                 )
                 task = self.open_task(arm)
-                if (
-                    self.skill[arm] == Phase.TRANSFER and task.task_id not in self.told_standby
-                ):  # wait beside it, part in hand
+                # wait beside it, part in hand
+                if self.skill[arm] == Phase.TRANSFER and task.task_id not in self.told_standby:
                     self.told_standby.add(task.task_id)
                     del self.requests[arm]
                     out.append(GrantOrder(arm, self.request_seq[arm], "standby", "", math.inf, None))

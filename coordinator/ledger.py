@@ -167,9 +167,8 @@ class Ledger:
     def _fail_attempt(self, task: Task, reason: str, code: str = "") -> None:
         part = self.parts[task.part_id]
         self._close(task, TaskState.FAILED, reason)
-        if (
-            code == FailureCode.UNREACHABLE and task.arm is not None
-        ):  # its pose will not change: another arm must take it
+        # its pose will not change: another arm must take it
+        if code == FailureCode.UNREACHABLE and task.arm is not None:
             part.refused_by.add(task.arm)
         if part.location == HELD and part.fate == PartFate.ON_LINE:
             self._put_back(part)

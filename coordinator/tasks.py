@@ -70,9 +70,8 @@ class Task:
     deadline_s: float | None = None  # belt tasks: when the part rides out of every arm's reach
     done_s: float | None = None  # when the part came to rest at the target (DONE tasks)
     reassignments: int = 0
-    alternatives: tuple[
-        str, ...
-    ] = ()  # other stations that would do as the target (a sorted part: any bin of its colour)
+    # other stations that would do as the target (a sorted part: any bin of its colour)
+    alternatives: tuple[str, ...] = ()
     refused_by: tuple[str, ...] = ()  # arms whose skill found the part out of its reach as it lies: not given it again
 
     def retarget(self, target: str) -> None:

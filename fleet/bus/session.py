@@ -70,9 +70,8 @@ def make_config(endpoints: BusEndpoints) -> zenoh.Config:
     """A Zenoh config: peer mode (or the config file's), multicast scouting off, and only the given endpoints
     (loopback if none)."""
     config = zenoh.Config.from_file(endpoints.config_file) if endpoints.config_file else zenoh.Config()
-    if (
-        not endpoints.config_file
-    ):  # a config file's mode stands (a line across hosts: the sim a router, the rest clients)
+    # a config file's mode stands (a line across hosts: the sim a router, the rest clients)
+    if not endpoints.config_file:
         config.insert_json5("mode", json.dumps("peer"))
     config.insert_json5("scouting/multicast/enabled", "false")
     # every sample carries its publisher's HLC time: a recorder puts what it hears back in publish order

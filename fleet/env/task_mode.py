@@ -249,9 +249,8 @@ class TaskChooser:
                 continue
             if was_open and task.state not in OPEN_STATES:
                 self.outcomes[agent].append(task.state)
-            if (
-                task.state not in OPEN_STATES and skill.available
-            ):  # the skill finishes its retreat first (home may be given up)
+            # the skill finishes its retreat first (home may be given up)
+            if task.state not in OPEN_STATES and skill.available:
                 self.task_of[agent] = None
         if self.world.tick % self.period_ticks == 0:
             self._take_back_late_tasks()

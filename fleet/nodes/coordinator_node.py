@@ -108,9 +108,8 @@ class CoordinatorNode:
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
         self.events_seen = 0
-        self._events_ahead: list[
-            tuple[str, LineEvent]
-        ] = []  # received, not yet applied (of a tick past the next decision)
+        # received, not yet applied (of a tick past the next decision)
+        self._events_ahead: list[tuple[str, LineEvent]] = []
         self.decisions_on_deadline = 0
         self.decision_ms: list[float] = []  # wall time of each decision: what a lockstep timeout is measured against
         self.slowest_decision: tuple[float, int] = (-1.0, -1)  # (ms, tick) of the slowest decision so far

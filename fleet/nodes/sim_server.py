@@ -32,38 +32,36 @@ import math
 import sys
 import threading
 import time
-from collections import Counter, deque
-from dataclasses import dataclass, field
+from collections import Counter
 
 import msgspec
 import numpy as np
 import zenoh
 
 from coordinator.cadence import decision_period_ticks
-from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.codec import encode
 from fleet.bus.faults import DelayLine, add_fault_arguments, faults_report, links_for, network_from_args
 from fleet.bus.flights import FlightBook
 from fleet.bus.goals import goal_from_message, result_message
-from fleet.bus.history import serve_history
 from fleet.bus.keys import Keys
+from fleet.bus.lockstep import ArmLink, Barrier
 from fleet.bus.messages import (
     ArmGoalMsg,
     ArmState,
     ControllerStep,
     CoordTick,
-    EStop,
     EventLog,
     LineEvent,
     LineView,
-    SimControl,
     SimStatus,
 )
-from fleet.bus.plausible import request_problem, seq_problem
-from fleet.bus.scene_query import serve_scene
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, make_config, open_listening_session
+from fleet.bus.plausible import request_problem
+from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open_listening_session
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
 from fleet.sim.line_watch import LineWatcher
+from fleet.sim.sim_bus import SimBus, control_problem, coord_tick_problem
+from fleet.sim.sim_stats import SimStats
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import PartInfo, World
 from fleet.sim.world_messages import arm_state, parts_state
@@ -77,57 +75,6 @@ STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
 COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent coordinator: a decision may search for
 # reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
-REPUBLISH_S = 0.05  # wall seconds before a state still unanswered is sent again (a late joiner, a lost sample)
-
-
-@dataclass
-class ArmLink:
-    """The server's view of one arm's controller: its states in flight and their answers, when its next state is
-    sampled, whether it is alive."""
-
-    name: str
-    period_ticks: int
-    book: FlightBook
-    last_step: ControllerStep | None = None
-    next_tick: int = 0  # the tick its next state is sampled
-    goals: list = field(default_factory=list)  # goals in and not applied yet (lockstep), in arrival order
-    discard_goals: set = field(default_factory=set)  # ids named by answers lost on the way back: never applied
-    lost: bool = False
-    watchdog_held: bool = False
-
-    def named_goals(self) -> set[int]:
-        """Goal ids named by answers in and not applied yet."""
-        return {g for f in self.book.flights.values() if f.answer is not None for g in f.answer.goal_ids}
-
-    def ready(self) -> bool:
-        """Every state delivered has its answer, and every goal those answers name is in (lockstep)."""
-        if self.book.awaiting() is not None:
-            return False
-        arrived = {g.goal_id for g in self.goals}
-        return self.named_goals() <= arrived
-
-
-@dataclass
-class SimStats:
-    """What the server counts over a run; `report` turns it into the run summary's sim part."""
-
-    watchdog_holds: Counter = field(default_factory=Counter)
-    lost: list[str] = field(default_factory=list)
-    rejoined: list[str] = field(default_factory=list)
-    ticks: int = 0
-    contact_ticks: int = 0
-    contact_pairs: set = field(default_factory=set)
-    round_trip_ms: list[float] = field(default_factory=list)
-    coordinator_lost: bool = False
-    wall_s: Counter = field(default_factory=Counter)  # where the server's wall time went, by stage
-    busy_ticks: Counter = field(default_factory=Counter)  # ticks each arm's controller reported a running skill
-    grant_wait_ticks: Counter = field(default_factory=Counter)  # of those, ticks it held still for a motion grant
-    recent_round_trip_ms: deque = field(default_factory=lambda: deque(maxlen=1000))
-    last_contact_pairs: tuple[str, ...] = ()
-    last_contact_s: float = -1.0
-    results: Counter = field(default_factory=Counter)  # goal results by status
-    messages_out: Counter = field(default_factory=Counter)  # published, by key leaf
-    messages_in: Counter = field(default_factory=Counter)  # received, by key leaf
 
 
 class SimServer:
@@ -155,134 +102,72 @@ class SimServer:
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
-        self.world, self.session, self.keys, self.mode = world, session, keys, mode
+        self.world, self.keys, self.mode = world, keys, mode
         self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
         # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
-        self.coordinator_timeout_s = (
-            max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s
+        self.barrier = Barrier(
+            lockstep_timeout_s,
+            first_command_timeout_s,
+            max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s,
         )
-        self.first_command_timeout_s = first_command_timeout_s
-        self.stop = stop
-        self.controllers = controllers
-        hz = world.scene_model.control_hz
+        self.stop, self.controllers, self.coordinator = stop, controllers, coordinator
+        scene = world.scene_model
+        hz = scene.control_hz
         period = max(1, round(hz / DEFAULT_DECISION_HZ))  # until a controller asks for another rate
         self.max_period_ticks = max(1, round(hz * MAX_CONTROLLER_PERIOD_S))
-        scene = world.scene_model
         self.faults = links_for(scene.network, [*world.arms, "coordinator"], scene.seed)
         self.links = {name: ArmLink(name, period, FlightBook(self.faults[name], hz)) for name in world.arms}
         self.coord_book = FlightBook(self.faults["coordinator"], hz)
         self._delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
         self.tracked = TrackedArms(world)
-        self.drops = DropCounter()
         self.stats = SimStats()
-        self.estop = False
-        self.paused = False
-        self.speed = speed
+        # every event published, in order (a respawned coordinator rebuilds from it)
+        self.event_log: list[LineEvent] = []
+        history = lambda: EventLog(self.world.tick, tuple(self.event_log))
+        self.bus = SimBus(session, keys, list(world.arms), scene.model_dump_json(), history, self.stats)
+        self.drops = self.bus.drops
+        self.estop, self.paused, self.speed = False, False, speed
         self._status_at = 0.0
-        self._control_decoder = Decoder(SimControl, self.drops)
-        self._step_decoder = Decoder(ControllerStep, self.drops)
-        self._goal_decoder = Decoder(ArmGoalMsg, self.drops)
-        self._estop_decoder = Decoder(EStop, self.drops)
-        self._coord_decoder = Decoder(CoordTick, self.drops)
-        self._inbox = Inbox()  # answers and goals in one queue: handled in arrival order
-        self._estop_inbox, self._coord_inbox = Inbox(wake=self._inbox.wake), Inbox(wake=self._inbox.wake)
-        self._control_inbox = Inbox(wake=self._inbox.wake)
-        self._subs = [
-            session.declare_subscriber(keys.all_arms("step"), self._inbox),
-            session.declare_subscriber(keys.all_arms("goal"), self._inbox),
-            session.declare_subscriber(keys.estop, self._estop_inbox),
-            session.declare_subscriber(keys.coord("tick"), self._coord_inbox),
-            session.declare_subscriber(keys.control, self._control_inbox),
-        ]
-        self._scene_queryable = serve_scene(session, keys, world.scene_model.model_dump_json())
-        self.event_log: list[
-            LineEvent
-        ] = []  # every event published, in order (a respawned coordinator rebuilds from it)
-        self._history_queryable = serve_history(session, keys, lambda: EventLog(self.world.tick, tuple(self.event_log)))
-        self._status_pub = session.declare_publisher(keys.sim_status)
-        self._view_pub = session.declare_publisher(keys.view)
-        self._frame_pub = session.declare_publisher(keys.frame)
         self.view_every_ticks = max(1, round(hz / VIEW_RATE_HZ))
-        self._state_pubs = {name: session.declare_publisher(keys.arm_state(name)) for name in world.arms}
-        self._result_pubs = {name: session.declare_publisher(keys.arm_result(name)) for name in world.arms}
-        self._parts_pub = session.declare_publisher(keys.parts)
-        self._events_pub = session.declare_publisher(keys.events)
-        self.watcher = LineWatcher(world.scene_model)
+        self.watcher = LineWatcher(scene)
         self.watch_every_ticks = period
         self.count_contacts = count_contacts
-        self.coordinator = coordinator
-        self.coord_period_ticks = decision_period_ticks(world.scene_model)
+        self.coord_period_ticks = decision_period_ticks(scene)
         self.assign_seqs = {name: 0 for name in world.arms}
-        self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])  # pose noise: repeats for a seed
+        self._noise_rng = np.random.default_rng([scene.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
-        self.spool: BusSpool | None = (
-            None  # with `--spool`: what the bus carries, appended between ticks for the recorder
-        )
+        self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks
         self._started = not controllers  # every controller answered once (realtime waits until then)
 
     def close(self) -> None:
-        for sub in self._subs:
-            sub.undeclare()
-        self._scene_queryable.undeclare()
-        self._history_queryable.undeclare()
-        pubs = [
-            *self._state_pubs.values(),
-            *self._result_pubs.values(),
-            self._parts_pub,
-            self._events_pub,
-            self._status_pub,
-            self._view_pub,
-            self._frame_pub,
-        ]
-        for pub in pubs:
-            pub.undeclare()
-
-    def _put(self, pub: zenoh.Publisher, leaf: str, payload: bytes) -> None:
-        pub.put(payload)
-        self.stats.messages_out[leaf] += 1
+        self.bus.close()
 
     # --- inputs ---------------------------------------------------------------------
     def _take_inputs(self) -> None:
-        for key, payload in self._estop_inbox.drain():
-            msg = self._estop_decoder.decode(key, payload)
+        bus = self.bus
+        for key, payload in bus.estop_inbox.drain():
+            msg = bus.estop.decode(key, payload)
             if msg is not None and msg.engaged != self.estop:
                 self.estop = msg.engaged
                 for arm, results in self.tracked.set_estop(msg.engaged).items():
                     self._publish_results(arm, results)
-        for key, payload in self._control_inbox.drain():
-            msg = self._control_decoder.decode(key, payload)
-            if msg is None:
+        for key, payload in bus.control_inbox.drain():
+            if (msg := bus.control.decode(key, payload)) is None:
                 continue
-            if msg.speed is not None and not (math.isfinite(msg.speed) and 0.01 <= msg.speed <= 100.0):
-                self.drops.drop(key, "speed factor outside 0.01..100")
+            if problem := control_problem(msg):
+                self.drops.drop(key, problem)
                 continue
-            if msg.paused is not None:
-                self.paused = msg.paused
-            if msg.speed is not None:
-                self.speed = msg.speed
-        for key, payload in self._inbox.drain():
+            self.paused = self.paused if msg.paused is None else msg.paused
+            self.speed = self.speed if msg.speed is None else msg.speed
+        for key, payload in bus.inbox.drain():
             if key.endswith("/goal"):
                 self._on_goal(key, payload)
             else:
                 self._on_step(key, payload)
-        for key, payload in self._coord_inbox.drain():
-            msg = self._coord_decoder.decode(key, payload)
-            if msg is None:
+        for key, payload in bus.coord_inbox.drain():
+            if (msg := bus.coord.decode(key, payload)) is None:
                 continue
-            if len(msg.assign_seqs) != len(self.links):
-                self.drops.drop(
-                    key, f"coordinator tick with {len(msg.assign_seqs)} arms, the scene has {len(self.links)}"
-                )
-                continue
-            if msg.tick > self.world.tick:
-                self.drops.drop(
-                    key, f"coordinator tick {msg.tick} answers a frame not sent yet (now {self.world.tick})"
-                )
-                continue
-            problem = next(
-                (p for n, q in zip(self.links, msg.assign_seqs) if (p := seq_problem(q, self.assign_seqs[n]))), ""
-            )
-            if problem:
+            if problem := coord_tick_problem(msg, list(self.links), self.assign_seqs, self.world.tick):
                 self.drops.drop(key, problem)
                 continue
             self._on_coord_tick(msg)
@@ -328,23 +213,18 @@ class SimServer:
         return link
 
     def _on_goal(self, key: str, payload: bytes) -> None:
-        msg = self._goal_decoder.decode(key, payload)
+        msg = self.bus.goal.decode(key, payload)
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.stats.messages_in["goal"] += 1
-        if self._deferred:
-            if msg.goal_id in link.discard_goals:  # its answer was lost on the way: so was it
-                link.discard_goals.discard(msg.goal_id)
-            else:
-                link.goals.append(
-                    msg
-                )  # applied with the answer naming it (or at the arm's next due tick), so a lockstep run repeats
+        if self._deferred:  # applied with the answer naming it (or at the arm's next due tick): a lockstep run repeats
+            link.hold_goal(msg)
             return
         passage = link.book.link.passage("up")
         if not passage.lost:
             self._arrive_later("goal", link, msg, passage.delay_s)
 
-    def _submit(self, link: ArmLink, msg) -> None:
+    def _submit(self, link: ArmLink, msg: ArmGoalMsg) -> None:
         goal = goal_from_message(msg)
         if isinstance(
             goal, GoalResult
@@ -354,7 +234,7 @@ class SimServer:
             self._publish_results(link.name, self.tracked.submit(link.name, goal))
 
     def _on_step(self, key: str, payload: bytes) -> None:
-        msg = self._step_decoder.decode(key, payload)
+        msg = self.bus.step.decode(key, payload)
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.stats.messages_in["step"] += 1
@@ -367,14 +247,10 @@ class SimServer:
         flight = link.book.answer(msg.tick, msg)
         if flight is None:
             return  # an answer to a state already answered, overtaken or never delivered: nothing to do
-        rtt_ms = (time.monotonic() - flight.delivered_wall_s) * 1e3
-        self.stats.round_trip_ms.append(rtt_ms)
-        self.stats.recent_round_trip_ms.append(rtt_ms)
+        self.stats.round_trip((time.monotonic() - flight.delivered_wall_s) * 1e3)
         if self._deferred:
-            if flight.up_lost:  # lost on the way back: it and the goals it names never reach the tracker
-                link.discard_goals.update(msg.goal_ids)
-                link.goals = [g for g in link.goals if g.goal_id not in link.discard_goals]
-                link.discard_goals -= {g.goal_id for g in link.goals}
+            if flight.up_lost:
+                link.answer_lost(msg.goal_ids)
             return
         passage = link.book.link.passage("up")
         if not passage.lost:
@@ -393,17 +269,13 @@ class SimServer:
     def _apply_answers(self, link: ArmLink) -> None:
         """Lockstep: the answers due now take effect, each with the goals it names; goals no answer names
         (a user's own client, a lost controller) go with them."""
-        for flight in link.book.due_answers(self.world.tick):
-            named = set(flight.answer.goal_ids)
-            goals = [g for g in link.goals if g.goal_id in named]
-            link.goals = [g for g in link.goals if g.goal_id not in named]
+        batches, unnamed = link.take_due(self.world.tick)
+        for goals, answer in batches:
             for goal in goals:
                 self._submit(link, goal)
-            self._apply_answer(link, flight.answer)
-        held = link.named_goals()
-        for goal in [g for g in link.goals if g.goal_id not in held]:
+            self._apply_answer(link, answer)
+        for goal in unnamed:
             self._submit(link, goal)
-        link.goals = [g for g in link.goals if g.goal_id in held]
 
     def _apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
         """The controller's answer takes effect (its goals are with the tracker): what it does, when it wants its
@@ -431,35 +303,27 @@ class SimServer:
     def _wait_for_answers(self, links: list[ArmLink], coord: bool) -> None:
         """Until every live controller of `links` has answered each state delivered to it (with the goals it names),
         and the coordinator each frame (`coord`), or the timeout passed; then the answers due now take effect."""
-        first = not self._started
-        started = time.monotonic()
-        deadline = started + (self.first_command_timeout_s if first else self.lockstep_timeout_s)
-        republish_at = time.monotonic() + REPUBLISH_S
-        while True:
-            self._take_inputs()
-            waiting = [link for link in links if not link.lost and not link.ready()]
-            coord_waiting = coord and not self.stats.coordinator_lost and self.coord_book.awaiting() is not None
-            if not waiting and not coord_waiting:
-                break
-            if self.stop is not None and self.stop.should_stop():
-                return
-            now = time.monotonic()
-            if now > deadline and waiting:
-                for link in waiting:
-                    self._lose(link)
-                continue
-            if coord_waiting and now > max(deadline, started + self.coordinator_timeout_s):
-                self.stats.coordinator_lost = True
-                break
-            if time.monotonic() > republish_at:  # a process that joined late, or a lost sample
-                for link in waiting:
-                    if (flight := link.book.awaiting()) is not None:
-                        self._put(self._state_pubs[link.name], "state", flight.payload)
-                if coord_waiting:
-                    self._put(self._frame_pub, "frame", self.coord_book.awaiting().payload)
-                republish_at = time.monotonic() + REPUBLISH_S
-            self._inbox.wait(0.01)
+        outcome = self.barrier.wait(
+            links,
+            self.coord_book if coord and not self.stats.coordinator_lost else None,
+            first=not self._started,
+            take_inputs=self._take_inputs,
+            pause=self.bus.inbox.wait,
+            lose=self._lose,
+            republish=self._republish,
+            should_stop=self.stop.should_stop if self.stop is not None else lambda: False,
+        )
+        if outcome == "stopped":
+            return
+        self.stats.coordinator_lost = self.stats.coordinator_lost or outcome == "coordinator_lost"
         self._apply_due(links, coord)
+
+    def _republish(self, link: ArmLink | None, payload: bytes) -> None:
+        """A state (or, `link` None, a frame) still unanswered, sent again."""
+        if link is None:
+            self.bus.put(self.bus.frame_pub, "frame", payload)
+        else:
+            self.bus.put(self.bus.state_pubs[link.name], "state", payload)
 
     def _apply_due(self, links: list[ArmLink], coord: bool) -> None:
         """The answers (controllers', coordinator's) due at this tick take effect."""
@@ -484,7 +348,7 @@ class SimServer:
     def _publish_results(self, arm: str, results: list[GoalResult]) -> None:
         for r in results:
             self.stats.results[r.status.value] += 1
-            self._put(self._result_pubs[arm], "result", encode(result_message(arm, r)))
+            self.bus.put(self.bus.result_pubs[arm], "result", encode(result_message(arm, r)))
 
     def publish_events(self, parts: list[PartInfo]) -> bool:
         """This tick's line events (parts arrived, resting at a station, lost, retired), before the states.
@@ -493,7 +357,7 @@ class SimServer:
         for e in self.watcher.update(self.world, parts):
             event = LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)
             self.event_log.append(event)
-            self._put(self._events_pub, "events", encode(event))
+            self.bus.put(self.bus.events_pub, "events", encode(event))
             left = left or e.kind in ("lost", "retired")
         return left
 
@@ -535,50 +399,45 @@ class SimServer:
     def publish_states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
         """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
         coordinator's frame likewise; the monitors' view."""
-        w = self.world
+        w, bus = self.world, self.bus
         tick = w.tick
         for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
             link.next_tick = tick + link.period_ticks
         frame = self.coordinator and tick % self.coord_period_ticks == 0
-        view = tick % self.view_every_ticks == 0 and self._view_pub.matching_status.matching  # built only while watched
+        view = tick % self.view_every_ticks == 0 and bus.watched()  # built only while watched
         if due or frame or view:
-            states = (
-                {name: self._state(name) for name in w.arms}
-                if (frame or view)
-                else {link.name: self._state(link.name) for link in due}
-            )
+            names = list(w.arms) if (frame or view) else [link.name for link in due]
+            states = {name: self._state(name) for name in names}
             now = time.monotonic()
             for link in due:
                 if self.controllers:  # someone must answer it (without controllers the states are feedback only)
                     link.book.send(tick, states[link.name], link.period_ticks, now, self._deferred)
                 else:
-                    self._put(self._state_pubs[link.name], "state", encode(states[link.name]))
+                    bus.put(bus.state_pubs[link.name], "state", encode(states[link.name]))
             parts = w.active_parts() if parts is None else parts
             parts_msg = parts_state(w, parts, len(self.event_log))
             if due:
                 seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
-                self._put(self._parts_pub, "parts", encode(seen))
+                bus.put(bus.parts_pub, "parts", encode(seen))
             if frame or view:
                 line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg)
                 if frame:
                     self.coord_book.send(tick, line, 1, now, self._deferred_coord)
                 if view:
-                    self._put(self._view_pub, "view", encode(line))
+                    bus.put(bus.view_pub, "view", encode(line))
         self._deliver()
 
     def _deliver(self) -> None:
         """Send what reaches its process now: states (a delayed one stamped with the tick it arrives), frames."""
-        tick, now = self.world.tick, time.monotonic()
+        tick, now, bus = self.world.tick, time.monotonic(), self.bus
         for link in self.links.values():
             flight = link.book.deliver(tick, now, self._deferred)
             if flight is not None:
-                state = (
-                    flight.message
-                    if flight.tick == tick
-                    else msgspec.structs.replace(flight.message, delivered_tick=tick)
-                )
+                state = flight.message
+                if flight.tick != tick:
+                    state = msgspec.structs.replace(state, delivered_tick=tick)
                 flight.payload = encode(state)
-                self._put(self._state_pubs[link.name], "state", flight.payload)
+                bus.put(bus.state_pubs[link.name], "state", flight.payload)
             elif not self._deferred:
                 link.book.prune(tick, self.max_period_ticks)
         flight = self.coord_book.deliver(tick, now, self._deferred_coord)
@@ -589,7 +448,7 @@ class SimServer:
                     line, parts=msgspec.structs.replace(line.parts, events_published=len(self.event_log))
                 )
             flight.payload = encode(line)
-            self._put(self._frame_pub, "frame", flight.payload)
+            bus.put(bus.frame_pub, "frame", flight.payload)
         elif not self._deferred_coord:
             self.coord_book.prune(tick, self.max_period_ticks)
 
@@ -609,18 +468,33 @@ class SimServer:
             if self.publish_events(parts):
                 parts = self.world.active_parts()  # parts lost or retired just now are off the stage
         due = self._due()
-        tick = self.world.tick
         t1 = time.perf_counter()
         started = self._started
-        links = (
-            [
+        self._take_answers_due()
+        t2 = time.perf_counter()
+        self.publish_states(due, parts)
+        t3 = time.perf_counter()
+        self._step_physics()
+        t4 = time.perf_counter()
+        self.stats.ticks += 1
+        if self.count_contacts:
+            self.stats.contacts(self.world.inter_arm_contacts(), self.world.sim_time_s)
+        t5 = time.perf_counter()
+        clock["publish"] += (t1 - t0) + (t3 - t2)
+        clock["wait" if started else "startup"] += t2 - t1  # until every process answered once: start-up
+        clock["physics"] += t4 - t3
+        clock["contacts"] += t5 - t4
+
+    def _take_answers_due(self) -> None:
+        """The answers due at this tick: awaited (lockstep, or until every process is up), else whatever came in."""
+        tick = self.world.tick
+        links = []
+        if self._deferred:
+            links = [
                 link
                 for link in self.links.values()
                 if link.next_tick <= tick or link.book.arrives(tick) or link.book.applies(tick)
             ]
-            if self._deferred
-            else []
-        )
         # the coordinator's answers take effect with the next states out after them (frames: its period apart)
         frame = self.coordinator and tick % self.coord_period_ticks == 0
         coord = self._deferred_coord and (
@@ -630,15 +504,14 @@ class SimServer:
             self._wait_for_answers(links, coord)
         else:
             self._take_inputs()
-        t2 = time.perf_counter()
-        self.publish_states(due, parts)
-        t3 = time.perf_counter()
+
+    def _step_physics(self) -> None:
+        """The trackers write their drive targets, the physics steps a tick, and the trackers' results go out."""
         self.tracked.apply()
         if self.target_log is not None:
             self.target_log.append([a.written_targets() for a in self.world.arms.values()])
         self.world.step()
-        results = self.tracked.update()
-        for name, rs in results.items():
+        for name, rs in self.tracked.update().items():
             if any(r.reason == WATCHDOG_REASON for r in rs):
                 self.links[name].watchdog_held = True
                 self.stats.watchdog_holds[name] += 1
@@ -648,20 +521,6 @@ class SimServer:
                 self.stats.busy_ticks[name] += 1
                 if link.last_step.request_seq > 0:
                     self.stats.grant_wait_ticks[name] += 1
-        t4 = time.perf_counter()
-        self.stats.ticks += 1
-        if self.count_contacts:
-            pairs = self.world.inter_arm_contacts()
-            if pairs:
-                self.stats.contact_ticks += 1
-                self.stats.contact_pairs.update(pairs)
-                self.stats.last_contact_pairs = tuple(sorted("-".join(p) for p in pairs))
-                self.stats.last_contact_s = self.world.sim_time_s
-        t5 = time.perf_counter()
-        clock["publish"] += (t1 - t0) + (t3 - t2)
-        clock["wait" if started else "startup"] += t2 - t1  # until every process answered once: start-up
-        clock["physics"] += t4 - t3
-        clock["contacts"] += t5 - t4
 
     def run_ticks(self, ticks: int, speed: float | None = None, stop: StopFlag | None = None) -> None:
         """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at the speed factor.
@@ -670,12 +529,7 @@ class SimServer:
         stop = stop or self.stop
         if speed is not None:
             self.speed = speed
-        start_wall, start_sim, speed_then, started_then = (
-            time.monotonic(),
-            self.world.sim_time_s,
-            self.speed,
-            self._started,
-        )
+        pace = _Pacing(self)
         done = 0
         while done < ticks:
             if stop is not None and stop.should_stop():
@@ -685,8 +539,8 @@ class SimServer:
                 self.spool.pump()
             if self.paused:
                 self._take_inputs()
-                self._inbox.wait(0.05)
-                start_wall, start_sim = time.monotonic(), self.world.sim_time_s
+                self.bus.inbox.wait(0.05)
+                pace.restart()
                 continue
             self.tick()
             done += 1
@@ -695,19 +549,7 @@ class SimServer:
             if self.stats.coordinator_lost and self.mode == "lockstep":
                 return  # its decisions would never be announced again: end the run rather than stall it
             if self.mode == "realtime":
-                if (
-                    self._started != started_then or self.speed != speed_then
-                ):  # the clock starts once every process answered
-                    start_wall, start_sim, speed_then, started_then = (
-                        time.monotonic(),
-                        self.world.sim_time_s,
-                        self.speed,
-                        self._started,
-                    )
-                ahead = (self.world.sim_time_s - start_sim) / self.speed - (time.monotonic() - start_wall)
-                if ahead > 0:
-                    self._inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
-                    self.stats.wall_s["pacing"] += ahead
+                pace.wait()
         self.publish_status(force=True)
 
     def settle(self) -> None:
@@ -723,7 +565,7 @@ class SimServer:
             coord_in = not self._deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
             if arms_in and coord_in:
                 return
-            self._inbox.wait(0.01)
+            self.bus.inbox.wait(0.01)
 
     def publish_status(self, force: bool = False) -> None:
         """The clock's settings and running figures, every `STATUS_PERIOD_S` of wall time."""
@@ -733,87 +575,66 @@ class SimServer:
         self._status_at = now
         st, ticks = self.stats, max(self.stats.ticks, 1)
         recent = st.recent_round_trip_ms
-        self._put(
-            self._status_pub,
-            "status",
-            encode(
-                SimStatus(
-                    self.world.tick,
-                    self.world.sim_time_s,
-                    self.mode,
-                    self.paused,
-                    self.estop,
-                    self.speed,
-                    tuple(st.busy_ticks[a] / ticks for a in self.links),
-                    float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
-                    st.contact_ticks,
-                    st.last_contact_pairs,
-                    st.last_contact_s,
-                    tuple(link.name for link in self.links.values() if link.lost),
-                    self.drops.total,
-                )
-            ),
+        status = SimStatus(
+            self.world.tick,
+            self.world.sim_time_s,
+            self.mode,
+            self.paused,
+            self.estop,
+            self.speed,
+            tuple(st.busy_ticks[a] / ticks for a in self.links),
+            float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
+            st.contact_ticks,
+            st.last_contact_pairs,
+            st.last_contact_s,
+            tuple(link.name for link in self.links.values() if link.lost),
+            self.drops.total,
         )
-
-    def arm_time(self, arm: str) -> dict[str, float]:
-        """Fractions of the run an arm worked, held still waiting for a motion grant, or had no task."""
-        ticks = max(self.stats.ticks, 1)
-        busy, waiting = self.stats.busy_ticks[arm], self.stats.grant_wait_ticks[arm]
-        return {
-            "working": round((busy - waiting) / ticks, 4),
-            "waiting_for_grant": round(waiting / ticks, 4),
-            "idle": round(1 - busy / ticks, 4),
-        }
-
-    def messages_per_arm_per_s(self) -> dict[str, float]:
-        """Bus messages per arm per sim second, by key leaf, both ways (the sim's own count)."""
-        sim_s, arms = max(self.world.sim_time_s, 1e-9), max(len(self.links), 1)
-        both = self.stats.messages_out + self.stats.messages_in
-        return {k: round(v / arms / sim_s, 2) for k, v in sorted(both.items())}
+        self.bus.put(self.bus.status_pub, "status", encode(status))
 
     def report(self) -> dict:
         """The sim's part of the run summary."""
-        rtt = np.asarray(self.stats.round_trip_ms)
-        return {
-            "ticks": self.stats.ticks,
-            "sim_seconds": round(self.world.sim_time_s, 6),
-            "parts_spawned": sum(c.spawned for c in self.world.feeders),
-            "feeder_full_skips": sum(c.skipped_full for c in self.world.feeders),
-            "feeder_held_s": {c.feeder.name: round(c.held_s, 2) for c in self.world.feeders if c.held_s > 0},
-            "events": dict(sorted(Counter(e.kind for e in self.event_log).items())),
-            "utilisation": {
-                a: round(self.stats.busy_ticks[a] / self.stats.ticks, 4) if self.stats.ticks else 0.0
-                for a in self.links
-            },
-            "arm_time": {a: self.arm_time(a) for a in self.links},
-            "inter_arm_contacts": self.stats.contact_ticks,
-            "contact_pairs": sorted("-".join(p) for p in self.stats.contact_pairs),
-            "latency_p50_ms": round(float(np.percentile(rtt, 50)), 3) if rtt.size else None,
-            "latency_p99_ms": round(float(np.percentile(rtt, 99)), 3) if rtt.size else None,
-            "round_trip_histogram": round_trip_histogram(rtt),
-            "messages_out": dict(sorted(self.stats.messages_out.items())),
-            "dropped_messages": self.drops.total,
-            "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
-            "goal_results": dict(sorted(self.stats.results.items())),
-            "watchdog_holds": dict(self.stats.watchdog_holds),
-            "arms_lost": list(self.stats.lost),
-            "arms_rejoined": list(self.stats.rejoined),
-            "coordinator_lost": self.stats.coordinator_lost,
-            "bus_messages_per_arm_per_s": self.messages_per_arm_per_s(),
-            "randomised": dict(self.world.scene_model.randomised),
-            "network_faults": faults_report(self.faults),
-            "wall_s_by_stage": {k: round(v, 3) for k, v in self.stats.wall_s.items()},
-            "loop_wall_seconds": round(sum(v for k, v in self.stats.wall_s.items() if k != "startup"), 3),
-        }
+        arms, sim_s, feeders = list(self.links), self.world.sim_time_s, self.world.feeders
+        return (
+            {
+                "ticks": self.stats.ticks,
+                "sim_seconds": round(sim_s, 6),
+                "parts_spawned": sum(c.spawned for c in feeders),
+                "feeder_full_skips": sum(c.skipped_full for c in feeders),
+                "feeder_held_s": {c.feeder.name: round(c.held_s, 2) for c in feeders if c.held_s > 0},
+                "events": dict(sorted(Counter(e.kind for e in self.event_log).items())),
+            }
+            | self.stats.summary(arms, sim_s)
+            | {
+                "dropped_messages": self.drops.total,
+                "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
+            }
+            | self.stats.outcome(arms, sim_s)
+            | {"randomised": dict(self.world.scene_model.randomised), "network_faults": faults_report(self.faults)}
+            | self.stats.wall_clock()
+        )
 
 
-RTT_EDGES_MS = np.geomspace(0.05, 2000.0, 47)  # log-spaced: sub-millisecond loopback to a lockstep timeout
+class _Pacing:
+    """Realtime: the sim's clock held to the wall clock at the speed factor, from when every process answered
+    (and again after a pause or a change of speed)."""
 
+    def __init__(self, server: SimServer) -> None:
+        self.server = server
+        self.restart()
 
-def round_trip_histogram(rtt_ms: np.ndarray) -> dict:
-    """Every state-to-answer round trip of the run, binned (log-spaced edges in ms)."""
-    counts, _ = np.histogram(np.clip(rtt_ms, RTT_EDGES_MS[0], RTT_EDGES_MS[-1]), bins=RTT_EDGES_MS)
-    return {"edges_ms": [round(float(e), 4) for e in RTT_EDGES_MS], "counts": counts.tolist()}
+    def restart(self) -> None:
+        s = self.server
+        self.wall, self.sim, self.speed, self.started = time.monotonic(), s.world.sim_time_s, s.speed, s._started
+
+    def wait(self) -> None:
+        s = self.server
+        if s._started != self.started or s.speed != self.speed:  # the clock starts once every process answered
+            self.restart()
+        ahead = (s.world.sim_time_s - self.sim) / s.speed - (time.monotonic() - self.wall)
+        if ahead > 0:
+            s.bus.inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
+            s.stats.wall_s["pacing"] += ahead
 
 
 def save_target_log(path: str, log: list) -> None:
@@ -913,9 +734,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.spool
         else None
     )
-    if (
-        args.endpoint_file
-    ):  # it listens: whoever waits for the file may connect now (the spool hears them from the first)
+    # it listens: whoever waits for the file may connect now (the spool hears them from the first)
+    if args.endpoint_file:
         write_text_atomically(args.endpoint_file, endpoint)
     with contextlib.closing(session), contextlib.closing(spool) if spool else contextlib.nullcontext():
         server = SimServer(

@@ -146,9 +146,8 @@ class PickPlaceSkill:
         self.sent_goals: set[int] = set()  # trajectory goals of the current task
         self._outbox: list[ArmGoal] = []
         self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
-        self._unconfirmed: list[
-            tuple[float, int, list[ArmGoal]]
-        ] = []  # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
+        # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
+        self._unconfirmed: list[tuple[float, int, list[ArmGoal]]] = []
         self.goals_resent = 0
         self.plan_end_s = 0.0
         self.phase_t0 = 0.0
