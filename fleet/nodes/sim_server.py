@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import json
 import math
 import sys
@@ -34,44 +33,35 @@ import threading
 import time
 from collections import Counter
 
-import msgspec
 import numpy as np
 import zenoh
 
 from coordinator.cadence import decision_period_ticks
-from fleet.bus.codec import encode
 from fleet.bus.faults import DelayLine, add_fault_arguments, faults_report, links_for, network_from_args
 from fleet.bus.flights import FlightBook
-from fleet.bus.goals import goal_from_message, result_message
 from fleet.bus.keys import Keys
 from fleet.bus.lockstep import ArmLink, Barrier
 from fleet.bus.messages import (
-    ArmGoalMsg,
-    ArmState,
     ControllerStep,
     CoordTick,
     EventLog,
     LineEvent,
-    LineView,
-    SimStatus,
 )
-from fleet.bus.plausible import request_problem
 from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open_listening_session
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
 from fleet.sim.line_watch import LineWatcher
-from fleet.sim.sim_bus import SimBus, control_problem, coord_tick_problem
+from fleet.sim.sim_bus import SimBus
+from fleet.sim.sim_inputs import SimInputs
+from fleet.sim.sim_outputs import SimOutputs
 from fleet.sim.sim_stats import SimStats
 from fleet.sim.tracking import TrackedArms
-from fleet.sim.world import PartInfo, World
-from fleet.sim.world_messages import arm_state, parts_state
-from robots.joint_trajectory import GoalResult
-from robots.phase import IDLE_PHASES, Phase
+from fleet.sim.world import World
+from robots.phase import IDLE_PHASES
 from robots.skills.pick_place import DEFAULT_DECISION_HZ
 from robots.tracker import WATCHDOG_REASON
 
 MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
-STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
 COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent coordinator: a decision may search for
 # reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
@@ -118,7 +108,7 @@ class SimServer:
         self.faults = links_for(scene.network, [*world.arms, "coordinator"], scene.seed)
         self.links = {name: ArmLink(name, period, FlightBook(self.faults[name], hz)) for name in world.arms}
         self.coord_book = FlightBook(self.faults["coordinator"], hz)
-        self._delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
+        self.delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
         self.tracked = TrackedArms(world)
         self.stats = SimStats()
         # every event published, in order (a respawned coordinator rebuilds from it)
@@ -127,144 +117,38 @@ class SimServer:
         self.bus = SimBus(session, keys, list(world.arms), scene.model_dump_json(), history, self.stats)
         self.drops = self.bus.drops
         self.estop, self.paused, self.speed = False, False, speed
-        self._status_at = 0.0
         self.view_every_ticks = max(1, round(hz / VIEW_RATE_HZ))
         self.watcher = LineWatcher(scene)
         self.watch_every_ticks = period
         self.count_contacts = count_contacts
         self.coord_period_ticks = decision_period_ticks(scene)
         self.assign_seqs = {name: 0 for name in world.arms}
-        self._noise_rng = np.random.default_rng([scene.seed, 0x401_5E])  # pose noise: repeats for a seed
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
         self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks
-        self._started = not controllers  # every controller answered once (realtime waits until then)
+        self.started = not controllers  # every controller answered once (realtime waits until then)
+        self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
 
     def close(self) -> None:
         self.bus.close()
 
     # --- inputs ---------------------------------------------------------------------
-    def _take_inputs(self) -> None:
-        bus = self.bus
-        for key, payload in bus.estop_inbox.drain():
-            msg = bus.estop.decode(key, payload)
-            if msg is not None and msg.engaged != self.estop:
-                self.estop = msg.engaged
-                for arm, results in self.tracked.set_estop(msg.engaged).items():
-                    self._publish_results(arm, results)
-        for key, payload in bus.control_inbox.drain():
-            if (msg := bus.control.decode(key, payload)) is None:
-                continue
-            if problem := control_problem(msg):
-                self.drops.drop(key, problem)
-                continue
-            self.paused = self.paused if msg.paused is None else msg.paused
-            self.speed = self.speed if msg.speed is None else msg.speed
-        for key, payload in bus.inbox.drain():
-            if key.endswith("/goal"):
-                self._on_goal(key, payload)
-            else:
-                self._on_step(key, payload)
-        for key, payload in bus.coord_inbox.drain():
-            if (msg := bus.coord.decode(key, payload)) is None:
-                continue
-            if problem := coord_tick_problem(msg, list(self.links), self.assign_seqs, self.world.tick):
-                self.drops.drop(key, problem)
-                continue
-            self._on_coord_tick(msg)
-        for kind, link, item in self._delayed.pop_due(time.monotonic()):
-            self._arrived(kind, link, item)
 
-    def _on_coord_tick(self, msg: CoordTick) -> None:
-        """The coordinator answered a frame: lockstep applies it when due (`_apply_coord`); realtime when it arrives."""
-        if self._deferred_coord:
-            self.coord_book.answer(msg.tick, msg)  # one lost on the way back is dropped by the book
-            return
-        passage = self.faults["coordinator"].passage("up")
-        if not passage.lost:
-            self._arrive_later("coord", None, msg, passage.delay_s)
-
-    def _apply_coord(self, msg: CoordTick) -> None:
+    def apply_coord(self, msg: CoordTick) -> None:
         """The coordinator's orders up to its tick are announced in the states from now on (lockstep)."""
         if self.mode != "lockstep":
             return  # realtime: controllers act on assignments as they arrive
         for name, seq in zip(self.links, msg.assign_seqs):
             self.assign_seqs[name] = max(self.assign_seqs[name], seq)
 
-    def _arrive_later(self, kind: str, link: ArmLink | None, item, delay_s: float) -> None:
-        """Realtime: a message on its way in arrives `delay_s` from now (at once without delay)."""
-        if delay_s <= 0:
-            self._arrived(kind, link, item)
-        else:
-            self._delayed.push(time.monotonic() + delay_s, (kind, link, item))
-
-    def _arrived(self, kind: str, link: ArmLink | None, item) -> None:
-        if kind == "coord":
-            self._apply_coord(item)
-        elif kind == "goal":
-            self._submit(link, item)
-        elif link.book.applied(item):
-            self._apply_answer(link, item.answer)
-
-    def _link_for(self, key: str, arm: str) -> ArmLink | None:
-        link = self.links.get(Keys.arm_of(key))
-        if link is None or arm != link.name:
-            self.drops.drop(key, "a message for an unknown arm or on another arm's key")
-            return None
-        return link
-
-    def _on_goal(self, key: str, payload: bytes) -> None:
-        msg = self.bus.goal.decode(key, payload)
-        if msg is None or (link := self._link_for(key, msg.arm)) is None:
-            return
-        self.stats.messages_in["goal"] += 1
-        if self._deferred:  # applied with the answer naming it (or at the arm's next due tick): a lockstep run repeats
-            link.hold_goal(msg)
-            return
-        passage = link.book.link.passage("up")
-        if not passage.lost:
-            self._arrive_later("goal", link, msg, passage.delay_s)
-
-    def _submit(self, link: ArmLink, msg: ArmGoalMsg) -> None:
-        goal = goal_from_message(msg)
-        if isinstance(
-            goal, GoalResult
-        ):  # refused before reaching the tracker: stamped here (the tracker stamps its own)
-            self._publish_results(link.name, [dataclasses.replace(goal, time_s=self.world.sim_time_s)])
-        else:
-            self._publish_results(link.name, self.tracked.submit(link.name, goal))
-
-    def _on_step(self, key: str, payload: bytes) -> None:
-        msg = self.bus.step.decode(key, payload)
-        if msg is None or (link := self._link_for(key, msg.arm)) is None:
-            return
-        self.stats.messages_in["step"] += 1
-        problem = request_problem(msg, self.world.arms[link.name].spec.arm_dof) or (
-            "" if math.isfinite(msg.progress) else "an answer with a non-finite progress"
-        )
-        if problem:
-            self.drops.drop(key, problem)
-            return
-        flight = link.book.answer(msg.tick, msg)
-        if flight is None:
-            return  # an answer to a state already answered, overtaken or never delivered: nothing to do
-        self.stats.round_trip((time.monotonic() - flight.delivered_wall_s) * 1e3)
-        if self._deferred:
-            if flight.up_lost:
-                link.answer_lost(msg.goal_ids)
-            return
-        passage = link.book.link.passage("up")
-        if not passage.lost:
-            self._arrive_later("step", link, flight, passage.delay_s)
-
     @property
-    def _deferred(self) -> bool:
+    def deferred(self) -> bool:
         """Answers and goals wait for their arm's due tick (lockstep, or until every process is up)."""
-        return self.controllers and (self.mode == "lockstep" or not self._started)
+        return self.controllers and (self.mode == "lockstep" or not self.started)
 
     @property
-    def _deferred_coord(self) -> bool:
+    def deferred_coord(self) -> bool:
         """The coordinator's ticks are awaited and take effect when due (lockstep, or until every process is up)."""
-        return self.coordinator and (self.mode == "lockstep" or not self._started)
+        return self.coordinator and (self.mode == "lockstep" or not self.started)
 
     def _apply_answers(self, link: ArmLink) -> None:
         """Lockstep: the answers due now take effect, each with the goals it names; goals no answer names
@@ -272,12 +156,12 @@ class SimServer:
         batches, unnamed = link.take_due(self.world.tick)
         for goals, answer in batches:
             for goal in goals:
-                self._submit(link, goal)
-            self._apply_answer(link, answer)
+                self.inputs.submit(link, goal)
+            self.apply_answer(link, answer)
         for goal in unnamed:
-            self._submit(link, goal)
+            self.inputs.submit(link, goal)
 
-    def _apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
+    def apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
         """The controller's answer takes effect (its goals are with the tracker): what it does, when it wants its
         next state, the watchdog's next deadline."""
         latest = msg.tick >= link.book.newest_delivered  # no later state went out: the schedule is still its to set
@@ -306,8 +190,8 @@ class SimServer:
         outcome = self.barrier.wait(
             links,
             self.coord_book if coord and not self.stats.coordinator_lost else None,
-            first=not self._started,
-            take_inputs=self._take_inputs,
+            first=not self.started,
+            take_inputs=self.inputs.take,
             pause=self.bus.inbox.wait,
             lose=self._lose,
             republish=self._republish,
@@ -331,131 +215,23 @@ class SimServer:
             self._apply_answers(link)
         if coord:
             for flight in self.coord_book.due_answers(self.world.tick):
-                self._apply_coord(flight.answer)
-        if not self._started and all(link.last_step is not None or link.lost for link in self.links.values()):
-            self._started = True  # realtime: from here on answers apply when they arrive
+                self.apply_coord(flight.answer)
+        if not self.started and all(link.last_step is not None or link.lost for link in self.links.values()):
+            self.started = True  # realtime: from here on answers apply when they arrive
 
     def _lose(self, link: ArmLink) -> None:
         """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
         link.lost = True
         link.book.clear()
         self.stats.lost.append(link.name)
-        self._publish_results(
+        self.outputs.results(
             link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)")
         )
 
     # --- outputs --------------------------------------------------------------------
-    def _publish_results(self, arm: str, results: list[GoalResult]) -> None:
-        for r in results:
-            self.stats.results[r.status.value] += 1
-            self.bus.put(self.bus.result_pubs[arm], "result", encode(result_message(arm, r)))
-
-    def publish_events(self, parts: list[PartInfo]) -> bool:
-        """This tick's line events (parts arrived, resting at a station, lost, retired), before the states.
-        True when some part left the stage (lost or retired), so `parts` is out of date."""
-        left = False
-        for e in self.watcher.update(self.world, parts):
-            event = LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)
-            self.event_log.append(event)
-            self.bus.put(self.bus.events_pub, "events", encode(event))
-            left = left or e.kind in ("lost", "retired")
-        return left
-
-    def _state(self, name: str) -> ArmState:
-        link, tracker = self.links[name], self.tracked.trackers[name]
-        step = link.last_step
-        desired_q, desired_dq = tracker.desired_now
-        last = tracker.last
-        return arm_state(
-            self.world,
-            name,
-            held=self.estop or link.lost or link.watchdog_held,
-            lost=link.lost,
-            task_id=step.task_id if step else None,
-            skill=step.skill if step else Phase.IDLE,
-            progress=step.progress if step else 0.0,
-            assign_seq=self.assign_seqs[name] if self.coordinator and self.mode == "lockstep" else -1,
-            failure=step.failure if step else "",
-            failure_code=step.failure_code if step else "",
-            request_seq=step.request_seq if step else 0,
-            request_q_to=step.request_q_to if step else (),
-            request_duration_s=step.request_duration_s if step else 0.0,
-            request_then_q=step.request_then_q if step else (),
-            request_then_after_s=step.request_then_after_s if step else (),
-            goal_id=tracker.goal_id,
-            desired_q=tuple(map(float, desired_q)),
-            desired_dq=tuple(map(float, desired_dq)),
-            result_goal_id=last.goal_id if last else 0,
-            result_status=last.status.value if last else "",
-            result_code=int(last.code) if last else 0,
-            result_reason=last.reason if last else "",
-            next_tick=link.next_tick,
-            period_ticks=link.period_ticks,
-        )
 
     def _due(self) -> list[ArmLink]:
         return [link for link in self.links.values() if link.next_tick <= self.world.tick]
-
-    def publish_states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
-        """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
-        coordinator's frame likewise; the monitors' view."""
-        w, bus = self.world, self.bus
-        tick = w.tick
-        for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
-            link.next_tick = tick + link.period_ticks
-        frame = self.coordinator and tick % self.coord_period_ticks == 0
-        view = tick % self.view_every_ticks == 0 and bus.watched()  # built only while watched
-        if due or frame or view:
-            names = list(w.arms) if (frame or view) else [link.name for link in due]
-            states = {name: self._state(name) for name in names}
-            now = time.monotonic()
-            for link in due:
-                if self.controllers:  # someone must answer it (without controllers the states are feedback only)
-                    link.book.send(tick, states[link.name], link.period_ticks, now, self._deferred)
-                else:
-                    bus.put(bus.state_pubs[link.name], "state", encode(states[link.name]))
-            parts = w.active_parts() if parts is None else parts
-            parts_msg = parts_state(w, parts, len(self.event_log))
-            if due:
-                seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
-                bus.put(bus.parts_pub, "parts", encode(seen))
-            if frame or view:
-                line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg)
-                if frame:
-                    self.coord_book.send(tick, line, 1, now, self._deferred_coord)
-                if view:
-                    bus.put(bus.view_pub, "view", encode(line))
-        self._deliver()
-
-    def _deliver(self) -> None:
-        """Send what reaches its process now: states (a delayed one stamped with the tick it arrives), frames."""
-        tick, now, bus = self.world.tick, time.monotonic(), self.bus
-        for link in self.links.values():
-            flight = link.book.deliver(tick, now, self._deferred)
-            if flight is not None:
-                state = flight.message
-                if flight.tick != tick:
-                    state = msgspec.structs.replace(state, delivered_tick=tick)
-                flight.payload = encode(state)
-                bus.put(bus.state_pubs[link.name], "state", flight.payload)
-            elif not self._deferred:
-                link.book.prune(tick, self.max_period_ticks)
-        flight = self.coord_book.deliver(tick, now, self._deferred_coord)
-        if flight is not None:
-            line = flight.message
-            if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
-                line = msgspec.structs.replace(
-                    line, parts=msgspec.structs.replace(line.parts, events_published=len(self.event_log))
-                )
-            flight.payload = encode(line)
-            bus.put(bus.frame_pub, "frame", flight.payload)
-        elif not self._deferred_coord:
-            self.coord_book.prune(tick, self.max_period_ticks)
-
-    def _with_noise(self, parts):
-        """The parts as controllers see them in a randomised scene: positions with seeded Gaussian noise."""
-        noise = self._noise_rng.normal(0.0, self.world.scene_model.part_pose_noise_m, len(parts.positions))
-        return msgspec.structs.replace(parts, positions=tuple(float(p + n) for p, n in zip(parts.positions, noise)))
 
     # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:
@@ -465,14 +241,14 @@ class SimServer:
         parts = None
         if self.world.tick % self.watch_every_ticks == 0:  # the line's events at the controllers' default rate
             parts = self.world.active_parts()
-            if self.publish_events(parts):
+            if self.outputs.events(parts):
                 parts = self.world.active_parts()  # parts lost or retired just now are off the stage
         due = self._due()
         t1 = time.perf_counter()
-        started = self._started
+        started = self.started
         self._take_answers_due()
         t2 = time.perf_counter()
-        self.publish_states(due, parts)
+        self.outputs.states(due, parts)
         t3 = time.perf_counter()
         self._step_physics()
         t4 = time.perf_counter()
@@ -489,7 +265,7 @@ class SimServer:
         """The answers due at this tick: awaited (lockstep, or until every process is up), else whatever came in."""
         tick = self.world.tick
         links = []
-        if self._deferred:
+        if self.deferred:
             links = [
                 link
                 for link in self.links.values()
@@ -497,13 +273,13 @@ class SimServer:
             ]
         # the coordinator's answers take effect with the next states out after them (frames: its period apart)
         frame = self.coordinator and tick % self.coord_period_ticks == 0
-        coord = self._deferred_coord and (
+        coord = self.deferred_coord and (
             frame or self.coord_book.arrives(tick) or (bool(links) and self.coord_book.applies(tick))
         )
         if links or coord:
             self._wait_for_answers(links, coord)
         else:
-            self._take_inputs()
+            self.inputs.take()
 
     def _step_physics(self) -> None:
         """The trackers write their drive targets, the physics steps a tick, and the trackers' results go out."""
@@ -515,7 +291,7 @@ class SimServer:
             if any(r.reason == WATCHDOG_REASON for r in rs):
                 self.links[name].watchdog_held = True
                 self.stats.watchdog_holds[name] += 1
-            self._publish_results(name, rs)
+            self.outputs.results(name, rs)
         for name, link in self.links.items():
             if link.last_step is not None and link.last_step.skill not in IDLE_PHASES and not link.lost:
                 self.stats.busy_ticks[name] += 1
@@ -534,11 +310,11 @@ class SimServer:
         while done < ticks:
             if stop is not None and stop.should_stop():
                 return
-            self.publish_status()
+            self.outputs.status()
             if self.spool is not None:
                 self.spool.pump()
             if self.paused:
-                self._take_inputs()
+                self.inputs.take()
                 self.bus.inbox.wait(0.05)
                 pace.restart()
                 continue
@@ -550,47 +326,22 @@ class SimServer:
                 return  # its decisions would never be announced again: end the run rather than stall it
             if self.mode == "realtime":
                 pace.wait()
-        self.publish_status(force=True)
+        self.outputs.status(force=True)
 
     def settle(self) -> None:
         """Lockstep, after the last tick: wait (at most the lockstep timeout) for the answers to the states and frames
         already delivered, and the goals they name, so that the run ends on the bus the same way every time (a
         recording of it too). They take no effect: the run is over."""
-        if not (self._deferred or self._deferred_coord):
+        if not (self.deferred or self.deferred_coord):
             return
         deadline = time.monotonic() + self.lockstep_timeout_s
         while time.monotonic() < deadline:
-            self._take_inputs()
-            arms_in = all(link.lost or link.ready() for link in self.links.values()) or not self._deferred
-            coord_in = not self._deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
+            self.inputs.take()
+            arms_in = all(link.lost or link.ready() for link in self.links.values()) or not self.deferred
+            coord_in = not self.deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
             if arms_in and coord_in:
                 return
             self.bus.inbox.wait(0.01)
-
-    def publish_status(self, force: bool = False) -> None:
-        """The clock's settings and running figures, every `STATUS_PERIOD_S` of wall time."""
-        now = time.monotonic()
-        if not force and now - self._status_at < STATUS_PERIOD_S:
-            return
-        self._status_at = now
-        st, ticks = self.stats, max(self.stats.ticks, 1)
-        recent = st.recent_round_trip_ms
-        status = SimStatus(
-            self.world.tick,
-            self.world.sim_time_s,
-            self.mode,
-            self.paused,
-            self.estop,
-            self.speed,
-            tuple(st.busy_ticks[a] / ticks for a in self.links),
-            float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
-            st.contact_ticks,
-            st.last_contact_pairs,
-            st.last_contact_s,
-            tuple(link.name for link in self.links.values() if link.lost),
-            self.drops.total,
-        )
-        self.bus.put(self.bus.status_pub, "status", encode(status))
 
     def report(self) -> dict:
         """The sim's part of the run summary."""
@@ -625,11 +376,11 @@ class _Pacing:
 
     def restart(self) -> None:
         s = self.server
-        self.wall, self.sim, self.speed, self.started = time.monotonic(), s.world.sim_time_s, s.speed, s._started
+        self.wall, self.sim, self.speed, self.started = time.monotonic(), s.world.sim_time_s, s.speed, s.started
 
     def wait(self) -> None:
         s = self.server
-        if s._started != self.started or s.speed != self.speed:  # the clock starts once every process answered
+        if s.started != self.started or s.speed != self.speed:  # the clock starts once every process answered
             self.restart()
         ahead = (s.world.sim_time_s - self.sim) / s.speed - (time.monotonic() - self.wall)
         if ahead > 0:
@@ -655,7 +406,8 @@ def await_recorder(session: zenoh.Session, keys: Keys, timeout_s: float) -> bool
         sub.undeclare()
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The sim server's command line."""
     parser = argparse.ArgumentParser(prog="fleet-sim-server", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
     parser.add_argument("--duration", type=float, default=120.0, help="sim seconds")
@@ -709,7 +461,43 @@ def main(argv: list[str] | None = None) -> int:
     )
     add_fault_arguments(parser)
     add_bus_arguments(parser)
-    opened = node_arguments(parser, argv, "sim_server")
+    return parser
+
+
+def open_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
+    """The sim's session, listening (on a free loopback port when asked to say where), and where it listens."""
+    endpoints = BusEndpoints.from_args(args)
+    if args.endpoint_file and not (endpoints.listen or endpoints.config_file):
+        return open_listening_session(endpoints)
+    config = make_config(endpoints)
+    return zenoh.open(config), ", ".join(json.loads(config.get_json("listen/endpoints")))
+
+
+def serve(server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: int) -> int:
+    """Run the line for `ticks` (once a recorder listens, when asked), then write the report; closes the server."""
+    if args.record_targets:
+        server.target_log = []
+    if args.await_recorder and not await_recorder(server.bus.session, server.keys, args.await_recorder):
+        server.close()
+        print(f"sim_server: no recorder said it listens within {args.await_recorder:.0f} s", file=sys.stderr)
+        return 1
+    try:
+        server.run_ticks(ticks)
+        if not stop.should_stop() and server.world.tick >= ticks:
+            server.settle()
+    finally:
+        if args.record_targets:
+            save_target_log(args.record_targets, server.target_log)
+        lost = server.stats.coordinator_lost and args.mode == "lockstep"
+        why = "the coordinator did not answer within the lockstep timeout" if lost else ""
+        report = server.report() | {"stopped_by": stop.reason or why or "duration"}
+        server.close()
+        write_report(args.report, report)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    opened = node_arguments(build_parser(), argv, "sim_server")
     if opened is None:
         return 2
     args, stop, scene = opened
@@ -721,19 +509,9 @@ def main(argv: list[str] | None = None) -> int:
     if network is not None:
         scene = scene.model_copy(update={"network": network})
     world = World(scene)
-    ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
-    endpoints = BusEndpoints.from_args(args)
-    if args.endpoint_file and not (endpoints.listen or endpoints.config_file):
-        session, endpoint = open_listening_session(endpoints)
-    else:
-        config = make_config(endpoints)
-        session = zenoh.open(config)
-        endpoint = ", ".join(json.loads(config.get_json("listen/endpoints")))
-    spool = (
-        BusSpool(session, Keys(args.run).recorded(), args.spool, args.run, world.scene_model.model_dump_json())
-        if args.spool
-        else None
-    )
+    session, endpoint = open_session(args)
+    keys = Keys(args.run)
+    spool = BusSpool(session, keys.recorded(), args.spool, args.run, scene.model_dump_json()) if args.spool else None
     # it listens: whoever waits for the file may connect now (the spool hears them from the first)
     if args.endpoint_file:
         write_text_atomically(args.endpoint_file, endpoint)
@@ -741,7 +519,7 @@ def main(argv: list[str] | None = None) -> int:
         server = SimServer(
             world,
             session,
-            Keys(args.run),
+            keys,
             mode=args.mode,
             coordinator=args.coordinator,
             controllers=not args.no_controllers,
@@ -750,29 +528,8 @@ def main(argv: list[str] | None = None) -> int:
             stop=stop,
             speed=args.speed,
         )
-        if args.record_targets:
-            server.target_log = []
         server.spool = spool
-        if args.await_recorder and not await_recorder(session, Keys(args.run), args.await_recorder):
-            server.close()
-            print(f"sim_server: no recorder said it listens within {args.await_recorder:.0f} s", file=sys.stderr)
-            return 1
-        try:
-            server.run_ticks(ticks)
-            if not stop.should_stop() and server.world.tick >= ticks:
-                server.settle()
-        finally:
-            if args.record_targets:
-                save_target_log(args.record_targets, server.target_log)
-            lost = (
-                "the coordinator did not answer within the lockstep timeout"
-                if server.stats.coordinator_lost and args.mode == "lockstep"
-                else ""
-            )
-            report = server.report() | {"stopped_by": stop.reason or lost or "duration"}
-            server.close()
-            write_report(args.report, report)
-    return 0
+        return serve(server, args, stop, math.ceil(args.duration * scene.control_hz - 1e-9))
 
 
 if __name__ == "__main__":

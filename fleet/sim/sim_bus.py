@@ -31,7 +31,7 @@ class SimBus:
         history: Callable[[], EventLog],
         stats: SimStats,
     ) -> None:
-        self.stats = stats
+        self.session, self.stats = session, stats
         self.drops = DropCounter()
         self.control = Decoder(SimControl, self.drops)
         self.step = Decoder(ControllerStep, self.drops)

@@ -1,0 +1,136 @@
+"""The sim server's inputs: e-stop, clock controls, controllers' answers and goals, the coordinator's ticks,
+decoded and checked; in lockstep held for their due tick, in realtime applied when they arrive (after the
+link's injected delay)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import TYPE_CHECKING
+
+from fleet.bus.goals import goal_from_message
+from fleet.bus.keys import Keys
+from fleet.bus.lockstep import ArmLink
+from fleet.bus.messages import ArmGoalMsg, CoordTick
+from fleet.bus.plausible import request_problem
+from fleet.sim.sim_bus import control_problem, coord_tick_problem
+from robots.joint_trajectory import GoalResult
+
+if TYPE_CHECKING:
+    from fleet.nodes.sim_server import SimServer
+
+
+class SimInputs:
+    """What comes in to one sim server, taken between ticks (`take`)."""
+
+    def __init__(self, sim: SimServer) -> None:
+        self.sim = sim
+
+    def take(self) -> None:
+        bus = self.sim.bus
+        for key, payload in bus.estop_inbox.drain():
+            msg = bus.estop.decode(key, payload)
+            if msg is not None and msg.engaged != self.sim.estop:
+                self.sim.estop = msg.engaged
+                for arm, results in self.sim.tracked.set_estop(msg.engaged).items():
+                    self.sim.outputs.results(arm, results)
+        for key, payload in bus.control_inbox.drain():
+            if (msg := bus.control.decode(key, payload)) is None:
+                continue
+            if problem := control_problem(msg):
+                self.sim.drops.drop(key, problem)
+                continue
+            self.sim.paused = self.sim.paused if msg.paused is None else msg.paused
+            self.sim.speed = self.sim.speed if msg.speed is None else msg.speed
+        for key, payload in bus.inbox.drain():
+            if key.endswith("/goal"):
+                self._on_goal(key, payload)
+            else:
+                self._on_step(key, payload)
+        for key, payload in bus.coord_inbox.drain():
+            if (msg := bus.coord.decode(key, payload)) is None:
+                continue
+            if problem := coord_tick_problem(msg, list(self.sim.links), self.sim.assign_seqs, self.sim.world.tick):
+                self.sim.drops.drop(key, problem)
+                continue
+            self._on_coord_tick(msg)
+        for kind, link, item in self.sim.delayed.pop_due(time.monotonic()):
+            self._arrived(kind, link, item)
+
+    def _on_coord_tick(self, msg: CoordTick) -> None:
+        """The coordinator answered a frame: lockstep applies it when due (`_apply_coord`); realtime when it arrives."""
+        if self.sim.deferred_coord:
+            self.sim.coord_book.answer(msg.tick, msg)  # one lost on the way back is dropped by the book
+            return
+        passage = self.sim.faults["coordinator"].passage("up")
+        if not passage.lost:
+            self._arrive_later("coord", None, msg, passage.delay_s)
+
+    def _arrive_later(self, kind: str, link: ArmLink | None, item, delay_s: float) -> None:
+        """Realtime: a message on its way in arrives `delay_s` from now (at once without delay)."""
+        if delay_s <= 0:
+            self._arrived(kind, link, item)
+        else:
+            self.sim.delayed.push(time.monotonic() + delay_s, (kind, link, item))
+
+    def _arrived(self, kind: str, link: ArmLink | None, item) -> None:
+        if kind == "coord":
+            self.sim.apply_coord(item)
+        elif kind == "goal":
+            self.submit(link, item)
+        elif link.book.applied(item):
+            self.sim.apply_answer(link, item.answer)
+
+    def _link_for(self, key: str, arm: str) -> ArmLink | None:
+        link = self.sim.links.get(Keys.arm_of(key))
+        if link is None or arm != link.name:
+            self.sim.drops.drop(key, "a message for an unknown arm or on another arm's key")
+            return None
+        return link
+
+    def _on_goal(self, key: str, payload: bytes) -> None:
+        msg = self.sim.bus.goal.decode(key, payload)
+        if msg is None or (link := self._link_for(key, msg.arm)) is None:
+            return
+        self.sim.stats.messages_in["goal"] += 1
+        if (
+            self.sim.deferred
+        ):  # applied with the answer naming it (or at the arm's next due tick): a lockstep run repeats
+            link.hold_goal(msg)
+            return
+        passage = link.book.link.passage("up")
+        if not passage.lost:
+            self._arrive_later("goal", link, msg, passage.delay_s)
+
+    def submit(self, link: ArmLink, msg: ArmGoalMsg) -> None:
+        goal = goal_from_message(msg)
+        if isinstance(
+            goal, GoalResult
+        ):  # refused before reaching the tracker: stamped here (the tracker stamps its own)
+            self.sim.outputs.results(link.name, [dataclasses.replace(goal, time_s=self.sim.world.sim_time_s)])
+        else:
+            self.sim.outputs.results(link.name, self.sim.tracked.submit(link.name, goal))
+
+    def _on_step(self, key: str, payload: bytes) -> None:
+        msg = self.sim.bus.step.decode(key, payload)
+        if msg is None or (link := self._link_for(key, msg.arm)) is None:
+            return
+        self.sim.stats.messages_in["step"] += 1
+        problem = request_problem(msg, self.sim.world.arms[link.name].spec.arm_dof) or (
+            "" if math.isfinite(msg.progress) else "an answer with a non-finite progress"
+        )
+        if problem:
+            self.sim.drops.drop(key, problem)
+            return
+        flight = link.book.answer(msg.tick, msg)
+        if flight is None:
+            return  # an answer to a state already answered, overtaken or never delivered: nothing to do
+        self.sim.stats.round_trip((time.monotonic() - flight.delivered_wall_s) * 1e3)
+        if self.sim.deferred:
+            if flight.up_lost:
+                link.answer_lost(msg.goal_ids)
+            return
+        passage = link.book.link.passage("up")
+        if not passage.lost:
+            self._arrive_later("step", link, flight, passage.delay_s)

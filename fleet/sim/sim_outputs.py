@@ -1,0 +1,169 @@
+"""The sim server's outputs: goal results, line events, the states due (with the parts), the coordinator's frames,
+the monitors' view and the status, each put in flight on its link and sent when it arrives."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import msgspec
+import numpy as np
+
+from fleet.bus.codec import encode
+from fleet.bus.goals import result_message
+from fleet.bus.lockstep import ArmLink
+from fleet.bus.messages import ArmState, LineEvent, LineView, SimStatus
+from fleet.sim.world import PartInfo
+from fleet.sim.world_messages import arm_state, parts_state
+from robots.joint_trajectory import GoalResult
+from robots.phase import Phase
+
+if TYPE_CHECKING:
+    from fleet.nodes.sim_server import SimServer
+
+STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
+
+
+class SimOutputs:
+    """What goes out of one sim server."""
+
+    def __init__(self, sim: SimServer) -> None:
+        self.sim = sim
+        self._noise_rng = np.random.default_rng(
+            [sim.world.scene_model.seed, 0x401_5E]
+        )  # pose noise: repeats for a seed
+        self._status_at = 0.0
+
+    def results(self, arm: str, results: list[GoalResult]) -> None:
+        for r in results:
+            self.sim.stats.results[r.status.value] += 1
+            self.sim.bus.put(self.sim.bus.result_pubs[arm], "result", encode(result_message(arm, r)))
+
+    def events(self, parts: list[PartInfo]) -> bool:
+        """This tick's line events (parts arrived, resting at a station, lost, retired), before the states.
+        True when some part left the stage (lost or retired), so `parts` is out of date."""
+        left = False
+        for e in self.sim.watcher.update(self.sim.world, parts):
+            event = LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)
+            self.sim.event_log.append(event)
+            self.sim.bus.put(self.sim.bus.events_pub, "events", encode(event))
+            left = left or e.kind in ("lost", "retired")
+        return left
+
+    def _state(self, name: str) -> ArmState:
+        link, tracker = self.sim.links[name], self.sim.tracked.trackers[name]
+        step = link.last_step
+        desired_q, desired_dq = tracker.desired_now
+        last = tracker.last
+        return arm_state(
+            self.sim.world,
+            name,
+            held=self.sim.estop or link.lost or link.watchdog_held,
+            lost=link.lost,
+            task_id=step.task_id if step else None,
+            skill=step.skill if step else Phase.IDLE,
+            progress=step.progress if step else 0.0,
+            assign_seq=self.sim.assign_seqs[name] if self.sim.coordinator and self.sim.mode == "lockstep" else -1,
+            failure=step.failure if step else "",
+            failure_code=step.failure_code if step else "",
+            request_seq=step.request_seq if step else 0,
+            request_q_to=step.request_q_to if step else (),
+            request_duration_s=step.request_duration_s if step else 0.0,
+            request_then_q=step.request_then_q if step else (),
+            request_then_after_s=step.request_then_after_s if step else (),
+            goal_id=tracker.goal_id,
+            desired_q=tuple(map(float, desired_q)),
+            desired_dq=tuple(map(float, desired_dq)),
+            result_goal_id=last.goal_id if last else 0,
+            result_status=last.status.value if last else "",
+            result_code=int(last.code) if last else 0,
+            result_reason=last.reason if last else "",
+            next_tick=link.next_tick,
+            period_ticks=link.period_ticks,
+        )
+
+    def states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
+        """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
+        coordinator's frame likewise; the monitors' view."""
+        w, bus = self.sim.world, self.sim.bus
+        tick = w.tick
+        for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
+            link.next_tick = tick + link.period_ticks
+        frame = self.sim.coordinator and tick % self.sim.coord_period_ticks == 0
+        view = tick % self.sim.view_every_ticks == 0 and bus.watched()  # built only while watched
+        if due or frame or view:
+            names = list(w.arms) if (frame or view) else [link.name for link in due]
+            states = {name: self._state(name) for name in names}
+            now = time.monotonic()
+            for link in due:
+                if self.sim.controllers:  # someone must answer it (without controllers the states are feedback only)
+                    link.book.send(tick, states[link.name], link.period_ticks, now, self.sim.deferred)
+                else:
+                    bus.put(bus.state_pubs[link.name], "state", encode(states[link.name]))
+            parts = w.active_parts() if parts is None else parts
+            parts_msg = parts_state(w, parts, len(self.sim.event_log))
+            if due:
+                seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
+                bus.put(bus.parts_pub, "parts", encode(seen))
+            if frame or view:
+                line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg)
+                if frame:
+                    self.sim.coord_book.send(tick, line, 1, now, self.sim.deferred_coord)
+                if view:
+                    bus.put(bus.view_pub, "view", encode(line))
+        self._deliver()
+
+    def _deliver(self) -> None:
+        """Send what reaches its process now: states (a delayed one stamped with the tick it arrives), frames."""
+        tick, now, bus = self.sim.world.tick, time.monotonic(), self.sim.bus
+        for link in self.sim.links.values():
+            flight = link.book.deliver(tick, now, self.sim.deferred)
+            if flight is not None:
+                state = flight.message
+                if flight.tick != tick:
+                    state = msgspec.structs.replace(state, delivered_tick=tick)
+                flight.payload = encode(state)
+                bus.put(bus.state_pubs[link.name], "state", flight.payload)
+            elif not self.sim.deferred:
+                link.book.prune(tick, self.sim.max_period_ticks)
+        flight = self.sim.coord_book.deliver(tick, now, self.sim.deferred_coord)
+        if flight is not None:
+            line = flight.message
+            if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
+                line = msgspec.structs.replace(
+                    line, parts=msgspec.structs.replace(line.parts, events_published=len(self.sim.event_log))
+                )
+            flight.payload = encode(line)
+            bus.put(bus.frame_pub, "frame", flight.payload)
+        elif not self.sim.deferred_coord:
+            self.sim.coord_book.prune(tick, self.sim.max_period_ticks)
+
+    def _with_noise(self, parts):
+        """The parts as controllers see them in a randomised scene: positions with seeded Gaussian noise."""
+        noise = self._noise_rng.normal(0.0, self.sim.world.scene_model.part_pose_noise_m, len(parts.positions))
+        return msgspec.structs.replace(parts, positions=tuple(float(p + n) for p, n in zip(parts.positions, noise)))
+
+    def status(self, force: bool = False) -> None:
+        """The clock's settings and running figures, every `STATUS_PERIOD_S` of wall time."""
+        now = time.monotonic()
+        if not force and now - self._status_at < STATUS_PERIOD_S:
+            return
+        self._status_at = now
+        st, ticks = self.sim.stats, max(self.sim.stats.ticks, 1)
+        recent = st.recent_round_trip_ms
+        status = SimStatus(
+            self.sim.world.tick,
+            self.sim.world.sim_time_s,
+            self.sim.mode,
+            self.sim.paused,
+            self.sim.estop,
+            self.sim.speed,
+            tuple(st.busy_ticks[a] / ticks for a in self.sim.links),
+            float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
+            st.contact_ticks,
+            st.last_contact_pairs,
+            st.last_contact_s,
+            tuple(link.name for link in self.sim.links.values() if link.lost),
+            self.sim.drops.total,
+        )
+        self.sim.bus.put(self.sim.bus.status_pub, "status", encode(status))
