@@ -29,7 +29,7 @@ from coordinator.capacity import (
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import CollisionGuard, NearestPair, TimedPath
-from coordinator.ledger import Ledger
+from coordinator.ledger import PIPELINE_DEFAULT, Ledger
 from coordinator.tasks import CONVEYOR, TAKEN_STATES, Task, TaskState
 from robots.frames import yaw_transform
 from robots.phase import AVAILABLE_PHASES, GRASP_PHASES, IDLE_PHASES, LOCAL_PHASES, PLACE_PHASES, Phase
@@ -95,7 +95,11 @@ class Dispatcher:
     reassignment, the collision guard's grants and the busy-until estimates."""
 
     def __init__(
-        self, scene: Scene, allocator: Allocator | None = None, first_task_id: int = 1, pipeline: bool = False
+        self,
+        scene: Scene,
+        allocator: Allocator | None = None,
+        first_task_id: int = 1,
+        pipeline: bool = PIPELINE_DEFAULT,
     ) -> None:
         self.scene = scene
         self.ledger = Ledger(scene, first_task_id, pipeline)

@@ -27,10 +27,14 @@ MAX_ATTEMPTS = 3
 PLACED_GRACE_S = 3.0
 
 
+# fixtures are pipelined unless a run asks otherwise (`--no-pipeline`): the one default of every front end
+PIPELINE_DEFAULT = True
+
+
 class Ledger:
     """Parts and tasks of one run; all times are sim seconds."""
 
-    def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = False) -> None:
+    def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = PIPELINE_DEFAULT) -> None:
         self.scene = scene
         self.pipeline = pipeline
         self.gated = {s.name for s in scene.stations if s.kind == "fixture"}  # one part or assembly at a time

@@ -55,9 +55,8 @@ class TaskChooser:
         self.dispatcher = dispatcher
         self.ledger = dispatcher.ledger
         # as `fleet run` does it: the arms ask for their free moves and the dispatcher's guard answers (on a line
-        # with a fixture, pipelined: holding an arm at a fixture that is not ready); a lone arm moves unasked
+        # with a fixture, pipelined by default: holding an arm at a fixture that is not ready); a lone arm moves unasked
         self.grants = moves_need_grants(self.scene)
-        self.ledger.pipeline = bool(self.ledger.gated)
         self.period_ticks = max(
             1, round(self.scene.control_hz / DEFAULT_DECISION_HZ)
         )  # the skills decide as controllers do

@@ -20,7 +20,6 @@ and gives no grant until every arm was seen holding still or idle (grants given 
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 
@@ -28,32 +27,32 @@ import numpy as np
 import zenoh
 
 from coordinator.allocation import ALLOCATORS, Allocator, PartView, make_allocator
-from coordinator.dispatcher import AssignOrder, CancelOrder, Decision, Dispatcher, GrantOrder
+from coordinator.dispatcher import Decision, Dispatcher
 from coordinator.guard import TimedPath
+from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.bus.codec import Decoder, DropCounter, encode
-from fleet.bus.history import HistoryUnavailable, fetch_history
+from fleet.bus.history import HistoryUnavailable
 from fleet.bus.keys import Keys
 from fleet.bus.messages import (
     ArmState,
     ArmStatus,
-    Assignment,
     CoordTick,
     LineEvent,
     LineView,
-    MotionGrant,
     PartsState,
-    Progress,
     separations_from_pairs,
 )
-from fleet.bus.plausible import MAX_SEQ_JUMP, TickClock, arm_state_problem, not_finite, parts_problem
+from fleet.bus.plausible import TickClock, arm_state_problem, parts_problem
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
+from fleet.nodes.coordinator_events import DecisionTimes, EventGate
+from fleet.nodes.coordinator_orders import order_message, progress_message
+from fleet.nodes.coordinator_takeover import take_over
 from robots.registry import get_robot
 from scenes.schema import Scene
 
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
-TAKEOVER_WAIT_S = 2.0  # wall seconds a take-over waits for every arm's heartbeat (a dead controller's never comes)
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
 
 
@@ -72,7 +71,7 @@ class CoordinatorNode:
         allocator: Allocator | None = None,
         heartbeat_timeout_s: float = 0.75,
         incarnation: int = 1,
-        pipeline: bool = True,
+        pipeline: bool = PIPELINE_DEFAULT,
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
         self.incarnation = incarnation
@@ -82,6 +81,8 @@ class CoordinatorNode:
         self.arm_names = [a.name for a in scene.arms]
         self.period_ticks = self.dispatcher.period_ticks
         self.drops = DropCounter()
+        self.events = EventGate(self.dispatcher, self.drops, scene.control_hz)
+        self.decision_times = DecisionTimes()
         self._decoders = {
             "events": Decoder(LineEvent, self.drops),
             "frame": Decoder(LineView, self.drops),
@@ -89,9 +90,9 @@ class CoordinatorNode:
         }
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
-        self._inbox = Inbox()  # one queue for everything: messages are handled in arrival order
+        self.inbox = Inbox()  # one queue for everything: messages are handled in arrival order
         self._subs = [
-            session.declare_subscriber(k, self._inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))
+            session.declare_subscriber(k, self.inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))
         ]
         self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
         self._subs.append(session.declare_subscriber(keys.all_arms("status"), self._on_heartbeat_arrival))
@@ -107,17 +108,12 @@ class CoordinatorNode:
         self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
-        self.events_seen = 0
-        # received, not yet applied (of a tick past the next decision)
-        self._events_ahead: list[tuple[str, LineEvent]] = []
-        self.decisions_on_deadline = 0
-        self.decision_ms: list[float] = []  # wall time of each decision: what a lockstep timeout is measured against
-        self.slowest_decision: tuple[float, int] = (-1.0, -1)  # (ms, tick) of the slowest decision so far
-        self._due: tuple[int, int, float] | None = (
-            None  # (tick, events published by then, wall deadline) of a pending decision
-        )
-        self._replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
+        self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
+
+    @property
+    def events_seen(self) -> int:
+        return self.events.seen
 
     def close(self) -> None:
         for sub in self._subs:
@@ -127,7 +123,7 @@ class CoordinatorNode:
 
     def wait(self, timeout_s: float) -> None:
         """Sleep until a message arrives (heartbeat checks still run every `timeout_s`)."""
-        self._inbox.wait(timeout_s)
+        self.inbox.wait(timeout_s)
 
     def _on_heartbeat_arrival(self, sample: zenoh.Sample) -> None:
         """Only stamps the arrival time: a coordinator busy planning must not mistake queued heartbeats for silence."""
@@ -136,20 +132,25 @@ class CoordinatorNode:
         except ValueError:
             pass
 
+    def take_over(self, session: zenoh.Session, timeout_s: float = 30.0) -> dict:
+        """Rebuild from the running line (`fleet.nodes.coordinator_takeover`)."""
+        self.takeover = take_over(self, session, timeout_s)
+        return self.takeover
+
     # --- inputs ---------------------------------------------------------------------
     def poll(self) -> bool:
         """Handle everything queued, in order. True if anything was."""
-        items = self._inbox.drain()
+        items = self.inbox.drain()
         for key, payload in items:
             leaf = key.rsplit("/", 1)[-1]
             msg = self._decoders[leaf].decode(key, payload) if leaf in self._decoders else None
-            if msg is None or (leaf == "events" and (msg.kind, msg.part_id, msg.tick, msg.detail) in self._replayed):
+            if msg is None or (leaf == "events" and (msg.kind, msg.part_id, msg.tick, msg.detail) in self.replayed):
                 continue
-            problem = self._problem(leaf, msg)
+            problem = self.problem(leaf, msg)
             if problem:
                 self.drops.drop(key, problem)
             elif leaf == "events":
-                self._on_event(msg, key)
+                self.events.arrived(msg, key)
             elif leaf == "frame":
                 self._on_frame(msg)
             else:
@@ -160,109 +161,18 @@ class CoordinatorNode:
             self.publish_progress()
         return bool(items)
 
-    def _problem(self, leaf: str, msg) -> str:
+    def problem(self, leaf: str, msg) -> str:
         """Why a decoded message cannot be true ("" if it can): it is then dropped and counted, never acted on."""
-        if leaf == "events":  # whether the line allows it is asked when it is applied (`_apply_events`)
+        if leaf == "events":  # whether the line allows it is asked when it is applied (`EventGate.apply`)
             return self.sim_clock.problem(msg.tick)
         if leaf == "frame":
-            problem = self.sim_clock.problem(msg.tick) or parts_problem(msg.parts)
-            if not problem and sorted(s.arm for s in msg.arms) != sorted(self.arm_names):
-                problem = "a frame whose arms are not this line's"
-            for s in msg.arms if not problem else ():
-                problem = (
-                    problem
-                    or arm_state_problem(s, s.arm, self._dof[s.arm])
-                    or ("" if s.tick == msg.tick else "a frame mixing ticks")
-                )
+            problem = frame_problem(msg, self.sim_clock, self.arm_names, self._dof)
             if not problem:
                 self.sim_clock.believe(msg.tick)
             return problem
         if msg.arm not in self.last_tick:
             return f"a heartbeat of no arm of this line ({msg.arm!r})"
         return ""
-
-    # --- taking over a running line ---------------------------------------------------
-    def take_over(self, session: zenoh.Session, timeout_s: float = 30.0) -> dict:
-        """Rebuild from the running line (this coordinator replaces one that crashed): the sim's event log, then
-        each arm's heartbeat (the task it works on, the orders it received). Returns what was rebuilt."""
-        log = fetch_history(session, self.keys, self.drops, timeout_s)
-        for e in log.events:
-            self._replayed.add((e.kind, e.part_id, e.tick, e.detail))
-            problem = self._problem("events", e)
-            if problem:
-                self.drops.drop(self.keys.history, problem)
-            else:
-                self._on_event(e, self.keys.history)
-        self._apply_events(log.tick)
-        self.events_seen = len(log.events)
-        self.dispatcher.take_over(log.tick / self.scene.control_hz)
-        beats, announced = self._await_arms(TAKEOVER_WAIT_S)
-        for arm, beat in beats.items():
-            if announced.get(arm, 0) <= beat.assign_seq <= announced.get(arm, 0) + MAX_SEQ_JUMP:
-                self.assign_seq[arm] = max(self.assign_seq[arm], beat.assign_seq)  # orders after those it has
-            if beat.part_id >= 0 and beat.task_id is not None:
-                self.dispatcher.adopt(
-                    arm, beat.task_id, beat.part_id, tuple(beat.place_xyz), log.tick / self.scene.control_hz
-                )
-        self.takeover = {
-            "incarnation": self.incarnation,
-            "sim_time_s": round(log.tick / self.scene.control_hz, 3),
-            "events_replayed": len(log.events),
-            "arms_heard": sorted(beats),
-            "tasks_adopted": [a for a in self.dispatcher.adopted if a["adopted"]],
-        }
-        print(
-            f"coordinator: took over the line at sim {self.takeover['sim_time_s']} s ({len(log.events)} events, "
-            f"{len(self.takeover['tasks_adopted'])} task(s) adopted from {len(beats)} arm(s))",
-            file=sys.stderr,
-            flush=True,
-        )
-        return self.takeover
-
-    def _await_arms(self, wait_s: float) -> tuple[dict[str, ArmStatus], dict[str, int]]:
-        """Each arm's newest heartbeat and the order count the sim announced to it (a frame), waiting at most
-        `wait_s` for all; what arrived meanwhile stays queued, in order, for `poll`."""
-        beats: dict[str, ArmStatus] = {}
-        announced: dict[str, int] = {}
-        held: list[tuple[str, bytes]] = []
-        peek = {
-            "status": Decoder(ArmStatus, DropCounter()),
-            "frame": Decoder(LineView, DropCounter()),
-        }  # `poll` counts the bad ones
-        deadline = time.monotonic() + wait_s
-        while (len(beats) < len(self.arm_names) or not announced) and time.monotonic() < deadline:
-            for key, payload in self._inbox.drain():
-                held.append((key, payload))
-                leaf = key.rsplit("/", 1)[-1]
-                msg = peek[leaf].decode(key, payload) if leaf in peek else None
-                if isinstance(msg, ArmStatus) and msg.arm in self.last_tick and not not_finite(msg.place_xyz):
-                    beats[msg.arm] = msg
-                elif isinstance(msg, LineView) and not self._problem("frame", msg):
-                    announced = {s.arm: s.assign_seq for s in msg.arms}
-            self._inbox.wait(0.02)
-        self._inbox.items.extendleft(reversed(held))
-        return beats, announced
-
-    def _on_event(self, e: LineEvent, key: str) -> None:
-        """Counted now, applied at the decision whose tick reaches it: a lockstep sim runs on to the next decision
-        while this one is made, and an event of a later tick that arrives first must not change it."""
-        self.events_seen += 1
-        self._events_ahead.append((key, e))
-
-    def _apply_events(self, up_to_tick: int) -> None:
-        """Feed the dispatcher the events received of ticks up to `up_to_tick`, in the order they came; one the line
-        does not allow (a part arriving twice, one that never arrived) is dropped and counted."""
-        later = []
-        for key, e in self._events_ahead:
-            if e.tick > up_to_tick:
-                later.append((key, e))
-                continue
-            problem = self.dispatcher.ledger.event_problem(e.kind, e.part_id, e.detail, e.type_index)
-            if problem:
-                self.drops.drop(key, problem)
-            else:
-                self.dispatcher.on_event(e.kind, e.part_id, e.detail, e.type_index, e.tick / self.scene.control_hz)
-        self._events_ahead = later
 
     def _on_frame(self, f: LineView) -> None:
         self._frame_at = time.monotonic()
@@ -277,19 +187,6 @@ class CoordinatorNode:
         self.assign_seq[s.arm] = max(self.assign_seq[s.arm], s.assign_seq)  # after a take-over: count on from the sim's
         if not s.lost:
             self._rejoining.discard(s.arm)
-        request = None
-        if s.request_seq > 0 and len(s.request_q_to) == len(s.q):
-            n = len(s.q)
-            then_q = tuple(tuple(s.request_then_q[k : k + n]) for k in range(0, len(s.request_then_q), n))
-            request = TimedPath(
-                s.arm,
-                s.q,
-                s.request_q_to,
-                s.sim_time_s,
-                s.sim_time_s + s.request_duration_s,
-                then_q,
-                tuple(s.request_then_after_s),
-            )
         returned = self.dispatcher.on_arm(
             s.arm,
             np.asarray(s.q),
@@ -299,7 +196,7 @@ class CoordinatorNode:
             failure=s.failure,
             failure_code=s.failure_code,
             request_seq=s.request_seq,
-            request=request,
+            request=motion_request(s),
             acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later
             lost=s.lost and s.arm not in self._rejoining,
             silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
@@ -334,30 +231,18 @@ class CoordinatorNode:
         )
         last = self.dispatcher.last_decision_tick
         due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - last >= self.period_ticks
-        if due and p.tick > last and (self._due is None or self._due[0] != p.tick):  # a re-sent frame: once
-            self._due = (p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
+        if due and p.tick > last:  # a re-sent frame: once
+            self.events.frame(p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
 
     def _decide_when_complete(self) -> None:
-        """Decide for the due frame's tick once every event published before it is in.
-
-        Events and frames travel on different keys and may arrive in either order; waiting for
-        them is what makes a lockstep run repeat exactly.
-        """
-        if self._due is None:
+        """Decide for the due frame's tick once every event published before it is in (`EventGate`)."""
+        tick = self.events.due_now(time.monotonic())
+        if tick is None:
             return
-        tick, events, deadline = self._due
-        complete = self.events_seen >= events
-        if complete or time.monotonic() > deadline:
-            self.decisions_on_deadline += not complete  # decided without every event: a lockstep run may not repeat
-            self._due = None
-            self._apply_events(tick)
-            started = time.perf_counter()
-            decision = self.dispatcher.decide(tick)
-            took_ms = 1e3 * (time.perf_counter() - started)
-            if took_ms > self.slowest_decision[0]:
-                self.slowest_decision = (took_ms, tick)
-            self.decision_ms.append(took_ms)
-            self.publish(decision)
+        started = time.perf_counter()
+        decision = self.dispatcher.decide(tick)
+        self.decision_times.took(1e3 * (time.perf_counter() - started), tick)
+        self.publish(decision)
 
     def _check_heartbeats(self) -> None:
         """An arm silent for `heartbeat_timeout_s` while the sim is still heard is lost. When the sim is silent too
@@ -392,68 +277,51 @@ class CoordinatorNode:
             )
         for order in decision.orders:
             self.assign_seq[order.arm] += 1
-            self._assign_pubs[order.arm].put(encode(self._message(order, self.assign_seq[order.arm])))
+            self._assign_pubs[order.arm].put(encode(order_message(order, self.assign_seq[order.arm])))
         self._tick_pub.put(encode(CoordTick(decision.tick, tuple(self.assign_seq[a] for a in self.arm_names))))
-
-    def _message(self, order, seq: int) -> Assignment | MotionGrant:
-        if isinstance(order, GrantOrder):
-            return MotionGrant(
-                order.arm,
-                seq,
-                order.request_seq,
-                order.decision,
-                order.conflict_arm,
-                order.min_separation_m if math.isfinite(order.min_separation_m) else -1.0,
-                order.start_s if order.start_s is not None else -1.0,
-            )
-        if isinstance(order, CancelOrder):
-            return Assignment(order.arm, seq, None, order.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-        assert isinstance(order, AssignOrder)
-        return Assignment(
-            order.arm, seq, order.task_id, order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity
-        )
 
     def publish_progress(self) -> None:
         self._progress_at = time.monotonic()
-        d = self.dispatcher
-        t = d.ledger.totals()
-        closest = d.min_separation_m if math.isfinite(d.min_separation_m) else -1.0
-        self._progress_pub.put(
-            encode(
-                Progress(
-                    d.sim_time_s,
-                    t["parts_spawned"],
-                    t["parts_completed"],
-                    t["parts_missed"],
-                    d.busy_arms(),
-                    t.get("parts_failed", 0),
-                    d.guard.denied,
-                    closest,
-                )
-            )
-        )
+        self._progress_pub.put(encode(progress_message(self.dispatcher)))
 
     def report(self) -> dict:
-        self._apply_events(2**62)  # the run is over: every event counts
+        self.events.apply(2**62)  # the run is over: every event counts
         return self.dispatcher.report() | {
             "dropped_messages": self.drops.total,
             "takeover": self.takeover,
-            "decisions_on_deadline": self.decisions_on_deadline,
-            "decision_wall_ms": self._decision_times(),
+            "decisions_on_deadline": self.events.decided_on_deadline,
+            "decision_wall_ms": self.decision_times.summary(),
         }
 
-    def _decision_times(self) -> dict:
-        """Wall milliseconds a decision took (median, p99, the slowest and its tick): a lockstep run stops if one
-        takes longer than the sim's timeout."""
-        if not self.decision_ms:
-            return {}
-        p50, p99 = np.percentile(self.decision_ms, [50, 99])
-        return {
-            "p50": round(float(p50), 3),
-            "p99": round(float(p99), 3),
-            "max": round(self.slowest_decision[0], 3),
-            "max_at_tick": self.slowest_decision[1],
-        }
+
+def frame_problem(f: LineView, clock: TickClock, arm_names: list[str], dof: dict[str, int]) -> str:
+    """Why a frame cannot be the sim's ("" if it can): ahead of its clock, bad parts, another line's arms, a state
+    that cannot be true, ticks mixed."""
+    problem = clock.problem(f.tick) or parts_problem(f.parts)
+    if not problem and sorted(s.arm for s in f.arms) != sorted(arm_names):
+        problem = "a frame whose arms are not this line's"
+    for s in f.arms if not problem else ():
+        problem = (
+            problem or arm_state_problem(s, s.arm, dof[s.arm]) or ("" if s.tick == f.tick else "a frame mixing ticks")
+        )
+    return problem
+
+
+def motion_request(s: ArmState) -> TimedPath | None:
+    """The move an arm holds still for, from its state (None when it asks for none)."""
+    if not (s.request_seq > 0 and len(s.request_q_to) == len(s.q)):
+        return None
+    n = len(s.q)
+    then_q = tuple(tuple(s.request_then_q[k : k + n]) for k in range(0, len(s.request_then_q), n))
+    return TimedPath(
+        s.arm,
+        s.q,
+        s.request_q_to,
+        s.sim_time_s,
+        s.sim_time_s + s.request_duration_s,
+        then_q,
+        tuple(s.request_then_after_s),
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from coordinator.cadence import moves_need_grants
+from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.bus.bus_config import BusConfigError, BusConfigSet
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
@@ -64,7 +65,7 @@ class RunOptions:
     zenoh_config: str | None = None
     keep_logs: bool = False
     allocator: str = "optimal"
-    pipeline: bool = True  # fixtures take their next part's arm before they are ready (held at the edge)
+    pipeline: bool = PIPELINE_DEFAULT  # fixtures take their next part's arm before they are ready (held at the edge)
     monitor: bool = False
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080

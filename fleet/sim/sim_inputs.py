@@ -18,7 +18,7 @@ from fleet.sim.sim_bus import control_problem, coord_tick_problem
 from robots.joint_trajectory import GoalResult
 
 if TYPE_CHECKING:
-    from fleet.nodes.sim_server import SimServer
+    from fleet.sim.server import SimServer
 
 
 class SimInputs:
@@ -94,9 +94,8 @@ class SimInputs:
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.sim.stats.messages_in["goal"] += 1
-        if (
-            self.sim.deferred
-        ):  # applied with the answer naming it (or at the arm's next due tick): a lockstep run repeats
+        # applied with the answer naming it (or at the arm's next due tick): a lockstep run repeats
+        if self.sim.deferred:
             link.hold_goal(msg)
             return
         passage = link.book.link.passage("up")

@@ -19,7 +19,7 @@ from robots.joint_trajectory import GoalResult
 from robots.phase import Phase
 
 if TYPE_CHECKING:
-    from fleet.nodes.sim_server import SimServer
+    from fleet.sim.server import SimServer
 
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 

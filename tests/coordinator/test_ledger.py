@@ -12,7 +12,7 @@ from scenes import load_scene
 
 
 def ledger() -> Ledger:
-    return Ledger(load_scene("assembly_line"))
+    return Ledger(load_scene("assembly_line"), pipeline=False)
 
 
 def only(tasks):

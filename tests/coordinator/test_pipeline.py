@@ -88,7 +88,7 @@ def test_a_top_whose_base_was_lost_does_not_keep_the_next_base_out():
 
 
 def test_without_pipelining_a_top_waits_for_its_base_to_be_placed():
-    lg = Ledger(load_scene("assembly_line"))
+    lg = Ledger(load_scene("assembly_line"), pipeline=False)
     lg.arrived(0, "bases", 0, 1.0)
     lg.arrived(1, "tops", 0, 2.0)
     lg.at_station(1, "tops_bin", 2.5)

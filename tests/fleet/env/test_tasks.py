@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from coordinator.allocation import make_allocator
+from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.env import parallel_env
 from fleet.env.task_mode import allocator_actions
 from fleet.env.tasks import above
@@ -228,7 +229,7 @@ def test_task_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_flee
     env = parallel_env(task="line", scene="mixed_infeed", action_mode="task", max_cycles=600, control_hz=10)
     env.reset(seed=1000)
     chooser, policy = env.chooser, make_allocator("optimal", env.scene)
-    assert chooser.grants and not chooser.ledger.pipeline
+    assert chooser.grants and chooser.ledger.pipeline == PIPELINE_DEFAULT, "pipelined as fleet run is, by default"
     touching = 0
     while env.agents:
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))

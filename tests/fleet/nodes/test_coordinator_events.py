@@ -34,7 +34,7 @@ def test_an_event_of_a_later_tick_waits_for_its_decision_and_a_lie_is_still_drop
         assert node.events_seen == 3 and node.dispatcher.ledger.parts == {}, (
             "counted on arrival, applied at their decision"
         )
-        node._apply_events(10)  # what the decision at tick 10 does first
+        node.events.apply(10)  # what the decision at tick 10 does first
         assert list(node.dispatcher.ledger.parts) == [0], (
             "the decision at tick 10 sees the base, not the top of tick 15"
         )

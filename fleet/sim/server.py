@@ -1,0 +1,364 @@
+"""The sim server: the physics world and every arm's trajectory tracker behind the bus, one tick at a time.
+
+Its inputs (`fleet.sim.sim_inputs`), outputs (`fleet.sim.sim_outputs`), lockstep links and barrier
+(`fleet.bus.lockstep`), bus handles (`fleet.sim.sim_bus`) and counts (`fleet.sim.sim_stats`) live apart; this
+class ties them to the physics: a tick takes the answers due, sends the states due, tracks and steps.
+The process around it is `fleet.nodes.sim_server`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+
+import zenoh
+
+from coordinator.cadence import decision_period_ticks
+from fleet.bus.faults import DelayLine, faults_report, links_for
+from fleet.bus.flights import FlightBook
+from fleet.bus.keys import Keys
+from fleet.bus.lockstep import ArmLink, Barrier
+from fleet.bus.messages import (
+    ControllerStep,
+    CoordTick,
+    EventLog,
+    LineEvent,
+)
+from fleet.common.processes import StopFlag
+from fleet.record.spool import BusSpool
+from fleet.sim.line_watch import LineWatcher
+from fleet.sim.sim_bus import SimBus
+from fleet.sim.sim_inputs import SimInputs
+from fleet.sim.sim_outputs import SimOutputs
+from fleet.sim.sim_stats import SimStats
+from fleet.sim.tracking import TrackedArms
+from fleet.sim.world import World
+from robots.phase import IDLE_PHASES
+from robots.skills.pick_place import DEFAULT_DECISION_HZ
+from robots.tracker import WATCHDOG_REASON
+
+MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
+VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
+COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent coordinator: a decision may search for
+# reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
+
+
+class SimServer:
+    """Runs a world behind the bus; call `run_ticks` (or `tick` repeatedly).
+
+    `controllers=False` waits for nobody: the arms take goals from whoever sends them (a user's own
+    trajectory client), with no watchdog."""
+
+    def __init__(
+        self,
+        world: World,
+        session: zenoh.Session,
+        keys: Keys,
+        *,
+        mode: str = "lockstep",
+        watchdog_s: float = 0.25,
+        lockstep_timeout_s: float = 1.0,
+        coordinator_timeout_s: float | None = None,
+        first_command_timeout_s: float = 30.0,
+        coordinator: bool = False,
+        controllers: bool = True,
+        count_contacts: bool = True,
+        stop: StopFlag | None = None,
+        speed: float = 1.0,
+    ) -> None:
+        if mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
+        self.world, self.keys, self.mode = world, keys, mode
+        self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
+        # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
+        self.barrier = Barrier(
+            lockstep_timeout_s,
+            first_command_timeout_s,
+            max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s,
+        )
+        self.stop, self.controllers, self.coordinator = stop, controllers, coordinator
+        scene = world.scene_model
+        hz = scene.control_hz
+        period = max(1, round(hz / DEFAULT_DECISION_HZ))  # until a controller asks for another rate
+        self.max_period_ticks = max(1, round(hz * MAX_CONTROLLER_PERIOD_S))
+        self.faults = links_for(scene.network, [*world.arms, "coordinator"], scene.seed)
+        self.links = {name: ArmLink(name, period, FlightBook(self.faults[name], hz)) for name in world.arms}
+        self.coord_book = FlightBook(self.faults["coordinator"], hz)
+        self.delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
+        self.tracked = TrackedArms(world)
+        self.stats = SimStats()
+        # every event published, in order (a respawned coordinator rebuilds from it)
+        self.event_log: list[LineEvent] = []
+        history = lambda: EventLog(self.world.tick, tuple(self.event_log))
+        self.bus = SimBus(session, keys, list(world.arms), scene.model_dump_json(), history, self.stats)
+        self.drops = self.bus.drops
+        self.estop, self.paused, self.speed = False, False, speed
+        self.view_every_ticks = max(1, round(hz / VIEW_RATE_HZ))
+        self.watcher = LineWatcher(scene)
+        self.watch_every_ticks = period
+        self.count_contacts = count_contacts
+        self.coord_period_ticks = decision_period_ticks(scene)
+        self.assign_seqs = {name: 0 for name in world.arms}
+        self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
+        self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks
+        self.started = not controllers  # every controller answered once (realtime waits until then)
+        self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
+
+    def close(self) -> None:
+        self.bus.close()
+
+    # --- inputs ---------------------------------------------------------------------
+
+    def apply_coord(self, msg: CoordTick) -> None:
+        """The coordinator's orders up to its tick are announced in the states from now on (lockstep)."""
+        if self.mode != "lockstep":
+            return  # realtime: controllers act on assignments as they arrive
+        for name, seq in zip(self.links, msg.assign_seqs):
+            self.assign_seqs[name] = max(self.assign_seqs[name], seq)
+
+    @property
+    def deferred(self) -> bool:
+        """Answers and goals wait for their arm's due tick (lockstep, or until every process is up)."""
+        return self.controllers and (self.mode == "lockstep" or not self.started)
+
+    @property
+    def deferred_coord(self) -> bool:
+        """The coordinator's ticks are awaited and take effect when due (lockstep, or until every process is up)."""
+        return self.coordinator and (self.mode == "lockstep" or not self.started)
+
+    def _apply_answers(self, link: ArmLink) -> None:
+        """Lockstep: the answers due now take effect, each with the goals it names; goals no answer names
+        (a user's own client, a lost controller) go with them."""
+        batches, unnamed = link.take_due(self.world.tick)
+        for goals, answer in batches:
+            for goal in goals:
+                self.inputs.submit(link, goal)
+            self.apply_answer(link, answer)
+        for goal in unnamed:
+            self.inputs.submit(link, goal)
+
+    def apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
+        """The controller's answer takes effect (its goals are with the tracker): what it does, when it wants its
+        next state, the watchdog's next deadline."""
+        latest = msg.tick >= link.book.newest_delivered  # no later state went out: the schedule is still its to set
+        link.last_step = msg
+        period = min(max(msg.next_tick - msg.tick, 1), self.max_period_ticks)
+        link.period_ticks = period
+        if latest:
+            link.next_tick = msg.tick + period
+        hz = self.world.scene_model.control_hz
+        self.tracked.trackers[link.name].watch(
+            max(link.next_tick, self.world.tick) / hz + self.watchdog_s + self._round_trip_s(link)
+        )
+        link.watchdog_held = False
+        if link.lost:
+            link.lost = False
+            self.stats.rejoined.append(link.name)
+
+    def _round_trip_s(self, link: ArmLink) -> float:
+        """The longest a state and its answer are expected to travel on this link (latency and 3 sigma of jitter)."""
+        f = link.book.link.faults
+        return 2 * (f.latency_ms + 3 * f.jitter_ms) / 1e3
+
+    def _wait_for_answers(self, links: list[ArmLink], coord: bool) -> None:
+        """Until every live controller of `links` has answered each state delivered to it (with the goals it names),
+        and the coordinator each frame (`coord`), or the timeout passed; then the answers due now take effect."""
+        outcome = self.barrier.wait(
+            links,
+            self.coord_book if coord and not self.stats.coordinator_lost else None,
+            first=not self.started,
+            take_inputs=self.inputs.take,
+            pause=self.bus.inbox.wait,
+            lose=self._lose,
+            republish=self._republish,
+            should_stop=self.stop.should_stop if self.stop is not None else lambda: False,
+        )
+        if outcome == "stopped":
+            return
+        self.stats.coordinator_lost = self.stats.coordinator_lost or outcome == "coordinator_lost"
+        self._apply_due(links, coord)
+
+    def _republish(self, link: ArmLink | None, payload: bytes) -> None:
+        """A state (or, `link` None, a frame) still unanswered, sent again."""
+        if link is None:
+            self.bus.put(self.bus.frame_pub, "frame", payload)
+        else:
+            self.bus.put(self.bus.state_pubs[link.name], "state", payload)
+
+    def _apply_due(self, links: list[ArmLink], coord: bool) -> None:
+        """The answers (controllers', coordinator's) due at this tick take effect."""
+        for link in links:
+            self._apply_answers(link)
+        if coord:
+            for flight in self.coord_book.due_answers(self.world.tick):
+                self.apply_coord(flight.answer)
+        if not self.started and all(link.last_step is not None or link.lost for link in self.links.values()):
+            self.started = True  # realtime: from here on answers apply when they arrive
+
+    def _lose(self, link: ArmLink) -> None:
+        """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
+        link.lost = True
+        link.book.clear()
+        self.stats.lost.append(link.name)
+        self.outputs.results(
+            link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)")
+        )
+
+    # --- outputs --------------------------------------------------------------------
+
+    def _due(self) -> list[ArmLink]:
+        return [link for link in self.links.values() if link.next_tick <= self.world.tick]
+
+    # --- one tick -------------------------------------------------------------------
+    def tick(self) -> None:
+        """Events; answers due now (waiting in lockstep); due states and frames out; track; step the physics."""
+        clock = self.stats.wall_s
+        t0 = time.perf_counter()
+        parts = None
+        if self.world.tick % self.watch_every_ticks == 0:  # the line's events at the controllers' default rate
+            parts = self.world.active_parts()
+            if self.outputs.events(parts):
+                parts = self.world.active_parts()  # parts lost or retired just now are off the stage
+        due = self._due()
+        t1 = time.perf_counter()
+        started = self.started
+        self._take_answers_due()
+        t2 = time.perf_counter()
+        self.outputs.states(due, parts)
+        t3 = time.perf_counter()
+        self._step_physics()
+        t4 = time.perf_counter()
+        self.stats.ticks += 1
+        if self.count_contacts:
+            self.stats.contacts(self.world.inter_arm_contacts(), self.world.sim_time_s)
+        t5 = time.perf_counter()
+        clock["publish"] += (t1 - t0) + (t3 - t2)
+        clock["wait" if started else "startup"] += t2 - t1  # until every process answered once: start-up
+        clock["physics"] += t4 - t3
+        clock["contacts"] += t5 - t4
+
+    def _take_answers_due(self) -> None:
+        """The answers due at this tick: awaited (lockstep, or until every process is up), else whatever came in."""
+        tick = self.world.tick
+        links = []
+        if self.deferred:
+            links = [
+                link
+                for link in self.links.values()
+                if link.next_tick <= tick or link.book.arrives(tick) or link.book.applies(tick)
+            ]
+        # the coordinator's answers take effect with the next states out after them (frames: its period apart)
+        frame = self.coordinator and tick % self.coord_period_ticks == 0
+        coord = self.deferred_coord and (
+            frame or self.coord_book.arrives(tick) or (bool(links) and self.coord_book.applies(tick))
+        )
+        if links or coord:
+            self._wait_for_answers(links, coord)
+        else:
+            self.inputs.take()
+
+    def _step_physics(self) -> None:
+        """The trackers write their drive targets, the physics steps a tick, and the trackers' results go out."""
+        self.tracked.apply()
+        if self.target_log is not None:
+            self.target_log.append([a.written_targets() for a in self.world.arms.values()])
+        self.world.step()
+        for name, rs in self.tracked.update().items():
+            if any(r.reason == WATCHDOG_REASON for r in rs):
+                self.links[name].watchdog_held = True
+                self.stats.watchdog_holds[name] += 1
+            self.outputs.results(name, rs)
+        for name, link in self.links.items():
+            if link.last_step is not None and link.last_step.skill not in IDLE_PHASES and not link.lost:
+                self.stats.busy_ticks[name] += 1
+                if link.last_step.request_seq > 0:
+                    self.stats.grant_wait_ticks[name] += 1
+
+    def run_ticks(self, ticks: int, speed: float | None = None, stop: StopFlag | None = None) -> None:
+        """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at the speed factor.
+
+        A pause (`SimControl`) stops the clock between ticks; the pacing restarts from where it stood."""
+        stop = stop or self.stop
+        if speed is not None:
+            self.speed = speed
+        pace = _Pacing(self)
+        done = 0
+        while done < ticks:
+            if stop is not None and stop.should_stop():
+                return
+            self.outputs.status()
+            if self.spool is not None:
+                self.spool.pump()
+            if self.paused:
+                self.inputs.take()
+                self.bus.inbox.wait(0.05)
+                pace.restart()
+                continue
+            self.tick()
+            done += 1
+            if stop is not None and stop.should_stop():
+                return
+            if self.stats.coordinator_lost and self.mode == "lockstep":
+                return  # its decisions would never be announced again: end the run rather than stall it
+            if self.mode == "realtime":
+                pace.wait()
+        self.outputs.status(force=True)
+
+    def settle(self) -> None:
+        """Lockstep, after the last tick: wait (at most the lockstep timeout) for the answers to the states and frames
+        already delivered, and the goals they name, so that the run ends on the bus the same way every time (a
+        recording of it too). They take no effect: the run is over."""
+        if not (self.deferred or self.deferred_coord):
+            return
+        deadline = time.monotonic() + self.lockstep_timeout_s
+        while time.monotonic() < deadline:
+            self.inputs.take()
+            arms_in = all(link.lost or link.ready() for link in self.links.values()) or not self.deferred
+            coord_in = not self.deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
+            if arms_in and coord_in:
+                return
+            self.bus.inbox.wait(0.01)
+
+    def report(self) -> dict:
+        """The sim's part of the run summary."""
+        arms, sim_s, feeders = list(self.links), self.world.sim_time_s, self.world.feeders
+        return (
+            {
+                "ticks": self.stats.ticks,
+                "sim_seconds": round(sim_s, 6),
+                "parts_spawned": sum(c.spawned for c in feeders),
+                "feeder_full_skips": sum(c.skipped_full for c in feeders),
+                "feeder_held_s": {c.feeder.name: round(c.held_s, 2) for c in feeders if c.held_s > 0},
+                "events": dict(sorted(Counter(e.kind for e in self.event_log).items())),
+            }
+            | self.stats.summary(arms, sim_s)
+            | {
+                "dropped_messages": self.drops.total,
+                "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
+            }
+            | self.stats.outcome(arms, sim_s)
+            | {"randomised": dict(self.world.scene_model.randomised), "network_faults": faults_report(self.faults)}
+            | self.stats.wall_clock()
+        )
+
+
+class _Pacing:
+    """Realtime: the sim's clock held to the wall clock at the speed factor, from when every process answered
+    (and again after a pause or a change of speed)."""
+
+    def __init__(self, server: SimServer) -> None:
+        self.server = server
+        self.restart()
+
+    def restart(self) -> None:
+        s = self.server
+        self.wall, self.sim, self.speed, self.started = time.monotonic(), s.world.sim_time_s, s.speed, s.started
+
+    def wait(self) -> None:
+        s = self.server
+        if s.started != self.started or s.speed != self.speed:  # the clock starts once every process answered
+            self.restart()
+        ahead = (s.world.sim_time_s - self.sim) / s.speed - (time.monotonic() - self.wall)
+        if ahead > 0:
+            s.bus.inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
+            s.stats.wall_s["pacing"] += ahead
