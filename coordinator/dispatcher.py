@@ -114,7 +114,7 @@ class Dispatcher:
         self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.period_ticks = decision_period_ticks(scene)
-        self.skill = {a: Phase.IDLE for a in self.arm_names}
+        self.phase = {a: Phase.IDLE for a in self.arm_names}
         self.acts_at_tick = {a: 0 for a in self.arm_names}  # when an order sent now takes effect on each arm
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
         self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
@@ -169,7 +169,7 @@ class Dispatcher:
         self,
         arm: str,
         q: np.ndarray,
-        skill: str,
+        phase: str,
         time_s: float,
         *,
         task_id: int | None = None,
@@ -186,8 +186,8 @@ class Dispatcher:
         controller counts from 1 again). `acts_at_tick`: when an order sent now would take effect on it.
         `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost."""
         self.acts_at_tick[arm] = acts_at_tick
-        self.skill[arm] = skill
-        if request_seq > 0 or skill in IDLE_PHASES:  # holding still for a grant, or not working: no move of old
+        self.phase[arm] = phase
+        if request_seq > 0 or phase in IDLE_PHASES:  # holding still for a grant, or not working: no move of old
             self.unsettled.discard(arm)
         self.guard.set_state(arm, np.asarray(q))
         if request is not None and request_seq > 0 and request_seq != self.request_seq[arm]:
@@ -196,7 +196,7 @@ class Dispatcher:
         returned = None
         if lost and arm not in self.lost:
             returned = self.arm_lost(arm, "the sim stopped hearing its controller", silent_for_s)
-        self.ledger.arm_report(arm, task_id, skill, time_s, failure, failure_code)
+        self.ledger.arm_report(arm, task_id, phase, time_s, failure, failure_code)
         return returned
 
     def on_parts(self, parts: dict[int, PartView], time_s: float) -> None:
@@ -281,7 +281,7 @@ class Dispatcher:
                 self.bases[a],
                 a not in self.lost
                 and a not in open_arms
-                and self.skill[a] in AVAILABLE_PHASES
+                and self.phase[a] in AVAILABLE_PHASES
                 and not self.leaving_fixture(a),
                 self.reach[a],
                 tuple(self.guard.state[a].tolist()),
@@ -297,7 +297,7 @@ class Dispatcher:
         in open space, not next to the arm that works the fixture next."""
         return (
             self.ledger.pipeline
-            and self.skill[arm] == Phase.HOME
+            and self.phase[arm] == Phase.HOME
             and bool(self.ledger.gated.intersection(self.last_stations[arm]))
         )
 
@@ -313,7 +313,7 @@ class Dispatcher:
         as that arm sees them (a station it is itself moving away from is free to it: it may go straight back)."""
         busy = self.ledger.busy_stations()
         for arm, stations in self.last_stations.items():
-            if arm != for_arm and self.skill[arm] not in IDLE_PHASES and arm not in self.lost:
+            if arm != for_arm and self.phase[arm] not in IDLE_PHASES and arm not in self.lost:
                 busy.update(stations)
         if self.ledger.pipeline:
             busy -= self.ledger.gated  # their order is the ledger's, their moves wait at `station_ahead`
@@ -325,7 +325,7 @@ class Dispatcher:
         return set.intersection(*(self.busy_stations(a) for a in arms)) if arms else self.busy_stations()
 
     def busy_arms(self) -> int:
-        return sum(s not in IDLE_PHASES for s in self.skill.values())
+        return sum(s not in IDLE_PHASES for s in self.phase.values())
 
     # --- decisions ------------------------------------------------------------------
     def decide(self, tick: int) -> Decision:
@@ -411,7 +411,7 @@ class Dispatcher:
         for task in list(self.ledger.tasks.values()):
             arm = task.arm
             not_started = task.state == TaskState.ASSIGNED or (
-                task.state == TaskState.ACTIVE and self.skill.get(arm) == Phase.APPROACH and arm in self.requests
+                task.state == TaskState.ACTIVE and self.phase.get(arm) == Phase.APPROACH and arm in self.requests
             )
             part = self.parts.get(task.part_id)
             if arm is None or part is None or not not_started or not cannot_make_it(rules, views[arm], task, part):
@@ -450,7 +450,7 @@ class Dispatcher:
                 )
                 task = self.open_task(arm)
                 # wait beside it, part in hand
-                if self.skill[arm] == Phase.TRANSFER and task.task_id not in self.told_standby:
+                if self.phase[arm] == Phase.TRANSFER and task.task_id not in self.told_standby:
                     self.told_standby.add(task.task_id)
                     del self.requests[arm]
                     out.append(GrantOrder(arm, self.request_seq[arm], "standby", "", math.inf, None))
@@ -487,7 +487,7 @@ class Dispatcher:
         if not self.ledger.pipeline:
             return None
         task = self.open_task(arm)
-        phase = self.skill.get(arm)
+        phase = self.phase.get(arm)
         station = (
             task.source
             if task and phase == Phase.APPROACH
@@ -506,7 +506,7 @@ class Dispatcher:
         the grasp), placing on it (its transfer granted, the place), or still grasping or placing there after its
         task closed. One arm at a fixture at a time, whatever the ledger thinks is there: the guard checks moves,
         but two arms working one spot leave it no safe order."""
-        phase = self.skill[arm]
+        phase = self.phase[arm]
         if arm in self.lost:
             return False
         if station in self.last_stations[arm] and phase in LOCAL_PHASES:

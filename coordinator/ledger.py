@@ -1,7 +1,7 @@
 """The task ledger: line events in, tasks out, every part accounted for at the end.
 
 Pure bookkeeping on sim time: the coordinator node feeds it the sim's line events
-(`arrived`, `at_station`, `lost`) and each arm's skill report, and asks it for
+(`arrived`, `at_station`, `lost`) and each arm's phase report, and asks it for
 the tasks that are ready. A part's route comes from the scene; an assembly
 fixture (`Station.assembles`) takes its layers bottom first and lets the bottom
 part move on only once the stack is whole.
@@ -135,7 +135,7 @@ class Ledger:
 
     # --- arms -----------------------------------------------------------------------
     def arm_report(
-        self, arm: str, task_id: int | None, skill: str, now_s: float, failure: str = "", failure_code: str = ""
+        self, arm: str, task_id: int | None, phase: str, now_s: float, failure: str = "", failure_code: str = ""
     ) -> None:
         """What an arm's skill says it is doing (echoed by the sim each tick); a failure's code decides what
         follows, its text explains."""
@@ -143,15 +143,15 @@ class Ledger:
         if task is None or task.arm != arm or task.state not in OPEN_STATES:
             return
         part = self.parts[task.part_id]
-        if skill in HOLDING_PHASES and part.location != HELD:
+        if phase in HOLDING_PHASES and part.location != HELD:
             part.held_from, part.held_stack = part.location, tuple(self.stacks.get(part.location, ()))
             self._leave_stack(part)
             part.location = HELD
-        if task.state == TaskState.ASSIGNED and skill not in IDLE_PHASES:
+        if task.state == TaskState.ASSIGNED and phase not in IDLE_PHASES:
             task.state = TaskState.ACTIVE
-        if skill == Phase.FAILED:
+        if phase == Phase.FAILED:
             self._fail_attempt(task, failure or "the arm's skill failed", failure_code)
-        elif skill == Phase.DONE:
+        elif phase == Phase.DONE:
             first = self._finished_at.setdefault(task.task_id, now_s)
             if now_s - first > PLACED_GRACE_S:
                 self._fail_attempt(task, f"placed, but never seen resting at {task.target}")

@@ -28,7 +28,7 @@ class ArmState(Message, frozen=True, array_like=True):
 
     Feedback (FollowJointTrajectory's): `goal_id` is the trajectory goal driving the arm (0: none, it holds),
     `desired_q`/`desired_dq` where the tracker wants it now (error = desired - actual `q`); `result_*` is the
-    newest trajectory result (`GoalResultMsg` carries every result). `task_id`, `skill` and `progress` echo
+    newest trajectory result (`GoalResultMsg` carries every result). `task_id`, `phase` and `progress` echo
     the controller's last step, so the coordinator learns what each arm does in step with the sim clock.
     `assign_seq` is the newest order the coordinator had published to this arm when this tick began: a
     controller acts on an order at the first state announcing it (lockstep with a coordinator; -1 otherwise:
@@ -48,7 +48,7 @@ class ArmState(Message, frozen=True, array_like=True):
     held: bool = False
     lost: bool = False
     task_id: int | None = None
-    skill: str = Phase.IDLE.value
+    phase: str = Phase.IDLE.value  # the skill's `robots.phase.Phase`
     progress: float = 0.0
     assign_seq: int = 0
     failure: str = ""
@@ -73,14 +73,15 @@ class ArmState(Message, frozen=True, array_like=True):
 
 class ControllerStep(Message, frozen=True, array_like=True):
     """Controller -> sim: the answer to the state of `tick`: when it wants its next state (`next_tick`), the ids
-    of the goals it sent with this answer (the sim waits for them in lockstep), and what the skill is doing."""
+    of the goals it sent with this answer (the sim waits for them in lockstep), and what the skill is doing (its
+    phase)."""
 
     arm: str
     tick: int
     next_tick: int
     goal_ids: tuple[int, ...] = ()
     task_id: int | None = None
-    skill: str = Phase.IDLE.value
+    phase: str = Phase.IDLE.value
     progress: float = 0.0
     failure: str = ""
     failure_code: str = ""
@@ -157,7 +158,7 @@ class ArmStatus(Message, frozen=True, array_like=True):
     arm: str
     seq: int
     sim_time_s: float
-    skill: str
+    phase: str
     task_id: int | None
     progress: float
     busy_s: float = 0.0

@@ -89,8 +89,8 @@ class ArmModel:
 
     def show(self, state: ArmState) -> None:
         self.update_cfg(np.asarray(state.q), np.asarray(state.gripper_q))
-        what = "LOST" if state.lost else ("held" if state.held else state.skill)
-        task = f" · task {state.task_id}" if state.task_id is not None and state.skill != Phase.IDLE else ""
+        what = "LOST" if state.lost else ("held" if state.held else state.phase)
+        task = f" · task {state.task_id}" if state.task_id is not None and state.phase != Phase.IDLE else ""
         text = f"{self.name} · {what}{task}"
         if self.label.text != text:
             self.label.text = text

@@ -1,6 +1,6 @@
 """The coordinator process: the ledger and allocator of `coordinator/` behind the bus.
 
-It listens to the sim's line events, to its frames (every arm's state, whose skill
+It listens to the sim's line events, to its frames (every arm's state, whose phase
 echo says what each arm does in step with the sim clock, and the parts, in one
 message every `1 / COORD_RATE_HZ` of sim time, `coordinator/cadence.py`) and to the controllers' heartbeats;
 at each frame it refreshes the tasks, allocates them, answers motion requests and
@@ -190,7 +190,7 @@ class CoordinatorNode:
         returned = self.dispatcher.on_arm(
             s.arm,
             np.asarray(s.q),
-            s.skill,
+            s.phase,
             s.sim_time_s,
             task_id=s.task_id,
             failure=s.failure,

@@ -38,7 +38,7 @@ PHASE_COLOURS = {
     Phase.FAILED: "#000000",
 }
 HELD_COLOUR = "#BBBBBB"
-ARM_FIELDS = ("sim_time_s", "arm", "skill", "task_id", "busy", "held", "lost")
+ARM_FIELDS = ("sim_time_s", "arm", "phase", "task_id", "busy", "held", "lost")
 LINE_FIELDS = (
     "sim_time_s",
     "parts_spawned",
@@ -83,9 +83,9 @@ def series_from_recording(recording: Recording) -> RunSeries:
         msg = decoders[raw.key].decode(raw.key, raw.payload)
         if isinstance(msg, ArmState) and msg.tick > last_tick.get(msg.arm, -1):
             last_tick[msg.arm] = msg.tick
-            busy = msg.skill not in (Phase.IDLE, Phase.DONE)
+            busy = msg.phase not in (Phase.IDLE, Phase.DONE)
             series.arm_rows.append(
-                dict(zip(ARM_FIELDS, (msg.sim_time_s, msg.arm, msg.skill, msg.task_id, busy, msg.held, msg.lost)))
+                dict(zip(ARM_FIELDS, (msg.sim_time_s, msg.arm, msg.phase, msg.task_id, busy, msg.held, msg.lost)))
             )
         elif isinstance(msg, Progress):
             progress = msg
@@ -123,13 +123,13 @@ def _line_row(t: float, closest_m: float | None, progress: Progress | None, stat
 
 
 def phase_segments(rows: list[dict], arm: str, end_s: float) -> list[tuple[float, float, str, int | None, bool]]:
-    """(start, duration, skill, task, held) runs of one arm's consecutive states alike: what the Gantt chart draws.
+    """(start, duration, phase, task, held) runs of one arm's consecutive states alike: what the Gantt chart draws.
     A state lasts until the next one; the last until the recording's end."""
     mine = [r for r in rows if r["arm"] == arm]
     ends = [r["sim_time_s"] for r in mine[1:]] + ([max(end_s, mine[-1]["sim_time_s"])] if mine else [])
     segments = []
     for key, run in groupby(
-        zip(mine, ends), key=lambda pair: (pair[0]["skill"], pair[0]["task_id"], pair[0]["held"] or pair[0]["lost"])
+        zip(mine, ends), key=lambda pair: (pair[0]["phase"], pair[0]["task_id"], pair[0]["held"] or pair[0]["lost"])
     ):
         run = list(run)
         start = run[0][0]["sim_time_s"]
@@ -168,14 +168,14 @@ def _gantt(series: RunSeries, path: Path) -> Path:
 
     fig, ax = plt.subplots(figsize=(12, 1.0 + 0.6 * len(series.arms)))
     for row, arm in enumerate(series.arms):
-        for start, length, skill, task, held in phase_segments(series.arm_rows, arm, series.end_s):
+        for start, length, phase, task, held in phase_segments(series.arm_rows, arm, series.end_s):
             if held:
                 ax.broken_barh(
                     [(start, length)], (row - 0.4, 0.8), facecolors=HELD_COLOUR, hatch="//", edgecolor="#888888"
                 )
-            elif skill in PHASE_COLOURS:
-                ax.broken_barh([(start, length)], (row - 0.4, 0.8), facecolors=PHASE_COLOURS[skill])
-                if task is not None and skill == Phase.APPROACH and length > 0.02 * max(series.end_s, 1e-9):
+            elif phase in PHASE_COLOURS:
+                ax.broken_barh([(start, length)], (row - 0.4, 0.8), facecolors=PHASE_COLOURS[phase])
+                if task is not None and phase == Phase.APPROACH and length > 0.02 * max(series.end_s, 1e-9):
                     ax.text(start, row, f" {task}", va="center", ha="left", fontsize=7, color="white")
     ax.set_yticks(range(len(series.arms)), series.arms)
     ax.invert_yaxis()

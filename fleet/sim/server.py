@@ -269,7 +269,7 @@ class SimServer:
                 self.stats.watchdog_holds[name] += 1
             self.outputs.results(name, rs)
         for name, link in self.links.items():
-            if link.last_step is not None and link.last_step.skill not in IDLE_PHASES and not link.lost:
+            if link.last_step is not None and link.last_step.phase not in IDLE_PHASES and not link.lost:
                 self.stats.busy_ticks[name] += 1
                 if link.last_step.request_seq > 0:
                     self.stats.grant_wait_ticks[name] += 1

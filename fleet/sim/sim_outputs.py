@@ -61,7 +61,7 @@ class SimOutputs:
             held=self.sim.estop or link.lost or link.watchdog_held,
             lost=link.lost,
             task_id=step.task_id if step else None,
-            skill=step.skill if step else Phase.IDLE,
+            phase=step.phase if step else Phase.IDLE,
             progress=step.progress if step else 0.0,
             assign_seq=self.sim.assign_seqs[name] if self.sim.coordinator and self.sim.mode == "lockstep" else -1,
             failure=step.failure if step else "",

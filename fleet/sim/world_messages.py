@@ -8,7 +8,7 @@ from fleet.sim.world import PartInfo, World
 
 
 def arm_state(world: World, name: str, **echo: object) -> ArmState:
-    """One arm's joints, gripper and tool pose now; `echo` fills the optional fields (held, skill, ...)."""
+    """One arm's joints, gripper and tool pose now; `echo` fills the optional fields (held, phase, ...)."""
     arm = world.arms[name]
     q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
     tool = arm.tool_pose_world()

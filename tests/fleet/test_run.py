@@ -190,7 +190,7 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
         if (
             not killed
             and beat is not None
-            and beat.skill in WORKING
+            and beat.phase in WORKING
             and beat.part_id >= 0
             and beat.sim_time_s > 3.0
             and coordinator.alive
