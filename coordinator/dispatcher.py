@@ -3,7 +3,7 @@
 Events, arm reports and motion requests go in; at each decision (`decide(tick)`) orders come out,
 in the order they must be published: grants and denials of motion requests, cancellations of
 belt tasks an arm can no longer meet, and new assignments. The coordinator node decodes, feeds a
-`Dispatcher` and publishes what it returns; the PettingZoo env's task mode drives the same class
+`Dispatcher` and publishes what it returns; the PettingZoo env's allocate mode drives the same class
 (its tasks, belt deadlines and reassignment), so the two cannot drift apart. Liveness is the
 caller's to judge (it owns the clock): it calls `arm_lost` and `arm_rejoined`.
 """
@@ -386,7 +386,7 @@ class Dispatcher:
     def start(self, candidate_id: int, arm: ArmView, now_s: float, cost_s: TimeCost) -> AssignOrder:
         """Give the task behind a candidate to `arm`: take it, note when the arm should be free again (the estimate
         the optimal allocator plans a soon-free arm with) and return the order that starts it. Every front end
-        starts tasks here (the coordinator node's decisions, the env's task mode)."""
+        starts tasks here (the coordinator node's decisions, the env's allocate mode)."""
         task = self.take(candidate_id, arm.name, now_s)
         self.busy_until_s[arm.name] = now_s + cost_s(arm, task, self.parts[task.part_id])
         return self.assignment(task, arm.name)
@@ -423,7 +423,8 @@ class Dispatcher:
         return out
 
     def answer(self, tick: int) -> list[GrantOrder]:
-        """Only the motion requests, at `tick`: for a front end whose tasks are chosen elsewhere (the env's task mode,
+        """Only the motion requests, at `tick`: for a front end whose tasks are chosen elsewhere (the env's allocate
+        mode,
         where the policy allocates)."""
         self.last_decision_tick = tick
         return self.answer_motion_requests(tick / self.scene.control_hz)

@@ -14,7 +14,7 @@ from fleet.env import parallel_env
 
 def rollout(arms: int, episodes: int, max_cycles: int, seed: int) -> list[float]:
     """Mean return per agent of each episode under uniformly random actions."""
-    env = parallel_env(n_arms=arms, task="reach", max_cycles=max_cycles)
+    env = parallel_env(n_arms=arms, scenario="reach", max_cycles=max_cycles)
     returns = []
     for episode in range(episodes):
         env.reset(seed=seed + episode)

@@ -1,10 +1,10 @@
-"""A learned allocator: RLlib PPO with action masking in the env's `task` mode, measured against the coordinator's.
+"""A learned allocator: RLlib PPO with action masking in the env's `allocate` mode, measured against the coordinator's.
 
 Each arm chooses, when free, one of the (up to 4) tasks it may serve now, or to wait; the env's
 action mask (`mask_in_observation=True`) goes into RLlib's action-masking module, so the policy
 never picks an empty slot. One policy is shared by every arm. After training (`--minutes` or
 `--iterations`) the policy plays the same seeded episodes as random, greedy, auction and optimal
-(`examples/task_mode_allocators.py`), and the table and the learning curve (CSV, PNG) are written.
+(`examples/allocate_mode_allocators.py`), and the table and the learning curve (CSV, PNG) are written.
 
     python examples/rllib_masked_task_allocator.py --minutes 20 --curve docs/learned_allocator
 """
@@ -20,6 +20,7 @@ import gymnasium as gym
 import numpy as np
 import ray
 import torch
+from allocate_mode_allocators import POLICIES, against, line_totals, play
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
@@ -30,21 +31,20 @@ from ray.tune.registry import register_env
 from rich.console import Console
 from rich.table import Table
 from rllib_ppo_reach import start_ray
-from task_mode_allocators import POLICIES, against, line_totals, play
 from train_ippo_reach import write_rows
 
 from fleet.env import parallel_env
-from fleet.env.task_mode import WAIT
+from fleet.env.allocate_mode import WAIT
 
 ENV_NAME = "clawfleet_task_mode"
 
 
 def cell(config: dict):
-    """The task-mode cell, with the mask in each observation (PettingZoo's convention)."""
+    """The allocate-mode cell, with the mask in each observation (PettingZoo's convention)."""
     return parallel_env(
         scene=config["scene"],
-        task=config["task"],
-        action_mode="task",
+        scenario=config["scenario"],
+        action_mode="allocate",
         n_arms=config["arms"],
         max_cycles=config["max_cycles"],
         control_hz=config["decision_hz"],
@@ -58,7 +58,7 @@ def for_rllib(obs: dict) -> dict:
 
 
 class MaskedTaskEnv(MultiAgentEnv):
-    """The task-mode cell as RLlib's multi-agent env, observations renamed for RLlib's action-masking module.
+    """The allocate-mode cell as RLlib's multi-agent env, observations renamed for RLlib's action-masking module.
 
     Only decisions reach RLlib: on mixed_infeed an arm may only wait at 95% of the 10 Hz steps (busy, or nothing
     to take), and those steps are played here with every arm waiting, their rewards summed into the next step
@@ -127,7 +127,7 @@ class MaskedTaskEnv(MultiAgentEnv):
 def env_config(args: argparse.Namespace) -> dict:
     return {
         "scene": args.scene,
-        "task": args.task,
+        "scenario": args.scenario,
         "arms": args.arms,
         "max_cycles": args.max_cycles,
         "decision_hz": args.decision_hz,
@@ -255,7 +255,7 @@ def save_curve(curve: list[dict], baselines: dict[str, float], stem: Path) -> No
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", choices=("line", "handover"), default="line")
+    parser.add_argument("--scenario", choices=("line", "handover"), default="line")
     parser.add_argument(
         "--scene", default="mixed_infeed", help="the scene (default mixed_infeed: where the allocators differ most)"
     )
@@ -296,12 +296,12 @@ def main() -> int:
         }
         for name in POLICIES:
             results[name] = [
-                play(name, args.task, args.arms, args.max_cycles, s, args.decision_hz, args.scene) for s in seeds
+                play(name, args.scenario, args.arms, args.max_cycles, s, args.decision_hz, args.scene) for s in seeds
             ]
     finally:
         ray.shutdown()
     table = Table(
-        title=f"task mode on {args.scene}, {args.arms} arms: {len(seeds)} evaluation episodes of {args.max_cycles} "
+        title=f"allocate mode on {args.scene}, {args.arms} arms: {len(seeds)} evaluation episodes of {args.max_cycles} "
         f"decisions at {args.decision_hz:g} Hz (seeds {seeds[0]}..{seeds[-1]})"
     )
     for column in (

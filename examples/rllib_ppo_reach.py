@@ -28,7 +28,7 @@ ENV_NAME = "clawfleet_reach"
 
 def make_env(config: dict) -> ParallelPettingZooEnv:
     """A reach cell as RLlib's multi-agent env (the agents are the scene's arm ids)."""
-    return ParallelPettingZooEnv(parallel_env(task="reach", n_arms=config["arms"], max_cycles=config["max_cycles"]))
+    return ParallelPettingZooEnv(parallel_env(scenario="reach", n_arms=config["arms"], max_cycles=config["max_cycles"]))
 
 
 def policy_ids(arms: int, policies: str) -> list[str]:

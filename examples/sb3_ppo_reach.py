@@ -22,13 +22,13 @@ from fleet.env import parallel_env
 
 def make_vec_env(cells: int, cpus: int, arms: int, max_cycles: int):
     """`cells` reach cells as one SB3 vector env (each arm a row), in `cpus` worker processes."""
-    cell = supersuit.pettingzoo_env_to_vec_env_v1(parallel_env(task="reach", n_arms=arms, max_cycles=max_cycles))
+    cell = supersuit.pettingzoo_env_to_vec_env_v1(parallel_env(scenario="reach", n_arms=arms, max_cycles=max_cycles))
     return supersuit.concat_vec_envs_v1(cell, cells, num_cpus=cpus, base_class="stable_baselines3")
 
 
 def mean_return(model: PPO, arms: int, max_cycles: int, seed: int) -> float:
     """One evaluation episode with the shared policy acting for every arm: the mean return per arm."""
-    env = parallel_env(task="reach", n_arms=arms, max_cycles=max_cycles)
+    env = parallel_env(scenario="reach", n_arms=arms, max_cycles=max_cycles)
     obs, _ = env.reset(seed=seed)
     total = {a: 0.0 for a in env.possible_agents}
     while env.agents:

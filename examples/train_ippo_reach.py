@@ -142,7 +142,7 @@ def update(net, opt, batch, adv, ret, cfg: PPOConfig) -> None:
 
 
 def random_return(arms: int, max_cycles: int, episodes: int = 3) -> float:
-    env = parallel_env(n_arms=arms, task="reach", action_mode="ee_delta", max_cycles=max_cycles)
+    env = parallel_env(n_arms=arms, scenario="reach", action_mode="ee_delta", max_cycles=max_cycles)
     out = []
     for e in range(episodes):
         env.reset(seed=10_000 + e)
@@ -157,7 +157,7 @@ def random_return(arms: int, max_cycles: int, episodes: int = 3) -> float:
 
 def train(arms: int, minutes: float, iterations: int | None, max_cycles: int, seed: int, cfg: PPOConfig) -> list[dict]:
     torch.manual_seed(seed)
-    env = parallel_env(n_arms=arms, task="reach", action_mode="ee_delta", max_cycles=max_cycles)
+    env = parallel_env(n_arms=arms, scenario="reach", action_mode="ee_delta", max_cycles=max_cycles)
     agents = list(env.possible_agents)
     obs, _ = env.reset(seed=seed)
     net = ActorCritic(env.observation_space(agents[0]).shape[0], env.action_space(agents[0]).shape[0], cfg.hidden)

@@ -50,7 +50,7 @@ def test_task_mode_comparison_runs():
     result = subprocess.run(
         [
             sys.executable,
-            str(EXAMPLES / "task_mode_allocators.py"),
+            str(EXAMPLES / "allocate_mode_allocators.py"),
             "--arms",
             "2",
             "--max-cycles",

@@ -25,7 +25,7 @@ from fleet.env.cell_env import CellParallelEnv
 @dataclass(frozen=True)
 class EnvRow:
     arms: int
-    task: str
+    scenario: str
     steps: int
     env_s: float
     physics_s: float
@@ -42,10 +42,10 @@ class EnvRow:
 BLOCK_STEPS = 20  # env and replay alternate in blocks of this many steps
 
 
-def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0, distributed: bool = False) -> EnvRow:
+def bench_env(arms: int, scenario: str = "reach", steps: int = 400, seed: int = 0, distributed: bool = False) -> EnvRow:
     """Time `steps` env steps of random actions, and the physics of the same run replayed (see the module doc)."""
-    env = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps, distributed=distributed)
-    replica = CellParallelEnv(n_arms=arms, task=task, max_cycles=steps)
+    env = CellParallelEnv(n_arms=arms, scenario=scenario, max_cycles=steps, distributed=distributed)
+    replica = CellParallelEnv(n_arms=arms, scenario=scenario, max_cycles=steps)
     rng = np.random.default_rng(seed)
     actions = [
         {a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents}
@@ -65,7 +65,7 @@ def bench_env(arms: int, task: str = "reach", steps: int = 400, seed: int = 0, d
     finally:
         env.close()
         replica.close()
-    return EnvRow(arms, task, steps, env_s, physics_s)
+    return EnvRow(arms, scenario, steps, env_s, physics_s)
 
 
 def _drive_targets(
@@ -98,7 +98,7 @@ class VectorRow:
     cells: int
     cpus: int
     arms: int
-    task: str
+    scenario: str
     steps: int
     agent_steps: int
     wall_s: float
@@ -108,11 +108,11 @@ class VectorRow:
         return self.agent_steps / self.wall_s
 
 
-def bench_vector(cells: int, cpus: int, arms: int = 4, task: str = "reach", steps: int = 300) -> VectorRow:
+def bench_vector(cells: int, cpus: int, arms: int = 4, scenario: str = "reach", steps: int = 300) -> VectorRow:
     """`steps` vector steps of `cells` cells in `cpus` worker processes (0: in process), random actions."""
     from fleet.env.vector import vector_env
 
-    venv = vector_env(cells, cpus, task=task, n_arms=arms, max_cycles=10**6)
+    venv = vector_env(cells, cpus, scenario=scenario, n_arms=arms, max_cycles=10**6)
     try:
         obs, _ = venv.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -123,7 +123,7 @@ def bench_vector(cells: int, cpus: int, arms: int = 4, task: str = "reach", step
         wall = time.perf_counter() - start
     finally:
         venv.close()
-    return VectorRow(cells, cpus, arms, task, steps, steps * obs.shape[0], wall)
+    return VectorRow(cells, cpus, arms, scenario, steps, steps * obs.shape[0], wall)
 
 
 class BaselineUnavailable(RuntimeError):

@@ -223,18 +223,19 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
 
     if args.vector:
         table = Table(
-            "cells", "worker processes", "arms per cell", "task", "agent-steps/s", "against 1 cell in process"
+            "cells", "worker processes", "arms per cell", "scenario", "agent-steps/s", "against 1 cell in process"
         )
-        rows = [bench_vector(1, 0, args.arms[0], args.tasks[0], args.steps)]
+        rows = [bench_vector(1, 0, args.arms[0], args.scenarios[0], args.steps)]
         rows += [
-            bench_vector(n, min(n, os.cpu_count() or 1), args.arms[0], args.tasks[0], args.steps) for n in args.vector
+            bench_vector(n, min(n, os.cpu_count() or 1), args.arms[0], args.scenarios[0], args.steps)
+            for n in args.vector
         ]
         for r in rows:
             table.add_row(
                 str(r.cells),
                 str(r.cpus),
                 str(r.arms),
-                r.task,
+                r.scenario,
                 f"{r.agent_steps_per_s:,.0f}",
                 f"{r.agent_steps_per_s / rows[0].agent_steps_per_s:.2f}x",
             )
@@ -243,12 +244,12 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
     baseline = (
         [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []
     )  # before and after: drift hits both
-    rows = [bench_env(n, task, args.steps, distributed=args.distributed) for task in args.tasks for n in args.arms]
+    rows = [bench_env(n, s, args.steps, distributed=args.distributed) for s in args.scenarios for n in args.arms]
     baseline += [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []
     robosuite_rate = sum(b.agent_steps_per_s for b in baseline) / len(baseline) if baseline else None
     table = Table(
         "arms",
-        "task",
+        "scenario",
         "agent-steps/s",
         "env steps/s",
         "env time / raw physics",
@@ -257,7 +258,7 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
     for r in rows:
         table.add_row(
             str(r.arms),
-            r.task,
+            r.scenario,
             f"{r.agent_steps_per_s:,.0f}",
             f"{r.steps / r.env_s:,.0f}",
             f"{r.ratio_to_physics:.2f}",
@@ -350,7 +351,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.set_defaults(func=cmd_bench_lines)
     b = bench.add_parser("env", help="PettingZoo env: agent-steps/s and env time against raw physics")
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
-    b.add_argument("--tasks", nargs="+", choices=("reach", "pick_place", "line"), default=["reach", "line"])
+    b.add_argument("--scenarios", nargs="+", choices=("reach", "pick_place", "line"), default=["reach", "line"])
     b.add_argument("--steps", type=int, default=400)
     b.add_argument("--distributed", action="store_true", help="actions through Zenoh to one process per arm")
     b.add_argument(

@@ -1,7 +1,7 @@
 """clawfleet as a PettingZoo environment: `parallel_env(**kwargs)`, `env(**kwargs)` (AEC) and `raw_env`.
 
 from fleet.env import parallel_env
-env = parallel_env(scene="sorting_line", n_arms=2, task="reach", max_cycles=200)
+env = parallel_env(scene="sorting_line", n_arms=2, scenario="reach", max_cycles=200)
 observations, infos = env.reset(seed=0)
 """
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 
 import gymnasium
 import numpy as np
@@ -22,15 +23,15 @@ from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
 from coordinator.tasks import TaskState
 from fleet.common.scene_loading import load_scene
-from fleet.env.task_mode import SLOT_FEATURES, SLOTS, TaskChooser
-from fleet.env.tasks import SUCCESS_BONUS, TASKS, EnvTask, make_task
+from fleet.env.allocate_mode import SLOT_FEATURES, SLOTS, TaskChooser
+from fleet.env.scenarios import SCENARIOS, SUCCESS_BONUS, Scenario, make_scenario
 from fleet.sim.render import require_render
 from fleet.sim.world import World
 from robots.frames import yaw_transform
 from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 
-ACTION_MODES = (*CONTINUOUS_MODES, "task")
-TASK_MODE_TASKS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
+ACTION_MODES = (*CONTINUOUS_MODES, "allocate")
+ALLOCATE_SCENARIOS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
 RENDER_MODES = ("human", "rgb_array")
 OBS_LIMIT = 100.0  # joint velocities are clipped here; positions and angles never come near
 SEPARATION_CAP_M = 0.2  # the nearest-arm distance an agent sees is capped here: farther arms need no FCL query
@@ -47,7 +48,7 @@ class CellParallelEnv(ParallelEnv):
         self,
         scene: str | None = None,
         n_arms: int | None = None,
-        task: str = "reach",
+        scenario: str = "reach",
         action_mode: str = "joint_delta",
         control_hz: float = 20.0,
         max_cycles: int = 200,
@@ -55,11 +56,13 @@ class CellParallelEnv(ParallelEnv):
         distributed: bool = False,
         monitor_port: int = 8080,
         mask_in_observation: bool = False,
+        task: str | None = None,
     ) -> None:
+        scenario, action_mode = renamed_options(scenario, action_mode, task)
         self._init_kwargs = dict(
             scene=scene,
             n_arms=n_arms,
-            task=task,
+            scenario=scenario,
             action_mode=action_mode,
             control_hz=control_hz,
             max_cycles=max_cycles,
@@ -68,27 +71,28 @@ class CellParallelEnv(ParallelEnv):
             monitor_port=monitor_port,
             mask_in_observation=mask_in_observation,
         )
-        check_options(task, action_mode, render_mode, max_cycles, control_hz, distributed)
-        if mask_in_observation and action_mode != "task":
+        check_options(scenario, action_mode, render_mode, max_cycles, control_hz, distributed)
+        if mask_in_observation and action_mode != "allocate":
             raise ValueError(
-                f"mask_in_observation applies to action_mode 'task' (choices that can be invalid); {action_mode!r} "
+                f"mask_in_observation applies to action_mode 'allocate' (choices that can be invalid); {action_mode!r} "
                 "has none"
             )
         self.mask_in_observation = mask_in_observation
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
-        scene = scene or DEFAULT_SCENE.get(task, "sorting_line")
+        scene = scene or DEFAULT_SCENE.get(scenario, "sorting_line")
         base = load_scene(scene, arms=n_arms)  # None: the scene's own count; a fixed-arm scene refuses another
         self.possible_agents = [a.name for a in base.arms]
-        self.task_model: EnvTask = make_task(task, self.possible_agents)
-        self.task_model.check(base)
-        prepared = self.task_model.prepare(base)
-        self.task, self.action_mode, self.max_cycles, self.render_mode = task, action_mode, max_cycles, render_mode
-        if action_mode == "task":  # skills run at the scene's control rate; an env step is one decision
+        self.scenario: Scenario = make_scenario(scenario, self.possible_agents)
+        self.scenario.check(base)
+        prepared = self.scenario.prepare(base)
+        self.scenario_name, self.action_mode = scenario, action_mode
+        self.max_cycles, self.render_mode = max_cycles, render_mode
+        if action_mode == "allocate":  # skills run at the scene's control rate; an env step is one decision
             self.scene = prepared
             self.ticks_per_step = max(1, round(prepared.control_hz / control_hz))
         else:
-            physics_hz = control_hz * max(1, round(max(self.task_model.physics_hz, control_hz) / control_hz))
+            physics_hz = control_hz * max(1, round(max(self.scenario.physics_hz, control_hz) / control_hz))
             self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
             self.ticks_per_step = 1
         self.world = World(self.scene)
@@ -105,13 +109,13 @@ class CellParallelEnv(ParallelEnv):
             self._arms_of_model.setdefault(self.world.arms[a].spec.uid, []).append(a)
         self.translators = (
             {}
-            if action_mode == "task"
+            if action_mode == "allocate"
             else {  # by model: all its arms' actions in one pass
                 uid: ActionTranslator(self.world.arms[arms[0]].spec, [placements[a] for a in arms], action_mode)
                 for uid, arms in self._arms_of_model.items()
             }
         )
-        self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "task" else None
+        self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "allocate" else None
         self.actuator = None
         if distributed:
             from fleet.env.distributed import RemoteActuators  # the bus only when asked for
@@ -131,7 +135,7 @@ class CellParallelEnv(ParallelEnv):
     @functools.cache
     def observation_space(self, agent: str) -> gymnasium.spaces.Space:
         n, others = self._dof[agent], len(self.possible_agents) - 1
-        if self.action_mode == "task":
+        if self.action_mode == "allocate":
             size = n + n + 1 + 2 + 3 + 3 * others + 1 + 1 + SLOTS * SLOT_FEATURES
         else:
             size = n + n + 1 + 3 + 3 + 3 * others + 1
@@ -142,7 +146,7 @@ class CellParallelEnv(ParallelEnv):
         return gymnasium.spaces.Dict({"observation": box, "action_mask": mask})
 
     def action_mask(self, agent: str) -> np.ndarray:
-        """Task mode: which actions choose something real now (1) or an empty slot (0); waiting (0) is always valid.
+        """Allocate mode: which actions choose something real now (1) or an empty slot (0); waiting (0) is always valid.
         A busy arm may only wait. Two arms may still pick the same task in one step: the later one is refused."""
         mask = np.zeros(SLOTS + 1, dtype=np.int8)
         mask[0] = 1
@@ -151,7 +155,7 @@ class CellParallelEnv(ParallelEnv):
 
     @functools.cache
     def action_space(self, agent: str) -> gymnasium.spaces.Space:
-        if self.action_mode == "task":
+        if self.action_mode == "allocate":
             return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
         return gymnasium.spaces.Box(-1.0, 1.0, shape=(self._translator(agent).action_size,), dtype=np.float32)
 
@@ -172,8 +176,8 @@ class CellParallelEnv(ParallelEnv):
         self.world.reseed_feeders(seed if seed is not None else int(self.np_random.integers(2**32)))
         self.agents = list(self.possible_agents)
         self.cycles = 0
-        self.task_model.home_tool = self._tools()
-        self.task_model.reset(self.world, self.np_random)
+        self.scenario.home_tool = self._tools()
+        self.scenario.reset(self.world, self.np_random)
         start_q = {a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents}
         for uid, translator in self.translators.items():
             translator.reset(np.array([start_q[a] for a in self._arms_of_model[uid]]))
@@ -181,7 +185,7 @@ class CellParallelEnv(ParallelEnv):
         if self.actuator is not None:
             self.actuator.reset(start_q)
         if self.chooser is not None:
-            self.chooser.reset(self.task_model.book.dispatcher)
+            self.chooser.reset(self.scenario.book.dispatcher)
         self._options = self.chooser.choices() if self.chooser else {}
         observations = self._observe()  # places the guard's arms, which the human render draws
         if self.render_mode == "human":
@@ -198,14 +202,14 @@ class CellParallelEnv(ParallelEnv):
             if self.chooser is not None:
                 self.chooser.command()
             self.world.step()
-            self.task_model.on_tick(self.world)
+            self.scenario.on_tick(self.world)
             if self.chooser is not None:
                 self.chooser.report()
         self.cycles += 1
         touching = {name for pair in self.world.inter_arm_contacts() for name in pair}
         joints = self._joints()
         separation, tools = self._separations(joints), self._tools()
-        targets = {a: self.task_model.target(a, self.world) for a in self.agents} if self.chooser is None else {}
+        targets = {a: self.scenario.target(a, self.world) for a in self.agents} if self.chooser is None else {}
         rewards, successes = self._task_rewards(tools, targets)
         team = sum(successes.values()) / max(1, len(self.agents))
         infos = {}
@@ -292,8 +296,8 @@ class CellParallelEnv(ParallelEnv):
         self, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]
     ) -> tuple[dict[str, float], dict[str, bool]]:
         if self.chooser is None:
-            return self.task_model.progress(self.world, tools, targets)
-        gained = self.task_model.book.net_gain()
+            return self.scenario.progress(self.world, tools, targets)
+        gained = self.scenario.book.net_gain()
         rewards, successes = {}, {}
         for a in self.agents:
             outcomes, self.chooser.outcomes[a] = self.chooser.outcomes[a], []
@@ -345,7 +349,7 @@ class CellParallelEnv(ParallelEnv):
                 ]
                 extra = [self.chooser.features(a, self._options.get(a, []))]
             else:
-                target = targets[a] if targets else self.task_model.target(a, self.world)
+                target = targets[a] if targets else self.scenario.target(a, self.world)
                 own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
                 extra = []
             vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
@@ -366,7 +370,7 @@ class CellParallelEnv(ParallelEnv):
         chunks = []
         for a in self.possible_agents:
             arm = self.world.arms[a]
-            target = self.task_model.target(a, self.world) if self.agents or self.cycles else np.zeros(3)
+            target = self.scenario.target(a, self.world) if self.agents or self.cycles else np.zeros(3)
             chunks += [arm.qpos(), arm.qvel(), np.asarray(arm.tool_pose_world().p, float), target]
         return np.concatenate(chunks).astype(np.float32)
 
@@ -398,17 +402,34 @@ def _rebuild(kwargs: dict) -> CellParallelEnv:
     return CellParallelEnv(**kwargs)
 
 
+def renamed_options(scenario: str, action_mode: str, task: str | None) -> tuple[str, str]:
+    """The old names, kept one release: `task=` is now `scenario=`, and `action_mode="task"` is `"allocate"`
+    (a "task" is the ledger's: one part's hop to a station). Each warns once where it is used."""
+    if task is not None:
+        warnings.warn("the env's `task=` is now `scenario=`", DeprecationWarning, stacklevel=3)
+        scenario = task
+    if action_mode == "task":
+        warnings.warn('action_mode="task" is now action_mode="allocate"', DeprecationWarning, stacklevel=3)
+        action_mode = "allocate"
+    return scenario, action_mode
+
+
 def check_options(
-    task: str, action_mode: str, render_mode: str | None, max_cycles: int, control_hz: float, distributed: bool = False
+    scenario: str,
+    action_mode: str,
+    render_mode: str | None,
+    max_cycles: int,
+    control_hz: float,
+    distributed: bool = False,
 ) -> None:
     """Refuse impossible settings up front, each with what is valid."""
-    for name, value, valid in (("task", task, tuple(TASKS)), ("action_mode", action_mode, ACTION_MODES)):
+    for name, value, valid in (("scenario", scenario, tuple(SCENARIOS)), ("action_mode", action_mode, ACTION_MODES)):
         if value not in valid:
             raise ValueError(f"{name} {value!r} is not available; valid: {', '.join(valid)}")
-    if action_mode == "task" and task not in TASK_MODE_TASKS:
+    if action_mode == "allocate" and scenario not in ALLOCATE_SCENARIOS:
         raise ValueError(
-            f"action_mode 'task' chooses among the line's pending tasks; task {task!r} has none to choose (valid with "
-            f"'task': {', '.join(TASK_MODE_TASKS)})"
+            f"action_mode 'allocate' chooses among the line's pending tasks; scenario {scenario!r} has none to choose "
+            f"(valid with 'allocate': {', '.join(ALLOCATE_SCENARIOS)})"
         )
     if distributed and action_mode not in CONTINUOUS_MODES:
         raise ValueError(

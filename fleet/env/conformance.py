@@ -1,4 +1,4 @@
-"""PettingZoo's own conformance tests over every task and action mode the env offers.
+"""PettingZoo's own conformance tests over every scenario and action mode the env offers.
 
     python -m fleet.env.conformance          # prints one line per configuration, exits 1 on a failure
 
@@ -16,16 +16,16 @@ import warnings
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test
 
 from fleet.env import env, parallel_env
-from fleet.env.cell_env import ACTION_MODES, TASK_MODE_TASKS
-from fleet.env.tasks import TASKS
+from fleet.env.cell_env import ACTION_MODES, ALLOCATE_SCENARIOS
+from fleet.env.scenarios import SCENARIOS
 
-CONFIGURATIONS = [(t, m) for t in TASKS for m in ACTION_MODES if m != "task" or t in TASK_MODE_TASKS]
+CONFIGURATIONS = [(s, m) for s in SCENARIOS for m in ACTION_MODES if m != "allocate" or s in ALLOCATE_SCENARIOS]
 
 
-def check(task: str, action_mode: str, n_arms: int | None = 2, cycles: int = 40, **kwargs) -> None:
+def check(scenario: str, action_mode: str, n_arms: int | None = 2, cycles: int = 40, **kwargs) -> None:
     """Run PettingZoo's parallel, AEC, seed and max-cycles tests for one configuration; raises on a failure."""
-    n_arms = 2 if task == "handover" else n_arms
-    options = dict(task=task, action_mode=action_mode, n_arms=n_arms, max_cycles=cycles, **kwargs)
+    n_arms = 2 if scenario == "handover" else n_arms
+    options = dict(scenario=scenario, action_mode=action_mode, n_arms=n_arms, max_cycles=cycles, **kwargs)
     parallel_api_test(parallel_env(**options), num_cycles=cycles)
     api_test(env(**options), num_cycles=cycles)
     parallel_seed_test(lambda: parallel_env(**options), num_cycles=cycles)
@@ -40,15 +40,15 @@ def check(task: str, action_mode: str, n_arms: int | None = 2, cycles: int = 40,
 
 def main() -> int:
     failed = 0
-    for task, mode in CONFIGURATIONS:
+    for scenario, mode in CONFIGURATIONS:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                check(task, mode)
-            print(f"{task} / {mode}: ok", flush=True)
+                check(scenario, mode)
+            print(f"{scenario} / {mode}: ok", flush=True)
         except Exception as exc:  # report every configuration, then fail
             failed += 1
-            print(f"{task} / {mode}: FAILED: {type(exc).__name__}: {exc}", flush=True)
+            print(f"{scenario} / {mode}: FAILED: {type(exc).__name__}: {exc}", flush=True)
     return 1 if failed else 0
 
 

@@ -1,7 +1,7 @@
 """Every arm of a world under its tracker (`robots.tracker`): goals in, drive targets each tick, results out.
 
 The one way joint trajectories reach the physics: the sim server, `fleet trials` and the
-PettingZoo env's task mode all drive their arms through this class.
+PettingZoo env's allocate mode all drive their arms through this class.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The coordinator's decisions as one pure class: events, arm states and requests in, orders out.
 
-The coordinator node and the env's task mode both drive a `Dispatcher`; these tests drive it by hand,
+The coordinator node and the env's allocate mode both drive a `Dispatcher`; these tests drive it by hand,
 with no bus and no clock, as either front end does.
 """
 

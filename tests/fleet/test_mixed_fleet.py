@@ -28,7 +28,7 @@ def test_three_models_share_a_line_in_lockstep_with_zero_contacts():
 def test_the_env_drives_arms_of_different_models_side_by_side():
     from fleet.env import parallel_env
 
-    env = parallel_env(scene="mixed_fleet", task="reach")
+    env = parallel_env(scene="mixed_fleet", scenario="reach")
     observations, _ = env.reset(seed=0)
     assert set(observations) == {"arm_0", "arm_1", "arm_2"}
     spaces = {agent: env.action_space(agent).shape for agent in env.agents}

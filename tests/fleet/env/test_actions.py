@@ -8,7 +8,7 @@ from robots.policy_actions import MAX_DELTA_RAD
 
 
 def test_each_model_s_arms_move_by_their_own_actions_and_a_silent_arm_holds():
-    env = CellParallelEnv(scene="mixed_fleet", task="reach", max_cycles=5)
+    env = CellParallelEnv(scene="mixed_fleet", scenario="reach", max_cycles=5)
     try:
         env.reset(seed=3)
         models = {env.world.arms[a].spec.uid for a in env.possible_agents}

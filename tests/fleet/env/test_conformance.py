@@ -8,14 +8,14 @@ import fleet.env
 from fleet.env import conformance, parallel_env
 
 
-@pytest.mark.parametrize(("task", "mode"), conformance.CONFIGURATIONS)
-def test_pettingzoo_parallel_aec_seed_and_max_cycles_tests_pass(task, mode):
-    conformance.check(task, mode)
+@pytest.mark.parametrize(("scenario", "mode"), conformance.CONFIGURATIONS)
+def test_pettingzoo_parallel_aec_seed_and_max_cycles_tests_pass(scenario, mode):
+    conformance.check(scenario, mode)
 
 
-@pytest.mark.parametrize("task", ["line", "handover"])
-def test_task_mode_with_the_action_mask_in_the_observation_passes_them_too(task):
-    conformance.check(task, "task", mask_in_observation=True)
+@pytest.mark.parametrize("scenario", ["line", "handover"])
+def test_allocate_mode_with_the_action_mask_in_the_observation_passes_them_too(scenario):
+    conformance.check(scenario, "allocate", mask_in_observation=True)
 
 
 def test_ee_delta_moves_the_claw_the_way_it_is_told():
@@ -50,8 +50,8 @@ def test_agents_are_the_arm_ids_and_a_seed_repeats_an_episode():
 
 def test_unknown_options_are_refused_with_the_valid_ones():
     with pytest.raises(ValueError, match="valid: reach, pick_place, handover, line"):
-        parallel_env(task="juggle")
-    with pytest.raises(ValueError, match="valid with 'task': handover, line"):
-        parallel_env(task="reach", action_mode="task")
+        parallel_env(scenario="juggle")
+    with pytest.raises(ValueError, match="valid with 'allocate': handover, line"):
+        parallel_env(scenario="reach", action_mode="allocate")
     with pytest.raises(ValueError, match="exactly 2 arms"):
-        parallel_env(task="handover", scene="sorting_line", n_arms=3)
+        parallel_env(scenario="handover", scene="sorting_line", n_arms=3)

@@ -17,8 +17,8 @@ def _port(endpoint: str) -> int:
 
 @pytest.mark.parametrize("mode", ["joint_delta", "ee_delta"])
 def test_the_bus_path_gives_the_same_observations_and_rewards_as_in_process(mode):
-    remote = parallel_env(task="reach", action_mode=mode, n_arms=2, max_cycles=25, distributed=True)
-    local = parallel_env(task="reach", action_mode=mode, n_arms=2, max_cycles=25)
+    remote = parallel_env(scenario="reach", action_mode=mode, n_arms=2, max_cycles=25, distributed=True)
+    local = parallel_env(scenario="reach", action_mode=mode, n_arms=2, max_cycles=25)
     try:
         obs_r, _ = remote.reset(seed=3)
         obs_l, _ = local.reset(seed=3)
@@ -33,7 +33,7 @@ def test_the_bus_path_gives_the_same_observations_and_rewards_as_in_process(mode
 
 
 def test_closing_stops_every_arm_process_frees_the_bus_port_and_leaves_no_log_folder():
-    env = parallel_env(task="reach", n_arms=2, max_cycles=5, distributed=True)
+    env = parallel_env(scenario="reach", n_arms=2, max_cycles=5, distributed=True)
     env.reset(seed=0)
     procs, port, logs = list(env.actuator.procs.values()), _port(env.actuator.endpoint), env.actuator._logs
     assert len(procs) == 2 and all(p.poll() is None for p in procs) and logs.is_dir()
@@ -49,7 +49,7 @@ def test_closing_stops_every_arm_process_frees_the_bus_port_and_leaves_no_log_fo
 
 
 def test_an_arm_process_that_dies_is_named_in_one_clear_error():
-    env = parallel_env(task="reach", n_arms=2, max_cycles=5, distributed=True)
+    env = parallel_env(scenario="reach", n_arms=2, max_cycles=5, distributed=True)
     try:
         env.reset(seed=0)
         proc = env.actuator.procs["arm_1"]
@@ -63,4 +63,4 @@ def test_an_arm_process_that_dies_is_named_in_one_clear_error():
 
 def test_the_task_mode_runs_its_skills_in_process_and_says_so():
     with pytest.raises(ValueError, match="skills run in process"):
-        parallel_env(task="line", action_mode="task", n_arms=2, distributed=True)
+        parallel_env(scenario="line", action_mode="allocate", n_arms=2, distributed=True)

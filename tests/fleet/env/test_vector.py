@@ -12,7 +12,7 @@ pytest.importorskip("supersuit", reason="the rl extra (supersuit) is not install
 
 from fleet.env.vector import vector_env  # noqa: E402
 
-SETTINGS = dict(task="reach", n_arms=2, max_cycles=30)
+SETTINGS = dict(scenario="reach", n_arms=2, max_cycles=30)
 
 
 def test_each_cell_of_a_vector_runs_as_the_single_env_of_its_seed_and_closing_frees_the_workers():

@@ -9,7 +9,7 @@ from fleet.env import parallel_env
 
 def test_human_render_serves_the_cell_and_frees_its_port_on_close():
     env = parallel_env(
-        task="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=10, render_mode="human", monitor_port=0
+        scenario="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=10, render_mode="human", monitor_port=0
     )
     env.reset(seed=0)
     while env.agents:
@@ -18,7 +18,7 @@ def test_human_render_serves_the_cell_and_frees_its_port_on_close():
     assert monitor.frames == 11  # the reset and every step
     assert monitor.url.startswith("http://127.0.0.1:")
     assert b"<html" in urllib.request.urlopen(monitor.url, timeout=5).read().lower()
-    assert set(monitor.view.parts) == set(env.task_model.part.values())  # both parts drawn
+    assert set(monitor.view.parts) == set(env.scenario.part.values())  # both parts drawn
     port = monitor.port
     env.close()
     with socket.socket() as s:

@@ -52,7 +52,7 @@ def belt_spot_near(
     return c.point_at(s, lateral_m)
 
 
-class EnvTask(ABC):
+class Scenario(ABC):
     """One task of the env. `prepare` shapes the scene before the world is built; `reset` sets an episode up."""
 
     name: str
@@ -86,7 +86,7 @@ class EnvTask(ABC):
         claw's position and `target` now, as the env computed them for this step's observations)."""
 
 
-class Reach(EnvTask):
+class Reach(Scenario):
     """Each arm's claw to its own target, circling a point in front of it."""
 
     name = "reach"
@@ -123,7 +123,7 @@ class Reach(EnvTask):
         return {a: -distance[a] + (1.0 if success[a] else 0.0) for a in self.agents}, success
 
 
-class PickPlace(EnvTask):
+class PickPlace(Scenario):
     """Each arm its own part, set on the stopped belt in front of it, into the station nearest its base."""
 
     name = "pick_place"
@@ -174,7 +174,7 @@ class PickPlace(EnvTask):
         return rewards, success
 
 
-class Handover(EnvTask):
+class Handover(Scenario):
     """Two arms pass one part: the arm nearer the part's spot on the belt (the giver) brings it to the route's
     shared station; the other (the taker) carries it on to the route's last station. One team reward."""
 
@@ -258,7 +258,7 @@ class Handover(EnvTask):
         return rewards, {a: completed for a in self.agents}
 
 
-class Line(EnvTask):
+class Line(Scenario):
     """The full line: parts arrive as the scene says, routes as the scene says; the team earns each part completed
     and loses each part missed, and each arm is drawn towards the nearest part."""
 
@@ -287,10 +287,10 @@ class Line(EnvTask):
         return rewards, {a: gained > 0 for a in self.agents}
 
 
-TASKS: dict[str, type[EnvTask]] = {t.name: t for t in (Reach, PickPlace, Handover, Line)}
+SCENARIOS: dict[str, type[Scenario]] = {t.name: t for t in (Reach, PickPlace, Handover, Line)}
 
 
-def make_task(name: str, agents: list[str]) -> EnvTask:
-    if name not in TASKS:
-        raise ValueError(f"task {name!r} is not available; valid: {', '.join(TASKS)}")
-    return TASKS[name](agents)
+def make_scenario(name: str, agents: list[str]) -> Scenario:
+    if name not in SCENARIOS:
+        raise ValueError(f"task {name!r} is not available; valid: {', '.join(SCENARIOS)}")
+    return SCENARIOS[name](agents)

@@ -1,7 +1,7 @@
-"""Allocation as a policy: the `task` action mode of the env, played by the coordinator's allocators and by a
+"""Allocation as a policy: the `allocate` action mode of the env, played by the coordinator's allocators and by a
 random policy, on the same seeded line. The yardstick a learned allocation policy has to beat.
 
-    python examples/task_mode_allocators.py --task line --arms 2 --max-cycles 300 --episodes 2
+    python examples/allocate_mode_allocators.py --scenario line --arms 2 --max-cycles 300 --episodes 2
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from scipy import stats
 
 from coordinator.allocation import ALLOCATORS, make_allocator
 from fleet.env import parallel_env
-from fleet.env.task_mode import allocator_actions
+from fleet.env.allocate_mode import allocator_actions
 
 POLICIES = ("random", *ALLOCATORS)
 
@@ -35,8 +35,8 @@ def run_episode(env, seed: int, act: Callable[[object, dict], dict]) -> dict:
 
 
 def line_totals(env) -> dict:
-    """A task-mode env's line so far: parts completed and spawned, tasks failed, sim seconds."""
-    totals = env.task_model.book.ledger.totals()
+    """A allocate-mode env's line so far: parts completed and spawned, tasks failed, sim seconds."""
+    totals = env.scenario.book.ledger.totals()
     return {
         "completed": totals["parts_completed"],
         "spawned": totals["parts_spawned"],
@@ -56,11 +56,22 @@ def against(runs: list[dict], baseline: list[dict]) -> str:
 
 
 def play(
-    policy: str, task: str, arms: int | None, max_cycles: int, seed: int, decision_hz: float, scene: str | None = None
+    policy: str,
+    scenario: str,
+    arms: int | None,
+    max_cycles: int,
+    seed: int,
+    decision_hz: float,
+    scene: str | None = None,
 ) -> dict:
-    """One episode (on `scene`, else the task's own) played by `policy` (`random` or an allocator's name)."""
+    """One episode (on `scene`, else the scenario's own) played by `policy` (`random` or an allocator's name)."""
     env = parallel_env(
-        scene=scene, task=task, action_mode="task", n_arms=arms, max_cycles=max_cycles, control_hz=decision_hz
+        scene=scene,
+        scenario=scenario,
+        action_mode="allocate",
+        n_arms=arms,
+        max_cycles=max_cycles,
+        control_hz=decision_hz,
     )
     if policy == "random":
         rng = np.random.default_rng(seed)
@@ -71,9 +82,9 @@ def play(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", choices=("line", "handover"), default="line")
+    parser.add_argument("--scenario", choices=("line", "handover"), default="line")
     parser.add_argument(
-        "--scene", help="a bundled scene or scene file (default: the task's own, sorting_line for line)"
+        "--scene", help="a bundled scene or scene file (default: the scenario's own, sorting_line for line)"
     )
     parser.add_argument(
         "--arms", type=int, default=None, help="arm count (scenes with an arm row; default: the scene's)"
@@ -85,8 +96,8 @@ def main() -> None:
     args = parser.parse_args()
     table = Table(
         title=(
-            f"task mode on {args.scene or args.task}: {args.episodes} episode(s) of {args.max_cycles} decisions at "
-            f"{args.decision_hz:g} Hz"
+            f"allocate mode on {args.scene or args.scenario}: {args.episodes} episode(s) of {args.max_cycles} "
+            f"decisions at {args.decision_hz:g} Hz"
         )
     )
     for column in (
@@ -99,7 +110,7 @@ def main() -> None:
         table.add_column(column)
     results = {
         policy: [
-            play(policy, args.task, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene)
+            play(policy, args.scenario, args.arms, args.max_cycles, args.seed + e, args.decision_hz, args.scene)
             for e in range(args.episodes)
         ]
         for policy in POLICIES

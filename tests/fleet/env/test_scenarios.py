@@ -1,6 +1,6 @@
 """The tasks beyond reach are physically doable through the env's own action interface: a scripted arm
 (Pinocchio top-down IK turned into joint_delta actions) grasps its part with friction and drops it in its bin;
-the coordinator's allocators, through the `task` action mode, complete the handover and line parts."""
+the coordinator's allocators, through the `allocate` action mode, complete the handover and line parts."""
 
 import math
 
@@ -10,8 +10,8 @@ import pytest
 from coordinator.allocation import make_allocator
 from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.env import parallel_env
-from fleet.env.task_mode import allocator_actions
-from fleet.env.tasks import above
+from fleet.env.allocate_mode import allocator_actions
+from fleet.env.scenarios import above
 from fleet.sim.world import World
 from fleet.sim.world_events import PartSpawned
 from robots.frames import yaw_transform
@@ -42,8 +42,8 @@ class ScriptedPick:
 
     def act(self) -> np.ndarray:
         env, a = self.env, self.agent
-        info = env.world.part_info(env.task_model.part[a])
-        surface = env.task_model.start_z[a]
+        info = env.world.part_info(env.scenario.part[a])
+        surface = env.scenario.start_z[a]
         grasp_z = max(surface + info.height_m / 2, surface + self.tip + 0.004)
         q_now = env.joint_targets(a)
         goal, opening, yaw = None, 1.0, self._yaw(info)
@@ -56,7 +56,7 @@ class ScriptedPick:
             if self.closing_steps > 10:
                 self.phase = "lift"
         elif self.phase == "lift":
-            goal, opening, yaw = above(env.task_model.goal[a]) + [0, 0, 0.05], -1.0, None
+            goal, opening, yaw = above(env.scenario.goal[a]) + [0, 0, 0.05], -1.0, None
         if goal is None:
             return np.array([0.0] * len(q_now) + [opening], np.float32)
         q, _ = self.ik.solve(goal, yaw, q_now)
@@ -67,7 +67,7 @@ class ScriptedPick:
 
 
 def test_pick_place_a_scripted_arm_grasps_its_part_and_drops_it_in_its_bin():
-    env = parallel_env(task="pick_place", action_mode="joint_delta", n_arms=2, max_cycles=160)
+    env = parallel_env(scenario="pick_place", action_mode="joint_delta", n_arms=2, max_cycles=160)
     env.reset(seed=1)
     arms = {a: ScriptedPick(env, a) for a in env.agents}
     succeeded, rewards = set(), {a: [] for a in env.agents}
@@ -82,37 +82,38 @@ def test_pick_place_a_scripted_arm_grasps_its_part_and_drops_it_in_its_bin():
 
 
 def test_pick_place_the_part_stays_put_when_nobody_acts():
-    env = parallel_env(task="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=30)
+    env = parallel_env(scenario="pick_place", action_mode="ee_delta", n_arms=2, max_cycles=30)
     env.reset(seed=0)
-    start = {a: env.world.part_info(p).position.copy() for a, p in env.task_model.part.items()}
+    start = {a: env.world.part_info(p).position.copy() for a, p in env.scenario.part.items()}
     still = {a: np.zeros(4, np.float32) + [0, 0, 0, 1] for a in env.agents}
     while env.agents:
         _, _, _, _, infos = env.step(still)
         assert not any(i["success"] for i in infos.values())
-    for a, p in env.task_model.part.items():
+    for a, p in env.scenario.part.items():
         assert np.linalg.norm(env.world.part_info(p).position - start[a]) < 0.005  # the belt is stopped for this task
 
 
-@pytest.mark.parametrize(("task", "allocator", "steps"), [("handover", "optimal", 160), ("line", "greedy", 150)])
-def test_task_mode_the_coordinators_allocators_complete_parts(task, allocator, steps):
-    env = parallel_env(task=task, action_mode="task", n_arms=2, max_cycles=steps, control_hz=5)
+@pytest.mark.parametrize(("scenario", "allocator", "steps"), [("handover", "optimal", 160), ("line", "greedy", 150)])
+def test_allocate_mode_the_coordinators_allocators_complete_parts(scenario, allocator, steps):
+    env = parallel_env(scenario=scenario, action_mode="allocate", n_arms=2, max_cycles=steps, control_hz=5)
     env.reset(seed=0)
     chooser, policy = env.chooser, make_allocator(allocator, env.scene)
     took = 0
     while env.agents:
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
         took += sum(i["choice"] == "took" for i in infos.values())
-    totals = env.task_model.book.ledger.totals()
+    totals = env.scenario.book.ledger.totals()
     assert totals["parts_completed"] >= 1 and took >= 2
-    if task == "line":  # a moving belt (handover stops it): the coordinator's own dispatcher gives belt deadlines too
-        belt_tasks = [t for t in env.task_model.book.ledger.tasks.values() if t.source == "conveyor"]
+    # a moving belt (handover stops it): the coordinator's own dispatcher gives belt deadlines too
+    if scenario == "line":
+        belt_tasks = [t for t in env.scenario.book.ledger.tasks.values() if t.source == "conveyor"]
         assert belt_tasks and all(t.deadline_s is not None for t in belt_tasks)
 
 
-def test_task_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed_repeats():
+def test_allocate_mode_a_choice_of_an_empty_slot_is_refused_with_a_reason_and_a_seed_repeats():
     runs = []
     for _ in range(2):
-        env = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=60, control_hz=5)
+        env = parallel_env(scenario="line", action_mode="allocate", n_arms=2, max_cycles=60, control_hz=5)
         obs, _ = env.reset(seed=4)
         trace = []
         rng = np.random.default_rng(0)
@@ -140,7 +141,7 @@ def test_a_line_episode_draws_its_arrivals_from_its_seed_as_fleet_run_does():
             if isinstance(e, PartSpawned)
         ]
 
-    env = parallel_env(scene="mixed_infeed", task="line", action_mode="task", max_cycles=100, control_hz=10)
+    env = parallel_env(scene="mixed_infeed", scenario="line", action_mode="allocate", max_cycles=100, control_hz=10)
     by_seed = {}
     for seed in (3, 4, 3):
         env.reset(seed=seed)
@@ -155,10 +156,10 @@ def test_a_line_episode_draws_its_arrivals_from_its_seed_as_fleet_run_does():
     assert spawned(world) == by_seed[3][0]
 
 
-def test_task_mode_a_working_arm_is_planned_for_as_the_coordinator_plans_it():
+def test_allocate_mode_a_working_arm_is_planned_for_as_the_coordinator_plans_it():
     """A busy arm's estimated time to free (the dispatcher's, from when its task started) reaches the allocators, as in
     `fleet run`: the optimal allocator may leave a task to an arm that is about to be free."""
-    env = parallel_env(scene="mixed_infeed", task="line", action_mode="task", max_cycles=300, control_hz=10)
+    env = parallel_env(scene="mixed_infeed", scenario="line", action_mode="allocate", max_cycles=300, control_hz=10)
     allocator = make_allocator("optimal", env.scene)
     env.reset(seed=0)
     seen = []
@@ -169,8 +170,8 @@ def test_task_mode_a_working_arm_is_planned_for_as_the_coordinator_plans_it():
     assert env.chooser.dispatcher.busy_until_s[seen[0].name] > env.world.sim_time_s - 1.0
 
 
-def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choices():
-    env = parallel_env(task="line", action_mode="task", n_arms=2, max_cycles=1000, mask_in_observation=True)
+def test_allocate_mode_action_masks_let_a_random_masked_policy_pick_only_real_choices():
+    env = parallel_env(scenario="line", action_mode="allocate", n_arms=2, max_cycles=1000, mask_in_observation=True)
     try:
         observations, infos = env.reset(seed=3)
         assert env.observation_space("arm_0")["action_mask"].shape == (5,)
@@ -197,13 +198,13 @@ def test_task_mode_action_masks_let_a_random_masked_policy_pick_only_real_choice
         env.close()
 
 
-def test_action_masks_in_the_observation_are_refused_outside_task_mode():
-    with pytest.raises(ValueError, match="mask_in_observation applies to action_mode 'task'"):
-        parallel_env(task="reach", action_mode="joint_delta", mask_in_observation=True)
+def test_action_masks_in_the_observation_are_refused_outside_allocate_mode():
+    with pytest.raises(ValueError, match="mask_in_observation applies to action_mode 'allocate'"):
+        parallel_env(scenario="reach", action_mode="joint_delta", mask_in_observation=True)
 
 
-def test_task_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_run_does():
-    env = parallel_env(task="line", scene="assembly_line", action_mode="task", max_cycles=300, control_hz=5)
+def test_allocate_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_run_does():
+    env = parallel_env(scenario="line", scene="assembly_line", action_mode="allocate", max_cycles=300, control_hz=5)
     env.reset(seed=0)
     chooser, policy = env.chooser, make_allocator("optimal", env.scene)
     assert chooser.grants and all(s.grants_required for s in chooser.skills.values())
@@ -211,22 +212,22 @@ def test_task_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fleet_r
     while env.agents:
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
         touching += sum(i["collision"] for i in infos.values())
-    dispatcher = env.task_model.book.dispatcher
+    dispatcher = env.scenario.book.dispatcher
     held = dispatcher.held_at_station_s
     assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, (
         held
     )  # the top waited for its base, the ship for its top
     assert touching == 0 and dispatcher.ledger.totals()["parts_completed"] >= 3
-    lone = parallel_env(task="line", scene="pick_cell", action_mode="task", max_cycles=2, control_hz=5)
+    lone = parallel_env(scenario="line", scene="pick_cell", action_mode="allocate", max_cycles=2, control_hz=5)
     lone.reset(seed=0)
     assert not lone.chooser.grants, "a lone arm has nobody to ask, as in fleet run"
 
 
-def test_task_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_fleet_run_does():
-    """mixed_infeed's two arms share the rework tray and the kit bin between them: in task mode they ask for their
+def test_allocate_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_fleet_run_does():
+    """mixed_infeed's two arms share the rework tray and the kit bin between them: in allocate mode they ask for their
     free moves as in `fleet run` (they used to move unasked there, touched and lost tasks: aborted goals, empty
     grasps)."""
-    env = parallel_env(task="line", scene="mixed_infeed", action_mode="task", max_cycles=600, control_hz=10)
+    env = parallel_env(scenario="line", scene="mixed_infeed", action_mode="allocate", max_cycles=600, control_hz=10)
     env.reset(seed=1000)
     chooser, policy = env.chooser, make_allocator("optimal", env.scene)
     assert chooser.grants and chooser.ledger.pipeline == PIPELINE_DEFAULT, "pipelined as fleet run is, by default"
@@ -234,7 +235,17 @@ def test_task_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_flee
     while env.agents:
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
         touching += sum(i["collision"] for i in infos.values())
-    dispatcher = env.task_model.book.dispatcher
+    dispatcher = env.scenario.book.dispatcher
     assert dispatcher.grants_given > 0 and touching == 0
     failed = [t.reason for t in dispatcher.ledger.tasks.values() if t.state.value == "failed"]
     assert not any("aborted" in r or "closed on nothing" in r for r in failed), failed
+
+
+def test_the_old_names_still_work_for_one_release_and_say_the_new_ones():
+    """`task=` was the scenario and `action_mode="task"` the decision-level mode: both still build the same env, with
+    a DeprecationWarning that names the new word."""
+    with pytest.warns(DeprecationWarning, match="scenario="):
+        old = parallel_env(task="line", n_arms=2, max_cycles=2, control_hz=5, action_mode="allocate")
+    with pytest.warns(DeprecationWarning, match='action_mode="allocate"'):
+        mode = parallel_env(scenario="line", n_arms=2, max_cycles=2, control_hz=5, action_mode="task")
+    assert old.scenario_name == mode.scenario_name == "line" and old.action_mode == mode.action_mode == "allocate"
