@@ -46,7 +46,7 @@ def test_ippo_training_runs_and_writes_its_curve(tmp_path):
     assert (tmp_path / "curve.png").stat().st_size > 1000
 
 
-def test_task_mode_comparison_runs():
+def test_allocate_mode_comparison_runs():
     result = subprocess.run(
         [
             sys.executable,

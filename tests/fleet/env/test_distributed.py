@@ -61,6 +61,6 @@ def test_an_arm_process_that_dies_is_named_in_one_clear_error():
         env.close()
 
 
-def test_the_task_mode_runs_its_skills_in_process_and_says_so():
+def test_the_allocate_mode_runs_its_skills_in_process_and_says_so():
     with pytest.raises(ValueError, match="skills run in process"):
         parallel_env(scenario="line", action_mode="allocate", n_arms=2, distributed=True)
