@@ -178,3 +178,31 @@ def test_ci_runs_the_readme_commands_as_written():
     assert tests in ci.splitlines(), "the README's test command, line for line"
     assert any(line.startswith(main_job) for line in ci.splitlines()), "the README's main job"
     assert "venv" in main_job and "venv" in tests, "both commands make the virtualenv they install into"
+
+
+def test_every_name_the_glossary_points_to_exists():
+    """`docs/glossary.md` names the code that holds each word (`coordinator.tasks.Task`, ...): each such dotted name
+    imports, so the glossary cannot keep a word the code renamed."""
+    import importlib
+    import re
+
+    text = (ROOT / "docs" / "glossary.md").read_text()
+    names = set(re.findall(r"`((?:scenes|robots|coordinator|fleet)(?:\.\w+)+)`", text))
+    assert len(names) >= 15
+    missing = []
+    for name in sorted(names):
+        parts = name.split(".")
+        for cut in range(len(parts), 0, -1):  # the longest importable module, then attributes
+            try:
+                obj = importlib.import_module(".".join(parts[:cut]))
+            except ImportError:
+                continue
+            try:
+                for attr in parts[cut:]:
+                    obj = getattr(obj, attr)
+            except AttributeError:
+                missing.append(name)
+            break
+        else:
+            missing.append(name)
+    assert not missing, f"the glossary names code that is not there: {missing}"

@@ -31,7 +31,7 @@ from coordinator.tasks import OPEN_STATES, Task, TaskState
 from fleet.sim.observe import arm_observation, base_transform, part_observations
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
-from robots.skills.interface import PickPlaceTask
+from robots.skills.interface import PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
@@ -184,7 +184,7 @@ class TaskChooser:
         )
         task = self.ledger.tasks[order.task_id]
         self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
-        job = PickPlaceTask(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
+        job = PickPlaceJob(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
         parts = part_observations(self.world)
         self.skills[agent].start(
             job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id]

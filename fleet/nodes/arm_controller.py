@@ -35,7 +35,7 @@ from fleet.common.processes import add_scene_arguments, node_arguments, write_re
 from robots.frames import yaw_transform
 from robots.phase import Phase
 from robots.registry import get_robot
-from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
+from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
@@ -270,7 +270,7 @@ class ArmController:
         )
         if self.pending is not None and self.skill.available:
             a, self.pending = self.pending, None
-            task = PickPlaceTask(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
+            task = PickPlaceJob(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
             self.task_id = a.task_id
             part = self.parts.get(a.part_id)
             if part is None:
@@ -285,7 +285,7 @@ class ArmController:
         if self.skill.active:
             self.busy_s += self.skill.decision_period_s
         goals = self.skill.step(obs, self.parts)
-        if self.skill.task is None:  # clearing the way home: no task of the coordinator's
+        if self.skill.job is None:  # clearing the way home: no task of the coordinator's
             self.task_id = None
         for goal in goals:
             self._goal_pub.put(encode(goal_message(self.arm, goal)))
@@ -329,7 +329,7 @@ class ArmController:
         """The status the coordinator watches for liveness, with what the arm is doing: its phase, and the
         assignment it works on (or has taken and not started), which a respawned coordinator adopts."""
         self.seq += 1
-        pending, task = self.pending, self.skill.task  # read once: the heartbeat runs on its own thread
+        pending, task = self.pending, self.skill.job  # read once: the heartbeat runs on its own thread
         task_id, part_id, place = self.task_id, -1, ()
         if pending is not None and pending.task_id is not None:
             task_id, part_id, place = pending.task_id, pending.part_id, tuple(pending.place_xyz)

@@ -20,7 +20,7 @@ from fleet.sim.world import WALL_M, World
 from robots.frames import wrap_angle
 from robots.kinematics import KinematicModel
 from robots.registry import get_robot
-from robots.skills.interface import PickPlaceTask
+from robots.skills.interface import PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, Phase, PickPlaceSkill
 from scenes.schema import Arrival, Scene
 
@@ -129,7 +129,7 @@ def run_trial(
     part_id = world.spawn_now("trial_parts")
     world.step(int(SETTLE_S / world.control_dt_s))
     station = world.scene_model.station(bin_name)
-    task = PickPlaceTask(
+    task = PickPlaceJob(
         part_id=part_id,
         surface_z_m=world.scene_model.conveyor.pose.xyz[2],
         place_xyz=(station.pose.xyz[0], station.pose.xyz[1], station.pose.xyz[2] + WALL_M),

@@ -41,7 +41,7 @@ class PartObservation:
 
 
 @dataclass(frozen=True)
-class PickPlaceTask:
+class PickPlaceJob:
     """Pick part `part_id` from a surface at `surface_z_m` and set it down with its bottom at `place_xyz`."""
 
     part_id: int

@@ -33,7 +33,7 @@ from robots.frames import rotation_from_wxyz, wrap_angle
 from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
 from robots.kinematics import KinematicModel
 from robots.phase import ORDER, Phase
-from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
+from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment, quintic
@@ -140,7 +140,7 @@ class PickPlaceSkill:
         self.top_down = TopDownIK(spec, transform_base_to_world, self.km)
         self.phase = Phase.IDLE
         self.failure: Failure | None = None  # why the last task failed
-        self.task: PickPlaceTask | None = None
+        self.job: PickPlaceJob | None = None
         self.ik_failures = 0
         self.goal_id = 0  # ids of the goals this skill sends: increasing over its whole life
         self.sent_goals: set[int] = set()  # trajectory goals of the current task
@@ -259,14 +259,14 @@ class PickPlaceSkill:
         )
 
     # --- the state machine ----------------------------------------------------------
-    def start(self, task: PickPlaceTask, obs: ArmObservation, part: PartObservation) -> None:
+    def start(self, job: PickPlaceJob, obs: ArmObservation, part: PartObservation) -> None:
         """Begin a pick of `part`; fails at once, with a reason, if the part cannot be reached."""
         t = self.timing
         self._now = obs.time_s
         self._idle_since_s = None
         self._detour_to = None
         self._stood_by, self._transfer_to = False, None
-        self.task, self.failure = task, None
+        self.job, self.failure = job, None
         self.sent_goals = set()
         self._timeline = []
         self._unconfirmed = []
@@ -274,10 +274,10 @@ class PickPlaceSkill:
         self.grasp_yaw = self._grasp_yaw(part)
         self.grasp_centre = self.spec.grasp_centre_tool(part.width_m)
         tip = self.spec.fingertip_below_tool_m
-        self.grasp_z = max(task.surface_z_m + part.height_m / 2, task.surface_z_m + tip + 0.004)
-        self.grasp_z = min(self.grasp_z, task.surface_z_m + part.height_m + tip - 0.010)
-        self.tool_above_bottom_m = self.grasp_z - task.surface_z_m
-        self.velocity = np.asarray(task.surface_velocity, float)
+        self.grasp_z = max(job.surface_z_m + part.height_m / 2, job.surface_z_m + tip + 0.004)
+        self.grasp_z = min(self.grasp_z, job.surface_z_m + part.height_m + tip - 0.010)
+        self.tool_above_bottom_m = self.grasp_z - job.surface_z_m
+        self.velocity = np.asarray(job.surface_velocity, float)
         width = part.width_m + t.pregrasp_clearance_m
         self.pregrasp_opening = min(1.0, self.spec.opening_for_width(width))
         self.part_height = part.height_m
@@ -352,15 +352,15 @@ class PickPlaceSkill:
         keeps the other arms clear of these too, so an arm never moves where no check has looked."""
         t = self.timing
         late = self.decision_period_s + self.latency_s  # the stage may begin this much after the move ends
-        if self.phase == Phase.APPROACH and self.task is not None:
+        if self.phase == Phase.APPROACH and self.job is not None:
             d, c, lift = t.descend_s, t.close_s, t.lift_s
             v = self.velocity
             down = self._grasp_world
             points = [down + v * d, down + v * (d + c), down + v * (d + c + 0.15) + self._pick_up * t.lift_m]
             times = [d, d + c, d + c + lift]
             yaw, tilt = self.grasp_yaw, self.pick_tilt_rad
-        elif self.phase == Phase.TRANSFER and self._detour_to is None and self.task is not None:
-            place = np.asarray(self.task.place_xyz, float)
+        elif self.phase == Phase.TRANSFER and self._detour_to is None and self.job is not None:
+            place = np.asarray(self.job.place_xyz, float)
             release = place + [0, 0, self.tool_above_bottom_m + t.place_drop_m]
             above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
             points, yaw, tilt = [release, release, above], self.place_yaw, self.place_tilt_rad
@@ -411,12 +411,12 @@ class PickPlaceSkill:
         """Told to stand by (once a task, a transfer only): move to a spot `standby_back` of the way from the place's
         hover point to the arm's base and `standby_up_m` higher, the part in the claw; from there the transfer
         is asked for again. Where that spot cannot be reached, the transfer is asked for again from here."""
-        if self.phase != Phase.TRANSFER or self._detour_to is not None or self._stood_by or self.task is None:
+        if self.phase != Phase.TRANSFER or self._detour_to is not None or self._stood_by or self.job is None:
             self._ask(time_s)
             return
         self._stood_by, self._transfer_to = True, self.segment.q_end.copy()
         t = self.timing
-        place = np.asarray(self.task.place_xyz, float)
+        place = np.asarray(self.job.place_xyz, float)
         above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
         back = (self.top_down.base_to_world[:2, 3] - above[:2]) * t.standby_back
         q, ok = self._ik(
@@ -570,7 +570,7 @@ class PickPlaceSkill:
         if self._at_home(q):
             return
         self._now = obs.time_s
-        self.task, self.failure = None, None
+        self.job, self.failure = None, None
         self.sent_goals, self._timeline, self._unconfirmed = set(), [], []
         self.q_cmd = q.copy()
         self._idle_since_s = None
@@ -591,7 +591,7 @@ class PickPlaceSkill:
         while self._timeline and self._timeline[0][0] <= now + 1e-9:
             self._enter(self._timeline[0][1], self._timeline[0][0])
             self._timeline.pop(0)
-        part = parts.get(self.task.part_id) if self.task is not None else None
+        part = parts.get(self.job.part_id) if self.job is not None else None
         if self.request is not None:  # holding for a grant
             if self.phase == Phase.APPROACH and part is not None and now - self.request.asked_at_s > REPLAN_AFTER_S:
                 self._plan_approach(obs, part)  # the part moved on: a fresh plan, asked for again
@@ -636,7 +636,7 @@ class PickPlaceSkill:
         """Descend onto the part following it, close, lift: one goal from the approach's end, and the close."""
         t = self.timing
         if part is None:
-            self._fail(FailureCode.PART_VANISHED, f"part {self.task.part_id} vanished before the grasp")
+            self._fail(FailureCode.PART_VANISHED, f"part {self.job.part_id} vanished before the grasp")
             return
         start = self._earliest(self.plan_end_s)
         seen_at = now
@@ -669,11 +669,9 @@ class PickPlaceSkill:
         t, now = self.timing, obs.time_s
         if self._gripper_opening(obs) < 0.03:
             self._send_gripper(1.0, None)
-            self._fail(
-                FailureCode.GRASP_MISSED, f"grasp of part {self.task.part_id} missed: the claw closed on nothing"
-            )
+            self._fail(FailureCode.GRASP_MISSED, f"grasp of part {self.job.part_id} missed: the claw closed on nothing")
             return
-        place = np.asarray(self.task.place_xyz, float)
+        place = np.asarray(self.job.place_xyz, float)
         self.place_yaw = self._natural_yaw(place)
         found = None
         if self.spec.carry_tilted:  # the part is carried as it was picked, not turned in the jaws on the way
@@ -689,7 +687,7 @@ class PickPlaceSkill:
         """Lower, release, retreat: one goal from the transfer's end, and the claw opening at the release."""
         t = self.timing
         start = self._earliest(self.plan_end_s)
-        place = np.asarray(self.task.place_xyz, float)
+        place = np.asarray(self.job.place_xyz, float)
         release_z = place[2] + self.tool_above_bottom_m + t.place_drop_m
         lo, rel, back = t.lower_s, t.release_s, t.retreat_s
         times = np.arange(KNOT_S, lo + rel + back + 1e-9, KNOT_S)

@@ -6,7 +6,7 @@ import numpy as np
 from robots.frames import yaw_transform
 from robots.joint_trajectory import GripperGoal, TrajectoryGoal
 from robots.registry import get_robot
-from robots.skills.interface import ArmObservation, PartObservation, PickPlaceTask
+from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
 from robots.skills.pick_place import REPLAN_AFTER_S, Phase, PickPlaceSkill
 
 SPEC = get_robot("openclaw")
@@ -26,7 +26,7 @@ def part_at(x: float, t: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> PartObservati
 
 def started(velocity=(0.0, 0.0, 0.0)) -> PickPlaceSkill:
     skill = PickPlaceSkill(SPEC, BASE, grants_required=True)
-    task = PickPlaceTask(7, 0.08, (0.3, -0.55, 0.04), velocity)
+    task = PickPlaceJob(7, 0.08, (0.3, -0.55, 0.04), velocity)
     skill.start(task, obs(SPEC.home_q, 0.0), part_at(0.0, 0.0, velocity))
     return skill
 
@@ -114,7 +114,7 @@ def test_an_arm_left_idle_away_from_home_goes_home_and_one_at_home_stays():
     skill.step(obs(away, 5.0 + skill.timing.clear_after_s / 2), {})
     assert skill.request is None, "a new task may still come: not yet"
     skill.step(obs(away, 5.0 + skill.timing.clear_after_s), {})
-    assert skill.phase == Phase.HOME and skill.task is None and np.allclose(skill.request.q_to, SPEC.home_q)
+    assert skill.phase == Phase.HOME and skill.job is None and np.allclose(skill.request.q_to, SPEC.home_q)
     at_home = PickPlaceSkill(SPEC, BASE, grants_required=True)
     for k in range(5):
         at_home.step(obs(SPEC.home_q, k * 1.0), {})
@@ -141,7 +141,7 @@ def test_a_request_carries_the_local_stage_that_follows_it_without_a_grant():
         "lowered, held while the claw opens"
     )
     tool = [(BASE @ moving.km.frame_pose(moving.km.full_q(np.asarray(q))))[:3, 3] for q in place.then_q]
-    assert np.allclose(tool[0][:2], moving.task.place_xyz[:2], atol=0.005), "lowered onto the place"
+    assert np.allclose(tool[0][:2], moving.job.place_xyz[:2], atol=0.005), "lowered onto the place"
     assert tool[2][2] > tool[0][2] + 0.05, "and back up"
 
 
@@ -153,7 +153,7 @@ def test_an_arm_on_its_way_home_may_take_the_next_task_and_approaches_from_where
     assert skill.phase == Phase.HOME and skill.active and skill.available
     assert not started().available, "an arm at work is not available"
     on_the_way = (np.asarray(SPEC.home_q) + away) / 2
-    task = PickPlaceTask(7, 0.08, (0.3, -0.55, 0.04), (0.0, 0.0, 0.0))
+    task = PickPlaceJob(7, 0.08, (0.3, -0.55, 0.04), (0.0, 0.0, 0.0))
     skill.start(task, obs(on_the_way, 2.0), part_at(0.0))
     assert skill.phase == Phase.APPROACH and np.allclose(skill.request.q_from, on_the_way), (
         "home given up for the approach"
