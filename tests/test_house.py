@@ -1,4 +1,5 @@
-"""The house rules of `docs/conventions.md` ("The house: packages and the layers of `fleet/`"), checked with `ast`: which package may import which,
+"""The house rules of `docs/conventions.md` ("The house: packages and the layers of `fleet/`"), checked with `ast`:
+which package may import which,
 no loose module at `fleet/`'s top, no import from a lower layer of `fleet/` to a higher one, and no cycle."""
 
 from __future__ import annotations
