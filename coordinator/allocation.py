@@ -322,9 +322,8 @@ class OptimalAssignment:
             [[w + cost_of(a, t, later(parts[t.part_id], w)) for a, w in zip(columns, wait_s)] for t in pending]
         )
         coming = self._coming(pending, free, parts, cost, cost_of)  # belt parts a free arm can take once in its reach
-        cost += URGENCY_S_PER_S * np.array(
-            [[due_s(t)] for t in pending]
-        )  # more tasks than arms: the sooner due go first
+        # more tasks than arms: the sooner due go first
+        cost += URGENCY_S_PER_S * np.array([[due_s(t)] for t in pending])
         chosen = sorted(assign_min_cost(cost), key=lambda rc: (cost[rc], rc))
         busy, out = set(busy_stations), []
         for r, c in chosen:  # two tasks for one station in the same round: the cheaper goes first

@@ -149,9 +149,8 @@ class ArmGeometry:
         )
         self.radii_m = np.array([s.radius_m for s in self.shapes])
         cover = np.concatenate([s.cover for s in self.shapes])
-        self.cover_shape = np.repeat(
-            np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes]
-        )  # each sphere's shape
+        # each sphere's shape
+        self.cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])
         self._cover_local = np.concatenate([cover[:, :3], np.ones((len(cover), 1))], axis=1)
         self.cover_radii_m = cover[:, 3]
         self.transforms = np.tile(np.eye(4), (len(self.shapes), 1, 1))  # each shape in the world, as placed

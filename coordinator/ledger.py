@@ -66,9 +66,8 @@ class Ledger:
         self._leave_stack(part)
         part.location = station
         task = self._open_task(part_id)
-        if station != part.next_station and station in self._alternatives(
-            part
-        ):  # another bin of its colour does as well
+        # another bin of its colour does as well
+        if station != part.next_station and station in self._alternatives(part):
             part.route[part.hop] = station
             if task is not None:
                 task.retarget(station)

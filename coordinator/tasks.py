@@ -44,9 +44,8 @@ class PartRecord:
     reason: str = ""
     held_from: str | None = None  # where the part was when an arm took it (and the stack it was in then)
     held_stack: tuple[int, ...] = ()
-    refused_by: set[str] = field(
-        default_factory=set
-    )  # arms that could not grasp it as it lies (`FailureCode.UNREACHABLE`)
+    # arms that could not grasp it as it lies (`FailureCode.UNREACHABLE`)
+    refused_by: set[str] = field(default_factory=set)
 
     @property
     def next_station(self) -> str | None:

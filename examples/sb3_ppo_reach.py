@@ -57,9 +57,8 @@ def main() -> int:
         model = PPO(
             "MlpPolicy", venv, n_steps=args.n_steps, batch_size=min(256, args.n_steps * venv.num_envs), verbose=0
         )
-        model.set_logger(
-            Logger(folder=None, output_formats=[])
-        )  # SB3's default makes an empty SB3-<time> folder in /tmp
+        # SB3's default makes an empty SB3-<time> folder in /tmp
+        model.set_logger(Logger(folder=None, output_formats=[]))
         before = mean_return(model, args.arms, args.max_cycles, seed=1000)
         start = time.perf_counter()
         model.learn(total_timesteps=args.timesteps)

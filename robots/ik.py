@@ -81,9 +81,8 @@ def _solve_once(
     pos_err = ang_err = np.inf
     best_err, best_at = np.inf, 0
     for it in range(1, opts.max_iterations + 1):
-        jac = pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[
-            :, cols
-        ]  # forward kinematics too
+        # forward kinematics too
+        jac = pin.computeFrameJacobian(model, data, q, frame, pin.LOCAL_WORLD_ALIGNED)[:, cols]
         pose = pin.updateFramePlacement(model, data, frame)  # the tool's pose at q, from that pass
         p, r = pose.translation, pose.rotation
         e_pos = p_t - p

@@ -41,10 +41,8 @@ class KinematicModel:
             column = pin.getJointJacobian(self.model, self.data, joint, pin.ReferenceFrame.WORLD)[
                 :, self.model.joints[joint].idx_v
             ]
-            self._pan = (
-                self.data.oMi[joint].translation.copy(),
-                1.0 if column[5] >= 0 else -1.0,
-            )  # angular part: the axis
+            # angular part: the axis
+            self._pan = (self.data.oMi[joint].translation.copy(), 1.0 if column[5] >= 0 else -1.0)
         return self._pan
 
     @property

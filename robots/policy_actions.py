@@ -71,9 +71,8 @@ class ActionTranslator:
                 f"a {self.mode} action has {self.action_size} entries (one row per arm, {self.arms} here), got shape "
                 f"{actions.shape}"
             )
-        actions = np.minimum(
-            np.maximum(actions.reshape(self.arms, -1), -1.0), 1.0
-        )  # np.clip's own overhead is twice these two ufuncs'
+        # np.clip's own overhead is twice these two ufuncs'
+        actions = np.minimum(np.maximum(actions.reshape(self.arms, -1), -1.0), 1.0)
         self.q_target = np.minimum(
             np.maximum(self.q_target + self._joint_steps(actions[:, :-1]), self.lower), self.upper
         )

@@ -57,15 +57,13 @@ class TopDownIK:
         self.approach_axis_only = spec.arm_dof < 6
         self.options = options
         # with its roll joint set, a short arm meets position and axis only nearly (the roll axis misses the tool point)
-        self._quick_options = dataclasses.replace(
-            options, restarts=0
-        )  # `solve(quick=True)`: one attempt from the start given
+        # `solve(quick=True)`: one attempt from the start given
+        self._quick_options = dataclasses.replace(options, restarts=0)
         self._turn_options = dataclasses.replace(
             options, tolerance_m=TURNED_TOLERANCE_M, tolerance_rad=TURNED_TOLERANCE_RAD, restarts=0, rotation_weight=0.1
         )
-        pan_origin_base, self.pan_sign = (
-            self.km.first_joint_axis()
-        )  # where the arm turns, and which way (SO-101: about -z)
+        # where the arm turns, and which way (SO-101: about -z)
+        pan_origin_base, self.pan_sign = self.km.first_joint_axis()
         self.pan_origin_world = (self.base_to_world @ np.append(pan_origin_base, 1.0))[:3]
         self.yaw_offset = self._home_yaw_offset()
         step = math.radians(TILT_STEP_DEG)

@@ -80,10 +80,8 @@ class ArmTracker:
         self.watchdog_deadline_s = math.inf
         self.clamped = 0
         self.last: GoalResult | None = None  # the newest trajectory result, echoed in the arm's state
-        self.desired_now: tuple[np.ndarray, np.ndarray] = (
-            self.hold_q.copy(),
-            np.zeros_like(self.hold_q),
-        )  # the last targets
+        # the last targets
+        self.desired_now: tuple[np.ndarray, np.ndarray] = (self.hold_q.copy(), np.zeros_like(self.hold_q))
 
     # --- goals in -------------------------------------------------------------------
     def submit(self, goal: ArmGoal, now_s: float) -> list[GoalResult]:

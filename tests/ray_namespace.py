@@ -26,9 +26,8 @@ def loopback_namespace() -> Iterator[None]:
     """The namespace, with its loopback up (skips the test where namespaces cannot be made)."""
     made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
     if made.returncode != 0 and "File exists" in made.stderr and not _pids_in_namespace():
-        subprocess.run(
-            ["ip", "netns", "del", NETNS], capture_output=True
-        )  # left by a run that was killed: nothing runs in it
+        # left by a run that was killed: nothing runs in it
+        subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
         made = subprocess.run(["ip", "netns", "add", NETNS], capture_output=True, text=True)
     if made.returncode != 0:
         pytest.skip(f"cannot make a network namespace here: {made.stderr.strip()}")

@@ -90,9 +90,8 @@ def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
         stop_children(procs)
         shutil.rmtree(logs, ignore_errors=True)
     hz = world.scene_model.control_hz
-    v1 = (
-        2 * hz + hz / 10 + hz / arms
-    )  # state + command every tick, a heartbeat every 10th, the parts every tick (shared)
+    # state + command every tick, a heartbeat every 10th, the parts every tick (shared)
+    v1 = 2 * hz + hz / 10 + hz / arms
     return BusRow(
         arms, ticks, float(np.percentile(rtt, 50)), float(np.percentile(rtt, 99)), ticks / wall, round(per_arm, 1), v1
     )

@@ -241,9 +241,8 @@ def cmd_bench_env(args: argparse.Namespace) -> int:
             )
         return print_bench(table, rows, args.json)
 
-    baseline = (
-        [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []
-    )  # before and after: drift hits both
+    # before and after: drift hits both
+    baseline = [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []
     rows = [bench_env(n, s, args.steps, distributed=args.distributed) for s in args.scenarios for n in args.arms]
     baseline += [bench_robosuite(args.robosuite, args.steps)] if args.robosuite else []
     robosuite_rate = sum(b.agent_steps_per_s for b in baseline) / len(baseline) if baseline else None

@@ -57,9 +57,8 @@ class TaskChooser:
         # as `fleet run` does it: the arms ask for their free moves and the dispatcher's guard answers (on a line
         # with a fixture, pipelined by default: holding an arm at a fixture that is not ready); a lone arm moves unasked
         self.grants = moves_need_grants(self.scene)
-        self.period_ticks = max(
-            1, round(self.scene.control_hz / DEFAULT_DECISION_HZ)
-        )  # the skills decide as controllers do
+        # the skills decide as controllers do
+        self.period_ticks = max(1, round(self.scene.control_hz / DEFAULT_DECISION_HZ))
         period_s = self.period_ticks / self.scene.control_hz
         self.skills = {
             a: PickPlaceSkill(

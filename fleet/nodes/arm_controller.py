@@ -166,9 +166,8 @@ class ArmController:
             return problem
         if isinstance(msg, PartsState):
             return parts_problem(msg)
-        announced = (
-            seq_problem(msg.assign_seq, self.assign_seq) if msg.assign_seq != -1 else ""
-        )  # -1: orders act on arrival
+        # -1: orders act on arrival
+        announced = seq_problem(msg.assign_seq, self.assign_seq) if msg.assign_seq != -1 else ""
         return arm_state_problem(msg, self.arm, self.spec.arm_dof) or announced
 
     def _order_problem(self, msg) -> str:

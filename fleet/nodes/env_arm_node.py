@@ -68,9 +68,8 @@ def main(argv: list[str] | None = None) -> int:
                     except ValueError as exc:  # wrong action size: refused, counted, never a crash
                         drops.drop(key, str(exc))
                         continue
-                    pub.put(
-                        encode(EnvTargets(args.arm, msg.seq, tuple(q[0].tolist()), float(opening[0])))
-                    )  # this arm: row 0
+                    # this arm: row 0
+                    pub.put(encode(EnvTargets(args.arm, msg.seq, tuple(q[0].tolist()), float(opening[0]))))
                     answered += 1
         finally:
             sub.undeclare()

@@ -270,6 +270,5 @@ if __name__ == "__main__":
     code = main()
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(
-        code
-    )  # the file, the report and the session are closed: skip tearing down the modules (a run waits on this exit)
+    # the file, the report and the session are closed: skip tearing down the modules (a run waits on this exit)
+    os._exit(code)

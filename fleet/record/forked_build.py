@@ -33,9 +33,8 @@ class LaterInChild:
     def __init__(self, makers: list[Callable[[], object]], split: int, slices: int = SLICES) -> None:
         self._later: deque[Future] = deque()
         self._executor = None
-        if split < len(
-            makers
-        ):  # the makers reach the child as the fork's initializer arguments: inherited, not pickled
+        # the makers reach the child as the fork's initializer arguments: inherited, not pickled
+        if split < len(makers):
             fork = multiprocessing.get_context("fork")
             self._executor = ProcessPoolExecutor(1, mp_context=fork, initializer=_child_start, initargs=(makers,))
             step = max(1, -(-(len(makers) - split) // slices))

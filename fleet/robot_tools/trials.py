@@ -65,10 +65,11 @@ def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_i
         )
         for a in scene.arms
     ]
+    # one part, spawned by the trial
     feeders = [
         f.model_copy(update={"arrival": Arrival(schedule_s=[]), "parts": graspable(spec, f.parts)})
         for f in scene.feeders
-    ]  # one part, spawned by the trial
+    ]
     update = {"seed": seed, "conveyor": conveyor, "stations": stations, "arms": arms, "feeders": feeders}
     if physics_hz is not None:
         update["physics_hz"] = physics_hz

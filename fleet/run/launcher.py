@@ -184,9 +184,8 @@ class Launcher:
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
-        self.factory = (
-            factory if options.fork_nodes else None
-        )  # forks the nodes; its own is closed after they all stopped
+        # forks the nodes; its own is closed after they all stopped
+        self.factory = factory if options.fork_nodes else None
         self._own_factory = False
         self.respawns = 0
         self.interrupted = ""

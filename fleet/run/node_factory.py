@@ -103,9 +103,8 @@ class NodeFactory:
                 if "exit" in message:
                     self._exits[message["exit"]] = message["code"]
                 else:
-                    self._exits.pop(
-                        message.get("pid"), None
-                    )  # a pid used again (32768 of them here): not the old node's exit
+                    # a pid used again (32768 of them here): not the old node's exit
+                    self._exits.pop(message.get("pid"), None)
                     self._replies.append(message)
                 self._heard.notify_all()
         with self._heard:  # the factory is gone: so are its children (they die with it)

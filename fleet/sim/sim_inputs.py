@@ -104,9 +104,8 @@ class SimInputs:
 
     def submit(self, link: ArmLink, msg: ArmGoalMsg) -> None:
         goal = goal_from_message(msg)
-        if isinstance(
-            goal, GoalResult
-        ):  # refused before reaching the tracker: stamped here (the tracker stamps its own)
+        # refused before reaching the tracker: stamped here (the tracker stamps its own)
+        if isinstance(goal, GoalResult):
             self.sim.outputs.results(link.name, [dataclasses.replace(goal, time_s=self.sim.world.sim_time_s)])
         else:
             self.sim.outputs.results(link.name, self.sim.tracked.submit(link.name, goal))

@@ -29,9 +29,8 @@ class SimOutputs:
 
     def __init__(self, sim: SimServer) -> None:
         self.sim = sim
-        self._noise_rng = np.random.default_rng(
-            [sim.world.scene_model.seed, 0x401_5E]
-        )  # pose noise: repeats for a seed
+        # pose noise: repeats for a seed
+        self._noise_rng = np.random.default_rng([sim.world.scene_model.seed, 0x401_5E])
         self._status_at = 0.0
 
     def results(self, arm: str, results: list[GoalResult]) -> None:

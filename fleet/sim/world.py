@@ -235,9 +235,8 @@ class World:
             clock.skipped_full += 1
             self.events.append(FeederFull(feeder.name, self.tick))
             return
-        spot = self._drop_spot(clock, lateral) or self._drop_point(
-            feeder.into, lateral
-        )  # `spawn_now` asks for a part now
+        # `spawn_now` asks for a part now
+        spot = self._drop_spot(clock, lateral) or self._drop_point(feeder.into, lateral)
         self._put(self.parts[free[0]], spot, yaw)
         clock.spawned += 1
 

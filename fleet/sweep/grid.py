@@ -116,9 +116,8 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
         return scene
     source = resolve_scene_path(scene)
     data = yaml.safe_load(yaml_text(source, str(source)))
-    if isinstance(data, dict) and isinstance(
-        data.get("robot_files"), list
-    ):  # the copy lives elsewhere: keep them found
+    # the copy lives elsewhere: keep them found
+    if isinstance(data, dict) and isinstance(data.get("robot_files"), list):
         data["robot_files"] = [str(named_in(source, f)) if isinstance(f, str) else f for f in data["robot_files"]]
     label = f"{source} with --set {', '.join(f'{k}={v}' for k, v in overrides.items())}"
     for path, value in overrides.items():

@@ -30,9 +30,10 @@ import numpy as np
 
 from robots.failures import Failure, FailureCode
 from robots.frames import rotation_from_wxyz, wrap_angle
-from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
+from robots.joint_trajectory import ArmGoal, TrajectoryGoal
 from robots.kinematics import KinematicModel
 from robots.phase import ORDER, Phase
+from robots.skills.goal_outbox import GoalOutbox
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
@@ -45,7 +46,6 @@ UNREACHABLE = "cannot be reached from above"
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
 REPLAN_AFTER_S = 0.3
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
-PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
 FAILED_STATUSES = ("aborted", "rejected")
 LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
 MAX_KNOT_JUMP_RAD = (
@@ -142,13 +142,8 @@ class PickPlaceSkill:
         self.failure: Failure | None = None  # why the last task failed
         self.job: PickPlaceJob | None = None
         self.ik_failures = 0
-        self.goal_id = 0  # ids of the goals this skill sends: increasing over its whole life
-        self.sent_goals: set[int] = set()  # trajectory goals of the current task
-        self._outbox: list[ArmGoal] = []
+        self.outbox = GoalOutbox(tuple(spec.arm_joints))
         self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
-        # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
-        self._unconfirmed: list[tuple[float, int, list[ArmGoal]]] = []
-        self.goals_resent = 0
         self.plan_end_s = 0.0
         self.phase_t0 = 0.0
         self._idle_since_s: float | None = None  # when the skill last stopped being active (None: active)
@@ -160,15 +155,11 @@ class PickPlaceSkill:
         self._then_cache: tuple = (None, ([], []))  # the local stage of the move last asked for
         self.place_yaw = 0.0
         self.pick_tilt_rad = self.place_tilt_rad = 0.0  # how far the claw leans from straight down at each end
-        self.grasp_centre = (
-            0.0,
-            0.0,
-            0.0,
-        )  # where the part sits between the jaws, tool frame (off centre: one fixed jaw)
+        # where the part sits between the jaws, tool frame (off centre: one fixed jaw)
+        self.grasp_centre = (0.0, 0.0, 0.0)
         self._grasp_world = np.zeros(3)
-        self._pick_up = self._place_up = np.array(
-            [0.0, 0.0, 1.0]
-        )  # the way the claw rises from the part, from the place
+        # the way the claw rises from the part, from the place
+        self._pick_up = self._place_up = np.array([0.0, 0.0, 1.0])
         self.detours = 0
 
     @property
@@ -220,33 +211,28 @@ class PickPlaceSkill:
         return JointSegment.timed(q_from, q_to, t0_s, self.km.velocity_limit[self.km.arm_q_index], speed)
 
     # --- goals out ------------------------------------------------------------------
-    def _next_id(self) -> int:
-        self.goal_id += 1
-        return self.goal_id
+    @property
+    def goal_id(self) -> int:
+        """The id of the last goal sent (a controller starts its count where a respawn cannot repeat one)."""
+        return self.outbox.goal_id
+
+    @goal_id.setter
+    def goal_id(self, value: int) -> None:
+        self.outbox.goal_id = value
+
+    @property
+    def sent_goals(self) -> set[int]:
+        return self.outbox.sent
+
+    @property
+    def goals_resent(self) -> int:
+        return self.outbox.resent
 
     def _send_move(self, q_end: np.ndarray, duration_s: float, start_s: float) -> None:
-        goal = rest_to_rest(
-            self._next_id(), self.joint_names, q_end, duration_s, start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,)
-        )
-        self.sent_goals.add(goal.goal_id)
-        self._outbox.append(goal)
+        self.outbox.move(q_end, duration_s, start_s)
 
     def _send_knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> None:
-        """A goal through joint knots at `start_s + times_s`, with velocities from the knots (cubic between them)."""
-        dq = np.gradient(qs, times_s, axis=0) if len(times_s) > 1 else np.zeros_like(qs)
-        dq[-1] = 0.0  # every stage ends at rest
-        goal = TrajectoryGoal(
-            self._next_id(),
-            self.joint_names,
-            tuple(map(float, times_s)),
-            tuple(tuple(map(float, q)) for q in qs),
-            tuple(tuple(map(float, v)) for v in dq),
-            (),
-            start_s,
-            path_tolerance_rad=(PATH_TOLERANCE_RAD,),
-        )
-        self.sent_goals.add(goal.goal_id)
-        self._outbox.append(goal)
+        self.outbox.knots(start_s, times_s, qs)
 
     def _earliest(self, start_s: float | None = None) -> float:
         """The earliest a goal sent now can start: once it has reached the tracker."""
@@ -254,9 +240,7 @@ class PickPlaceSkill:
         return soonest if start_s is None else max(start_s, soonest)
 
     def _send_gripper(self, opening: float, start_s: float | None) -> None:
-        self._outbox.append(
-            GripperGoal(self._next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, self._earliest(start_s))
-        )
+        self.outbox.gripper(opening, self._earliest(start_s))
 
     # --- the state machine ----------------------------------------------------------
     def start(self, job: PickPlaceJob, obs: ArmObservation, part: PartObservation) -> None:
@@ -267,9 +251,8 @@ class PickPlaceSkill:
         self._detour_to = None
         self._stood_by, self._transfer_to = False, None
         self.job, self.failure = job, None
-        self.sent_goals = set()
+        self.outbox.forget()
         self._timeline = []
-        self._unconfirmed = []
         self.q_cmd = np.asarray(obs.q, float).copy()
         self.grasp_yaw = self._grasp_yaw(part)
         self.grasp_centre = self.spec.grasp_centre_tool(part.width_m)
@@ -512,10 +495,7 @@ class PickPlaceSkill:
             self._decide(obs, parts)
         else:
             self._clear_the_way(obs)
-        out, self._outbox = self._outbox, []
-        if obs.goal_id is not None and any(isinstance(g, TrajectoryGoal) for g in out):
-            self._unconfirmed.append((obs.time_s, 1, out))
-        return out
+        return self.outbox.take(obs.time_s, watched=obs.goal_id is not None)
 
     def _resend_lost(self, obs: ArmObservation) -> bool:
         """Goals lost on the bus: a batch whose trajectory goal the tracker has not shown (driving, or with a
@@ -525,7 +505,7 @@ class PickPlaceSkill:
             return True
         seen = max(obs.goal_id, obs.result_goal_id)
         keep = []
-        for sent_s, sends, goals in self._unconfirmed:
+        for sent_s, sends, goals in self.outbox.unconfirmed:
             newest = max(g.goal_id for g in goals if isinstance(g, TrajectoryGoal))
             if seen >= newest:
                 continue
@@ -536,7 +516,7 @@ class PickPlaceSkill:
                 self._fail(FailureCode.GOAL_LOST, f"trajectory goal {newest} was lost on the bus {sends} times")
                 return False
             keep.append((obs.time_s, sends + 1, self._resend(goals, obs.time_s)))
-        self._unconfirmed = keep
+        self.outbox.unconfirmed = keep
         return True
 
     def _resend(self, goals: list[ArmGoal], now_s: float) -> list[ArmGoal]:
@@ -544,18 +524,9 @@ class PickPlaceSkill:
         self._now = now_s
         first = min(g.start_time_s for g in goals if g.start_time_s is not None)
         shift = max(0.0, self._earliest() - first)
-        again = [
-            dataclasses.replace(
-                g, goal_id=self._next_id(), start_time_s=None if g.start_time_s is None else g.start_time_s + shift
-            )
-            for g in goals
-        ]
-        self.sent_goals.update(g.goal_id for g in again if isinstance(g, TrajectoryGoal))
         self.plan_end_s += shift
         self._timeline = [(t + shift, p) for t, p in self._timeline]
-        self.goals_resent += len(again)
-        self._outbox.extend(again)
-        return again
+        return self.outbox.resend(goals, shift)
 
     def _clear_the_way(self, obs: ArmObservation) -> None:
         """An arm left standing away from home with nothing to do (its task failed mid-way, or its controller was
@@ -571,7 +542,8 @@ class PickPlaceSkill:
             return
         self._now = obs.time_s
         self.job, self.failure = None, None
-        self.sent_goals, self._timeline, self._unconfirmed = set(), [], []
+        self._timeline = []
+        self.outbox.forget()
         self.q_cmd = q.copy()
         self._idle_since_s = None
         self._begin_segment(

@@ -58,9 +58,8 @@ def test_a_thin_link_passing_through_between_two_coarse_samples_is_caught():
 
 def test_the_crossing_case_resolves_without_deadlock():
     """Both arms want to reach into the shared middle at once: one is granted, the other waits, then goes."""
-    guard = CollisionGuard(
-        two_arms(gap_m=1.0)
-    )  # one arm reaching out is clear of the other folded; both reaching touch
+    # one arm reaching out is clear of the other folded; both reaching touch
+    guard = CollisionGuard(two_arms(gap_m=1.0))
     out_0 = TimedPath("arm_0", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)
     back_0 = TimedPath("arm_0", tuple(REACH_OUT), tuple(HOME), 1.0, 2.0)
     out_1 = TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)

@@ -17,9 +17,10 @@ COUNTED = WALL_FIGURES + ("dropped_messages", "bus_messages_per_arm_per_s")
 
 def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:
     nan = math.nan
+    # noqa: E731
     state = lambda arm: ArmState(
         arm, FAR, 1e16, (nan,) * 6, (nan,) * 6, (0.0, 0.0), (0.0,) * 3, (1.0, 0.0, 0.0, 0.0), lost=True
-    )  # noqa: E731
+    )
     parts = PartsState(FAR, 1e16, (), (), (), (), (), (), ())
     out = [
         (keys.events, encode(LineEvent("arrived", 1_000_000_000, 0, "feeder_nope", -5))),

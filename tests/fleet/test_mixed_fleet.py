@@ -52,8 +52,7 @@ def test_the_monitor_draws_arms_of_different_models_from_their_own_urdfs():
         for name, model in (("arm_0", "openclaw"), ("arm_1", "so101"), ("arm_2", "panda")):
             arm, spec = view.arms[name], get_robot(model)
             assert sorted(arm.urdf.get_actuated_joint_names()) == sorted((*spec.arm_joints, *spec.gripper_joints))
-            arm.update_cfg(
-                np.asarray(spec.home_q) * 0.5, np.asarray(spec.gripper_closed)
-            )  # each moves with its own joints
+            # each moves with its own joints
+            arm.update_cfg(np.asarray(spec.home_q) * 0.5, np.asarray(spec.gripper_closed))
     finally:
         server.stop()

@@ -23,6 +23,7 @@ from fleet.run.launcher import Launcher, RunOptions
 
 QUICK_LINE = str(Path(__file__).parent / "scenes_data" / "quick_line.yaml")
 # wall-clock figures, and the bus message counts (samples sent while processes start may find no subscriber yet)
+# re-sends and status follow the wall clock
 WALL_FIGURES = (
     "wall_seconds",
     "loop_wall_seconds",
@@ -35,7 +36,7 @@ WALL_FIGURES = (
     "bus_messages_per_arm_per_s",
     "round_trip_histogram",
     "bus_messages_out",
-)  # re-sends and status follow the wall clock
+)
 
 
 def assert_nothing_left(summary: dict, endpoint: str) -> None:
@@ -89,9 +90,8 @@ def test_a_controller_killed_mid_run_is_noticed_its_task_reassigned_and_respawne
             os.kill(node.proc.pid, signal.SIGKILL)
 
     launcher_ref = []
-    options = RunOptions(
-        scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True
-    )  # the respawned process takes seconds to start
+    # the respawned process takes seconds to start
+    options = RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True)
     with Launcher(options, kill_arm_0) as launcher:
         launcher_ref.append(launcher)
         summary = launcher.run()
@@ -137,10 +137,8 @@ def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_o
     assert (
         summary["error"].startswith("the sim stopped: the coordinator did not answer") and "\n" not in summary["error"]
     )
-    assert summary["sim_seconds"] < stopped[0] + 3.0, (
-        stopped,
-        summary["sim_seconds"],
-    )  # the sim does not step while it waits
+    # the sim does not step while it waits
+    assert summary["sim_seconds"] < stopped[0] + 3.0, (stopped, summary["sim_seconds"])
 
 
 @pytest.mark.parametrize(
@@ -174,17 +172,11 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
     another coordinator, which rebuilds its ledger from the sim's event log, adopts the arm's task, and the line
     ends as a clean run does."""
     killed = []
-    WORKING = (
-        "approach",
-        "descend",
-        "close",
-        "lift",
-        "transfer",
-    )  # phases in which the part is not about to rest at its target
+    # phases in which the part is not about to rest at its target
+    WORKING = ("approach", "descend", "close", "lift", "transfer")
 
-    def kill_when_carrying(
-        sample,
-    ):  # on Zenoh's thread: the moment a heartbeat (every 0.2 s of wall time) says an arm works on a part
+    # on Zenoh's thread: the moment a heartbeat (every 0.2 s of wall time) says an arm works on a part
+    def kill_when_carrying(sample):
         beat = Decoder(ArmStatus, DropCounter()).decode(str(sample.key_expr), sample.payload.to_bytes())
         coordinator = launcher_ref[0].nodes[1]
         if (

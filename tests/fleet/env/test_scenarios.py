@@ -214,9 +214,8 @@ def test_allocate_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fle
         touching += sum(i["collision"] for i in infos.values())
     dispatcher = env.scenario.book.dispatcher
     held = dispatcher.held_at_station_s
-    assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, (
-        held
-    )  # the top waited for its base, the ship for its top
+    # the top waited for its base, the ship for its top
+    assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, held
     assert touching == 0 and dispatcher.ledger.totals()["parts_completed"] >= 3
     lone = parallel_env(scenario="line", scene="pick_cell", action_mode="allocate", max_cycles=2, control_hz=5)
     lone.reset(seed=0)

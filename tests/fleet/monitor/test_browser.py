@@ -119,9 +119,8 @@ def test_the_page_draws_the_arms_and_its_emergency_stop_holds_every_arm(tmp_path
                 assert all(moving[a] for a in arms), "every arm publishes its state"
                 assert not any(s.held for a in arms for s in moving[a]), "nobody held before the e-stop"
 
-                page.get_by_role("button", name="Emergency stop").click(
-                    timeout=90_000
-                )  # a loaded 2-core machine once took > 30 s
+                # a loaded 2-core machine once took > 30 s
+                page.get_by_role("button", name="Emergency stop").click(timeout=90_000)
                 held_by = time.monotonic() + 10
                 while time.monotonic() < held_by:
                     latest = states_after(session, keys, arms, 0.2)
@@ -133,9 +132,8 @@ def test_the_page_draws_the_arms_and_its_emergency_stop_holds_every_arm(tmp_path
                     q = np.array([s.q for s in held[a]])[10:]  # 0.1 s of sim to come to rest
                     assert np.abs(q - q[0]).max() < 0.01, f"{a} moved {np.abs(q - q[0]).max():.4f} rad while held"
                     speed = np.abs(np.array([s.dq for s in held[a]])[10:]).mean()
-                    assert speed < 0.1, (
-                        f"{a} still moves: mean joint speed {speed:.3f} rad/s"
-                    )  # the drives' jitter is ~0.05
+                    # the drives' jitter is ~0.05
+                    assert speed < 0.1, f"{a} still moves: mean joint speed {speed:.3f} rad/s"
                 assert page.get_by_text("E-STOP").count() >= 1, "the page shows the e-stop"
             finally:
                 browser.close()

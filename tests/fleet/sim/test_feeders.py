@@ -27,9 +27,8 @@ def test_a_burst_of_parts_is_released_one_clear_of_the_next_and_none_is_lost_or_
                     assert gap > max(p.part_type.size_m[:2]), (p.part_id, q.part_id, gap)
     assert sorted(released_at) == [0, 1, 2, 3], "every part of the burst comes, late rather than never"
     times = [released_at[i] for i in range(4)]
-    assert times[0] < 1.05 and all(b - a > 0.5 for a, b in zip(times, times[1:])), (
-        times
-    )  # the belt (5 cm/s) carries each clear first
+    # the belt (5 cm/s) carries each clear first
+    assert times[0] < 1.05 and all(b - a > 0.5 for a, b in zip(times, times[1:])), times
     tops = [p.entity.pose.p[2] for p in world.parts if p.active]
     assert max(tops) - min(tops) < 0.03, "all lie on the belt: none on top of another"
 

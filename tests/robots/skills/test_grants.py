@@ -131,9 +131,8 @@ def test_a_request_carries_the_local_stage_that_follows_it_without_a_grant():
         t.descend_s + t.close_s + t.lift_s,
     )
     assert request.then_after_s[3] > request.then_after_s[2], "held a little longer: the grasp may start late"
-    z = [
-        skill.km.frame_pose(skill.km.full_q(np.asarray(q)))[2, 3] for q in (request.q_to, *request.then_q)
-    ]  # the base stands on z = 0
+    # the base stands on z = 0
+    z = [skill.km.frame_pose(skill.km.full_q(np.asarray(q)))[2, 3] for q in (request.q_to, *request.then_q)]
     assert z[1] < z[0] - 0.05 and z[3] > z[2] + 0.05, "down from the hover to the part, then lifted"
     moving = transferring()
     place = moving.request

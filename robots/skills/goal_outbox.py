@@ -1,0 +1,85 @@
+"""The goals a skill sends: numbered over the skill's whole life, queued until its decision returns them, and each
+batch with a trajectory goal watched until the tracker shows it (sent again, later, when the bus lost it)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
+
+PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
+
+
+class GoalOutbox:
+    """Builds and numbers one arm's goals; `take` hands the queued ones out."""
+
+    def __init__(self, joint_names: tuple[str, ...]) -> None:
+        self.joint_names = joint_names
+        self.goal_id = 0  # ids of the goals sent: increasing over the skill's whole life
+        self.sent: set[int] = set()  # trajectory goals of the current task
+        self.queued: list[ArmGoal] = []
+        # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
+        self.unconfirmed: list[tuple[float, int, list[ArmGoal]]] = []
+        self.resent = 0
+
+    def next_id(self) -> int:
+        self.goal_id += 1
+        return self.goal_id
+
+    def forget(self) -> None:
+        """A new task (or none): the goals of the last one are no longer watched."""
+        self.sent, self.unconfirmed = set(), []
+
+    def move(self, q_end: np.ndarray, duration_s: float, start_s: float) -> None:
+        """A rest-to-rest move to `q_end` in `duration_s`, from `start_s`."""
+        goal = rest_to_rest(
+            self.next_id(), self.joint_names, q_end, duration_s, start_s, path_tolerance_rad=(PATH_TOLERANCE_RAD,)
+        )
+        self.sent.add(goal.goal_id)
+        self.queued.append(goal)
+
+    def knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> None:
+        """A goal through joint knots at `start_s + times_s`, with velocities from the knots (cubic between them)."""
+        dq = np.gradient(qs, times_s, axis=0) if len(times_s) > 1 else np.zeros_like(qs)
+        dq[-1] = 0.0  # every stage ends at rest
+        goal = TrajectoryGoal(
+            self.next_id(),
+            self.joint_names,
+            tuple(map(float, times_s)),
+            tuple(tuple(map(float, q)) for q in qs),
+            tuple(tuple(map(float, v)) for v in dq),
+            (),
+            start_s,
+            path_tolerance_rad=(PATH_TOLERANCE_RAD,),
+        )
+        self.sent.add(goal.goal_id)
+        self.queued.append(goal)
+
+    def gripper(self, opening: float, start_s: float) -> None:
+        """The claw to `opening` (clipped to 0..1) from `start_s`."""
+        self.queued.append(GripperGoal(self.next_id(), float(min(max(opening, 0.0), 1.0)), 0.0, start_s))
+
+    def take(self, time_s: float, watched: bool) -> list[ArmGoal]:
+        """The goals queued, handed out now; with `watched` (the tracker reports what it drives), a batch with a
+        trajectory goal is watched until the tracker shows it."""
+        out, self.queued = self.queued, []
+        if watched and any(isinstance(g, TrajectoryGoal) for g in out):
+            self.unconfirmed.append((time_s, 1, out))
+        return out
+
+    def resend(self, goals: list[ArmGoal], shift_s: float) -> list[ArmGoal]:
+        """`goals` again with new ids, each `shift_s` later; queued to go out with the next decision."""
+        again = [
+            dataclasses.replace(
+                g,
+                goal_id=self.next_id(),
+                start_time_s=None if g.start_time_s is None else g.start_time_s + shift_s,
+            )
+            for g in goals
+        ]
+        self.sent.update(g.goal_id for g in again if isinstance(g, TrajectoryGoal))
+        self.resent += len(again)
+        self.queued.extend(again)
+        return again
