@@ -48,3 +48,17 @@ class PickPlaceJob:
     surface_z_m: float
     place_xyz: tuple[float, float, float]
     surface_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class MotionRequest:
+    """A joint-space move the skill wants to make: from `q_from` to `q_to` in `duration_s`, asked at `asked_at_s`;
+    then the local stage it will follow without asking (`then_q`, reached `then_after_s` after the move's end)."""
+
+    seq: int
+    q_from: tuple[float, ...]
+    q_to: tuple[float, ...]
+    duration_s: float
+    asked_at_s: float
+    then_q: tuple[tuple[float, ...], ...] = ()
+    then_after_s: tuple[float, ...] = ()

@@ -23,18 +23,18 @@ watchdog) or refuses ends the task failed with its reason.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from robots.failures import Failure, FailureCode
-from robots.frames import rotation_from_wxyz, wrap_angle
 from robots.joint_trajectory import ArmGoal, TrajectoryGoal
 from robots.kinematics import KinematicModel
 from robots.phase import ORDER, Phase
 from robots.skills.goal_outbox import GoalOutbox
-from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
+from robots.skills.interface import ArmObservation, MotionRequest, PartObservation, PickPlaceJob
+from robots.skills.motion_grants import MotionGrants
+from robots.skills.pick_geometry import PickGeometry
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment, quintic
@@ -48,9 +48,6 @@ REPLAN_AFTER_S = 0.3
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 FAILED_STATUSES = ("aborted", "rejected")
 LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
-MAX_KNOT_JUMP_RAD = (
-    0.5  # a Cartesian path's knot that would turn a joint further than this from the one before is not kept
-)
 MAX_RESENDS = 2  # a batch of goals lost again after this many sends ends the task failed
 
 
@@ -87,26 +84,7 @@ class PickPlaceTiming:
         return dataclasses.replace(cls(), **spec.pick_timing)
 
 
-@dataclass(frozen=True)
-class MotionRequest:
-    """A joint-space move the skill wants to make: from `q_from` to `q_to` in `duration_s`, asked at `asked_at_s`;
-    then the local stage it will follow without asking (`then_q`, reached `then_after_s` after the move's end)."""
-
-    seq: int
-    q_from: tuple[float, ...]
-    q_to: tuple[float, ...]
-    duration_s: float
-    asked_at_s: float
-    then_q: tuple[tuple[float, ...], ...] = ()
-    then_after_s: tuple[float, ...] = ()
-
-
-def _rise(up: np.ndarray, up_m: float, below_m: float = 0.0) -> np.ndarray:
-    """From a spot to the claw `up_m` above it: `below_m` straight up, then `up_m` along `up` (the way it rises)."""
-    return np.array([up[0] * up_m, up[1] * up_m, below_m + up[2] * up_m])
-
-
-class PickPlaceSkill:
+class PickPlaceSkill(MotionGrants, PickGeometry):
     """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step`
     returns.
 
@@ -167,48 +145,6 @@ class PickPlaceSkill:
         return tuple(self.spec.arm_joints)
 
     # --- geometry -------------------------------------------------------------------
-    def _ik(
-        self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray, tilt_rad: float
-    ) -> tuple[np.ndarray, bool]:
-        return self.top_down.solve(position_world, yaw_world, q_start, tilt_rad, self.grasp_centre)
-
-    def _least_tilt(
-        self, spot_world: np.ndarray, yaw_world: float, up_m: float, below_m: float = 0.0, from_rad: float = 0.0
-    ) -> tuple[float, np.ndarray, np.ndarray] | None:
-        """The most vertical claw (straight down where it can; leaning `from_rad` at least) that reaches `up_m`
-        above a spot (and `below_m` straight above it first): its tilt, its joints and the way it rises there."""
-
-        def rise_at(tilt: float) -> np.ndarray:
-            return _rise(self.top_down.up_between_jaws(spot_world, yaw_world, tilt), up_m, below_m)
-
-        found = self.top_down.least_tilt(spot_world, yaw_world, self.q_cmd, self.grasp_centre, rise_at, from_rad)
-        if found is None:
-            return None
-        tilt, q = found
-        return tilt, q, self.top_down.up_between_jaws(spot_world, yaw_world, tilt)
-
-    def _natural_yaw(self, position_world: np.ndarray) -> float:
-        return self.top_down.natural_yaw(position_world)
-
-    def _grasp_yaw(self, part: PartObservation) -> float:
-        """A yaw that closes the fingers across the part's narrow side, nearest the natural yaw."""
-        natural = self._natural_yaw(part.position)
-        if part.size_m is None:
-            return natural
-        sx, sy, _ = part.size_m
-        axes = rotation_from_wxyz(part.quaternion_wxyz)
-        across = axes[:, 0] if sx <= sy else axes[:, 1]
-        cx, cy, _ = self.spec.closing_axis_tool  # pointing down, the tool's closing axis lies at yaw + atan2(-cy, cx)
-        if (cx, cy) == (0.0, 1.0):  # the usual claw, closing along tool y = (sin yaw, -cos yaw)
-            base = math.atan2(across[0], -across[1])
-        else:
-            base = math.atan2(across[1], across[0]) - math.atan2(-cy, cx)
-        step = math.pi / 2 if abs(sx - sy) < 1e-6 else math.pi
-        candidates = [wrap_angle(base + k * step) for k in range(int(round(2 * math.pi / step)))]
-        return min(candidates, key=lambda c: abs(wrap_angle(c - natural)))
-
-    def _segment(self, q_from: np.ndarray, q_to: np.ndarray, t0_s: float, speed: float) -> JointSegment:
-        return JointSegment.timed(q_from, q_to, t0_s, self.km.velocity_limit[self.km.arm_q_index], speed)
 
     # --- goals out ------------------------------------------------------------------
     @property
@@ -311,134 +247,11 @@ class PickPlaceSkill:
         self.q_cmd, self.plan_end_s = seg.q_end.copy(), start_s + seg.duration_s
 
     # --- motion grants --------------------------------------------------------------
-    def _ask(self, time_s: float) -> None:
-        self._request_seq += 1
-        seg = self.segment
-        key = (self.phase, tuple(np.round(seg.q_end, 9)))
-        if self._then_cache[0] != key:
-            self._then_cache = (key, self._local_stage_after(seg.q_end))
-        then_after_s, then_q = self._then_cache[1]
-        self.request = MotionRequest(
-            self._request_seq,
-            tuple(map(float, self.q_cmd)),
-            tuple(map(float, seg.q_end)),
-            float(seg.duration_s),
-            time_s,
-            tuple(tuple(map(float, q)) for q in then_q),
-            tuple(then_after_s),
-        )
-
-    def _local_stage_after(self, q_end: np.ndarray) -> tuple[list[float], list[np.ndarray]]:
-        """Where the stage that follows this move without a grant will take the arm, and when (seconds after the
-        move's end), padded by the latency it may start late: the descent, grasp and lift after an approach (the
-        part carried on by its surface meanwhile); the lowering, release and retreat after a transfer. The guard
-        keeps the other arms clear of these too, so an arm never moves where no check has looked."""
-        t = self.timing
-        late = self.decision_period_s + self.latency_s  # the stage may begin this much after the move ends
-        if self.phase == Phase.APPROACH and self.job is not None:
-            d, c, lift = t.descend_s, t.close_s, t.lift_s
-            v = self.velocity
-            down = self._grasp_world
-            points = [down + v * d, down + v * (d + c), down + v * (d + c + 0.15) + self._pick_up * t.lift_m]
-            times = [d, d + c, d + c + lift]
-            yaw, tilt = self.grasp_yaw, self.pick_tilt_rad
-        elif self.phase == Phase.TRANSFER and self._detour_to is None and self.job is not None:
-            place = np.asarray(self.job.place_xyz, float)
-            release = place + [0, 0, self.tool_above_bottom_m + t.place_drop_m]
-            above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
-            points, yaw, tilt = [release, release, above], self.place_yaw, self.place_tilt_rad
-            times = [t.lower_s, t.lower_s + t.release_s, t.lower_s + t.release_s + t.retreat_s]
-        else:
-            return [], []
-        qs, q = [], np.asarray(q_end, float)
-        for point in points:
-            q, ok = self._ik(point, yaw, q, tilt)
-            if not ok:
-                return [], []  # the stage's own planning will fail the task; the move alone is still checked
-            qs.append(q)
-        return [*times, times[-1] + late], [*qs, qs[-1]]
-
-    def on_grant(
-        self, request_seq: int, decision: str, conflict_arm: str, time_s: float, start_time_s: float | None = None
-    ) -> None:
-        """The coordinator's answer to request `request_seq` (stale answers are ignored): grant (from `start_time_s`,
-        else now), or deny naming the arm in the way."""
-        if self.request is None or request_seq != self.request.seq or not self.active:
-            return
-        self._now = time_s
-        if decision == "grant":
-            self.request = None
-            self._go(max(time_s, start_time_s if start_time_s is not None else time_s))
-            return
-        if decision == "standby":  # the place is not ready: wait beside it, then ask to place from there
-            self.request = None
-            self._stand_by(time_s)
-            return
-        self.denials += 1
-        if self._denied_since_s is None:
-            self._denied_since_s = time_s
-        if self.phase == Phase.APPROACH:  # nothing in hand: give the task back, the coordinator decides again
-            self.request = None
-            self._fail(
-                FailureCode.MOTION_DENIED,
-                f"motion denied: the approach would pass within the margin of {conflict_arm or 'another arm'}",
-            )
-        elif self.phase == Phase.STANDBY:  # the spot beside the place is in another arm's way: wait where it is
-            self._transfer_from_here(time_s)
-        elif self._should_detour(time_s):  # the way stays blocked: make room by going home, then transfer from there
-            self._detour_home(time_s)
-        else:  # a part in the claw, or on the way home: ask again
-            self._ask(time_s)
-
-    def _stand_by(self, time_s: float) -> None:
-        """Told to stand by (once a task, a transfer only): move to a spot `standby_back` of the way from the place's
-        hover point to the arm's base and `standby_up_m` higher, the part in the claw; from there the transfer
-        is asked for again. Where that spot cannot be reached, the transfer is asked for again from here."""
-        if self.phase != Phase.TRANSFER or self._detour_to is not None or self._stood_by or self.job is None:
-            self._ask(time_s)
-            return
-        self._stood_by, self._transfer_to = True, self.segment.q_end.copy()
-        t = self.timing
-        place = np.asarray(self.job.place_xyz, float)
-        above = place + _rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
-        back = (self.top_down.base_to_world[:2, 3] - above[:2]) * t.standby_back
-        q, ok = self._ik(
-            above + [back[0], back[1], t.standby_up_m], self.place_yaw, self._transfer_to, self.place_tilt_rad
-        )
-        if not ok:
-            self._transfer_from_here(time_s)
-            return
-        self.standbys += 1
-        self._begin_segment(self._segment(self.q_cmd, q, time_s, t.transfer_speed), Phase.STANDBY, time_s)
-
-    def _transfer_from_here(self, time_s: float) -> None:
-        """The transfer to above the place, from where the arm is (after standing by, or instead of it)."""
-        q_to, self._transfer_to = self._transfer_to, None
-        self._transfer(q_to, time_s)
-
-    def _transfer(self, q_to: np.ndarray, time_s: float) -> None:
-        """A transfer-phase free move from where the arm is to `q_to`, part in hand."""
-        self._begin_segment(self._segment(self.q_cmd, q_to, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
 
     def _at_home(self, q: np.ndarray) -> bool:
         return bool(
             np.max(np.abs(np.asarray(q, float) - np.asarray(self.spec.home_q, float))) <= self.timing.home_tolerance_rad
         )
-
-    def _should_detour(self, time_s: float) -> bool:
-        """Two arms each standing in the other's way (one waiting to transfer, one to go home or transfer) would
-        wait for ever; the transfer that has waited `detour_after_s` gives way."""
-        return (
-            self.phase == Phase.TRANSFER
-            and self._detour_to is None
-            and not self._at_home(self.q_cmd)
-            and time_s - self._denied_since_s >= self.timing.detour_after_s - 1e-9
-        )
-
-    def _detour_home(self, time_s: float) -> None:
-        self._detour_to = self.segment.q_end.copy()
-        self.detours += 1
-        self._transfer(np.asarray(self.spec.home_q, float), time_s)
 
     def reject(self, reason: str) -> None:
         """Refuse a task before starting it (the part is unknown): the skill ends failed with `reason`."""
@@ -591,18 +404,6 @@ class PickPlaceSkill:
                 self._begin_segment(self._segment(self.q_cmd, home, now, self.timing.approach_speed), Phase.HOME, now)
             elif self.phase == Phase.HOME:
                 self.phase = Phase.DONE
-
-    def _solve_path(self, points: list[np.ndarray], yaw: float, tilt_rad: float) -> np.ndarray:
-        """Joints through Cartesian tool positions at one claw tilt, each IK seeded by the one before."""
-        qs, q = [], self.q_cmd
-        for p in points:
-            solved, ok = self._ik(p, yaw, q, tilt_rad)
-            if not ok:
-                self.ik_failures += 1
-            if ok or np.max(np.abs(solved - q)) <= MAX_KNOT_JUMP_RAD:
-                q = solved  # a failed solve's best attempt that stays near the path is kept (the tracker follows it)
-            qs.append(q)  # else the knot before is held: such an attempt can be anywhere (a wrist turned half round)
-        return np.asarray(qs)
 
     def _plan_grasp(self, part: PartObservation | None, now: float) -> None:
         """Descend onto the part following it, close, lift: one goal from the approach's end, and the close."""
