@@ -10,10 +10,8 @@ caller's to judge (it owns the clock): it calls `arm_lost` and `arm_rejoined`.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,76 +19,27 @@ from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility,
 from coordinator.cadence import decision_period_ticks
 from coordinator.capacity import (
     CapacityBound,
-    belt_window_caps,
     capacity_bound,
-    finishable_arrivals,
-    measured_hop_seconds,
 )
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
+from coordinator.dispatch_grants import GrantAnswers
+from coordinator.dispatch_report import DispatchReport
+from coordinator.dispatch_takeover import TakeOver
+from coordinator.dispatch_views import AllocatorViews
 from coordinator.geometry import ArmGeometry
-from coordinator.guard import CollisionGuard, NearestPair, TimedPath
+from coordinator.guard import CollisionGuard, TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT, Ledger
-from coordinator.tasks import CONVEYOR, TAKEN_STATES, Task, TaskState
+from coordinator.orders import AssignOrder, CancelOrder, Decision, Order
+from coordinator.tasks import CONVEYOR, Task, TaskState
 from robots.frames import yaw_transform
-from robots.phase import AVAILABLE_PHASES, GRASP_PHASES, IDLE_PHASES, LOCAL_PHASES, PLACE_PHASES, Phase
+from robots.phase import IDLE_PHASES, Phase
 from robots.registry import get_robot
 from scenes.schema import Scene
 
-OVERRUN_S = 2.0  # a task this late on its estimate: its arm's end is unknown
-SETTLE_CAP_S = (
-    10.0  # after a take-over, no grant until the arms settle or this long (sim s): longer than any granted move
-)
-STATION_MATCH_M = 0.01  # a place position this close (x, y) to a station's is that station
 _BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
 
 
-@dataclass(frozen=True)
-class AssignOrder:
-    """Take `task_id`: pick part `part_id` from a surface at `surface_z_m` moving at `surface_velocity`,
-    place it at `place_xyz` (the part's bottom, world frame, metres)."""
-
-    arm: str
-    task_id: int
-    part_id: int
-    surface_z_m: float
-    place_xyz: tuple[float, float, float]
-    surface_velocity: tuple[float, float, float]
-
-
-@dataclass(frozen=True)
-class CancelOrder:
-    """Drop the task on part `part_id`: the arm can no longer meet it (another arm may)."""
-
-    arm: str
-    part_id: int
-
-
-@dataclass(frozen=True)
-class GrantOrder:
-    """The answer to motion request `request_seq`: `grant` (the move starts at `start_s`) or `deny` (`conflict_arm`
-    stands in the way); `min_separation_m` is the closest approach checked (inf: no neighbour)."""
-
-    arm: str
-    request_seq: int
-    decision: str
-    conflict_arm: str
-    min_separation_m: float
-    start_s: float | None
-
-
-Order = AssignOrder | CancelOrder | GrantOrder
-
-
-@dataclass(frozen=True)
-class Decision:
-    """What one decision produced: the orders in publishing order, and the arms' nearest neighbours then."""
-
-    tick: int
-    orders: list[Order]
-    separations: list[NearestPair]
-
-
-class Dispatcher:
+class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver):
     """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
     reassignment, the collision guard's grants and the busy-until estimates."""
 
@@ -228,104 +177,8 @@ class Dispatcher:
             self.losses.append({"arm": arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
 
     # --- taking over a running line ---------------------------------------------------
-    def take_over(self, time_s: float) -> None:
-        """This dispatcher replaces one that crashed (events replayed with `on_event`): the grants it gave are
-        unknown, so none is given until every arm was seen holding still for a grant or idle (an arm may still
-        be moving under an old grant), or `SETTLE_CAP_S` passed."""
-        self.sim_time_s = max(self.sim_time_s, time_s)
-        self.unsettled = set(self.arm_names) - set(self.lost)
-        self.settle_by_s = time_s + SETTLE_CAP_S
-
-    def adopt(self, arm: str, task_id: int, part_id: int, place_xyz: tuple[float, ...], time_s: float) -> str:
-        """The task `arm` says it works on (its controller's heartbeat) joins the ledger as that arm's, if the
-        ledger does not know it: a take-over, or an order of the crashed dispatcher that it never announced.
-        Returns why not ("" when adopted)."""
-        if task_id in self.ledger.tasks:
-            return "known"
-        station = self.station_at(place_xyz)
-        why = (
-            f"no station at {tuple(round(v, 3) for v in place_xyz)}"
-            if station is None
-            else self.ledger.adopt(task_id, part_id, station, arm, time_s)
-        )
-        if not why:
-            self.last_stations[arm] = self.ledger.tasks[task_id].stations
-        self.adopted.append(
-            {
-                "arm": arm,
-                "task_id": task_id,
-                "part_id": part_id,
-                "station": station,
-                "sim_time_s": round(time_s, 3),
-                "adopted": not why,
-                "reason": why,
-            }
-        )
-        return why
-
-    def station_at(self, place_xyz: tuple[float, ...]) -> str | None:
-        """The station whose place position (x, y) is `place_xyz`'s, if one is."""
-        if len(place_xyz) != 3:
-            return None
-        for station in self.scene.stations:
-            if math.dist(station.pose.xyz[:2], place_xyz[:2]) < STATION_MATCH_M:
-                return station.name
-        return None
 
     # --- what the allocator sees ----------------------------------------------------
-    def arm_views(self) -> list[ArmView]:
-        open_arms = {t.arm for t in self.ledger.open_tasks() if t.state in TAKEN_STATES}
-        return [
-            ArmView(
-                a,
-                self.bases[a],
-                a not in self.lost
-                and a not in open_arms
-                and self.phase[a] in AVAILABLE_PHASES
-                and not self.leaving_fixture(a),
-                self.reach[a],
-                tuple(self.guard.state[a].tolist()),
-                self.free_in_s(a) if a in open_arms else None,
-                a not in self.lost,
-            )
-            for a in self.arm_names
-        ]
-
-    def leaving_fixture(self, arm: str) -> bool:
-        """Pipelined: an arm on its way home from a fixture takes no task until home. A task taken on the way would
-        start its approach from where the way home has got to by its grant, not from where it asked: harmless
-        in open space, not next to the arm that works the fixture next."""
-        return (
-            self.ledger.pipeline
-            and self.phase[arm] == Phase.HOME
-            and bool(self.ledger.gated.intersection(self.last_stations[arm]))
-        )
-
-    def free_in_s(self, arm: str, now_s: float | None = None) -> float | None:
-        """About when a busy arm's task ends (from `now_s`, else the last decision); None once it overran its
-        estimate (or is lost): not planned for."""
-        now_s = self.last_decision_tick / self.scene.control_hz if now_s is None else now_s
-        remaining = self.busy_until_s.get(arm, -math.inf) - now_s
-        return None if arm in self.lost or remaining < -OVERRUN_S else max(remaining, 0.0)
-
-    def busy_stations(self, for_arm: str | None = None) -> set[str]:
-        """Stations in use: by open tasks, and by arms still moving away from their last task's stations; `for_arm`:
-        as that arm sees them (a station it is itself moving away from is free to it: it may go straight back)."""
-        busy = self.ledger.busy_stations()
-        for arm, stations in self.last_stations.items():
-            if arm != for_arm and self.phase[arm] not in IDLE_PHASES and arm not in self.lost:
-                busy.update(stations)
-        if self.ledger.pipeline:
-            busy -= self.ledger.gated  # their order is the ledger's, their moves wait at `station_ahead`
-        return busy
-
-    def busy_for_all(self, arms: list[str]) -> set[str]:
-        """The stations busy for every one of `arms` (the free ones: what an allocator may be told is busy); a task
-        chosen at another station must still be checked against `busy_stations(arm)` for the arm it goes to."""
-        return set.intersection(*(self.busy_stations(a) for a in arms)) if arms else self.busy_stations()
-
-    def busy_arms(self) -> int:
-        return sum(s not in IDLE_PHASES for s in self.phase.values())
 
     # --- decisions ------------------------------------------------------------------
     def decide(self, tick: int) -> Decision:
@@ -422,113 +275,6 @@ class Dispatcher:
             out.append(CancelOrder(arm, task.part_id))
         return out
 
-    def answer(self, tick: int) -> list[GrantOrder]:
-        """Only the motion requests, at `tick`: for a front end whose tasks are chosen elsewhere (the env's allocate
-        mode,
-        where the policy allocates)."""
-        self.last_decision_tick = tick
-        return self.answer_motion_requests(tick / self.scene.control_hz)
-
-    def answer_motion_requests(self, now_s: float) -> list[GrantOrder]:
-        """Check every waiting request with the guard, arms in scene order (one global order: no cycle of waits).
-
-        A grant starts when the arm next hears from the sim (its controller acts on it then), for the duration
-        asked; `deny` (an arm that is not moving is in the way) goes back to the arm; `wait` (an arm with a
-        granted move is in the way) stays here until that move is over.
-        """
-        self.guard.expire(now_s)
-        if self.unsettled and now_s < self.settle_by_s:
-            return []  # taken over: an arm may still move under a grant this dispatcher never saw
-        self.unsettled.clear()
-        out = []
-        self.held_now = {}
-        for arm in [a for a in self.arm_names if a in self.requests]:
-            station = self.station_ahead(arm)
-            if station is not None:  # pipelined: the fixture is not ready for this arm's part yet
-                self.held_now[arm] = station
-                self.held_at_station_s[arm] = (
-                    self.held_at_station_s.get(arm, 0.0) + self.period_ticks / self.scene.control_hz
-                )
-                task = self.open_task(arm)
-                # wait beside it, part in hand
-                if self.phase[arm] == Phase.TRANSFER and task.task_id not in self.told_standby:
-                    self.told_standby.add(task.task_id)
-                    del self.requests[arm]
-                    out.append(GrantOrder(arm, self.request_seq[arm], "standby", "", math.inf, None))
-                continue
-            asked = self.requests[arm]
-            start = max(self.acts_at_tick[arm], self.last_decision_tick + 1) / self.scene.control_hz
-            path = dataclasses.replace(asked, t_start_s=start, t_end_s=start + (asked.t_end_s - asked.t_start_s))
-            self.guard.set_state(arm, np.asarray(asked.q_from))
-            verdict = self.guard.request(path)
-            if verdict.decision == "wait":
-                continue
-            del self.requests[arm]
-            self.grants_given += verdict.granted
-            out.append(
-                GrantOrder(
-                    arm,
-                    self.request_seq[arm],
-                    verdict.decision,
-                    verdict.conflict_arm or "",
-                    verdict.min_separation_m,
-                    start if verdict.granted else None,
-                )
-            )
-        return out
-
-    def open_task(self, arm: str) -> Task | None:
-        """The task `arm` was given and has not finished."""
-        return next((t for t in self.ledger.open_tasks() if t.arm == arm and t.state in TAKEN_STATES), None)
-
-    def station_ahead(self, arm: str) -> str | None:
-        """The fixture `arm`'s waiting move would take it into while it is not ready (None: no such fixture): an
-        approach to take from one, a transfer to place on one. Not ready: the ledger holds the part back, or
-        another arm works there or is on its way in (`_at_station`)."""
-        if not self.ledger.pipeline:
-            return None
-        task = self.open_task(arm)
-        phase = self.phase.get(arm)
-        station = (
-            task.source
-            if task and phase == Phase.APPROACH
-            else task.target
-            if task and phase == Phase.TRANSFER
-            else None
-        )
-        if station is None or station not in self.ledger.gated:
-            return None
-        if not self.ledger.may_enter(task, station):
-            return station
-        return station if any(b != arm and self._at_station(b, station) for b in self.arm_names) else None
-
-    def _at_station(self, arm: str, station: str) -> bool:
-        """Is `arm` working at `station` or moving into it under a grant: taking from it (its approach granted,
-        the grasp), placing on it (its transfer granted, the place), or still grasping or placing there after its
-        task closed. One arm at a fixture at a time, whatever the ledger thinks is there: the guard checks moves,
-        but two arms working one spot leave it no safe order."""
-        phase = self.phase[arm]
-        if arm in self.lost:
-            return False
-        if station in self.last_stations[arm] and phase in LOCAL_PHASES:
-            return True
-        task = self.open_task(arm)
-        if task is None:
-            return False
-        granted = arm not in self.requests
-        if station == task.source:
-            return phase in GRASP_PHASES or (phase == Phase.APPROACH and granted)
-        if station == task.target:
-            return phase in PLACE_PHASES or (phase == Phase.TRANSFER and granted)
-        return False
-
-    def watch_separations(self) -> list[NearestPair]:
-        """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour."""
-        pairs = self.guard.nearest_pairs()
-        if pairs and pairs[0].distance_m < self.min_separation_m:
-            self.min_separation_m, self.closest_pair = pairs[0].distance_m, (pairs[0].a, pairs[0].b)
-        return pairs
-
     def assignment(self, task: Task, arm: str) -> AssignOrder:
         """The order that gives `task` to `arm` (and reserves its stations until the arm is idle again)."""
         part, rec = self.parts[task.part_id], self.ledger.parts[task.part_id]
@@ -543,76 +289,3 @@ class Dispatcher:
         return tuple(d * c.speed_m_per_s for d in c.direction) if c else (0.0, 0.0, 0.0)
 
     # --- the summary ----------------------------------------------------------------
-    def report(self) -> dict:
-        return self.ledger.totals() | {
-            "allocator": self.allocator.name,
-            "pipeline": self.ledger.pipeline,
-            "arm_events": self.losses,
-            "unfinished_parts": self.ledger.unfinished(),
-            "tasks": [
-                {
-                    "task_id": t.task_id,
-                    "part_id": t.part_id,
-                    "source": t.source,
-                    "target": t.target,
-                    "state": t.state.value,
-                    "arm": t.arm,
-                    "created_s": t.created_s,
-                    "assigned_s": t.assigned_s,
-                    "deadline_s": t.deadline_s,
-                    "done_s": t.done_s,
-                    "reassignments": t.reassignments,
-                    "reason": t.reason,
-                }
-                for t in self.ledger.tasks.values()
-            ],
-            "decisions": self.decisions,
-            "grants_denied": self.guard.denied,
-            "grants_given": self.grants_given,
-            "tasks_reassigned": self.reassigned,
-            "tasks_adopted": self.adopted,
-            "grant_waits": self.guard.waits,
-            "grant_requests_open": {
-                a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items() if a not in self.held_now
-            },
-            "held_at_station_s": {a: round(s, 2) for a, s in self.held_at_station_s.items()},
-            "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
-            "closest_pair": list(self.closest_pair) if self.closest_pair else None,
-            "capacity": self.capacity.as_dict(),
-            "capacity_measured": self.measured_capacity(),
-            "capacity_of_run": self.run_capacity(),
-        }
-
-    def run_capacity(self) -> dict | None:
-        """The capacity bound with this run's own arrivals, those in time to be finished by now, in place of the mean
-        rates (None before any time passed): what this run could have completed at best."""
-        end_s = max(self.sim_time_s, self.last_event_s)
-        if end_s <= 0:
-            return None
-        arrived = [(p.feeder, p.type_index, p.arrived_s) for p in self.ledger.parts.values()]
-        model = self.capacity.model
-        counts = finishable_arrivals(self.scene, arrived, end_s, model)
-        caps = belt_window_caps(self.scene, arrived, end_s, model)
-        bound = capacity_bound(
-            self.scene,
-            reach=self.reach,
-            model=model,
-            arrivals_per_s={k: n / end_s for k, n in counts.items()},
-            type_limits=[(f"{c.arm} belt window", c.types, c.at_most / end_s) for c in caps],
-        )
-        return bound.as_dict() | {
-            "parts_finishable": sum(counts.values()),
-            "sim_seconds": round(end_s, 3),
-            "belt_windows": {c.arm: {"parts": c.arrived, "at_most": c.at_most} for c in caps},
-        }
-
-    def measured_capacity(self) -> dict | None:
-        """The capacity bound again with the hop times this run measured (None before any task was done)."""
-        measured = measured_hop_seconds(list(self.ledger.tasks.values()))
-        if not measured:
-            return None
-        return capacity_bound(self.scene, measured, self.reach, self.capacity.model).as_dict() | {
-            "measured_hop_s": {
-                f"{arm}: {source} -> {target}": round(s, 3) for (arm, source, target), s in sorted(measured.items())
-            }
-        }

@@ -27,9 +27,10 @@ import numpy as np
 import zenoh
 
 from coordinator.allocation import ALLOCATORS, Allocator, PartView, make_allocator
-from coordinator.dispatcher import Decision, Dispatcher
+from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT
+from coordinator.orders import Decision
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.history import HistoryUnavailable
 from fleet.bus.keys import Keys

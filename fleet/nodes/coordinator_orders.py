@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from coordinator.dispatcher import AssignOrder, CancelOrder, Dispatcher, GrantOrder
+from coordinator.dispatcher import Dispatcher
+from coordinator.orders import AssignOrder, CancelOrder, GrantOrder
 from fleet.bus.messages import Assignment, MotionGrant, Progress
 
 

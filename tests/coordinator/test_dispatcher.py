@@ -8,8 +8,9 @@ import numpy as np
 
 from coordinator.allocation import PartView
 from coordinator.cadence import decision_period_ticks
-from coordinator.dispatcher import AssignOrder, CancelOrder, Dispatcher, GrantOrder
+from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
+from coordinator.orders import AssignOrder, CancelOrder, GrantOrder
 from robots.registry import get_robot
 from scenes import load_scene
 

@@ -4,9 +4,10 @@ arm is held at the fixture's edge until it is (the assembly line's base, top and
 import numpy as np
 
 from coordinator.allocation import PartView
-from coordinator.dispatcher import Dispatcher, GrantOrder
+from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.ledger import Ledger
+from coordinator.orders import GrantOrder
 from coordinator.tasks import TaskState
 from robots.registry import get_robot
 from scenes import load_scene
