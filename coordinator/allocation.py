@@ -36,13 +36,11 @@ REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot
 CELL_MARGIN_M = 0.06
 GRID_M = 0.01
 NEAR_CELLS, NEAR_TRIES = 6, 2  # a new reach cell is first solved from the nearest reached cells this close (cells)
-URGENCY_S_PER_S = (
-    10.0  # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
-)
+# optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
+URGENCY_S_PER_S = 10.0
 LOOKAHEAD_S, LOOKAHEAD_STEP_S = 4.0, 0.5  # optimal: a free arm may wait this long for a belt part riding into its reach
-NO_DEADLINE_HORIZON_S = (
-    30.0  # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
-)
+# a task with no deadline (a part at rest in a station) counts as due this long after it appeared
+NO_DEADLINE_HORIZON_S = 30.0
 
 
 class CachedReach:

@@ -73,9 +73,8 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver):
         self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.parts: dict[int, PartView] = {}
         self.sim_time_s = 0.0
-        self.last_event_s = (
-            0.0  # the latest line event heard (the run's end, at its report, may be later than its parts)
-        )
+        # the latest line event heard (the run's end, at its report, may be later than its parts)
+        self.last_event_s = 0.0
         self.last_decision_tick = -(10**9)
         self.decisions = 0
         self.grants_given = 0

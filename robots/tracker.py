@@ -38,9 +38,8 @@ WATCHDOG_REASON = "watchdog: the controller missed its deadline"
 class _Active:
     checked: CheckedGoal
     spline: Spline
-    ended: bool = (
-        False  # its result is out (preempted by a goal that starts later): it drives the arm, unchecked, until then
-    )
+    # its result is out (preempted by a goal that starts later): it drives the arm, unchecked, until then
+    ended: bool = False
 
 
 @dataclass

@@ -85,9 +85,8 @@ class ControllerStep(Message, frozen=True, array_like=True):
     progress: float = 0.0
     failure: str = ""
     failure_code: str = ""
-    request_seq: int = (
-        0  # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
-    )
+    # > 0 while the arm holds still for a grant of the move to `request_q_to` in `request_duration_s`
+    request_seq: int = 0
     request_q_to: Floats = ()
     request_duration_s: float = 0.0
     # the local stage after the move, which asks no grant of its own: poses (flattened, one row per joint vector)
@@ -182,9 +181,8 @@ class PartsState(Message, frozen=True, array_like=True):
     quaternions_wxyz: Floats
     velocities: Floats
     sizes_m: Floats
-    events_published: int = (
-        0  # line events the sim had published up to this tick: a reader knows if one is still on its way
-    )
+    # line events the sim had published up to this tick: a reader knows if one is still on its way
+    events_published: int = 0
     version: int = PROTOCOL_VERSION
 
 

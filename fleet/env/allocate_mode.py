@@ -36,9 +36,8 @@ from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
 
 SLOTS = 4  # the first SLOTS tasks an arm can serve, oldest first, are its choices
-SLOT_FEATURES = (
-    10  # valid, pick point xyz, place point xyz, estimated seconds / 10, on the belt (0/1), slack seconds / 10
-)
+# valid, pick point xyz, place point xyz, estimated seconds / 10, on the belt (0/1), slack seconds / 10
+SLOT_FEATURES = 10
 WAIT = 0  # action 0: take nothing new this step
 
 

@@ -36,9 +36,8 @@ from scenes.schema import Scene
 READY_EVERY_S = 0.1
 DRAIN_EVERY_S = 0.1
 QUIET_MESSAGES = 20  # a drain with fewer is a trickle (heartbeats, progress): the line is paused or over
-RUNNING_MESSAGES = (
-    100  # a drain with more: the line runs (a lockstep line at full speed sends hundreds; its start-up a few dozen)
-)
+# a drain with more: the line runs (a lockstep line at full speed sends hundreds; its start-up a few dozen)
+RUNNING_MESSAGES = 100
 CATCH_UP_SLICE = 500  # held-back messages written per round while the line is quiet
 HOLD_AT_MOST = 200_000  # heard messages held back at most (some 60 MB); beyond, they are written as they come
 DRAIN_GRACE_S = 0.1  # after a stop: messages still on their way are recorded too (until a drain finds none)

@@ -70,12 +70,10 @@ class PickPlaceTiming:
     place_drop_m: float = 0.008
     clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home
     home_tolerance_rad: float = 0.05  # within this of the home pose on every joint counts as home
-    detour_after_s: float = (
-        2.0  # a transfer denied this long goes home first (the arm in the way may be waiting for it)
-    )
-    standby_back: float = (
-        0.8  # told to stand by: this fraction of the way from the place's hover point to the arm's base...
-    )
+    # a transfer denied this long goes home first (the arm in the way may be waiting for it)
+    detour_after_s: float = 2.0
+    # told to stand by: this fraction of the way from the place's hover point to the arm's base...
+    standby_back: float = 0.8
     standby_up_m: float = 0.08  # ...and this much higher
 
     @classmethod

@@ -156,7 +156,7 @@ def test_bench_env_against_robosuite_without_it_is_one_line_before_any_env_runs(
     """This environment has no robosuite (it cannot: docs/benchmarks.md makes a second one); the baseline runs
     first, so a wrong interpreter is said at once."""
     result = fleet(
-        "bench", "env", "--arms", "2", "--tasks", "reach", "--steps", "2000", "--robosuite", python, timeout=120
+        "bench", "env", "--arms", "2", "--scenarios", "reach", "--steps", "2000", "--robosuite", python, timeout=120
     )
     assert result.returncode == 1
     lines = result.stderr.strip().splitlines()

@@ -1,0 +1,150 @@
+"""The processes a run starts, with their arguments: the sim, the coordinator and one controller per arm, the monitor
+and the recorder."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from coordinator.cadence import moves_need_grants
+from fleet.common.processes import stop_children, write_text_atomically
+from fleet.run.run_node import (
+    COORDINATOR_RESPAWN_TIMEOUT_S,
+    RECORDER_GRACE_S,
+    RECORDER_START_S,
+    Node,
+)
+
+
+class NodeCommands:
+    """The processes a run starts and their arguments: one concern of `Launcher`, kept apart."""
+
+    def _bus_args(self, listen: bool, node: str = "") -> list[str]:
+        o = self.options
+        if self.bus is not None:  # its config says where it listens or connects, and as whom
+            return ["--zenoh-config", self.bus.config_for(node)]
+        args = ["--listen", self.endpoint] if listen else (["--connect", self.endpoint] if self.endpoint else [])
+        for ep in o.connect:
+            args += ["--connect", ep]
+        if o.zenoh_config:
+            args += ["--zenoh-config", o.zenoh_config]
+        return args
+
+    def _here(self, node: str) -> list[str]:
+        """How a node's command starts: in its network namespace when the hosts file names one."""
+        return [*(self.hosts.prefix(node) if self.hosts else []), sys.executable, "-m"]
+
+    def _node(self, role: str, name: str, module: str, extra: list[str], listen: bool = False) -> Node:
+        o = self.options
+        node = name if role == "controller" else role
+        argv = [
+            *self._here(node),
+            module,
+            "--scene",
+            o.scene,
+            "--run",
+            o.run_id,
+            "--seed",
+            str(self.seed),
+            *self._bus_args(listen, node),
+            *extra,
+        ]
+        if o.arms is not None:
+            argv += ["--arms", str(o.arms)]
+        report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
+        return Node(role, name, [*argv, "--report", str(report)], report, log)
+
+    def sim_node(self) -> Node:
+        o = self.options
+        sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--coordinator"]
+        if not o.listen:
+            sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
+        if o.record_targets:
+            sim_args += ["--record-targets", o.record_targets]
+        if o.record:  # what the bus carries, as the sim hears it, for the recorder (no second copy on the wire)
+            sim_args += ["--spool", str(self.spool_path)]
+        if o.respawn:
+            sim_args += ["--coordinator-timeout", str(COORDINATOR_RESPAWN_TIMEOUT_S)]
+        for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
+            if value is not None:
+                sim_args += [flag, repr(value)]
+        return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
+
+    def client_nodes(self) -> list[Node]:
+        """The coordinator and one controller per arm, connecting to the sim's endpoint."""
+        o = self.options
+        nodes = [
+            self._node(
+                "coordinator",
+                "coordinator",
+                "fleet.nodes.coordinator_node",
+                ["--mode", o.mode, "--allocator", o.allocator, *([] if o.pipeline else ["--no-pipeline"])],
+            )
+        ]
+        nodes[0].counts_starts = True  # `--incarnation N`: from the 2nd start on, it takes over the running line
+        for arm in self.scene.arms:
+            grants = ["--grants"] if moves_need_grants(self.scene) else []  # a lone arm has nobody to ask about
+            extra = ["--arm", arm.name, *grants] + (["--rt"] if o.realtime_priority else [])
+            node = self._node("controller", arm.name, "fleet.nodes.arm_controller", extra)
+            node.counts_starts = True
+            nodes.append(node)
+        return nodes
+
+    def monitor_node(self) -> Node:
+        """The browser monitor, attached over the bus like any other client (no scene flags: it asks the sim)."""
+        o = self.options
+        report, log = self.dir / "monitor.json", self.dir / "monitor.log"
+        argv = [
+            *self._here("monitor"),
+            "fleet.nodes.monitor_node",
+            "--run",
+            o.run_id,
+            *self._bus_args(False, "monitor"),
+            "--host",
+            o.monitor_host,
+            "--port",
+            str(o.monitor_port),
+            "--url-file",
+            str(self.dir / "monitor_url"),
+            "--report",
+            str(report),
+        ]
+        return Node("monitor", "monitor", argv, report, log)
+
+    @property
+    def spool_path(self) -> Path:
+        return self.dir / "bus.spool"
+
+    def recorder_node(self) -> Node:
+        """The recorder, reading the sim's spool as the sim writes it (`fleet/record/spool.py`); it adds the summary
+        found in `summary.json`."""
+        o = self.options
+        report, log = self.dir / "recorder.json", self.dir / "recorder.log"
+        argv = [
+            *self._here("recorder"),
+            "fleet.nodes.recorder_node",
+            "--spool",
+            str(self.spool_path),
+            "--scene-timeout",
+            str(RECORDER_START_S),
+            "--out",
+            str(o.record),
+            "--summary-file",
+            str(self.dir / "summary.json"),
+            "--report",
+            str(report),
+            *(["--hold"] if o.mode == "lockstep" else []),
+        ]
+        return Node("recorder", "recorder", argv, report, log, idle=True)
+
+    def finish_recording(self, summary: dict) -> dict:
+        """Hand the recorder the summary and let it finish the file; what it reports."""
+        write_text_atomically(str(self.dir / "summary.json"), json.dumps(summary, sort_keys=True))
+        stop_children([self.recorder.child], RECORDER_GRACE_S)
+        report = self._read(self.recorder)
+        if not report:
+            self.on_message(
+                f"the recorder did not finish {self.options.record}: {self.recorder.log_tail() or 'no output'}"
+            )
+        return report

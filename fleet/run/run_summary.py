@@ -1,0 +1,163 @@
+"""The run summary: the nodes' reports merged into one, with the line's bound, each arm's time and the faults."""
+
+from __future__ import annotations
+
+import json
+
+from fleet.run.run_node import (
+    Node,
+)
+
+
+class RunSummary:
+    """The run summary from the nodes' reports: one concern of `Launcher`, kept apart."""
+
+    def _read(self, node: Node) -> dict:
+        try:
+            return json.loads(node.report.read_text())
+        except (OSError, ValueError):
+            return {}
+
+    @staticmethod
+    def _capacity(capacity: dict | None, of_run: dict | None, completed: int, sim_s: float) -> dict:
+        """The line's capacity bound (the coordinator's) and how much of it this run achieved; the same against the
+        bound of this run's own arrivals (those in time to be finished), which a short run's luck moves."""
+        if not capacity:
+            return {
+                "throughput_bound_per_min": None,
+                "bound_fraction": None,
+                "bottleneck": None,
+                "run_bound_per_min": None,
+                "run_bound_fraction": None,
+                "parts_finishable": None,
+            }
+        bound = capacity["throughput_bound_per_min"]
+        achieved = completed / (sim_s / 60.0) if sim_s > 0 else 0.0
+        busy = capacity["arm_busy_at_bound"] | capacity["station_busy_at_bound"]
+        run_bound = of_run["throughput_bound_per_min"] if of_run else None
+        return {
+            "throughput_bound_per_min": bound,
+            "bound_fraction": round(achieved / bound, 4) if bound > 0 else None,
+            "bottleneck": {"name": capacity["bottleneck"], "busy_fraction_at_bound": busy.get(capacity["bottleneck"])},
+            "run_bound_per_min": run_bound,
+            "run_bound_fraction": round(achieved / run_bound, 4) if run_bound else None,
+            "parts_finishable": of_run["parts_finishable"] if of_run else None,
+            "capacity": capacity,
+        }
+
+    @staticmethod
+    def _lockstep_timeouts(coord: dict, controllers: list[dict]) -> dict:
+        """Lockstep waits that ran out (0.5 s of wall time) and went on without what they waited for: a decision made
+        without every event, a controller's tick planned with older parts or without an announced order. Zero in
+        a run that repeats exactly; more means the machine was too loaded for that."""
+        return {
+            "coordinator_decisions": coord.get("decisions_on_deadline", 0),
+            "controllers": {
+                c["arm"]: c.get("parts_late", 0) + c.get("missed_assignments", 0) for c in controllers if "arm" in c
+            },
+        }
+
+    @staticmethod
+    def _arm_time(arm_time: dict, held_s: dict, sim_s: float) -> dict:
+        """The sim's per-arm fractions, with the time an arm held still for a fixture that was not ready yet (the
+        coordinator's count) told apart from waiting for a grant: holding a part at the edge is the pipeline
+        working, not a blocked move."""
+        out = {}
+        for arm, t in arm_time.items():
+            held = min(held_s.get(arm, 0.0) / sim_s, t.get("waiting_for_grant", 0.0)) if sim_s > 0 else 0.0
+            out[arm] = t | {
+                "waiting_for_grant": round(t.get("waiting_for_grant", 0.0) - held, 4),
+                "held_at_fixture": round(held, 4),
+            }
+        return out
+
+    @staticmethod
+    def _faults(links: dict, controllers: list[dict]) -> dict:
+        """What the bus faults were and what they cost the controllers (goals sent again); empty without faults."""
+        if not links:
+            return {}
+        return {"links": links, "goals_resent": {c["arm"]: c.get("goals_resent", 0) for c in controllers if "arm" in c}}
+
+    def summary(self, wall_s: float, error: str) -> dict:
+        sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
+        controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
+        monitor = next((self._read(n) for n in self.nodes if n.role == "monitor"), None)
+        heard = self.last_progress
+        sim_s = sim.get("sim_seconds", max(self.last_sim_time_s, heard.sim_time_s if heard else 0.0))
+        if coord:
+            counts = {k: coord.get(k, 0) for k in ("parts_completed", "parts_missed", "parts_failed")}
+        else:  # the coordinator died: its last progress message is what is known
+            counts = {
+                "parts_completed": heard.parts_completed if heard else 0,
+                "parts_missed": heard.parts_missed if heard else 0,
+                "parts_failed": heard.parts_failed if heard else 0,
+            }
+        spawned = sim.get("parts_spawned", max(heard.parts_spawned if heard else 0, sum(counts.values())))
+        in_progress = (
+            coord.get("parts_in_progress", spawned - sum(counts.values()))
+            if coord and sim
+            else spawned - sum(counts.values())
+        )
+        completed = counts["parts_completed"]
+        processes = [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes]
+        status = "error" if error else ("interrupted" if self.interrupted else "ok")
+        return {
+            "scene": self.scene.name,
+            "arms": len(self.scene.arms),
+            "arm_ids": [a.name for a in self.scene.arms],
+            "mode": self.options.mode,
+            "seed": self.seed,
+            "randomised": dict(self.scene.randomised),
+            "allocator": coord.get("allocator"),
+            "pipeline": coord.get("pipeline"),
+            "status": status,
+            "error": error,
+            "stopped_by": self.interrupted or sim.get("stopped_by", ""),
+            "sim_seconds": sim_s,
+            "wall_seconds": round(wall_s, 3),
+            "loop_wall_seconds": sim.get("loop_wall_seconds"),
+            "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
+            "parts_spawned": spawned,
+            "parts_completed": completed,
+            "parts_missed": counts["parts_missed"],
+            "parts_failed": counts["parts_failed"],
+            "parts_in_progress": max(0, in_progress),
+            "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
+            "utilisation": sim.get("utilisation", {}),
+            "arm_time": self._arm_time(sim.get("arm_time", {}), coord.get("held_at_station_s", {}), sim_s),
+            **self._capacity(coord.get("capacity"), coord.get("capacity_of_run"), completed, sim_s),
+            "capacity_measured": coord.get("capacity_measured"),
+            "capacity_of_run": coord.get("capacity_of_run"),
+            "feeder_held_s": sim.get("feeder_held_s", {}),
+            "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
+            "contact_pairs": sim.get("contact_pairs", []),
+            "min_separation_m": coord.get("min_separation_m"),
+            "closest_pair": coord.get("closest_pair"),
+            "grants_denied": coord.get("grants_denied", 0),
+            "grants_given": coord.get("grants_given", 0),
+            "grant_waits": coord.get("grant_waits", 0),
+            "tasks_reassigned": coord.get("tasks_reassigned", 0),
+            "grant_requests_open": coord.get("grant_requests_open", {}),
+            "held_at_station_s": coord.get("held_at_station_s", {}),
+            "lockstep_timeouts": self._lockstep_timeouts(coord, controllers),
+            "decision_wall_ms": coord.get("decision_wall_ms", {}),
+            "goal_results": sim.get("goal_results", {}),
+            "network_faults": self._faults(sim.get("network_faults", {}), controllers),
+            "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),
+            "latency_p50_ms": sim.get("latency_p50_ms"),
+            "latency_p99_ms": sim.get("latency_p99_ms"),
+            "round_trip_histogram": sim.get("round_trip_histogram"),
+            "bus_messages_out": sim.get("messages_out", {}),
+            "dropped_messages": sim.get("dropped_messages", 0)
+            + coord.get("dropped_messages", 0)
+            + sum(c.get("dropped_messages", 0) for c in controllers)
+            + (monitor or {}).get("dropped_messages", 0),
+            "arms_lost": sim.get("arms_lost", []),
+            "arm_events": coord.get("arm_events", []),
+            "respawns": self.respawns,
+            "coordinator_takeover": coord.get("takeover"),
+            "respawn_requests": self.respawn_requests,
+            "monitor": None if monitor is None else {"url": self.monitor_url} | monitor,
+            "unfinished_parts": coord.get("unfinished_parts", []),
+            "processes": processes,
+        }

@@ -1,0 +1,115 @@
+"""A run watched while it goes: nodes that crash or hang restarted (or the run ended with one clear line), respawn
+requests on the bus answered, the monitor kept up."""
+
+from __future__ import annotations
+
+import time
+
+from fleet.bus.messages import Progress, RespawnRequest, SimStatus
+from fleet.bus.session import Inbox
+from fleet.run.run_node import (
+    HUNG_COORDINATOR_S,
+    MAX_COORDINATOR_STARTS,
+    Node,
+)
+
+
+class Supervision:
+    """Watching a run while it goes: one concern of `Launcher`, kept apart."""
+
+    def _on_bus(self, inbox: Inbox) -> None:
+        for key, payload in inbox.drain():
+            decoder = self._decoders.get(key)
+            msg = decoder.decode(key, payload) if decoder else None
+            if isinstance(msg, Progress):
+                self.last_progress, self.progress_at = msg, time.monotonic()
+                if self.on_progress is not None:
+                    self.on_progress(msg)
+            elif isinstance(msg, SimStatus):
+                self.arms_lost = msg.arms_lost
+                self.last_sim_time_s = max(self.last_sim_time_s, msg.sim_time_s)
+            elif isinstance(msg, RespawnRequest):
+                self.respawn_on_request(msg)
+
+    def respawn_on_request(self, request: RespawnRequest) -> bool:
+        """Start an arm's controller again if it died or the sim lost it; refuse (with the reason) otherwise."""
+        node = next((n for n in self.nodes if n.role == "controller" and n.name == request.arm), None)
+        if node is None:
+            why = f"no arm {request.arm!r} (arms: {', '.join(a.name for a in self.scene.arms)})"
+        elif node.alive and request.arm not in self.arms_lost:
+            why = "its controller is alive and heard"
+        else:
+            why = ""
+        self.respawn_requests.append({"arm": request.arm, "source": request.source, "done": not why, "reason": why})
+        if why:
+            self.on_message(f"respawn of {request.arm} refused: {why}")
+            return False
+        if node.alive:  # alive but silent: a hung controller is replaced
+            node.child.kill()
+        self._restart(node)
+        self.on_message(f"respawned {request.arm}'s controller (asked by {request.source})")
+        return True
+
+    def _check_monitor(self) -> None:
+        monitor = next((n for n in self.nodes if n.role == "monitor"), None)
+        if monitor is None:
+            return
+        if not self.monitor_url and (self.dir / "monitor_url").exists():
+            self.monitor_url = (self.dir / "monitor_url").read_text().strip()
+            self.on_message(f"monitor: {self.monitor_url}")
+        if monitor.poll() is not None and not self.monitor_gone:
+            self.monitor_gone = True
+            self.on_message(
+                f"the monitor exited (exit {monitor.exit_code}): {monitor.log_tail() or 'no output'}; the line goes on"
+            )
+
+    def _supervise(self, inbox: Inbox) -> str:
+        sim, coordinator = self.nodes[0], self.nodes[1]
+        while not self.interrupted:
+            self._on_bus(inbox)
+            self._check_monitor()
+            code = sim.poll()
+            if code is not None:
+                if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
+                    return (
+                        f"the sim stopped: the coordinator did not answer in the lockstep timeout; logs in {self.dir}"
+                    )
+                return (
+                    ""
+                    if code == 0
+                    else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
+                )
+            if self._hung(coordinator):
+                self.on_message(f"the coordinator said nothing for {HUNG_COORDINATOR_S:.0f} s; replacing it")
+                coordinator.child.kill()
+            code = coordinator.poll()
+            if code is not None:
+                if not (self.options.respawn and coordinator.starts < MAX_COORDINATOR_STARTS):
+                    tail = coordinator.log_tail() or "no output"
+                    return f"the coordinator crashed (exit {code}): {tail}; logs in {self.dir}"
+                self.on_message(f"the coordinator crashed (exit {code}); starting another to take over the line")
+                self._restart(coordinator)
+            for node in self.nodes[2:]:
+                if node.role == "controller" and node.poll() is not None and self.options.respawn:
+                    self._restart(node)
+            time.sleep(0.02)
+        return ""
+
+    def _hung(self, coordinator: Node) -> bool:
+        """With `respawn`: the coordinator is alive but has not said its progress for `HUNG_COORDINATOR_S` since it
+        first did (one still starting, computing the line's capacity or taking over, has said nothing yet)."""
+        return (
+            self.options.respawn
+            and coordinator.alive
+            and self.progress_at is not None
+            and time.monotonic() - self.progress_at > HUNG_COORDINATOR_S
+            and coordinator.starts < MAX_COORDINATOR_STARTS
+        )
+
+    def _restart(self, node: Node) -> None:
+        """Start a dead node again, keeping the record of the one that died."""
+        node.history.append(node.record())
+        if node.role == "coordinator":
+            self.progress_at = None
+        node.start()
+        self.respawns += 1
