@@ -316,6 +316,98 @@ def _short_pairing(pairings: list[tuple[str, list[int], list[int]]], x: np.ndarr
     return ""
 
 
+@dataclass
+class _Programme:
+    """The capacity bound's linear programme. Variables: r[type] (parts completed a second), then x[arm, hop] (hops
+    done a second) where the arm can serve the hop."""
+
+    pairs: list[tuple[int, int]]
+    a_eq: list = field(default_factory=list)
+    b_eq: list = field(default_factory=list)
+    a_ub: list = field(default_factory=list)
+    b_ub: list = field(default_factory=list)
+    labels: list[str] = field(default_factory=list)
+    pairings: list = field(default_factory=list)  # (fixture, first feeder's types, a later feeder's types)
+    limit_rows: list = field(default_factory=list)  # (name, row index) of each cap on some part types together
+
+
+def _programme(
+    scene: Scene,
+    views: list[ArmView],
+    hops: list[Hop],
+    seconds: np.ndarray,
+    types: list[tuple[str, int]],
+    stages: dict[tuple[str, int, int], list[int]],
+    type_limits: list[tuple[str, tuple[tuple[str, int], ...], float]] | None,
+) -> _Programme:
+    """The programme's rows: each stage made as often as its type completes, each arm and station busy at most all
+    the time, an assembly's parts paired, and the caps on some part types together."""
+    pairs = [(i, j) for i in range(len(views)) for j in range(len(hops)) if np.isfinite(seconds[i, j])]
+    n_r = len(types)
+    index = {p: n_r + k for k, p in enumerate(pairs)}
+    n = n_r + len(pairs)
+    lp = _Programme(pairs)
+    for (feeder, type_index, _), js in stages.items():  # every stage of a type is made as often as that type completes
+        row = np.zeros(n)
+        row[types.index((feeder, type_index))] = -1.0
+        for j in js:
+            for i in range(len(views)):
+                if (i, j) in index:
+                    row[index[(i, j)]] = 1.0
+        lp.a_eq.append(row)
+        lp.b_eq.append(0.0)
+    for i, view in enumerate(views):  # an arm works at most all the time
+        row = np.zeros(n)
+        for j in range(len(hops)):
+            if (i, j) in index:
+                row[index[(i, j)]] = seconds[i, j]
+        lp.a_ub.append(row), lp.b_ub.append(1.0), lp.labels.append(view.name)
+    for station in scene.stations:  # a station serves one task at a time
+        row = np.zeros(n)
+        for (i, j), k in index.items():
+            if station.name in (hops[j].source, hops[j].target):
+                row[k] = seconds[i, j]
+        if row.any():
+            lp.a_ub.append(row), lp.b_ub.append(1.0), lp.labels.append(station.name)
+    for station in scene.stations:  # an assembly takes one part of each feeder it assembles: as many of each
+        first = [types.index(t) for t in types if t[0] == station.assembles[0]] if station.assembles else []
+        for later in station.assembles[1:]:
+            other = [types.index(t) for t in types if t[0] == later]
+            row = np.zeros(n)
+            row[first], row[other] = 1.0, -1.0
+            lp.a_eq.append(row), lp.b_eq.append(0.0)
+            lp.pairings.append((station.name, first, other))
+    for name, keys, most_per_s in type_limits or []:
+        row = np.zeros(n)
+        row[[types.index(k) for k in keys if k in types]] = 1.0
+        lp.limit_rows.append((name, len(lp.a_ub)))
+        lp.a_ub.append(row), lp.b_ub.append(most_per_s), lp.labels.append("")
+    return lp
+
+
+def _solve(
+    scene: Scene, lp: _Programme, type_bounds: list[tuple[float, float]]
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """The programme solved: the most parts a minute, the rates of its most even solution, and how busy each arm
+    and station (each upper-bound row) is at it."""
+    n_r, pairs, a_eq, b_eq, a_ub, b_ub = len(type_bounds), lp.pairs, lp.a_eq, lp.b_eq, lp.a_ub, lp.b_ub
+    bounds = type_bounds + [(0.0, None)] * len(pairs)
+    result = linprog(
+        -np.r_[np.ones(n_r), np.zeros(len(pairs))],
+        A_ub=np.array(a_ub) if a_ub else None,
+        b_ub=b_ub or None,
+        A_eq=np.array(a_eq) if a_eq else None,
+        b_eq=b_eq or None,
+        bounds=bounds,
+        method="highs",
+    )
+    if result.status != 0:
+        raise RuntimeError(f"the capacity programme of {scene.name} did not solve: {result.message}")
+    best = float(-result.fun) * 60.0
+    x = _balanced(result.x, best / 60.0, n_r, np.array(a_ub), b_ub, lp.labels, a_eq, b_eq, bounds) if a_ub else result.x
+    return best, x, (np.array(a_ub) @ x) if a_ub else np.zeros(0)
+
+
 def capacity_bound(
     scene: Scene,
     measured_s: dict[tuple[str, str, str], float] | None = None,
@@ -350,65 +442,10 @@ def capacity_bound(
         f"{' or '.join(hops[j].target for j in js)}"
         for js in dead
     ]
-    # variables: r[type] (completed parts per s), then x[arm, hop] (hops done per s) where the arm can serve the hop
-    pairs = [(i, j) for i in range(len(views)) for j in range(len(hops)) if np.isfinite(seconds[i, j])]
-    n_r = len(types)
-    index = {p: n_r + k for k, p in enumerate(pairs)}
-    n = n_r + len(pairs)
-    a_eq, b_eq, a_ub, b_ub, labels = [], [], [], [], []
-    for (feeder, type_index, _), js in stages.items():  # every stage of a type is made as often as that type completes
-        row = np.zeros(n)
-        row[types.index((feeder, type_index))] = -1.0
-        for j in js:
-            for i in range(len(views)):
-                if (i, j) in index:
-                    row[index[(i, j)]] = 1.0
-        a_eq.append(row)
-        b_eq.append(0.0)
-    for i, view in enumerate(views):  # an arm works at most all the time
-        row = np.zeros(n)
-        for j in range(len(hops)):
-            if (i, j) in index:
-                row[index[(i, j)]] = seconds[i, j]
-        a_ub.append(row), b_ub.append(1.0), labels.append(view.name)
-    for station in scene.stations:  # a station serves one task at a time
-        row = np.zeros(n)
-        for (i, j), k in index.items():
-            if station.name in (hops[j].source, hops[j].target):
-                row[k] = seconds[i, j]
-        if row.any():
-            a_ub.append(row), b_ub.append(1.0), labels.append(station.name)
-    pairings = []  # (fixture, first feeder's types, a later feeder's types) of each assembly row
-    for station in scene.stations:  # an assembly takes one part of each feeder it assembles: as many of each
-        first = [types.index(t) for t in types if t[0] == station.assembles[0]] if station.assembles else []
-        for later in station.assembles[1:]:
-            other = [types.index(t) for t in types if t[0] == later]
-            row = np.zeros(n)
-            row[first], row[other] = 1.0, -1.0
-            a_eq.append(row), b_eq.append(0.0)
-            pairings.append((station.name, first, other))
-    limit_rows = []  # (name, row index) of each cap on some part types together
-    for name, keys, most_per_s in type_limits or []:
-        row = np.zeros(n)
-        row[[types.index(k) for k in keys if k in types]] = 1.0
-        limit_rows.append((name, len(a_ub)))
-        a_ub.append(row), b_ub.append(most_per_s), labels.append("")
+    lp = _programme(scene, views, hops, seconds, types, stages, type_limits)
     unreachable = {(hops[js[0]].feeder, hops[js[0]].type_index) for js in dead}
-    bounds = [(0.0, 0.0 if t in unreachable else rate[t]) for t in types] + [(0.0, None)] * len(pairs)
-    result = linprog(
-        -np.r_[np.ones(n_r), np.zeros(len(pairs))],
-        A_ub=np.array(a_ub) if a_ub else None,
-        b_ub=b_ub or None,
-        A_eq=np.array(a_eq) if a_eq else None,
-        b_eq=b_eq or None,
-        bounds=bounds,
-        method="highs",
-    )
-    if result.status != 0:
-        raise RuntimeError(f"the capacity programme of {scene.name} did not solve: {result.message}")
-    best = float(-result.fun) * 60.0
-    x = _balanced(result.x, best / 60.0, n_r, np.array(a_ub), b_ub, labels, a_eq, b_eq, bounds) if a_ub else result.x
-    usage = (np.array(a_ub) @ x) if a_ub else np.zeros(0)
+    best, x, usage = _solve(scene, lp, [(0.0, 0.0 if t in unreachable else rate[t]) for t in types])
+    labels, b_ub, pairings, limit_rows = lp.labels, lp.b_ub, lp.pairings, lp.limit_rows
     arm_busy = {v.name: float(usage[i]) for i, v in enumerate(views)}
     station_busy = {labels[k]: float(usage[k]) for k in range(len(views), len(labels)) if labels[k]}
     busiest = max([*arm_busy.items(), *station_busy.items()], key=lambda kv: kv[1], default=("", 0.0))

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 from collections import Counter
 
-from coordinator.tasks import CONVEYOR, OPEN_STATES, TAKEN_STATES, PartFate, PartRecord, Task, TaskState
+from coordinator.ledger_stations import LedgerStations
+from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
 from robots.failures import FailureCode
 from robots.phase import HOLDING_PHASES, IDLE_PHASES, Phase
 from scenes.schema import Scene
@@ -31,7 +32,7 @@ PLACED_GRACE_S = 3.0
 PIPELINE_DEFAULT = True
 
 
-class Ledger:
+class Ledger(LedgerStations):
     """Parts and tasks of one run; all times are sim seconds."""
 
     def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = PIPELINE_DEFAULT) -> None:
@@ -91,14 +92,6 @@ class Ledger:
             self._close(task, TaskState.FAILED, f"part lost: {reason}")
         if part.fate == PartFate.ON_LINE:
             part.fate, part.reason = PartFate.MISSED, reason
-
-    def _leave_stack(self, part: PartRecord) -> None:
-        stack = self.stacks.get(part.location)
-        if stack and part.part_id in stack:
-            if stack[0] == part.part_id:
-                stack.clear()  # the assembly moved on (or fell) as one
-            else:
-                stack.remove(part.part_id)
 
     def event_problem(self, kind: str, part_id: int, detail: str, type_index: int) -> str:
         """Why a well-formed event cannot be true of this line ("" if it can): unknown kind, feeder, type, station
@@ -240,83 +233,9 @@ class Ledger:
         self.assign(task.task_id, arm, now_s, target)
         return ""
 
-    def _ready(self, part: PartRecord, target: str) -> bool:
-        """Precedence: an assembly layer needs the layers below it; a stack's bottom leaves only when whole.
-        With pipelining, layers and parts on their way count as there (their arms wait at `may_enter`)."""
-        here = self.stacks.get(part.location)
-        if here is not None and part.part_id in here:
-            whole = len(self.scene.station(part.location).assembles)
-            if here[0] != part.part_id or (not self.pipeline and len(here) < whole):
-                return False
-            if self.pipeline:  # every layer placed, or on its way (a second part of one layer is not the next layer)
-                have = {self._layer(self.parts[p], part.location) for p in here}
-                have |= {self._layer(self.parts[t.part_id], part.location) for t in self._inbound(part.location)}
-                if not set(range(whole)) <= have:
-                    return False
-        stack = self.stacks.get(target)
-        assembles = self.scene.station(target).assembles
-        if self.pipeline and target in self.gated:
-            layer, have = self._layer(part, target), self._future_layers(target)
-            return layer not in have and all(below in have for below in range(layer))
-        if stack is not None and part.feeder in assembles:
-            if len(stack) != assembles.index(part.feeder):
-                return False
-            if any(t.target == target for t in self.open_tasks()):
-                return False  # one layer on its way at a time
-        return True
-
-    def _layer(self, part: PartRecord, station: str) -> int:
-        """Where `part` goes in `station`'s stack (0, the bottom, at a station that does not assemble)."""
-        assembles = self.scene.station(station).assembles
-        return assembles.index(part.feeder) if part.feeder in assembles else 0
-
     def open_tasks(self) -> list[Task]:
         """The tasks not finished (pending, or given to an arm), without walking every task of the run."""
         return [self.tasks[task_id] for task_id in self._open_by_part.values()]
-
-    def _inbound(self, station: str, states: tuple[TaskState, ...] = OPEN_STATES) -> list[Task]:
-        """Tasks bringing a part to `station`."""
-        return [t for t in self.open_tasks() if t.target == station and t.state in states]
-
-    def _occupants(self, station: str) -> list[int]:
-        """The parts resting at `station`: its stack, if it assembles; else every part there."""
-        if station in self.stacks:
-            return self.stacks[station]
-        return [p.part_id for p in self.parts.values() if p.location == station and p.fate == PartFate.ON_LINE]
-
-    def _future_parts(self, station: str) -> list[int]:
-        """The parts `station` will hold once the parts on their way are there and the ones an arm was sent to
-        take away are gone."""
-        present = [] if self._leaving(station) else list(self._occupants(station))
-        return present + [t.part_id for t in self._inbound(station)]
-
-    def _future_layers(self, station: str) -> list[int]:
-        """The layers of `_future_parts`."""
-        return [self._layer(self.parts[p], station) for p in self._future_parts(station)]
-
-    def _leaving(self, station: str) -> bool:
-        """What rests at `station` is whole (an assembly with every layer) and an arm was sent to take it away."""
-        here, assembles = self._occupants(station), self.scene.station(station).assembles
-        whole = len(here) >= len(assembles) if assembles else bool(here)  # a part taken along by a claw may lie on top
-        return whole and any(t.source == station and t.state in TAKEN_STATES for t in self.open_tasks())
-
-    def may_enter(self, task: Task, station: str) -> bool:
-        """May the arm of `task` move into `station` now? Always, unless pipelining holds it: taking an assembly
-        away waits until it is whole; bringing a part waits until the layers below it are placed and the parts
-        before it (an assembly, a handed-over part) have been lifted off, and no arm is bringing one below it."""
-        if not self.pipeline or station not in self.gated:
-            return True
-        assembles = self.scene.station(station).assembles
-        here = self._occupants(station)
-        if station == task.source:
-            return not assembles or (bool(here) and here[0] == task.part_id and len(here) >= len(assembles))
-        layer = self._layer(self.parts[task.part_id], station)
-        if any(
-            t.task_id != task.task_id and self._layer(self.parts[t.part_id], station) <= layer
-            for t in self._inbound(station, TAKEN_STATES)
-        ):
-            return False
-        return len(here) == layer
 
     def assign(self, task_id: int, arm: str, now_s: float, target: str | None = None) -> Task:
         """Give a pending task to `arm`; `target`: which of its stations (its target or an alternative) it goes to."""
@@ -334,23 +253,6 @@ class Ledger:
         task.state, task.arm, task.assigned_s, task.reason = TaskState.PENDING, None, None, reason
         task.reassignments += 1
         return task
-
-    def place_height_m(self, target: str, part_id: int | None = None) -> float:
-        """Where a part's bottom goes at `target`: the station's surface, on top of any stack there (with
-        pipelining, on the layers below `part_id`'s, placed or on their way, not on an assembly leaving)."""
-        z = self.scene.station(target).surface_z_m
-        if not (self.pipeline and target in self.gated and part_id is not None):
-            return z + sum(self.parts[p].height_m for p in self.stacks.get(target, []))
-        layer = self._layer(self.parts[part_id], target)
-        return z + sum(
-            self.parts[p].height_m
-            for p in self._future_parts(target)
-            if p != part_id and self._layer(self.parts[p], target) < layer
-        )
-
-    def busy_stations(self) -> set[str]:
-        """Stations some assigned or running task picks from or places at (one arm at a time there)."""
-        return {s for t in self.open_tasks() if t.state in TAKEN_STATES for s in t.stations}
 
     # --- accounting -----------------------------------------------------------------
     def totals(self) -> dict:

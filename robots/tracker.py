@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robots.gripper_tracking import GripperTracking, _Gripper
 from robots.joint_trajectory import (
     ArmGoal,
     CheckedGoal,
@@ -28,9 +29,6 @@ from robots.joint_trajectory import (
     check_goal,
 )
 
-GRIPPER_REACHED = 0.03  # opening units: within this of the target the claw has reached it
-GRIPPER_STILL_PER_S = 0.05  # opening units per second: slower than this the claw has stopped
-GRIPPER_SETTLE_S = 0.1  # the claw must stay stopped this long to count as stalled
 WATCHDOG_REASON = "watchdog: the controller missed its deadline"
 
 
@@ -42,14 +40,7 @@ class _Active:
     ended: bool = False
 
 
-@dataclass
-class _Gripper:
-    goal: GripperGoal
-    start_s: float
-    still_since_s: float | None = None
-
-
-class ArmTracker:
+class ArmTracker(GripperTracking):
     """One arm: joint names and limits in the arm's order, the gripper's opening read through `opening_of`."""
 
     def __init__(
@@ -126,48 +117,6 @@ class ArmTracker:
                 self.active.ended = True
         return self._note(out)
 
-    def _submit_gripper(self, goal: GripperGoal, now_s: float) -> list[GoalResult]:
-        def reject(reason: str) -> list[GoalResult]:
-            return self._note(
-                [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, reason, now_s)]
-            )
-
-        if self.estop:
-            return reject("emergency stop engaged")
-        if not (math.isfinite(goal.opening) and 0.0 <= goal.opening <= 1.0):
-            return reject(f"opening {goal.opening!r} must be within [0, 1]")
-        if not (math.isfinite(goal.max_effort_n) and goal.max_effort_n >= 0):
-            return reject(f"max effort {goal.max_effort_n!r} must be finite and not negative")
-        if goal.start_time_s is not None and not math.isfinite(goal.start_time_s):
-            return reject("start time is not finite")
-        start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
-        out = [
-            GoalResult(
-                g.goal.goal_id,
-                "gripper",
-                GoalStatus.PREEMPTED,
-                ResultCode.SUCCESSFUL,
-                f"preempted by goal {goal.goal_id}",
-                now_s,
-            )
-            for g in (self.gripper, self.next_gripper)
-            if g is not None
-        ]
-        self.gripper, self.next_gripper = None, _Gripper(goal, start)  # the claw keeps its opening until the start
-        if start <= now_s:
-            self._start_gripper()
-        return self._note(out)
-
-    def _start_gripper(self) -> None:
-        self.gripper, self.next_gripper = self.next_gripper, None
-        g = self.gripper.goal
-        self.opening = g.opening
-        self.effort_n = (
-            min(g.max_effort_n, self.default_effort_n)
-            if g.max_effort_n > 0 and self.default_effort_n > 0
-            else (g.max_effort_n or self.default_effort_n)
-        )
-
     # --- each tick ------------------------------------------------------------------
     def _path_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Where the commanded path is at `t_s` (a pending goal from its start on; the hold point if none)."""
@@ -195,9 +144,6 @@ class ArmTracker:
             self.clamped += 1
         self.desired_now = (clamped, dq)
         return clamped, dq
-
-    def gripper_opening(self) -> float:
-        return self.opening
 
     def update(self, now_s: float, q: np.ndarray, gripper_q: np.ndarray, gripper_dq: np.ndarray) -> list[GoalResult]:
         """After the physics stepped to `now_s`: tolerances, ends of goals, the watchdog. Returns the results."""
@@ -245,31 +191,6 @@ class ArmTracker:
                 )
             ]
         return []
-
-    def _check_gripper(
-        self, g: _Gripper, now_s: float, gripper_q: np.ndarray, gripper_dq: np.ndarray
-    ) -> list[GoalResult]:
-        opening = self.opening_of(np.asarray(gripper_q, float))
-        speed = abs(self.opening_of(np.asarray(gripper_q, float) + np.asarray(gripper_dq, float)) - opening)
-        reached = abs(opening - g.goal.opening) <= GRIPPER_REACHED
-        still = speed < GRIPPER_STILL_PER_S
-        g.still_since_s = (g.still_since_s if g.still_since_s is not None else now_s) if still else None
-        settled = g.still_since_s is not None and now_s - g.still_since_s >= GRIPPER_SETTLE_S
-        if not (reached and still) and not settled:
-            return []
-        self.gripper = None
-        return [
-            GoalResult(
-                g.goal.goal_id,
-                "gripper",
-                GoalStatus.SUCCEEDED,
-                ResultCode.SUCCESSFUL,
-                "" if reached else f"stalled at opening {opening:.3f}",
-                now_s,
-                reached=reached,
-                stalled=not reached,
-            )
-        ]
 
     # --- safety ---------------------------------------------------------------------
     def abort(

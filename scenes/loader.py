@@ -163,11 +163,25 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
     _unique(label, "arms", [a.name for a in scene.arms])
     _unique(label, "stations", [s.name for s in scene.stations])
     _unique(label, "feeders", [f.name for f in scene.feeders])
+    _check_links(scene, label)
+    _check_feeders(scene, label)
+    _check_assemblies(scene, label)
+    _check_bases(scene, label)
+    if robots is not None:
+        _check_reach(scene, label, robots)
+
+
+def _check_links(scene: Scene, label: str) -> None:
+    """Each network link the scene names is an arm or the coordinator."""
     if scene.network is not None:
         linked = {a.name for a in scene.arms} | {"coordinator"}
         for name in scene.network.links:
             if name not in linked:
                 raise SceneError(label, f"network.links.{name}", f"no such link; links: {', '.join(sorted(linked))}")
+
+
+def _check_feeders(scene: Scene, label: str) -> None:
+    """Each feeder feeds something that exists and routes its parts to stations that exist and take them."""
     station_names = {s.name for s in scene.stations}
     for i, f in enumerate(scene.feeders):
         if f.into == "conveyor" and scene.conveyor is None:
@@ -193,6 +207,10 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
                         f"empty, and no station accepts colour {part.colour} of parts.{t}: give a route or a "
                         "station's accepts_colour",
                     )
+
+
+def _check_assemblies(scene: Scene, label: str) -> None:
+    """Each assembly names feeders that exist and visit its station."""
     feeder_names = {f.name for f in scene.feeders}
     for i, s in enumerate(scene.stations):
         for k, name in enumerate(s.assembles):
@@ -208,6 +226,10 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
                     f"stations.{i}.assembles.{k}",
                     f"feeder {name!r} never visits {s.name!r}: add it to that feeder's route",
                 )
+
+
+def _check_bases(scene: Scene, label: str) -> None:
+    """No two arms stand closer than their bases allow."""
     for i, a in enumerate(scene.arms):
         for j in range(i):
             d = _horizontal_distance(a.base.xyz, scene.arms[j].base.xyz)
@@ -218,8 +240,10 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
                     f"arm {a.name!r} stands {d:.3f} m from {scene.arms[j].name!r}; bases need {MIN_BASE_SEPARATION_M} "
                     "m",
                 )
-    if robots is None:
-        return
+
+
+def _check_reach(scene: Scene, label: str, robots: Mapping[str, RobotFacts]) -> None:
+    """Every arm's model is known, and every station and some stretch of the conveyor are within an arm's reach."""
     for i, a in enumerate(scene.arms):
         if a.model not in robots:
             raise SceneError(

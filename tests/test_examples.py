@@ -8,6 +8,8 @@ import pytest
 
 from tests.ray_namespace import in_netns, loopback_namespace, start_head
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 

@@ -207,3 +207,21 @@ def test_every_name_the_glossary_points_to_exists():
         else:
             missing.append(name)
     assert not missing, f"the glossary names code that is not there: {missing}"
+
+
+MAX_CLASS_LINES, MAX_FUNCTION_LINES = 250, 60
+
+
+def test_no_class_over_250_lines_and_no_function_over_60():
+    """A class that grows past 250 lines holds more than one concern, a function past 60 more than one step:
+    split them (`docs/conventions.md`)."""
+    too_long = []
+    for library in LIBRARIES:
+        for path in _sources(library):
+            for node in ast.walk(ast.parse(path.read_text())):
+                lines = getattr(node, "end_lineno", 0) - getattr(node, "lineno", 0) + 1
+                if isinstance(node, ast.ClassDef) and lines > MAX_CLASS_LINES:
+                    too_long.append(f"{path.relative_to(ROOT)}: class {node.name}, {lines} lines")
+                elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and lines > MAX_FUNCTION_LINES:
+                    too_long.append(f"{path.relative_to(ROOT)}: {node.name}, {lines} lines")
+    assert not too_long, "\n".join(too_long)

@@ -284,22 +284,43 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     """This group's sub-commands."""
     p = sub.add_parser("bench", help="benchmarks")
     bench = p.add_subparsers(dest="bench", required=True)
+    _add_physics(bench)
+    _add_bus(bench)
+    _add_run(bench)
+    _add_monitor(bench)
+    _add_record(bench)
+    _add_collision(bench)
+    _add_allocation(bench)
+    _add_lines(bench)
+    _add_env(bench)
+
+
+def _add_physics(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("physics", help="raw physics steps/s of the sorting line (no controllers)")
     b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
     b.add_argument("--seconds", type=float, default=4.0, help="sim seconds timed per row")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
+
+
+def _add_bus(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("bus", help="lockstep state-to-command round trip over Zenoh, idle controller processes")
     b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
     b.add_argument("--ticks", type=int, default=1500)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_bus)
+
+
+def _add_run(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("run", help="whole lockstep lines (all processes) against raw physics of the same scene")
     b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
     b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per run")
     b.add_argument("--repeats", type=int, default=3, help="runs per arm count (medians)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_run)
+
+
+def _add_monitor(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("monitor", help="lockstep runs without and with the browser monitor: what watching costs")
     b.add_argument("--scene", default="sorting_line")
     b.add_argument("--arms", type=int, default=4)
@@ -308,6 +329,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--no-browser", action="store_true", help="skip the variant with a headless chromium on the page")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_monitor)
+
+
+def _add_record(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser(
         "record", help="lockstep runs without and with --record: what recording costs, MB per sim minute"
     )
@@ -317,15 +341,24 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--repeats", type=int, default=3)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_record)
+
+
+def _add_collision(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("collision", help="FCL guard: full-cell separation and one grant check")
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_collision)
+
+
+def _add_allocation(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("allocation", help="optimal assignment for many pending tasks")
     b.add_argument("--tasks", type=int, nargs="+", default=[10, 100, 1000])
     b.add_argument("--arms", type=int, default=8)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_allocation)
+
+
+def _add_lines(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("lines", help="throughput, contacts and separation of whole runs per scene and allocator")
     b.add_argument(
         "--cases",
@@ -348,6 +381,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_lines)
+
+
+def _add_env(bench: argparse._SubParsersAction) -> None:
     b = bench.add_parser("env", help="PettingZoo env: agent-steps/s and env time against raw physics")
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--scenarios", nargs="+", choices=("reach", "pick_place", "line"), default=["reach", "line"])

@@ -8,6 +8,7 @@ import math
 import re
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.progress import (
     BarColumn,
@@ -29,6 +30,9 @@ from fleet.cli.errors import (
 from fleet.common.scene_loading import load_scene
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from scenes.yaml_file import DeclarationError
+
+if TYPE_CHECKING:
+    from fleet.run.launcher import RunOptions
 
 
 def check_run_flags(args: argparse.Namespace) -> None:
@@ -114,13 +118,11 @@ def run_recording(args: argparse.Namespace) -> str | None:
     return str(Path(args.out) / "recording.mcap") if args.out else None
 
 
-def cmd_run(args: argparse.Namespace) -> int:
-    from fleet.run.launcher import Launcher, RunOptions
+def run_options(args: argparse.Namespace) -> RunOptions:
+    """`fleet run`'s flags as the launcher's options."""
+    from fleet.run.launcher import RunOptions
 
-    check_run_flags(args)
-    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
-    check_placement_flags(args)
-    options = RunOptions(
+    return RunOptions(
         scene=args.scene,
         arms=args.arms,
         duration_s=args.duration,
@@ -146,6 +148,15 @@ def cmd_run(args: argparse.Namespace) -> int:
         bus_config=args.bus_config,
         hosts=args.hosts,
     )
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from fleet.run.launcher import Launcher
+
+    check_run_flags(args)
+    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
+    check_placement_flags(args)
+    options = run_options(args)
     if args.monitor:
         warning = exposure_warning(args.host)
         if warning:
@@ -257,6 +268,11 @@ def print_run_summary(s: dict) -> None:
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     """This group's sub-commands."""
+    _add_run(sub)
+    _add_bus_config(sub)
+
+
+def _add_run(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run the line: sim server, coordinator and one controller per arm as processes")
     p.add_argument(
         "scene", nargs="?", default="assembly_line", help="bundled scene name or scene file (default assembly_line)"
@@ -304,6 +320,15 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots",
     )
+    _add_placement_arguments(p)
+    add_monitor_arguments(p)
+    add_fault_arguments(p)
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_run)
+
+
+def _add_placement_arguments(p: argparse.ArgumentParser) -> None:
+    """Where a run's nodes meet and start: `--bus-config`, `--hosts`."""
     p.add_argument(
         "--bus-config",
         metavar="DIR",
@@ -315,11 +340,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="the network namespace each node starts in (YAML `nodes: {sim: NS, ...}`; needs --bus-config)",
     )
-    add_monitor_arguments(p)
-    add_fault_arguments(p)
-    add_bus_arguments(p)
-    p.set_defaults(func=cmd_run)
 
+
+def _add_bus_config(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bus-config",
         help=(

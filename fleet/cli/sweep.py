@@ -25,11 +25,8 @@ from fleet.cli.errors import (
 from fleet.common.scene_loading import load_scene
 
 
-def cmd_sweep(args: argparse.Namespace) -> int:
-    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scenes_for
-    from fleet.sweep.results import write_results
-    from fleet.sweep.runner import finished, load_results, run_local, run_ray
-
+def sweep_jobs(args: argparse.Namespace) -> int:
+    """Runs at a time, once the flags that cannot work are refused in one line."""
     if not (math.isfinite(args.duration) and 0 < args.duration <= 24 * 3600):
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a day)")
     jobs = args.jobs or os.cpu_count() or 1
@@ -37,6 +34,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError("--ray needs Ray: pip install 'clawfleet[rl]' (or pip install ray)")
     if jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: at least 1")
+    return jobs
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scenes_for
+    from fleet.sweep.results import write_results
+    from fleet.sweep.runner import finished, load_results, run_local, run_ray
+
+    jobs = sweep_jobs(args)
     try:
         overrides = [Override.parse(t) for t in args.set or ()] + [
             Override(f"network.{field}", tuple(values))
@@ -83,6 +89,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         elif todo:
             run_local(todo, out_dir, jobs, on_done, scenes)
     cells_rows, written = write_results(load_results(out_dir), out_dir)
+    out.print(cells_table(cells_rows))
+    out.print(f"wrote {', '.join(p.name for p in written)} in {out_dir}")
+    return 0
+
+
+def cells_table(cells_rows: list[dict]) -> Table:
+    """The sweep's cells: means and 95% intervals of each allocator and override."""
+    from fleet.sweep.results import label
+
     table = Table(
         "allocator / overrides",
         "runs",
@@ -93,7 +108,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         "of the run's arrivals",
         "contacts",
     )
-    from fleet.sweep.results import label
 
     def ci(c, figure, digits=2):
         mean, half = c[f"{figure}_mean"], c[f"{figure}_ci95"]
@@ -110,9 +124,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             ci(c, "run_bound_fraction"),
             ci(c, "inter_arm_contacts", 1),
         )
-    out.print(table)
-    out.print(f"wrote {', '.join(p.name for p in written)} in {out_dir}")
-    return 0
+    return table
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:

@@ -11,20 +11,26 @@ the world's first snapshot and draws the episode from the seed, so a seed repeat
 
 from __future__ import annotations
 
-import functools
 import math
 import warnings
 
-import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv
 
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
-from coordinator.tasks import TaskState
 from fleet.common.scene_loading import load_scene
-from fleet.env.allocate_mode import SLOT_FEATURES, SLOTS, TaskChooser
-from fleet.env.scenarios import SCENARIOS, SUCCESS_BONUS, Scenario, make_scenario
+from fleet.env.actions import EnvActions
+from fleet.env.allocate_mode import TaskChooser
+from fleet.env.limits import (
+    CONTACT_PENALTY,
+    LIMIT_PENALTY,
+    NEAR_MISS_PENALTY,
+    SEPARATION_CAP_M,
+    TEAM_WEIGHT,
+)
+from fleet.env.observations import EnvObservations
+from fleet.env.scenarios import SCENARIOS, Scenario, make_scenario
 from fleet.sim.render import require_render
 from fleet.sim.world import World
 from robots.frames import yaw_transform
@@ -33,13 +39,10 @@ from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 ACTION_MODES = (*CONTINUOUS_MODES, "allocate")
 ALLOCATE_SCENARIOS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
 RENDER_MODES = ("human", "rgb_array")
-OBS_LIMIT = 100.0  # joint velocities are clipped here; positions and angles never come near
-SEPARATION_CAP_M = 0.2  # the nearest-arm distance an agent sees is capped here: farther arms need no FCL query
-NEAR_MISS_PENALTY, CONTACT_PENALTY, LIMIT_PENALTY, EFFORT_WEIGHT, TEAM_WEIGHT = 0.5, 1.0, 0.1, 0.01, 0.1
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
-class CellParallelEnv(ParallelEnv):
+class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
     """Arms `arm_0 ... arm_{n-1}` of a scene, each an agent."""
 
     metadata = {"name": "clawfleet_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
@@ -95,6 +98,12 @@ class CellParallelEnv(ParallelEnv):
             physics_hz = control_hz * max(1, round(max(self.scenario.physics_hz, control_hz) / control_hz))
             self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
             self.ticks_per_step = 1
+        self._build_cell(action_mode, distributed, scene, n_arms, monitor_port)
+
+    def _build_cell(
+        self, action_mode: str, distributed: bool, scene: str, n_arms: int | None, monitor_port: int
+    ) -> None:
+        """The world, the guard over its arms, the action translators, the allocate mode's chooser and the actuators."""
         self.world = World(self.scene)
         self._start = self.world.pack_state()
         self.agents: list[str] = []
@@ -132,32 +141,6 @@ class CellParallelEnv(ParallelEnv):
         return (_rebuild, (self._init_kwargs,))
 
     # --- spaces -----------------------------------------------------------------------
-    @functools.cache
-    def observation_space(self, agent: str) -> gymnasium.spaces.Space:
-        n, others = self._dof[agent], len(self.possible_agents) - 1
-        if self.action_mode == "allocate":
-            size = n + n + 1 + 2 + 3 + 3 * others + 1 + 1 + SLOTS * SLOT_FEATURES
-        else:
-            size = n + n + 1 + 3 + 3 + 3 * others + 1
-        box = gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
-        if not self.mask_in_observation:
-            return box
-        mask = gymnasium.spaces.Box(0, 1, shape=(SLOTS + 1,), dtype=np.int8)  # PettingZoo's classic-env convention
-        return gymnasium.spaces.Dict({"observation": box, "action_mask": mask})
-
-    def action_mask(self, agent: str) -> np.ndarray:
-        """Allocate mode: which actions choose something real now (1) or an empty slot (0); waiting (0) is always valid.
-        A busy arm may only wait. Two arms may still pick the same task in one step: the later one is refused."""
-        mask = np.zeros(SLOTS + 1, dtype=np.int8)
-        mask[0] = 1
-        mask[1 : 1 + len(self._options.get(agent, []))] = 1
-        return mask
-
-    @functools.cache
-    def action_space(self, agent: str) -> gymnasium.spaces.Space:
-        if self.action_mode == "allocate":
-            return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
-        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self._translator(agent).action_size,), dtype=np.float32)
 
     def _translator(self, agent: str) -> ActionTranslator:
         return self.translators[self.world.arms[agent].spec.uid]
@@ -248,131 +231,7 @@ class CellParallelEnv(ParallelEnv):
             self.render()
         return observations, rewards, terminations, truncations, infos
 
-    def _act(self, actions: dict) -> tuple[dict[str, bool], dict[str, float]]:
-        """Apply this step's actions; returns which arms pushed a joint target against its limit, and each arm's
-        effort penalty."""
-        if self.chooser is not None:
-            self._choice_results = self.chooser.choose(actions, self._options)
-            return {}, {}
-        if not self.agents:
-            return {}, {}
-        rows = {
-            uid: self._action_rows(self._arms_of_model[uid], actions, t.action_size)
-            for uid, t in self.translators.items()
-        }
-        remote = None
-        if self.actuator is not None:
-            remote = self.actuator.translate(
-                {a: r for uid, r_all in rows.items() for a, r in zip(self._arms_of_model[uid], r_all)}
-            )
-        hits, effort = {}, {}
-        for uid, translator in self.translators.items():
-            arms, acted = self._arms_of_model[uid], rows[uid]
-            if remote is None:
-                q, opening = translator.apply(acted)
-            else:
-                q, opening = np.array([remote[a].q for a in arms]), np.array([remote[a].gripper_opening for a in arms])
-            limits, openings = translator.at_limit(q).tolist(), opening.tolist()
-            efforts = (EFFORT_WEIGHT * np.einsum("ij,ij->i", acted, acted)).tolist()
-            for i, a in enumerate(arms):
-                arm = self.world.arms[a]
-                arm.set_targets(q[i], self._still[a], arm.spec.gripper_targets(openings[i]))
-                self._commanded_opening[a] = openings[i]
-                hits[a], effort[a] = limits[i], efforts[i]
-        return hits, effort
-
-    def _action_rows(self, arms: list[str], actions: dict, size: int) -> np.ndarray:
-        """The actions of `arms` as rows (zeros for an arm that did not act); a wrong size is refused by name."""
-        rows = np.zeros((len(arms), size))
-        for i, a in enumerate(arms):
-            if a in actions:
-                action = np.asarray(actions[a], float).reshape(-1)
-                if action.size != size:
-                    raise ValueError(f"{a}: a {self.action_mode} action has {size} entries, got {action.size}")
-                rows[i] = action
-        return rows
-
-    def _task_rewards(
-        self, tools: dict[str, np.ndarray], targets: dict[str, np.ndarray]
-    ) -> tuple[dict[str, float], dict[str, bool]]:
-        if self.chooser is None:
-            return self.scenario.progress(self.world, tools, targets)
-        gained = self.scenario.book.net_gain()
-        rewards, successes = {}, {}
-        for a in self.agents:
-            outcomes, self.chooser.outcomes[a] = self.chooser.outcomes[a], []
-            own = sum(1.0 if o == TaskState.DONE else -1.0 for o in outcomes)
-            rewards[a] = own + SUCCESS_BONUS * gained
-            successes[a] = TaskState.DONE in outcomes
-        return rewards, successes
-
     # --- observations -----------------------------------------------------------------
-    def _joints(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Every arm's joint positions and velocities now (read once a step: observations and separations share
-        them)."""
-        return {a: (self.world.arms[a].qpos(), self.world.arms[a].qvel()) for a in self.possible_agents}
-
-    def _separations(self, joints: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, float]:
-        """Each arm's distance to its nearest other arm (python-fcl, the coordinator's guard)."""
-        if len(self.possible_agents) < 2:
-            return {a: SEPARATION_CAP_M for a in self.possible_agents}
-        for a in self.possible_agents:
-            self.guard.set_state(a, joints[a][0][: self._dof[a]])
-        return self.guard.nearest_other_m(cap_m=SEPARATION_CAP_M)
-
-    def _tools(self) -> dict[str, np.ndarray]:
-        """Every arm's claw position now (world frame)."""
-        return {a: np.asarray(self.world.arms[a].tool_pose_world().p, float) for a in self.possible_agents}
-
-    def _observe(
-        self,
-        separation: dict[str, float] | None = None,
-        tools: dict[str, np.ndarray] | None = None,
-        joints: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
-        targets: dict[str, np.ndarray] | None = None,
-    ) -> dict[str, np.ndarray]:
-        joints = joints or self._joints()
-        separation = separation or self._separations(joints)
-        tools = tools or self._tools()
-        out = {}
-        for a in self.agents:
-            (q, dq), n = joints[a], self._dof[a]
-            others = [tools[b] for b in self.possible_agents if b != a]
-            if self.chooser is not None:
-                skill = self.chooser.skills[a]
-                own = [
-                    q[:n],
-                    dq[:n],
-                    [self._opening(a)],
-                    [float(self.chooser.task_of[a] is None and not skill.active), skill.progress],
-                    tools[a],
-                ]
-                extra = [self.chooser.features(a, self._options.get(a, []))]
-            else:
-                target = targets[a] if targets else self.scenario.target(a, self.world)
-                own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
-                extra = []
-            vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
-            out[a] = np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector)
-            if self.mask_in_observation:
-                out[a] = {"observation": out[a], "action_mask": self.action_mask(a)}
-        return out
-
-    def _opening(self, agent: str) -> float:
-        arm = self.world.arms[agent]
-        spec = arm.spec
-        g = arm.qpos()[spec.arm_dof :]
-        return float((np.mean(g) - spec.gripper_closed[0]) / (spec.gripper_open[0] - spec.gripper_closed[0]))
-
-    def state(self) -> np.ndarray:
-        """Everything for a centralised critic: every arm's joints, velocities, tool and target, and the parts'
-        positions."""
-        chunks = []
-        for a in self.possible_agents:
-            arm = self.world.arms[a]
-            target = self.scenario.target(a, self.world) if self.agents or self.cycles else np.zeros(3)
-            chunks += [arm.qpos(), arm.qvel(), np.asarray(arm.tool_pose_world().p, float), target]
-        return np.concatenate(chunks).astype(np.float32)
 
     # --- watching ---------------------------------------------------------------------
     def render(self):

@@ -29,18 +29,18 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, MotionGrant, PartsState
-from fleet.bus.plausible import TickClock, arm_state_problem, not_finite, parts_problem, seq_problem
+from fleet.bus.plausible import TickClock
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
+from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
 from robots.frames import yaw_transform
 from robots.phase import Phase
 from robots.registry import get_robot
 from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
-from scenes.schema import Scene
+from scenes.schema import Arm, Scene
 
 HEARTBEAT_S = 0.2  # wall seconds between heartbeats, on their own timer whatever the state traffic
-ASSIGNMENT_WAIT_S = 0.5
 
 
 def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
@@ -60,7 +60,35 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
     return out
 
 
-class ArmController:
+def arm_declaration(scene: Scene, arm: str, rate_hz: float) -> Arm:
+    """The scene's declaration of `arm`, once the arm and the rate are known to work (else one line, exit)."""
+    decl = next((a for a in scene.arms if a.name == arm), None)
+    if decl is None:
+        raise SystemExit(
+            f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}"
+        )
+    if not (math.isfinite(rate_hz) and 0 < rate_hz <= scene.control_hz):
+        raise SystemExit(
+            f"arm_controller: --rate-hz {rate_hz:g} must be within (0, {scene.control_hz:g}] (the scene's servo rate)"
+        )
+    return decl
+
+
+def observation_of(state: ArmState) -> ArmObservation:
+    """What the skill sees of its arm in a state."""
+    return ArmObservation(
+        state.sim_time_s,
+        np.array(state.q),
+        np.array(state.dq),
+        np.array(state.gripper_q),
+        state.result_goal_id,
+        state.result_status,
+        state.result_reason,
+        goal_id=state.goal_id,
+    )
+
+
+class ArmController(ControllerOrders):
     """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
     def __init__(
@@ -74,16 +102,7 @@ class ArmController:
         rate_hz: float = DEFAULT_DECISION_HZ,
         incarnation: int | None = None,
     ) -> None:
-        decl = next((a for a in scene.arms if a.name == arm), None)
-        if decl is None:
-            raise SystemExit(
-                f"arm_controller: no arm {arm!r} in scene {scene.name}; arms: {', '.join(a.name for a in scene.arms)}"
-            )
-        if not (math.isfinite(rate_hz) and 0 < rate_hz <= scene.control_hz):
-            raise SystemExit(
-                f"arm_controller: --rate-hz {rate_hz:g} must be within (0, {scene.control_hz:g}] (the scene's servo "
-                "rate)"
-            )
+        decl = arm_declaration(scene, arm, rate_hz)
         self.arm, self.keys, self.session = arm, keys, session
         self.spec = get_robot(decl.model)
         self.period_ticks = max(1, round(scene.control_hz / rate_hz))
@@ -97,23 +116,7 @@ class ArmController:
         # differs each time a controller starts: the launcher counts its starts (so a seed repeats exactly), else random
         self.incarnation = incarnation if incarnation is not None else int.from_bytes(os.urandom(4), "little")
         self.skill.goal_id = (self.incarnation & 0x7FFFFFFF) << 20  # goal ids never repeat across a respawn
-        self.drops = DropCounter()
-        self._decoders = {
-            "state": Decoder(ArmState, self.drops),
-            "parts": Decoder(PartsState, self.drops),
-            "assign": Decoder(ArmOrder, self.drops),
-        }
-        self.wake = threading.Event()
-        self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign")}
-        self.sim_clock = TickClock(scene.control_hz)  # states and parts are the sim's: none may run far ahead of it
-        self._subs = [
-            session.declare_subscriber(keys.arm_state(arm), self._inboxes["state"]),
-            session.declare_subscriber(keys.parts, self._inboxes["parts"]),
-            session.declare_subscriber(keys.arm_assign(arm), self._inboxes["assign"]),
-        ]
-        self._step_pub = session.declare_publisher(keys.arm_step(arm))
-        self._goal_pub = session.declare_publisher(keys.arm_goal(arm))
-        self._status_pub = session.declare_publisher(keys.arm_status(arm))
+        self._wire(session, keys, scene)
         self.parts: dict[int, PartObservation] = {}
         self.parts_tick = -1
         self.parts_seen: deque[PartsState] = deque(maxlen=64)  # the newest parts messages, oldest first
@@ -132,84 +135,45 @@ class ArmController:
         self.missed_assignments = 0
         self.parts_late = 0
 
+    def _wire(self, session: zenoh.Session, keys: Keys, scene: Scene) -> None:
+        """Its decoders, queues, subscriptions (state, parts, orders) and publishers (answers, goals, heartbeats)."""
+        self.drops = DropCounter()
+        self._decoders = {
+            "state": Decoder(ArmState, self.drops),
+            "parts": Decoder(PartsState, self.drops),
+            "assign": Decoder(ArmOrder, self.drops),
+        }
+        self.wake = threading.Event()
+        self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign")}
+        self.sim_clock = TickClock(scene.control_hz)  # states and parts are the sim's: none may run far ahead of it
+        self._subs = [
+            session.declare_subscriber(keys.arm_state(self.arm), self._inboxes["state"]),
+            session.declare_subscriber(keys.parts, self._inboxes["parts"]),
+            session.declare_subscriber(keys.arm_assign(self.arm), self._inboxes["assign"]),
+        ]
+        self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
+        self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
+        self._status_pub = session.declare_publisher(keys.arm_status(self.arm))
+
+    def report(self) -> dict:
+        """The controller's figures at the end of a run."""
+        return {
+            "arm": self.arm,
+            "busy_s": round(self.busy_s, 6),
+            "dropped_messages": self.drops.total,
+            "missed_assignments": self.missed_assignments,
+            "parts_late": self.parts_late,
+            "grants_denied": self.skill.denials,
+            "decisions": self.decisions,
+            "goals_sent": self.goals_sent,
+            "goals_resent": self.skill.goals_resent,
+        }
+
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()
         for pub in (self._step_pub, self._goal_pub, self._status_pub):
             pub.undeclare()
-
-    def _believable(self, name: str, problem):
-        """The messages queued on `name` that decode and that `problem` finds nothing wrong with, in arrival order
-        (checked one at a time, as the caller takes them); the rest are dropped and counted."""
-        for key, payload in self._inboxes[name].drain():
-            msg = self._decoders[name].decode(key, payload)
-            if msg is None:
-                continue
-            why = problem(msg)
-            if why:
-                self.drops.drop(key, why)
-                continue
-            yield msg
-
-    def _latest(self, name: str):
-        """The newest believable message queued on `name` (states, parts)."""
-        latest = None
-        for msg in self._believable(name, self._problem):
-            self.sim_clock.believe(msg.tick)
-            latest = msg
-        return latest
-
-    def _problem(self, msg) -> str:
-        """Why a decoded state or parts message cannot be the sim's ("" if it can)."""
-        problem = self.sim_clock.problem(msg.tick)
-        if problem:
-            return problem
-        if isinstance(msg, PartsState):
-            return parts_problem(msg)
-        # -1: orders act on arrival
-        announced = seq_problem(msg.assign_seq, self.assign_seq) if msg.assign_seq != -1 else ""
-        return arm_state_problem(msg, self.arm, self.spec.arm_dof) or announced
-
-    def _order_problem(self, msg) -> str:
-        """Why an order cannot be the coordinator's ("" if it can)."""
-        if msg.arm != self.arm:
-            return f"an order for {msg.arm!r} on {self.arm}'s key"
-        problem = seq_problem(msg.seq, self.assign_seq)
-        if problem:
-            return problem
-        if isinstance(msg, Assignment):
-            values = (msg.surface_z_m, *msg.place_xyz, *msg.surface_velocity)
-            if (
-                len(msg.place_xyz) != 3
-                or len(msg.surface_velocity) != 3
-                or not_finite(values)
-                or max(map(abs, values)) > 100.0
-            ):
-                return "an assignment with a place or velocity that is not a finite point"
-        elif msg.decision not in ("grant", "deny", "standby") or not_finite((msg.start_time_s, msg.min_separation_m)):
-            return "a motion grant that is neither grant, deny nor standby, or with non-finite times"
-        return ""
-
-    def _take_assignments(self) -> None:
-        """Queue what arrived; `_apply_assignments` acts on it when a state says its time has come."""
-        for msg in self._believable("assign", self._order_problem):
-            if self.assign_seq is not None and msg.seq <= self.assign_seq:
-                continue
-            self.assign_seq = msg.seq
-            self.received.append(msg)
-
-    def _apply_assignments(self, announced_seq: int) -> None:
-        """Act on received assignments up to `announced_seq`; on all of them when the sim announces none (-1)."""
-        while self.received and (announced_seq < 0 or self.received[0].seq <= announced_seq):
-            msg = self.received.pop(0)
-            if isinstance(msg, MotionGrant):
-                self.grants.append(msg)
-            elif msg.task_id is None:  # cancelled: stop where we are
-                self.pending = None
-                if self.skill.active:
-                    self.skill.cancel("cancelled by the coordinator")
-            else:
-                self.pending = msg
 
     def _parts_for_tick(self, tick: int) -> None:
         """The parts as of `tick` (the newest sampled no later: a state delayed on the bus is matched with the parts
@@ -229,22 +193,28 @@ class ArmController:
                 return
             self._inboxes["parts"].wait(0.01)
 
-    def _await_assignment(self, seq: int) -> None:
-        """Lockstep: the state says assignment `seq` was out before this tick; wait until it is here."""
-        deadline = time.monotonic() + ASSIGNMENT_WAIT_S
-        while (self.assign_seq or 0) < seq and time.monotonic() < deadline:
-            self._inboxes["assign"].wait(0.01)
-            self._take_assignments()
-        if (self.assign_seq or 0) < seq:
-            self.missed_assignments += 1
-            self.assign_seq = seq
-
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
         state = self._latest("state")
         self._take_assignments()
         if state is None or state.tick in self.answered:
             return False  # nothing new (the sim re-sends a state it is still waiting for: answered already)
+        self._catch_up(state)
+        obs = observation_of(state)
+        self._hand_to_skill(obs)
+        if self.skill.active:
+            self.busy_s += self.skill.decision_period_s
+        goals = self.skill.step(obs, self.parts)
+        if self.skill.job is None:  # clearing the way home: no task of the coordinator's
+            self.task_id = None
+        self._answer(state, goals)
+        self.answered.append(state.tick)
+        self.decisions += 1
+        self.sim_time_s = state.sim_time_s
+        return True
+
+    def _catch_up(self, state: ArmState) -> None:
+        """Before deciding on `state`: the orders it announces applied, the parts of its tick in, the latency known."""
         if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
             self.assign_seq = max(0, state.assign_seq)
         elif state.assign_seq > self.assign_seq:
@@ -257,16 +227,9 @@ class ArmController:
             if raw:
                 self._inboxes["parts"].items.extend(raw[-64:])  # keep the newest for when a task comes
         self._expect_latency(state)
-        obs = ArmObservation(
-            state.sim_time_s,
-            np.array(state.q),
-            np.array(state.dq),
-            np.array(state.gripper_q),
-            state.result_goal_id,
-            state.result_status,
-            state.result_reason,
-            goal_id=state.goal_id,
-        )
+
+    def _hand_to_skill(self, obs: ArmObservation) -> None:
+        """A pending assignment started (or refused: its part is gone), and the grants that came in answered."""
         if self.pending is not None and self.skill.available:
             a, self.pending = self.pending, None
             task = PickPlaceJob(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
@@ -281,11 +244,9 @@ class ArmController:
                 g.request_seq, g.decision, g.conflict_arm, obs.time_s, g.start_time_s if g.start_time_s >= 0 else None
             )
         self.grants.clear()
-        if self.skill.active:
-            self.busy_s += self.skill.decision_period_s
-        goals = self.skill.step(obs, self.parts)
-        if self.skill.job is None:  # clearing the way home: no task of the coordinator's
-            self.task_id = None
+
+    def _answer(self, state: ArmState, goals: list) -> None:
+        """The goals of this decision out, then the answer to `state` naming them (what the skill does, its request)."""
         for goal in goals:
             self._goal_pub.put(encode(goal_message(self.arm, goal)))
         self.goals_sent += len(goals)
@@ -311,10 +272,6 @@ class ArmController:
                 )
             )
         )
-        self.answered.append(state.tick)
-        self.decisions += 1
-        self.sim_time_s = state.sim_time_s
-        return True
 
     def _expect_latency(self, state: ArmState) -> None:
         """How long after a decision its goals reach the tracker: one period, plus the bus's delay both ways,
@@ -354,7 +311,8 @@ class ArmController:
         )
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The arm controller's command line."""
     parser = argparse.ArgumentParser(prog="fleet-arm-controller", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
     parser.add_argument("--arm", required=True)
@@ -375,7 +333,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     add_bus_arguments(parser)
-    opened = node_arguments(parser, argv, "arm_controller")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    opened = node_arguments(build_parser(), argv, "arm_controller")
     if opened is None:
         return 2
     args, stop, scene = opened
@@ -400,21 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             beats.stop()
             controller.close()
-            write_report(
-                args.report,
-                {
-                    "arm": args.arm,
-                    "busy_s": round(controller.busy_s, 6),
-                    "dropped_messages": controller.drops.total,
-                    "missed_assignments": controller.missed_assignments,
-                    "parts_late": controller.parts_late,
-                    "grants_denied": controller.skill.denials,
-                    "stopped_by": stop.reason,
-                    "decisions": controller.decisions,
-                    "goals_sent": controller.goals_sent,
-                    "goals_resent": controller.skill.goals_resent,
-                },
-            )
+            write_report(args.report, controller.report() | {"stopped_by": stop.reason})
     return 0
 
 

@@ -16,13 +16,14 @@ import numpy as np
 from fleet.common.scene_loading import load_scene
 from fleet.sim.observe import arm_observation, base_transform, part_observations
 from fleet.sim.tracking import TrackedArms
-from fleet.sim.world import WALL_M, World
+from fleet.sim.world import World
 from robots.frames import wrap_angle
 from robots.kinematics import KinematicModel
 from robots.registry import get_robot
 from robots.skills.interface import PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, Phase, PickPlaceSkill
 from scenes.schema import Arrival, Scene
+from scenes.shapes import WALL_M
 
 TRIAL_SCENE = "pick_cell"
 REFERENCE_REACH_M = 0.62

@@ -79,11 +79,49 @@ class RunSummary:
         return {"links": links, "goals_resent": {c["arm"]: c.get("goals_resent", 0) for c in controllers if "arm" in c}}
 
     def summary(self, wall_s: float, error: str) -> dict:
+        """The run summary: the nodes' reports merged (a dead node's figures from what was last heard of it)."""
         sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
         controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
         monitor = next((self._read(n) for n in self.nodes if n.role == "monitor"), None)
         heard = self.last_progress
         sim_s = sim.get("sim_seconds", max(self.last_sim_time_s, heard.sim_time_s if heard else 0.0))
+        status = "error" if error else ("interrupted" if self.interrupted else "ok")
+        return (
+            {
+                "scene": self.scene.name,
+                "arms": len(self.scene.arms),
+                "arm_ids": [a.name for a in self.scene.arms],
+                "mode": self.options.mode,
+                "seed": self.seed,
+                "randomised": dict(self.scene.randomised),
+                "allocator": coord.get("allocator"),
+                "pipeline": coord.get("pipeline"),
+                "status": status,
+                "error": error,
+                "stopped_by": self.interrupted or sim.get("stopped_by", ""),
+                "sim_seconds": sim_s,
+                "wall_seconds": round(wall_s, 3),
+                "loop_wall_seconds": sim.get("loop_wall_seconds"),
+                "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
+            }
+            | self._parts(sim, coord, sim_s)
+            | self._coordination(sim, coord, controllers)
+            | self._bus(sim, coord, controllers, monitor)
+            | {
+                "arms_lost": sim.get("arms_lost", []),
+                "arm_events": coord.get("arm_events", []),
+                "respawns": self.respawns,
+                "coordinator_takeover": coord.get("takeover"),
+                "respawn_requests": self.respawn_requests,
+                "monitor": None if monitor is None else {"url": self.monitor_url} | monitor,
+                "unfinished_parts": coord.get("unfinished_parts", []),
+                "processes": [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes],
+            }
+        )
+
+    def _parts(self, sim: dict, coord: dict, sim_s: float) -> dict:
+        """Every part's fate counted, throughput, each arm's time and the line's bound."""
+        heard = self.last_progress
         if coord:
             counts = {k: coord.get(k, 0) for k in ("parts_completed", "parts_missed", "parts_failed")}
         else:  # the coordinator died: its last progress message is what is known
@@ -99,24 +137,7 @@ class RunSummary:
             else spawned - sum(counts.values())
         )
         completed = counts["parts_completed"]
-        processes = [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes]
-        status = "error" if error else ("interrupted" if self.interrupted else "ok")
         return {
-            "scene": self.scene.name,
-            "arms": len(self.scene.arms),
-            "arm_ids": [a.name for a in self.scene.arms],
-            "mode": self.options.mode,
-            "seed": self.seed,
-            "randomised": dict(self.scene.randomised),
-            "allocator": coord.get("allocator"),
-            "pipeline": coord.get("pipeline"),
-            "status": status,
-            "error": error,
-            "stopped_by": self.interrupted or sim.get("stopped_by", ""),
-            "sim_seconds": sim_s,
-            "wall_seconds": round(wall_s, 3),
-            "loop_wall_seconds": sim.get("loop_wall_seconds"),
-            "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
             "parts_spawned": spawned,
             "parts_completed": completed,
             "parts_missed": counts["parts_missed"],
@@ -129,6 +150,11 @@ class RunSummary:
             "capacity_measured": coord.get("capacity_measured"),
             "capacity_of_run": coord.get("capacity_of_run"),
             "feeder_held_s": sim.get("feeder_held_s", {}),
+        }
+
+    def _coordination(self, sim: dict, coord: dict, controllers: list[dict]) -> dict:
+        """Contacts, separations, grants and the coordinator's timing."""
+        return {
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
             "min_separation_m": coord.get("min_separation_m"),
@@ -141,6 +167,13 @@ class RunSummary:
             "held_at_station_s": coord.get("held_at_station_s", {}),
             "lockstep_timeouts": self._lockstep_timeouts(coord, controllers),
             "decision_wall_ms": coord.get("decision_wall_ms", {}),
+        }
+
+    def _bus(self, sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:
+        """Goal results, the bus's faults, messages and round trips, and every node's dropped messages."""
+        dropped = sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
+        dropped += sum(c.get("dropped_messages", 0) for c in controllers) + (monitor or {}).get("dropped_messages", 0)
+        return {
             "goal_results": sim.get("goal_results", {}),
             "network_faults": self._faults(sim.get("network_faults", {}), controllers),
             "bus_messages_per_arm_per_s": sim.get("bus_messages_per_arm_per_s", {}),
@@ -148,16 +181,5 @@ class RunSummary:
             "latency_p99_ms": sim.get("latency_p99_ms"),
             "round_trip_histogram": sim.get("round_trip_histogram"),
             "bus_messages_out": sim.get("messages_out", {}),
-            "dropped_messages": sim.get("dropped_messages", 0)
-            + coord.get("dropped_messages", 0)
-            + sum(c.get("dropped_messages", 0) for c in controllers)
-            + (monitor or {}).get("dropped_messages", 0),
-            "arms_lost": sim.get("arms_lost", []),
-            "arm_events": coord.get("arm_events", []),
-            "respawns": self.respawns,
-            "coordinator_takeover": coord.get("takeover"),
-            "respawn_requests": self.respawn_requests,
-            "monitor": None if monitor is None else {"url": self.monitor_url} | monitor,
-            "unfinished_parts": coord.get("unfinished_parts", []),
-            "processes": processes,
+            "dropped_messages": dropped,
         }

@@ -19,7 +19,6 @@ from fleet.bus.flights import FlightBook
 from fleet.bus.keys import Keys
 from fleet.bus.lockstep import ArmLink, Barrier
 from fleet.bus.messages import (
-    ControllerStep,
     CoordTick,
     EventLog,
     LineEvent,
@@ -29,6 +28,7 @@ from fleet.record.spool import BusSpool
 from fleet.sim.line_watch import LineWatcher
 from fleet.sim.sim_bus import SimBus
 from fleet.sim.sim_inputs import SimInputs
+from fleet.sim.sim_lockstep import SimLockstep
 from fleet.sim.sim_outputs import SimOutputs
 from fleet.sim.sim_stats import SimStats
 from fleet.sim.tracking import TrackedArms
@@ -43,7 +43,7 @@ COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent 
 # reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
 
 
-class SimServer:
+class SimServer(SimLockstep):
     """Runs a world behind the bus; call `run_ticks` (or `tick` repeatedly).
 
     `controllers=False` waits for nobody: the arms take goals from whoever sends them (a user's own
@@ -125,84 +125,6 @@ class SimServer:
     def deferred_coord(self) -> bool:
         """The coordinator's ticks are awaited and take effect when due (lockstep, or until every process is up)."""
         return self.coordinator and (self.mode == "lockstep" or not self.started)
-
-    def _apply_answers(self, link: ArmLink) -> None:
-        """Lockstep: the answers due now take effect, each with the goals it names; goals no answer names
-        (a user's own client, a lost controller) go with them."""
-        batches, unnamed = link.take_due(self.world.tick)
-        for goals, answer in batches:
-            for goal in goals:
-                self.inputs.submit(link, goal)
-            self.apply_answer(link, answer)
-        for goal in unnamed:
-            self.inputs.submit(link, goal)
-
-    def apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
-        """The controller's answer takes effect (its goals are with the tracker): what it does, when it wants its
-        next state, the watchdog's next deadline."""
-        latest = msg.tick >= link.book.newest_delivered  # no later state went out: the schedule is still its to set
-        link.last_step = msg
-        period = min(max(msg.next_tick - msg.tick, 1), self.max_period_ticks)
-        link.period_ticks = period
-        if latest:
-            link.next_tick = msg.tick + period
-        hz = self.world.scene_model.control_hz
-        self.tracked.trackers[link.name].watch(
-            max(link.next_tick, self.world.tick) / hz + self.watchdog_s + self._round_trip_s(link)
-        )
-        link.watchdog_held = False
-        if link.lost:
-            link.lost = False
-            self.stats.rejoined.append(link.name)
-
-    def _round_trip_s(self, link: ArmLink) -> float:
-        """The longest a state and its answer are expected to travel on this link (latency and 3 sigma of jitter)."""
-        f = link.book.link.faults
-        return 2 * (f.latency_ms + 3 * f.jitter_ms) / 1e3
-
-    def _wait_for_answers(self, links: list[ArmLink], coord: bool) -> None:
-        """Until every live controller of `links` has answered each state delivered to it (with the goals it names),
-        and the coordinator each frame (`coord`), or the timeout passed; then the answers due now take effect."""
-        outcome = self.barrier.wait(
-            links,
-            self.coord_book if coord and not self.stats.coordinator_lost else None,
-            first=not self.started,
-            take_inputs=self.inputs.take,
-            pause=self.bus.inbox.wait,
-            lose=self._lose,
-            republish=self._republish,
-            should_stop=self.stop.should_stop if self.stop is not None else lambda: False,
-        )
-        if outcome == "stopped":
-            return
-        self.stats.coordinator_lost = self.stats.coordinator_lost or outcome == "coordinator_lost"
-        self._apply_due(links, coord)
-
-    def _republish(self, link: ArmLink | None, payload: bytes) -> None:
-        """A state (or, `link` None, a frame) still unanswered, sent again."""
-        if link is None:
-            self.bus.put(self.bus.frame_pub, "frame", payload)
-        else:
-            self.bus.put(self.bus.state_pubs[link.name], "state", payload)
-
-    def _apply_due(self, links: list[ArmLink], coord: bool) -> None:
-        """The answers (controllers', coordinator's) due at this tick take effect."""
-        for link in links:
-            self._apply_answers(link)
-        if coord:
-            for flight in self.coord_book.due_answers(self.world.tick):
-                self.apply_coord(flight.answer)
-        if not self.started and all(link.last_step is not None or link.lost for link in self.links.values()):
-            self.started = True  # realtime: from here on answers apply when they arrive
-
-    def _lose(self, link: ArmLink) -> None:
-        """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
-        link.lost = True
-        link.book.clear()
-        self.stats.lost.append(link.name)
-        self.outputs.results(
-            link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)")
-        )
 
     # --- outputs --------------------------------------------------------------------
 
@@ -303,21 +225,6 @@ class SimServer:
             if self.mode == "realtime":
                 pace.wait()
         self.outputs.status(force=True)
-
-    def settle(self) -> None:
-        """Lockstep, after the last tick: wait (at most the lockstep timeout) for the answers to the states and frames
-        already delivered, and the goals they name, so that the run ends on the bus the same way every time (a
-        recording of it too). They take no effect: the run is over."""
-        if not (self.deferred or self.deferred_coord):
-            return
-        deadline = time.monotonic() + self.lockstep_timeout_s
-        while time.monotonic() < deadline:
-            self.inputs.take()
-            arms_in = all(link.lost or link.ready() for link in self.links.values()) or not self.deferred
-            coord_in = not self.deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
-            if arms_in and coord_in:
-                return
-            self.bus.inbox.wait(0.01)
 
     def report(self) -> dict:
         """The sim's part of the run summary."""

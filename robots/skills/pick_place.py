@@ -28,27 +28,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from robots.failures import Failure, FailureCode
-from robots.joint_trajectory import ArmGoal, TrajectoryGoal
+from robots.joint_trajectory import ArmGoal
 from robots.kinematics import KinematicModel
 from robots.phase import ORDER, Phase
 from robots.skills.goal_outbox import GoalOutbox
 from robots.skills.interface import ArmObservation, MotionRequest, PartObservation, PickPlaceJob
 from robots.skills.motion_grants import MotionGrants
 from robots.skills.pick_geometry import PickGeometry
+from robots.skills.pick_plans import PickPlans
+from robots.skills.recovery import SkillRecovery
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
-from robots.trajectory import JointSegment, quintic
-
-# the words of a skill's refusal of a part it cannot grasp as it lies (`FailureCode.UNREACHABLE`)
-UNREACHABLE = "cannot be reached from above"
-
+from robots.trajectory import JointSegment
 
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
 REPLAN_AFTER_S = 0.3
-KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 FAILED_STATUSES = ("aborted", "rejected")
-LOST_AFTER_PERIODS = 3  # a goal not seen by the tracker this many decisions after it was due there was lost on the way
-MAX_RESENDS = 2  # a batch of goals lost again after this many sends ends the task failed
 
 
 @dataclass(frozen=True)
@@ -82,7 +77,7 @@ class PickPlaceTiming:
         return dataclasses.replace(cls(), **spec.pick_timing)
 
 
-class PickPlaceSkill(MotionGrants, PickGeometry):
+class PickPlaceSkill(SkillRecovery, PickPlans, MotionGrants, PickGeometry):
     """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step`
     returns.
 
@@ -201,27 +196,6 @@ class PickPlaceSkill(MotionGrants, PickGeometry):
         self._send_gripper(self.pregrasp_opening, None)
         self._plan_approach(obs, part)
 
-    def _plan_approach(self, obs: ArmObservation, part: PartObservation) -> None:
-        """The move above where the part will be when the claw gets there (two passes refine the travel time)."""
-        t = self.timing
-        lead = t.descend_s
-        seg = None
-        for _ in range(2):
-            at = part.position + self.velocity * lead
-            grasp = np.array([at[0], at[1], self.grasp_z])
-            found = self._least_tilt(grasp, self.grasp_yaw, t.hover_m)
-            if found is None:
-                hover = grasp + [0.0, 0.0, t.hover_m]
-                self._fail(
-                    FailureCode.UNREACHABLE, f"part {part.part_id} {UNREACHABLE} at {np.round(hover, 3).tolist()}"
-                )
-                return
-            self.pick_tilt_rad, q_hover, self._pick_up = found
-            seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
-            lead = seg.duration_s + t.descend_s * 0.5
-        self._grasp_world = grasp
-        self._begin_segment(seg, Phase.APPROACH, obs.time_s)
-
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
         """Enter a free move; with grants required, ask for it first and hold still until answered."""
         self.segment = segment
@@ -308,59 +282,6 @@ class PickPlaceSkill(MotionGrants, PickGeometry):
             self._clear_the_way(obs)
         return self.outbox.take(obs.time_s, watched=obs.goal_id is not None)
 
-    def _resend_lost(self, obs: ArmObservation) -> bool:
-        """Goals lost on the bus: a batch whose trajectory goal the tracker has not shown (driving, or with a
-        result) well after it was due there is sent again, later by as much as it must (the plan shifts with
-        it); lost `MAX_RESENDS` times, the task fails. False when the task failed."""
-        if obs.goal_id is None:
-            return True
-        seen = max(obs.goal_id, obs.result_goal_id)
-        keep = []
-        for sent_s, sends, goals in self.outbox.unconfirmed:
-            newest = max(g.goal_id for g in goals if isinstance(g, TrajectoryGoal))
-            if seen >= newest:
-                continue
-            if obs.time_s - sent_s <= self.latency_s + LOST_AFTER_PERIODS * self.decision_period_s:
-                keep.append((sent_s, sends, goals))
-                continue
-            if sends > MAX_RESENDS:
-                self._fail(FailureCode.GOAL_LOST, f"trajectory goal {newest} was lost on the bus {sends} times")
-                return False
-            keep.append((obs.time_s, sends + 1, self._resend(goals, obs.time_s)))
-        self.outbox.unconfirmed = keep
-        return True
-
-    def _resend(self, goals: list[ArmGoal], now_s: float) -> list[ArmGoal]:
-        """`goals` again with new ids, starting no sooner than a goal sent now can; the plan moves with them."""
-        self._now = now_s
-        first = min(g.start_time_s for g in goals if g.start_time_s is not None)
-        shift = max(0.0, self._earliest() - first)
-        self.plan_end_s += shift
-        self._timeline = [(t + shift, p) for t, p in self._timeline]
-        return self.outbox.resend(goals, shift)
-
-    def _clear_the_way(self, obs: ArmObservation) -> None:
-        """An arm left standing away from home with nothing to do (its task failed mid-way, or its controller was
-        restarted) would block its neighbours' grants for ever: after `clear_after_s` it goes home, claw open
-        (a part still held drops where it is, and the line's events say what became of it)."""
-        if self._idle_since_s is None:
-            self._idle_since_s = obs.time_s
-        home = np.asarray(self.spec.home_q, float)
-        q = np.asarray(obs.q, float)
-        if obs.time_s - self._idle_since_s < self.timing.clear_after_s - 1e-9:
-            return
-        if self._at_home(q):
-            return
-        self._now = obs.time_s
-        self.job, self.failure = None, None
-        self._timeline = []
-        self.outbox.forget()
-        self.q_cmd = q.copy()
-        self._idle_since_s = None
-        self._begin_segment(
-            self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s
-        )
-
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
         now = self._now = obs.time_s
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
@@ -402,78 +323,3 @@ class PickPlaceSkill(MotionGrants, PickGeometry):
                 self._begin_segment(self._segment(self.q_cmd, home, now, self.timing.approach_speed), Phase.HOME, now)
             elif self.phase == Phase.HOME:
                 self.phase = Phase.DONE
-
-    def _plan_grasp(self, part: PartObservation | None, now: float) -> None:
-        """Descend onto the part following it, close, lift: one goal from the approach's end, and the close."""
-        t = self.timing
-        if part is None:
-            self._fail(FailureCode.PART_VANISHED, f"part {self.job.part_id} vanished before the grasp")
-            return
-        start = self._earliest(self.plan_end_s)
-        seen_at = now
-        d, c, lift = t.descend_s, t.close_s, t.lift_s
-        times = np.arange(KNOT_S, d + c + lift + 1e-9, KNOT_S)
-
-        def aim(tt: float) -> np.ndarray:
-            return part.position + self.velocity * (start + tt - seen_at + t.track_lead_s)
-
-        lift_xy = aim(d + c)[:2]
-        up = self._pick_up
-        points = []
-        for tt in times:
-            if tt <= d + c:
-                xy = aim(tt)[:2]
-                rise = t.hover_m * (1 - quintic(tt / d)) if tt <= d else 0.0
-            else:
-                e = tt - d - c
-                xy = lift_xy + self.velocity[:2] * min(e, 0.15)
-                rise = t.lift_m * quintic(e / lift)
-            points.append(np.array([xy[0] + up[0] * rise, xy[1] + up[1] * rise, self.grasp_z + up[2] * rise]))
-        qs = self._solve_path(points, self.grasp_yaw, self.pick_tilt_rad)
-        self._send_knots(start, times, qs)
-        self._send_gripper(0.0, start + d)
-        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
-        self._timeline = [(start, Phase.DESCEND), (start + d, Phase.CLOSE), (start + d + c, Phase.LIFT)]
-
-    def _after_lift(self, obs: ArmObservation) -> None:
-        """The part must be in the claw (the fingers stopped apart); then the transfer above the place."""
-        t, now = self.timing, obs.time_s
-        if self._gripper_opening(obs) < 0.03:
-            self._send_gripper(1.0, None)
-            self._fail(FailureCode.GRASP_MISSED, f"grasp of part {self.job.part_id} missed: the claw closed on nothing")
-            return
-        place = np.asarray(self.job.place_xyz, float)
-        self.place_yaw = self._natural_yaw(place)
-        found = None
-        if self.spec.carry_tilted:  # the part is carried as it was picked, not turned in the jaws on the way
-            found = self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m, self.pick_tilt_rad)
-        found = found or self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m)
-        if found is None:
-            self._fail(FailureCode.PLACE_UNREACHABLE, f"place position {np.round(place, 3).tolist()} cannot be reached")
-            return
-        self.place_tilt_rad, q_above, self._place_up = found
-        self._begin_segment(self._segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)
-
-    def _plan_place(self) -> None:
-        """Lower, release, retreat: one goal from the transfer's end, and the claw opening at the release."""
-        t = self.timing
-        start = self._earliest(self.plan_end_s)
-        place = np.asarray(self.job.place_xyz, float)
-        release_z = place[2] + self.tool_above_bottom_m + t.place_drop_m
-        lo, rel, back = t.lower_s, t.release_s, t.retreat_s
-        times = np.arange(KNOT_S, lo + rel + back + 1e-9, KNOT_S)
-        up = self._place_up
-        points = []
-        for tt in times:
-            if tt <= lo:
-                rise = t.hover_m * (1 - quintic(tt / lo))
-            elif tt <= lo + rel:
-                rise = 0.0
-            else:
-                rise = t.hover_m * quintic((tt - lo - rel) / back)
-            points.append(np.array([place[0] + up[0] * rise, place[1] + up[1] * rise, release_z + up[2] * rise]))
-        qs = self._solve_path(points, self.place_yaw, self.place_tilt_rad)
-        self._send_knots(start, times, qs)
-        self._send_gripper(self.pregrasp_opening, start + lo)
-        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
-        self._timeline = [(start, Phase.LOWER), (start + lo, Phase.RELEASE), (start + lo + rel, Phase.RETREAT)]

@@ -7,7 +7,7 @@ from coordinator.capacity import arm_views
 from coordinator.ledger import MAX_ATTEMPTS, Ledger
 from coordinator.tasks import TaskState
 from robots.failures import FailureCode
-from robots.skills.pick_place import UNREACHABLE
+from robots.skills.pick_plans import UNREACHABLE
 from scenes import load_scene
 
 

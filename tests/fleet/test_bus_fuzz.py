@@ -5,6 +5,8 @@ same seed."""
 import threading
 import time
 
+import pytest
+
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
@@ -12,6 +14,8 @@ from robots.registry import get_robot
 from tests.fleet.bus_fuzz import BusFuzzer
 from tests.fleet.test_bus_lies import COUNTED
 from tests.fleet.test_run import QUICK_LINE, assert_nothing_left
+
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
 MESSAGES = 10_000
 REFUSED_GOALS = ("goal_results",)  # the sim answers each refused goal with a `rejected` result: counted, not acted on

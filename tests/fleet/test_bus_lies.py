@@ -4,12 +4,16 @@ assignment, a fake coordinator tick)."""
 
 import math
 
+import pytest
+
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, Assignment, ControllerStep, CoordTick, LineEvent, LineView, PartsState
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES, assert_nothing_left
+
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
 FAR = 10**18
 COUNTED = WALL_FIGURES + ("dropped_messages", "bus_messages_per_arm_per_s")

@@ -7,7 +7,10 @@ from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import is_available
 from tests.fleet.test_run import assert_nothing_left
 
-pytestmark = pytest.mark.skipif(not (is_available("so101") and is_available("panda")), reason="needs the models extra")
+pytestmark = [
+    pytest.mark.skipif(not (is_available("so101") and is_available("panda")), reason="needs the models extra"),
+    pytest.mark.slow,
+]
 
 
 def test_three_models_share_a_line_in_lockstep_with_zero_contacts():

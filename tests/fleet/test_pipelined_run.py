@@ -5,8 +5,12 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.test_run import assert_nothing_left
+
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
 
 def run(pipeline: bool) -> dict:

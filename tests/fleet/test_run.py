@@ -21,6 +21,8 @@ from fleet.bus.messages import ArmStatus
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.run.launcher import Launcher, RunOptions
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 QUICK_LINE = str(Path(__file__).parent / "scenes_data" / "quick_line.yaml")
 # wall-clock figures, and the bus message counts (samples sent while processes start may find no subscriber yet)
 # re-sends and status follow the wall clock

@@ -12,6 +12,8 @@ import pytest
 from tests.fleet.hosts_apart.namespaces import NamespacesUnavailable, hosts_on_one_switch, processes_in
 from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 INTRUDER = str(Path(__file__).parent / "intruder.py")
 
 

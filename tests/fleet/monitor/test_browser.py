@@ -24,6 +24,8 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 BROWSER_ARGS = ["--enable-unsafe-swiftshader"]  # WebGL in software; no GPU on CI
 PANEL_X = 930  # the page's control panel starts about here at a 1280 px wide viewport

@@ -20,6 +20,8 @@ from fleet.record.replay import Player
 from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.monitor.test_browser import BROWSER_ARGS, CHROMIUM, wait_http
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 
 def frame_at(recording: Recording, t_s: float) -> LineView:
     """The newest recorded frame at or before `t_s`."""

@@ -20,7 +20,8 @@ from fleet.bus.messages import Assignment, LineEvent
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, loopback_endpoint, open_session
 from fleet.nodes.sim_server import SimServer
 from fleet.robot_tools.trials import trial_scene
-from fleet.sim.world import WALL_M, World
+from fleet.sim.world import World
+from scenes.shapes import WALL_M
 
 
 def start_controller(endpoint: str) -> subprocess.Popen:

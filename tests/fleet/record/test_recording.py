@@ -29,6 +29,8 @@ from fleet.record.report import series_from_recording, write_report
 from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.record.tf_tree import up_to_root
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 SECONDS = 12.0
 ARMS = ("arm_0", "arm_1", "arm_2")
 SIM_CLOCKED = (

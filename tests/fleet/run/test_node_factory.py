@@ -13,6 +13,8 @@ import pytest
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.run.node_factory import FactoryError, NodeFactory, forkable
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 CHILD = "tests.fleet.run.factory_child"
 
 

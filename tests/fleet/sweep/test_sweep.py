@@ -17,6 +17,8 @@ from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
 from tests.ray_namespace import in_netns, loopback_namespace, start_head
 
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
 SECONDS = 8.0
 SAME = (
     "parts_spawned",

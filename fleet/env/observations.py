@@ -1,0 +1,113 @@
+"""What each agent of the env observes: spaces, action masks, joints, separations, claw poses, the observation vectors
+and the env's state."""
+
+from __future__ import annotations
+
+import functools
+
+import gymnasium
+import numpy as np
+
+from fleet.env.allocate_mode import SLOT_FEATURES, SLOTS
+from fleet.env.limits import (
+    OBS_LIMIT,
+    SEPARATION_CAP_M,
+)
+
+
+class EnvObservations:
+    """The agents' observations and spaces: one concern of `CellParallelEnv`, kept apart."""
+
+    @functools.cache
+    def observation_space(self, agent: str) -> gymnasium.spaces.Space:
+        n, others = self._dof[agent], len(self.possible_agents) - 1
+        if self.action_mode == "allocate":
+            size = n + n + 1 + 2 + 3 + 3 * others + 1 + 1 + SLOTS * SLOT_FEATURES
+        else:
+            size = n + n + 1 + 3 + 3 + 3 * others + 1
+        box = gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
+        if not self.mask_in_observation:
+            return box
+        mask = gymnasium.spaces.Box(0, 1, shape=(SLOTS + 1,), dtype=np.int8)  # PettingZoo's classic-env convention
+        return gymnasium.spaces.Dict({"observation": box, "action_mask": mask})
+
+    def action_mask(self, agent: str) -> np.ndarray:
+        """Allocate mode: which actions choose something real now (1) or an empty slot (0); waiting (0) is always valid.
+        A busy arm may only wait. Two arms may still pick the same task in one step: the later one is refused."""
+        mask = np.zeros(SLOTS + 1, dtype=np.int8)
+        mask[0] = 1
+        mask[1 : 1 + len(self._options.get(agent, []))] = 1
+        return mask
+
+    @functools.cache
+    def action_space(self, agent: str) -> gymnasium.spaces.Space:
+        if self.action_mode == "allocate":
+            return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
+        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self._translator(agent).action_size,), dtype=np.float32)
+
+    def _joints(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Every arm's joint positions and velocities now (read once a step: observations and separations share
+        them)."""
+        return {a: (self.world.arms[a].qpos(), self.world.arms[a].qvel()) for a in self.possible_agents}
+
+    def _separations(self, joints: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, float]:
+        """Each arm's distance to its nearest other arm (python-fcl, the coordinator's guard)."""
+        if len(self.possible_agents) < 2:
+            return {a: SEPARATION_CAP_M for a in self.possible_agents}
+        for a in self.possible_agents:
+            self.guard.set_state(a, joints[a][0][: self._dof[a]])
+        return self.guard.nearest_other_m(cap_m=SEPARATION_CAP_M)
+
+    def _tools(self) -> dict[str, np.ndarray]:
+        """Every arm's claw position now (world frame)."""
+        return {a: np.asarray(self.world.arms[a].tool_pose_world().p, float) for a in self.possible_agents}
+
+    def _observe(
+        self,
+        separation: dict[str, float] | None = None,
+        tools: dict[str, np.ndarray] | None = None,
+        joints: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+        targets: dict[str, np.ndarray] | None = None,
+    ) -> dict[str, np.ndarray]:
+        joints = joints or self._joints()
+        separation = separation or self._separations(joints)
+        tools = tools or self._tools()
+        out = {}
+        for a in self.agents:
+            (q, dq), n = joints[a], self._dof[a]
+            others = [tools[b] for b in self.possible_agents if b != a]
+            if self.chooser is not None:
+                skill = self.chooser.skills[a]
+                own = [
+                    q[:n],
+                    dq[:n],
+                    [self._opening(a)],
+                    [float(self.chooser.task_of[a] is None and not skill.active), skill.progress],
+                    tools[a],
+                ]
+                extra = [self.chooser.features(a, self._options.get(a, []))]
+            else:
+                target = targets[a] if targets else self.scenario.target(a, self.world)
+                own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
+                extra = []
+            vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
+            out[a] = np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector)
+            if self.mask_in_observation:
+                out[a] = {"observation": out[a], "action_mask": self.action_mask(a)}
+        return out
+
+    def _opening(self, agent: str) -> float:
+        arm = self.world.arms[agent]
+        spec = arm.spec
+        g = arm.qpos()[spec.arm_dof :]
+        return float((np.mean(g) - spec.gripper_closed[0]) / (spec.gripper_open[0] - spec.gripper_closed[0]))
+
+    def state(self) -> np.ndarray:
+        """Everything for a centralised critic: every arm's joints, velocities, tool and target, and the parts'
+        positions."""
+        chunks = []
+        for a in self.possible_agents:
+            arm = self.world.arms[a]
+            target = self.scenario.target(a, self.world) if self.agents or self.cycles else np.zeros(3)
+            chunks += [arm.qpos(), arm.qvel(), np.asarray(arm.tool_pose_world().p, float), target]
+        return np.concatenate(chunks).astype(np.float32)
