@@ -36,7 +36,7 @@ from train_ippo_reach import write_rows
 from fleet.env import parallel_env
 from fleet.env.allocate_mode import WAIT
 
-ENV_NAME = "clawfleet_task_mode"
+ENV_NAME = "clawfleet_allocate_mode"
 
 
 def cell(config: dict):
