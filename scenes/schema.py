@@ -21,9 +21,9 @@ Vec3 = tuple[float, float, float]
 
 
 class Strict(BaseModel):
-    """Base for every scene model: unknown fields are errors; models are immutable."""
+    """Base for every scene model: unknown fields are errors, every number is finite; models are immutable."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     def revalidated(self, **update: object):
         """A copy with `update` applied and every field and rule checked again (`model_copy` alone checks nothing)."""

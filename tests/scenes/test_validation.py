@@ -111,3 +111,37 @@ def test_yaml_syntax_error_names_the_line(tmp_path):
 def test_unknown_scene_name_lists_bundled_ones():
     with pytest.raises(SceneError, match="assembly_line"):
         load_scene("no_such_scene")
+
+
+def numeric_leaves(node, path=()):
+    """Every number in a scene file's data, by its path (lists by index)."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from numeric_leaves(v, (*path, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from numeric_leaves(v, (*path, i))
+    elif isinstance(node, (int, float)) and not isinstance(node, bool):
+        yield path
+
+
+@pytest.mark.parametrize("name", bundled_scene_names())
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), float("-inf")])
+def test_every_number_of_every_bundled_scene_refuses_a_non_finite_value_naming_file_and_field(tmp_path, name, value):
+    """NaN and infinite numbers were accepted in places (arm bases, heights) and crashed or hung `fleet run` later:
+    each number of each bundled scene, set to one, is refused by `load_scene` with the file and its field."""
+    data = yaml.safe_load((BUNDLED_DIR / f"{name}.yaml").read_text())
+    leaves = list(numeric_leaves(data))
+    assert len(leaves) >= 10
+    path = tmp_path / f"{name}.yaml"
+    for leaf in leaves:
+        edited = yaml.safe_load((BUNDLED_DIR / f"{name}.yaml").read_text())
+        node = edited
+        for key in leaf[:-1]:
+            node = node[key]
+        node[leaf[-1]] = value
+        path.write_text(yaml.safe_dump(edited))
+        with pytest.raises(SceneError) as refused:
+            load_scene(path, robots=robot_facts())
+        message = str(refused.value)
+        assert str(path) in message and "\n" not in message, message
