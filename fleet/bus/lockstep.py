@@ -71,6 +71,13 @@ class ArmLink:
         return batches, unnamed
 
 
+def unanswered(links: list[ArmLink], coord_book: FlightBook | None) -> tuple[list[ArmLink], bool]:
+    """The live links still owed an answer (or a goal an answer names), and whether the coordinator still owes one
+    (`coord_book` None: not asked)."""
+    waiting = [link for link in links if not link.lost and not link.ready()]
+    return waiting, coord_book is not None and coord_book.awaiting() is not None
+
+
 @dataclass
 class Barrier:
     """Lockstep's wait at a tick: until every live controller due has answered each state delivered to it (with the
@@ -100,8 +107,7 @@ class Barrier:
         republish_at = started + REPUBLISH_S
         while True:
             take_inputs()
-            waiting = [link for link in links if not link.lost and not link.ready()]
-            coord_waiting = coord_book is not None and coord_book.awaiting() is not None
+            waiting, coord_waiting = unanswered(links, coord_book)
             if not waiting and not coord_waiting:
                 return "in"
             if should_stop():

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 
-from fleet.bus.lockstep import ArmLink
+from fleet.bus.lockstep import ArmLink, unanswered
 from fleet.bus.messages import (
     ControllerStep,
 )
@@ -102,8 +102,8 @@ class SimLockstep:
         deadline = time.monotonic() + self.lockstep_timeout_s
         while time.monotonic() < deadline:
             self.inputs.take()
-            arms_in = all(link.lost or link.ready() for link in self.links.values()) or not self.deferred
-            coord_in = not self.deferred_coord or self.stats.coordinator_lost or self.coord_book.awaiting() is None
-            if arms_in and coord_in:
+            links = list(self.links.values()) if self.deferred else []
+            coord = self.coord_book if self.deferred_coord and not self.stats.coordinator_lost else None
+            if unanswered(links, coord) == ([], False):
                 return
             self.bus.inbox.wait(0.01)
