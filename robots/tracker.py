@@ -26,10 +26,12 @@ from robots.joint_trajectory import (
     GripperGoal,
     ResultCode,
     Spline,
+    TrajectoryGoal,
     check_goal,
 )
 
 WATCHDOG_REASON = "watchdog: the controller missed its deadline"
+ESTOP_REASON = "emergency stop engaged"
 
 
 @dataclass
@@ -38,6 +40,17 @@ class _Active:
     spline: Spline
     # its result is out (preempted by a goal that starts later): it drives the arm, unchecked, until then
     ended: bool = False
+
+
+@dataclass(frozen=True)
+class PlannedGoal:
+    """A trajectory goal checked and splined against the arm's path, not yet committed (`ArmTracker.commit`)."""
+
+    active: _Active
+
+    @property
+    def spline(self) -> Spline:
+        return self.active.spline
 
 
 class ArmTracker(GripperTracking):
@@ -78,33 +91,34 @@ class ArmTracker(GripperTracking):
         """Accept or refuse a goal at `now_s`; returns the refusal, or the results of the goals it preempts."""
         if isinstance(goal, GripperGoal):
             return self._submit_gripper(goal, now_s)
+        planned = self.plan(goal, now_s)
+        return planned if isinstance(planned, list) else self.commit(planned, now_s)
+
+    def plan(self, goal: TrajectoryGoal, now_s: float) -> PlannedGoal | list[GoalResult]:
+        """The path a trajectory goal would give the arm from its start on, or its refusal (e-stop, invalid goal);
+        nothing changes until `commit`, so a safety layer can look at the path first."""
         if self.estop:
-            return self._note(
-                [
-                    GoalResult(
-                        goal.goal_id,
-                        "trajectory",
-                        GoalStatus.REJECTED,
-                        ResultCode.INVALID_GOAL,
-                        "emergency stop engaged",
-                        now_s,
-                    )
-                ]
-            )
+            return self.refuse(goal, ESTOP_REASON, now_s)
         checked = check_goal(goal, self.joint_names, self.lower, self.upper)
         if isinstance(checked, GoalResult):
             return self._note([dataclasses.replace(checked, time_s=now_s)])
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
         q0, dq0, ddq0 = self._path_at(start)
-        new = _Active(checked, Spline.through(start, q0, dq0, ddq0, checked, self.servo_period_s))
+        return PlannedGoal(_Active(checked, Spline.through(start, q0, dq0, ddq0, checked, self.servo_period_s)))
+
+    def refuse(
+        self, goal: TrajectoryGoal, reason: str, now_s: float, code: ResultCode = ResultCode.INVALID_GOAL
+    ) -> list[GoalResult]:
+        """Refuse a trajectory goal with `reason`: it never starts, the arm keeps its path."""
+        return self._note([GoalResult(goal.goal_id, "trajectory", GoalStatus.REJECTED, code, reason, now_s)])
+
+    def commit(self, planned: PlannedGoal, now_s: float) -> list[GoalResult]:
+        """Make a planned goal the arm's path from its start; returns the results of the goals it preempts."""
+        new, goal_id = planned.active, planned.active.checked.goal.goal_id
+        start = new.spline.t0_s
         out = [
             self._end(
-                old,
-                "trajectory",
-                GoalStatus.PREEMPTED,
-                ResultCode.SUCCESSFUL,
-                f"preempted by goal {goal.goal_id}",
-                now_s,
+                old, "trajectory", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, f"preempted by goal {goal_id}", now_s
             )
             for old in (self.active, self.next)
             if old is not None and not old.ended
@@ -116,6 +130,15 @@ class ArmTracker(GripperTracking):
             if self.active is not None:
                 self.active.ended = True
         return self._note(out)
+
+    def committed_end_s(self) -> float:
+        """When the arm's committed path comes to rest (-inf when it holds already)."""
+        ends = [a.spline.t_end_s for a in (self.active, self.next) if a is not None]
+        return max(ends, default=-math.inf)
+
+    def path_q(self, t_s: float) -> np.ndarray:
+        """Where the arm's committed path puts its joints at `t_s` (now or later)."""
+        return self._path_at(t_s)[0]
 
     # --- each tick ------------------------------------------------------------------
     def _path_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

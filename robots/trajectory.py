@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import BPoly
 
 QUINTIC_PEAK_SPEED = 1.875  # peak / mean speed of the 10t^3 - 15t^4 + 6t^5 profile
 
@@ -55,3 +56,40 @@ class JointSegment:
 
     def done(self, t_s: float) -> bool:
         return t_s >= self.t_end_s
+
+
+def knot_velocities(times_s: np.ndarray, qs: np.ndarray) -> np.ndarray:
+    """Velocities at the knots of a joint path (finite differences), at rest at the last knot."""
+    dq = np.gradient(qs, times_s, axis=0) if len(times_s) > 1 else np.zeros_like(qs)
+    dq[-1] = 0.0
+    return dq
+
+
+def _piece_peaks(q_start: np.ndarray, times_s: np.ndarray, qs: np.ndarray, samples: int = 16) -> np.ndarray:
+    """Each piece's largest |joint velocity| / per joint, (pieces, joints), of the cubic a tracker builds from rest
+    at `q_start` through the knots."""
+    knots = np.concatenate([[0.0], times_s])
+    pos = np.vstack([q_start, qs])
+    vel = np.vstack([np.zeros_like(q_start), knot_velocities(times_s, qs)])
+    dpoly = BPoly.from_derivatives(knots, np.stack([pos, vel], axis=1)).derivative()
+    u = np.linspace(0.0, 1.0, samples)
+    at = knots[:-1, None] + np.diff(knots)[:, None] * u[None]
+    return np.abs(dpoly(at.ravel())).reshape(len(times_s), samples, -1).max(axis=1)
+
+
+def within_velocity_limits(
+    q_start: np.ndarray, times_s: np.ndarray, qs: np.ndarray, velocity_limit: np.ndarray, rounds: int = 8
+) -> np.ndarray:
+    """The knot times of a joint path stretched where a piece would turn a joint faster than its limit allows
+    (an IK path that swings a joint: a redundant arm's null space, a wrist near its singularity); unchanged where
+    none does. The path starts at rest at `q_start`; a piece too fast is stretched by how far it is over."""
+    times = np.asarray(times_s, float).copy()
+    q_start, qs = np.asarray(q_start, float), np.asarray(qs, float)
+    allowed = np.asarray(velocity_limit, float) * 0.98
+    for _ in range(rounds):
+        over = (_piece_peaks(q_start, times, qs) / allowed).max(axis=1)
+        if over.max() <= 1.0:
+            break
+        pieces = np.diff(np.concatenate([[0.0], times])) * np.maximum(over, 1.0)
+        times = np.cumsum(pieces)
+    return times

@@ -247,6 +247,9 @@ class Scene(Strict):
     randomise: Randomisation | None = None
     randomised: dict[str, float] = {}
     """The values drawn for this run (filled by `scenes.randomise.draw`; listed in the run summary)."""
+    safety_separation_m: float = Field(0.01, ge=0.0, le=0.5)
+    """The plant's safety layer refuses any goal, from any source, whose path would bring two arms closer than this,
+    and stops a motion that does (metres). The coordinator's guard plans with a wider margin (2 cm)."""
     drive_gain_scale: float = Field(1.0, gt=0.05, le=20.0)
     """Factor on every arm's drive stiffness and damping (a randomised arm gain lands here)."""
     part_pose_noise_m: float = Field(0.0, ge=0.0, le=0.05)

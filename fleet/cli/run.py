@@ -257,6 +257,7 @@ def print_run_summary(s: dict) -> None:
         ("inter-arm contacts (ticks)", str(s["inter_arm_contacts"])),
         ("min separation (m)", "-" if s["min_separation_m"] is None else f"{s['min_separation_m']:.3f}"),
         ("grants denied", str(s["grants_denied"])),
+        ("refused by the plant's safety / stopped", _safety_row(s)),
         ("round trip p50 / p99 (ms)", f"{s['latency_p50_ms']} / {s['latency_p99_ms']}"),
         ("dropped messages", str(s["dropped_messages"])),
         ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
@@ -264,6 +265,13 @@ def print_run_summary(s: dict) -> None:
     for row in rows:
         table.add_row(*row)
     out.print(table)
+
+
+def _safety_row(s: dict) -> str:
+    """Goals the plant refused (by kind) and motions it stopped."""
+    refused = s.get("safety_refused_goals", {})
+    kinds = "".join(f", {n} {k}" for k, n in refused.items())
+    return f"{sum(refused.values())} goals{kinds} / {s.get('safety_stops', 0)}"
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:

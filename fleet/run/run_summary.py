@@ -157,6 +157,8 @@ class RunSummary:
         return {
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
+            "safety_refused_goals": sim.get("safety_refused_goals", {}),
+            "safety_stops": sim.get("safety_stops", 0),
             "min_separation_m": coord.get("min_separation_m"),
             "closest_pair": coord.get("closest_pair"),
             "grants_denied": coord.get("grants_denied", 0),

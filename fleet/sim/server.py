@@ -242,6 +242,7 @@ class SimServer(SimLockstep):
             | {
                 "dropped_messages": self.drops.total,
                 "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
+                **self.tracked.safety.report(),
             }
             | self.stats.outcome(arms, sim_s)
             | {"randomised": dict(self.world.scene_model.randomised), "network_faults": faults_report(self.faults)}

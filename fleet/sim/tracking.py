@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from coordinator.geometry import ArmGeometry
 from fleet.sim.observe import arm_observation
+from fleet.sim.safety import PlantSafety
 from fleet.sim.world import World
-from robots.joint_trajectory import ArmGoal, GoalResult
+from robots.frames import yaw_transform
+from robots.joint_trajectory import ArmGoal, GoalResult, GripperGoal
 from robots.skills.interface import PartObservation
 from robots.skills.pick_place import PickPlaceSkill
 from robots.tracker import ArmTracker
@@ -40,10 +43,21 @@ class TrackedArms:
         self._opening: dict[str, float] = {}
         self._held: dict[str, np.ndarray | None] = {}  # the hold point last written, per arm holding still
         self._gripper_q: dict[str, tuple[float, ...]] = {}
+        self.safety = plant_safety(world)
 
     def submit(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
-        """Hand `arm`'s tracker a goal now; the refusal or the preempted goals' results come back."""
-        return self.trackers[arm].submit(goal, self.world.sim_time_s)
+        """Hand `arm`'s tracker a goal now, through the plant's safety layer; the refusal or the preempted goals'
+        results come back."""
+        tracker, now = self.trackers[arm], self.world.sim_time_s
+        if isinstance(goal, GripperGoal):
+            return tracker.submit(goal, now)
+        planned = tracker.plan(goal, now)
+        if isinstance(planned, list):
+            return planned
+        refusal = self.safety.refusal(arm, planned.spline, self.trackers)
+        if refusal is not None:
+            return tracker.refuse(goal, f"safety: {refusal.reason}", now)
+        return tracker.commit(planned, now)
 
     def decide(self, arm: str, skill: PickPlaceSkill, parts: dict[int, PartObservation]) -> None:
         """One decision of `arm`'s skill in process, as a controller makes it over the bus: it sees the arm (with its
@@ -80,7 +94,15 @@ class TrackedArms:
             results = tracker.update(now, q[:n], q[n:], dq[n:])
             if results:
                 out[name] = results
+        for name in self.safety.too_close(now, self._arm_q, self.trackers):
+            out.setdefault(name, []).extend(
+                self.abort(name, "safety stop: within the plant's separation of another arm")
+            )
         return out
+
+    def _arm_q(self, name: str) -> np.ndarray:
+        arm = self.world.arms[name]
+        return arm.qpos()[: arm.spec.arm_dof]
 
     def abort(self, arm: str, reason: str) -> list[GoalResult]:
         """Stop `arm` where it is now, aborting its goals with `reason`."""
@@ -96,3 +118,18 @@ class TrackedArms:
             if results:
                 out[name] = results
         return out
+
+
+def plant_safety(world: World) -> PlantSafety:
+    """The safety layer over a world's arms: their collision shapes where the scene puts them, the scene's
+    separation, each robot's joint velocity limits."""
+    geometries, limits = {}, {}
+    for a in world.scene_model.arms:
+        spec = world.arms[a.name].spec
+        g = ArmGeometry(a.name, spec, yaw_transform(a.base.xyz, a.base.yaw_rad))
+        geometries[a.name] = g
+        model = g.km.model
+        limits[a.name] = np.array(
+            [model.velocityLimit[model.joints[model.getJointId(j)].idx_v] for j in spec.arm_joints]
+        )
+    return PlantSafety(geometries, world.scene_model.safety_separation_m, limits)

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 
 from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
+from robots.trajectory import knot_velocities
 
 PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
 
@@ -42,8 +43,7 @@ class GoalOutbox:
 
     def knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> None:
         """A goal through joint knots at `start_s + times_s`, with velocities from the knots (cubic between them)."""
-        dq = np.gradient(qs, times_s, axis=0) if len(times_s) > 1 else np.zeros_like(qs)
-        dq[-1] = 0.0  # every stage ends at rest
+        dq = knot_velocities(times_s, qs)  # every stage ends at rest
         goal = TrajectoryGoal(
             self.next_id(),
             self.joint_names,

@@ -67,10 +67,10 @@ class PickPlans:
                 rise = t.lift_m * quintic(e / lift)
             points.append(np.array([xy[0] + up[0] * rise, xy[1] + up[1] * rise, self.grasp_z + up[2] * rise]))
         qs = self._solve_path(points, self.grasp_yaw, self.pick_tilt_rad)
-        self._send_knots(start, times, qs)
-        self._send_gripper(0.0, start + d)
-        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
-        self._timeline = [(start, Phase.DESCEND), (start + d, Phase.CLOSE), (start + d + c, Phase.LIFT)]
+        at = self._send_knots(start, times, qs)
+        self._send_gripper(0.0, start + at(d))
+        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + at(times[-1])
+        self._timeline = [(start, Phase.DESCEND), (start + at(d), Phase.CLOSE), (start + at(d + c), Phase.LIFT)]
 
     def _after_lift(self, obs: ArmObservation) -> None:
         """The part must be in the claw (the fingers stopped apart); then the transfer above the place."""
@@ -110,7 +110,7 @@ class PickPlans:
                 rise = t.hover_m * quintic((tt - lo - rel) / back)
             points.append(np.array([place[0] + up[0] * rise, place[1] + up[1] * rise, release_z + up[2] * rise]))
         qs = self._solve_path(points, self.place_yaw, self.place_tilt_rad)
-        self._send_knots(start, times, qs)
-        self._send_gripper(self.pregrasp_opening, start + lo)
-        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + times[-1]
-        self._timeline = [(start, Phase.LOWER), (start + lo, Phase.RELEASE), (start + lo + rel, Phase.RETREAT)]
+        at = self._send_knots(start, times, qs)
+        self._send_gripper(self.pregrasp_opening, start + at(lo))
+        self.q_cmd, self.plan_end_s = qs[-1].copy(), start + at(times[-1])
+        self._timeline = [(start, Phase.LOWER), (start + at(lo), Phase.RELEASE), (start + at(lo + rel), Phase.RETREAT)]

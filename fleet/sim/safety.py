@@ -1,0 +1,225 @@
+"""The plant's safety layer: no motion, from any source, brings two arms within the scene's separation.
+
+The coordinator's guard plans grants well; this layer guarantees, below every planner, as an
+arm's driver would. Before a tracker takes a trajectory goal (from the skill, an outside
+client, a replay) its path is walked against every neighbour's committed path (python-fcl,
+conservative advancement as in `coordinator.guard`) and its joint speeds against the
+robot's velocity limits; a goal that breaks either is refused with a reason. While arms
+move, each pair of neighbours is measured again before it could have closed the gap, and a
+motion that brings an arm within the separation (pushed, or running late) is stopped and held.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coordinator.geometry import ArmGeometry, separation_m
+from robots.joint_trajectory import Spline
+from robots.tracker import ArmTracker
+
+SPEED_SLACK = 1.02  # a spline's peak between two samples may pass a sampled peak by a little
+PUSH_SPEED_M_PER_S = (
+    0.5  # how fast an arm off its path (pushed, lagging) is assumed to drift when pairs are rescheduled
+)
+MEASURE_CAP_M = 1.0  # farther than this, a pair's exact distance does not matter to the walk
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """Why a goal may not run: `kind` is `speed` or `separation`; `other` the arm it would come too close to."""
+
+    kind: str
+    reason: str
+    other: str | None = None
+    distance_m: float = math.inf
+
+
+@dataclass
+class SafetyCounts:
+    """What the layer did in a run: goals refused by kind, motions stopped, the closest pair measured."""
+
+    refused: Counter = field(default_factory=Counter)
+    stopped: int = 0
+    min_measured_m: float = math.inf
+
+
+def _peak_speeds(spline: Spline, samples: int = 64) -> np.ndarray:
+    """Each joint's largest |velocity| along the spline (its servo grid when it has one)."""
+    if spline.grid_dq is not None and len(spline.grid_dq):
+        return np.abs(spline.grid_dq).max(axis=0)
+    times = np.linspace(spline.t0_s, spline.t_end_s, samples)
+    return np.abs(spline.dpoly(times)).max(axis=0)
+
+
+class PlantSafety:
+    """Checks goals and watches moving arms of one cell; `geometries` place each arm's shapes in the world."""
+
+    def __init__(
+        self,
+        geometries: dict[str, ArmGeometry],
+        separation_m: float,
+        velocity_limits: dict[str, np.ndarray],
+        step_m: float = 0.01,
+    ) -> None:
+        self.geometries, self.separation_m, self.step_m = geometries, float(separation_m), step_m
+        self.velocity_limits = velocity_limits
+        self.neighbours = {name: self._near(name) for name in geometries}
+        self.counts = SafetyCounts()
+        self._due_s: dict[tuple[str, str], float] = {}  # when each pair of neighbours is next measured
+
+    def _near(self, arm: str) -> list[str]:
+        me = self.geometries[arm]
+        return [
+            name
+            for name, g in self.geometries.items()
+            if name != arm
+            and np.linalg.norm(g.base_to_world[:2, 3] - me.base_to_world[:2, 3])
+            <= g.reach_bound_m + me.reach_bound_m + self.separation_m
+        ]
+
+    def report(self) -> dict:
+        """The run summary's part: goals refused by kind, motions stopped, the separation kept."""
+        return {
+            "safety_refused_goals": dict(sorted(self.counts.refused.items())),
+            "safety_stops": self.counts.stopped,
+            "safety_separation_m": self.separation_m,
+        }
+
+    # --- goals ------------------------------------------------------------------------
+    def refusal(self, arm: str, spline: Spline, trackers: dict[str, ArmTracker]) -> Refusal | None:
+        """Why `arm` may not follow `spline` from its start (None: it may), given every arm's committed path."""
+        why = self._speed_refusal(arm, spline) or self._path_refusal(arm, spline, trackers)
+        if why is not None:
+            self.counts.refused[why.kind] += 1
+        return why
+
+    def _speed_refusal(self, arm: str, spline: Spline) -> Refusal | None:
+        limit = self.velocity_limits[arm]
+        peak = _peak_speeds(spline)
+        over = np.flatnonzero(peak > limit * SPEED_SLACK + 1e-9)
+        if not over.size:
+            return None
+        j = int(over[0])
+        name = self.geometries[arm].spec.arm_joints[j]
+        return Refusal("speed", f"{name} would turn at {peak[j]:.3g} rad/s; its limit is {limit[j]:.3g} rad/s")
+
+    def _point_speed_m_per_s(self, arm: str, spline: Spline | None) -> float:
+        """An upper bound on how fast any point of `arm` moves along `spline` (0 for an arm that holds)."""
+        if spline is None or spline.t_end_s <= spline.t0_s:
+            return 0.0
+        return float(_peak_speeds(spline).sum()) * self.geometries[arm].spec.reach_m
+
+    def _tracker_speed_m_per_s(self, arm: str, tracker: ArmTracker, t_s: float) -> float:
+        """An upper bound on how fast any point of `arm` moves along its committed path from `t_s` on."""
+        return max(
+            (
+                self._point_speed_m_per_s(arm, a.spline)
+                for a in (tracker.active, tracker.next)
+                if a is not None and a.spline.t_end_s > t_s
+            ),
+            default=0.0,
+        )
+
+    def _path_refusal(self, arm: str, spline: Spline, trackers: dict[str, ArmTracker]) -> Refusal | None:
+        others = self.neighbours[arm]
+        if not others:
+            return None
+        me = self.geometries[arm]
+        t0 = spline.t0_s
+        t_end = max([spline.t_end_s] + [trackers[o].committed_end_s() for o in others])
+        speed = self._point_speed_m_per_s(arm, spline) + max(
+            self._tracker_speed_m_per_s(o, trackers[o], t0) for o in others
+        )
+        # an arm already within the separation (pushed there) may move, but never closer than it is
+        start = self._nearest(me, spline.sample(t0)[0] if t0 < spline.t_end_s else spline.q_end, others, trackers, t0)
+        floor_m = min(self.separation_m, start[0] - 1e-4)
+        t = t0
+        while True:
+            q = spline.q_end if t >= spline.t_end_s else spline.sample(t)[0]
+            here, other = self._nearest(me, q, others, trackers, t)
+            if here < floor_m:
+                return Refusal(
+                    "separation",
+                    f"its path comes within {max(here, 0.0) * 1000:.0f} mm of {other} at t={t:.2f} s "
+                    f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
+                    other,
+                    here,
+                )
+            if t >= t_end or speed <= 0:
+                return None
+            t = min(t_end, t + max(self.step_m, here - floor_m) / speed)
+
+    def _nearest(
+        self, me: ArmGeometry, q: np.ndarray, others: list[str], trackers: dict[str, ArmTracker], t_s: float
+    ) -> tuple[float, str | None]:
+        me.place(q)
+        best, nearest = math.inf, None
+        for o in others:
+            g = self.geometries[o]
+            g.place(trackers[o].path_q(t_s))
+            d = separation_m(me, g, below_m=MEASURE_CAP_M)
+            if d < best:
+                best, nearest = d, o
+        return best, nearest
+
+    # --- motions ----------------------------------------------------------------------
+    def too_close(
+        self, now_s: float, measured_q: Callable[[str], np.ndarray], trackers: dict[str, ArmTracker]
+    ) -> list[str]:
+        """Moving arms that are within the separation of a neighbour and whose path takes them closer still: the
+        caller stops them. Each pair is measured again only when it could have closed its gap."""
+        stop: set[str] = set()
+        for a, b in self._pairs_due(now_s, trackers):
+            ga, gb = self.geometries[a], self.geometries[b]
+            ga.place(measured_q(a))
+            gb.place(measured_q(b))
+            d = separation_m(ga, gb, below_m=MEASURE_CAP_M)
+            self.counts.min_measured_m = min(self.counts.min_measured_m, d)
+            if d < self.separation_m:
+                stop |= self._closing(a, b, d, now_s, measured_q, trackers)
+                self._due_s[_pair(a, b)] = now_s
+            else:
+                speed = sum(self._tracker_speed_m_per_s(x, trackers[x], now_s) + PUSH_SPEED_M_PER_S for x in (a, b))
+                self._due_s[_pair(a, b)] = now_s + (d - self.separation_m) / speed
+        self.counts.stopped += len(stop)
+        return sorted(stop)
+
+    def _pairs_due(self, now_s: float, trackers: dict[str, ArmTracker]) -> list[tuple[str, str]]:
+        moving = {name for name, t in trackers.items() if t.committed_end_s() >= now_s}
+        return [
+            (a, b)
+            for a in sorted(moving)
+            for b in self.neighbours[a]
+            if (b not in moving or a < b) and self._due_s.get(_pair(a, b), -math.inf) <= now_s
+        ]
+
+    def _closing(
+        self,
+        a: str,
+        b: str,
+        d: float,
+        now_s: float,
+        measured_q: Callable[[str], np.ndarray],
+        trackers: dict[str, ArmTracker],
+    ) -> set[str]:
+        """Of two arms within the separation, the moving ones whose next committed pose is closer than now."""
+        out = set()
+        for me, other in ((a, b), (b, a)):
+            tracker = trackers[me]
+            if tracker.committed_end_s() < now_s:
+                continue
+            g, go = self.geometries[me], self.geometries[other]
+            g.place(tracker.path_q(now_s + 0.05))
+            go.place(measured_q(other))
+            if separation_m(g, go, below_m=MEASURE_CAP_M) <= d:
+                out.add(me)
+        return out
+
+
+def _pair(a: str, b: str) -> tuple[str, str]:
+    return (a, b) if a < b else (b, a)
