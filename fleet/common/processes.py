@@ -29,6 +29,7 @@ from scenes.loader import SceneError
 from scenes.schema import Scene
 
 PR_SET_PDEATHSIG = 1
+PR_SET_CHILD_SUBREAPER = 36
 PR_SET_NAME = 15
 PARENT_ENV = "CLAWFLEET_PARENT_PID"  # set for every child a `ChildProcess` starts: the pid that started it
 
@@ -46,6 +47,12 @@ def die_with_parent(signum: int = signal.SIGTERM) -> None:
     """Ask Linux to send this process `signum` when its parent dies (nothing elsewhere): no orphan outlives a
     killed parent, and a SIGTERM handler still gets to stop what this process started."""
     _prctl(PR_SET_PDEATHSIG, signum)
+
+
+def adopt_orphans(adopt: bool = True) -> None:
+    """Be the child subreaper (Linux) or stop being it: a process started under this one whose parent dies is
+    re-parented here, so it can be stopped and reaped here rather than left to an init that may never reap it."""
+    _prctl(PR_SET_CHILD_SUBREAPER, int(adopt))
 
 
 def name_this_process(name: str) -> None:

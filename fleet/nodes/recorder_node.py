@@ -243,10 +243,20 @@ def main(argv: list[str] | None = None) -> int:
         "--spool",
         help="record the sim's spool file (its `--spool`) instead of tapping the bus; the run id and scene are in it",
     )
+    parser.add_argument(
+        "--once",
+        action="store_true",
+        help="with --spool: write a finished run's spool from start to end and exit (how `fleet run` replaces a "
+        "recorder that died)",
+    )
     parser.add_argument("--report", help="write the recording's figures to this JSON file at exit")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
+    if args.once and not args.spool:
+        parser.error("--once records a spool: give --spool FILE")
     stop = StopFlag()
+    if args.once:
+        stop.reason = "once: the spool is complete"
     if args.nice:
         yield_cpu(args.nice)
     endpoints = BusEndpoints.from_args(args)

@@ -14,11 +14,12 @@ from functools import cache
 import msgspec.inspect as mi
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from fleet.bus.messages import Message
+from fleet.bus.messages import MESSAGE_TYPES, Message
 
 PACKAGE = "clawfleet_msgs"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 NONE_INT = -1
+_BUS_TYPES_BY_NAME = {t.__name__: t for t in MESSAGE_TYPES}
 _PRIMITIVES = {mi.IntType: "int64", mi.FloatType: "float64", mi.StrType: "string", mi.BoolType: "bool"}
 
 
@@ -28,7 +29,11 @@ def ros_type(name: str):
 
 
 def msgdef(typename: str) -> str:
-    """The type's definition with its dependencies, as rosbag2 writes it into an MCAP schema (`ros2msg`)."""
+    """The type's definition with its dependencies, as rosbag2 writes it into an MCAP schema (`ros2msg`). A
+    generated type is registered here if this process has not built one of its messages yet (they may have been
+    built in a forked child)."""
+    if typename.startswith(f"{PACKAGE}/msg/") and typename not in TYPESTORE.types:
+        bus_type(_BUS_TYPES_BY_NAME[typename.rsplit("/", 1)[1]])
     return TYPESTORE.generate_msgdef(typename, ros_version=2)[0]
 
 

@@ -4,6 +4,7 @@ and the recorder."""
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -145,6 +146,29 @@ class NodeCommands:
         report = self._read(self.recorder)
         if not report:
             self.on_message(
-                f"the recorder did not finish {self.options.record}: {self.recorder.log_tail() or 'no output'}"
+                f"the recorder did not finish {self.options.record}: {self.recorder.log_tail() or 'no output'}; "
+                "writing the recording again from the run's spool"
             )
+            report = self._record_spool_once()
+        if not report:
+            summary["status"] = "error"
+            summary["error"] = f"the recording {self.options.record} could not be written (see the messages above)"
         return report
+
+    def _record_spool_once(self) -> dict:
+        """A new recorder writes the whole spool (the sim appended every message to it) and exits: what it reports,
+        or {} if it could not."""
+        report, log = self.dir / "recorder_again.json", self.dir / "recorder_again.log"
+        argv = [a for a in self.recorder.argv if a != "--hold"]
+        argv[argv.index("--report") + 1] = str(report)
+        with open(log, "wb") as out:
+            try:
+                subprocess.run([*argv, "--once"], stdout=out, stderr=subprocess.STDOUT, timeout=RECORDER_GRACE_S)
+            except subprocess.TimeoutExpired:
+                pass  # killed by run(): no report
+        try:
+            return json.loads(report.read_text())
+        except (OSError, ValueError):
+            tail = log.read_text(errors="replace").strip().splitlines()[-1:] if log.exists() else []
+            self.on_message(f"the recording could not be written again: {tail[0] if tail else 'no output'}")
+            return {}

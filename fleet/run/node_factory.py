@@ -29,7 +29,13 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from fleet.common.processes import PARENT_ENV, die_with_parent, name_this_process, run_on_idle_cpu
+from fleet.common.processes import (
+    PARENT_ENV,
+    adopt_orphans,
+    die_with_parent,
+    name_this_process,
+    run_on_idle_cpu,
+)
 
 NODE_MODULES = (
     "fleet.nodes.sim_server",
@@ -71,6 +77,31 @@ class ForkedProc:
         return self.returncode
 
 
+_FACTORIES_OPEN = [0]
+
+
+def _adopting(change: int) -> None:
+    """This process adopts orphans while it has a factory open (and only then: it reaps only its nodes)."""
+    before = _FACTORIES_OPEN[0]
+    _FACTORIES_OPEN[0] = max(0, before + change)
+    if (before == 0) != (_FACTORIES_OPEN[0] == 0):
+        adopt_orphans(_FACTORIES_OPEN[0] > 0)
+
+
+def _stop_orphan(pid: int) -> int:
+    """A node whose factory died (re-parented to the launcher, `adopt_orphans`): killed if it still runs, and
+    reaped; its exit code reads as killed."""
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    try:
+        os.waitpid(pid, 0)
+    except ChildProcessError:
+        pass  # not ours to reap (no subreaper where Linux has none): init reaps it
+    return -signal.SIGKILL
+
+
 class FactoryError(RuntimeError):
     """The factory did not start a node (it died, or did not answer); one line for the user."""
 
@@ -81,6 +112,7 @@ class NodeFactory:
     def __init__(self, log: Path | None, preload: tuple[str, ...] = NODE_MODULES) -> None:
         """`log`: where the factory's own output goes (None: nowhere; each node has its own log either way)."""
         self.log = log
+        _adopting(+1)  # the nodes outlive a factory killed under them: they come here to be stopped and reaped
         with open(log if log is not None else os.devnull, "ab") as out:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "fleet.run.node_factory", *preload],
@@ -93,6 +125,7 @@ class NodeFactory:
         self._exits: dict[int, int] = {}
         self._replies: list[dict] = []
         self._heard = threading.Condition()
+        self._closing = False
         self._reader = threading.Thread(target=self._read, name="node-factory", daemon=True)
         self._reader.start()
 
@@ -139,11 +172,25 @@ class NodeFactory:
         return forkable(argv) is not None
 
     def exit_code(self, pid: int) -> int | None:
+        """A forked node's exit code (None while it runs); a node of a factory that died died with it (SIGKILL)."""
         with self._heard:
-            return self._exits.get(pid)
+            code = self._exits.get(pid)
+        if code is None and self.died is not None:
+            code = self._exits[pid] = _stop_orphan(pid)
+        return code
+
+    @property
+    def died(self) -> str | None:
+        """Why the factory is gone before `close()` (its nodes died with it), or None while it serves."""
+        if self._closing or self.proc.poll() is None or self._reader.is_alive():
+            return None
+        return f"the node factory exited (exit {self.proc.returncode}); every node it forked died with it"
 
     def close(self) -> None:
         """Close the factory's input: it SIGKILLs any node still running, reaps them and exits."""
+        if self._closing:
+            return
+        self._closing = True
         if self.proc.stdin and not self.proc.stdin.closed:
             try:
                 self.proc.stdin.close()
@@ -155,6 +202,7 @@ class NodeFactory:
             self.proc.kill()
             self.proc.wait()
         self._reader.join(timeout=1)
+        _adopting(-1)
 
     def __enter__(self) -> NodeFactory:
         return self

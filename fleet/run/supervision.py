@@ -69,6 +69,8 @@ class Supervision:
             self._on_bus(inbox)
             self._check_monitor()
             code = sim.poll()
+            if self.factory is not None and (died := self.factory.died):
+                return f"{died}; logs in {self.dir}"
             if code is not None:
                 if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
                     return (

@@ -145,15 +145,25 @@ def test_a_hung_coordinator_ends_a_lockstep_run_with_one_clear_message_instead_o
 
 @pytest.mark.parametrize(
     "index, says",
-    [(1, "the coordinator crashed (exit -9)"), (0, "the sim server crashed (exit -9)")],
-    ids=["coordinator", "sim"],
+    [
+        (1, "the coordinator crashed (exit -9)"),
+        (0, "the sim server crashed (exit -9)"),
+        (None, "the node factory exited (exit -9); every node it forked died with it"),
+    ],
+    ids=["coordinator", "sim", "node factory"],
 )
 def test_a_crashed_node_ends_the_run_with_one_clear_message_and_every_part_accounted_for(index, says):
-    """A dead coordinator or sim: one line why, and the counts from what the launcher last heard."""
+    """A dead coordinator, sim or node factory (and with it every node): one line why, and the counts from what the
+    launcher last heard."""
 
     def kill(progress):
-        if progress.sim_time_s > 3.0 and launcher_ref[0].nodes[index].alive:
-            os.kill(launcher_ref[0].nodes[index].proc.pid, signal.SIGKILL)
+        launcher = launcher_ref[0]
+        if progress.sim_time_s <= 3.0:
+            return
+        if index is None and launcher.factory.proc.poll() is None:
+            os.kill(launcher.factory.proc.pid, signal.SIGKILL)
+        elif index is not None and launcher.nodes[index].alive:
+            os.kill(launcher.nodes[index].proc.pid, signal.SIGKILL)
 
     launcher_ref = []
     with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0), kill) as launcher:
@@ -420,3 +430,28 @@ def test_a_line_with_bus_faults_repeats_for_its_seed_and_says_what_was_injected(
     second, launcher = run_line(duration_s=15.0, seed=5, **faults)
     strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
     assert strip(first) == strip(second), "lockstep faults act in sim time: the same losses, delays and run"
+
+
+def test_a_recorder_killed_mid_run_still_leaves_the_whole_run_recorded(tmp_path):
+    """The sim's spool holds every message: a new recorder writes it all, summary included."""
+    from mcap.reader import make_reader
+
+    out = tmp_path / "run.mcap"
+
+    def kill(progress):
+        recorder = launcher_ref[0].recorder
+        if progress.sim_time_s > 3.0 and recorder.alive:
+            os.kill(recorder.proc.pid, signal.SIGKILL)
+
+    launcher_ref = []
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=12.0, record=str(out)), kill) as launcher:
+        launcher_ref.append(launcher)
+        summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert summary["status"] == "ok" and summary["recording"]["file"] == str(out), summary.get("error")
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        stats = reader.get_summary().statistics
+        topics = {channel.topic for _, channel, _ in reader.iter_messages(topics=["/line/summary"])}
+    assert stats.message_end_time / 1e9 >= summary["sim_seconds"] - 0.1
+    assert topics == {"/line/summary"}
