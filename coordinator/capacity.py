@@ -142,6 +142,9 @@ def pick_points(scene: Scene, hop: Hop) -> list[tuple[float, PartView]]:
         return [(0.0, PartView(np.array([s.pose.xyz[0], s.pose.xyz[1], s.surface_z_m + half]), np.zeros(3)))]
     c = scene.conveyor
     velocity = np.array(c.direction) * c.speed_m_per_s
+    if c.speed_m_per_s <= 0.0:  # a stopped belt: a part stays where it is dropped
+        x, y, z = c.point_at(min(BELT_DROP_ALONG_M, c.length_m), 0.0)
+        return [(0.0, PartView(np.array([x, y, z + half]), velocity))]
     n = max(2, int(c.length_m / BELT_SAMPLE_M) + 1)
     out = []
     for along in np.linspace(0.0, c.length_m, n):
@@ -180,7 +183,7 @@ def hop_model(scene: Scene, views: list[ArmView], hops: list[Hop]) -> HopModel:
     seconds = np.full((len(views), len(hops)), math.inf)
     from_release = seconds.copy()
     window = np.full((len(views), len(hops), 2), math.nan)
-    step_s = BELT_SAMPLE_M / scene.conveyor.speed_m_per_s if scene.conveyor else 0.0
+    step_s = BELT_SAMPLE_M / scene.conveyor.speed_m_per_s if scene.conveyor and scene.conveyor.speed_m_per_s else 0.0
     after_place = np.array([cost.timing(v).retreat_s for v in views])
     for j, hop in enumerate(hops):
         task = Task(0, 0, hop.source, hop.target, 0.0)
@@ -430,6 +433,8 @@ def capacity_bound(
     types = sorted(
         {(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))}
     )
+    if not types:  # no feeder: nothing ever arrives, nothing to bound
+        return CapacityBound(0.0, 0.0, "arrivals", 0.0, model=model)
     if arrivals_per_s is None:
         rate = {(f, t): arrival_rate_per_s(scene, f) / len(scene.feeder(f).parts) for f, t in types}
     else:
@@ -458,7 +463,7 @@ def capacity_bound(
     )
     return CapacityBound(
         arrivals,
-        best,
+        max(0.0, best) + 0.0,  # a solver's -0.0 reads as a negative bound
         bottleneck,
         busiest[1],
         busiest[0],

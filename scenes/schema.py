@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 FLOOR_M = 0.008
 """Thickness of bin and tray floors and walls (metres)."""
 NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
+MAX_ARMS = 64  # arms in one scene: each is an OS process of its own (`fleet run` forks one per arm)
 Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
 Vec3 = tuple[float, float, float]
 
@@ -242,7 +243,8 @@ class Scene(Strict):
     conveyor: Conveyor | None = None
     feeders: list[Feeder] = []
     stations: list[Station] = []
-    arms: list[Arm] = []
+    arms: list[Arm] = Field([], max_length=MAX_ARMS)
+    """At most `MAX_ARMS` (64): each arm is an OS process of its own, and the guard checks every pair."""
     arm_row: ArmRow | None = None
     randomise: Randomisation | None = None
     randomised: dict[str, float] = {}

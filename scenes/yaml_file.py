@@ -9,6 +9,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 Model = TypeVar("Model", bound=BaseModel)
+MAX_DEPTH = 16  # lists and mappings within each other: a scene needs 5
 
 
 class DeclarationError(ValueError):
@@ -58,13 +59,30 @@ def yaml_mapping(
     text = yaml_text(path, label, what, max_bytes, error)
     try:
         data = yaml.safe_load(text)
+    except RecursionError:
+        raise error(label, "", f"nested too deep: a {what} needs at most {MAX_DEPTH} levels") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark is not None else ""
         raise error(label, where, f"not valid YAML: {getattr(exc, 'problem', exc)}") from None
     if not isinstance(data, dict):
         raise error(label, "", f"a {what} file must hold a mapping of fields at its top level")
+    deepest = _depth(data)
+    if deepest > MAX_DEPTH:
+        raise error(label, "", f"nested {deepest} levels deep: a {what} needs at most {MAX_DEPTH}")
     return data
+
+
+def _depth(value: object, limit: int = 10 * 32) -> int:
+    """How deeply lists and mappings nest in `value` (counted up to `limit`, without recursion)."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict | list):
+            deepest = max(deepest, depth)
+            if depth < limit:
+                stack.extend((v, depth + 1) for v in (item.values() if isinstance(item, dict) else item))
+    return deepest
 
 
 def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, str]:

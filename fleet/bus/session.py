@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import re
 import socket
 import threading
 from collections import deque
@@ -46,18 +47,32 @@ class BusEndpoints:
         return cls(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config)
 
 
+ENDPOINT_FORM = re.compile(r"^(tcp|udp|tls|quic|ws|unixsock-stream)/[^\s/]+(:\d{1,5})?$")
+
+
+def endpoint(text: str) -> str:
+    """An endpoint flag's value, checked for Zenoh's form `<protocol>/<address>:<port>` (argparse's `type`)."""
+    if not ENDPOINT_FORM.match(text):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an endpoint: give <protocol>/<address>:<port>, e.g. tcp/127.0.0.1:7447"
+        )
+    return text
+
+
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
     """The bus flags every fleet program shares."""
     group = parser.add_argument_group("bus (Zenoh)")
     group.add_argument(
         "--listen",
         action="append",
+        type=endpoint,
         metavar="ENDPOINT",
         help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)",
     )
     group.add_argument(
         "--connect",
         action="append",
+        type=endpoint,
         metavar="ENDPOINT",
         help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)",
     )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import tempfile
 from pathlib import Path
 
 from rich.console import Console
@@ -37,8 +38,22 @@ def output_folder(flag: str, path: str, parents: bool = True) -> Path:
         raise UsageError(f"{flag} {path}: exists and is not a folder")
     if not parents and not folder.parent.is_dir():
         raise UsageError(f"{flag} {path}: no folder {folder.parent}")
-    folder.mkdir(parents=parents, exist_ok=True)
+    try:
+        folder.mkdir(parents=parents, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"{flag} {path}: cannot make the folder: {exc.strerror}") from None
+    _can_write_in(flag, path, folder)
     return folder
+
+
+def _can_write_in(flag: str, path: str, folder: Path) -> None:
+    """Refused in one line unless a file can be made in `folder` (a read-only mount, no permission, a full disk
+    show here, before any process starts)."""
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise UsageError(f"{flag} {path}: cannot write in {folder}: {exc.strerror}") from None
 
 
 def writable_file(flag: str, path: str) -> Path:
@@ -48,4 +63,5 @@ def writable_file(flag: str, path: str) -> Path:
         raise UsageError(f"{flag} {path}: is a directory; give a file name, e.g. run.mcap")
     if not target.parent.is_dir():
         raise UsageError(f"{flag} {path}: no folder {target.parent}")
+    _can_write_in(flag, path, target.parent)
     return target

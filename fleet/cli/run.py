@@ -113,6 +113,8 @@ def run_recording(args: argparse.Namespace) -> str | None:
     """Where `fleet run` records: `--record FILE`, else `DIR/recording.mcap` with `--out DIR`, else nowhere."""
     if args.out:
         output_folder("--out", args.out, parents=False)
+    if args.summary:
+        writable_file("--summary", args.summary)
     if args.record:
         return str(writable_file("--record", args.record))
     return str(Path(args.out) / "recording.mcap") if args.out else None
@@ -234,14 +236,14 @@ def print_run_summary(s: dict) -> None:
             "capacity bound (per minute)",
             "-"
             if s.get("throughput_bound_per_min") is None
-            else f"{s['throughput_bound_per_min']:.2f}: {s['bound_fraction']:.0%} of it achieved, "
+            else f"{s['throughput_bound_per_min']:.2f}: {_share(s['bound_fraction'])} of it achieved, "
             f"limited by {s['bottleneck']['name']}",
         ),
         (
             "bound of this run's arrivals (per minute)",
             "-"
             if not s.get("run_bound_per_min")
-            else f"{s['run_bound_per_min']:.2f}: {s['run_bound_fraction']:.0%} of it achieved; "
+            else f"{s['run_bound_per_min']:.2f}: {_share(s['run_bound_fraction'])} of it achieved; "
             f"{s['parts_completed']} of {s['parts_finishable']} parts that arrived in time to be finished",
         ),
         (
@@ -265,6 +267,11 @@ def print_run_summary(s: dict) -> None:
     for row in rows:
         table.add_row(*row)
     out.print(table)
+
+
+def _share(fraction: float | None) -> str:
+    """A fraction as a percentage, or "-" where there is none (a bound of 0: nothing could be done)."""
+    return "-" if fraction is None else f"{fraction:.0%}"
 
 
 def _safety_row(s: dict) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -19,6 +20,8 @@ import yaml
 from fleet.common.scene_loading import load_scene
 from scenes.loader import SceneError, resolve_scene_path, yaml_text
 from scenes.yaml_file import named_in
+
+MAX_RUNS = 100_000  # runs in one sweep: at a few seconds each, more would take a machine weeks
 
 
 class GridError(ValueError):
@@ -150,7 +153,14 @@ def grid(
     arms: int | None = None,
     overrides: list[Override] = (),
 ) -> list[RunCell]:
-    """Every combination, seeds innermost (so the first runs already cover every group)."""
+    """Every combination, seeds innermost (so the first runs already cover every group); refused in one line when
+    there would be more than `MAX_RUNS` (counted before any is made)."""
+    count = len(seeds) * len(allocators) * math.prod(len(o.values) for o in overrides)
+    if count > MAX_RUNS:
+        raise GridError(
+            f"{count:,} runs ({len(seeds):,} seeds x {len(allocators)} allocators x the --set values): "
+            f"a sweep takes at most {MAX_RUNS:,}"
+        )
     paths = [o.path for o in overrides]
     combos = itertools.product(allocators, *(o.values for o in overrides))
     cells = []
@@ -160,14 +170,17 @@ def grid(
     return sorted(cells, key=lambda c: (c.seed, json.dumps(c.group, sort_keys=True, default=str)))
 
 
-def parse_seeds(text: str) -> list[int]:
-    """`0-19`, `3`, or `1,4,9`."""
+def parse_seeds(text: str) -> range | list[int]:
+    """`0-19` (a range, never spelt out), `3`, or `1,4,9`."""
     try:
         if "-" in text and "," not in text:
             low, high = (int(v) for v in text.split("-", 1))
-            if high < low:
+            if high < low or low < 0:
                 raise ValueError
-            return list(range(low, high + 1))
-        return [int(v) for v in text.split(",")]
+            return range(low, high + 1)
+        seeds = [int(v) for v in text.split(",")]
+        if min(seeds) < 0:
+            raise ValueError
+        return seeds
     except ValueError:
         raise GridError(f"--seeds {text!r}: give a range like 0-19, or a list like 1,4,9 (non-negative)") from None
