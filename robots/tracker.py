@@ -31,7 +31,13 @@ from robots.joint_trajectory import (
 )
 
 WATCHDOG_REASON = "watchdog: the controller missed its deadline"
-ESTOP_REASON = "emergency stop engaged"
+ESTOP_REASON = "emergency stop engaged"  # a goal refused while the e-stop holds the arm
+ESTOP_ABORT_REASON = "emergency stop"  # the goals the e-stop aborted
+
+
+def stopped_by_estop(reason: str) -> bool:
+    """Whether a goal's result reason says the e-stop ended it (refused or aborted): not the goal's own fault."""
+    return reason.startswith(ESTOP_ABORT_REASON)
 
 
 @dataclass
@@ -240,7 +246,7 @@ class ArmTracker(GripperTracking):
     def set_estop(self, engaged: bool, now_s: float, q: np.ndarray) -> list[GoalResult]:
         """Engage (abort everything, hold, refuse goals) or release (hold still until a new goal)."""
         self.estop = engaged
-        return self.abort(now_s, q, "emergency stop") if engaged else []
+        return self.abort(now_s, q, ESTOP_ABORT_REASON) if engaged else []
 
     def watch(self, deadline_s: float) -> None:
         """The controller must be heard from again before `deadline_s` (sim time), or the arm stops."""

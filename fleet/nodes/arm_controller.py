@@ -85,6 +85,7 @@ def observation_of(state: ArmState) -> ArmObservation:
         state.result_status,
         state.result_reason,
         goal_id=state.goal_id,
+        held=state.held,
     )
 
 

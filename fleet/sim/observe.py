@@ -14,9 +14,12 @@ def arm_observation(world: World, arm_name: str, tracker: ArmTracker | None = No
     arm = world.arms[arm_name]
     q, dq, n = arm.qpos(), arm.qvel(), arm.spec.arm_dof
     last = tracker.last if tracker is not None else None
+    held = tracker is not None and tracker.estop
     if last is None:
-        return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:])
-    return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:], last.goal_id, last.status.value, last.reason)
+        return ArmObservation(world.sim_time_s, q[:n], dq[:n], q[n:], held=held)
+    return ArmObservation(
+        world.sim_time_s, q[:n], dq[:n], q[n:], last.goal_id, last.status.value, last.reason, held=held
+    )
 
 
 def part_observations(world: World) -> dict[int, PartObservation]:

@@ -33,6 +33,7 @@ class SimInputs:
             msg = bus.estop.decode(key, payload)
             if msg is not None and msg.engaged != self.sim.estop:
                 self.sim.estop = msg.engaged
+                self.sim.world.belt_running = not msg.engaged  # an e-stop stops every drive of the line
                 for arm, results in self.sim.tracked.set_estop(msg.engaged).items():
                     self.sim.outputs.results(arm, results)
         for key, payload in bus.control_inbox.drain():

@@ -87,6 +87,7 @@ class World(WorldFeeders):
         self.substeps = scene.substeps
         self.control_dt_s = 1.0 / scene.control_hz
         self.tick = 0
+        self.belt_running = True  # False while the line is e-stopped: the belt stands, parts stay where they lie
         self.events: list[WorldEvent] = []
         self._build_floor()
         self.belt = self._build_conveyor()
@@ -174,7 +175,7 @@ class World(WorldFeeders):
         """Advance `ticks` control ticks: release due parts, then the physics steps with the belt running."""
         for _ in range(ticks):
             self._release_due_parts()
-            if self.belt is not None and self._belt_step.any():  # a stopped belt is a plain kinematic box
+            if self.belt is not None and self.belt_running and self._belt_step.any():  # else a plain kinematic box
                 self._belt_entity.set_pose(self._belt_home)
                 for target in self._belt_targets:
                     self.belt.set_kinematic_target(target)
@@ -215,7 +216,7 @@ class World(WorldFeeders):
 
     def belt_velocity(self) -> np.ndarray:
         c = self.scene_model.conveyor
-        if c is None:
+        if c is None or not self.belt_running:
             return np.zeros(3)
         return np.array(c.direction) * c.speed_m_per_s
 

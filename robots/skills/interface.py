@@ -25,6 +25,7 @@ class ArmObservation:
     result_status: str = ""
     result_reason: str = ""
     goal_id: int | None = None  # the trajectory goal driving the arm (0: none); None where goals cannot be lost
+    held: bool = False  # the arm is held (e-stop): goals are refused until it is released
 
 
 @dataclass(frozen=True)

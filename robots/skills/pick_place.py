@@ -32,6 +32,7 @@ from robots.failures import Failure, FailureCode
 from robots.joint_trajectory import ArmGoal
 from robots.kinematics import KinematicModel
 from robots.phase import ORDER, Phase
+from robots.skills.estop_wait import EStopWait
 from robots.skills.goal_outbox import GoalOutbox
 from robots.skills.interface import ArmObservation, MotionRequest, PartObservation, PickPlaceJob
 from robots.skills.motion_grants import MotionGrants
@@ -78,7 +79,7 @@ class PickPlaceTiming:
         return dataclasses.replace(cls(), **spec.pick_timing)
 
 
-class PickPlaceSkill(SkillRecovery, PickPlans, MotionGrants, PickGeometry):
+class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeometry):
     """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step`
     returns.
 
@@ -186,7 +187,7 @@ class PickPlaceSkill(SkillRecovery, PickPlans, MotionGrants, PickGeometry):
         self._idle_since_s = None
         self._detour_to = None
         self._stood_by, self._transfer_to = False, None
-        self.job, self.failure = job, None
+        self.job, self.failure, self.stopped_in = job, None, None
         self.outbox.forget()
         self._timeline = []
         self.q_cmd = np.asarray(obs.q, float).copy()
@@ -291,6 +292,8 @@ class PickPlaceSkill(SkillRecovery, PickPlans, MotionGrants, PickGeometry):
 
     def _decide(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> None:
         now = self._now = obs.time_s
+        if self._waiting_out_estop(obs, parts) or self._estop_ended(obs):
+            return
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
             self._fail(
                 FailureCode.GOAL_FAILED,

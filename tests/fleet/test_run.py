@@ -455,3 +455,40 @@ def test_a_recorder_killed_mid_run_still_leaves_the_whole_run_recorded(tmp_path)
         topics = {channel.topic for _, channel, _ in reader.iter_messages(topics=["/line/summary"])}
     assert stats.message_end_time / 1e9 >= summary["sim_seconds"] - 0.1
     assert topics == {"/line/summary"}
+
+
+def test_an_estop_held_3_s_mid_line_loses_no_part_and_the_line_carries_on():
+    """Every goal the e-stop ends or refuses is no attempt: once released, each arm plans again from where it stands,
+    and the line finishes as many parts as one that was never stopped (given the 3 s back)."""
+    from fleet.bus.codec import encode
+    from fleet.bus.messages import EStop
+
+    baseline, _ = run_line(duration_s=30.0)
+    said: dict = {}
+
+    def estop(progress):
+        launcher = launcher_ref[0]
+        if "session" not in said:
+            said["opened"] = open_session(BusEndpoints(connect=(launcher.endpoint,)))
+            said["session"] = said["opened"].__enter__()
+        key = Keys(launcher.options.run_id).estop
+        if "engaged_s" not in said and progress.sim_time_s >= 10.0:
+            said["session"].put(key, encode(EStop(True, "test")))
+            said["engaged_s"] = progress.sim_time_s
+        elif "released_s" not in said and "engaged_s" in said and progress.sim_time_s >= said["engaged_s"] + 3.0:
+            said["session"].put(key, encode(EStop(False, "test")))
+            said["released_s"] = progress.sim_time_s
+
+    launcher_ref = []
+    try:
+        with Launcher(RunOptions(scene=QUICK_LINE, duration_s=33.0), estop) as launcher:
+            launcher_ref.append(launcher)
+            stopped = launcher.run()
+    finally:
+        if "opened" in said:
+            said["opened"].__exit__(None, None, None)
+    assert_nothing_left(stopped, launcher.endpoint)
+    assert "released_s" in said, said
+    assert stopped["status"] == "ok" and stopped["parts_failed"] == 0, stopped["unfinished_parts"]
+    assert not any("emergency stop" in p["reason"] for p in stopped["unfinished_parts"])
+    assert stopped["parts_completed"] >= baseline["parts_completed"], (stopped["parts_completed"], baseline)
