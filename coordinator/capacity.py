@@ -411,6 +411,13 @@ def _solve(
     return best, x, (np.array(a_ub) @ x) if a_ub else np.zeros(0)
 
 
+def _part_types(scene: Scene, hops: list[Hop]) -> list[tuple[str, int]]:
+    """Every (feeder, part type index) of the scene, sorted."""
+    return sorted(
+        {(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))}
+    )
+
+
 def capacity_bound(
     scene: Scene,
     measured_s: dict[tuple[str, str, str], float] | None = None,
@@ -430,9 +437,7 @@ def capacity_bound(
     views = arm_views(scene, reach)
     model = model or hop_model(scene, views, hops)
     seconds = hop_seconds(scene, views, hops, measured_s, model)
-    types = sorted(
-        {(h.feeder, h.type_index) for h in hops} | {(f.name, t) for f in scene.feeders for t in range(len(f.parts))}
-    )
+    types = _part_types(scene, hops)
     if not types:  # no feeder: nothing ever arrives, nothing to bound
         return CapacityBound(0.0, 0.0, "arrivals", 0.0, model=model)
     if arrivals_per_s is None:

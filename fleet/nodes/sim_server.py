@@ -139,6 +139,7 @@ def serve(server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: in
     try:
         server.run_ticks(ticks)
         if not stop.should_stop() and server.world.tick >= ticks:
+            server.announce_the_rest()
             server.settle()
     finally:
         if args.record_targets:

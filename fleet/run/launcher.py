@@ -216,6 +216,9 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         if error:
             self.keep_dir = True
         summary = self.summary(time.monotonic() - started, error)
+        if self.count_problems and summary["status"] == "ok":  # every part is counted once, or the run says so
+            summary["status"] = "error"
+            summary["error"] = f"the run's counts do not add up: {'; '.join(self.count_problems)}"
         if self.recorder is not None:
             summary["recording"] = self.finish_recording(summary)
             summary["processes"].append(self.recorder.record())

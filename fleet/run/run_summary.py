@@ -131,18 +131,22 @@ class RunSummary:
                 "parts_failed": heard.parts_failed if heard else 0,
             }
         spawned = sim.get("parts_spawned", max(heard.parts_spawned if heard else 0, sum(counts.values())))
-        in_progress = (
-            coord.get("parts_in_progress", spawned - sum(counts.values()))
-            if coord and sim
-            else spawned - sum(counts.values())
-        )
+        known = coord.get("parts_in_progress", 0) + sum(counts.values()) if coord and sim else spawned
+        # parts the sim spawned that the coordinator never heard of (an arrival it was not told): on the line
+        unannounced = max(0, spawned - known)
+        in_progress = spawned - sum(counts.values())
         completed = counts["parts_completed"]
+        self.count_problems = [
+            *([f"{sum(counts.values())} parts done, missed or failed of {spawned} spawned"] if in_progress < 0 else []),
+            *([f"{unannounced} of {spawned} parts spawned were never announced"] if unannounced else []),
+        ]
         return {
             "parts_spawned": spawned,
             "parts_completed": completed,
             "parts_missed": counts["parts_missed"],
             "parts_failed": counts["parts_failed"],
             "parts_in_progress": max(0, in_progress),
+            "parts_unannounced": unannounced,
             "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
             "utilisation": sim.get("utilisation", {}),
             "arm_time": self._arm_time(sim.get("arm_time", {}), coord.get("held_at_station_s", {}), sim_s),

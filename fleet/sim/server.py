@@ -196,6 +196,11 @@ class SimServer(SimLockstep):
                 if link.last_step.request_seq > 0:
                     self.stats.grant_wait_ticks[name] += 1
 
+    def announce_the_rest(self) -> None:
+        """After the last tick: the line's events since the last watch (a part released in the last ticks would
+        otherwise never be announced as arrived)."""
+        self.outputs.events(self.world.active_parts())
+
     def run_ticks(self, ticks: int, speed: float | None = None, stop: StopFlag | None = None) -> None:
         """Run `ticks` ticks (or until `stop`); in realtime mode paced by the wall clock at the speed factor.
 

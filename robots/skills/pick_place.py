@@ -23,7 +23,6 @@ watchdog) or refuses ends the task failed with its reason.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +40,7 @@ from robots.skills.pick_plans import PickPlans
 from robots.skills.recovery import SkillRecovery
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
-from robots.trajectory import JointSegment, within_velocity_limits
+from robots.trajectory import JointSegment
 
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
 REPLAN_AFTER_S = 0.3
@@ -161,15 +160,6 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
 
     def _send_move(self, q_end: np.ndarray, duration_s: float, start_s: float) -> None:
         self.outbox.move(q_end, duration_s, start_s)
-
-    def _send_knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> Callable[[float], float]:
-        """Send a knot path, stretched where it would break a joint's velocity limit; returns the map from a
-        planned time to when the stretched path gets there."""
-        sent = within_velocity_limits(self.q_cmd, times_s, qs, self.km.velocity_limit[self.km.arm_q_index])
-        self.outbox.knots(start_s, sent, qs)
-        planned = np.concatenate([[0.0], np.asarray(times_s, float)])
-        stretched = np.concatenate([[0.0], sent])
-        return lambda t_s: float(np.interp(t_s, planned, stretched))
 
     def _earliest(self, start_s: float | None = None) -> float:
         """The earliest a goal sent now can start: once it has reached the tracker."""

@@ -3,12 +3,14 @@ close, lift) and the place (lower, release, retreat), each one goal through Cart
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from robots.failures import FailureCode
 from robots.phase import Phase
 from robots.skills.interface import ArmObservation, PartObservation
-from robots.trajectory import quintic
+from robots.trajectory import quintic, within_velocity_limits
 
 KNOT_S = 0.05  # spacing of the Cartesian knots of the grasp and place goals
 
@@ -114,3 +116,12 @@ class PickPlans:
         self._send_gripper(self.pregrasp_opening, start + at(lo))
         self.q_cmd, self.plan_end_s = qs[-1].copy(), start + at(times[-1])
         self._timeline = [(start, Phase.LOWER), (start + at(lo), Phase.RELEASE), (start + at(lo + rel), Phase.RETREAT)]
+
+    def _send_knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> Callable[[float], float]:
+        """Send a knot path, stretched where it would break a joint's velocity limit; returns the map from a
+        planned time to when the stretched path gets there."""
+        sent = within_velocity_limits(self.q_cmd, times_s, qs, self.km.velocity_limit[self.km.arm_q_index])
+        self.outbox.knots(start_s, sent, qs)
+        planned = np.concatenate([[0.0], np.asarray(times_s, float)])
+        stretched = np.concatenate([[0.0], sent])
+        return lambda t_s: float(np.interp(t_s, planned, stretched))

@@ -42,6 +42,11 @@ WALL_FIGURES = (
 
 
 def assert_nothing_left(summary: dict, endpoint: str) -> None:
+    """No process of the run left, its port free, and every part it spawned counted once."""
+    fates = ("parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
+    assert summary["parts_spawned"] == sum(summary[k] for k in fates), {
+        k: summary[k] for k in ("parts_spawned", *fates)
+    }
     for p in summary["processes"]:
         with pytest.raises(ProcessLookupError):
             os.kill(p["pid"], 0)
