@@ -235,6 +235,12 @@ class Spline:
         t = max(t_s, self.t0_s)
         return self.poly(t), self.dpoly(t), self.ddpoly(t)
 
+    def q_at(self, t_s: float) -> np.ndarray:
+        """Position alone at `t_s` (the first point before the start, the last after the end)."""
+        if t_s >= self.t_end_s:
+            return self.q_end
+        return self.poly(max(t_s, self.t0_s))
+
     def state(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity at `t_s`: read from the servo grid when `t_s` is on it."""
         if self.grid_q is not None:

@@ -144,7 +144,9 @@ class ArmTracker(GripperTracking):
 
     def path_q(self, t_s: float) -> np.ndarray:
         """Where the arm's committed path puts its joints at `t_s` (now or later)."""
-        return self._path_at(t_s)[0]
+        if self.next is not None and t_s >= self.next.spline.t0_s:
+            return self.next.spline.q_at(t_s)
+        return self.active.spline.q_at(t_s) if self.active is not None else self.hold_q
 
     # --- each tick ------------------------------------------------------------------
     def _path_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -171,6 +171,23 @@ def cmd_bench_collision(args: argparse.Namespace) -> int:
     return print_bench(table, rows, args.json)
 
 
+def cmd_bench_safety(args: argparse.Namespace) -> int:
+    from fleet.bench.safety import bench_safety
+
+    table = Table("arms", "goals", "refused", "check p50 (ms)", "check p99 (ms)", "check / tracker's own plan")
+    rows = [bench_safety(n, args.goals) for n in args.arms]
+    for r in rows:
+        table.add_row(
+            str(r.arms),
+            str(r.goals),
+            str(r.refused),
+            f"{r.check_p50_ms:.3f}",
+            f"{r.check_p99_ms:.3f}",
+            f"{r.check_over_plan:.2f}x",
+        )
+    return print_bench(table, rows, args.json)
+
+
 def cmd_bench_allocation(args: argparse.Namespace) -> int:
     from fleet.bench.coordinator import bench_allocation
 
@@ -290,6 +307,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     _add_monitor(bench)
     _add_record(bench)
     _add_collision(bench)
+    _add_safety(bench)
     _add_allocation(bench)
     _add_lines(bench)
     _add_env(bench)
@@ -348,6 +366,14 @@ def _add_collision(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_collision)
+
+
+def _add_safety(bench: argparse._SubParsersAction) -> None:
+    b = bench.add_parser("safety", help="the plant's safety layer: its check per trajectory goal")
+    b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
+    b.add_argument("--goals", type=int, default=400)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_safety)
 
 
 def _add_allocation(bench: argparse._SubParsersAction) -> None:

@@ -27,6 +27,7 @@ PUSH_SPEED_M_PER_S = (
     0.5  # how fast an arm off its path (pushed, lagging) is assumed to drift when pairs are rescheduled
 )
 MEASURE_CAP_M = 1.0  # farther than this, a pair's exact distance does not matter to the walk
+ROUGH_ENOUGH_M = 0.05  # beyond the floor by this much, the covering spheres' gap (a lower bound) is measure enough
 
 
 @dataclass(frozen=True)
@@ -126,46 +127,47 @@ class PlantSafety:
         )
 
     def _path_refusal(self, arm: str, spline: Spline, trackers: dict[str, ArmTracker]) -> Refusal | None:
+        """Conservative advancement per neighbour: after measuring a gap d to a neighbour, the two cannot close it
+        before (d - floor) / (both speed bounds), so that neighbour is not measured again until then."""
         others = self.neighbours[arm]
         if not others:
             return None
         me = self.geometries[arm]
         t0 = spline.t0_s
         t_end = max([spline.t_end_s] + [trackers[o].committed_end_s() for o in others])
-        speed = self._point_speed_m_per_s(arm, spline) + max(
-            self._tracker_speed_m_per_s(o, trackers[o], t0) for o in others
-        )
+        mine = self._point_speed_m_per_s(arm, spline)
+        speed = {o: max(mine + self._tracker_speed_m_per_s(o, trackers[o], t0), 1e-9) for o in others}
+        me.place(spline.q_at(t0))
+        gaps = {o: self._gap(me, o, trackers[o], t0, math.inf) for o in others}
         # an arm already within the separation (pushed there) may move, but never closer than it is
-        start = self._nearest(me, spline.sample(t0)[0] if t0 < spline.t_end_s else spline.q_end, others, trackers, t0)
-        floor_m = min(self.separation_m, start[0] - 1e-4)
-        t = t0
+        floor_m = min(self.separation_m, min(gaps.values()) - 1e-4)
+        due = {o: t0 + max(self.step_m, d - floor_m) / speed[o] for o, d in gaps.items()}
         while True:
-            q = spline.q_end if t >= spline.t_end_s else spline.sample(t)[0]
-            here, other = self._nearest(me, q, others, trackers, t)
-            if here < floor_m:
-                return Refusal(
-                    "separation",
-                    f"its path comes within {max(here, 0.0) * 1000:.0f} mm of {other} at t={t:.2f} s "
-                    f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
-                    other,
-                    here,
-                )
-            if t >= t_end or speed <= 0:
-                return None
-            t = min(t_end, t + max(self.step_m, here - floor_m) / speed)
+            t = min(due.values())
+            if t > t_end:
+                return None  # every pair keeps its gap until everything is at rest
+            me.place(spline.q_at(t))
+            for o in [o for o, at in due.items() if at <= t]:
+                d = self._gap(me, o, trackers[o], t, floor_m + ROUGH_ENOUGH_M)
+                if d < floor_m:
+                    return Refusal(
+                        "separation",
+                        f"its path comes within {max(d, 0.0) * 1000:.0f} mm of {o} at t={t:.2f} s "
+                        f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
+                        o,
+                        d,
+                    )
+                due[o] = t + max(self.step_m, d - floor_m) / speed[o] if t < t_end else math.inf
 
-    def _nearest(
-        self, me: ArmGeometry, q: np.ndarray, others: list[str], trackers: dict[str, ArmTracker], t_s: float
-    ) -> tuple[float, str | None]:
-        me.place(q)
-        best, nearest = math.inf, None
-        for o in others:
-            g = self.geometries[o]
-            g.place(trackers[o].path_q(t_s))
-            d = separation_m(me, g, below_m=MEASURE_CAP_M)
-            if d < best:
-                best, nearest = d, o
-        return best, nearest
+    def _gap(self, me: ArmGeometry, other: str, tracker: ArmTracker, t_s: float, rough_above_m: float) -> float:
+        """The distance from `me` (placed) to `other` where its committed path has it at `t_s`; where the spheres
+        covering both arms already stand `rough_above_m` apart, their gap (a lower bound, enough to step on)."""
+        g = self.geometries[other]
+        g.place(tracker.path_q(t_s))
+        bound = float(me.sphere_gaps(g).min())
+        if bound >= rough_above_m:
+            return bound
+        return separation_m(me, g, below_m=MEASURE_CAP_M)
 
     # --- motions ----------------------------------------------------------------------
     def too_close(
@@ -178,7 +180,9 @@ class PlantSafety:
             ga, gb = self.geometries[a], self.geometries[b]
             ga.place(measured_q(a))
             gb.place(measured_q(b))
-            d = separation_m(ga, gb, below_m=MEASURE_CAP_M)
+            d = float(ga.sphere_gaps(gb).min())  # a lower bound: enough while it stands clear of the separation
+            if d < self.separation_m + ROUGH_ENOUGH_M:
+                d = separation_m(ga, gb, below_m=MEASURE_CAP_M)
             self.counts.min_measured_m = min(self.counts.min_measured_m, d)
             if d < self.separation_m:
                 stop |= self._closing(a, b, d, now_s, measured_q, trackers)

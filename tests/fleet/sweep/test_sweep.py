@@ -34,9 +34,16 @@ SAME = (
 
 
 def test_seeds_and_overrides_parse_and_a_bad_one_says_how():
-    assert parse_seeds("0-3") == [0, 1, 2, 3] and parse_seeds("1,4,9") == [1, 4, 9] and parse_seeds("7") == [7]
-    with pytest.raises(GridError, match="--seeds"):
-        parse_seeds("5-2")
+    assert list(parse_seeds("0-3")) == [0, 1, 2, 3] and parse_seeds("1,4,9") == [1, 4, 9] and parse_seeds("7") == [7]
+    for bad in ("5-2", "-3", "1,-2", "x"):
+        with pytest.raises(GridError, match="--seeds"):
+            parse_seeds(bad)
+
+
+def test_an_absurd_grid_is_refused_before_any_run_is_made():
+    seeds = parse_seeds("0-999999999")  # a range: never spelt out
+    with pytest.raises(GridError, match="1,000,000,000 runs.*at most 100,000"):
+        grid("sorting_line", seeds, ["greedy"], 10.0)
     assert Override.parse("conveyor.speed_m_per_s=0.05,0.1") == Override("conveyor.speed_m_per_s", (0.05, 0.1))
     assert Override.parse("randomise=none").values == (None,)
     with pytest.raises(GridError, match="FIELD.PATH=VALUE"):
