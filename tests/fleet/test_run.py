@@ -464,11 +464,12 @@ def test_a_recorder_killed_mid_run_still_leaves_the_whole_run_recorded(tmp_path)
 
 def test_an_estop_held_3_s_mid_line_loses_no_part_and_the_line_carries_on():
     """Every goal the e-stop ends or refuses is no attempt: once released, each arm plans again from where it stands,
-    and the line finishes as many parts as one that was never stopped (given the 3 s back)."""
+    and the line finishes as many parts as one that was never stopped (given the 3 s back). Realtime (at 3x), so
+    that the e-stop lasts what it should: a held lockstep line races through sim time between progress messages."""
     from fleet.bus.codec import encode
     from fleet.bus.messages import EStop
 
-    baseline, _ = run_line(duration_s=30.0)
+    baseline, _ = run_line(duration_s=21.0)
     said: dict = {}
 
     def estop(progress):
@@ -477,7 +478,7 @@ def test_an_estop_held_3_s_mid_line_loses_no_part_and_the_line_carries_on():
             said["opened"] = open_session(BusEndpoints(connect=(launcher.endpoint,)))
             said["session"] = said["opened"].__enter__()
         key = Keys(launcher.options.run_id).estop
-        if "engaged_s" not in said and progress.sim_time_s >= 10.0:
+        if "engaged_s" not in said and progress.sim_time_s >= 8.0:
             said["session"].put(key, encode(EStop(True, "test")))
             said["engaged_s"] = progress.sim_time_s
         elif "released_s" not in said and "engaged_s" in said and progress.sim_time_s >= said["engaged_s"] + 3.0:
@@ -486,14 +487,16 @@ def test_an_estop_held_3_s_mid_line_loses_no_part_and_the_line_carries_on():
 
     launcher_ref = []
     try:
-        with Launcher(RunOptions(scene=QUICK_LINE, duration_s=33.0), estop) as launcher:
+        options = RunOptions(scene=QUICK_LINE, duration_s=24.0, mode="realtime", speed=3.0)
+        with Launcher(options, estop) as launcher:
             launcher_ref.append(launcher)
             stopped = launcher.run()
     finally:
         if "opened" in said:
             said["opened"].__exit__(None, None, None)
     assert_nothing_left(stopped, launcher.endpoint)
-    assert "released_s" in said, said
+    assert "released_s" in said and said["released_s"] - said["engaged_s"] < 5.0, said
     assert stopped["status"] == "ok" and stopped["parts_failed"] == 0, stopped["unfinished_parts"]
     assert not any("emergency stop" in p["reason"] for p in stopped["unfinished_parts"])
-    assert stopped["parts_completed"] >= baseline["parts_completed"], (stopped["parts_completed"], baseline)
+    # realtime runs vary by a part; without the fix 2-3 parts failed and fewer were done
+    assert stopped["parts_completed"] >= baseline["parts_completed"] - 1, (stopped["parts_completed"], baseline)

@@ -70,7 +70,7 @@ def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line
         (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
         (["run", "--allocator", "fastest"], "invalid choice"),
         (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be lower-case"),
-        (["run", "--listen", "garbage"], "--listen 'garbage': an endpoint looks like tcp/127.0.0.1:7447"),
+        (["run", "--listen", "garbage"], "argument --listen: 'garbage' is not an endpoint"),
         (["run", "--duration", "nan"], "--duration nan: give a positive number"),
         (["run", "--duration", "inf"], "--duration inf: give a positive number"),
         (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
