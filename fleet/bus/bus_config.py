@@ -127,6 +127,17 @@ def write_bus_configs(
     return BusConfigSet(out.resolve(), endpoint, secure, tuple(arms))
 
 
+def write_run_bus(folder: str | Path, arms: list[str], port: int) -> BusConfigSet:
+    """A run's own secure bus on loopback (what `fleet run` does unless told `--insecure`): TLS, a login per node and
+    access control, written into the run's private folder (the folder and every file holding a key or a password
+    readable by the owner only). Nothing but the run's own processes, and a client given one of these configs,
+    can log in."""
+    folder = Path(folder)
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    os.chmod(folder, 0o700)
+    return write_bus_configs(folder, "127.0.0.1", port, arms, secure=True, valid_days=2)
+
+
 def access_control(arms: list[str]) -> dict:
     """The router's rules: everything logged in may listen and ask (the sim's queryables answer); each may
     publish only its own keys (`PUBLISHES`); nothing else, and no client may serve a queryable."""

@@ -144,7 +144,19 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         loss=args.loss,
         bus_config=args.bus_config,
         hosts=args.hosts,
+        insecure=args.insecure,
     )
+
+
+def bus_line(launcher, run_id: str) -> str:
+    """Where the run's bus is and how to watch it: with the monitor's login on a secure bus, else by its endpoint."""
+    if launcher.bus is not None:
+        how = "TLS, a login per node, access control" if launcher.bus.secure else "no logins"
+        return (
+            f"bus: {launcher.endpoint} ({how}; watch it: fleet monitor --zenoh-config "
+            f"{launcher.bus.config_for('monitor')} --run {run_id})"
+        )
+    return f"bus: {launcher.endpoint} (watch it: fleet monitor --connect {launcher.endpoint} --run {run_id})"
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -154,6 +166,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
     check_placement_flags(args)
     options = run_options(args)
+    if args.insecure:
+        err.print(
+            "warning: --insecure: no logins and no access control on the bus; any local process can command the line",
+            style="bold yellow",
+            markup=False,
+            highlight=False,
+        )
     if args.monitor:
         warning = exposure_warning(args.host)
         if warning:
@@ -176,11 +195,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         with Launcher(
             options, on_progress, on_message=lambda text: progress.console.print(text, markup=False, highlight=False)
         ) as launcher:
-            progress.console.print(
-                f"bus: {launcher.endpoint} (watch it: fleet monitor --connect {launcher.endpoint} --run {args.run_id})",
-                markup=False,
-                highlight=False,
-            )
+            progress.console.print(bus_line(launcher, args.run_id), markup=False, highlight=False)
             summary = launcher.run()
             if args.keep_logs:
                 err.print(f"logs and reports kept in {launcher.dir}")
@@ -339,6 +354,12 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
 
 def _add_placement_arguments(p: argparse.ArgumentParser) -> None:
     """Where a run's nodes meet and start: `--bus-config`, `--hosts`."""
+    p.add_argument(
+        "--insecure",
+        action="store_true",
+        help="a plain bus on loopback, no logins and no access control (by default a run makes its own: TLS, a login "
+        "per node, access control; `fleet monitor` then joins with the config the run prints)",
+    )
     p.add_argument(
         "--bus-config",
         metavar="DIR",

@@ -22,11 +22,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coordinator.ledger import PIPELINE_DEFAULT
-from fleet.bus.bus_config import BusConfigError, BusConfigSet
+from fleet.bus.bus_config import BusConfigError, BusConfigSet, write_run_bus
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
-from fleet.bus.session import BusEndpoints, Inbox, open_session
+from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, open_session
 from fleet.common.processes import read_when_written, stop_children
 from fleet.common.scene_loading import load_scene
 from fleet.run.hosts import Hosts, load_hosts
@@ -67,6 +67,9 @@ class RunOptions:
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
+    # without a bus config, listen or connect endpoints or a Zenoh config, a run makes its own secure bus on loopback
+    # (TLS, logins, access control: `write_run_bus`); `insecure` opts out (any local process may then command it)
+    insecure: bool = False
     hosts: str | None = None  # a hosts file: the network namespace each node starts in (`fleet/run/hosts.py`)
     # nodes forked from one process that imported once (`fleet/run/node_factory.py`), not exec'd each
     fork_nodes: bool = True
@@ -118,6 +121,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.bus, self.hosts = placement(options.bus_config, options.hosts, self.scene)
         self.on_progress = on_progress
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
+        if self.bus is None and self.secure_by_default:
+            self.bus = write_run_bus(self.dir / "bus", [a.name for a in self.scene.arms], free_loopback_port())
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
@@ -127,6 +132,19 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.respawns = 0
         self.interrupted = ""
         self.keep_dir = options.keep_logs
+
+    @property
+    def secure_by_default(self) -> bool:
+        """Whether this run makes its own secure bus: unless told `insecure`, or given endpoints or a Zenoh config."""
+        o = self.options
+        return not (o.insecure or o.listen or o.connect or o.zenoh_config)
+
+    def client_endpoints(self, role: str = "monitor") -> BusEndpoints:
+        """How another process joins this run's bus as `role` (a node name: `monitor` may stop, pause and pace the
+        line; `recorder` and `launcher` only listen): its login on a secure bus, the sim's endpoint otherwise."""
+        if self.bus is not None:
+            return BusEndpoints(config_file=self.bus.config_for(role))
+        return BusEndpoints(connect=(self.endpoint,))
 
     # --- processes ------------------------------------------------------------------
 
@@ -188,11 +206,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         error = ""
         try:
-            mine = (
-                BusEndpoints(config_file=self.bus.config_for("launcher"))
-                if self.bus
-                else BusEndpoints(connect=(self.endpoint,))
-            )
+            mine = self.client_endpoints("launcher")
             with open_session(mine) as session:
                 keys, inbox, drops = Keys(self.options.run_id), Inbox(), DropCounter()
                 subs = [

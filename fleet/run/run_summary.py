@@ -96,6 +96,7 @@ class RunSummary:
                 "randomised": dict(self.scene.randomised),
                 "allocator": coord.get("allocator"),
                 "pipeline": coord.get("pipeline"),
+                "bus": "secure" if self.bus is not None and self.bus.secure else "insecure",
                 "status": status,
                 "error": error,
                 "stopped_by": self.interrupted or sim.get("stopped_by", ""),

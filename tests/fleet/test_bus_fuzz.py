@@ -5,7 +5,10 @@ same seed.
 The line is paused (its clock held between ticks, as a user's pause does) while they are poured and resumed once
 they are all out: a lockstep line runs as fast as the machine allows and once finished its 18 s before a pour
 spread over wall time had reached it (1,864 counted of 10,000 on a clean clone), so the count depended on the
-machine's speed. A pause does not change a lockstep run: the clean run is not paused and the two must agree."""
+machine's speed. A pause does not change a lockstep run: the clean run is not paused and the two must agree.
+
+An insecure bus (`--insecure`): by default the router refuses wrong messages from a process without the role
+before any node hears them (`tests/fleet/test_secure_bus.py`); here every node must stand on its own."""
 
 import threading
 import time
@@ -30,7 +33,7 @@ REFUSED_GOALS = ("goal_results",)  # the sim answers each refused goal with a `r
 
 def run(fuzz: bool) -> tuple[dict, int]:
     sent: list[int] = []
-    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=18.0, seed=5)) as launcher:
+    with Launcher(RunOptions(scene=QUICK_LINE, duration_s=18.0, seed=5, insecure=True)) as launcher:
         arms = [a.name for a in launcher.scene.arms]
         keys = Keys("line")
         fuzzer = BusFuzzer(keys, arms, get_robot(launcher.scene.arms[0].model).arm_dof, seed=11)

@@ -1,6 +1,9 @@
 """Well-formed lies on a running line's bus: each is refused, dropped and counted, and the lockstep run comes out
 exactly as a clean run of the same seed (an unknown feeder, messages from the far future, NaN fields, a fake
-assignment, a fake coordinator tick)."""
+assignment, a fake coordinator tick).
+
+An insecure bus (`--insecure`): by default the router refuses lies from a process without the role before any node
+hears them (`tests/fleet/test_secure_bus.py`); here every node must stand on its own."""
 
 import math
 
@@ -51,7 +54,7 @@ def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:
 def run(with_lies: bool) -> tuple[dict, int]:
     keys = Keys("line")
     told: list[int] = []
-    options = RunOptions(scene=QUICK_LINE, duration_s=18.0, seed=5)
+    options = RunOptions(scene=QUICK_LINE, duration_s=18.0, seed=5, insecure=True)
     with Launcher(options) as launcher:
         arms = [a.name for a in launcher.scene.arms]
         with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:

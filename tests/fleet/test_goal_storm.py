@@ -1,6 +1,6 @@
-"""A process that is not the line's sends arm_0 twenty in-limit trajectory goals aimed into arm_1 while the line runs:
-the plant's safety layer refuses each that would bring the arms together, with a reason, and the physics sees no
-contact between arms for the whole run."""
+"""A process that is not the line's, logged in as arm_0 (the router lets it drive arm_0), sends arm_0 twenty
+in-limit trajectory goals aimed into arm_1 while the line runs: the plant's safety layer refuses each that would
+bring the arms together, with a reason, and the physics sees no contact between arms for the whole run."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
 from fleet.bus.messages import GoalResultMsg
-from fleet.bus.session import BusEndpoints, Inbox, open_session
+from fleet.bus.session import Inbox, open_session
 from fleet.run.launcher import Launcher, RunOptions
 from robots.frames import yaw_transform
 from robots.joint_trajectory import rest_to_rest
@@ -64,7 +64,8 @@ def test_a_storm_of_goals_from_outside_brings_no_two_arms_together():
             rest_to_rest(900_000 + k, names, q, 3.0, None)
             for k, q in enumerate(poses_into(launcher.scene, "arm_0", "arm_1", 20))
         ]
-        with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
+        # arm_0's own login: the router lets it drive arm_0, so only the plant stands between it and arm_1
+        with open_session(launcher.client_endpoints("arm_0")) as session:
             inbox = Inbox()
             sub = session.declare_subscriber(keys.arm_result("arm_0"), inbox)
             sent: list[int] = []

@@ -210,7 +210,7 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
     def listen(progress):  # once the run is up: a session of the test's own on the run's bus
         if not launcher_ref[1:]:
             launcher_ref.append("listening")
-            session = listening.enter_context(open_session(BusEndpoints(connect=(launcher_ref[0].endpoint,))))
+            session = listening.enter_context(open_session(launcher_ref[0].client_endpoints()))
             listening.callback(
                 session.declare_subscriber(Keys("line").all_arms("status"), kill_when_carrying).undeclare
             )
@@ -360,7 +360,7 @@ def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_
     keys = Keys("line")
     with Launcher(RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5), drive, on_message=messages.append) as launcher:
         launcher_ref.append(launcher)
-        with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
+        with open_session(launcher.client_endpoints("monitor")) as session:  # the monitor may ask for a respawn
             summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert steps == ["asked for a live one", "killed"]
@@ -475,7 +475,7 @@ def test_an_estop_held_3_s_mid_line_loses_no_part_and_the_line_carries_on():
     def estop(progress):
         launcher = launcher_ref[0]
         if "session" not in said:
-            said["opened"] = open_session(BusEndpoints(connect=(launcher.endpoint,)))
+            said["opened"] = open_session(launcher.client_endpoints("monitor"))  # the monitor's login may e-stop
             said["session"] = said["opened"].__enter__()
         key = Keys(launcher.options.run_id).estop
         if "engaged_s" not in said and progress.sim_time_s >= 8.0:
