@@ -105,7 +105,14 @@ def write_bus_configs(
         passwords = {n: secrets.token_urlsafe(24) for n in nodes if n != "sim"}
         tls = _write_certificates(out, ip, valid_days)
         _write_private(out / "users.txt", "".join(f"{n}:{p}\n" for n, p in passwords.items()))
-    router = {"mode": "router", "listen": {"endpoints": [endpoint]}, "connect": {"endpoints": []}}
+    # scouting off: every node is told where the router is; no delay either (Zenoh's router waits 0.5 s at open for
+    # peers it would scout, the whole of a secure run's extra start-up)
+    router = {
+        "mode": "router",
+        "listen": {"endpoints": [endpoint]},
+        "connect": {"endpoints": []},
+        "scouting": {"delay": 0},
+    }
     if secure:
         router["transport"] = {
             "link": {
