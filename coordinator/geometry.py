@@ -260,6 +260,19 @@ def _nearest(
     return (float(result.min_distance), result) if found else (math.inf, None)
 
 
+def neighbours(arms: dict[str, ArmGeometry], arm: str, margin_m: float) -> list[str]:
+    """The other arms whose bases stand close enough that their links could come within `margin_m` of `arm`'s
+    (each arm's reach bound about its base, on the floor plan)."""
+    me = arms[arm]
+    return [
+        name
+        for name, g in arms.items()
+        if name != arm
+        and np.linalg.norm(g.base_to_world[:2, 3] - me.base_to_world[:2, 3])
+        <= g.reach_bound_m + me.reach_bound_m + margin_m
+    ]
+
+
 def separation_m(a: ArmGeometry, b: ArmGeometry, below_m: float = math.inf) -> float:
     """The smallest distance between two arms as placed (<= 0 when they touch); inf if it is not below `below_m`."""
     return _nearest(a, b, _PLAIN, below_m)[0]

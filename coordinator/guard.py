@@ -24,15 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, CellBounds, closest_points, separation_m
+from coordinator.geometry import ArmGeometry, CellBounds, closest_points, neighbours, separation_m
 from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
 
 DEFAULT_MARGIN_M = 0.02
-
-
-def _bound_m(arm: ArmGeometry) -> float:
-    """A radius about the arm's base that holds every point of the arm in any configuration."""
-    return arm.reach_bound_m
 
 
 @dataclass(frozen=True)
@@ -219,14 +214,7 @@ class CollisionGuard:
 
     def _neighbours(self, arm: str) -> list[str]:
         """Other arms whose bases stand close enough that their links could meet this arm's."""
-        me = self.arms[arm]
-        return [
-            name
-            for name, g in self.arms.items()
-            if name != arm
-            and np.linalg.norm(g.base_to_world[:2, 3] - me.base_to_world[:2, 3])
-            <= _bound_m(g) + _bound_m(me) + self.margin_m
-        ]
+        return neighbours(self.arms, arm, self.margin_m)
 
     def check(self, path: TimedPath) -> Verdict:
         """Would this path keep `margin_m` from every other arm? (Does not record anything.)"""

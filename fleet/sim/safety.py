@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, separation_m
+from coordinator.geometry import ArmGeometry, neighbours, separation_m
 from robots.joint_trajectory import Spline
 from robots.tracker import ArmTracker
 
@@ -32,21 +32,18 @@ ROUGH_ENOUGH_M = 0.05  # beyond the floor by this much, the covering spheres' ga
 
 @dataclass(frozen=True)
 class Refusal:
-    """Why a goal may not run: `kind` is `speed` or `separation`; `other` the arm it would come too close to."""
+    """Why a goal may not run: `kind` is `speed` or `separation`; `reason` the sentence the goal's result carries."""
 
     kind: str
     reason: str
-    other: str | None = None
-    distance_m: float = math.inf
 
 
 @dataclass
 class SafetyCounts:
-    """What the layer did in a run: goals refused by kind, motions stopped, the closest pair measured."""
+    """What the layer did in a run: goals refused by kind, motions stopped."""
 
     refused: Counter = field(default_factory=Counter)
     stopped: int = 0
-    min_measured_m: float = math.inf
 
 
 def _peak_speeds(spline: Spline, samples: int = 64) -> np.ndarray:
@@ -69,19 +66,9 @@ class PlantSafety:
     ) -> None:
         self.geometries, self.separation_m, self.step_m = geometries, float(separation_m), step_m
         self.velocity_limits = velocity_limits
-        self.neighbours = {name: self._near(name) for name in geometries}
+        self.neighbours = {name: neighbours(geometries, name, self.separation_m) for name in geometries}
         self.counts = SafetyCounts()
         self._due_s: dict[tuple[str, str], float] = {}  # when each pair of neighbours is next measured
-
-    def _near(self, arm: str) -> list[str]:
-        me = self.geometries[arm]
-        return [
-            name
-            for name, g in self.geometries.items()
-            if name != arm
-            and np.linalg.norm(g.base_to_world[:2, 3] - me.base_to_world[:2, 3])
-            <= g.reach_bound_m + me.reach_bound_m + self.separation_m
-        ]
 
     def report(self) -> dict:
         """The run summary's part: goals refused by kind, motions stopped, the separation kept."""
@@ -154,8 +141,6 @@ class PlantSafety:
                         "separation",
                         f"its path comes within {max(d, 0.0) * 1000:.0f} mm of {o} at t={t:.2f} s "
                         f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
-                        o,
-                        d,
                     )
                 due[o] = t + max(self.step_m, d - floor_m) / speed[o] if t < t_end else math.inf
 
@@ -164,10 +149,7 @@ class PlantSafety:
         covering both arms already stand `rough_above_m` apart, their gap (a lower bound, enough to step on)."""
         g = self.geometries[other]
         g.place(tracker.path_q(t_s))
-        bound = float(me.sphere_gaps(g).min())
-        if bound >= rough_above_m:
-            return bound
-        return separation_m(me, g, below_m=MEASURE_CAP_M)
+        return _distance_m(me, g, rough_above_m)
 
     # --- motions ----------------------------------------------------------------------
     def too_close(
@@ -180,10 +162,7 @@ class PlantSafety:
             ga, gb = self.geometries[a], self.geometries[b]
             ga.place(measured_q(a))
             gb.place(measured_q(b))
-            d = float(ga.sphere_gaps(gb).min())  # a lower bound: enough while it stands clear of the separation
-            if d < self.separation_m + ROUGH_ENOUGH_M:
-                d = separation_m(ga, gb, below_m=MEASURE_CAP_M)
-            self.counts.min_measured_m = min(self.counts.min_measured_m, d)
+            d = _distance_m(ga, gb, self.separation_m + ROUGH_ENOUGH_M)
             if d < self.separation_m:
                 stop |= self._closing(a, b, d, now_s, measured_q, trackers)
                 self._due_s[_pair(a, b)] = now_s
@@ -223,6 +202,13 @@ class PlantSafety:
             if separation_m(g, go, below_m=MEASURE_CAP_M) <= d:
                 out.add(me)
         return out
+
+
+def _distance_m(a: ArmGeometry, b: ArmGeometry, rough_above_m: float) -> float:
+    """The distance between two placed arms: the gap of the spheres covering them (a lower bound) where that is
+    `rough_above_m` or more, else python-fcl's (capped at `MEASURE_CAP_M`)."""
+    bound = float(a.sphere_gaps(b).min())
+    return bound if bound >= rough_above_m else separation_m(a, b, below_m=MEASURE_CAP_M)
 
 
 def _pair(a: str, b: str) -> tuple[str, str]:
