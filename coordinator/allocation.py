@@ -53,7 +53,7 @@ class CachedReach:
 
     def __init__(self, top_down: TopDownIK) -> None:
         self.top_down = top_down
-        self.velocity_limit = top_down.km.velocity_limit[top_down.km.arm_q_index]
+        self.velocity_limit = top_down.km.arm_velocity_limit
         self._cache: dict[tuple[int, int, int], tuple[float, np.ndarray] | None] = {}  # cell -> (tilt, joints) or None
         self._reached: list[tuple[int, int, int]] = []  # the cells reached, in the order they were
 

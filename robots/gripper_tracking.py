@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robots.joint_trajectory import (
+    ESTOP_REASON,
     GoalResult,
     GoalStatus,
     GripperGoal,
@@ -36,7 +37,7 @@ class GripperTracking:
             )
 
         if self.estop:
-            return reject("emergency stop engaged")
+            return reject(ESTOP_REASON)
         if not (math.isfinite(goal.opening) and 0.0 <= goal.opening <= 1.0):
             return reject(f"opening {goal.opening!r} must be within [0, 1]")
         if not (math.isfinite(goal.max_effort_n) and goal.max_effort_n >= 0):

@@ -32,6 +32,15 @@ class ResultCode(IntEnum):
     ABORTED = -6  # clawfleet's: a safety stop (e-stop, watchdog, lost controller); control_msgs has no code for it
 
 
+ESTOP_REASON = "emergency stop engaged"  # a goal refused while the e-stop holds the arm
+ESTOP_ABORT_REASON = "emergency stop"  # the goals the e-stop aborted
+
+
+def stopped_by_estop(reason: str) -> bool:
+    """Whether a goal's result reason says the e-stop ended it (refused or aborted): not the goal's own fault."""
+    return reason.startswith(ESTOP_ABORT_REASON)
+
+
 class GoalStatus(str, Enum):
     """How a goal ended (actionlib's terminal states): or `active` while it runs."""
 

@@ -27,6 +27,10 @@ class KinematicModel:
         self.lower = self.model.lowerPositionLimit.copy()
         self.upper = self.model.upperPositionLimit.copy()
         self.velocity_limit = self.model.velocityLimit.copy()
+        # the arm joints' velocity limits, in the spec's joint order (by velocity index: a joint's `idx_v`)
+        self.arm_velocity_limit = np.array(
+            [self.velocity_limit[self.model.joints[self.model.getJointId(j)].idx_v] for j in spec.arm_joints]
+        )
         self._closed_q = pin.neutral(self.model)  # the neutral configuration with the gripper closed
         self._closed_q[self.gripper_q_index] = spec.gripper_closed
         self._pan: tuple[np.ndarray, float] | None = None

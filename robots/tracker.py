@@ -19,6 +19,8 @@ import numpy as np
 
 from robots.gripper_tracking import GripperTracking, _Gripper
 from robots.joint_trajectory import (
+    ESTOP_ABORT_REASON,
+    ESTOP_REASON,
     ArmGoal,
     CheckedGoal,
     GoalResult,
@@ -31,13 +33,6 @@ from robots.joint_trajectory import (
 )
 
 WATCHDOG_REASON = "watchdog: the controller missed its deadline"
-ESTOP_REASON = "emergency stop engaged"  # a goal refused while the e-stop holds the arm
-ESTOP_ABORT_REASON = "emergency stop"  # the goals the e-stop aborted
-
-
-def stopped_by_estop(reason: str) -> bool:
-    """Whether a goal's result reason says the e-stop ended it (refused or aborted): not the goal's own fault."""
-    return reason.startswith(ESTOP_ABORT_REASON)
 
 
 @dataclass

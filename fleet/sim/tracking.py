@@ -128,8 +128,5 @@ def plant_safety(world: World) -> PlantSafety:
         spec = world.arms[a.name].spec
         g = ArmGeometry(a.name, spec, yaw_transform(a.base.xyz, a.base.yaw_rad))
         geometries[a.name] = g
-        model = g.km.model
-        limits[a.name] = np.array(
-            [model.velocityLimit[model.joints[model.getJointId(j)].idx_v] for j in spec.arm_joints]
-        )
+        limits[a.name] = g.km.arm_velocity_limit
     return PlantSafety(geometries, world.scene_model.safety_separation_m, limits)

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from robots.failures import FailureCode
+from robots.joint_trajectory import stopped_by_estop
 from robots.phase import Phase
 from robots.skills.interface import ArmObservation, PartObservation
-from robots.tracker import stopped_by_estop
 
 CARRYING = (Phase.LIFT, Phase.STANDBY, Phase.TRANSFER, Phase.LOWER)  # the part in the claw, not yet let go
 LET_GO = (Phase.RELEASE, Phase.RETREAT)  # the part set down: the place is done

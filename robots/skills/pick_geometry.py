@@ -64,7 +64,7 @@ class PickGeometry:
         return min(candidates, key=lambda c: abs(wrap_angle(c - natural)))
 
     def _segment(self, q_from: np.ndarray, q_to: np.ndarray, t0_s: float, speed: float) -> JointSegment:
-        return JointSegment.timed(q_from, q_to, t0_s, self.km.velocity_limit[self.km.arm_q_index], speed)
+        return JointSegment.timed(q_from, q_to, t0_s, self.km.arm_velocity_limit, speed)
 
     def _solve_path(self, points: list[np.ndarray], yaw: float, tilt_rad: float) -> np.ndarray:
         """Joints through Cartesian tool positions at one claw tilt, each IK seeded by the one before."""

@@ -120,7 +120,7 @@ class PickPlans:
     def _send_knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> Callable[[float], float]:
         """Send a knot path, stretched where it would break a joint's velocity limit; returns the map from a
         planned time to when the stretched path gets there."""
-        sent = within_velocity_limits(self.q_cmd, times_s, qs, self.km.velocity_limit[self.km.arm_q_index])
+        sent = within_velocity_limits(self.q_cmd, times_s, qs, self.km.arm_velocity_limit)
         self.outbox.knots(start_s, sent, qs)
         planned = np.concatenate([[0.0], np.asarray(times_s, float)])
         stretched = np.concatenate([[0.0], sent])
