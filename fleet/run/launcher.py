@@ -37,7 +37,7 @@ from fleet.run.run_node import (
     STOP_GRACE_S,
     Node,
 )
-from fleet.run.run_summary import RunSummary
+from fleet.run.run_summary import RunSummary, count_problems
 from fleet.run.supervision import Supervision
 from scenes.schema import Scene
 
@@ -230,9 +230,10 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         if error:
             self.keep_dir = True
         summary = self.summary(time.monotonic() - started, error)
-        if self.count_problems and summary["status"] == "ok":  # every part is counted once, or the run says so
+        problems = count_problems(summary)
+        if problems and summary["status"] == "ok":  # every part is counted once, or the run says so
             summary["status"] = "error"
-            summary["error"] = f"the run's counts do not add up: {'; '.join(self.count_problems)}"
+            summary["error"] = f"the run's counts do not add up: {'; '.join(problems)}"
         if self.recorder is not None:
             summary["recording"] = self.finish_recording(summary)
             summary["processes"].append(self.recorder.record())

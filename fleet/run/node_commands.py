@@ -15,6 +15,7 @@ from fleet.run.run_node import (
     RECORDER_GRACE_S,
     RECORDER_START_S,
     Node,
+    read_report,
 )
 
 
@@ -166,9 +167,8 @@ class NodeCommands:
                 subprocess.run([*argv, "--once"], stdout=out, stderr=subprocess.STDOUT, timeout=RECORDER_GRACE_S)
             except subprocess.TimeoutExpired:
                 pass  # killed by run(): no report
-        try:
-            return json.loads(report.read_text())
-        except (OSError, ValueError):
+        written = read_report(report)
+        if not written:
             tail = log.read_text(errors="replace").strip().splitlines()[-1:] if log.exists() else []
             self.on_message(f"the recording could not be written again: {tail[0] if tail else 'no output'}")
-            return {}
+        return written

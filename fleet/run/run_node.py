@@ -3,6 +3,7 @@ each kind of node."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,6 +17,14 @@ COORDINATOR_RESPAWN_TIMEOUT_S = 60.0
 MAX_COORDINATOR_STARTS = 4  # a coordinator that keeps crashing ends the run
 # with `respawn`, a live coordinator silent this long (wall; it says its progress every 0.5 s) is replaced
 HUNG_COORDINATOR_S = 10.0
+
+
+def read_report(path: Path) -> dict:
+    """A node's report (JSON), or {} where it wrote none or not a whole one."""
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
 
 
 @dataclass

@@ -2,21 +2,29 @@
 
 from __future__ import annotations
 
-import json
-
 from fleet.run.run_node import (
     Node,
+    read_report,
 )
+
+
+def count_problems(summary: dict) -> list[str]:
+    """Why a summary's part counts do not add up (none when every spawned part is counted once): more parts done,
+    missed or failed than spawned, or parts the coordinator never heard of."""
+    spawned = summary["parts_spawned"]
+    counted = sum(summary[k] for k in ("parts_completed", "parts_missed", "parts_failed"))
+    unannounced = summary.get("parts_unannounced", 0)
+    return [
+        *([f"{counted} parts done, missed or failed of {spawned} spawned"] if counted > spawned else []),
+        *([f"{unannounced} of {spawned} parts spawned were never announced"] if unannounced else []),
+    ]
 
 
 class RunSummary:
     """The run summary from the nodes' reports: one concern of `Launcher`, kept apart."""
 
     def _read(self, node: Node) -> dict:
-        try:
-            return json.loads(node.report.read_text())
-        except (OSError, ValueError):
-            return {}
+        return read_report(node.report)
 
     @staticmethod
     def _capacity(capacity: dict | None, of_run: dict | None, completed: int, sim_s: float) -> dict:
@@ -137,10 +145,6 @@ class RunSummary:
         unannounced = max(0, spawned - known)
         in_progress = spawned - sum(counts.values())
         completed = counts["parts_completed"]
-        self.count_problems = [
-            *([f"{sum(counts.values())} parts done, missed or failed of {spawned} spawned"] if in_progress < 0 else []),
-            *([f"{unannounced} of {spawned} parts spawned were never announced"] if unannounced else []),
-        ]
         return {
             "parts_spawned": spawned,
             "parts_completed": completed,

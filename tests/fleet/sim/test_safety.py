@@ -5,6 +5,7 @@ arm too close is stopped."""
 import numpy as np
 import pytest
 
+from coordinator.geometry import separation_m
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
 from robots.joint_trajectory import GoalStatus, ResultCode, rest_to_rest
@@ -37,18 +38,12 @@ def _poses_into(tracked: TrackedArms, arm: str, other: str, count: int, seed: in
     for _ in range(20000):
         q = rng.uniform(tracker.lower, tracker.upper)
         me.place(q)
-        if safety_distance(me, them) < 0.005:
+        if separation_m(me, them) < 0.005:
             found.append(q)
             if len(found) == count:
                 break
     assert len(found) == count, "the cell's arms can reach each other"
     return found
-
-
-def safety_distance(a, b) -> float:
-    from coordinator.geometry import separation_m
-
-    return separation_m(a, b)
 
 
 def test_a_goal_into_another_arm_is_refused_with_a_reason_and_the_arm_keeps_still(cell):
@@ -122,9 +117,11 @@ def _far_pose(tracked: TrackedArms, arm: str, other: str, other_q: np.ndarray) -
     for _ in range(400):
         q = rng.uniform(tracker.lower, tracker.upper)
         me.place(q)
-        gap = min(
-            safety_distance(me, (them.place(start + u * (other_q - start)), them)[1]) for u in np.linspace(0, 1, 11)
-        )
+        gaps = []
+        for u in np.linspace(0, 1, 11):
+            them.place(start + u * (other_q - start))
+            gaps.append(separation_m(me, them))
+        gap = min(gaps)
         if gap > best:
             best, best_q = gap, q
     assert best > 0.1
