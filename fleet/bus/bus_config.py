@@ -35,7 +35,7 @@ PUBLISHES = {
     "coordinator": ("arm/*/assign", "coord/**"),
     "monitor": ("estop", "world/control", "launcher/respawn"),
     "recorder": ("recorder/ready",),
-    "launcher": (),
+    "launcher": ("launcher/roster",),
     "controller": ("arm/{arm}/step", "arm/{arm}/goal", "arm/{arm}/status"),
 }
 

@@ -8,6 +8,7 @@ decode error instead of a half-filled message.
 from __future__ import annotations
 
 import logging
+import re
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Generic, TypeVar
@@ -53,6 +54,17 @@ class DropCounter:
     @property
     def total(self) -> int:
         return sum(self.counts.values())
+
+    def kinds(self) -> dict[str, int]:
+        """The counts by kind: the key's leaf (`assign`, `status`, `step`, ...) and the reason with its numbers
+        and quoted names blanked, so one kind of lie is one entry however often it came."""
+        out: Counter = Counter()
+        for (key, reason), n in self.counts.items():
+            out[f"{key.rsplit('/', 1)[-1]}: {_KIND_BLANKS.sub('_', reason)[:100]}"] += n
+        return dict(sorted(out.items()))
+
+
+_KIND_BLANKS = re.compile(r"'[^']*'|-?\d+(\.\d+)?(e[-+]?\d+)?")
 
 
 class Decoder(Generic[T]):

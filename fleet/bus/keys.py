@@ -110,6 +110,11 @@ class Keys:
         return f"{ROOT}/{self.run}/launcher/respawn"
 
     @property
+    def roster(self) -> str:
+        """The launcher's `Roster`: which incarnation of each node it started."""
+        return f"{ROOT}/{self.run}/launcher/roster"
+
+    @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"
 

@@ -14,7 +14,7 @@ import msgspec
 
 from robots.phase import Phase
 
-PROTOCOL_VERSION = 6
+PROTOCOL_VERSION = 7
 Floats = tuple[float, ...]
 
 
@@ -200,6 +200,7 @@ class Assignment(Message, frozen=True, array_like=True, tag="assign"):
     surface_z_m: float
     place_xyz: Floats
     surface_velocity: Floats
+    holder: int = 0  # the incarnation of the coordinator that gave it (0: not said); see `Roster`
     version: int = PROTOCOL_VERSION
 
 
@@ -216,6 +217,7 @@ class MotionGrant(Message, frozen=True, array_like=True, tag="grant"):
     conflict_arm: str = ""
     min_separation_m: float = -1.0
     start_time_s: float = -1.0  # sim time the granted move starts (the arm's next state); -1: when heard
+    holder: int = 0  # the incarnation of the coordinator that gave it (0: not said); see `Roster`
     version: int = PROTOCOL_VERSION
 
 
@@ -329,6 +331,20 @@ class LineView(Message, frozen=True, array_like=True):
     arms: tuple[ArmState, ...]
     parts: PartsState
     version: int = PROTOCOL_VERSION
+
+
+class Roster(Message, frozen=True, array_like=True):
+    """Launcher -> everyone, on every start of a node and every second: the incarnation of each node it started
+    (`nodes[i]` is in its `incarnations[i]`th start). A node's incarnation changes only through the launcher, so a
+    heartbeat or an order naming another one is a lie or a ghost, refused and counted."""
+
+    nodes: tuple[str, ...]
+    incarnations: tuple[int, ...]
+    version: int = PROTOCOL_VERSION
+
+    def of(self, node: str) -> int | None:
+        """The incarnation the launcher started `node` in, None if it names no such node."""
+        return dict(zip(self.nodes, self.incarnations)).get(node)
 
 
 class RespawnRequest(Message, frozen=True, array_like=True):

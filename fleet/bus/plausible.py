@@ -103,3 +103,39 @@ def parts_problem(parts) -> str:
     if not_finite((parts.sim_time_s, *parts.positions, *parts.velocities, *parts.sizes_m)):
         return "parts with NaN or infinite values"
     return ""
+
+
+class Incarnations:
+    """Which incarnation of each node to believe. On a line the launcher started (`from_roster`), a node's
+    incarnation is the one the launcher's latest `Roster` names (1 until it names another): it changes only through
+    a start the launcher did. Without a launcher, the newest heard, never going back (a replaced node's late
+    messages are ghosts)."""
+
+    def __init__(self, from_roster: bool) -> None:
+        self.from_roster = from_roster
+        self.started: dict[str, int] = {}
+        self.newest: dict[str, int] = {}
+
+    def roster_problem(self, roster) -> str:
+        """A roster that takes a node back to an earlier start, or names one with a start below 1."""
+        if len(roster.nodes) != len(roster.incarnations) or min(roster.incarnations, default=1) < 1:
+            return "a roster whose nodes and incarnations do not pair up, or with one below 1"
+        back = [n for n, i in zip(roster.nodes, roster.incarnations) if i < self.started.get(n, 1)]
+        return f"a roster that takes {', '.join(back)} back to an earlier start" if back else ""
+
+    def hear_roster(self, roster) -> None:
+        self.started.update(zip(roster.nodes, roster.incarnations))
+
+    def problem(self, node: str, incarnation: int) -> str:
+        if self.from_roster:
+            started = self.started.get(node, 1)
+            if incarnation != started:
+                return f"incarnation {incarnation} of {node}, which the launcher started as {started}"
+            return ""
+        newest = self.newest.get(node)
+        if newest is not None and incarnation < newest:
+            return f"incarnation {incarnation} of {node} after {newest} spoke (a replaced node)"
+        return ""
+
+    def believe(self, node: str, incarnation: int) -> None:
+        self.newest[node] = max(self.newest.get(node, incarnation), incarnation)

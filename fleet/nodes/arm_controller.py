@@ -28,8 +28,17 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmOrder, ArmState, ArmStatus, Assignment, ControllerStep, MotionGrant, PartsState
-from fleet.bus.plausible import TickClock
+from fleet.bus.messages import (
+    ArmOrder,
+    ArmState,
+    ArmStatus,
+    Assignment,
+    ControllerStep,
+    MotionGrant,
+    PartsState,
+    Roster,
+)
+from fleet.bus.plausible import Incarnations, TickClock
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
@@ -102,8 +111,10 @@ class ArmController(ControllerOrders):
         grants: bool = False,
         rate_hz: float = DEFAULT_DECISION_HZ,
         incarnation: int | None = None,
+        roster: bool = False,
     ) -> None:
         decl = arm_declaration(scene, arm, rate_hz)
+        self.holders = Incarnations(from_roster=roster)  # which coordinator's orders to believe
         self.arm, self.keys, self.session = arm, keys, session
         self.spec = get_robot(decl.model)
         self.period_ticks = max(1, round(scene.control_hz / rate_hz))
@@ -143,14 +154,16 @@ class ArmController(ControllerOrders):
             "state": Decoder(ArmState, self.drops),
             "parts": Decoder(PartsState, self.drops),
             "assign": Decoder(ArmOrder, self.drops),
+            "roster": Decoder(Roster, self.drops),
         }
         self.wake = threading.Event()
-        self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign")}
+        self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign", "roster")}
         self.sim_clock = TickClock(scene.control_hz)  # states and parts are the sim's: none may run far ahead of it
         self._subs = [
             session.declare_subscriber(keys.arm_state(self.arm), self._inboxes["state"]),
             session.declare_subscriber(keys.parts, self._inboxes["parts"]),
             session.declare_subscriber(keys.arm_assign(self.arm), self._inboxes["assign"]),
+            session.declare_subscriber(keys.roster, self._inboxes["roster"]),
         ]
         self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
         self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
@@ -162,6 +175,7 @@ class ArmController(ControllerOrders):
             "arm": self.arm,
             "busy_s": round(self.busy_s, 6),
             "dropped_messages": self.drops.total,
+            "refused_messages": self.drops.kinds(),
             "missed_assignments": self.missed_assignments,
             "parts_late": self.parts_late,
             "grants_denied": self.skill.denials,
@@ -330,6 +344,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--incarnation", type=int, default=None, help="this start's number (the launcher counts them; default random)"
     )
     parser.add_argument(
+        "--roster",
+        action="store_true",
+        help="believe only the coordinator the launcher's roster names (`fleet run` sets it)",
+    )
+    parser.add_argument(
         "--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning"
     )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
@@ -353,6 +372,7 @@ def main(argv: list[str] | None = None) -> int:
             grants=args.grants,
             rate_hz=args.rate_hz,
             incarnation=args.incarnation,
+            roster=args.roster,
         )
         beats = Heartbeat(controller)  # liveness on its own thread and clock, however long a decision takes
         try:

@@ -50,7 +50,7 @@ class ControllerOrders:
         """Why an order cannot be the coordinator's ("" if it can)."""
         if msg.arm != self.arm:
             return f"an order for {msg.arm!r} on {self.arm}'s key"
-        problem = seq_problem(msg.seq, self.assign_seq)
+        problem = self.holders.problem("coordinator", msg.holder) or seq_problem(msg.seq, self.assign_seq)
         if problem:
             return problem
         if isinstance(msg, Assignment):
@@ -67,10 +67,16 @@ class ControllerOrders:
         return ""
 
     def _take_assignments(self) -> None:
-        """Queue what arrived; `_apply_assignments` acts on it when a state says its time has come."""
+        """Queue what arrived; `_apply_assignments` acts on it when a state says its time has come. Orders come
+        only from the coordinator that holds the line (the launcher's roster names it; without one, the newest
+        that spoke), each newer than the last."""
+        for roster in self._believable("roster", self.holders.roster_problem):
+            self.holders.hear_roster(roster)
         for msg in self._believable("assign", self._order_problem):
             if self.assign_seq is not None and msg.seq <= self.assign_seq:
+                self.drops.drop(self.keys.arm_assign(self.arm), f"order {msg.seq} is not newer than {self.assign_seq}")
                 continue
+            self.holders.believe("coordinator", msg.holder)
             self.assign_seq = msg.seq
             self.received.append(msg)
 

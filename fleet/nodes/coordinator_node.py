@@ -41,11 +41,13 @@ from fleet.bus.messages import (
     LineEvent,
     LineView,
     PartsState,
+    Roster,
     separations_from_pairs,
 )
-from fleet.bus.plausible import TickClock, arm_state_problem, parts_problem
+from fleet.bus.plausible import Incarnations, TickClock, arm_state_problem, parts_problem
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
+from fleet.nodes.coordinator_beats import CoordinatorBeats
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
@@ -57,7 +59,7 @@ TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator 
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
 
 
-class CoordinatorNode:
+class CoordinatorNode(CoordinatorBeats):
     """Decode, dispatch, publish: feed it with `poll()` in a loop; `report()` gives the coordinator's part of the
     run summary. Every decision is the `Dispatcher`'s; this node owns the bus, the wall clock (heartbeats,
     how long to wait for a decision's events) and the order counts of the protocol."""
@@ -73,6 +75,7 @@ class CoordinatorNode:
         heartbeat_timeout_s: float = 0.75,
         incarnation: int = 1,
         pipeline: bool = PIPELINE_DEFAULT,
+        roster: bool = False,
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
         self.incarnation = incarnation
@@ -88,12 +91,15 @@ class CoordinatorNode:
             "events": Decoder(LineEvent, self.drops),
             "frame": Decoder(LineView, self.drops),
             "status": Decoder(ArmStatus, self.drops),
+            "roster": Decoder(Roster, self.drops),
         }
+        self.incarnations = Incarnations(from_roster=roster)  # which start of each controller to believe
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
         self.inbox = Inbox()  # one queue for everything: messages are handled in arrival order
         self._subs = [
-            session.declare_subscriber(k, self.inbox) for k in (keys.events, keys.frame, keys.all_arms("status"))
+            session.declare_subscriber(k, self.inbox)
+            for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
         ]
         self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
         self._subs.append(session.declare_subscriber(keys.all_arms("status"), self._on_heartbeat_arrival))
@@ -126,13 +132,6 @@ class CoordinatorNode:
         """Sleep until a message arrives (heartbeat checks still run every `timeout_s`)."""
         self.inbox.wait(timeout_s)
 
-    def _on_heartbeat_arrival(self, sample: zenoh.Sample) -> None:
-        """Only stamps the arrival time: a coordinator busy planning must not mistake queued heartbeats for silence."""
-        try:
-            self._heard_at[Keys.arm_of(str(sample.key_expr))] = time.monotonic()
-        except ValueError:
-            pass
-
     def take_over(self, session: zenoh.Session, timeout_s: float = 30.0) -> dict:
         """Rebuild from the running line (`fleet.nodes.coordinator_takeover`)."""
         self.takeover = take_over(self, session, timeout_s)
@@ -147,22 +146,24 @@ class CoordinatorNode:
             msg = self._decoders[leaf].decode(key, payload) if leaf in self._decoders else None
             if msg is None or (leaf == "events" and (msg.kind, msg.part_id, msg.tick, msg.detail) in self.replayed):
                 continue
-            problem = self.problem(leaf, msg)
+            problem = self.problem(leaf, msg, key)
             if problem:
                 self.drops.drop(key, problem)
             elif leaf == "events":
                 self.events.arrived(msg, key)
             elif leaf == "frame":
                 self._on_frame(msg)
+            elif leaf == "roster":
+                self._on_roster(key, msg)
             else:
-                self._on_status(msg)
+                self._on_status(key, msg)
         self._check_heartbeats()
         self._decide_when_complete()
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)
 
-    def problem(self, leaf: str, msg) -> str:
+    def problem(self, leaf: str, msg, key: str = "") -> str:
         """Why a decoded message cannot be true ("" if it can): it is then dropped and counted, never acted on."""
         if leaf == "events":  # whether the line allows it is asked when it is applied (`EventGate.apply`)
             return self.sim_clock.problem(msg.tick)
@@ -171,9 +172,9 @@ class CoordinatorNode:
             if not problem:
                 self.sim_clock.believe(msg.tick)
             return problem
-        if msg.arm not in self.last_tick:
-            return f"a heartbeat of no arm of this line ({msg.arm!r})"
-        return ""
+        if leaf == "roster":
+            return ""  # checked against the roster believed when it is heard (`_on_roster`)
+        return self.status_problem(key, msg)
 
     def _on_frame(self, f: LineView) -> None:
         self._frame_at = time.monotonic()
@@ -205,23 +206,6 @@ class CoordinatorNode:
         if returned is not None:
             self._tell_lost(s.arm, "the sim stopped hearing its controller", returned)
 
-    def _on_status(self, s: ArmStatus) -> None:
-        if s.incarnation in self._replaced.get(s.arm, ()):
-            return  # a late beat of a controller already replaced: neither a loss nor a sign of life
-        known = self.controller_incarnation.setdefault(s.arm, s.incarnation)
-        if known != s.incarnation:  # the first beat of a new controller: heard now (its arrival stamp may still
-            self._heard_at[s.arm] = max(self._heard_at.get(s.arm, 0.0), time.monotonic())  # be the old one's)
-        previous = self.heartbeat_at.get(s.arm)
-        self.heartbeat_at[s.arm] = self._heard_at.get(s.arm, time.monotonic())
-        if known != s.incarnation:  # restarted faster than the heartbeat timeout: still a loss
-            self._replaced.setdefault(s.arm, set()).add(known)
-            self.controller_incarnation[s.arm] = s.incarnation
-            if s.arm not in self.dispatcher.lost:
-                self._arm_lost(s.arm, "its controller restarted", self.heartbeat_at[s.arm] - (previous or 0.0))
-        if s.arm in self.dispatcher.lost:  # a respawned controller rejoined; the sim says so when it has heard it,
-            self._rejoining.add(s.arm)  # and its `lost` flag until then is not a second loss
-        self.dispatcher.arm_rejoined(s.arm)
-
     def _on_parts(self, p: PartsState) -> None:
         self.dispatcher.on_parts(
             {
@@ -245,28 +229,6 @@ class CoordinatorNode:
         self.decision_times.took(1e3 * (time.perf_counter() - started), tick)
         self.publish(decision)
 
-    def _check_heartbeats(self) -> None:
-        """An arm silent for `heartbeat_timeout_s` while the sim is still heard is lost. When the sim is silent too
-        (its loop ended and the line is being stopped), the silence is the line's, not the arm's."""
-        now = time.monotonic()
-        if now - self._frame_at > self.heartbeat_timeout_s:
-            return
-        for arm in self.heartbeat_at:
-            at = self._heard_at.get(arm, self.heartbeat_at[arm])
-            if arm not in self.dispatcher.lost and now - at > self.heartbeat_timeout_s:
-                self._arm_lost(arm, f"no heartbeat for {self.heartbeat_timeout_s} s", silent_for_s=now - at)
-
-    def _arm_lost(self, arm: str, why: str, silent_for_s: float) -> None:
-        self._tell_lost(arm, why, self.dispatcher.arm_lost(arm, why, silent_for_s))
-
-    @staticmethod
-    def _tell_lost(arm: str, why: str, returned: list[int]) -> None:
-        print(
-            f"coordinator: arm {arm} lost ({why}); {len(returned)} task(s) back in the pool",
-            file=sys.stderr,
-            flush=True,
-        )
-
     # --- outputs --------------------------------------------------------------------
     def publish(self, decision: Decision) -> None:
         """A decision's orders on each arm's `assign` key (one `seq` count per arm), then the lockstep barrier's
@@ -278,7 +240,8 @@ class CoordinatorNode:
             )
         for order in decision.orders:
             self.assign_seq[order.arm] += 1
-            self._assign_pubs[order.arm].put(encode(order_message(order, self.assign_seq[order.arm])))
+            message = order_message(order, self.assign_seq[order.arm], self.incarnation)
+            self._assign_pubs[order.arm].put(encode(message))
         self._tick_pub.put(encode(CoordTick(decision.tick, tuple(self.assign_seq[a] for a in self.arm_names))))
 
     def publish_progress(self) -> None:
@@ -289,6 +252,7 @@ class CoordinatorNode:
         self.events.apply(2**62)  # the run is over: every event counts
         return self.dispatcher.report() | {
             "dropped_messages": self.drops.total,
+            "refused_messages": self.drops.kinds(),
             "takeover": self.takeover,
             "decisions_on_deadline": self.events.decided_on_deadline,
             "decision_wall_ms": self.decision_times.summary(),
@@ -344,6 +308,11 @@ def main(argv: list[str] | None = None) -> int:
         help="this run's Nth coordinator: from the 2nd on it takes over "
         "the running line (ledger rebuilt from the sim's event log and the controllers' heartbeats)",
     )
+    parser.add_argument(
+        "--roster",
+        action="store_true",
+        help="believe only the controllers' starts the launcher's roster names (`fleet run` sets it)",
+    )
     add_bus_arguments(parser)
     opened = node_arguments(parser, argv, "coordinator")
     if opened is None:
@@ -361,6 +330,7 @@ def main(argv: list[str] | None = None) -> int:
             allocator=make_allocator(args.allocator, scene),
             incarnation=args.incarnation,
             pipeline=args.pipeline,
+            roster=args.roster,
         )
         _ = node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:

@@ -9,8 +9,9 @@ from coordinator.orders import AssignOrder, CancelOrder, GrantOrder
 from fleet.bus.messages import Assignment, MotionGrant, Progress
 
 
-def order_message(order: AssignOrder | CancelOrder | GrantOrder, seq: int) -> Assignment | MotionGrant:
-    """One order as the arm's `assign` key carries it, numbered `seq` in that arm's count."""
+def order_message(order: AssignOrder | CancelOrder | GrantOrder, seq: int, holder: int) -> Assignment | MotionGrant:
+    """One order as the arm's `assign` key carries it, numbered `seq` in that arm's count, from the coordinator
+    in its `holder`th start."""
     if isinstance(order, GrantOrder):
         return MotionGrant(
             order.arm,
@@ -20,12 +21,20 @@ def order_message(order: AssignOrder | CancelOrder | GrantOrder, seq: int) -> As
             order.conflict_arm,
             order.min_separation_m if math.isfinite(order.min_separation_m) else -1.0,
             order.start_s if order.start_s is not None else -1.0,
+            holder,
         )
     if isinstance(order, CancelOrder):
-        return Assignment(order.arm, seq, None, order.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        return Assignment(order.arm, seq, None, order.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), holder)
     assert isinstance(order, AssignOrder)
     return Assignment(
-        order.arm, seq, order.task_id, order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity
+        order.arm,
+        seq,
+        order.task_id,
+        order.part_id,
+        order.surface_z_m,
+        order.place_xyz,
+        order.surface_velocity,
+        holder,
     )
 
 

@@ -69,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
                         "messages_taken": monitor.feed.taken,
                         "most_pages_open": monitor.most_pages_open,
                         "dropped_messages": monitor.feed.drops.total,
+                        "refused_messages": monitor.feed.drops.kinds(),
                         "controls_sent": monitor.controls.sent,
                         "stopped_by": stop.reason,
                     },

@@ -36,6 +36,7 @@ from fleet.bus.messages import (
     PartsState,
     Progress,
     RespawnRequest,
+    Roster,
     Separations,
     SimControl,
     SimStatus,
@@ -68,6 +69,7 @@ LINE_LEAVES = {
     "coord/progress": Progress,
     "coord/separation": Separations,
     "launcher/respawn": RespawnRequest,
+    "launcher/roster": Roster,
 }
 SEMANTIC_TOPICS = {  # bus message type -> ROS topic (arm ones under /<arm>)
     LineEvent: "/line/events",

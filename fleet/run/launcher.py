@@ -218,11 +218,14 @@ class Launcher(RunSummary, Supervision, NodeCommands):
                     keys.respawn: Decoder(RespawnRequest, drops),
                     keys.sim_status: Decoder(SimStatus, drops),
                 }
+                self._roster_pub = session.declare_publisher(keys.roster)
                 try:
                     error = self._supervise(inbox)
                 finally:
                     for sub in subs:
                         sub.undeclare()
+                    self._roster_pub.undeclare()
+                    self._roster_pub = None
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)

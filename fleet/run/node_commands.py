@@ -81,13 +81,13 @@ class NodeCommands:
                 "coordinator",
                 "coordinator",
                 "fleet.nodes.coordinator_node",
-                ["--mode", o.mode, "--allocator", o.allocator, *([] if o.pipeline else ["--no-pipeline"])],
+                ["--mode", o.mode, "--allocator", o.allocator, "--roster", *([] if o.pipeline else ["--no-pipeline"])],
             )
         ]
         nodes[0].counts_starts = True  # `--incarnation N`: from the 2nd start on, it takes over the running line
         for arm in self.scene.arms:
             grants = ["--grants"] if moves_need_grants(self.scene) else []  # a lone arm has nobody to ask about
-            extra = ["--arm", arm.name, *grants] + (["--rt"] if o.realtime_priority else [])
+            extra = ["--arm", arm.name, "--roster", *grants] + (["--rt"] if o.realtime_priority else [])
             node = self._node("controller", arm.name, "fleet.nodes.arm_controller", extra)
             node.counts_starts = True
             nodes.append(node)

@@ -193,4 +193,12 @@ class RunSummary:
             "round_trip_histogram": sim.get("round_trip_histogram"),
             "bus_messages_out": sim.get("messages_out", {}),
             "dropped_messages": dropped,
+            "refused_messages": self._refused(sim, coord, controllers, monitor),
         }
+
+    @staticmethod
+    def _refused(sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:
+        """Each node's refused messages by kind (`DropCounter.kinds`), only the nodes that refused any."""
+        reports = {"sim": sim, "coordinator": coord, "monitor": monitor or {}}
+        reports |= {c.get("arm", f"controller_{i}"): c for i, c in enumerate(controllers)}
+        return {node: r["refused_messages"] for node, r in reports.items() if r.get("refused_messages")}

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import time
 
-from fleet.bus.messages import Progress, RespawnRequest, SimStatus
+from fleet.bus.codec import encode
+from fleet.bus.messages import Progress, RespawnRequest, Roster, SimStatus
 from fleet.bus.session import Inbox
 from fleet.run.run_node import (
     HUNG_COORDINATOR_S,
@@ -13,9 +14,23 @@ from fleet.run.run_node import (
     Node,
 )
 
+ROSTER_PERIOD_S = 1.0  # the roster is said again this often (wall), for whoever joined since
+
 
 class Supervision:
     """Watching a run while it goes: one concern of `Launcher`, kept apart."""
+
+    _roster_pub = None
+    _roster_at = -1e9
+
+    def say_roster(self, now: bool = False) -> None:
+        """Which start of each counted node runs (`Roster`): at once after a restart, else every second. A node's
+        incarnation changes only through this, so nobody else's heartbeat or order can claim a new one."""
+        if self._roster_pub is None or not (now or time.monotonic() - self._roster_at >= ROSTER_PERIOD_S):
+            return
+        self._roster_at = time.monotonic()
+        counted = [n for n in self.nodes if n.counts_starts]
+        self._roster_pub.put(encode(Roster(tuple(n.name for n in counted), tuple(n.starts for n in counted))))
 
     def _on_bus(self, inbox: Inbox) -> None:
         for key, payload in inbox.drain():
@@ -66,6 +81,7 @@ class Supervision:
     def _supervise(self, inbox: Inbox) -> str:
         sim, coordinator = self.nodes[0], self.nodes[1]
         while not self.interrupted:
+            self.say_roster()
             self._on_bus(inbox)
             self._check_monitor()
             code = sim.poll()
@@ -114,4 +130,5 @@ class Supervision:
         if node.role == "coordinator":
             self.progress_at = None
         node.start()
+        self.say_roster(now=True)
         self.respawns += 1

@@ -246,6 +246,7 @@ class SimServer(SimLockstep):
             | self.stats.summary(arms, sim_s)
             | {
                 "dropped_messages": self.drops.total,
+                "refused_messages": self.drops.kinds(),
                 "clamped_commands": {a: t.clamped for a, t in self.tracked.trackers.items() if t.clamped},
                 **self.tracked.safety.report(),
             }

@@ -123,8 +123,9 @@ class SimInputs:
             self.sim.drops.drop(key, problem)
             return
         flight = link.book.answer(msg.tick, msg)
-        if flight is None:
-            return  # an answer to a state already answered, overtaken or never delivered: nothing to do
+        if flight is None:  # an answer to a state already answered, overtaken or never delivered
+            self.sim.drops.drop(key, "an answer to no state that awaits one (repeated, late or never sent)")
+            return
         self.sim.stats.round_trip((time.monotonic() - flight.delivered_wall_s) * 1e3)
         if self.sim.deferred:
             if flight.up_lost:

@@ -40,7 +40,7 @@ def test_the_router_lets_each_node_publish_only_its_own_keys():
         "clawfleet/*/arm/arm_0/status",
     ]
     assert publishes["publish_coordinator"] == ["clawfleet/*/arm/*/assign", "clawfleet/*/coord/**"]
-    assert "publish_launcher" not in publishes, "the launcher only listens"
+    assert publishes["publish_launcher"] == ["clawfleet/*/launcher/roster"], "the launcher says only its roster"
     assert not any("state" in k or "world/events" in k for keys in publishes.values() for k in keys), (
         "only the sim reports the line"
     )
