@@ -272,11 +272,22 @@ def print_run_summary(s: dict) -> None:
         ("refused by the plant's safety / stopped", _safety_row(s)),
         ("round trip p50 / p99 (ms)", f"{s['latency_p50_ms']} / {s['latency_p99_ms']}"),
         ("dropped messages", str(s["dropped_messages"])),
+        ("refused by the router", _router_row(s.get("bus_refused"))),
         ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
     ]
     for row in rows:
         table.add_row(*row)
     out.print(table)
+
+
+def _router_row(refused: dict | None) -> str:
+    """What the run's router refused: a total and the commonest kind, or why there is no count."""
+    if refused is None:
+        return "- (not counted: no secure bus of the run's own)"
+    if not refused:
+        return "0"
+    top = max(refused, key=refused.get)
+    return f"{sum(refused.values())} (most: {top}, {refused[top]})"
 
 
 def _share(fraction: float | None) -> str:

@@ -36,6 +36,7 @@ import zenoh
 
 from fleet.bus.faults import add_fault_arguments, network_from_args
 from fleet.bus.keys import Keys
+from fleet.bus.router_audit import RouterAudit
 from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open_listening_session
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
@@ -110,6 +111,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
     parser.add_argument(
+        "--router-audit",
+        metavar="FILE",
+        help="log what the router's access control refuses to FILE; the report counts it (`bus_refused`)",
+    )
+    parser.add_argument(
         "--endpoint-file",
         help="write the endpoint it listens on to this file once it does (without --listen or "
         "--zenoh-config: a free loopback port)",
@@ -147,6 +153,8 @@ def serve(server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: in
         lost = server.stats.coordinator_lost and args.mode == "lockstep"
         why = "the coordinator did not answer within the lockstep timeout" if lost else ""
         report = server.report() | {"stopped_by": stop.reason or why or "duration"}
+        if args.router_audit:
+            report["bus_refused"] = RouterAudit(args.router_audit).refused()
         server.close()
         write_report(args.report, report)
     return 0
@@ -165,6 +173,8 @@ def main(argv: list[str] | None = None) -> int:
     if network is not None:
         scene = scene.model_copy(update={"network": network})
     world = World(scene)
+    if args.router_audit:
+        RouterAudit(args.router_audit).start()
     session, endpoint = open_session(args)
     keys = Keys(args.run)
     spool = BusSpool(session, keys.recorded(), args.spool, args.run, scene.model_dump_json()) if args.spool else None

@@ -194,6 +194,7 @@ class RunSummary:
             "bus_messages_out": sim.get("messages_out", {}),
             "dropped_messages": dropped,
             "refused_messages": self._refused(sim, coord, controllers, monitor),
+            "bus_refused": sim.get("bus_refused"),
         }
 
     @staticmethod

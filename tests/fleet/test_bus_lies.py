@@ -19,7 +19,7 @@ from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES, assert_nothing_left
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
 FAR = 10**18
-COUNTED = WALL_FIGURES + ("dropped_messages", "refused_messages", "bus_messages_per_arm_per_s")
+COUNTED = WALL_FIGURES + ("dropped_messages", "refused_messages", "bus_refused", "bus_messages_per_arm_per_s")
 
 
 def lies(keys: Keys, arms: list[str]) -> list[tuple[str, bytes]]:

@@ -73,3 +73,8 @@ def test_no_process_without_the_runs_credentials_or_role_can_change_the_line():
     assert lied["status"] == "ok" and math.isclose(lied["sim_seconds"], 12.0)
     strip = lambda s: {k: v for k, v in s.items() if k not in COUNTED}  # noqa: E731
     assert strip(lied) == strip(clean), "the line ran exactly as without them"
+    assert clean["bus_refused"] == {}, "a clean run's router refuses nothing"
+    refused = lied["bus_refused"]
+    assert refused.get("connections refused at the TLS handshake", 0) >= 1, refused
+    for who, key in (("monitor", "arm/arm_0/assign"), ("arm_0", "estop"), ("arm_0", "arm/arm_1/assign")):
+        assert refused.get(f"{who}: put on clawfleet/line/{key}", 0) >= 1, (who, key, refused)
