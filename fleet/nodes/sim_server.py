@@ -62,6 +62,29 @@ def await_recorder(session: zenoh.Session, keys: Keys, timeout_s: float) -> bool
         sub.undeclare()
 
 
+def add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    """What the sim writes besides the line: its report, the drive targets, the bus spool, the router's audit."""
+    parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
+    parser.add_argument(
+        "--record-targets",
+        metavar="FILE",
+        help="save every tick's drive targets (.npz): `fleet bench run` replays them",
+    )
+    parser.add_argument(
+        "--spool",
+        metavar="FILE",
+        help=(
+            "append every message of the run's bus, as this router hears it, to FILE (`fleet run --record` turns it "
+            "into MCAP)"
+        ),
+    )
+    parser.add_argument(
+        "--router-audit",
+        metavar="FILE",
+        help="log what the router's access control refuses to FILE; the report counts it (`bus_refused`)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The sim server's command line."""
     parser = argparse.ArgumentParser(prog="fleet-sim-server", description=__doc__.splitlines()[0])
@@ -84,19 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
         f"(default: {COORDINATOR_TIMEOUT_S:g} s or the lockstep timeout if longer; longer when a crashed coordinator "
         "is respawned)",
     )
-    parser.add_argument(
-        "--record-targets",
-        metavar="FILE",
-        help="save every tick's drive targets (.npz): `fleet bench run` replays them",
-    )
-    parser.add_argument(
-        "--spool",
-        metavar="FILE",
-        help=(
-            "append every message of the run's bus, as this router hears it, to FILE (`fleet run --record` turns it "
-            "into MCAP)"
-        ),
-    )
+    add_output_arguments(parser)
     parser.add_argument(
         "--await-recorder",
         type=float,
@@ -108,12 +119,6 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-controllers",
         action="store_true",
         help="wait for no controller: arms follow goals from anyone (no watchdog)",
-    )
-    parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
-    parser.add_argument(
-        "--router-audit",
-        metavar="FILE",
-        help="log what the router's access control refuses to FILE; the report counts it (`bus_refused`)",
     )
     parser.add_argument(
         "--endpoint-file",
