@@ -69,7 +69,7 @@ class NodeCommands:
         if o.respawn:
             sim_args += ["--coordinator-timeout", str(COORDINATOR_RESPAWN_TIMEOUT_S)]
         if self.bus is not None:  # the run's own router: what its access control refuses is counted
-            sim_args += ["--router-audit", str(self.dir / "bus" / "router.log")]
+            sim_args += ["--router-audit", str(self.dir / "router.log")]
         for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
             if value is not None:
                 sim_args += [flag, repr(value)]
