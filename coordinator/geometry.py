@@ -162,6 +162,26 @@ class ArmGeometry:
         self.reach_bound_m = _REACH_BOUND_M[spec.uid]
         self.place(np.asarray(spec.home_q, float))
 
+    def joint_levers_m(self) -> np.ndarray:
+        """For each arm joint (spec order), how far from its origin any shape it carries can be, in any
+        configuration: the chain's fixed offsets from it to the shape's link, plus the shape's offset and radius.
+        A point of the arm moves at most sum_j |dq_j| * lever_j (prismatic joints: |dq_j|)."""
+        model = self._placed.model
+        levers = np.zeros(model.njoints)
+        for fid, radius in zip(self._placed.frame_ids, self.radii_m):
+            frame = model.frames[fid]
+            chain = list(model.supports[frame.parentJoint])  # joint ids from the root down to the shape's joint
+            reach = float(np.linalg.norm(frame.placement.translation)) + float(radius)
+            for i in reversed(chain[1:]):  # from the shape's joint up: each joint carries the shape this far
+                levers[i] = max(levers[i], reach)
+                reach += float(np.linalg.norm(model.jointPlacements[i].translation))
+        out = []
+        for name in self.spec.arm_joints:
+            joint = model.joints[model.getJointId(name)]
+            prismatic = "P" in joint.shortname().replace("JointModel", "")[:2]
+            out.append(1.0 if prismatic else levers[model.getJointId(name)])
+        return np.array(out)
+
     def _reach_bound_m(self, samples: int = 300, seed: int = 0) -> float:
         """A radius about the base holding every link in any configuration: over random configurations,
         the farthest shape origin plus that shape's radius, and 5 cm to spare for configurations not drawn."""

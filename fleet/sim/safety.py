@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coordinator.geometry import ArmGeometry, neighbours, separation_m
+from fleet.sim.safety_speeds import GRID_DT_S, Closing, PathSpeeds, grid_steps
 from robots.joint_trajectory import Spline
 from robots.tracker import ArmTracker
 
@@ -66,6 +67,8 @@ class PlantSafety:
     ) -> None:
         self.geometries, self.separation_m, self.step_m = geometries, float(separation_m), step_m
         self.velocity_limits = velocity_limits
+        self.levers_m = {name: g.joint_levers_m() for name, g in geometries.items()}
+        self.path_speeds = PathSpeeds(self.levers_m)
         self.neighbours = {name: neighbours(geometries, name, self.separation_m) for name in geometries}
         self.counts = SafetyCounts()
         self._due_s: dict[tuple[str, str], float] = {}  # when each pair of neighbours is next measured
@@ -100,7 +103,7 @@ class PlantSafety:
         """An upper bound on how fast any point of `arm` moves along `spline` (0 for an arm that holds)."""
         if spline is None or spline.t_end_s <= spline.t0_s:
             return 0.0
-        return float(_peak_speeds(spline).sum()) * self.geometries[arm].spec.reach_m
+        return float(_peak_speeds(spline) @ self.levers_m[arm])
 
     def _tracker_speed_m_per_s(self, arm: str, tracker: ArmTracker, t_s: float) -> float:
         """An upper bound on how fast any point of `arm` moves along its committed path from `t_s` on."""
@@ -122,33 +125,56 @@ class PlantSafety:
         me = self.geometries[arm]
         t0 = spline.t0_s
         t_end = max([spline.t_end_s] + [trackers[o].committed_end_s() for o in others])
-        mine = self._point_speed_m_per_s(arm, spline)
-        speed = {o: max(mine + self._tracker_speed_m_per_s(o, trackers[o], t0), 1e-9) for o in others}
+        ka, kb = grid_steps(t0, t_end)
+        kb = max(kb, ka + 1)
+        grid = np.arange(ka, kb + 1) * GRID_DT_S
+        mine = self.path_speeds.on(arm, [spline], ka, kb)
+        committed = lambda o: [a.spline for a in (trackers[o].active, trackers[o].next) if a is not None]  # noqa: E731
+        closing = {o: Closing(grid, mine + self.path_speeds.on(o, committed(o), ka, kb)) for o in others}
         me.place(spline.q_at(t0))
-        gaps = {o: self._gap(me, o, trackers[o], t0, math.inf) for o in others}
+        gaps = {o: self._gap(me, o, trackers[o].path_q(t0), math.inf) for o in others}
         # an arm already within the separation (pushed there) may move, but never closer than it is
         floor_m = min(self.separation_m, min(gaps.values()) - 1e-4)
-        due = {o: t0 + max(self.step_m, d - floor_m) / speed[o] for o, d in gaps.items()}
-        while True:
-            t = min(due.values())
-            if t > t_end:
-                return None  # every pair keeps its gap until everything is at rest
-            me.place(spline.q_at(t))
-            for o in [o for o, at in due.items() if at <= t]:
-                d = self._gap(me, o, trackers[o], t, floor_m + ROUGH_ENOUGH_M)
+        due = {o: closing[o].time_to_close(t0, max(self.step_m, d - floor_m)) for o, d in gaps.items()}
+        last_k = ka
+        while (t := min(due.values())) <= t_end:  # past the end: every pair keeps its gap until all rest
+            now = [o for o, at in due.items() if at <= t]
+            k = math.floor(t / GRID_DT_S + 1e-9)
+            if k > last_k and k * GRID_DT_S >= t0:  # measured at the grid step before: earlier is never late
+                t, last_k = k * GRID_DT_S, k
+                me.place(self._q_on_grid(arm, spline, k, t))
+                where = lambda o, k=k, t=t: self._path_on_grid(o, trackers[o], k, t)  # noqa: E731
+            else:  # no grid step left before it is due: exactly then
+                me.place(spline.q_at(t))
+                where = lambda o, t=t: trackers[o].path_q(t)  # noqa: E731
+            for o in now:
+                d = self._gap(me, o, where(o), floor_m + ROUGH_ENOUGH_M)
                 if d < floor_m:
                     return Refusal(
                         "separation",
                         f"its path comes within {max(d, 0.0) * 1000:.0f} mm of {o} at t={t:.2f} s "
                         f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
                     )
-                due[o] = t + max(self.step_m, d - floor_m) / speed[o] if t < t_end else math.inf
+                due[o] = closing[o].time_to_close(t, max(self.step_m, d - floor_m)) if t < t_end else math.inf
+        return None
 
-    def _gap(self, me: ArmGeometry, other: str, tracker: ArmTracker, t_s: float, rough_above_m: float) -> float:
-        """The distance from `me` (placed) to `other` where its committed path has it at `t_s`; where the spheres
-        covering both arms already stand `rough_above_m` apart, their gap (a lower bound, enough to step on)."""
+    def _q_on_grid(self, arm: str, spline: Spline, k: int, t_s: float) -> np.ndarray:
+        q = self.path_speeds.q_at_step(arm, spline, k) if spline.t0_s <= t_s <= spline.t_end_s else None
+        return spline.q_at(t_s) if q is None else q
+
+    def _path_on_grid(self, arm: str, tracker: ArmTracker, k: int, t_s: float) -> np.ndarray:
+        """`tracker.path_q(t_s)` at grid step k (t_s = k * dt), read from the committed paths' samples."""
+        if tracker.next is not None and t_s >= tracker.next.spline.t0_s:
+            return self._q_on_grid(arm, tracker.next.spline, k, t_s)
+        if tracker.active is not None:
+            return self._q_on_grid(arm, tracker.active.spline, k, t_s)
+        return tracker.hold_q
+
+    def _gap(self, me: ArmGeometry, other: str, q_other: np.ndarray, rough_above_m: float) -> float:
+        """The distance from `me` (placed) to `other` at joints `q_other`; where the spheres covering both arms
+        already stand `rough_above_m` apart, their gap (a lower bound, enough to step on)."""
         g = self.geometries[other]
-        g.place(tracker.path_q(t_s))
+        g.place(q_other)
         return _distance_m(me, g, rough_above_m)
 
     # --- motions ----------------------------------------------------------------------

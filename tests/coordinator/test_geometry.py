@@ -63,3 +63,24 @@ def test_each_shape_lies_inside_its_cover_of_spheres(robot):
             np.linalg.norm(points[:, None, :] - shape.cover[None, :, :3], axis=2) <= shape.cover[None, :, 3] + 1e-12
         )
         assert inside.any(axis=1).all(), shape.link
+
+
+@pytest.mark.parametrize("robot", ["openclaw", "so101", "panda"])
+def test_no_point_of_the_arm_moves_faster_than_its_joint_levers_allow(robot):
+    """Over random configurations and small joint steps dq, every cover sphere's farthest point moves at most
+    sum_j |dq_j| * lever_j: the bound the plant's safety layer steps its walk by."""
+    arm = ArmGeometry("arm_0", get_robot(robot), yaw_transform((0.2, -0.1, 0.0), 0.7))
+    levers = arm.joint_levers_m()
+    lower, upper = arm.km.lower[arm.km.arm_q_index], arm.km.upper[arm.km.arm_q_index]
+    rng = np.random.default_rng(2)
+    worst = 0.0
+    for _ in range(300):
+        q = rng.uniform(lower, upper)
+        dq = rng.normal(0.0, 1e-4, q.size)
+        arm.place(q)
+        before = arm.cover_centres.copy()
+        arm.place(q + dq)
+        moved = np.linalg.norm(arm.cover_centres - before, axis=1).max()
+        worst = max(worst, moved / (np.abs(dq) @ levers))
+    assert worst <= 1.0 + 1e-3, f"a point moved {worst:.3f} times the bound"
+    assert worst > 0.3, "the bound is not loose by orders of magnitude"

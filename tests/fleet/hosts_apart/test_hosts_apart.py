@@ -74,7 +74,8 @@ def summary_of(proc: subprocess.Popen, timeout_s: float = 180.0) -> dict:
         pytest.fail(f"the run did not end within {timeout_s:.0f} s (stopped): {err[-2000:]}")
     assert proc.returncode == 0, err[-3000:]
     summary = json.loads(out.strip().splitlines()[-1])
-    return {k: v for k, v in summary.items() if k not in (*WALL_FIGURES, "bus")}  # runs on either bus compare
+    # runs on either bus compare, but for what the secure one's router refused
+    return {k: v for k, v in summary.items() if k not in (*WALL_FIGURES, "bus")}
 
 
 def test_a_line_on_separate_hosts_runs_as_on_one_and_with_tls_logins_and_acl_no_intruder_stops_or_moves_an_arm(
@@ -114,6 +115,10 @@ def test_a_line_on_separate_hosts_runs_as_on_one_and_with_tls_logins_and_acl_no_
     assert as_arm_1["connected"] and as_arm_1["heard_states"] > 0 and as_arm_1["sent"] > 0, (
         "logged in as arm_1: it hears the line"
     )
+    refused = secure.pop("bus_refused")
+    assert plain.pop("bus_refused") == {}, "a bus without access control refuses nothing"
     assert secure == plain, "e-stop, pause, goals and orders for arm_0 from arm_1's login never reached anyone"
+    for key in ("estop", "arm/arm_0/goal"):
+        assert refused.get(f"arm_1: put on clawfleet/line/{key}", 0) >= 1, ("counted by the router", key, refused)
     for host in hosts.values():
         assert processes_in(host.netns) == [], f"processes left on {host.netns}"
