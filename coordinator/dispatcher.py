@@ -22,6 +22,7 @@ from coordinator.capacity import (
     capacity_bound,
 )
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
+from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
 from coordinator.dispatch_report import DispatchReport
 from coordinator.dispatch_takeover import TakeOver
@@ -39,7 +40,7 @@ from scenes.schema import Scene
 _BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
 
 
-class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver):
+class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, OutsideDrivers):
     """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
     reassignment, the collision guard's grants and the busy-until estimates."""
 
@@ -69,6 +70,8 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver):
         self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
         self.request_seq: dict[str, int] = {a: 0 for a in self.arm_names}
         self.lost: dict[str, float] = {}
+        self.taken: set[str] = set()  # arms an outside client drives (`OutsideDrivers`)
+        self.cancels: list[CancelOrder] = []  # orders to drop tasks, out with the next decision
         self.busy_until_s: dict[str, float] = {}  # when each arm's current task should end (the allocator's estimate)
         self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.parts: dict[int, PartView] = {}
@@ -172,7 +175,8 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver):
         return returned
 
     def arm_rejoined(self, arm: str) -> None:
-        if self.lost.pop(arm, None) is not None:
+        """A lost arm's controller is heard again (an arm an outside client drives stays out until let go)."""
+        if arm not in self.taken and self.lost.pop(arm, None) is not None:
             self.losses.append({"arm": arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
 
     # --- taking over a running line ---------------------------------------------------
@@ -186,7 +190,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver):
         self.last_decision_tick = tick
         self.decisions += 1
         separations = self.watch_separations() if len(self.arm_names) > 1 else []
-        orders: list[Order] = [*self.answer_motion_requests(now), *self.reassign_late_tasks()]
+        orders: list[Order] = [*self.take_cancels(), *self.answer_motion_requests(now), *self.reassign_late_tasks()]
         pending = self.pending(now)
         if pending:
             views = self.arm_views()

@@ -36,9 +36,13 @@ ESTOP_REASON = "emergency stop engaged"  # a goal refused while the e-stop holds
 ESTOP_ABORT_REASON = "emergency stop"  # the goals the e-stop aborted
 
 
-def stopped_by_estop(reason: str) -> bool:
-    """Whether a goal's result reason says the e-stop ended it (refused or aborted): not the goal's own fault."""
-    return reason.startswith(ESTOP_ABORT_REASON)
+OUTSIDE_REASON = "driven from outside"  # a goal refused or preempted because an outside client drives the arm
+
+
+def stopped_by_hold(reason: str) -> bool:
+    """Whether a goal's result reason says a hold ended it (refused or aborted): the e-stop, or an outside client
+    that took the arm. Not the goal's own fault."""
+    return reason.startswith((ESTOP_ABORT_REASON, OUTSIDE_REASON))
 
 
 class GoalStatus(str, Enum):

@@ -19,6 +19,7 @@ FLEET_LAYERS: dict[str, int] = {
     "fleet.record": 2,
     "fleet.sim": 3,
     "fleet.monitor": 3,
+    "fleet.ros": 3,
     "fleet.robot_tools": 4,
     "fleet.nodes": 5,
     "fleet.env": 5,

@@ -28,7 +28,13 @@ from fleet.bus.keys import ROOT
 from scenes.schema import is_valid_name
 
 MANIFEST = "bus.json"
-SERVICE_NODES = ("coordinator", "launcher", "monitor", "recorder")  # every node but the sim and the arms' controllers
+SERVICE_NODES = (
+    "coordinator",
+    "launcher",
+    "monitor",
+    "recorder",
+    "ros",
+)  # every node but the sim and the arms' controllers
 ANY_RUN = f"{ROOT}/*"
 # what each client may publish (ingress at the router); `{arm}` is the controller's own arm
 PUBLISHES = {
@@ -36,6 +42,7 @@ PUBLISHES = {
     "monitor": ("estop", "world/control", "launcher/respawn"),
     "recorder": ("recorder/ready",),
     "launcher": ("launcher/roster",),
+    "ros": ("arm/*/drive", "estop", "world/control"),  # the ROS front ends: outside goals, e-stop, pause
     "controller": ("arm/{arm}/step", "arm/{arm}/goal", "arm/{arm}/status"),
 }
 

@@ -45,6 +45,10 @@ class Keys:
         """Trajectory and gripper goals for the arm's tracker (`TrajectoryGoalMsg`, `GripperGoalMsg`)."""
         return self._arm(arm, "goal")
 
+    def arm_drive(self, arm: str) -> str:
+        """Goals for the arm's tracker from an outside client (ROS front ends): the arm is taken while they run."""
+        return self._arm(arm, "drive")
+
     def arm_result(self, arm: str) -> str:
         """One result per goal (`GoalResultMsg`)."""
         return self._arm(arm, "result")
@@ -64,7 +68,8 @@ class Keys:
         return self._arm(arm, "env_targets")
 
     def all_arms(self, leaf: str) -> str:
-        """Wildcard over every arm's `leaf` (state, step, goal, result, status, assign, env_action or env_targets)."""
+        """Wildcard over every arm's `leaf` (state, step, goal, drive, result, status, assign, env_action or
+        env_targets)."""
         return f"{ROOT}/{self.run}/arm/*/{leaf}"
 
     @property

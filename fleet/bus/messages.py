@@ -34,7 +34,9 @@ class ArmState(Message, frozen=True, array_like=True):
     controller acts on an order at the first state announcing it (lockstep with a coordinator; -1 otherwise:
     act on arrival). `next_tick` is when this arm's controller gets its next state; its answer takes effect
     `period_ticks` later (lockstep applies answers at the arm's next due tick). `held` is true while the
-    arm is held (e-stop, watchdog, lost controller); `lost` once its controller went silent in lockstep.
+    arm is held (e-stop, watchdog, lost controller, an outside driver); `lost` once its controller went silent in
+    lockstep; `taken` while an outside client (ROS, on the arm's `drive` key) drives it: its controller waits and
+    the coordinator gives it nothing until it is let go.
     """
 
     arm: str
@@ -68,6 +70,7 @@ class ArmState(Message, frozen=True, array_like=True):
     next_tick: int = 0
     period_ticks: int = 0  # the controller's period: its answer to the state at `next_tick` takes effect a period later
     delivered_tick: int = -1  # the tick this copy reached its controller (its own clock; -1: `tick`, no network delay)
+    taken: bool = False
     version: int = PROTOCOL_VERSION
 
 
@@ -97,7 +100,8 @@ class ControllerStep(Message, frozen=True, array_like=True):
 
 
 class TrajectoryGoalMsg(Message, frozen=True, array_like=True, tag="trajectory"):
-    """Anyone (the arm's controller) -> sim: follow a joint trajectory (control_msgs/FollowJointTrajectory).
+    """The arm's controller (on `goal`) or an outside client (on `drive`) -> sim: follow a joint trajectory
+    (control_msgs/FollowJointTrajectory).
 
     `joint_names` are the arm's own; `positions` (and optional `velocities`, `accelerations`) are flattened,
     one row of len(joint_names) per point, at strictly increasing `times_from_start_s` after `start_time_s`

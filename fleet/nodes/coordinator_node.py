@@ -187,6 +187,10 @@ class CoordinatorNode(CoordinatorBeats):
             return  # count each tick once
         self.last_tick[s.arm] = s.tick
         self.assign_seq[s.arm] = max(self.assign_seq[s.arm], s.assign_seq)  # after a take-over: count on from the sim's
+        if s.taken:
+            self.dispatcher.arm_taken(s.arm)
+        else:
+            self.dispatcher.arm_let_go(s.arm)
         if not s.lost:
             self._rejoining.discard(s.arm)
         returned = self.dispatcher.on_arm(

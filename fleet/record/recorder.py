@@ -52,6 +52,7 @@ ARM_LEAVES = {
     "state": ArmState,
     "step": ControllerStep,
     "goal": ArmGoalMsg,
+    "drive": ArmGoalMsg,
     "result": GoalResultMsg,
     "status": ArmStatus,
     "assign": ArmOrder,

@@ -64,6 +64,7 @@ class RunOptions:
     monitor: bool = False
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080
+    rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
@@ -166,6 +167,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
             self.nodes += self.client_nodes()
             if self.options.monitor:
                 self.nodes.append(self.monitor_node())
+            if self.options.rosbridge_port is not None:
+                self.nodes.append(self.rosbridge_node())
             for node in self.nodes[1:]:
                 self._start(node)
         except BaseException:

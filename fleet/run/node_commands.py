@@ -116,6 +116,25 @@ class NodeCommands:
         ]
         return Node("monitor", "monitor", argv, report, log)
 
+    def rosbridge_node(self) -> Node:
+        """The rosbridge server, attached over the bus with the `ros` login (it asks the sim for the scene)."""
+        o = self.options
+        report, log = self.dir / "rosbridge.json", self.dir / "rosbridge.log"
+        argv = [
+            *self._here("rosbridge"),
+            "fleet.nodes.rosbridge_node",
+            "--run",
+            o.run_id,
+            *self._bus_args(False, "ros"),
+            "--port",
+            str(o.rosbridge_port),
+            "--url-file",
+            str(self.dir / "rosbridge_url"),
+            "--report",
+            str(report),
+        ]
+        return Node("rosbridge", "rosbridge", argv, report, log)
+
     @property
     def spool_path(self) -> Path:
         return self.dir / "bus.spool"

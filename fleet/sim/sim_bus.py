@@ -44,6 +44,7 @@ class SimBus:
         self._subs = [
             session.declare_subscriber(keys.all_arms("step"), self.inbox),
             session.declare_subscriber(keys.all_arms("goal"), self.inbox),
+            session.declare_subscriber(keys.all_arms("drive"), self.inbox),
             session.declare_subscriber(keys.estop, self.estop_inbox),
             session.declare_subscriber(keys.coord("tick"), self.coord_inbox),
             session.declare_subscriber(keys.control, self.control_inbox),

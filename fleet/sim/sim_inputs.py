@@ -26,6 +26,7 @@ class SimInputs:
 
     def __init__(self, sim: SimServer) -> None:
         self.sim = sim
+        self.outside_goals: set[int] = set()  # ids of goals that came on an arm's `drive` key, not yet submitted
 
     def take(self) -> None:
         bus = self.sim.bus
@@ -45,7 +46,7 @@ class SimInputs:
             self.sim.paused = self.sim.paused if msg.paused is None else msg.paused
             self.sim.speed = self.sim.speed if msg.speed is None else msg.speed
         for key, payload in bus.inbox.drain():
-            if key.endswith("/goal"):
+            if key.endswith(("/goal", "/drive")):
                 self._on_goal(key, payload)
             else:
                 self._on_step(key, payload)
@@ -95,6 +96,8 @@ class SimInputs:
         if msg is None or (link := self._link_for(key, msg.arm)) is None:
             return
         self.sim.stats.messages_in["goal"] += 1
+        if key.endswith("/drive"):
+            self.outside_goals.add(msg.goal_id)
         # applied with the answer naming it (or at the arm's next due tick): a lockstep run repeats
         if self.sim.deferred:
             link.hold_goal(msg)
@@ -109,7 +112,9 @@ class SimInputs:
         if isinstance(goal, GoalResult):
             self.sim.outputs.results(link.name, [dataclasses.replace(goal, time_s=self.sim.world.sim_time_s)])
         else:
-            self.sim.outputs.results(link.name, self.sim.tracked.submit(link.name, goal))
+            outside = goal.goal_id in self.outside_goals
+            self.outside_goals.discard(goal.goal_id)
+            self.sim.outputs.results(link.name, self.sim.tracked.submit(link.name, goal, outside=outside))
 
     def _on_step(self, key: str, payload: bytes) -> None:
         msg = self.sim.bus.step.decode(key, payload)

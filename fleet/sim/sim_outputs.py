@@ -57,7 +57,8 @@ class SimOutputs:
         return arm_state(
             self.sim.world,
             name,
-            held=self.sim.estop or link.lost or link.watchdog_held,
+            held=self.sim.estop or link.lost or link.watchdog_held or self.sim.tracked.taken(name),
+            taken=self.sim.tracked.taken(name),
             lost=link.lost,
             task_id=step.task_id if step else None,
             phase=step.phase if step else Phase.IDLE,

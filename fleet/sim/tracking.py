@@ -6,6 +6,9 @@ PettingZoo env's allocate mode all drive their arms through this class.
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 
 from coordinator.geometry import ArmGeometry
@@ -13,10 +16,12 @@ from fleet.sim.observe import arm_observation
 from fleet.sim.safety import PlantSafety
 from fleet.sim.world import World
 from robots.frames import yaw_transform
-from robots.joint_trajectory import ArmGoal, GoalResult, GripperGoal
+from robots.joint_trajectory import OUTSIDE_REASON, ArmGoal, GoalResult, GoalStatus, GripperGoal, ResultCode
 from robots.skills.interface import PartObservation
 from robots.skills.pick_place import PickPlaceSkill
 from robots.tracker import ArmTracker
+
+OUTSIDE_RELEASE_S = 2.0  # an outside driver lets go of an arm this long (sim s) after its last path ends
 
 
 class TrackedArms:
@@ -44,20 +49,37 @@ class TrackedArms:
         self._held: dict[str, np.ndarray | None] = {}  # the hold point last written, per arm holding still
         self._gripper_q: dict[str, tuple[float, ...]] = {}
         self.safety = plant_safety(world)
+        self.taken_until: dict[str, float] = {}  # arm -> sim time its outside driver lets go (see `submit`)
 
-    def submit(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
+    def submit(self, arm: str, goal: ArmGoal, outside: bool = False) -> list[GoalResult]:
         """Hand `arm`'s tracker a goal now, through the plant's safety layer; the refusal or the preempted goals'
-        results come back."""
+        results come back. An `outside` goal (a client that is not the arm's controller: ROS) takes the arm: its
+        controller's goals are refused until the outside path ends and `OUTSIDE_RELEASE_S` more pass."""
         tracker, now = self.trackers[arm], self.world.sim_time_s
+        if not outside and self.taken(arm):
+            why = f"{OUTSIDE_REASON} until {self.taken_until[arm]:.2f} s"
+            if isinstance(goal, GripperGoal):
+                return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, why, now)]
+            return tracker.refuse(goal, why, now)
         if isinstance(goal, GripperGoal):
-            return tracker.submit(goal, now)
-        planned = tracker.plan(goal, now)
-        if isinstance(planned, list):
-            return planned
-        refusal = self.safety.refusal(arm, planned.spline, self.trackers)
-        if refusal is not None:
-            return tracker.refuse(goal, f"safety: {refusal.reason}", now)
-        return tracker.commit(planned, now)
+            results = tracker.submit(goal, now)
+        else:
+            planned = tracker.plan(goal, now)
+            if isinstance(planned, list):
+                return planned
+            refusal = self.safety.refusal(arm, planned.spline, self.trackers)
+            if refusal is not None:
+                return tracker.refuse(goal, f"safety: {refusal.reason}", now)
+            results = tracker.commit(planned, now)
+        if outside:
+            end = max(now, tracker.committed_end_s())
+            self.taken_until[arm] = max(self.taken_until.get(arm, -math.inf), end + OUTSIDE_RELEASE_S)
+            results = [dataclasses.replace(r, reason=f"{OUTSIDE_REASON}: {r.reason}") for r in results]
+        return results
+
+    def taken(self, arm: str) -> bool:
+        """Whether an outside client drives `arm` now (its controller waits, the coordinator gives it nothing)."""
+        return self.world.sim_time_s < self.taken_until.get(arm, -math.inf)
 
     def decide(self, arm: str, skill: PickPlaceSkill, parts: dict[int, PartObservation]) -> None:
         """One decision of `arm`'s skill in process, as a controller makes it over the bus: it sees the arm (with its

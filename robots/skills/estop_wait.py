@@ -1,4 +1,5 @@
-"""What a pick-and-place skill does through an emergency stop: it waits, then carries on.
+"""What a pick-and-place skill does through an emergency stop (or while an outside client drives its arm): it
+waits, then carries on.
 
 An e-stop aborts every goal and holds the arm (the tracker refuses goals while it lasts). That is not the task's
 failure: the skill sends nothing while its arm is held and, once it is released, plans again from where the arm
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from robots.failures import FailureCode
-from robots.joint_trajectory import stopped_by_estop
+from robots.joint_trajectory import stopped_by_hold
 from robots.phase import Phase
 from robots.skills.interface import ArmObservation, PartObservation
 
@@ -28,8 +29,8 @@ class EStopWait:
     def _estop_ended(self, obs: ArmObservation) -> bool:
         """True when this decision's newest result is one of the skill's goals ended by the e-stop: the skill
         stops (the task is not failed) until its arm is released."""
-        if not stopped_by_estop(obs.result_reason) or obs.result_goal_id not in self.sent_goals:
-            return False
+        if not self.active or not stopped_by_hold(obs.result_reason) or obs.result_goal_id not in self.sent_goals:
+            return False  # a skill with no task (one cancelled meanwhile) has nothing to wait for
         self.stopped_in = self.phase
         self.estops += 1
         self._timeline, self.request = [], None
@@ -38,7 +39,8 @@ class EStopWait:
 
     def _waiting_out_estop(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> bool:
         """While stopped: True (nothing to do) as long as the arm is held; on release, the plan is made again."""
-        if self.stopped_in is None:
+        if self.stopped_in is None or self.job is None:
+            self.stopped_in = None
             return False
         if obs.held:
             return True

@@ -228,7 +228,9 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         self._fail(FailureCode.REJECTED, reason)
 
     def cancel(self, reason: str) -> None:
-        """Stop the current task; the arm finishes the goal it is on and holds there with the claw as it is."""
+        """Stop the current task; the arm finishes the goal it is on and holds there with the claw as it is (a task
+        waiting out a hold is dropped: nothing is planned again on release)."""
+        self.stopped_in = None
         self._fail(FailureCode.CANCELLED, reason)
 
     def _enter(self, phase: Phase, time_s: float) -> None:

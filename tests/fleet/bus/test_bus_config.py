@@ -17,7 +17,7 @@ def test_each_node_gets_its_own_login_and_only_its_owner_reads_keys_and_password
     made = write_bus_configs(tmp_path, "127.0.0.1", 17461, ["arm_0", "arm_1"])
     assert made.endpoint == "tls/127.0.0.1:17461" and BusConfigSet.load(tmp_path) == made
     users = dict(line.split(":", 1) for line in (tmp_path / "users.txt").read_text().split())
-    assert sorted(users) == ["arm_0", "arm_1", "coordinator", "launcher", "monitor", "recorder"]
+    assert sorted(users) == ["arm_0", "arm_1", "coordinator", "launcher", "monitor", "recorder", "ros"]
     assert len(set(users.values())) == len(users), "a password per node"
     for private in ("sim.key", "users.txt", "sim.json5", "arm_0.json5"):
         assert stat.S_IMODE((tmp_path / private).stat().st_mode) == 0o600
@@ -41,6 +41,9 @@ def test_the_router_lets_each_node_publish_only_its_own_keys():
     ]
     assert publishes["publish_coordinator"] == ["clawfleet/*/arm/*/assign", "clawfleet/*/coord/**"]
     assert publishes["publish_launcher"] == ["clawfleet/*/launcher/roster"], "the launcher says only its roster"
+    assert publishes["publish_ros"] == ["clawfleet/*/arm/*/drive", "clawfleet/*/estop", "clawfleet/*/world/control"], (
+        "ROS clients drive arms only as outside drivers (the arm is taken), never as its controller"
+    )
     assert not any("state" in k or "world/events" in k for keys in publishes.values() for k in keys), (
         "only the sim reports the line"
     )

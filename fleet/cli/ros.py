@@ -1,0 +1,37 @@
+"""`fleet rosbridge`: serve a running line to ROS tools over rosbridge's WebSocket protocol."""
+
+from __future__ import annotations
+
+import argparse
+
+from fleet.bus.session import add_bus_arguments
+
+
+def cmd_rosbridge(args: argparse.Namespace) -> int:
+    from fleet.nodes import rosbridge_node
+
+    if not (args.connect or args.zenoh_config):
+        raise SystemExit(
+            "fleet: error: fleet rosbridge needs --connect ENDPOINT or --zenoh-config FILE (fleet run prints both; "
+            "on a run's secure bus use its bus/ros.json5)"
+        )
+    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
+    for ep in args.connect or ():
+        argv += ["--connect", ep]
+    if args.zenoh_config:
+        argv += ["--zenoh-config", args.zenoh_config]
+    return rosbridge_node.main(argv)
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """This group's sub-commands."""
+    p = sub.add_parser(
+        "rosbridge",
+        help="serve a running line to roslibpy, roslibjs and Foxglove (rosbridge v2, attaches over the bus)",
+    )
+    p.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
+    p.add_argument("--port", type=int, default=9090, help="WebSocket port (default 9090)")
+    p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_rosbridge)

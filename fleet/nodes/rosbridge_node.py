@@ -1,0 +1,120 @@
+"""The rosbridge process: a rosbridge v2 WebSocket server (`fleet.ros.rosbridge_server`) attached to a running line
+over the bus (`fleet rosbridge`, `fleet run --rosbridge`). It asks the sim for the scene, serves the line's topics,
+services and actions to roslibpy, roslibjs or Foxglove, and sends their goals, e-stops and pauses over the bus.
+
+    python -m fleet.nodes.rosbridge_node --run line --connect tcp/127.0.0.1:7447 --port 9090
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ipaddress
+import sys
+
+import zenoh
+
+from fleet.bus.codec import encode
+from fleet.bus.keys import Keys
+from fleet.bus.messages import EStop, SimControl
+from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.common.processes import StopFlag, write_report, write_text_atomically
+from fleet.ros.rosbridge_server import LineBus, RosbridgeServer
+
+SOURCE = "rosbridge"
+DRAIN_S = 0.005  # how often the bus's queued messages are taken onto the server's loop
+
+
+def line_bus(session: zenoh.Session, keys: Keys, arms: list[str]) -> LineBus:
+    """Publishers for what ROS clients may do: goals to each arm, the e-stop, pause and resume."""
+    goals = {a: session.declare_publisher(keys.arm_drive(a)) for a in arms}  # outside goals take the arm
+    estop, control = session.declare_publisher(keys.estop), session.declare_publisher(keys.control)
+    return LineBus(
+        send_goal=lambda msg: goals[msg.arm].put(encode(msg)),
+        estop=lambda engaged: estop.put(encode(EStop(engaged, SOURCE))),
+        pause=lambda paused: control.put(encode(SimControl(SOURCE, paused=paused))),
+    )
+
+
+async def serve(server: RosbridgeServer, inbox: Inbox, args: argparse.Namespace, stop: StopFlag) -> None:
+    async def drain() -> None:
+        while not stop.should_stop():
+            for key, payload in inbox.drain():
+                server.on_bus(key, payload)
+            await asyncio.sleep(DRAIN_S)
+
+    def listening(port: int) -> None:
+        print(f"rosbridge: ws://{args.host}:{port}", file=sys.stderr, flush=True)
+        if args.url_file:
+            write_text_atomically(args.url_file, f"ws://{args.host}:{port}")
+
+    drainer = asyncio.create_task(drain())
+    try:
+        await server.serve(args.host, args.port, stop.should_stop, listening)
+    finally:
+        drainer.cancel()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fleet-rosbridge", description=__doc__.splitlines()[0])
+    parser.add_argument("--run", default="line", help="run id of the line to serve")
+    parser.add_argument("--host", default="127.0.0.1", help="address to listen on (loopback; see docs/ros2.md)")
+    parser.add_argument("--port", type=int, default=9090, help="WebSocket port (0: any free one)")
+    parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
+    parser.add_argument("--url-file", help="write the server's ws:// URL to this file once it listens")
+    parser.add_argument("--report", help="write the server's figures to this JSON file at exit")
+    add_bus_arguments(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        loopback = ipaddress.ip_address(args.host).is_loopback
+    except ValueError:
+        loopback = args.host == "localhost"
+    if not loopback:
+        print(
+            f"fleet rosbridge: --host {args.host} is beyond loopback; rosbridge's authentication is not built yet, so "
+            "it serves loopback only",
+            file=sys.stderr,
+        )
+        return 2
+    stop = StopFlag()
+    keys = Keys(args.run)
+    with open_session(BusEndpoints.from_args(args)) as session:
+        try:
+            scene = fetch_scene(session, keys, args.scene_timeout)
+        except SceneUnavailable as exc:
+            print(f"fleet rosbridge: {exc}", file=sys.stderr)
+            return 1
+        server = RosbridgeServer(scene, keys, line_bus(session, keys, [a.name for a in scene.arms]))
+        inbox = Inbox()
+        subs = [
+            session.declare_subscriber(k, inbox) for k in (keys.all_arms("state"), keys.all_arms("result"), keys.parts)
+        ]
+        try:
+            asyncio.run(serve(server, inbox, args, stop))
+        except OSError as exc:
+            print(f"fleet rosbridge: cannot listen on {args.host}:{args.port}: {exc.strerror}", file=sys.stderr)
+            return 1
+        finally:
+            for sub in subs:
+                sub.undeclare()
+            write_report(
+                args.report,
+                {
+                    "goals_sent": server.actions.sent,
+                    "requests_refused": server.requests_refused,
+                    "dropped_messages": server.drops.total,
+                    "refused_messages": server.drops.kinds(),
+                    "clients_dropped_messages": sum(c.dropped for c in server.clients),
+                    "stopped_by": stop.reason,
+                },
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,55 @@
+"""The `rosapi` services rosbridge clients use to look around (roslibpy's `get_topics`, roslibjs, Foxglove):
+topics, services, action servers and their types, nodes, and the time (sim time)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from fleet.ros import names
+from fleet.ros.ros_json import time_json
+
+NODE = "/clawfleet_rosbridge"
+
+
+class Rosapi:
+    """Answers `/rosapi/*` calls for one line's names; `now_s` gives the line's sim time."""
+
+    def __init__(self, arms: list[str], now_s: Callable[[], float]) -> None:
+        self.topics = names.line_topics(arms) | {f"/{a}/joint_trajectory": "trajectory_msgs/msg/JointTrajectory"
+                                                 for a in arms}  # fmt: skip
+        self.actions = names.line_actions(arms)
+        self.services = {**names.SERVICE_TYPES, **{s: f"rosapi_msgs/srv/{t}" for s, t in SERVICES.items()}}
+        self.now_s = now_s
+
+    def answer(self, service: str, args: dict) -> dict:
+        """The response's values; KeyError for a service this is not."""
+        name = service.rsplit("/", 1)[-1]
+        if name == "topics":
+            return {"topics": list(self.topics), "types": list(self.topics.values())}
+        if name == "topic_type":
+            return {"type": self.topics.get(str(args.get("topic", "")), "")}
+        if name == "topics_for_type":
+            return {"topics": [t for t, ty in self.topics.items() if ty == args.get("type")]}
+        if name == "services":
+            return {"services": list(self.services)}
+        if name == "service_type":
+            return {"type": self.services.get(str(args.get("service", "")), "")}
+        if name == "action_servers":
+            return {"action_servers": list(self.actions)}
+        if name == "nodes":
+            return {"nodes": [NODE]}
+        if name == "get_time":
+            return {"time": time_json(self.now_s())}
+        raise KeyError(service)
+
+
+SERVICES = {
+    "/rosapi/topics": "Topics",
+    "/rosapi/topic_type": "TopicType",
+    "/rosapi/topics_for_type": "TopicsForType",
+    "/rosapi/services": "Services",
+    "/rosapi/service_type": "ServiceType",
+    "/rosapi/action_servers": "GetActionServers",
+    "/rosapi/nodes": "Nodes",
+    "/rosapi/get_time": "GetTime",
+}

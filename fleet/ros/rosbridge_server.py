@@ -1,0 +1,234 @@
+"""A rosbridge v2 server for one running line (the protocol of rosbridge_suite 2.x for ROS 2, JSON): clients
+subscribe to the line's topics, call its services and rosapi, send `FollowJointTrajectory` goals and cancel them,
+and publish `trajectory_msgs/JointTrajectory` to `/<arm>/joint_trajectory` (fire and forget). Anything it cannot
+do is answered with a `status` error to that client; the line is never touched by a bad request.
+
+The line side is `LineBus`: the node gives it the bus (goals, e-stop, pause) and feeds `on_bus` with what the bus
+carries, on this server's event loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import websockets
+
+from fleet.bus.codec import Decoder, DropCounter
+from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmState, GoalResultMsg, PartsState, TrajectoryGoalMsg
+from fleet.ros import names
+from fleet.ros.line_actions import LineActions
+from fleet.ros.line_topics import LineTopics
+from fleet.ros.rosapi import Rosapi
+from fleet.ros.rosbridge_client import Client, Subscription
+from fleet.ros.trajectory_action import goal_message
+from robots.registry import get_robot
+from scenes.schema import Scene
+
+MAX_MESSAGE_BYTES = 1 << 20
+
+
+@dataclass(frozen=True)
+class LineBus:
+    """What a ROS client may do to the line, as bus messages."""
+
+    send_goal: Callable[[TrajectoryGoalMsg], None]
+    estop: Callable[[bool], None]
+    pause: Callable[[bool], None]
+
+
+class RequestError(ValueError):
+    """A request this server refuses; the message is the `status` text the client gets."""
+
+
+def _field(message: dict, name: str, kind: type | tuple[type, ...], default: object = ...) -> object:
+    value = message.get(name, default)
+    if value is ... or not isinstance(value, kind) or isinstance(value, bool) and kind in (int, float):
+        raise RequestError(f"'{message.get('op')}' needs {name!r} as {getattr(kind, '__name__', kind)}")
+    return value
+
+
+class RosbridgeServer:
+    """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
+
+    def __init__(self, scene: Scene, keys: Keys, bus: LineBus) -> None:
+        self.keys, self.bus = keys, bus
+        self.topics = LineTopics(scene)
+        arms = self.topics.arms
+        self.actions = LineActions({a.name: list(get_robot(a.model).arm_joints) for a in scene.arms}, bus.send_goal)
+        self.rosapi = Rosapi(arms, lambda: max(self.topics.clock_s, 0.0))
+        self.clients: list[Client] = []
+        self.drops = DropCounter()
+        self._decoders = {
+            "state": Decoder(ArmState, self.drops),
+            "result": Decoder(GoalResultMsg, self.drops),
+            "parts": Decoder(PartsState, self.drops),
+        }
+        self._numbers = 0
+        self.requests_refused = 0
+
+    # --- the line -----------------------------------------------------------------
+    def on_bus(self, key: str, payload: bytes) -> None:
+        """One message the bus carried: to the topics someone listens to, the actions' feedback and results."""
+        leaf = key.rsplit("/", 1)[-1]
+        decoder = self._decoders.get(leaf)
+        msg = decoder.decode(key, payload) if decoder else None
+        if msg is None:
+            return
+        wanted = {t for c in self.clients for t in c.subscriptions}
+        if isinstance(msg, ArmState):
+            self.actions.on_state(msg)
+            self._publish(self.topics.from_state(msg, wanted))
+        elif isinstance(msg, GoalResultMsg):
+            self.actions.on_result(msg)
+        else:
+            self._publish(self.topics.from_parts(msg, wanted))
+
+    def _publish(self, messages: list[tuple[str, dict]]) -> None:
+        for topic, msg in messages:
+            text = json.dumps({"op": "publish", "topic": topic, "msg": msg}, allow_nan=False)
+            for client in self.clients:
+                client.offer(topic, text)
+
+    # --- clients ------------------------------------------------------------------
+    async def serve(self, host: str, port: int, stop: Callable[[], bool], on_listening: Callable[[int], None]) -> None:
+        async with websockets.serve(self._connection, host, port, max_size=MAX_MESSAGE_BYTES) as server:
+            on_listening(server.sockets[0].getsockname()[1])
+            while not stop():
+                await asyncio.sleep(0.05)
+
+    async def _connection(self, websocket) -> None:
+        self._numbers += 1
+        client = Client(websocket, self._numbers)
+        self.clients.append(client)
+        pump = asyncio.create_task(client.pump())
+        try:
+            async for raw in websocket:
+                self.on_request(client, raw)
+        except websockets.ConnectionClosed:
+            pass
+        finally:
+            pump.cancel()
+            self.clients.remove(client)
+            self.actions.forget(client)
+
+    def on_request(self, client: Client, raw: str | bytes) -> None:
+        """One request from a client; a bad one gets a `status` error naming what is wrong."""
+        op_id = None
+        try:
+            try:
+                message = json.loads(raw)
+            except (ValueError, UnicodeDecodeError) as exc:
+                raise RequestError(f"not JSON: {str(exc)[:80]}") from None
+            if not isinstance(message, dict):
+                raise RequestError("a request is a JSON object with an 'op'")
+            op_id = message.get("id")
+            handler = self._ops.get(str(message.get("op")))
+            if handler is None:
+                raise RequestError(f"unknown op {message.get('op')!r} (known: {', '.join(self._ops)})")
+            handler(self, client, message)
+        except RequestError as exc:
+            self.requests_refused += 1
+            client.status("error", str(exc), op_id)
+
+    def _subscribe(self, client: Client, m: dict) -> None:
+        topic = _field(m, "topic", str)
+        known = self.topics.types.get(topic)
+        if known is None:
+            raise RequestError(f"no topic {topic!r} on this line (topics: {', '.join(self.topics.types)})")
+        if m.get("type") not in (None, "", known) and m.get("type") != known.replace("/msg/", "/"):
+            raise RequestError(f"{topic} is {known}, not {m['type']}")
+        sub = client.subscriptions.setdefault(topic, Subscription())
+        sub.ids.add(str(m.get("id")))
+        sub.throttle_s = float(_field(m, "throttle_rate", int, 0)) / 1000.0
+        sub.queue_length = int(_field(m, "queue_length", int, 0))
+        if topic in self.topics.latched:
+            client.send({"op": "publish", "topic": topic, "msg": self.topics.latched[topic]})
+
+    def _unsubscribe(self, client: Client, m: dict) -> None:
+        topic = _field(m, "topic", str)
+        sub = client.subscriptions.get(topic)
+        if sub is not None:
+            sub.ids.discard(str(m.get("id")))
+            if not sub.ids or m.get("id") is None:
+                del client.subscriptions[topic]
+
+    def _advertise(self, client: Client, m: dict) -> None:
+        topic, kind = _field(m, "topic", str), _field(m, "type", str)
+        arm = self._commanded_arm(topic)
+        if kind.replace("/msg/", "/") != "trajectory_msgs/JointTrajectory":
+            raise RequestError(f"{topic} takes trajectory_msgs/msg/JointTrajectory, not {kind}")
+        client.advertised[topic] = arm
+
+    def _unadvertise(self, client: Client, m: dict) -> None:
+        client.advertised.pop(_field(m, "topic", str), None)
+
+    def _publish_op(self, client: Client, m: dict) -> None:
+        topic = _field(m, "topic", str)
+        arm = self._commanded_arm(topic)
+        msg = _field(m, "msg", dict)
+        goal_id = self.actions.new_goal_id()
+        try:
+            self.bus.send_goal(goal_message(arm, goal_id, {"trajectory": msg}))
+        except ValueError as exc:
+            raise RequestError(f"{topic}: {exc}") from None
+
+    def _commanded_arm(self, topic: str) -> str:
+        arm = topic.strip("/").split("/")[0]
+        if topic != f"/{arm}/joint_trajectory" or arm not in self.topics.arms:
+            commanded = ", ".join(f"/{a}/joint_trajectory" for a in self.topics.arms)
+            raise RequestError(f"{topic} is not a topic this line takes (it takes {commanded})")
+        return arm
+
+    def _call_service(self, client: Client, m: dict) -> None:
+        service, args = _field(m, "service", str), m.get("args") or {}
+        if not isinstance(args, dict):
+            raise RequestError("call_service needs 'args' as an object")
+        if service == names.ESTOP:
+            engaged = args.get("data")
+            if not isinstance(engaged, bool):
+                raise RequestError("/estop takes std_srvs/srv/SetBool: {data: true|false}")
+            self.bus.estop(engaged)
+            values = {"success": True, "message": "emergency stop engaged" if engaged else "emergency stop released"}
+        elif service in (names.PAUSE, names.RESUME):
+            self.bus.pause(service == names.PAUSE)
+            values = {"success": True, "message": "paused" if service == names.PAUSE else "resumed"}
+        else:
+            try:
+                values = self.rosapi.answer(service, args)
+            except KeyError:
+                raise RequestError(f"no service {service!r} (services: {', '.join(self.rosapi.services)})") from None
+        out = {"op": "service_response", "service": service, "values": values, "result": True}
+        if m.get("id") is not None:
+            out["id"] = m["id"]
+        client.send(out)
+
+    def _send_action_goal(self, client: Client, m: dict) -> None:
+        action, kind = _field(m, "action", str), _field(m, "action_type", str)
+        known = self.rosapi.actions.get(action)
+        if known is None:
+            raise RequestError(f"no action {action!r} (actions: {', '.join(self.rosapi.actions)})")
+        if kind != known:
+            raise RequestError(f"{action} is {known}, not {kind}")
+        if known != names.FOLLOW_JOINT_TRAJECTORY:
+            raise RequestError(f"{known} is not served yet: use {names.FOLLOW_JOINT_TRAJECTORY}")
+        arm = action.strip("/").split("/")[0]
+        self.actions.send(client, m.get("id"), action, arm, m.get("args"), bool(m.get("feedback", False)))
+
+    def _cancel_action_goal(self, client: Client, m: dict) -> None:
+        if not self.actions.cancel(client, m.get("id")):
+            raise RequestError(f"no goal {m.get('id')!r} of this client in flight to cancel")
+
+    _ops = {
+        "subscribe": _subscribe,
+        "unsubscribe": _unsubscribe,
+        "advertise": _advertise,
+        "unadvertise": _unadvertise,
+        "publish": _publish_op,
+        "call_service": _call_service,
+        "send_action_goal": _send_action_goal,
+        "cancel_action_goal": _cancel_action_goal,
+    }

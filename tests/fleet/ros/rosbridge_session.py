@@ -1,0 +1,190 @@
+"""One line served over rosbridge, driven by roslibpy (a client clawfleet did not write) the way a ROS user drives
+arms under ros2_controllers: what the client saw and got back, for the tests to check."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import roslibpy
+from websockets.sync.client import connect
+
+from fleet.run.launcher import Launcher, RunOptions
+from robots.registry import get_robot
+from tests.fleet.test_goal_storm import poses_into
+
+ROS_CELL = str(Path(__file__).parents[1] / "scenes_data" / "ros_cell.yaml")
+FJT = "control_msgs/action/FollowJointTrajectory"
+
+
+def trajectory(joints: list[str], *points: tuple[list[float], float]) -> dict:
+    """A `FollowJointTrajectory` goal through (positions, seconds from start) points."""
+    return {
+        "trajectory": {
+            "joint_names": joints,
+            "points": [
+                {"positions": list(map(float, q)), "time_from_start": {"sec": int(t), "nanosec": int(t % 1 * 1e9)}}
+                for q, t in points
+            ],
+        }
+    }
+
+
+class Driver:
+    """A roslibpy connection to the line's rosbridge and what it was told."""
+
+    def __init__(self, port: int) -> None:
+        self.port = port
+        self.ros = roslibpy.Ros(host="127.0.0.1", port=port)
+        self.ros.run(timeout=20)
+        self.action = roslibpy.ActionClient(self.ros, "/arm_0/follow_joint_trajectory", FJT)
+
+    def goal(self, goal: dict, then=None, timeout_s: float = 30.0) -> dict:
+        """Send a goal and wait for its end: {"status", "values", "accepted", "feedback"}; `then(goal_id)` runs
+        once it is sent."""
+        out: dict = {"feedback": []}
+        done = threading.Event()
+
+        def result(r) -> None:
+            out.update(status=r["status"].value, values=r["values"], accepted=True)
+            done.set()
+
+        def error(r) -> None:
+            out.update(status=r["status"].value, values=r["values"], accepted=False)
+            done.set()
+
+        goal_id = self.action.send_goal(roslibpy.Goal(goal), result, out["feedback"].append, error)
+        if then is not None:
+            then(goal_id)
+        assert done.wait(timeout_s), "the action answered"
+        return out
+
+    def raw(self, requests: list[str]) -> list[dict]:
+        """Send raw frames on a connection of its own; what the server answered (status messages)."""
+        answers = []
+        with connect(f"ws://127.0.0.1:{self.port}") as ws:
+            for text in requests:
+                ws.send(text)
+                answers.append(json.loads(ws.recv(timeout=5)))
+        return answers
+
+
+def drive(launcher: Launcher, seen: dict) -> None:
+    """What a ROS user does to the line; every observation goes into `seen`."""
+    try:
+        url = launcher.dir / "rosbridge_url"
+        deadline = time.monotonic() + 60
+        while not url.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        seen["ws_port"] = int(url.read_text().rsplit(":", 1)[1])
+        d = Driver(seen["ws_port"])
+        spec = get_robot("openclaw")
+        joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
+        seen["topics"] = d.ros.get_topics()
+        got = threading.Event()
+        d.ros.get_action_servers(lambda r: (seen.update(actions=r["action_servers"]), got.set()))
+        got.wait(10)
+        states: list[dict] = []
+        js = roslibpy.Topic(d.ros, "/arm_0/joint_states", "sensor_msgs/msg/JointState")
+        js.subscribe(states.append)
+        everyone: list[dict] = []
+        roslibpy.Topic(d.ros, "/joint_states", "sensor_msgs/msg/JointState").subscribe(everyone.append)
+        static: list[dict] = []
+        roslibpy.Topic(d.ros, "/tf_static", "tf2_msgs/msg/TFMessage").subscribe(static.append)
+        target = home + np.array([0.3, -0.2, 0.25, 0.0, 0.2, 0.0])
+        seen["target"] = target.tolist()
+        seen["reach"] = d.goal(trajectory(joints, (target, 1.5)))
+        time.sleep(0.5)
+        seen["after_reach"] = states[-1]
+        seen["everyone_names"] = sorted({n for m in everyone for n in m["name"]})
+        seen["tf_static"] = static[:1]
+        seen["unknown_joints"] = d.goal(trajectory(["elbowz", *joints[1:]], (home, 1.0)))
+        into = poses_into(launcher.scene, "arm_0", "arm_1", 1)[0]
+        seen["into_neighbour"] = d.goal(trajectory(joints, (into, 2.0)))
+        seen["unreadable"] = d.goal({"trajectory": {"joint_names": joints, "points": [{"positions": "x"}]}})
+        slow = trajectory(joints, (home, 4.0))
+
+        def preempt(_goal_id) -> None:
+            time.sleep(0.5)
+            threading.Thread(target=lambda: seen.update(preempting=d.goal(trajectory(joints, (target, 2.0))))).start()
+
+        seen["preempted"] = d.goal(slow, then=preempt)
+        time.sleep(3.0)
+        seen["cancelled"] = d.goal(slow, then=lambda gid: (time.sleep(0.5), d.action.cancel_goal(gid)))
+
+        def estop(_goal_id) -> None:
+            time.sleep(0.5)
+            call = roslibpy.Service(d.ros, "/estop", "std_srvs/srv/SetBool")
+            seen["estop_answer"] = call.call(roslibpy.ServiceRequest({"data": True}), timeout=10)
+
+        seen["estopped"] = d.goal(trajectory(joints, (target, 4.0)), then=estop)
+        roslibpy.Service(d.ros, "/estop", "std_srvs/srv/SetBool").call(roslibpy.ServiceRequest({"data": False}))
+        seen["raw"] = d.raw(
+            [
+                "{not json",
+                json.dumps({"op": "fly"}),
+                json.dumps({"op": "subscribe", "topic": "/nope", "id": "s1"}),
+                json.dumps(
+                    {
+                        "op": "send_action_goal",
+                        "action": "/arm_9/follow_joint_trajectory",
+                        "action_type": FJT,
+                        "args": {},
+                        "id": "g1",
+                    }
+                ),  # fmt: skip
+                json.dumps({"op": "call_service", "service": "/estop", "args": {"data": "yes"}, "id": "c1"}),
+            ]
+        )
+        seen["after_all"] = d.goal(trajectory(joints, (home, 1.0)))
+        d.ros.terminate()
+    except Exception as exc:  # the test reports it; the line must still be stopped
+        seen["error"] = repr(exc)
+    finally:
+        launcher.interrupted = "the ROS session is over"
+
+
+def rosbridge_session() -> tuple[dict, dict]:
+    """The summary of a realtime ros_cell line with rosbridge, and what the ROS user saw."""
+    options = RunOptions(scene=ROS_CELL, duration_s=120.0, mode="realtime", rosbridge_port=0)
+    seen: dict = {}
+    with Launcher(options) as launcher:
+        user = threading.Thread(target=drive, args=(launcher, seen), daemon=True)
+        user.start()
+        summary = launcher.run()
+        user.join(30)
+    seen["endpoint"] = launcher.endpoint
+    return summary, seen
+
+
+def take_arm(launcher: Launcher, seen: dict) -> None:
+    """A ROS user takes arm_0 of a working line for a few seconds (a trajectory holding it near home), then lets
+    go."""
+    try:
+        url = launcher.dir / "rosbridge_url"
+        deadline = time.monotonic() + 60
+        while not url.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        d = Driver(int(url.read_text().rsplit(":", 1)[1]))
+        spec = get_robot("openclaw")
+        joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
+        seen["held"] = d.goal(trajectory(joints, (home, 1.0), (home + 0.1, 3.0), (home, 5.0)))
+        d.ros.terminate()
+    except Exception as exc:
+        seen["error"] = repr(exc)
+
+
+def taken_arm_session(scene: str) -> tuple[dict, dict]:
+    """A realtime line at work whose arm_0 a ROS user takes for a while: the summary and what the user got."""
+    options = RunOptions(scene=scene, duration_s=14.0, mode="realtime", rosbridge_port=0)
+    seen: dict = {}
+    with Launcher(options) as launcher:
+        user = threading.Thread(target=take_arm, args=(launcher, seen), daemon=True)
+        user.start()
+        summary = launcher.run()
+        user.join(30)
+    seen["endpoint"] = launcher.endpoint
+    return summary, seen

@@ -1,0 +1,83 @@
+"""rosbridge v2 on a running line, checked with roslibpy: the line's topics, actions and services as ROS tools see
+them, and FollowJointTrajectory with ros2_controllers' semantics (success within tolerance, refusals with their
+codes, preemption and cancel ending CANCELED, the e-stop aborting), bad requests answered with a status error and
+the line untouched."""
+
+import socket
+
+import numpy as np
+import pytest
+
+from tests.fleet.ros.rosbridge_session import rosbridge_session
+from tests.fleet.test_run import assert_nothing_left
+
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
+SUCCEEDED, CANCELED, ABORTED, UNKNOWN = 4, 5, 6, 0
+
+
+@pytest.fixture(scope="module")
+def session():
+    summary, seen = rosbridge_session()
+    assert "error" not in seen, seen["error"]
+    return summary, seen
+
+
+def test_a_ros_client_sees_the_lines_topics_actions_and_frames(session):
+    _, seen = session
+    for topic in ("/joint_states", "/tf", "/tf_static", "/clock", "/arm_0/joint_states", "/arm_1/joint_states"):
+        assert topic in seen["topics"]
+    assert set(seen["actions"]) >= {"/arm_0/follow_joint_trajectory", "/arm_1/follow_joint_trajectory"}
+    assert "arm_0/elbow" in seen["everyone_names"] and "arm_1/elbow" in seen["everyone_names"]
+    frames = {t["child_frame_id"] for t in seen["tf_static"][0]["transforms"]}
+    assert any(f.startswith("arm_0/") for f in frames), "the arms' roots on /tf_static, latched"
+
+
+def test_a_trajectory_goal_succeeds_and_the_arm_stands_where_it_was_sent(session):
+    _, seen = session
+    reach = seen["reach"]
+    assert reach["accepted"] and reach["status"] == SUCCEEDED, reach
+    assert reach["values"]["error_code"] == 0 and reach["feedback"], "feedback while it ran"
+    fb = reach["feedback"][-1]
+    assert len(fb["actual"]["positions"]) == 6 and fb["joint_names"][0] == "shoulder_pan"
+    reached = np.array(seen["after_reach"]["position"][:6])
+    assert np.allclose(reached, seen["target"], atol=0.03), (reached, seen["target"])
+
+
+def test_goals_that_cannot_run_are_refused_with_their_codes(session):
+    _, seen = session
+    assert not seen["unknown_joints"]["accepted"] and seen["unknown_joints"]["values"]["error_code"] == -2
+    into = seen["into_neighbour"]
+    assert not into["accepted"] and into["values"]["error_code"] == -1, into
+    assert into["values"]["error_string"].startswith("safety:"), "the plant's safety layer refused it"
+    assert not seen["unreadable"]["accepted"] and "positions" in seen["unreadable"]["values"]["error_string"]
+
+
+def test_preemption_and_cancel_end_canceled_and_the_estop_aborts(session):
+    _, seen = session
+    assert seen["preempted"]["status"] == CANCELED, seen["preempted"]
+    assert seen["preempting"]["status"] == SUCCEEDED
+    assert seen["cancelled"]["status"] == CANCELED, seen["cancelled"]
+    assert seen["estopped"]["status"] == ABORTED, seen["estopped"]
+    assert "emergency stop" in seen["estopped"]["values"]["error_string"]
+    assert seen["estop_answer"]["success"] is True
+    assert seen["after_all"]["status"] == SUCCEEDED, "released, the arm takes goals again"
+
+
+def test_bad_requests_get_a_status_error_and_leave_the_line_alone(session):
+    summary, seen = session
+    answers = seen["raw"]
+    assert all(a["op"] == "status" and a["level"] == "error" for a in answers), answers
+    assert "not JSON" in answers[0]["msg"] and "unknown op 'fly'" in answers[1]["msg"]
+    assert answers[2]["id"] == "s1" and "/nope" in answers[2]["msg"]
+    assert "no action '/arm_9/follow_joint_trajectory'" in answers[3]["msg"]
+    assert "SetBool" in answers[4]["msg"]
+    assert summary["status"] == "interrupted", summary["error"]  # stopped once the ROS user was done
+    assert summary["inter_arm_contacts"] == 0 and summary["arms_lost"] == []
+
+
+def test_the_run_ends_cleanly_with_the_bridge(session):
+    summary, seen = session
+    assert_nothing_left(summary, seen["endpoint"])
+    with pytest.raises(ConnectionRefusedError):  # nothing listens on the WebSocket port any more
+        socket.create_connection(("127.0.0.1", seen["ws_port"]), timeout=2).close()
