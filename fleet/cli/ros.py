@@ -15,6 +15,8 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
             "fleet: error: fleet rosbridge needs --connect ENDPOINT or --zenoh-config FILE (fleet run prints both; "
             "on a run's secure bus use its bus/ros.json5)"
         )
+    if not 0 <= args.port <= 65535:
+        raise SystemExit(f"fleet: error: --port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
     for ep in args.connect or ():
         argv += ["--connect", ep]

@@ -45,8 +45,9 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
     if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
-    if not 0 <= args.port <= 65535:
-        raise UsageError(f"--port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
+    for flag, port in (("--port", args.port), ("--rosbridge-port", args.rosbridge_port)):
+        if not 0 <= port <= 65535:
+            raise UsageError(f"{flag} {port}: a TCP port is 0 to 65535 (0: any free port)")
     try:
         network_from_args(args)
     except ValueError as exc:
@@ -138,6 +139,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         monitor=args.monitor,
         monitor_host=args.host,
         monitor_port=args.port,
+        rosbridge_port=args.rosbridge_port if args.rosbridge else None,
         record=run_recording(args),
         latency_ms=args.latency_ms,
         jitter_ms=args.jitter_ms,
@@ -357,10 +359,23 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots",
     )
     _add_placement_arguments(p)
+    _add_rosbridge_arguments(p)
     add_monitor_arguments(p)
     add_fault_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_run)
+
+
+def _add_rosbridge_arguments(p: argparse.ArgumentParser) -> None:
+    """Serving the run to ROS tools: `--rosbridge`, `--rosbridge-port`."""
+    p.add_argument(
+        "--rosbridge",
+        action="store_true",
+        help="serve the line to ROS tools (roslibpy, roslibjs, Foxglove) over rosbridge's WebSocket; docs/ros2.md",
+    )
+    p.add_argument(
+        "--rosbridge-port", type=int, default=9090, metavar="PORT", help="the rosbridge server's port (default 9090)"
+    )
 
 
 def _add_placement_arguments(p: argparse.ArgumentParser) -> None:

@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             asyncio.run(serve(server, inbox, args, stop))
         except OSError as exc:
-            print(f"fleet rosbridge: cannot listen on {args.host}:{args.port}: {exc.strerror}", file=sys.stderr)
+            print(f"fleet rosbridge: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}", file=sys.stderr)
             return 1
         finally:
             for sub in subs:

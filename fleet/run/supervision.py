@@ -65,6 +65,23 @@ class Supervision:
         self.on_message(f"respawned {request.arm}'s controller (asked by {request.source})")
         return True
 
+    rosbridge_url = ""
+    rosbridge_gone = False
+
+    def _check_rosbridge(self) -> None:
+        """Say the rosbridge server's URL once it listens, and if it exits (the line goes on without it)."""
+        node = next((n for n in self.nodes if n.role == "rosbridge"), None)
+        if node is None:
+            return
+        url = self.dir / "rosbridge_url"
+        if not self.rosbridge_url and url.exists():
+            self.rosbridge_url = url.read_text().strip()
+            self.on_message(f"rosbridge: {self.rosbridge_url}")
+        if node.poll() is not None and not self.rosbridge_gone:
+            self.rosbridge_gone = True
+            tail = node.log_tail() or "no output"
+            self.on_message(f"the rosbridge server exited (exit {node.exit_code}): {tail}; the line goes on")
+
     def _check_monitor(self) -> None:
         monitor = next((n for n in self.nodes if n.role == "monitor"), None)
         if monitor is None:
@@ -84,6 +101,7 @@ class Supervision:
             self.say_roster()
             self._on_bus(inbox)
             self._check_monitor()
+            self._check_rosbridge()
             code = sim.poll()
             if self.factory is not None and (died := self.factory.died):
                 return f"{died}; logs in {self.dir}"

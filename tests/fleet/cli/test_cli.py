@@ -75,6 +75,7 @@ def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line
         (["run", "--duration", "inf"], "--duration inf: give a positive number"),
         (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
         (["run", "--monitor", "--port", "99999"], "--port 99999: a TCP port is 0 to 65535"),
+        (["run", "--rosbridge", "--rosbridge-port", "-1"], "--rosbridge-port -1: a TCP port is 0 to 65535"),
         (["run", "--loss", "1.5"], "--loss 1.5: Input should be less than 1"),
         (["run", "--latency-ms", "-5"], "--latency-ms -5: Input should be greater than or equal to 0"),
         (["check", "/dev/null"], "/dev/null: not a regular file"),
@@ -114,6 +115,28 @@ def test_monitor_with_nobody_to_watch_fails_cleanly():
     result = fleet(
         "monitor", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2", timeout=120
     )
+    assert result.returncode == 1
+    assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize(
+    "args, says, code",
+    [
+        ([], "--connect", 1),
+        (["--connect", "tcp/127.0.0.1:1", "--host", "0.0.0.0"], "beyond loopback", 2),
+        (["--connect", "tcp/127.0.0.1:1", "--port", "70000"], "--port 70000", 1),
+    ],
+)
+def test_rosbridge_refuses_what_it_cannot_do_with_one_line(args, says, code):
+    result = fleet("rosbridge", *args)
+    assert result.returncode == code and says in result.stderr, result.stderr
+    assert result.stderr.strip().count("\n") == 0 and "Traceback" not in result.stderr
+
+
+def test_rosbridge_with_no_line_to_serve_fails_cleanly():
+    from fleet.bus.session import free_loopback_port, loopback_endpoint
+
+    result = fleet("rosbridge", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2")
     assert result.returncode == 1
     assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
 
