@@ -5,14 +5,18 @@ holds where it is commanded; the goal ends CANCELED)."""
 from __future__ import annotations
 
 import itertools
-import json
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from fleet.bus.messages import ArmState, GoalResultMsg, TrajectoryGoalMsg
+from fleet.bus.messages import ArmGoalMsg, ArmState, GoalResultMsg, TrajectoryGoalMsg
+from fleet.ros import names
 from fleet.ros import trajectory_action as fjt
+from fleet.ros.gripper_action import gripper_goal_message, gripper_result
+from fleet.ros.ros_json import to_json
 from fleet.ros.rosbridge_client import Client
+from robots.spec import RobotSpec
 
 HOLD_S = 0.1  # a cancel: hold where the arm is commanded, reached this fast
 
@@ -30,8 +34,9 @@ class PendingGoal:
 class LineActions:
     """Goals in flight from rosbridge clients, by the goal id the sim knows them by."""
 
-    def __init__(self, arm_joints: dict[str, list[str]], send_goal: Callable[[TrajectoryGoalMsg], None]) -> None:
-        self.arm_joints = arm_joints  # each arm's joints, in the order its states give them
+    def __init__(self, specs: dict[str, RobotSpec], send_goal: Callable[[ArmGoalMsg], None]) -> None:
+        self.specs = specs
+        self.arm_joints = {arm: list(spec.arm_joints) for arm, spec in specs.items()}  # as the states give them
         self.send_goal = send_goal
         # ids no other client's goals use: far above the controllers' (incarnation << 20), one range per process
         base = (1 << 52) + (int.from_bytes(os.urandom(2), "little") << 32)
@@ -45,14 +50,18 @@ class LineActions:
         return next(self._ids)
 
     def send(self, client: Client, op_id: object, action: str, arm: str, goal: object, feedback: bool) -> None:
-        """Send a client's goal to the arm; one that cannot be read is answered at once (INVALID_GOAL)."""
+        """Send a client's goal (`action` of `names.line_actions`) to the arm; one that cannot be read is answered
+        at once (INVALID_GOAL)."""
         goal_id = self.new_goal_id()
         try:
-            msg = fjt.goal_message(arm, goal_id, goal)
+            if action == names.arm_gripper_action(arm):
+                msg = gripper_goal_message(arm, goal_id, goal, self.specs[arm])
+            else:
+                msg = fjt.goal_message(arm, goal_id, goal)
         except ValueError as exc:
             self._answer(PendingGoal(client, op_id, action, arm, [], False), fjt.refused(str(exc)))
             return
-        self.pending[goal_id] = PendingGoal(client, op_id, action, arm, list(msg.joint_names), feedback)
+        self.pending[goal_id] = PendingGoal(client, op_id, action, arm, list(getattr(msg, "joint_names", ())), feedback)
         self.send_goal(msg)
         self.sent += 1
 
@@ -71,11 +80,15 @@ class LineActions:
         return False
 
     def on_result(self, result: GoalResultMsg) -> None:
-        if result.kind != "trajectory":
-            return
         self.holds.discard(result.goal_id)
         p = self.pending.pop(result.goal_id, None)
-        if p is not None:
+        if p is None:
+            return
+        if result.kind == "gripper":
+            state = self.states.get(p.arm)
+            position = float(state.gripper_q[0]) if state is not None and state.gripper_q else math.nan
+            self._answer(p, gripper_result(result, position))
+        else:
             self._answer(p, fjt.action_result(result))
 
     def on_state(self, state: ArmState) -> None:
@@ -96,4 +109,4 @@ class LineActions:
                "result": result.accepted}  # fmt: skip
         if p.op_id is not None:
             out["id"] = p.op_id
-        p.client.send_text(json.dumps(out))
+        p.client.send(to_json(out))

@@ -17,6 +17,8 @@ def to_json(message: object) -> object:
         return [to_json(v) for v in message.tolist()]
     if isinstance(message, (list, tuple)):
         return [to_json(v) for v in message]
+    if isinstance(message, dict):
+        return {k: to_json(v) for k, v in message.items()}
     if isinstance(message, float):
         return message if math.isfinite(message) else None
     if isinstance(message, np.generic):

@@ -58,7 +58,7 @@ class RosbridgeServer:
         self.keys, self.bus = keys, bus
         self.topics = LineTopics(scene)
         arms = self.topics.arms
-        self.actions = LineActions({a.name: list(get_robot(a.model).arm_joints) for a in scene.arms}, bus.send_goal)
+        self.actions = LineActions({a.name: get_robot(a.model) for a in scene.arms}, bus.send_goal)
         self.rosapi = Rosapi(arms, lambda: max(self.topics.clock_s, 0.0))
         self.clients: list[Client] = []
         self.drops = DropCounter()
@@ -213,8 +213,6 @@ class RosbridgeServer:
             raise RequestError(f"no action {action!r} (actions: {', '.join(self.rosapi.actions)})")
         if kind != known:
             raise RequestError(f"{action} is {known}, not {kind}")
-        if known != names.FOLLOW_JOINT_TRAJECTORY:
-            raise RequestError(f"{known} is not served yet: use {names.FOLLOW_JOINT_TRAJECTORY}")
         arm = action.strip("/").split("/")[0]
         self.actions.send(client, m.get("id"), action, arm, m.get("args"), bool(m.get("feedback", False)))
 

@@ -42,9 +42,10 @@ class Driver:
         self.ros.run(timeout=20)
         self.action = roslibpy.ActionClient(self.ros, "/arm_0/follow_joint_trajectory", FJT)
 
-    def goal(self, goal: dict, then=None, timeout_s: float = 30.0) -> dict:
-        """Send a goal and wait for its end: {"status", "values", "accepted", "feedback"}; `then(goal_id)` runs
-        once it is sent."""
+    def goal(self, goal: dict, then=None, timeout_s: float = 30.0, action=None) -> dict:
+        """Send a goal (to arm_0's trajectory action, or `action`) and wait for its end: {"status", "values",
+        "accepted", "feedback"}; `then(goal_id)` runs once it is sent."""
+        action = action or self.action
         out: dict = {"feedback": []}
         done = threading.Event()
 
@@ -56,7 +57,7 @@ class Driver:
             out.update(status=r["status"].value, values=r["values"], accepted=False)
             done.set()
 
-        goal_id = self.action.send_goal(roslibpy.Goal(goal), result, out["feedback"].append, error)
+        goal_id = action.send_goal(roslibpy.Goal(goal), result, out["feedback"].append, error)
         if then is not None:
             then(goal_id)
         assert done.wait(timeout_s), "the action answered"
@@ -140,7 +141,17 @@ def drive(launcher: Launcher, seen: dict) -> None:
             ]
         )
         seen["after_all"] = d.goal(trajectory(joints, (home, 1.0)))
-        d.ros.terminate()
+        claw = roslibpy.ActionClient(d.ros, "/arm_0/gripper_cmd", "control_msgs/action/GripperCommand")
+        seen["claw_closed"] = d.goal({"command": {"position": spec.gripper_closed[0], "max_effort": 5.0}}, action=claw)
+        seen["claw_opened"] = d.goal({"command": {"position": spec.gripper_open[0]}}, action=claw)
+        arm_1: list[dict] = []
+        roslibpy.Topic(d.ros, "/arm_1/joint_states", "sensor_msgs/msg/JointState").subscribe(arm_1.append)
+        to_arm_1 = roslibpy.Topic(d.ros, "/arm_1/joint_trajectory", "trajectory_msgs/msg/JointTrajectory")
+        seen["arm_1_target"] = (home - np.array([0.3, 0.2, -0.25, 0.0, 0.2, 0.0])).tolist()
+        to_arm_1.publish(roslibpy.Message(trajectory(joints, (seen["arm_1_target"], 1.0))["trajectory"]))
+        time.sleep(2.5)
+        seen["arm_1_after"] = arm_1[-1]["position"][:6]
+        d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
     except Exception as exc:  # the test reports it; the line must still be stopped
         seen["error"] = repr(exc)
     finally:
@@ -172,7 +183,7 @@ def take_arm(launcher: Launcher, seen: dict) -> None:
         spec = get_robot("openclaw")
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
         seen["held"] = d.goal(trajectory(joints, (home, 1.0), (home + 0.1, 3.0), (home, 5.0)))
-        d.ros.terminate()
+        d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
     except Exception as exc:
         seen["error"] = repr(exc)
 

@@ -64,6 +64,14 @@ def test_preemption_and_cancel_end_canceled_and_the_estop_aborts(session):
     assert seen["after_all"]["status"] == SUCCEEDED, "released, the arm takes goals again"
 
 
+def test_the_claw_takes_gripper_commands_and_a_published_trajectory_moves_an_arm(session):
+    _, seen = session
+    closed, opened = seen["claw_closed"], seen["claw_opened"]
+    assert closed["accepted"] and closed["status"] == SUCCEEDED and closed["values"]["reached_goal"], closed
+    assert opened["status"] == SUCCEEDED and opened["values"]["position"] > closed["values"]["position"] + 0.02
+    assert np.allclose(seen["arm_1_after"], seen["arm_1_target"], atol=0.03), "fire and forget, followed"
+
+
 def test_bad_requests_get_a_status_error_and_leave_the_line_alone(session):
     summary, seen = session
     answers = seen["raw"]
