@@ -188,6 +188,26 @@ def cmd_bench_safety(args: argparse.Namespace) -> int:
     return print_bench(table, rows, args.json)
 
 
+def cmd_bench_ros(args: argparse.Namespace) -> int:
+    from fleet.bench.ros import bench_ros_cost, bench_ros_latency
+
+    cost = bench_ros_cost(args.arms, args.seconds, args.subscribers, args.repeats)
+    table = Table("variant", "sim loop wall s (median)", "ratio to plain", "messages per client")
+    for r in cost:
+        table.add_row(
+            r.variant, f"{r.loop_wall_seconds:.2f}", f"{r.ratio_to_plain:.3f}", f"{r.messages_per_client:.0f}"
+        )
+    latency = bench_ros_latency(args.goals)
+    lat = Table("goals", "send -> moving p50 / p90 (ms)", "motion end -> result p50 / p90 (ms)")
+    lat.add_row(
+        str(latency.goals),
+        f"{latency.start_p50_ms:.0f} / {latency.start_p90_ms:.0f}",
+        f"{latency.result_after_end_p50_ms:.0f} / {latency.result_after_end_p90_ms:.0f}",
+    )
+    print_bench(table, cost, False)
+    return print_bench(lat, [latency], args.json)
+
+
 def cmd_bench_allocation(args: argparse.Namespace) -> int:
     from fleet.bench.coordinator import bench_allocation
 
@@ -308,6 +328,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     _add_record(bench)
     _add_collision(bench)
     _add_safety(bench)
+    _add_ros(bench)
     _add_allocation(bench)
     _add_lines(bench)
     _add_env(bench)
@@ -366,6 +387,17 @@ def _add_collision(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_collision)
+
+
+def _add_ros(bench: argparse._SubParsersAction) -> None:
+    b = bench.add_parser("ros", help="rosbridge: what N subscribed clients cost a lockstep line; ROS goal latency")
+    b.add_argument("--arms", type=int, default=4)
+    b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per lockstep run")
+    b.add_argument("--subscribers", type=int, default=10, help="clients subscribed to /joint_states and /tf")
+    b.add_argument("--repeats", type=int, default=3, help="pairs of runs (plain, served)")
+    b.add_argument("--goals", type=int, default=20, help="FollowJointTrajectory goals timed on a realtime line")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_ros)
 
 
 def _add_safety(bench: argparse._SubParsersAction) -> None:
