@@ -104,7 +104,8 @@ class ArmTracker(GripperTracking):
         if isinstance(checked, GoalResult):
             return self._note([dataclasses.replace(checked, time_s=now_s)])
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
-        q0, dq0, ddq0 = self._path_at(start)
+        # it replaces a pending goal (which then never runs): it starts from the path that runs until then
+        q0, dq0, ddq0 = self._path_at(start, with_pending=False)
         return PlannedGoal(_Active(checked, Spline.through(start, q0, dq0, ddq0, checked, self.servo_period_s)))
 
     def refuse(
@@ -144,9 +145,10 @@ class ArmTracker(GripperTracking):
         return self.active.spline.q_at(t_s) if self.active is not None else self.hold_q
 
     # --- each tick ------------------------------------------------------------------
-    def _path_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Where the commanded path is at `t_s` (a pending goal from its start on; the hold point if none)."""
-        if self.next is not None and t_s >= self.next.spline.t0_s:
+    def _path_at(self, t_s: float, with_pending: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where the commanded path is at `t_s` (a pending goal from its start on, unless not `with_pending`; the
+        hold point if none)."""
+        if with_pending and self.next is not None and t_s >= self.next.spline.t0_s:
             return self.next.spline.sample(t_s)
         if self.active is not None:
             return self.active.spline.sample(t_s)

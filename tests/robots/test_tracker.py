@@ -115,6 +115,22 @@ def test_a_goal_starting_later_is_spliced_in_and_preempts_the_running_one():
     assert t.update(2.0, np.array([0.0, 0.5, 0.0]), np.zeros(1), np.zeros(1))[0].goal_id == 2
 
 
+def test_a_goal_that_replaces_a_pending_one_starts_from_the_path_that_really_runs():
+    """A pending goal (future start) replaced by a newer one never runs: the newer one starts from the path the arm
+    follows until then (the running goal's), with no jump at its start."""
+    t = tracker()
+    t.submit(rest_to_rest(1, NAMES, np.array([1.0, 0.0, 0.0]), 2.0, None), now_s=0.0)
+    t.submit(rest_to_rest(2, NAMES, np.array([-1.0, 0.5, 0.0]), 1.0, 1.0), now_s=0.2)  # pending from 1.0 s
+    (replaced,) = t.submit(rest_to_rest(3, NAMES, np.array([0.0, 0.5, 0.5]), 1.0, 1.5), now_s=0.4)
+    assert replaced.goal_id == 2 and replaced.status == GoalStatus.PREEMPTED
+    first = JointSegment(np.zeros(3), np.array([1.0, 0.0, 0.0]), 0.0, 2.0)
+    before = t.desired(1.5 - DT)[0].copy()
+    assert np.allclose(before, first.sample(1.5 - DT)[0], atol=1e-9), "goal 1 runs until goal 3's start"
+    at_start = t.desired(1.5)[0]
+    assert np.allclose(at_start, first.sample(1.5)[0], atol=1e-9), "goal 3 begins where goal 1 is, not goal 2"
+    assert np.abs(at_start - before).max() < 0.05
+
+
 def test_a_joint_off_its_path_aborts_the_goal_and_the_arm_holds_where_it_is():
     t = tracker()
     t.submit(rest_to_rest(3, NAMES, np.array([1.0, 0.0, 0.0]), 1.0, None, path_tolerance_rad=(0.05,)), now_s=0.0)
