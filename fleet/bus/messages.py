@@ -359,6 +359,14 @@ class RespawnRequest(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
+def wire_layout(message_type: type[Message]) -> str:
+    """How `message_type` goes on the wire: one MessagePack array, its tag first where it has one, then its fields
+    in this order (trailing fields with defaults may be left out). `docs/protocol.md` lists every type's."""
+    tag = message_type.__struct_config__.tag
+    fields = [f"{name}" for name in message_type.__struct_fields__]
+    return f"`{message_type.__name__}`: [{', '.join(([repr(tag)] if tag else []) + fields)}]"
+
+
 def separations_from_pairs(sim_time_s: float, pairs: list, margin_m: float) -> Separations:
     """A `Separations` message from the guard's nearest pairs (objects with a, b, distance_m, point_a, point_b)."""
     return Separations(
@@ -411,6 +419,7 @@ MESSAGE_TYPES = (
     Separations,
     LineView,
     RespawnRequest,
+    Roster,
     EnvAction,
     EnvTargets,
 )

@@ -1,5 +1,7 @@
 """Every message type survives a round trip; malformed, truncated and wrong-version payloads are dropped and counted."""
 
+from pathlib import Path
+
 import msgspec
 import pytest
 
@@ -22,10 +24,12 @@ from fleet.bus.messages import (
     PartsState,
     Progress,
     RespawnRequest,
+    Roster,
     Separations,
     SimControl,
     SimStatus,
     TrajectoryGoalMsg,
+    wire_layout,
 )
 
 EXAMPLES = [
@@ -98,6 +102,7 @@ EXAMPLES = [
     SimStatus(300, 3.0, "realtime", True, True, 2.0, (0.5,), 1.8, 4, ("arm_0-arm_1",), 2.9, ("arm_1",), 3),
     Separations(3.0, ("arm_0",), ("arm_1",), (0.1,), (0.0, 0.0, 0.2, 0.1, 0.0, 0.2), 0.02),
     RespawnRequest("arm_1", "monitor"),
+    Roster(("coordinator", "arm_0"), (2, 1)),
     MotionGrant("arm_0", 3, 2, "grant"),
     MotionGrant("arm_0", 5, 4, "grant", "", 0.3, 12.05),
     EnvAction("arm_0", 5, "act", (0.1, -1.0, 0.0, 1.0)),
@@ -110,6 +115,12 @@ EXAMPLES = [
         PartsState(3, 0.03, (1,), ("bases",), (0,), (0.0,) * 3, (1.0, 0, 0, 0), (0.05, 0, 0), (0.05, 0.05, 0.03)),
     ),
 ]
+
+
+def test_the_protocol_doc_gives_every_messages_wire_layout():
+    doc = (Path(__file__).parents[3] / "docs" / "protocol.md").read_text()
+    missing = [wire_layout(t) for t in MESSAGE_TYPES if f"- {wire_layout(t)}" not in doc]
+    assert not missing, "docs/protocol.md's wire layout is out of date:\n" + "\n".join(missing)
 
 
 def test_every_message_type_has_an_example():
