@@ -88,7 +88,14 @@ class BusConfigSet:
 
 
 def write_bus_configs(
-    out: str | Path, address: str, port: int, arms: list[str], *, secure: bool = True, valid_days: int = 365
+    out: str | Path,
+    address: str,
+    port: int,
+    arms: list[str],
+    *,
+    secure: bool = True,
+    valid_days: int = 365,
+    ros_domain: int | None = None,
 ) -> BusConfigSet:
     """One Zenoh config per node in `out`: the sim a router listening on `address:port`, every other node a
     client of it; with `secure`, TLS, logins and access control (private keys and passwords readable by the
@@ -127,7 +134,7 @@ def write_bus_configs(
             },
             "auth": {"usrpwd": {"dictionary_file": str(out / "users.txt")}},
         }
-        router["access_control"] = access_control(arms)
+        router["access_control"] = access_control(arms, ros_domain)
     _write_private(out / "sim.json5", json.dumps(router, indent=2))
     for node in nodes[1:]:
         client = {"mode": "client", "connect": {"endpoints": [endpoint]}}
@@ -141,7 +148,7 @@ def write_bus_configs(
     return BusConfigSet(out.resolve(), endpoint, secure, tuple(arms))
 
 
-def write_run_bus(folder: str | Path, arms: list[str], port: int) -> BusConfigSet:
+def write_run_bus(folder: str | Path, arms: list[str], port: int, ros_domain: int | None = None) -> BusConfigSet:
     """A run's own secure bus on loopback (what `fleet run` does unless told `--insecure`): TLS, a login per node and
     access control, written into the run's private folder (the folder and every file holding a key or a password
     readable by the owner only). Nothing but the run's own processes, and a client given one of these configs,
@@ -149,12 +156,14 @@ def write_run_bus(folder: str | Path, arms: list[str], port: int) -> BusConfigSe
     folder = Path(folder)
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
-    return write_bus_configs(folder, "127.0.0.1", port, arms, secure=True, valid_days=2)
+    return write_bus_configs(folder, "127.0.0.1", port, arms, secure=True, valid_days=2, ros_domain=ros_domain)
 
 
-def access_control(arms: list[str]) -> dict:
+def access_control(arms: list[str], ros_domain: int | None = None) -> dict:
     """The router's rules: everything logged in may listen and ask (the sim's queryables answer); each may
-    publish only its own keys (`PUBLISHES`); nothing else, and no client may serve a queryable."""
+    publish only its own keys (`PUBLISHES`); nothing else, and no client may serve a queryable. With `ros_domain`,
+    the line's native ROS 2 topics too (`fleet.ros.rmw_zenoh`): every login may listen, discover and declare its
+    own ROS graph entities (liveliness tokens), only `ros` may publish data in the domain."""
     keys = lambda patterns, arm="": [f"{ANY_RUN}/{p.format(arm=arm)}" for p in patterns]  # noqa: E731
     rules = [
         {
@@ -188,6 +197,20 @@ def access_control(arms: list[str]) -> dict:
             )
             subjects.append({"id": node, "usernames": [node]})
             policies.append({"rules": [f"publish_{node}"], "subjects": [node]})
+    if ros_domain is not None:
+        ros2 = [f"{ros_domain}/**", "@ros2_lv/**"]
+        listen = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
+        rules += [
+            {"id": "ros2_deliver", "permission": "allow", "flows": ["egress"],
+             "messages": [*listen, "put", "delete", "reply", "liveliness_token"], "key_exprs": ros2},
+            {"id": "ros2_listen", "permission": "allow", "flows": ["ingress"], "messages": listen, "key_exprs": ros2},
+            {"id": "ros2_discovery", "permission": "allow", "flows": ["ingress"],  # ROS nodes say they exist
+             "messages": ["liveliness_token"], "key_exprs": ["@ros2_lv/**"]},
+            {"id": "ros2_publish", "permission": "allow", "flows": ["ingress"],
+             "messages": ["put", "delete"], "key_exprs": [f"{ros_domain}/**"]},
+        ]  # fmt: skip
+        policies[0]["rules"] += ["ros2_deliver", "ros2_listen", "ros2_discovery"]
+        policies.append({"rules": ["ros2_publish"], "subjects": ["ros"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 

@@ -25,6 +25,22 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
     return rosbridge_node.main(argv)
 
 
+def cmd_ros2(args: argparse.Namespace) -> int:
+    from fleet.nodes import ros2_node
+
+    if not (args.connect or args.zenoh_config):
+        raise SystemExit(
+            "fleet: error: fleet ros2 needs --connect ENDPOINT or --zenoh-config FILE (on a run's secure bus, its "
+            "bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
+        )
+    argv = ["--run", args.run_id, "--domain-id", str(args.domain_id), "--scene-timeout", str(args.wait)]
+    for ep in args.connect or ():
+        argv += ["--connect", ep]
+    if args.zenoh_config:
+        argv += ["--zenoh-config", args.zenoh_config]
+    return ros2_node.main(argv)
+
+
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     """This group's sub-commands."""
     p = sub.add_parser(
@@ -37,3 +53,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(p)
     p.set_defaults(func=cmd_rosbridge)
+    p = sub.add_parser("ros2", help="publish a running line's ROS 2 topics natively on its router (rmw_zenoh layout)")
+    p.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    p.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID (default 0)")
+    p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_ros2)

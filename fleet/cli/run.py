@@ -45,6 +45,8 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
     if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
+    if not 0 <= args.ros_domain_id <= 232:
+        raise UsageError(f"--ros-domain-id {args.ros_domain_id}: ROS domains are 0 to 232")
     for flag, port in (("--port", args.port), ("--rosbridge-port", args.rosbridge_port)):
         if not 0 <= port <= 65535:
             raise UsageError(f"{flag} {port}: a TCP port is 0 to 65535 (0: any free port)")
@@ -140,6 +142,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         monitor_host=args.host,
         monitor_port=args.port,
         rosbridge_port=args.rosbridge_port if args.rosbridge else None,
+        ros2_domain=args.ros_domain_id if args.ros2 else None,
         record=run_recording(args),
         latency_ms=args.latency_ms,
         jitter_ms=args.jitter_ms,
@@ -376,6 +379,12 @@ def _add_rosbridge_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--rosbridge-port", type=int, default=9090, metavar="PORT", help="the rosbridge server's port (default 9090)"
     )
+    p.add_argument(
+        "--ros2",
+        action="store_true",
+        help="publish the line's ROS 2 topics natively on its router (rmw_zenoh's layout); docs/ros2.md",
+    )
+    p.add_argument("--ros-domain-id", type=int, default=0, metavar="N", help="ROS_DOMAIN_ID for --ros2 (default 0)")
 
 
 def _add_placement_arguments(p: argparse.ArgumentParser) -> None:

@@ -22,6 +22,7 @@ from fleet.bus.messages import ArmState, GoalResultMsg, PartsState, TrajectoryGo
 from fleet.ros import names
 from fleet.ros.line_actions import LineActions
 from fleet.ros.line_topics import LineTopics
+from fleet.ros.ros_json import to_json
 from fleet.ros.rosapi import Rosapi
 from fleet.ros.rosbridge_client import Client, Subscription
 from fleet.ros.trajectory_action import goal_message
@@ -87,9 +88,9 @@ class RosbridgeServer:
         else:
             self._publish(self.topics.from_parts(msg, wanted))
 
-    def _publish(self, messages: list[tuple[str, dict]]) -> None:
+    def _publish(self, messages: list[tuple[str, object]]) -> None:
         for topic, msg in messages:
-            text = json.dumps({"op": "publish", "topic": topic, "msg": msg}, allow_nan=False)
+            text = json.dumps({"op": "publish", "topic": topic, "msg": to_json(msg)}, allow_nan=False)
             for client in self.clients:
                 client.offer(topic, text)
 
@@ -146,7 +147,7 @@ class RosbridgeServer:
         sub.throttle_s = float(_field(m, "throttle_rate", int, 0)) / 1000.0
         sub.queue_length = int(_field(m, "queue_length", int, 0))
         if topic in self.topics.latched:
-            client.send({"op": "publish", "topic": topic, "msg": self.topics.latched[topic]})
+            client.send({"op": "publish", "topic": topic, "msg": to_json(self.topics.latched[topic])})
 
     def _unsubscribe(self, client: Client, m: dict) -> None:
         topic = _field(m, "topic", str)

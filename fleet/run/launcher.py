@@ -65,6 +65,7 @@ class RunOptions:
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080
     rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
+    ros2_domain: int | None = None  # publish the line's ROS 2 topics natively (rmw_zenoh) in this ROS domain
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
@@ -123,7 +124,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.on_progress = on_progress
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
         if self.bus is None and self.secure_by_default:
-            self.bus = write_run_bus(self.dir / "bus", [a.name for a in self.scene.arms], free_loopback_port())
+            arms = [a.name for a in self.scene.arms]
+            self.bus = write_run_bus(self.dir / "bus", arms, free_loopback_port(), self.options.ros2_domain)
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
@@ -169,6 +171,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
                 self.nodes.append(self.monitor_node())
             if self.options.rosbridge_port is not None:
                 self.nodes.append(self.rosbridge_node())
+            if self.options.ros2_domain is not None:
+                self.nodes.append(self.ros2_node())
             for node in self.nodes[1:]:
                 self._start(node)
         except BaseException:

@@ -135,6 +135,23 @@ class NodeCommands:
         ]
         return Node("rosbridge", "rosbridge", argv, report, log)
 
+    def ros2_node(self) -> Node:
+        """The native ROS 2 publisher (rmw_zenoh's layout on the run's router), with the `ros` login."""
+        o = self.options
+        report, log = self.dir / "ros2.json", self.dir / "ros2.log"
+        argv = [
+            *self._here("ros2"),
+            "fleet.nodes.ros2_node",
+            "--run",
+            o.run_id,
+            *self._bus_args(False, "ros"),
+            "--domain-id",
+            str(o.ros2_domain),
+            "--report",
+            str(report),
+        ]
+        return Node("ros2", "ros2", argv, report, log)
+
     @property
     def spool_path(self) -> Path:
         return self.dir / "bus.spool"

@@ -1,0 +1,85 @@
+"""A line that publishes its ROS 2 topics natively (rmw_zenoh's layout) on its own secure router, heard by
+zenoh-ros2-sdk, an independent pure-Python rmw_zenoh implementation: it computes the type hashes and key
+expressions itself, from the message definitions, and decodes the CDR."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from pathlib import Path
+
+from fleet.record.ros_types import TYPESTORE
+from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.ros.rosbridge_session import ROS_CELL
+
+DOMAIN = 7
+SEPARATOR = "=" * 80 + "\n"
+TOPICS = {
+    "/joint_states": "sensor_msgs/msg/JointState",
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/tf": "tf2_msgs/msg/TFMessage",
+}
+
+
+def write_definitions(folder: Path, typenames: list[str]) -> None:
+    """The ROS message definitions (ROS 2 Jazzy's, as rosbags carries them) as `<pkg>/msg/<Name>.msg` files, the
+    layout the SDK reads its definitions from (it would fetch them with git otherwise)."""
+    for typename in typenames:
+        text = TYPESTORE.generate_msgdef(typename, ros_version=2)[0]
+        sections = [(typename, text.split(SEPARATOR)[0])]
+        for part in text.split(SEPARATOR)[1:]:
+            header, _, body = part.partition("\n")
+            sections.append((header.removeprefix("MSG: ").strip(), body))
+        for name, body in sections:
+            package, kind, short = name.split("/") if name.count("/") == 2 else (*name.split("/"), None)
+            if short is None:  # `pkg/Name` as MCAP schemas name dependencies
+                package, short, kind = name.split("/")[0], name.split("/")[1], "msg"
+            path = folder / package / kind / f"{short}.msg"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(body.strip() + "\n")
+
+
+def listen(launcher: Launcher, heard: dict, definitions: Path) -> None:
+    """Subscribe with the SDK, as a ROS 2 node would, through the run's router with the monitor's login."""
+    try:
+        from zenoh_ros2_sdk import ROS2Subscriber, get_topic_names_and_types
+        from zenoh_ros2_sdk.message_registry import get_registry
+
+        endpoint = launcher.endpoint  # tls/127.0.0.1:PORT
+        host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
+        os.environ["ZENOH_SESSION_CONFIG_URI"] = launcher.bus.config_for("monitor")
+        os.environ["ZENOH_CONFIG_OVERRIDE"] = f'connect/endpoints=["{endpoint}"];listen/endpoints=[]'
+        get_registry(str(definitions))
+        subs = []
+        for topic, typename in TOPICS.items():
+            heard[topic] = []
+            subs.append(
+                ROS2Subscriber(
+                    topic, typename, heard[topic].append, domain_id=DOMAIN, router_ip=host, router_port=int(port)
+                )  # fmt: skip
+            )
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and not all(heard[t] for t in TOPICS):
+            time.sleep(0.1)
+        heard["keys"] = {t: s.keyexpr for t, s in zip(TOPICS, subs)}
+        heard["graph"] = dict(get_topic_names_and_types(domain_id=DOMAIN, router_ip=host, router_port=int(port)))
+        for s in subs:
+            s.close()
+    except Exception as exc:
+        heard["error"] = repr(exc)
+    finally:
+        launcher.interrupted = "the ROS 2 listener is done"
+
+
+def rmw_zenoh_session(tmp: Path) -> tuple[dict, dict]:
+    write_definitions(tmp, list(TOPICS.values()))
+    options = RunOptions(scene=ROS_CELL, duration_s=60.0, mode="realtime", ros2_domain=DOMAIN)
+    heard: dict = {}
+    with Launcher(options) as launcher:
+        listener = threading.Thread(target=listen, args=(launcher, heard, tmp), daemon=True)
+        listener.start()
+        summary = launcher.run()
+        listener.join(30)
+    heard["endpoint"] = launcher.endpoint
+    return summary, heard
