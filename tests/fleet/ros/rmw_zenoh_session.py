@@ -69,6 +69,8 @@ def listen(launcher: Launcher, heard: dict, definitions: Path) -> None:
     except Exception as exc:
         heard["error"] = repr(exc)
     finally:
+        for name in ("ZENOH_SESSION_CONFIG_URI", "ZENOH_CONFIG_OVERRIDE"):  # nothing else in this process reads them
+            os.environ.pop(name, None)
         launcher.interrupted = "the ROS 2 listener is done"
 
 
