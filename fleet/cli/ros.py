@@ -30,8 +30,8 @@ def cmd_ros2(args: argparse.Namespace) -> int:
 
     if not (args.connect or args.zenoh_config):
         raise SystemExit(
-            "fleet: error: fleet ros2 needs --connect ENDPOINT or --zenoh-config FILE (on a run's secure bus, its "
-            "bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
+            "fleet: error: fleet ros2 serve needs --connect ENDPOINT or --zenoh-config FILE (on a run's secure bus, "
+            "its bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
         )
     argv = ["--run", args.run_id, "--domain-id", str(args.domain_id), "--scene-timeout", str(args.wait)]
     for ep in args.connect or ():
@@ -39,6 +39,21 @@ def cmd_ros2(args: argparse.Namespace) -> int:
     if args.zenoh_config:
         argv += ["--zenoh-config", args.zenoh_config]
     return ros2_node.main(argv)
+
+
+def cmd_ros2_controllers(args: argparse.Namespace) -> int:
+    from fleet.cli.errors import writable_file
+    from fleet.common.scene_loading import load_scene
+    from fleet.ros.moveit import moveit_controllers_yaml
+
+    text = moveit_controllers_yaml(load_scene(args.scene, arms=args.arms))
+    if args.out:
+        writable_file("--out", args.out)
+        with open(args.out, "w") as f:
+            f.write(text)
+    else:
+        print(text, end="")
+    return 0
 
 
 def add_parsers(sub: argparse._SubParsersAction) -> None:
@@ -53,7 +68,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(p)
     p.set_defaults(func=cmd_rosbridge)
-    p = sub.add_parser("ros2", help="publish a running line's ROS 2 topics natively on its router (rmw_zenoh layout)")
+    ros2 = sub.add_parser("ros2", help="ROS 2: native topics on a line's router, MoveIt's controllers file")
+    group = ros2.add_subparsers(dest="ros2_command", required=True)
+    c = group.add_parser(
+        "controllers", help="write moveit_controllers.yaml for a scene (FollowJointTrajectory per arm)"
+    )
+    c.add_argument("scene", help="bundled scene name or scene file")
+    c.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    c.add_argument("--out", metavar="FILE", help="write it here (default: standard output)")
+    c.set_defaults(func=cmd_ros2_controllers)
+    p = group.add_parser("serve", help="publish a running line's ROS 2 topics natively on its router (rmw_zenoh)")
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")
     p.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID (default 0)")
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")

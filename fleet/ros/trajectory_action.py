@@ -71,6 +71,7 @@ def goal_message(arm: str, goal_id: int, goal: object) -> TrajectoryGoalMsg:
     joints = trajectory.get("joint_names")
     if not isinstance(joints, list) or not joints or not all(isinstance(j, str) for j in joints):
         raise GoalError("trajectory.joint_names must be a non-empty list of names")
+    joints = [j.removeprefix(f"{arm}/") for j in joints]  # `/joint_states`' names (`<arm>/<joint>`) are taken too
     points = trajectory.get("points")
     if not isinstance(points, list) or not points or not all(isinstance(p, dict) for p in points):
         raise GoalError("trajectory.points must be a non-empty list of JointTrajectoryPoint")

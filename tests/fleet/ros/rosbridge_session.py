@@ -140,7 +140,7 @@ def drive(launcher: Launcher, seen: dict) -> None:
                 json.dumps({"op": "call_service", "service": "/estop", "args": {"data": "yes"}, "id": "c1"}),
             ]
         )
-        seen["after_all"] = d.goal(trajectory(joints, (home, 1.0)))
+        seen["after_all"] = d.goal(trajectory([f"arm_0/{j}" for j in joints], (home, 1.0)))  # as /joint_states names
         claw = roslibpy.ActionClient(d.ros, "/arm_0/gripper_cmd", "control_msgs/action/GripperCommand")
         seen["claw_closed"] = d.goal({"command": {"position": spec.gripper_closed[0], "max_effort": 5.0}}, action=claw)
         seen["claw_opened"] = d.goal({"command": {"position": spec.gripper_open[0]}}, action=claw)
