@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from scipy import stats
@@ -135,9 +136,30 @@ def test_a_sweep_of_four_runs_on_two_jobs_gives_what_four_fleet_runs_give(tmp_pa
     assert {c["allocator"]: c["runs"] for c in cells_out} == {"optimal": 2, "greedy": 2}
 
 
+MARK = f"CLAWFLEET_TEST_SWEEP={os.getpid()}"  # in the environment of this test's sweeps, inherited by all they start
+
+
+def marked(pattern: str) -> set[int]:
+    """Processes matching `pattern` that this test's sweeps started (their environment carries `MARK`): other
+    fleet processes on the machine (another test run, a user's line) are not ours to count."""
+    out = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True).stdout
+    ours = set()
+    for pid in map(int, out.split()):
+        try:
+            if MARK.encode() in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0"):
+                ours.add(pid)
+        except OSError:
+            pass  # gone already
+    return ours
+
+
 def fleet_processes() -> set[int]:
-    out = subprocess.run(["pgrep", "-f", "fleet.nodes"], capture_output=True, text=True).stdout
-    return {int(p) for p in out.split()}
+    return marked("fleet.nodes")
+
+
+def sweep_env() -> dict:
+    name, value = MARK.split("=")
+    return os.environ | {name: value}
 
 
 def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missing(tmp_path):
@@ -157,7 +179,9 @@ def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missi
         "--out",
         str(tmp_path),
     ]
-    sweep = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    sweep = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, env=sweep_env()
+    )
     runs = tmp_path / "runs"
     deadline = time.monotonic() + 180
     while not (runs.is_dir() and list(runs.glob("*.json"))):
@@ -169,7 +193,7 @@ def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missi
     assert fleet_processes() - before == set(), "a run's processes outlived the sweep"
     kept = {p.name: p.stat().st_mtime for p in runs.glob("*.json")}
     assert 1 <= len(kept) < 4
-    again = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    again = subprocess.run(argv, capture_output=True, text=True, timeout=300, env=sweep_env())
     assert again.returncode == 0, again.stderr[-2000:]
     assert f"({len(kept)} already in" in " ".join(again.stderr.split())  # rich wraps lines where there is no terminal
     assert len(list(runs.glob("*.json"))) == 4
@@ -178,8 +202,7 @@ def test_an_interrupted_sweep_leaves_nothing_running_and_runs_only_what_is_missi
 
 
 def pool_workers() -> set[int]:
-    out = subprocess.run(["pgrep", "-f", "multiprocessing.spawn"], capture_output=True, text=True).stdout
-    return {int(p) for p in out.split()}
+    return marked("multiprocessing.spawn")
 
 
 def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_path):
@@ -199,7 +222,9 @@ def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_
         "--out",
         str(tmp_path),
     ]
-    sweep = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    sweep = subprocess.Popen(
+        argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True, env=sweep_env()
+    )
     deadline = time.monotonic() + 120
     while len(fleet_processes() - before) < 2:  # runs under way
         assert time.monotonic() < deadline and sweep.poll() is None, "no run started"
