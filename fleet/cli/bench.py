@@ -198,11 +198,11 @@ def cmd_bench_ros(args: argparse.Namespace) -> int:
             r.variant, f"{r.loop_wall_seconds:.2f}", f"{r.ratio_to_plain:.3f}", f"{r.messages_per_client:.0f}"
         )
     latency = bench_ros_latency(args.goals)
-    lat = Table("goals", "send -> moving p50 / p90 (ms)", "motion end -> result p50 / p90 (ms)")
+    lat = Table("goals", "send -> driving (feedback) p50 / p90 (ms)", "last moving state -> result p50 / p90 (ms)")
     lat.add_row(
         str(latency.goals),
         f"{latency.start_p50_ms:.0f} / {latency.start_p90_ms:.0f}",
-        f"{latency.result_after_end_p50_ms:.0f} / {latency.result_after_end_p90_ms:.0f}",
+        f"{latency.result_after_motion_p50_ms:.0f} / {latency.result_after_motion_p90_ms:.0f}",
     )
     print_bench(table, cost, False)
     return print_bench(lat, [latency], args.json)

@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--run", default="line", help="run id of the line to serve")
     parser.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID of the topics (0..232)")
     parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
+    parser.add_argument("--nice", type=int, default=10, help="scheduling niceness: the line comes first (default 10)")
     parser.add_argument("--report", help="write the node's figures to this JSON file at exit")
     add_bus_arguments(parser)
     return parser
@@ -75,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"fleet ros2: --domain-id {args.domain_id}: ROS domains are 0..232", file=sys.stderr)
         return 2
     stop = StopFlag()
+    if args.nice:
+        os.nice(args.nice)
     keys = Keys(args.run)
     with open_session(BusEndpoints.from_args(args)) as session:
         try:

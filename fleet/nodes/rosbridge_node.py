@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import ipaddress
+import os
 import sys
 
 import zenoh
@@ -23,6 +24,7 @@ from fleet.common.processes import StopFlag, write_report, write_text_atomically
 from fleet.ros.rosbridge_server import LineBus, RosbridgeServer
 
 SOURCE = "rosbridge"
+ROSBRIDGE_NICENESS = 10  # what ROS tools watch must not slow the line down (as the monitor)
 DRAIN_S = 0.005  # how often the bus's queued messages are taken onto the server's loop
 
 
@@ -62,6 +64,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (loopback; see docs/ros2.md)")
     parser.add_argument("--port", type=int, default=9090, help="WebSocket port (0: any free one)")
     parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
+    parser.add_argument(
+        "--nice",
+        type=int,
+        default=ROSBRIDGE_NICENESS,
+        help="scheduling niceness: a bridge for watchers yields the CPU to the line (default 10)",
+    )
     parser.add_argument("--url-file", help="write the server's ws:// URL to this file once it listens")
     parser.add_argument("--report", help="write the server's figures to this JSON file at exit")
     add_bus_arguments(parser)
@@ -82,6 +90,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     stop = StopFlag()
+    if args.nice:
+        os.nice(args.nice)
     keys = Keys(args.run)
     with open_session(BusEndpoints.from_args(args)) as session:
         try:

@@ -8,19 +8,35 @@ import math
 
 import numpy as np
 
+_FIELDS: dict[type, tuple[str, ...] | None] = {}  # a message type's field names (None: not a message)
+_PLAIN = (str, int, bool, type(None))
+
+
+def _fields(kind: type) -> tuple[str, ...] | None:
+    if kind not in _FIELDS:
+        _FIELDS[kind] = tuple(f.name for f in dataclasses.fields(kind)) if dataclasses.is_dataclass(kind) else None
+    return _FIELDS[kind]
+
 
 def to_json(message: object) -> object:
     """A rosbags typestore message (or any value inside one) as JSON-able Python values."""
-    if dataclasses.is_dataclass(message):
-        return {f.name: to_json(getattr(message, f.name)) for f in dataclasses.fields(message)}
-    if isinstance(message, np.ndarray):
-        return [to_json(v) for v in message.tolist()]
+    kind = type(message)
+    if kind in _PLAIN:
+        return message
+    if kind is float:
+        return message if math.isfinite(message) else None
+    names = _fields(kind)
+    if names is not None:
+        return {name: to_json(getattr(message, name)) for name in names}
+    if kind is np.ndarray:
+        values = message.tolist()
+        if message.dtype.kind == "f" and not np.isfinite(message).all():
+            return [v if math.isfinite(v) else None for v in values]
+        return values if message.dtype.kind in "fiub" else [to_json(v) for v in values]
     if isinstance(message, (list, tuple)):
         return [to_json(v) for v in message]
     if isinstance(message, dict):
         return {k: to_json(v) for k, v in message.items()}
-    if isinstance(message, float):
-        return message if math.isfinite(message) else None
     if isinstance(message, np.generic):
         return to_json(message.item())
     return message
