@@ -22,6 +22,8 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
         argv += ["--connect", ep]
     if args.zenoh_config:
         argv += ["--zenoh-config", args.zenoh_config]
+    if args.secret_file:
+        argv += ["--secret-file", args.secret_file]
     return rosbridge_node.main(argv)
 
 
@@ -65,6 +67,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
     p.add_argument("--port", type=int, default=9090, help="WebSocket port (default 9090)")
+    p.add_argument(
+        "--secret-file",
+        metavar="FILE",
+        help="clients authenticate with MACs made from this secret (rosauth's `auth`); needed beyond loopback",
+    )
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(p)
     p.set_defaults(func=cmd_rosbridge)

@@ -12,6 +12,7 @@ import asyncio
 import ipaddress
 import os
 import sys
+from pathlib import Path
 
 import zenoh
 
@@ -58,6 +59,14 @@ async def serve(server: RosbridgeServer, inbox: Inbox, args: argparse.Namespace,
         drainer.cancel()
 
 
+def read_secret(path: str) -> str | None:
+    """The secret in a file (surrounding whitespace ignored); None if it cannot be read or is empty."""
+    try:
+        return Path(path).read_text().strip() or None
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet-rosbridge", description=__doc__.splitlines()[0])
     parser.add_argument("--run", default="line", help="run id of the line to serve")
@@ -69,6 +78,11 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=ROSBRIDGE_NICENESS,
         help="scheduling niceness: a bridge for watchers yields the CPU to the line (default 10)",
+    )
+    parser.add_argument(
+        "--secret-file",
+        help="a file holding the secret clients' MACs are made with (rosauth): every client must `auth` first; "
+        "needed to listen beyond loopback",
     )
     parser.add_argument("--url-file", help="write the server's ws:// URL to this file once it listens")
     parser.add_argument("--report", help="write the server's figures to this JSON file at exit")
@@ -82,10 +96,13 @@ def main(argv: list[str] | None = None) -> int:
         loopback = ipaddress.ip_address(args.host).is_loopback
     except ValueError:
         loopback = args.host == "localhost"
-    if not loopback:
+    secret = read_secret(args.secret_file) if args.secret_file else None
+    if args.secret_file and not secret:
+        print(f"fleet rosbridge: --secret-file {args.secret_file}: not a readable file with a secret", file=sys.stderr)
+        return 2
+    if not loopback and secret is None:
         print(
-            f"fleet rosbridge: --host {args.host} is beyond loopback; rosbridge's authentication is not built yet, so "
-            "it serves loopback only",
+            f"fleet rosbridge: --host {args.host} is beyond loopback: give --secret-file (clients then authenticate)",
             file=sys.stderr,
         )
         return 2
@@ -99,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         except SceneUnavailable as exc:
             print(f"fleet rosbridge: {exc}", file=sys.stderr)
             return 1
-        server = RosbridgeServer(scene, keys, line_bus(session, keys, [a.name for a in scene.arms]))
+        server = RosbridgeServer(scene, keys, line_bus(session, keys, [a.name for a in scene.arms]), secret)
         inbox = Inbox()
         subs = [
             session.declare_subscriber(k, inbox) for k in (keys.all_arms("state"), keys.all_arms("result"), keys.parts)

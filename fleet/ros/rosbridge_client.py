@@ -30,6 +30,9 @@ class Client:
         self.queue: asyncio.Queue[str] = asyncio.Queue()
         self.dropped = 0
         self.sent = 0
+        self.authenticated = False
+        self.peer_ip = str(websocket.remote_address[0]) if websocket.remote_address else ""
+        self.local_ip = str(websocket.local_address[0]) if websocket.local_address else ""
 
     def send(self, message: dict) -> None:
         self.send_text(json.dumps(message, allow_nan=False))

@@ -24,6 +24,7 @@ from fleet.ros.line_actions import LineActions
 from fleet.ros.line_topics import LineTopics
 from fleet.ros.ros_json import to_json
 from fleet.ros.rosapi import Rosapi
+from fleet.ros.rosauth import auth_problem, auth_request
 from fleet.ros.rosbridge_client import Client, Subscription
 from fleet.ros.trajectory_action import goal_message
 from robots.registry import get_robot
@@ -55,8 +56,9 @@ def _field(message: dict, name: str, kind: type | tuple[type, ...], default: obj
 class RosbridgeServer:
     """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
 
-    def __init__(self, scene: Scene, keys: Keys, bus: LineBus) -> None:
+    def __init__(self, scene: Scene, keys: Keys, bus: LineBus, secret: str | None = None) -> None:
         self.keys, self.bus = keys, bus
+        self.secret = secret  # with one, a client's first request must be `auth` with a valid MAC (`rosauth`)
         self.topics = LineTopics(scene)
         arms = self.topics.arms
         self.actions = LineActions({a.name: get_robot(a.model) for a in scene.arms}, bus.send_goal)
@@ -108,7 +110,10 @@ class RosbridgeServer:
         pump = asyncio.create_task(client.pump())
         try:
             async for raw in websocket:
-                self.on_request(client, raw)
+                if not self.on_request(client, raw):
+                    await asyncio.sleep(0.05)  # the status goes out first
+                    await websocket.close(1008, "authentication failed")
+                    break
         except websockets.ConnectionClosed:
             pass
         finally:
@@ -116,8 +121,9 @@ class RosbridgeServer:
             self.clients.remove(client)
             self.actions.forget(client)
 
-    def on_request(self, client: Client, raw: str | bytes) -> None:
-        """One request from a client; a bad one gets a `status` error naming what is wrong."""
+    def on_request(self, client: Client, raw: str | bytes) -> bool:
+        """One request from a client; a bad one gets a `status` error naming what is wrong. False: the connection
+        is to be closed (it did not authenticate where the server needs it)."""
         op_id = None
         try:
             try:
@@ -127,6 +133,8 @@ class RosbridgeServer:
             if not isinstance(message, dict):
                 raise RequestError("a request is a JSON object with an 'op'")
             op_id = message.get("id")
+            if self.secret is not None and not client.authenticated:
+                return self._authenticate(client, message)
             handler = self._ops.get(str(message.get("op")))
             if handler is None:
                 raise RequestError(f"unknown op {message.get('op')!r} (known: {', '.join(self._ops)})")
@@ -134,6 +142,23 @@ class RosbridgeServer:
         except RequestError as exc:
             self.requests_refused += 1
             client.status("error", str(exc), op_id)
+        return True
+
+    def _authenticate(self, client: Client, message: dict) -> bool:
+        """The first request where the server has a secret: `auth`, with a MAC for this connection."""
+        if message.get("op") != "auth":
+            problem = "authenticate first: this server takes an 'auth' request before any other"
+        else:
+            try:
+                problem = auth_problem(auth_request(message), self.secret, client.peer_ip, client.local_ip)
+            except ValueError as exc:
+                problem = str(exc)
+        if problem:
+            self.requests_refused += 1
+            client.status("error", f"authentication failed: {problem}")
+            return False
+        client.authenticated = True
+        return True
 
     def _subscribe(self, client: Client, m: dict) -> None:
         topic = _field(m, "topic", str)

@@ -5,13 +5,11 @@ expressions itself, from the message definitions, and decodes the CDR."""
 from __future__ import annotations
 
 import os
-import threading
 import time
 from pathlib import Path
 
 from fleet.record.ros_types import TYPESTORE
-from fleet.run.launcher import Launcher, RunOptions
-from tests.fleet.ros.rosbridge_session import ROS_CELL
+from fleet.run.launcher import Launcher
 
 DOMAIN = 7
 SEPARATOR = "=" * 80 + "\n"
@@ -40,17 +38,37 @@ def write_definitions(folder: Path, typenames: list[str]) -> None:
             path.write_text(body.strip() + "\n")
 
 
-def listen(launcher: Launcher, heard: dict, definitions: Path) -> None:
-    """Subscribe with the SDK, as a ROS 2 node would, through the run's router with the monitor's login."""
-    try:
+class Ros2Listener:
+    """Subscribes with the SDK, as a ROS 2 node would, through the run's router with the monitor's login; what it
+    heard goes into the dict it is given."""
+
+    domain = DOMAIN
+
+    def __init__(self, definitions: Path) -> None:
+        write_definitions(definitions, list(TOPICS.values()))
+        self.definitions = definitions
+
+    def __call__(self, launcher: Launcher, heard: dict) -> None:
+        try:
+            self._listen(launcher, heard)
+        except Exception as exc:
+            heard["error"] = repr(exc)
+        finally:
+            for name in ("ZENOH_SESSION_CONFIG_URI", "ZENOH_CONFIG_OVERRIDE"):  # nothing else here reads them
+                os.environ.pop(name, None)
+
+    def _listen(self, launcher: Launcher, heard: dict) -> None:
         from zenoh_ros2_sdk import ROS2Subscriber, get_topic_names_and_types
         from zenoh_ros2_sdk.message_registry import get_registry
 
+        deadline = time.monotonic() + 60
+        while launcher.endpoint is None and time.monotonic() < deadline:
+            time.sleep(0.1)
         endpoint = launcher.endpoint  # tls/127.0.0.1:PORT
         host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
         os.environ["ZENOH_SESSION_CONFIG_URI"] = launcher.bus.config_for("monitor")
         os.environ["ZENOH_CONFIG_OVERRIDE"] = f'connect/endpoints=["{endpoint}"];listen/endpoints=[]'
-        get_registry(str(definitions))
+        get_registry(str(self.definitions))
         subs = []
         for topic, typename in TOPICS.items():
             heard[topic] = []
@@ -59,29 +77,10 @@ def listen(launcher: Launcher, heard: dict, definitions: Path) -> None:
                     topic, typename, heard[topic].append, domain_id=DOMAIN, router_ip=host, router_port=int(port)
                 )  # fmt: skip
             )
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 30
         while time.monotonic() < deadline and not all(heard[t] for t in TOPICS):
             time.sleep(0.1)
         heard["keys"] = {t: s.keyexpr for t, s in zip(TOPICS, subs)}
         heard["graph"] = dict(get_topic_names_and_types(domain_id=DOMAIN, router_ip=host, router_port=int(port)))
         for s in subs:
             s.close()
-    except Exception as exc:
-        heard["error"] = repr(exc)
-    finally:
-        for name in ("ZENOH_SESSION_CONFIG_URI", "ZENOH_CONFIG_OVERRIDE"):  # nothing else in this process reads them
-            os.environ.pop(name, None)
-        launcher.interrupted = "the ROS 2 listener is done"
-
-
-def rmw_zenoh_session(tmp: Path) -> tuple[dict, dict]:
-    write_definitions(tmp, list(TOPICS.values()))
-    options = RunOptions(scene=ROS_CELL, duration_s=60.0, mode="realtime", ros2_domain=DOMAIN)
-    heard: dict = {}
-    with Launcher(options) as launcher:
-        listener = threading.Thread(target=listen, args=(launcher, heard, tmp), daemon=True)
-        listener.start()
-        summary = launcher.run()
-        listener.join(30)
-    heard["endpoint"] = launcher.endpoint
-    return summary, heard

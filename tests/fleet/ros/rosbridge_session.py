@@ -3,6 +3,7 @@ arms under ros2_controllers: what the client saw and got back, for the tests to 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 import time
@@ -113,7 +114,7 @@ def drive(launcher: Launcher, seen: dict) -> None:
             threading.Thread(target=lambda: seen.update(preempting=d.goal(trajectory(joints, (target, 2.0))))).start()
 
         seen["preempted"] = d.goal(slow, then=preempt)
-        time.sleep(3.0)
+        wait_for(lambda: "preempting" in seen, 10.0)
         seen["cancelled"] = d.goal(slow, then=lambda gid: (time.sleep(0.5), d.action.cancel_goal(gid)))
 
         def estop(_goal_id) -> None:
@@ -149,24 +150,43 @@ def drive(launcher: Launcher, seen: dict) -> None:
         to_arm_1 = roslibpy.Topic(d.ros, "/arm_1/joint_trajectory", "trajectory_msgs/msg/JointTrajectory")
         seen["arm_1_target"] = (home - np.array([0.3, 0.2, -0.25, 0.0, 0.2, 0.0])).tolist()
         to_arm_1.publish(roslibpy.Message(trajectory(joints, (seen["arm_1_target"], 1.0))["trajectory"]))
-        time.sleep(2.5)
+        there = lambda: arm_1 and np.allclose(arm_1[-1]["position"][:6], seen["arm_1_target"], atol=0.03)  # noqa: E731
+        wait_for(there, 5.0)
         seen["arm_1_after"] = arm_1[-1]["position"][:6]
         d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
-    except Exception as exc:  # the test reports it; the line must still be stopped
+    except Exception as exc:  # the test reports it
         seen["error"] = repr(exc)
-    finally:
-        launcher.interrupted = "the ROS session is over"
 
 
-def rosbridge_session() -> tuple[dict, dict]:
-    """The summary of a realtime ros_cell line with rosbridge, and what the ROS user saw."""
+def wait_for(condition, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
+def rosbridge_session(ros2_listener=None) -> tuple[dict, dict]:
+    """The summary of a realtime ros_cell line with rosbridge (and, given `ros2_listener(launcher, heard)`, its
+    native ROS 2 topics heard meanwhile: `seen["ros2"]`), and what the ROS user saw. The line stops once both
+    are done."""
     options = RunOptions(scene=ROS_CELL, duration_s=120.0, mode="realtime", rosbridge_port=0)
-    seen: dict = {}
+    if ros2_listener is not None:
+        options = dataclasses.replace(options, ros2_domain=ros2_listener.domain)
+    seen: dict = {"ros2": {}}
     with Launcher(options) as launcher:
-        user = threading.Thread(target=drive, args=(launcher, seen), daemon=True)
-        user.start()
+        users = [threading.Thread(target=drive, args=(launcher, seen), daemon=True)]
+        if ros2_listener is not None:
+            users.append(threading.Thread(target=ros2_listener, args=(launcher, seen["ros2"]), daemon=True))
+
+        def stop_when_done() -> None:
+            for user in users:
+                user.join(120)
+            launcher.interrupted = "the ROS users are done"
+
+        for thread in [*users, threading.Thread(target=stop_when_done, daemon=True)]:
+            thread.start()
         summary = launcher.run()
-        user.join(30)
+        for user in users:
+            user.join(30)
     seen["endpoint"] = launcher.endpoint
     return summary, seen
 
@@ -184,13 +204,16 @@ def take_arm(launcher: Launcher, seen: dict) -> None:
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
         seen["held"] = d.goal(trajectory(joints, (home, 1.0), (home + 0.1, 3.0), (home, 5.0)))
         d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
+        time.sleep(3.0)  # the arm is let go 2 s (sim) after the path ends
     except Exception as exc:
         seen["error"] = repr(exc)
+    finally:
+        launcher.interrupted = "the ROS user let go"
 
 
 def taken_arm_session(scene: str) -> tuple[dict, dict]:
     """A realtime line at work whose arm_0 a ROS user takes for a while: the summary and what the user got."""
-    options = RunOptions(scene=scene, duration_s=14.0, mode="realtime", rosbridge_port=0)
+    options = RunOptions(scene=scene, duration_s=30.0, mode="realtime", rosbridge_port=0)
     seen: dict = {}
     with Launcher(options) as launcher:
         user = threading.Thread(target=take_arm, args=(launcher, seen), daemon=True)

@@ -1,13 +1,17 @@
-"""rosbridge v2 on a running line, checked with roslibpy: the line's topics, actions and services as ROS tools see
-them, and FollowJointTrajectory with ros2_controllers' semantics (success within tolerance, refusals with their
-codes, preemption and cancel ending CANCELED, the e-stop aborting), bad requests answered with a status error and
-the line untouched."""
+"""The ROS 2 front ends of one running (secure) line, checked with clients clawfleet did not write: rosbridge with
+roslibpy (the line's topics, actions and services as ROS tools see them; FollowJointTrajectory with
+ros2_controllers' semantics: success within tolerance, refusals with their codes, preemption and cancel ending
+CANCELED, the e-stop aborting; bad requests answered with a status error and the line untouched), and the native
+rmw_zenoh topics with zenoh-ros2-sdk (which derives the keys from the definitions itself)."""
 
+import math
 import socket
 
 import numpy as np
 import pytest
 
+from fleet.ros.rmw_zenoh import topic_key
+from tests.fleet.ros.rmw_zenoh_session import DOMAIN, TOPICS, Ros2Listener
 from tests.fleet.ros.rosbridge_session import rosbridge_session
 from tests.fleet.test_run import assert_nothing_left
 
@@ -17,8 +21,8 @@ SUCCEEDED, CANCELED, ABORTED, UNKNOWN = 4, 5, 6, 0
 
 
 @pytest.fixture(scope="module")
-def session():
-    summary, seen = rosbridge_session()
+def session(tmp_path_factory):
+    summary, seen = rosbridge_session(Ros2Listener(tmp_path_factory.mktemp("ros_definitions")))
     assert "error" not in seen, seen["error"]
     return summary, seen
 
@@ -89,3 +93,21 @@ def test_the_run_ends_cleanly_with_the_bridge(session):
     assert_nothing_left(summary, seen["endpoint"])
     with pytest.raises(ConnectionRefusedError):  # nothing listens on the WebSocket port any more
         socket.create_connection(("127.0.0.1", seen["ws_port"]), timeout=2).close()
+
+
+def test_a_ros2_node_on_rmw_zenoh_hears_and_discovers_the_lines_topics(session):
+    summary, seen = session
+    heard = seen["ros2"]
+    assert "error" not in heard, heard["error"]
+    for topic, typename in TOPICS.items():
+        assert heard[topic], f"nothing heard on {topic}"
+        assert heard["keys"][topic] == topic_key(DOMAIN, topic, typename), "the SDK derived the same key"
+    names = {n.split("/")[0] for m in heard["/joint_states"] for n in m.name}
+    assert names <= {"arm_0", "arm_1"} and names, "every arm's joints, named by arm"
+    assert all(math.isfinite(p) for m in heard["/joint_states"] for p in m.position)
+    clocks = [c.clock.sec + c.clock.nanosec * 1e-9 for c in heard["/clock"]]
+    assert clocks == sorted(clocks) and clocks[-1] > 0
+    assert any(t.child_frame_id.startswith("arm_") for t in heard["/tf"][-1].transforms)
+    graph = heard["graph"]
+    assert graph["/arm_1/joint_states"] == ["sensor_msgs/msg/JointState"] and "/tf_static" in graph
+    assert summary["bus"] == "secure" and summary["bus_refused"] == {}, "every login stayed within its role"
