@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ipaddress
 import json
 import re
 import socket
@@ -21,6 +22,14 @@ from dataclasses import dataclass, field
 import zenoh
 
 LOOPBACK = "127.0.0.1"
+
+
+def is_loopback_host(host: str) -> bool:
+    """Whether a listening address is this host's loopback (127.0.0.0/8, ::1, `localhost`): nobody else reaches it."""
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
 
 
 def free_loopback_port() -> int:
@@ -45,6 +54,12 @@ class BusEndpoints:
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> BusEndpoints:
         return cls(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config)
+
+    def client_argv(self) -> list[str]:
+        """The flags that make a node join as these endpoints' client: its connects and config file (not where
+        to listen)."""
+        argv = [flag for ep in self.connect for flag in ("--connect", ep)]
+        return argv + (["--zenoh-config", self.config_file] if self.config_file else [])
 
 
 ENDPOINT_FORM = re.compile(r"^(tcp|udp|tls|quic|ws|unixsock-stream)/[^\s/]+(:\d{1,5})?$")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from fleet.bus.session import add_bus_arguments
+from fleet.bus.session import BusEndpoints, add_bus_arguments
 from fleet.monitor.options import add_monitor_arguments
 
 
@@ -18,10 +18,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             "or --zenoh-config FILE"
         )
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
-    for ep in args.connect or ():
-        argv += ["--connect", ep]
-    if args.zenoh_config:
-        argv += ["--zenoh-config", args.zenoh_config]
+    argv += BusEndpoints.from_args(args).client_argv()
     return monitor_node.main(argv)
 
 

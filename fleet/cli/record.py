@@ -7,7 +7,7 @@ import contextlib
 import json
 import math
 
-from fleet.bus.session import add_bus_arguments
+from fleet.bus.session import BusEndpoints, add_bus_arguments
 from fleet.cli.errors import (
     UsageError,
     err,
@@ -100,10 +100,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         )
     writable_file("file", args.file)
     argv = ["--run", args.run_id, "--out", args.file, "--scene-timeout", str(args.wait), "--nice", "0"]
-    for ep in args.connect or ():
-        argv += ["--connect", ep]
-    if args.zenoh_config:
-        argv += ["--zenoh-config", args.zenoh_config]
+    argv += BusEndpoints.from_args(args).client_argv()
     return recorder_node.main(argv)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from fleet.bus.session import add_bus_arguments
+from fleet.bus.session import BusEndpoints, add_bus_arguments
 
 
 def cmd_rosbridge(args: argparse.Namespace) -> int:
@@ -18,10 +18,7 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise SystemExit(f"fleet: error: --port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
-    for ep in args.connect or ():
-        argv += ["--connect", ep]
-    if args.zenoh_config:
-        argv += ["--zenoh-config", args.zenoh_config]
+    argv += BusEndpoints.from_args(args).client_argv()
     if args.secret_file:
         argv += ["--secret-file", args.secret_file]
     return rosbridge_node.main(argv)
@@ -36,10 +33,7 @@ def cmd_ros2(args: argparse.Namespace) -> int:
             "its bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
         )
     argv = ["--run", args.run_id, "--domain-id", str(args.domain_id), "--scene-timeout", str(args.wait)]
-    for ep in args.connect or ():
-        argv += ["--connect", ep]
-    if args.zenoh_config:
-        argv += ["--zenoh-config", args.zenoh_config]
+    argv += BusEndpoints.from_args(args).client_argv()
     return ros2_node.main(argv)
 
 

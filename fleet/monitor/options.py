@@ -6,10 +6,11 @@ import argparse
 import ipaddress
 import re
 
+from fleet.bus.session import is_loopback_host
+
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
 DEFAULT_RATE_HZ = 20.0  # page updates per second: smooth enough to the eye, cheap for the line
-LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 
 HOST_NAME = re.compile(
@@ -47,7 +48,7 @@ def add_monitor_arguments(parser: argparse.ArgumentParser) -> None:
 
 def exposure_warning(host: str) -> str | None:
     """A warning for any address but loopback: whoever reaches the page can stop the line."""
-    if host in LOOPBACK_HOSTS or host.startswith("127."):
+    if is_loopback_host(host):
         return None
     return (
         f"warning: the monitor listens on {host}: whoever can reach that address can pause and emergency-stop the line"

@@ -13,11 +13,11 @@ import os
 import sys
 
 from fleet.bus.keys import Keys
-from fleet.bus.scene_query import SceneUnavailable, fetch_scene
 from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
 from fleet.common.processes import StopFlag, write_report, write_text_atomically
 from fleet.monitor.app import Monitor, print_url
 from fleet.monitor.options import DEFAULT_RATE_HZ, add_monitor_arguments, exposure_warning
+from fleet.nodes.attached import line_scene
 
 MONITOR_NICENESS = 10
 
@@ -48,10 +48,8 @@ def main(argv: list[str] | None = None) -> int:
         print(warning, file=sys.stderr)
     keys = Keys(args.run)
     with open_session(BusEndpoints.from_args(args)) as session:
-        try:
-            scene = fetch_scene(session, keys, args.scene_timeout)
-        except SceneUnavailable as exc:
-            print(f"fleet monitor: {exc}", file=sys.stderr)
+        scene = line_scene(session, keys, args.scene_timeout, "fleet monitor")
+        if scene is None:
             return 1
         with Monitor(session, keys, scene, args.host, args.port) as monitor:
             print_url(monitor, args.port)

@@ -15,9 +15,9 @@ import time
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, PartsState
-from fleet.bus.scene_query import SceneUnavailable, fetch_scene
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import StopFlag, write_report
+from fleet.nodes.attached import line_scene
 from fleet.ros import names
 from fleet.ros.line_topics import LineTopics
 from fleet.ros.rmw_zenoh import Ros2Node
@@ -81,10 +81,8 @@ def main(argv: list[str] | None = None) -> int:
         os.nice(args.nice)
     keys = Keys(args.run)
     with open_session(BusEndpoints.from_args(args)) as session:
-        try:
-            scene = fetch_scene(session, keys, args.scene_timeout)
-        except SceneUnavailable as exc:
-            print(f"fleet ros2: {exc}", file=sys.stderr)
+        scene = line_scene(session, keys, args.scene_timeout, "fleet ros2")
+        if scene is None:
             return 1
         figures = serve(session, keys, LineTopics(scene), args.domain_id, stop)
         write_report(args.report, figures | {"stopped_by": stop.reason})

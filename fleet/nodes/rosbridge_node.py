@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import ipaddress
 import os
 import sys
 from pathlib import Path
@@ -19,9 +18,9 @@ import zenoh
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EStop, SimControl
-from fleet.bus.scene_query import SceneUnavailable, fetch_scene
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, is_loopback_host, open_session
 from fleet.common.processes import StopFlag, write_report, write_text_atomically
+from fleet.nodes.attached import line_scene
 from fleet.ros.rosbridge_server import LineBus, RosbridgeServer
 
 SOURCE = "rosbridge"
@@ -92,10 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    try:
-        loopback = ipaddress.ip_address(args.host).is_loopback
-    except ValueError:
-        loopback = args.host == "localhost"
+    loopback = is_loopback_host(args.host)
     secret = read_secret(args.secret_file) if args.secret_file else None
     if args.secret_file and not secret:
         print(f"fleet rosbridge: --secret-file {args.secret_file}: not a readable file with a secret", file=sys.stderr)
@@ -111,12 +107,10 @@ def main(argv: list[str] | None = None) -> int:
         os.nice(args.nice)
     keys = Keys(args.run)
     with open_session(BusEndpoints.from_args(args)) as session:
-        try:
-            scene = fetch_scene(session, keys, args.scene_timeout)
-        except SceneUnavailable as exc:
-            print(f"fleet rosbridge: {exc}", file=sys.stderr)
+        scene = line_scene(session, keys, args.scene_timeout, "fleet rosbridge")
+        if scene is None:
             return 1
-        server = RosbridgeServer(scene, keys, line_bus(session, keys, [a.name for a in scene.arms]), secret)
+        server = RosbridgeServer(scene, line_bus(session, keys, [a.name for a in scene.arms]), secret)
         inbox = Inbox()
         subs = [
             session.declare_subscriber(k, inbox) for k in (keys.all_arms("state"), keys.all_arms("result"), keys.parts)

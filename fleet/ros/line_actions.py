@@ -42,7 +42,6 @@ class LineActions:
         base = (1 << 52) + (int.from_bytes(os.urandom(2), "little") << 32)
         self._ids = itertools.count(base)
         self.pending: dict[int, PendingGoal] = {}
-        self.holds: set[int] = set()  # goals this side sent to cancel others: their results go to nobody
         self.states: dict[str, ArmState] = {}
         self.sent = 0
 
@@ -72,15 +71,13 @@ class LineActions:
                 state = self.states.get(p.arm)
                 if state is None:
                     return False
-                hold = self.new_goal_id()
-                self.holds.add(hold)
+                hold = self.new_goal_id()  # a goal of nobody's: its result goes to no client
                 q = state.desired_q or state.q
                 self.send_goal(TrajectoryGoalMsg(p.arm, hold, tuple(self.arm_joints[p.arm]), (HOLD_S,), tuple(q)))
                 return True
         return False
 
     def on_result(self, result: GoalResultMsg) -> None:
-        self.holds.discard(result.goal_id)
         p = self.pending.pop(result.goal_id, None)
         if p is None:
             return

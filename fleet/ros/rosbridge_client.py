@@ -21,12 +21,11 @@ class Subscription:
 
 
 class Client:
-    """A connected client's subscriptions, advertisements and outgoing queue."""
+    """A connected client's subscriptions and outgoing queue."""
 
     def __init__(self, websocket, number: int) -> None:
         self.websocket, self.number = websocket, number
         self.subscriptions: dict[str, Subscription] = {}
-        self.advertised: dict[str, str] = {}  # topic -> type
         self.queue: asyncio.Queue[str] = asyncio.Queue()
         self.dropped = 0
         self.sent = 0

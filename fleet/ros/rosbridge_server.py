@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import websockets
 
 from fleet.bus.codec import Decoder, DropCounter
-from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, GoalResultMsg, PartsState, TrajectoryGoalMsg
 from fleet.ros import names
 from fleet.ros.line_actions import LineActions
@@ -56,8 +55,8 @@ def _field(message: dict, name: str, kind: type | tuple[type, ...], default: obj
 class RosbridgeServer:
     """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
 
-    def __init__(self, scene: Scene, keys: Keys, bus: LineBus, secret: str | None = None) -> None:
-        self.keys, self.bus = keys, bus
+    def __init__(self, scene: Scene, bus: LineBus, secret: str | None = None) -> None:
+        self.bus = bus
         self.secret = secret  # with one, a client's first request must be `auth` with a valid MAC (`rosauth`)
         self.topics = LineTopics(scene)
         arms = self.topics.arms
@@ -183,14 +182,14 @@ class RosbridgeServer:
                 del client.subscriptions[topic]
 
     def _advertise(self, client: Client, m: dict) -> None:
+        """Checked only: a publication needs no advertisement first (rosbridge advertises on the first one)."""
         topic, kind = _field(m, "topic", str), _field(m, "type", str)
-        arm = self._commanded_arm(topic)
+        self._commanded_arm(topic)
         if kind.replace("/msg/", "/") != "trajectory_msgs/JointTrajectory":
             raise RequestError(f"{topic} takes trajectory_msgs/msg/JointTrajectory, not {kind}")
-        client.advertised[topic] = arm
 
     def _unadvertise(self, client: Client, m: dict) -> None:
-        client.advertised.pop(_field(m, "topic", str), None)
+        _field(m, "topic", str)
 
     def _publish_op(self, client: Client, m: dict) -> None:
         topic = _field(m, "topic", str)

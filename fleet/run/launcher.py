@@ -111,8 +111,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         with `fork_nodes`, the run starts its own and closes it at the end."""
         self.options = options
         self.on_message = on_message or (lambda text: print(text, file=sys.stderr, flush=True))
-        self.monitor_url = ""
-        self.monitor_gone = False
+        self.server_urls: dict[str, str] = {}  # role -> where it serves (`Supervision._check_servers`)
+        self.servers_gone: set[str] = set()
         self.respawn_requests: list[dict] = []
         self.arms_lost: tuple[str, ...] = ()
         self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died

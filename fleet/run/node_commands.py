@@ -95,62 +95,30 @@ class NodeCommands:
             nodes.append(node)
         return nodes
 
+    def _attached_node(self, role: str, module: str, login: str, extra: list[str], url: bool = False) -> Node:
+        """A node that attaches to the running line over the bus with `login` (it asks the sim for the scene, so
+        it takes no scene flags); with `url`, it writes where it serves to `<role>_url` in the run's folder."""
+        report, log = self.dir / f"{role}.json", self.dir / f"{role}.log"
+        argv = [*self._here(role), module, "--run", self.options.run_id, *self._bus_args(False, login), *extra]
+        if url:
+            argv += ["--url-file", str(self.dir / f"{role}_url")]
+        return Node(role, role, [*argv, "--report", str(report)], report, log)
+
     def monitor_node(self) -> Node:
-        """The browser monitor, attached over the bus like any other client (no scene flags: it asks the sim)."""
+        """The browser monitor."""
         o = self.options
-        report, log = self.dir / "monitor.json", self.dir / "monitor.log"
-        argv = [
-            *self._here("monitor"),
-            "fleet.nodes.monitor_node",
-            "--run",
-            o.run_id,
-            *self._bus_args(False, "monitor"),
-            "--host",
-            o.monitor_host,
-            "--port",
-            str(o.monitor_port),
-            "--url-file",
-            str(self.dir / "monitor_url"),
-            "--report",
-            str(report),
-        ]
-        return Node("monitor", "monitor", argv, report, log)
+        extra = ["--host", o.monitor_host, "--port", str(o.monitor_port)]
+        return self._attached_node("monitor", "fleet.nodes.monitor_node", "monitor", extra, url=True)
 
     def rosbridge_node(self) -> Node:
-        """The rosbridge server, attached over the bus with the `ros` login (it asks the sim for the scene)."""
-        o = self.options
-        report, log = self.dir / "rosbridge.json", self.dir / "rosbridge.log"
-        argv = [
-            *self._here("rosbridge"),
-            "fleet.nodes.rosbridge_node",
-            "--run",
-            o.run_id,
-            *self._bus_args(False, "ros"),
-            "--port",
-            str(o.rosbridge_port),
-            "--url-file",
-            str(self.dir / "rosbridge_url"),
-            "--report",
-            str(report),
-        ]
-        return Node("rosbridge", "rosbridge", argv, report, log)
+        """The rosbridge server, with the `ros` login."""
+        extra = ["--port", str(self.options.rosbridge_port)]
+        return self._attached_node("rosbridge", "fleet.nodes.rosbridge_node", "ros", extra, url=True)
 
     def ros2_node(self) -> Node:
         """The native ROS 2 publisher (rmw_zenoh's layout on the run's router), with the `ros` login."""
-        o = self.options
-        report, log = self.dir / "ros2.json", self.dir / "ros2.log"
-        argv = [
-            *self._here("ros2"),
-            "fleet.nodes.ros2_node",
-            "--run",
-            o.run_id,
-            *self._bus_args(False, "ros"),
-            "--domain-id",
-            str(o.ros2_domain),
-            "--report",
-            str(report),
-        ]
-        return Node("ros2", "ros2", argv, report, log)
+        extra = ["--domain-id", str(self.options.ros2_domain)]
+        return self._attached_node("ros2", "fleet.nodes.ros2_node", "ros", extra)
 
     @property
     def spool_path(self) -> Path:

@@ -122,7 +122,7 @@ class RunSummary:
                 "respawns": self.respawns,
                 "coordinator_takeover": coord.get("takeover"),
                 "respawn_requests": self.respawn_requests,
-                "monitor": None if monitor is None else {"url": self.monitor_url} | monitor,
+                "monitor": None if monitor is None else {"url": self.server_urls.get("monitor", "")} | monitor,
                 "unfinished_parts": coord.get("unfinished_parts", []),
                 "processes": [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes],
             }

@@ -14,6 +14,7 @@ from fleet.run.run_node import (
     Node,
 )
 
+SERVERS = {"monitor": "the monitor", "rosbridge": "the rosbridge server", "ros2": "the ROS 2 publisher"}
 ROSTER_PERIOD_S = 1.0  # the roster is said again this often (wall), for whoever joined since
 
 
@@ -65,43 +66,27 @@ class Supervision:
         self.on_message(f"respawned {request.arm}'s controller (asked by {request.source})")
         return True
 
-    rosbridge_url = ""
-    rosbridge_gone = False
-
-    def _check_rosbridge(self) -> None:
-        """Say the rosbridge server's URL once it listens, and if it exits (the line goes on without it)."""
-        node = next((n for n in self.nodes if n.role == "rosbridge"), None)
-        if node is None:
-            return
-        url = self.dir / "rosbridge_url"
-        if not self.rosbridge_url and url.exists():
-            self.rosbridge_url = url.read_text().strip()
-            self.on_message(f"rosbridge: {self.rosbridge_url}")
-        if node.poll() is not None and not self.rosbridge_gone:
-            self.rosbridge_gone = True
-            tail = node.log_tail() or "no output"
-            self.on_message(f"the rosbridge server exited (exit {node.exit_code}): {tail}; the line goes on")
-
-    def _check_monitor(self) -> None:
-        monitor = next((n for n in self.nodes if n.role == "monitor"), None)
-        if monitor is None:
-            return
-        if not self.monitor_url and (self.dir / "monitor_url").exists():
-            self.monitor_url = (self.dir / "monitor_url").read_text().strip()
-            self.on_message(f"monitor: {self.monitor_url}")
-        if monitor.poll() is not None and not self.monitor_gone:
-            self.monitor_gone = True
-            self.on_message(
-                f"the monitor exited (exit {monitor.exit_code}): {monitor.log_tail() or 'no output'}; the line goes on"
-            )
+    def _check_servers(self) -> None:
+        """Say where each serving node (monitor, rosbridge, ROS 2 publisher) serves once it does, and if it exits:
+        the line goes on without it."""
+        for node in self.nodes:
+            if node.role not in SERVERS:
+                continue
+            url = self.dir / f"{node.role}_url"
+            if node.role not in self.server_urls and url.exists():
+                self.server_urls[node.role] = url.read_text().strip()
+                self.on_message(f"{node.role}: {self.server_urls[node.role]}")
+            if node.poll() is not None and node.role not in self.servers_gone:
+                self.servers_gone.add(node.role)
+                tail = node.log_tail() or "no output"
+                self.on_message(f"{SERVERS[node.role]} exited (exit {node.exit_code}): {tail}; the line goes on")
 
     def _supervise(self, inbox: Inbox) -> str:
         sim, coordinator = self.nodes[0], self.nodes[1]
         while not self.interrupted:
             self.say_roster()
             self._on_bus(inbox)
-            self._check_monitor()
-            self._check_rosbridge()
+            self._check_servers()
             code = sim.poll()
             if self.factory is not None and (died := self.factory.died):
                 return f"{died}; logs in {self.dir}"
