@@ -198,16 +198,17 @@ def access_control(arms: list[str], ros_domain: int | None = None) -> dict:
             subjects.append({"id": node, "usernames": [node]})
             policies.append({"rules": [f"publish_{node}"], "subjects": [node]})
     if ros_domain is not None:
-        ros2 = [f"{ros_domain}/**", "@ros2_lv/**"]
+        ros2 = [f"{ros_domain}/**", f"{ros_domain}/**/@adv/**", "@ros2_lv/**"]  # `@adv`: latched topics' caches
         listen = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
         rules += [
             {"id": "ros2_deliver", "permission": "allow", "flows": ["egress"],
-             "messages": [*listen, "put", "delete", "reply", "liveliness_token"], "key_exprs": ros2},
+             "messages": [*listen, "put", "delete", "reply", "liveliness_token", "declare_queryable"],
+             "key_exprs": ros2},
             {"id": "ros2_listen", "permission": "allow", "flows": ["ingress"], "messages": listen, "key_exprs": ros2},
             {"id": "ros2_discovery", "permission": "allow", "flows": ["ingress"],  # ROS nodes say they exist
              "messages": ["liveliness_token"], "key_exprs": ["@ros2_lv/**"]},
-            {"id": "ros2_publish", "permission": "allow", "flows": ["ingress"],
-             "messages": ["put", "delete"], "key_exprs": [f"{ros_domain}/**"]},
+            {"id": "ros2_publish", "permission": "allow", "flows": ["ingress"],  # topics, services, latched caches
+             "messages": ["put", "delete", "declare_queryable", "reply", "liveliness_token"], "key_exprs": ros2[:2]},
         ]  # fmt: skip
         policies[0]["rules"] += ["ros2_deliver", "ros2_listen", "ros2_discovery"]
         policies.append({"rules": ["ros2_publish"], "subjects": ["ros"]})

@@ -1,6 +1,7 @@
-"""The native ROS 2 process: the line's topics on its own Zenoh router as rmw_zenoh lays them out
-(`fleet.ros.rmw_zenoh`), so ROS 2 nodes on `rmw_zenoh_cpp` connected to the router see the arms with no bridge
-(`fleet run --ros2`, `fleet ros2`). It asks the sim for the scene, then publishes what the bus carries.
+"""The native ROS 2 process: the line's topics, services and actions on its own Zenoh router as rmw_zenoh lays
+them out (`fleet.ros.rmw_zenoh`), so ROS 2 nodes on `rmw_zenoh_cpp` connected to the router see and drive the arms
+with no bridge (`fleet run --ros2`, `fleet ros2 serve`). It asks the sim for the scene, publishes what the bus
+carries, and sends ROS clients' goals, e-stops and pauses over the bus (as `ros`, like rosbridge).
 
     python -m fleet.nodes.ros2_node --run line --connect tcp/127.0.0.1:7447 --domain-id 0
 """
@@ -10,20 +11,27 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, PartsState
+from fleet.bus.messages import ArmState, GoalResultMsg, PartsState
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import StopFlag, write_report
-from fleet.nodes.attached import line_scene
+from fleet.nodes.attached import line_scene, ros_line_bus
 from fleet.ros import names
+from fleet.ros import trajectory_action as fjt
+from fleet.ros.line_actions import LineActions
+from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
 from fleet.ros.line_topics import LineTopics
 from fleet.ros.rmw_zenoh import Ros2Node
+from fleet.ros.ros2_actions import NativeAction
+from fleet.ros.ros_json import from_json, to_json
+from robots.registry import get_robot
+from scenes.schema import Scene
 
 NODE_NAME = "clawfleet"
-LATCHED_EVERY_S = 1.0  # latched topics are said again this often (wall): a late joiner has them within it
+SOURCE = "ros2"
+TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,38 +45,104 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def serve(session, keys: Keys, topics: LineTopics, domain_id: int, stop: StopFlag) -> dict:
-    """Publish the line's topics until told to stop; how many messages went out."""
-    node = Ros2Node(session, domain_id, NODE_NAME)
-    pubs = {t: node.publisher(t, ty, latched=t in names.LATCHED) for t, ty in topics.types.items()}
-    drops, inbox = DropCounter(), Inbox()
-    decoders = {"state": Decoder(ArmState, drops), "parts": Decoder(PartsState, drops)}
-    subs = [session.declare_subscriber(k, inbox) for k in (keys.all_arms("state"), keys.parts)]
-    wanted, sent, latched_at = set(topics.types), 0, 0.0
-    try:
+class NativeLine:
+    """The line as one ROS 2 node: its topics from the bus, its services, actions and trajectory topics to it."""
+
+    def __init__(self, session, keys: Keys, scene: Scene, domain_id: int, bus: LineBus) -> None:
+        self.inbox = Inbox()
+        wake = self.inbox.wake
+        self.node = Ros2Node(session, domain_id, NODE_NAME)
+        self.topics = LineTopics(scene)
+        self.pubs = {t: self.node.publisher(t, ty, latched=t in names.LATCHED) for t, ty in self.topics.types.items()}
+        self.bus = bus
+        self.actions = LineActions({a.name: get_robot(a.model) for a in scene.arms}, bus.send_goal)
+        self.native = [
+            NativeAction(self.node, action, kind, self.actions, wake)
+            for action, kind in names.line_actions(self.topics.arms).items()
+        ]
+        self.services = {n: self.node.service(n, ty, wake) for n, ty in names.SERVICE_TYPES.items()}
+        self.commands = {
+            a: self.node.subscription(f"/{a}/joint_trajectory", TRAJECTORY, wake) for a in self.topics.arms
+        }
+        self.drops = DropCounter()
+        self.decoders = {
+            "state": Decoder(ArmState, self.drops),
+            "result": Decoder(GoalResultMsg, self.drops),
+            "parts": Decoder(PartsState, self.drops),
+        }
+        keys_heard = (keys.all_arms("state"), keys.all_arms("result"), keys.parts)
+        self.subs = [session.declare_subscriber(k, self.inbox) for k in keys_heard]
+        self.sent = self.refused = 0
+
+    def serve(self, stop: StopFlag) -> None:
+        for topic, msg in self.topics.latched.items():  # said once: their publishers keep them for late joiners
+            self.pubs[topic].put(msg)
         while not stop.should_stop():
-            if time.monotonic() - latched_at >= LATCHED_EVERY_S:
-                latched_at = time.monotonic()
-                for topic, msg in topics.latched.items():
-                    pubs[topic].put(msg)
-            for key, payload in inbox.drain():
-                leaf = key.rsplit("/", 1)[-1]
-                msg = decoders[leaf].decode(key, payload) if leaf in decoders else None
-                if isinstance(msg, ArmState):
-                    out = topics.from_state(msg, wanted)
-                elif isinstance(msg, PartsState):
-                    out = topics.from_parts(msg, wanted)
-                else:
+            self._from_bus()
+            self._answer_services()
+            self._take_commands()
+            for action in self.native:
+                action.poll(max(self.topics.clock_s, 0.0))
+            self.inbox.wait(0.05)
+
+    def _from_bus(self) -> None:
+        wanted = set(self.topics.types)
+        for key, payload in self.inbox.drain():
+            decoder = self.decoders.get(key.rsplit("/", 1)[-1])
+            msg = decoder.decode(key, payload) if decoder else None
+            if isinstance(msg, ArmState):
+                self.actions.on_state(msg)
+                out = self.topics.from_state(msg, wanted)
+            elif isinstance(msg, GoalResultMsg):
+                self.actions.on_result(msg)
+                continue
+            elif isinstance(msg, PartsState):
+                out = self.topics.from_parts(msg, wanted)
+            else:
+                continue
+            for topic, ros_msg in out:
+                self.pubs[topic].put(ros_msg)
+                self.sent += 1
+
+    def _answer_services(self) -> None:
+        for name, service in self.services.items():
+            for request in service.take():
+                try:
+                    values = answer_line_service(name, to_json(request.message), self.bus)
+                except ServiceError as exc:
+                    self.refused += 1
+                    values = {"success": False, "message": str(exc)}
+                request.reply(from_json(service.response_type, values))
+
+    def _take_commands(self) -> None:
+        """`/<arm>/joint_trajectory`: fire-and-forget goals; one that cannot be read is counted."""
+        for arm, sub in self.commands.items():
+            for msg in sub.take():
+                try:
+                    goal = fjt.goal_message(arm, self.actions.new_goal_id(), {"trajectory": to_json(msg)})
+                except ValueError:
+                    self.refused += 1
                     continue
-                for topic, ros_msg in out:
-                    pubs[topic].put(ros_msg)
-                    sent += 1
-            inbox.wait(0.05)
-    finally:
-        for sub in subs:
+                self.bus.send_goal(goal)
+
+    def figures(self) -> dict:
+        unreadable = sum(x.unreadable for x in [*self.native, *self.services.values(), *self.commands.values()])
+        return {
+            "messages_sent": self.sent,
+            "goals_sent": self.actions.sent,
+            "goals_refused": sum(a.refused for a in self.native),
+            "requests_refused": self.refused,
+            "requests_unreadable": unreadable,
+            "dropped_messages": self.drops.total,
+            "refused_messages": self.drops.kinds(),
+        }
+
+    def close(self) -> None:
+        for sub in self.subs:
             sub.undeclare()
-        node.close()
-    return {"messages_sent": sent, "dropped_messages": drops.total, "refused_messages": drops.kinds()}
+        for action in self.native:
+            action.close()
+        self.node.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,8 +158,14 @@ def main(argv: list[str] | None = None) -> int:
         scene = line_scene(session, keys, args.scene_timeout, "fleet ros2")
         if scene is None:
             return 1
-        figures = serve(session, keys, LineTopics(scene), args.domain_id, stop)
-        write_report(args.report, figures | {"stopped_by": stop.reason})
+        line = NativeLine(
+            session, keys, scene, args.domain_id, ros_line_bus(session, keys, [a.name for a in scene.arms], SOURCE)
+        )
+        try:
+            line.serve(stop)
+        finally:
+            line.close()
+            write_report(args.report, line.figures() | {"stopped_by": stop.reason})
     return 0
 
 

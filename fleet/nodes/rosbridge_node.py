@@ -13,30 +13,15 @@ import os
 import sys
 from pathlib import Path
 
-import zenoh
-
-from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import EStop, SimControl
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, is_loopback_host, open_session
 from fleet.common.processes import StopFlag, write_report, write_text_atomically
-from fleet.nodes.attached import line_scene
-from fleet.ros.rosbridge_server import LineBus, RosbridgeServer
+from fleet.nodes.attached import line_scene, ros_line_bus
+from fleet.ros.rosbridge_server import RosbridgeServer
 
 SOURCE = "rosbridge"
 ROSBRIDGE_NICENESS = 10  # what ROS tools watch must not slow the line down (as the monitor)
 DRAIN_S = 0.005  # how often the bus's queued messages are taken onto the server's loop
-
-
-def line_bus(session: zenoh.Session, keys: Keys, arms: list[str]) -> LineBus:
-    """Publishers for what ROS clients may do: goals to each arm, the e-stop, pause and resume."""
-    goals = {a: session.declare_publisher(keys.arm_drive(a)) for a in arms}  # outside goals take the arm
-    estop, control = session.declare_publisher(keys.estop), session.declare_publisher(keys.control)
-    return LineBus(
-        send_goal=lambda msg: goals[msg.arm].put(encode(msg)),
-        estop=lambda engaged: estop.put(encode(EStop(engaged, SOURCE))),
-        pause=lambda paused: control.put(encode(SimControl(SOURCE, paused=paused))),
-    )
 
 
 async def serve(server: RosbridgeServer, inbox: Inbox, args: argparse.Namespace, stop: StopFlag) -> None:
@@ -110,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         scene = line_scene(session, keys, args.scene_timeout, "fleet rosbridge")
         if scene is None:
             return 1
-        server = RosbridgeServer(scene, line_bus(session, keys, [a.name for a in scene.arms]), secret)
+        server = RosbridgeServer(scene, ros_line_bus(session, keys, [a.name for a in scene.arms], SOURCE), secret)
         inbox = Inbox()
         subs = [
             session.declare_subscriber(k, inbox) for k in (keys.all_arms("state"), keys.all_arms("result"), keys.parts)

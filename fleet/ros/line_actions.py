@@ -1,6 +1,7 @@
-"""The line's actions for rosbridge clients: each `FollowJointTrajectory` goal a client sent, followed from the
-sim's results and states to its feedback and result, and cancelled as ros2_controllers' controller does (the arm
-holds where it is commanded; the goal ends CANCELED)."""
+"""The line's actions for every ROS front end: each `FollowJointTrajectory` or `GripperCommand` goal a client
+sent, followed from the sim's results and states to its start, feedback and result, and cancelled as
+ros2_controllers' controller does (the arm holds where it is commanded; the goal ends CANCELED). A front end
+(rosbridge, rmw_zenoh) says how each goal's news reach its client (`GoalReplies`)."""
 
 from __future__ import annotations
 
@@ -14,21 +15,28 @@ from fleet.bus.messages import ArmGoalMsg, ArmState, GoalResultMsg, TrajectoryGo
 from fleet.ros import names
 from fleet.ros import trajectory_action as fjt
 from fleet.ros.gripper_action import gripper_goal_message, gripper_result
-from fleet.ros.ros_json import to_json
-from fleet.ros.rosbridge_client import Client
 from robots.spec import RobotSpec
 
 HOLD_S = 0.1  # a cancel: hold where the arm is commanded, reached this fast
 
 
+@dataclass(frozen=True)
+class GoalReplies:
+    """How one goal's news reach its client: its result (once), feedback while it drives the arm (None: not
+    wanted), and its start (the arm's state first shows it)."""
+
+    result: Callable[[fjt.ActionResult], None]
+    feedback: Callable[[dict], None] | None = None
+    started: Callable[[], None] | None = None
+
+
 @dataclass
 class PendingGoal:
-    client: Client
+    owner: object  # the client (a connection, an action server) the goal is cancelled and forgotten by
     op_id: object
-    action: str
     arm: str
-    joint_names: list[str]
-    feedback: bool
+    replies: GoalReplies
+    started: bool = False
 
 
 class LineActions:
@@ -48,9 +56,10 @@ class LineActions:
     def new_goal_id(self) -> int:
         return next(self._ids)
 
-    def send(self, client: Client, op_id: object, action: str, arm: str, goal: object, feedback: bool) -> None:
-        """Send a client's goal (`action` of `names.line_actions`) to the arm; one that cannot be read is answered
-        at once (INVALID_GOAL)."""
+    def send(self, owner: object, op_id: object, action: str, goal: object, replies: GoalReplies) -> None:
+        """Send a client's goal (JSON-like values) on `action` (one of `names.line_actions`) to its arm; one that
+        cannot be read is answered at once (INVALID_GOAL, not accepted)."""
+        arm = names.action_arm(action)
         goal_id = self.new_goal_id()
         try:
             if action == names.arm_gripper_action(arm):
@@ -58,16 +67,16 @@ class LineActions:
             else:
                 msg = fjt.goal_message(arm, goal_id, goal)
         except ValueError as exc:
-            self._answer(PendingGoal(client, op_id, action, arm, [], False), fjt.refused(str(exc)))
+            replies.result(fjt.refused(str(exc)))
             return
-        self.pending[goal_id] = PendingGoal(client, op_id, action, arm, list(getattr(msg, "joint_names", ())), feedback)
+        self.pending[goal_id] = PendingGoal(owner, op_id, arm, replies)
         self.send_goal(msg)
         self.sent += 1
 
-    def cancel(self, client: Client, op_id: object) -> bool:
-        """Cancel the client's goal `op_id`: the arm holds where it is commanded now (the goal ends CANCELED)."""
+    def cancel(self, owner: object, op_id: object) -> bool:
+        """Cancel the owner's goal `op_id`: the arm holds where it is commanded now (the goal ends CANCELED)."""
         for p in self.pending.values():
-            if p.client is client and p.op_id == op_id:
+            if p.owner is owner and p.op_id == op_id:
                 state = self.states.get(p.arm)
                 if state is None:
                     return False
@@ -84,26 +93,23 @@ class LineActions:
         if result.kind == "gripper":
             state = self.states.get(p.arm)
             position = float(state.gripper_q[0]) if state is not None and state.gripper_q else math.nan
-            self._answer(p, gripper_result(result, position))
+            p.replies.result(gripper_result(result, position))
         else:
-            self._answer(p, fjt.action_result(result))
+            p.replies.result(fjt.action_result(result))
 
     def on_state(self, state: ArmState) -> None:
         self.states[state.arm] = state
         p = self.pending.get(state.goal_id)
-        if p is not None and p.feedback and state.desired_q:
-            feedback = fjt.feedback(state, self.arm_joints[state.arm])
-            p.client.send({"op": "action_feedback", "id": p.op_id, "action": p.action, "values": feedback})
+        if p is None:
+            return
+        if not p.started:
+            p.started = True
+            if p.replies.started is not None:
+                p.replies.started()
+        if p.replies.feedback is not None and state.desired_q:
+            p.replies.feedback(fjt.feedback(state, self.arm_joints[state.arm]))
 
-    def forget(self, client: Client) -> None:
+    def forget(self, owner: object) -> None:
         """A client left: its goals run on, their results go to nobody."""
-        for goal_id in [g for g, p in self.pending.items() if p.client is client]:
+        for goal_id in [g for g, p in self.pending.items() if p.owner is owner]:
             del self.pending[goal_id]
-
-    @staticmethod
-    def _answer(p: PendingGoal, result: fjt.ActionResult) -> None:
-        out = {"op": "action_result", "action": p.action, "values": result.values, "status": result.status,
-               "result": result.accepted}  # fmt: skip
-        if p.op_id is not None:
-            out["id"] = p.op_id
-        p.client.send(to_json(out))

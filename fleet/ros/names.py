@@ -48,3 +48,8 @@ def line_actions(arms: list[str]) -> dict[str, str]:
     """Every action a line serves and its type."""
     out = {arm_trajectory_action(a): FOLLOW_JOINT_TRAJECTORY for a in arms}
     return out | {arm_gripper_action(a): GRIPPER_COMMAND for a in arms}
+
+
+def action_arm(action: str) -> str:
+    """The arm an action of `line_actions` drives (`/arm_0/follow_joint_trajectory` -> `arm_0`)."""
+    return action.strip("/").split("/")[0]

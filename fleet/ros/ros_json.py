@@ -7,14 +7,22 @@ import dataclasses
 import math
 
 import numpy as np
+from rosbags.typesys.store import Nodetype
+
+from fleet.record.ros_types import TYPESTORE
 
 _FIELDS: dict[type, tuple[str, ...] | None] = {}  # a message type's field names (None: not a message)
 _PLAIN = (str, int, bool, type(None))
 
 
 def _fields(kind: type) -> tuple[str, ...] | None:
+    """A message type's ROS fields (rosbags' classes also carry the constants and `__msgtype__` as fields)."""
     if kind not in _FIELDS:
-        _FIELDS[kind] = tuple(f.name for f in dataclasses.fields(kind)) if dataclasses.is_dataclass(kind) else None
+        typename = getattr(kind, "__msgtype__", None)
+        if isinstance(typename, str) and typename in TYPESTORE.fielddefs:
+            _FIELDS[kind] = tuple(name for name, _ in TYPESTORE.fielddefs[typename][1])
+        else:
+            _FIELDS[kind] = tuple(f.name for f in dataclasses.fields(kind)) if dataclasses.is_dataclass(kind) else None
     return _FIELDS[kind]
 
 
@@ -56,3 +64,37 @@ def seconds(value: object, field: str) -> float:
     if not all(isinstance(v, int) and not isinstance(v, bool) for v in (sec, nanosec)):
         raise ValueError(f"{field}: sec and nanosec must be integers")
     return sec + nanosec * 1e-9
+
+
+_DTYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "float32": np.float32, "float64": np.float64,
+           "int8": np.int8, "uint8": np.uint8, "int16": np.int16, "uint16": np.uint16, "int32": np.int32,
+           "uint32": np.uint32, "int64": np.int64, "uint64": np.uint64}  # fmt: skip
+
+
+def from_json(typename: str, values: dict) -> object:
+    """A typestore message from JSON-like values (the inverse of `to_json`); a field left out takes its zero, as
+    rosbridge fills a message. For messages this process builds itself (results, feedback, status)."""
+    _, fields = TYPESTORE.fielddefs[typename]
+    kwargs = {name: _field_value(desc, values.get(name)) for name, desc in fields}
+    return TYPESTORE.types[typename](**kwargs)
+
+
+def _field_value(desc: tuple, value: object) -> object:
+    node, detail = desc
+    if node == Nodetype.NAME:
+        return from_json(detail, value or {})
+    if node == Nodetype.BASE:
+        return _zero(detail[0]) if value is None else value
+    (item_node, item), count = detail
+    items = list(value or ())
+    if node == Nodetype.ARRAY:
+        items = (items + [None] * count)[:count]
+    if item_node == Nodetype.BASE and item[0] in _DTYPES:
+        return np.array([0 if v is None else v for v in items], dtype=_DTYPES[item[0]])
+    return [_field_value((item_node, item), v) for v in items]
+
+
+def _zero(kind: str) -> object:
+    if kind in ("string", "wstring"):
+        return ""
+    return False if kind == "bool" else 0.0 if kind.startswith("float") else 0

@@ -12,14 +12,14 @@ from __future__ import annotations
 import asyncio
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import websockets
 
 from fleet.bus.codec import Decoder, DropCounter
-from fleet.bus.messages import ArmState, GoalResultMsg, PartsState, TrajectoryGoalMsg
+from fleet.bus.messages import ArmState, GoalResultMsg, PartsState
 from fleet.ros import names
-from fleet.ros.line_actions import LineActions
+from fleet.ros.line_actions import GoalReplies, LineActions
+from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
 from fleet.ros.line_topics import LineTopics
 from fleet.ros.ros_json import to_json
 from fleet.ros.rosapi import Rosapi
@@ -30,15 +30,6 @@ from robots.registry import get_robot
 from scenes.schema import Scene
 
 MAX_MESSAGE_BYTES = 1 << 20
-
-
-@dataclass(frozen=True)
-class LineBus:
-    """What a ROS client may do to the line, as bus messages."""
-
-    send_goal: Callable[[TrajectoryGoalMsg], None]
-    estop: Callable[[bool], None]
-    pause: Callable[[bool], None]
 
 
 class RequestError(ValueError):
@@ -212,20 +203,15 @@ class RosbridgeServer:
         service, args = _field(m, "service", str), m.get("args") or {}
         if not isinstance(args, dict):
             raise RequestError("call_service needs 'args' as an object")
-        if service == names.ESTOP:
-            engaged = args.get("data")
-            if not isinstance(engaged, bool):
-                raise RequestError("/estop takes std_srvs/srv/SetBool: {data: true|false}")
-            self.bus.estop(engaged)
-            values = {"success": True, "message": "emergency stop engaged" if engaged else "emergency stop released"}
-        elif service in (names.PAUSE, names.RESUME):
-            self.bus.pause(service == names.PAUSE)
-            values = {"success": True, "message": "paused" if service == names.PAUSE else "resumed"}
-        else:
-            try:
+        try:
+            if service in names.SERVICE_TYPES:
+                values = answer_line_service(service, args, self.bus)
+            else:
                 values = self.rosapi.answer(service, args)
-            except KeyError:
-                raise RequestError(f"no service {service!r} (services: {', '.join(self.rosapi.services)})") from None
+        except ServiceError as exc:
+            raise RequestError(str(exc)) from None
+        except KeyError:
+            raise RequestError(f"no service {service!r} (services: {', '.join(self.rosapi.services)})") from None
         out = {"op": "service_response", "service": service, "values": values, "result": True}
         if m.get("id") is not None:
             out["id"] = m["id"]
@@ -238,8 +224,23 @@ class RosbridgeServer:
             raise RequestError(f"no action {action!r} (actions: {', '.join(self.rosapi.actions)})")
         if kind != known:
             raise RequestError(f"{action} is {known}, not {kind}")
-        arm = action.strip("/").split("/")[0]
-        self.actions.send(client, m.get("id"), action, arm, m.get("args"), bool(m.get("feedback", False)))
+        op_id = m.get("id")
+
+        def result(r) -> None:
+            out = {
+                "op": "action_result",
+                "action": action,
+                "values": r.values,
+                "status": r.status,
+                "result": r.accepted,
+            }
+            client.send(to_json(out if op_id is None else out | {"id": op_id}))
+
+        def feedback(values: dict) -> None:
+            client.send({"op": "action_feedback", "id": op_id, "action": action, "values": values})
+
+        replies = GoalReplies(result, feedback if m.get("feedback") else None)
+        self.actions.send(client, op_id, action, m.get("args"), replies)
 
     def _cancel_action_goal(self, client: Client, m: dict) -> None:
         if not self.actions.cancel(client, m.get("id")):

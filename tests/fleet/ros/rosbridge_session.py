@@ -165,21 +165,27 @@ def wait_for(condition, timeout_s: float) -> None:
 
 
 def rosbridge_session(ros2_listener=None) -> tuple[dict, dict]:
-    """The summary of a realtime ros_cell line with rosbridge (and, given `ros2_listener(launcher, heard)`, its
-    native ROS 2 topics heard meanwhile: `seen["ros2"]`), and what the ROS user saw. The line stops once both
-    are done."""
-    options = RunOptions(scene=ROS_CELL, duration_s=120.0, mode="realtime", rosbridge_port=0)
+    """The summary of a realtime ros_cell line with rosbridge (and, given `ros2_listener(launcher, heard, after)`,
+    a native ROS 2 user, who drives once the rosbridge user is done: `seen["ros2"]`), and what the ROS user saw.
+    The line stops once both are done."""
+    options = RunOptions(scene=ROS_CELL, duration_s=180.0, mode="realtime", rosbridge_port=0)
     if ros2_listener is not None:
         options = dataclasses.replace(options, ros2_domain=ros2_listener.domain)
     seen: dict = {"ros2": {}}
+    driven = threading.Event()
+
+    def rosbridge_user() -> None:
+        drive(launcher, seen)
+        driven.set()
+
     with Launcher(options) as launcher:
-        users = [threading.Thread(target=drive, args=(launcher, seen), daemon=True)]
+        users = [threading.Thread(target=rosbridge_user, daemon=True)]
         if ros2_listener is not None:
-            users.append(threading.Thread(target=ros2_listener, args=(launcher, seen["ros2"]), daemon=True))
+            users.append(threading.Thread(target=ros2_listener, args=(launcher, seen["ros2"], driven), daemon=True))
 
         def stop_when_done() -> None:
             for user in users:
-                user.join(120)
+                user.join(180)
             launcher.interrupted = "the ROS users are done"
 
         for thread in [*users, threading.Thread(target=stop_when_done, daemon=True)]:

@@ -3,8 +3,15 @@ attachments as rmw_zenoh documents them (a whole run heard by zenoh-ros2-sdk: `t
 serves both front ends)."""
 
 import struct
+import threading
 
-from fleet.ros.rmw_zenoh import attachment, topic_key, type_hash
+import pytest
+
+from fleet.bus.session import BusEndpoints, free_loopback_port, loopback_endpoint, open_session
+from fleet.record.ros_types import TYPESTORE
+from fleet.ros.rmw_zenoh import Ros2Node, attachment, read_attachment, topic_key, type_hash
+from fleet.ros.ros_interfaces import register_interfaces
+from fleet.ros.ros_json import from_json
 
 
 def test_keys_hashes_and_attachments_are_rmw_zenohs():
@@ -20,3 +27,38 @@ def test_keys_hashes_and_attachments_are_rmw_zenohs():
     packed = attachment(42, 1_700_000_000_123_456_789, gid)
     assert len(packed) == 33 and struct.unpack("<qqB", packed[:17]) == (42, 1_700_000_000_123_456_789, 16)
     assert packed[17:] == gid
+
+
+def test_a_service_answers_requests_and_refuses_unreadable_ones_with_an_error():
+    """A real service on a loopback session, asked as rmw_zenoh's clients ask: a query with the request's CDR and
+    the client's attachment; the reply carries the response and the client's sequence number and GID."""
+    register_interfaces()
+    endpoint = loopback_endpoint(free_loopback_port())
+    with open_session(BusEndpoints(listen=(endpoint,))) as session:
+        node = Ros2Node(session, 5, "probe")
+        wake = threading.Event()
+        service = node.service("/estop", "std_srvs/srv/SetBool", wake)
+        request = from_json("std_srvs/srv/SetBool_Request", {"data": True})
+        body = bytes(TYPESTORE.serialize_cdr(request, "std_srvs/srv/SetBool_Request"))
+        gid = bytes(range(16))
+        replies = []
+
+        def answer() -> None:
+            assert wake.wait(5)
+            for r in service.take():
+                r.reply(from_json(service.response_type, {"success": r.message.data, "message": "ok"}))
+
+        for payload, attached in ((body, attachment(7, 1, gid)), (b"\x00", attachment(8, 1, gid)), (body, None)):
+            wake.clear()
+            answering = threading.Thread(target=answer)
+            answering.start()
+            replies.append(list(session.get(service.key, payload=payload, attachment=attached, timeout=5)))
+            answering.join()
+        node.close()
+    ok = replies[0][0].ok
+    response = TYPESTORE.deserialize_cdr(ok.payload.to_bytes(), "std_srvs/srv/SetBool_Response")
+    assert response.success and read_attachment(ok.attachment.to_bytes())[::2] == (7, gid)
+    assert [r[0].err is not None for r in replies[1:]] == [True, True], "unreadable body, no attachment: errors"
+    assert service.unreadable == 2
+    with pytest.raises(ValueError):
+        read_attachment(b"\x01" * 20)

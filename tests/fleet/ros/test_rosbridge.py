@@ -33,6 +33,7 @@ def test_a_ros_client_sees_the_lines_topics_actions_and_frames(session):
         assert topic in seen["topics"]
     assert set(seen["actions"]) >= {"/arm_0/follow_joint_trajectory", "/arm_1/follow_joint_trajectory"}
     assert "arm_0/elbow" in seen["everyone_names"] and "arm_1/elbow" in seen["everyone_names"]
+    assert set(seen["after_reach"]) == {"header", "name", "position", "velocity", "effort"}, "a message's own fields"
     frames = {t["child_frame_id"] for t in seen["tf_static"][0]["transforms"]}
     assert any(f.startswith("arm_0/") for f in frames), "the arms' roots on /tf_static, latched"
 
@@ -111,3 +112,26 @@ def test_a_ros2_node_on_rmw_zenoh_hears_and_discovers_the_lines_topics(session):
     graph = heard["graph"]
     assert graph["/arm_1/joint_states"] == ["sensor_msgs/msg/JointState"] and "/tf_static" in graph
     assert summary["bus"] == "secure" and summary["bus_refused"] == {}, "every login stayed within its role"
+
+
+def test_a_ros2_node_on_rmw_zenoh_calls_the_estop_and_drives_an_arm_through_its_action(session):
+    _, seen = session
+    heard = seen["ros2"]
+    assert "error" not in heard, heard["error"]
+    assert [(r.success, r.message) for r in heard["estop"]] == [
+        (True, "emergency stop engaged"),
+        (True, "emergency stop released"),
+    ]
+    assert heard["tf_static"], "a late subscriber got the latched /tf_static from the publisher's cache"
+    assert heard["sent"].accepted and heard["result"].status == SUCCEEDED, heard["result"]
+    assert heard["result"].result.error_code == 0
+    first = [m.feedback for m in heard["feedback"] if bytes(m.goal_id.uuid) == bytes([1] * 16)]
+    final = first[-1]
+    assert list(final.joint_names)[0] == "shoulder_pan"
+    assert np.allclose(final.actual.positions, heard["target"], atol=0.05), "feedback follows the arm to its target"
+    statuses = {(bytes(s.goal_info.goal_id.uuid)[0], s.status) for m in heard["status"] for s in m.status_list}
+    assert {(1, 2), (1, SUCCEEDED)} <= statuses, "executing, then succeeded, on the status topic"
+    assert not heard["unknown_joints"].accepted, "a goal the line refuses is not accepted"
+    assert heard["slow"].accepted and heard["cancel"].return_code == 0
+    assert [bytes(g.goal_id.uuid)[0] for g in heard["cancel"].goals_canceling] == [3]
+    assert heard["cancelled"].status == CANCELED
