@@ -6,7 +6,8 @@ sim's own session (no extra process). `write_bus_configs` writes one Zenoh confi
 `cryptography`), a user and password per node, and access control on the router, so that only
 the sim publishes what the arms and the line report, only the coordinator gives orders, each
 controller drives only its own arm, and only the monitor stops or paces the line. Usernames are
-node names: `sim`, `coordinator`, `launcher`, `monitor`, `recorder`, and each arm's id.
+node names: `sim`, `coordinator`, `launcher`, `monitor`, `recorder`, `ros` (the ROS front ends), `ros_client` (an
+outside ROS 2 stack on rmw_zenoh), and each arm's id.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ SERVICE_NODES = (
     "monitor",
     "recorder",
     "ros",
+    "ros_client",
 )  # every node but the sim and the arms' controllers
 ANY_RUN = f"{ROOT}/*"
 # what each client may publish (ingress at the router); `{arm}` is the controller's own arm
@@ -43,6 +45,7 @@ PUBLISHES = {
     "recorder": ("recorder/ready",),
     "launcher": ("launcher/roster",),
     "ros": ("arm/*/drive", "estop", "world/control"),  # the ROS front ends: outside goals, e-stop, pause
+    "ros_client": (),  # a ROS 2 stack: nothing of clawfleet's own; the line's ROS services and actions (`--ros2`)
     "controller": ("arm/{arm}/step", "arm/{arm}/goal", "arm/{arm}/status"),
 }
 
@@ -96,10 +99,11 @@ def write_bus_configs(
     secure: bool = True,
     valid_days: int = 365,
     ros_domain: int | None = None,
+    ros_arms: tuple[str, ...] | None = None,
 ) -> BusConfigSet:
     """One Zenoh config per node in `out`: the sim a router listening on `address:port`, every other node a
     client of it; with `secure`, TLS, logins and access control (private keys and passwords readable by the
-    owner only)."""
+    owner only). With `ros_domain`, the router lets the line's native ROS 2 graph through (`access_control`)."""
     try:
         ip = ipaddress.ip_address(address)
     except ValueError:
@@ -111,6 +115,8 @@ def write_bus_configs(
         raise BusConfigError(
             f"arm ids {bad or arms}: need at least one, lower-case identifiers, none named like a node"
         )
+    if ros_arms is not None and (not ros_arms or not set(ros_arms) <= set(arms)):
+        raise BusConfigError(f"--ros-arms {','.join(ros_arms)}: give some of this line's arms ({', '.join(arms)})")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     endpoint = f"{'tls' if secure else 'tcp'}/{address}:{port}"
@@ -134,7 +140,7 @@ def write_bus_configs(
             },
             "auth": {"usrpwd": {"dictionary_file": str(out / "users.txt")}},
         }
-        router["access_control"] = access_control(arms, ros_domain)
+        router["access_control"] = access_control(arms, ros_domain, ros_arms)
     _write_private(out / "sim.json5", json.dumps(router, indent=2))
     for node in nodes[1:]:
         client = {"mode": "client", "connect": {"endpoints": [endpoint]}}
@@ -148,7 +154,13 @@ def write_bus_configs(
     return BusConfigSet(out.resolve(), endpoint, secure, tuple(arms))
 
 
-def write_run_bus(folder: str | Path, arms: list[str], port: int, ros_domain: int | None = None) -> BusConfigSet:
+def write_run_bus(
+    folder: str | Path,
+    arms: list[str],
+    port: int,
+    ros_domain: int | None = None,
+    ros_arms: tuple[str, ...] | None = None,
+) -> BusConfigSet:
     """A run's own secure bus on loopback (what `fleet run` does unless told `--insecure`): TLS, a login per node and
     access control, written into the run's private folder (the folder and every file holding a key or a password
     readable by the owner only). Nothing but the run's own processes, and a client given one of these configs,
@@ -156,14 +168,15 @@ def write_run_bus(folder: str | Path, arms: list[str], port: int, ros_domain: in
     folder = Path(folder)
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
-    return write_bus_configs(folder, "127.0.0.1", port, arms, secure=True, valid_days=2, ros_domain=ros_domain)
+    return write_bus_configs(
+        folder, "127.0.0.1", port, arms, secure=True, valid_days=2, ros_domain=ros_domain, ros_arms=ros_arms
+    )
 
 
-def access_control(arms: list[str], ros_domain: int | None = None) -> dict:
+def access_control(arms: list[str], ros_domain: int | None = None, ros_arms: tuple[str, ...] | None = None) -> dict:
     """The router's rules: everything logged in may listen and ask (the sim's queryables answer); each may
     publish only its own keys (`PUBLISHES`); nothing else, and no client may serve a queryable. With `ros_domain`,
-    the line's native ROS 2 topics too (`fleet.ros.rmw_zenoh`): every login may listen, discover and declare its
-    own ROS graph entities (liveliness tokens), only `ros` may publish data in the domain."""
+    the line's native ROS graph too (`ros2_rules`)."""
     keys = lambda patterns, arm="": [f"{ANY_RUN}/{p.format(arm=arm)}" for p in patterns]  # noqa: E731
     rules = [
         {
@@ -198,21 +211,49 @@ def access_control(arms: list[str], ros_domain: int | None = None) -> dict:
             subjects.append({"id": node, "usernames": [node]})
             policies.append({"rules": [f"publish_{node}"], "subjects": [node]})
     if ros_domain is not None:
-        ros2 = [f"{ros_domain}/**", f"{ros_domain}/**/@adv/**", "@ros2_lv/**"]  # `@adv`: latched topics' caches
-        listen = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
-        rules += [
-            {"id": "ros2_deliver", "permission": "allow", "flows": ["egress"],
-             "messages": [*listen, "put", "delete", "reply", "liveliness_token", "declare_queryable"],
-             "key_exprs": ros2},
-            {"id": "ros2_listen", "permission": "allow", "flows": ["ingress"], "messages": listen, "key_exprs": ros2},
-            {"id": "ros2_discovery", "permission": "allow", "flows": ["ingress"],  # ROS nodes say they exist
-             "messages": ["liveliness_token"], "key_exprs": ["@ros2_lv/**"]},
-            {"id": "ros2_publish", "permission": "allow", "flows": ["ingress"],  # topics, services, latched caches
-             "messages": ["put", "delete", "declare_queryable", "reply", "liveliness_token"], "key_exprs": ros2[:2]},
-        ]  # fmt: skip
-        policies[0]["rules"] += ["ros2_deliver", "ros2_listen", "ros2_discovery"]
-        policies.append({"rules": ["ros2_publish"], "subjects": ["ros"]})
+        commanded = tuple(arms if ros_arms is None else ros_arms)
+        ros_rules, ros_policies = ros2_rules(ros_domain, commanded, set(commanded) >= set(arms))
+        rules += ros_rules
+        policies[0]["rules"] += ["ros2_deliver", "ros2_listen", "ros2_caches", "ros2_discovery"]
+        policies += ros_policies
+        subjects.append({"id": "ros_client", "usernames": ["ros_client"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
+
+
+def ros2_rules(domain: int, commanded: tuple[str, ...], every_arm: bool) -> tuple[list[dict], list[dict]]:
+    """The native ROS 2 graph (`fleet.ros.rmw_zenoh`): every login may listen, discover, declare its own graph
+    entities and read latched topics' caches; only `ros` (the line's ROS 2 node) publishes and serves; only
+    `ros_client` (an outside ROS 2 stack) calls the e-stop, and the actions of, and publishes trajectories to,
+    the `commanded` arms (pause and resume when it is given every arm)."""
+    data, caches = f"{domain}/**", f"{domain}/**/@adv/**"  # `@adv`: chunks `**` does not reach
+    ros2 = [data, caches, "@ros2_lv/**"]
+    listen = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness_query"]
+    calls = [
+        f"{domain}/{arm}/{action}/_action/**"
+        for arm in commanded
+        for action in ("follow_joint_trajectory", "gripper_cmd")
+    ]
+    calls += [f"{domain}/{service}/**" for service in ("estop", "pause", "resume")[: 3 if every_arm else 1]]
+    rules = [
+        {"id": "ros2_deliver", "permission": "allow", "flows": ["egress"],
+         "messages": [*listen, "query", "put", "delete", "reply", "liveliness_token", "declare_queryable"],
+         "key_exprs": ros2},
+        {"id": "ros2_listen", "permission": "allow", "flows": ["ingress"], "messages": listen, "key_exprs": ros2},
+        {"id": "ros2_caches", "permission": "allow", "flows": ["ingress"], "messages": ["query"],
+         "key_exprs": [caches]},
+        {"id": "ros2_discovery", "permission": "allow", "flows": ["ingress"],  # ROS nodes say they exist
+         "messages": ["liveliness_token"], "key_exprs": ["@ros2_lv/**"]},
+        {"id": "ros2_publish", "permission": "allow", "flows": ["ingress"],  # topics, services, latched caches
+         "messages": ["put", "delete", "declare_queryable", "reply", "liveliness_token"], "key_exprs": [data, caches]},
+        {"id": "ros2_command", "permission": "allow", "flows": ["ingress"], "messages": ["query"], "key_exprs": calls},
+        {"id": "ros2_drive", "permission": "allow", "flows": ["ingress"], "messages": ["put"],
+         "key_exprs": [f"{domain}/{arm}/joint_trajectory/**" for arm in commanded]},
+    ]  # fmt: skip
+    policies = [
+        {"rules": ["ros2_publish"], "subjects": ["ros"]},
+        {"rules": ["ros2_command", "ros2_drive"], "subjects": ["ros_client"]},
+    ]
+    return rules, policies
 
 
 def _write_certificates(out: Path, ip: ipaddress.IPv4Address | ipaddress.IPv6Address, valid_days: int) -> dict:

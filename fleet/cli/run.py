@@ -45,8 +45,6 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
     if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
-    if not 0 <= args.ros_domain_id <= 232:
-        raise UsageError(f"--ros-domain-id {args.ros_domain_id}: ROS domains are 0 to 232")
     for flag, port in (("--port", args.port), ("--rosbridge-port", args.rosbridge_port)):
         if not 0 <= port <= 65535:
             raise UsageError(f"{flag} {port}: a TCP port is 0 to 65535 (0: any free port)")
@@ -66,6 +64,27 @@ def check_run_flags(args: argparse.Namespace) -> None:
         said = re.search(r'msg: "([^"]*)"', str(exc))
         text = re.sub(r"\s+at /\S+", "", said.group(1) if said else (str(exc).splitlines() or [type(exc).__name__])[0])
         raise UsageError(f"bus flags: {text}") from None
+
+
+def arm_list(text: str) -> tuple[str, ...]:
+    """`--ros-arms`' value: arm ids separated by commas (argparse's `type`)."""
+    arms = tuple(a.strip() for a in text.split(",") if a.strip())
+    if not arms:
+        raise argparse.ArgumentTypeError(f"{text!r}: give arm ids separated by commas, e.g. arm_0,arm_1")
+    return arms
+
+
+def check_ros2_flags(args: argparse.Namespace, arms: list[str]) -> None:
+    """`--ros-domain-id` a ROS domain; `--ros-arms` needs `--ros2` and names only the line's arms."""
+    if not 0 <= args.ros_domain_id <= 232:
+        raise UsageError(f"--ros-domain-id {args.ros_domain_id}: ROS domains are 0 to 232")
+    if args.ros_arms is None:
+        return
+    if not args.ros2:
+        raise UsageError("--ros-arms needs --ros2 (it says which arms an outside ROS 2 stack may drive)")
+    unknown = [a for a in args.ros_arms if a not in arms]
+    if unknown:
+        raise UsageError(f"--ros-arms: {', '.join(unknown)} not in this line (its arms: {', '.join(arms)})")
 
 
 def check_placement_flags(args: argparse.Namespace) -> None:
@@ -91,9 +110,11 @@ def cmd_bus_config(args: argparse.Namespace) -> int:
     from fleet.bus.bus_config import BusConfigError, write_bus_configs
 
     arms = [a.name for a in load_scene(args.scene, arms=args.arms).arms]
+    check_ros2_flags(args, arms)
     output_folder("--out", args.out, parents=True)
     try:
-        made = write_bus_configs(args.out, args.address, args.port, arms, secure=not args.insecure)
+        ros = {"ros_domain": args.ros_domain_id, "ros_arms": args.ros_arms} if args.ros2 else {}
+        made = write_bus_configs(args.out, args.address, args.port, arms, secure=not args.insecure, **ros)
     except BusConfigError as exc:
         raise UsageError(str(exc)) from None
     how = "TLS, a login per node, access control" if made.secure else "plain TCP, no logins (a trusted network only)"
@@ -143,6 +164,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         monitor_port=args.port,
         rosbridge_port=args.rosbridge_port if args.rosbridge else None,
         ros2_domain=args.ros_domain_id if args.ros2 else None,
+        ros2_arms=args.ros_arms,
         record=run_recording(args),
         latency_ms=args.latency_ms,
         jitter_ms=args.jitter_ms,
@@ -168,7 +190,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from fleet.run.launcher import Launcher
 
     check_run_flags(args)
-    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
+    scene = load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
+    check_ros2_flags(args, [a.name for a in scene.arms])
     check_placement_flags(args)
     options = run_options(args)
     if args.insecure:
@@ -379,12 +402,24 @@ def _add_rosbridge_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--rosbridge-port", type=int, default=9090, metavar="PORT", help="the rosbridge server's port (default 9090)"
     )
+    _add_ros2_arguments(p)
+
+
+def _add_ros2_arguments(p: argparse.ArgumentParser) -> None:
+    """The line's native ROS 2 graph: `--ros2`, `--ros-domain-id`, `--ros-arms`."""
     p.add_argument(
         "--ros2",
         action="store_true",
-        help="publish the line's ROS 2 topics natively on its router (rmw_zenoh's layout); docs/ros2.md",
+        help="the line's ROS 2 topics, services and actions natively on its router (rmw_zenoh's layout); docs/ros2.md",
     )
     p.add_argument("--ros-domain-id", type=int, default=0, metavar="N", help="ROS_DOMAIN_ID for --ros2 (default 0)")
+    p.add_argument(
+        "--ros-arms",
+        type=arm_list,
+        metavar="ARM,...",
+        help="with --ros2: the arms an outside ROS 2 stack (login ros_client) may drive (default: every arm; pause "
+        "and resume only with every arm)",
+    )
 
 
 def _add_placement_arguments(p: argparse.ArgumentParser) -> None:
@@ -433,4 +468,5 @@ def _add_bus_config(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="where to write the configs (keys and passwords readable by you only)",
     )
+    _add_ros2_arguments(p)
     p.set_defaults(func=cmd_bus_config)

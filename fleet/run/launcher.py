@@ -66,6 +66,7 @@ class RunOptions:
     monitor_port: int = 8080
     rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
     ros2_domain: int | None = None  # publish the line's ROS 2 topics natively (rmw_zenoh) in this ROS domain
+    ros2_arms: tuple[str, ...] | None = None  # the arms an outside ROS 2 stack (login `ros_client`) may drive; all
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
@@ -125,7 +126,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
         if self.bus is None and self.secure_by_default:
             arms = [a.name for a in self.scene.arms]
-            self.bus = write_run_bus(self.dir / "bus", arms, free_loopback_port(), self.options.ros2_domain)
+            ros = self.options.ros2_domain, self.options.ros2_arms
+            self.bus = write_run_bus(self.dir / "bus", arms, free_loopback_port(), *ros)
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary

@@ -17,7 +17,7 @@ def test_each_node_gets_its_own_login_and_only_its_owner_reads_keys_and_password
     made = write_bus_configs(tmp_path, "127.0.0.1", 17461, ["arm_0", "arm_1"])
     assert made.endpoint == "tls/127.0.0.1:17461" and BusConfigSet.load(tmp_path) == made
     users = dict(line.split(":", 1) for line in (tmp_path / "users.txt").read_text().split())
-    assert sorted(users) == ["arm_0", "arm_1", "coordinator", "launcher", "monitor", "recorder", "ros"]
+    assert sorted(users) == ["arm_0", "arm_1", "coordinator", "launcher", "monitor", "recorder", "ros", "ros_client"]
     assert len(set(users.values())) == len(users), "a password per node"
     for private in ("sim.key", "users.txt", "sim.json5", "arm_0.json5"):
         assert stat.S_IMODE((tmp_path / private).stat().st_mode) == 0o600
@@ -50,6 +50,25 @@ def test_the_router_lets_each_node_publish_only_its_own_keys():
     assert all("declare_queryable" not in r["messages"] for r in acl["rules"] if "ingress" in r["flows"]), (
         "no client serves a queryable"
     )
+
+
+def test_on_a_native_ros_2_line_only_the_ros_client_login_commands_and_only_its_arms():
+    acl = access_control(["arm_0", "arm_1"], ros_domain=4, ros_arms=("arm_1",))
+    rules = {r["id"]: r for r in acl["rules"]}
+    by_subject = {s: p["rules"] for p in acl["policies"] for s in p["subjects"]}
+    assert rules["ros2_command"]["key_exprs"] == [
+        "4/arm_1/follow_joint_trajectory/_action/**",
+        "4/arm_1/gripper_cmd/_action/**",
+        "4/estop/**",
+    ], "arm_1's actions and the e-stop; not pause or resume (not every arm is given)"
+    assert rules["ros2_drive"]["key_exprs"] == ["4/arm_1/joint_trajectory/**"]
+    assert by_subject["ros_client"] == ["ros2_command", "ros2_drive"] and by_subject["ros"] == ["ros2_publish"]
+    assert rules["ros2_caches"]["key_exprs"] == ["4/**/@adv/**"], "everyone may read latched topics' caches"
+    assert "query" not in rules["ros2_listen"]["messages"], "and call nothing"
+    every = {r["id"]: r for r in access_control(["arm_0", "arm_1"], ros_domain=4)["rules"]}
+    assert {"4/pause/**", "4/resume/**"} <= set(every["ros2_command"]["key_exprs"])
+    with pytest.raises(BusConfigError, match="--ros-arms arm_7"):
+        write_bus_configs("/nonexistent", "127.0.0.1", 7447, ["arm_0"], ros_domain=4, ros_arms=("arm_7",))
 
 
 def test_a_client_with_a_login_may_publish_its_keys_and_one_without_cannot_log_in(tmp_path):

@@ -75,10 +75,11 @@ def uuid(n: int) -> dict:
 
 
 class Ros2Listener:
-    """Subscribes with the SDK, as a ROS 2 node would, through the run's router with the monitor's login; what it
-    heard goes into the dict it is given."""
+    """Subscribes and drives with the SDK, as a ROS 2 node would, through the run's router with the login of an
+    outside ROS 2 stack (`ros_client`), given arm_1 only; what it heard goes into the dict it is given."""
 
     domain = DOMAIN
+    arms = ("arm_1",)
 
     def __init__(self, definitions: Path) -> None:
         type_hash(FJT + "_SendGoal")  # the action's types registered here (clawfleet's definitions)
@@ -106,7 +107,7 @@ class Ros2Listener:
             time.sleep(0.1)
         endpoint = launcher.endpoint  # tls/127.0.0.1:PORT
         host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
-        os.environ["ZENOH_SESSION_CONFIG_URI"] = launcher.bus.config_for("monitor")
+        os.environ["ZENOH_SESSION_CONFIG_URI"] = launcher.bus.config_for("ros_client")
         os.environ["ZENOH_CONFIG_OVERRIDE"] = f'connect/endpoints=["{endpoint}"];listen/endpoints=[]'
         get_registry(str(self.definitions))
         subs = []
@@ -157,26 +158,21 @@ class Ros2Listener:
             type_hash=type_hash(FJT + "_FeedbackMessage"), **sdk,
         )  # fmt: skip
         status = ROS2Subscriber(f"{ACTION}/_action/status", STATUS, heard["status"].append, qos=latched, **sdk)
-        send, result = (
-            ROS2ServiceClient(
-                f"{ACTION}/_action/{name}",
-                f"{FJT}_{part}",
-                type_hash=type_hash(f"{FJT}_{part}"),
-                timeout=20.0,
-                request_definition=request,
-                response_definition=response,
-                **sdk,
-            )  # fmt: skip
-            for name, part, request, response in (
-                (
-                    "send_goal",
-                    "SendGoal",
-                    f"unique_identifier_msgs/UUID goal_id\n{FJT}_Goal goal",
-                    "bool accepted\nbuiltin_interfaces/Time stamp",
-                ),
-                ("get_result", "GetResult", "unique_identifier_msgs/UUID goal_id", f"int8 status\n{FJT}_Result result"),
-            )  # fmt: skip
+        send_goal = (
+            "SendGoal",
+            f"unique_identifier_msgs/UUID goal_id\n{FJT}_Goal goal",
+            "bool accepted\nbuiltin_interfaces/Time stamp",
         )
+        get_result = ("GetResult", "unique_identifier_msgs/UUID goal_id", f"int8 status\n{FJT}_Result result")
+
+        def client(action: str, service: str, part: str, request: str, response: str, timeout_s: float = 20.0):
+            """The SDK's service client on one of the action's services, given its types."""
+            return ROS2ServiceClient(
+                f"{action}/_action/{service}", f"{FJT}_{part}", type_hash=type_hash(f"{FJT}_{part}"), timeout=timeout_s,
+                request_definition=request, response_definition=response, **sdk,
+            )  # fmt: skip
+
+        send, result = client(ACTION, "send_goal", *send_goal), client(ACTION, "get_result", *get_result)
         cancel = ROS2ServiceClient(f"{ACTION}/_action/cancel_goal", "action_msgs/srv/CancelGoal", **sdk)
         spec = get_robot("openclaw")
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
@@ -197,5 +193,7 @@ class Ros2Listener:
         time.sleep(0.5)
         heard["cancel"] = cancel.call(goal_info=from_json("action_msgs/msg/GoalInfo", {"goal_id": uuid(3)}))
         heard["cancelled"] = result.call(goal_id=from_json("unique_identifier_msgs/msg/UUID", uuid(3)))
-        for endpoint in (late, estop, feedback, status, send, result, cancel):
+        not_given = client("/arm_0/follow_joint_trajectory", "send_goal", *send_goal, timeout_s=3.0)
+        heard["arm_0"] = not_given.call(**goal(4, joints, home.tolist(), 1))
+        for endpoint in (late, estop, feedback, status, send, result, cancel, not_given):
             endpoint.close()

@@ -170,7 +170,7 @@ def rosbridge_session(ros2_listener=None) -> tuple[dict, dict]:
     The line stops once both are done."""
     options = RunOptions(scene=ROS_CELL, duration_s=180.0, mode="realtime", rosbridge_port=0)
     if ros2_listener is not None:
-        options = dataclasses.replace(options, ros2_domain=ros2_listener.domain)
+        options = dataclasses.replace(options, ros2_domain=ros2_listener.domain, ros2_arms=ros2_listener.arms)
     seen: dict = {"ros2": {}}
     driven = threading.Event()
 
