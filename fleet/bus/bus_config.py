@@ -104,19 +104,7 @@ def write_bus_configs(
     """One Zenoh config per node in `out`: the sim a router listening on `address:port`, every other node a
     client of it; with `secure`, TLS, logins and access control (private keys and passwords readable by the
     owner only). With `ros_domain`, the router lets the line's native ROS 2 graph through (`access_control`)."""
-    try:
-        ip = ipaddress.ip_address(address)
-    except ValueError:
-        raise BusConfigError(f"--address {address!r}: an IP address of the sim's host, e.g. 10.0.0.5") from None
-    if not 0 < port < 65536:
-        raise BusConfigError(f"--port {port}: a TCP port, 1..65535")
-    bad = [a for a in arms if not is_valid_name(a) or a in ("sim", *SERVICE_NODES)]
-    if bad or not arms:
-        raise BusConfigError(
-            f"arm ids {bad or arms}: need at least one, lower-case identifiers, none named like a node"
-        )
-    if ros_arms is not None and (not ros_arms or not set(ros_arms) <= set(arms)):
-        raise BusConfigError(f"--ros-arms {','.join(ros_arms)}: give some of this line's arms ({', '.join(arms)})")
+    ip = _checked_request(address, port, arms, ros_arms)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     endpoint = f"{'tls' if secure else 'tcp'}/{address}:{port}"
@@ -152,6 +140,26 @@ def write_bus_configs(
         _write_private(out / f"{node}.json5", json.dumps(client, indent=2))
     (out / MANIFEST).write_text(json.dumps({"endpoint": endpoint, "secure": secure, "arms": list(arms)}, indent=2))
     return BusConfigSet(out.resolve(), endpoint, secure, tuple(arms))
+
+
+def _checked_request(
+    address: str, port: int, arms: list[str], ros_arms: tuple[str, ...] | None
+) -> ipaddress.IPv4Address | ipaddress.IPv6Address:
+    """The sim's address, once the request is one configs can be written for; else `BusConfigError`."""
+    try:
+        ip = ipaddress.ip_address(address)
+    except ValueError:
+        raise BusConfigError(f"--address {address!r}: an IP address of the sim's host, e.g. 10.0.0.5") from None
+    if not 0 < port < 65536:
+        raise BusConfigError(f"--port {port}: a TCP port, 1..65535")
+    bad = [a for a in arms if not is_valid_name(a) or a in ("sim", *SERVICE_NODES)]
+    if bad or not arms:
+        raise BusConfigError(
+            f"arm ids {bad or arms}: need at least one, lower-case identifiers, none named like a node"
+        )
+    if ros_arms is not None and (not ros_arms or not set(ros_arms) <= set(arms)):
+        raise BusConfigError(f"--ros-arms {','.join(ros_arms)}: give some of this line's arms ({', '.join(arms)})")
+    return ip
 
 
 def write_run_bus(
