@@ -1,12 +1,13 @@
 """`fleet bench ros`: what serving a line to ROS tools costs, and how fast a ROS goal moves an arm.
 
-- cost: lockstep lines of the sorting line without and with `--rosbridge` and N WebSocket clients each subscribed
-  to `/joint_states` and `/tf` (reading everything as it comes), in turn; the sim loop's wall time compared.
+- cost: lockstep lines of the sorting line without, and with `--rosbridge` and N WebSocket clients each subscribed
+  to `/joint_states` and `/tf` (reading everything as it comes) and `--ros2` (rmw_zenoh publishing), in turn; the
+  sim loop's wall time compared.
 - latency: a realtime line; a rosbridge client sends `FollowJointTrajectory` goals to arm_0 (between two poses,
   1 s each) and times, in wall time, from sending to the first feedback (the arm's state saying the goal drives it:
   the tracker moves the arm along it), and from the last `/arm_0/joint_states` that still shows it moving to the
-  result. States come at the arm's state rate (20 Hz of sim
-  time), so both figures include up to one state period (50 ms).
+  result. States come at the arm's state rate (20 Hz of sim time), so both figures include up to one state period
+  (50 ms); goals are sent at random moments (0-100 ms after the last result), not in step with the states.
 
 The clients here are plain WebSocket clients speaking rosbridge's JSON; the tests prove the protocol with roslibpy.
 """
@@ -68,10 +69,15 @@ def _subscriber(launcher: Launcher, counts: list[int], i: int, stop: threading.E
 
 
 def _run(arms: int, seconds: float, subscribers: int | None) -> tuple[float, float]:
-    """One lockstep run; with `subscribers` (not None) a rosbridge server and that many clients. The sim loop's
-    wall seconds and the messages each client got."""
+    """One lockstep run; with `subscribers` (not None) a rosbridge server and that many clients, and the native
+    ROS 2 node publishing. The sim loop's wall seconds and the messages each client got."""
+    served = subscribers is not None
     options = RunOptions(
-        "sorting_line", arms=arms, duration_s=seconds, rosbridge_port=None if subscribers is None else 0
+        "sorting_line",
+        arms=arms,
+        duration_s=seconds,
+        rosbridge_port=0 if served else None,
+        ros2_domain=0 if served else None,
     )
     counts, stop = [0] * (subscribers or 0), threading.Event()
     with Launcher(options) as launcher:
@@ -99,7 +105,9 @@ def bench_ros_cost(arms: int = 4, seconds: float = 60.0, subscribers: int = 10, 
     ratio = float(np.median(np.array(served) / np.array(plain)))
     return [
         RosCostRow("plain", float(np.median(plain)), 1.0, 0.0),
-        RosCostRow(f"rosbridge, {subscribers} clients", float(np.median(served)), ratio, float(np.median(got))),
+        RosCostRow(
+            f"rosbridge, {subscribers} clients, rmw_zenoh", float(np.median(served)), ratio, float(np.median(got))
+        ),
     ]
 
 
@@ -109,9 +117,13 @@ def _drive(launcher: Launcher, goals: int, out: dict) -> None:
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
         poses = [home + np.array([0.3, -0.2, 0.25, 0.0, 0.2, 0.0])[: home.size], home]
         starts, ends = [], []
+        rng = np.random.default_rng(0)
         with connect(_url(launcher)) as ws:
             ws.send(json.dumps({"op": "subscribe", "topic": "/arm_0/joint_states", "id": "js"}))
             for k in range(goals):
+                time.sleep(
+                    rng.uniform(0.0, 0.1)
+                )  # goals at any moment, not in step with the states that ended the last
                 target = poses[k % 2]
                 points = [{"positions": target.tolist(), "time_from_start": {"sec": 1, "nanosec": 0}}]
                 goal = {"trajectory": {"joint_names": joints, "points": points}}

@@ -1,10 +1,32 @@
-"""`fleet rosbridge`: serve a running line to ROS tools over rosbridge's WebSocket protocol."""
+"""`fleet rosbridge` and `fleet ros2`: serve a running line to ROS tools (rosbridge's WebSocket, rmw_zenoh)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 
 from fleet.bus.session import BusEndpoints, add_bus_arguments
+from fleet.cli.errors import UsageError
+from fleet.ros.names import DEFAULT_MAX_RATE_HZ
+
+
+def checked_rate(hz: float, flag: str = "--max-rate-hz") -> float:
+    """A cap on the ROS topics' rate: 0 (no cap) or a positive rate."""
+    if not (math.isfinite(hz) and hz >= 0):
+        raise UsageError(f"{flag} {hz:g}: give a rate in wall Hz (0: no cap)")
+    return hz
+
+
+def add_rate_argument(p: argparse.ArgumentParser, flag: str = "--max-rate-hz") -> None:
+    """The ROS front ends' cap on topics from the line's view and states, in wall Hz."""
+    p.add_argument(
+        flag,
+        type=float,
+        default=DEFAULT_MAX_RATE_HZ,
+        metavar="HZ",
+        help=f"ROS topics from the line's view and states at most this often in wall time (0: every one; default "
+        f"{DEFAULT_MAX_RATE_HZ:g}); a lockstep line runs many times faster than ROS tools draw",
+    )
 
 
 def cmd_rosbridge(args: argparse.Namespace) -> int:
@@ -18,7 +40,7 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise SystemExit(f"fleet: error: --port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
-    argv += BusEndpoints.from_args(args).client_argv()
+    argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
     if args.secret_file:
         argv += ["--secret-file", args.secret_file]
     return rosbridge_node.main(argv)
@@ -33,7 +55,7 @@ def cmd_ros2(args: argparse.Namespace) -> int:
             "its bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
         )
     argv = ["--run", args.run_id, "--domain-id", str(args.domain_id), "--scene-timeout", str(args.wait)]
-    argv += BusEndpoints.from_args(args).client_argv()
+    argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
     return ros2_node.main(argv)
 
 
@@ -67,6 +89,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="clients authenticate with MACs made from this secret (rosauth's `auth`); needed beyond loopback",
     )
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_rate_argument(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_rosbridge)
     ros2 = sub.add_parser("ros2", help="ROS 2: native topics on a line's router, MoveIt's controllers file")
@@ -82,5 +105,6 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")
     p.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID (default 0)")
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_rate_argument(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_ros2)

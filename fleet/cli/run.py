@@ -27,6 +27,7 @@ from fleet.cli.errors import (
     output_folder,
     writable_file,
 )
+from fleet.cli.ros import add_rate_argument, checked_rate
 from fleet.common.scene_loading import load_scene
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from scenes.yaml_file import DeclarationError
@@ -165,6 +166,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         rosbridge_port=args.rosbridge_port if args.rosbridge else None,
         ros2_domain=args.ros_domain_id if args.ros2 else None,
         ros2_arms=args.ros_arms,
+        ros_max_rate_hz=checked_rate(args.ros_max_rate_hz, "--ros-max-rate-hz"),
         record=run_recording(args),
         latency_ms=args.latency_ms,
         jitter_ms=args.jitter_ms,
@@ -403,6 +405,7 @@ def _add_rosbridge_arguments(p: argparse.ArgumentParser) -> None:
         "--rosbridge-port", type=int, default=9090, metavar="PORT", help="the rosbridge server's port (default 9090)"
     )
     _add_ros2_arguments(p)
+    add_rate_argument(p, "--ros-max-rate-hz")
 
 
 def _add_ros2_arguments(p: argparse.ArgumentParser) -> None:

@@ -4,6 +4,8 @@ line's scene, asked of its sim, or one line saying why there is none; the ROS fr
 from __future__ import annotations
 
 import sys
+import time
+from collections.abc import Callable
 
 import zenoh
 
@@ -34,3 +36,37 @@ def ros_line_bus(session: zenoh.Session, keys: Keys, arms: list[str], source: st
         estop=lambda engaged: estop.put(encode(EStop(engaged, source))),
         pause=lambda paused: control.put(encode(SimControl(source, paused=paused))),
     )
+
+
+class OnDemandSubscriptions:
+    """The keys a ROS front end listens to only while it needs them: each arm's states (a goal of its clients in
+    flight on the arm, a client of that arm's own joint states) and the line's view (clients of the topics it
+    feeds). States come at every arm's control rate and views many times a second: a front end hearing them all,
+    whether anyone asked or not, costs a lockstep line a fifth of its speed in the router's deliveries alone. A key
+    no longer needed is let go after `LINGER_S`."""
+
+    LINGER_S = 2.0
+
+    def __init__(self, session: zenoh.Session, handler: Callable[[zenoh.Sample], None]) -> None:
+        self.session, self.handler = session, handler
+        self._subs: dict[str, zenoh.Subscriber] = {}
+        self._needed_at: dict[str, float] = {}
+
+    def want(self, keys: set[str]) -> None:
+        """Listen to exactly these keys from now on (and, for `LINGER_S`, to those just let go)."""
+        now = time.monotonic()
+        for key in keys:
+            self._needed_at[key] = now
+            if key not in self._subs:
+                self._subs[key] = self.session.declare_subscriber(key, self.handler)
+        for key in [k for k in self._subs if k not in keys and now - self._needed_at[k] > self.LINGER_S]:
+            self._subs.pop(key).undeclare()
+
+    @property
+    def keys(self) -> set[str]:
+        return set(self._subs)
+
+    def close(self) -> None:
+        for sub in self._subs.values():
+            sub.undeclare()
+        self._subs.clear()

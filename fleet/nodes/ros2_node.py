@@ -14,10 +14,10 @@ import sys
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, GoalResultMsg, PartsState
+from fleet.bus.messages import ArmState, GoalResultMsg, LineView
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import StopFlag, write_report
-from fleet.nodes.attached import line_scene, ros_line_bus
+from fleet.nodes.attached import OnDemandSubscriptions, line_scene, ros_line_bus
 from fleet.ros import names
 from fleet.ros import trajectory_action as fjt
 from fleet.ros.line_actions import LineActions
@@ -40,6 +40,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID of the topics (0..232)")
     parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
     parser.add_argument("--nice", type=int, default=10, help="scheduling niceness: the line comes first (default 10)")
+    parser.add_argument(
+        "--max-rate-hz",
+        type=float,
+        default=names.DEFAULT_MAX_RATE_HZ,
+        help="topics from the line's view and states at most this often, in wall time (0: every one; default 50)",
+    )
     parser.add_argument("--report", help="write the node's figures to this JSON file at exit")
     add_bus_arguments(parser)
     return parser
@@ -48,11 +54,19 @@ def build_parser() -> argparse.ArgumentParser:
 class NativeLine:
     """The line as one ROS 2 node: its topics from the bus, its services, actions and trajectory topics to it."""
 
-    def __init__(self, session, keys: Keys, scene: Scene, domain_id: int, bus: LineBus) -> None:
+    def __init__(
+        self,
+        session,
+        keys: Keys,
+        scene: Scene,
+        domain_id: int,
+        bus: LineBus,
+        max_rate_hz: float = names.DEFAULT_MAX_RATE_HZ,
+    ) -> None:
         self.inbox = Inbox()
         wake = self.inbox.wake
         self.node = Ros2Node(session, domain_id, NODE_NAME)
-        self.topics = LineTopics(scene)
+        self.topics = LineTopics(scene, max_rate_hz)
         self.pubs = {t: self.node.publisher(t, ty, latched=t in names.LATCHED) for t, ty in self.topics.types.items()}
         self.bus = bus
         self.actions = LineActions({a.name: get_robot(a.model) for a in scene.arms}, bus.send_goal)
@@ -68,10 +82,11 @@ class NativeLine:
         self.decoders = {
             "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
-            "parts": Decoder(PartsState, self.drops),
+            "view": Decoder(LineView, self.drops),
         }
-        keys_heard = (keys.all_arms("state"), keys.all_arms("result"), keys.parts)
-        self.subs = [session.declare_subscriber(k, self.inbox) for k in keys_heard]
+        self.keys = keys
+        self.results = session.declare_subscriber(keys.all_arms("result"), self.inbox)  # few: one per goal
+        self.listened = OnDemandSubscriptions(session, self.inbox)
         self.sent = self.refused = 0
 
     def serve(self, stop: StopFlag) -> None:
@@ -83,10 +98,11 @@ class NativeLine:
             self._take_commands()
             for action in self.native:
                 action.poll(max(self.topics.clock_s, 0.0))
+            self.listened.want(self._needed())
             self.inbox.wait(0.05)
 
     def _from_bus(self) -> None:
-        wanted = set(self.topics.types)
+        wanted = self._heard()
         for key, payload in self.inbox.drain():
             decoder = self.decoders.get(key.rsplit("/", 1)[-1])
             msg = decoder.decode(key, payload) if decoder else None
@@ -96,13 +112,25 @@ class NativeLine:
             elif isinstance(msg, GoalResultMsg):
                 self.actions.on_result(msg)
                 continue
-            elif isinstance(msg, PartsState):
-                out = self.topics.from_parts(msg, wanted)
+            elif isinstance(msg, LineView):
+                out = self.topics.from_view(msg, wanted)
             else:
                 continue
             for topic, ros_msg in out:
                 self.pubs[topic].put(ros_msg)
                 self.sent += 1
+
+    def _needed(self) -> set[str]:
+        """The bus keys needed now: states of arms a goal drives or whose own joint states are heard, the view while
+        a topic it feeds is."""
+        heard = self._heard()
+        arms = self.actions.arms_in_flight() | self.topics.arms_wanted(heard)
+        view = {self.keys.view} if self.topics.view_wanted(heard) else set()
+        return {self.keys.arm_state(a) for a in arms} | view
+
+    def _heard(self) -> set[str]:
+        """The topics some subscriber listens to now (only theirs are built)."""
+        return {t for t, pub in self.pubs.items() if pub.heard}
 
     def _answer_services(self) -> None:
         for name, service in self.services.items():
@@ -138,8 +166,8 @@ class NativeLine:
         }
 
     def close(self) -> None:
-        for sub in self.subs:
-            sub.undeclare()
+        self.results.undeclare()
+        self.listened.close()
         for action in self.native:
             action.close()
         self.node.close()
@@ -158,9 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         scene = line_scene(session, keys, args.scene_timeout, "fleet ros2")
         if scene is None:
             return 1
-        line = NativeLine(
-            session, keys, scene, args.domain_id, ros_line_bus(session, keys, [a.name for a in scene.arms], SOURCE)
-        )
+        bus = ros_line_bus(session, keys, [a.name for a in scene.arms], SOURCE)
+        line = NativeLine(session, keys, scene, args.domain_id, bus, args.max_rate_hz)
         try:
             line.serve(stop)
         finally:

@@ -16,7 +16,8 @@ from pathlib import Path
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, is_loopback_host, open_session
 from fleet.common.processes import StopFlag, write_report, write_text_atomically
-from fleet.nodes.attached import line_scene, ros_line_bus
+from fleet.nodes.attached import OnDemandSubscriptions, line_scene, ros_line_bus
+from fleet.ros import names
 from fleet.ros.rosbridge_server import RosbridgeServer
 
 SOURCE = "rosbridge"
@@ -24,11 +25,16 @@ ROSBRIDGE_NICENESS = 10  # what ROS tools watch must not slow the line down (as 
 DRAIN_S = 0.005  # how often the bus's queued messages are taken onto the server's loop
 
 
-async def serve(server: RosbridgeServer, inbox: Inbox, args: argparse.Namespace, stop: StopFlag) -> None:
+async def serve(
+    server: RosbridgeServer, inbox: Inbox, listened: OnDemandSubscriptions, args: argparse.Namespace, stop: StopFlag
+) -> None:
+    keys = Keys(args.run)
+
     async def drain() -> None:
         while not stop.should_stop():
             for key, payload in inbox.drain():
                 server.on_bus(key, payload)
+            listened.want(server.needed(keys))
             await asyncio.sleep(DRAIN_S)
 
     def listening(port: int) -> None:
@@ -69,6 +75,12 @@ def build_parser() -> argparse.ArgumentParser:
         "needed to listen beyond loopback",
     )
     parser.add_argument("--url-file", help="write the server's ws:// URL to this file once it listens")
+    parser.add_argument(
+        "--max-rate-hz",
+        type=float,
+        default=names.DEFAULT_MAX_RATE_HZ,
+        help="topics from the line's view and states at most this often, in wall time (0: every one; default 50)",
+    )
     parser.add_argument("--report", help="write the server's figures to this JSON file at exit")
     add_bus_arguments(parser)
     return parser
@@ -95,19 +107,20 @@ def main(argv: list[str] | None = None) -> int:
         scene = line_scene(session, keys, args.scene_timeout, "fleet rosbridge")
         if scene is None:
             return 1
-        server = RosbridgeServer(scene, ros_line_bus(session, keys, [a.name for a in scene.arms], SOURCE), secret)
+        server = RosbridgeServer(
+            scene, ros_line_bus(session, keys, [a.name for a in scene.arms], SOURCE), secret, args.max_rate_hz
+        )
         inbox = Inbox()
-        subs = [
-            session.declare_subscriber(k, inbox) for k in (keys.all_arms("state"), keys.all_arms("result"), keys.parts)
-        ]
+        results = session.declare_subscriber(keys.all_arms("result"), inbox)  # few: one per goal
+        listened = OnDemandSubscriptions(session, inbox)
         try:
-            asyncio.run(serve(server, inbox, args, stop))
+            asyncio.run(serve(server, inbox, listened, args, stop))
         except OSError as exc:
             print(f"fleet rosbridge: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}", file=sys.stderr)
             return 1
         finally:
-            for sub in subs:
-                sub.undeclare()
+            results.undeclare()
+            listened.close()
             write_report(
                 args.report,
                 {

@@ -109,6 +109,10 @@ class LineActions:
         if p.replies.feedback is not None and state.desired_q:
             p.replies.feedback(fjt.feedback(state, self.arm_joints[state.arm]))
 
+    def arms_in_flight(self) -> set[str]:
+        """The arms some client's goal drives or waits on (their states feed its feedback and result)."""
+        return {p.arm for p in self.pending.values()}
+
     def forget(self, owner: object) -> None:
         """A client left: its goals run on, their results go to nobody."""
         for goal_id in [g for g, p in self.pending.items() if p.owner is owner]:

@@ -1,50 +1,97 @@
-"""The line's ROS topics from what the bus carries: an arm's state gives its joint states, its links' TF and the
-clock; the parts give markers. Built only for topics someone listens to (`wanted`), each message once for all
-its listeners, as rosbags typestore messages (rosbridge sends them as JSON, rmw_zenoh as CDR), with
-`fleet.record.line_to_ros` (the recordings' own converter, so a live line and its recording show the same frames
-and names)."""
+"""The line's ROS topics from what the bus carries: the line's view (`world/view`: every arm and the parts in one
+message, 25 Hz of sim time, as the monitors get it) gives `/joint_states` and `/tf` for every arm at once, as
+joint_state_broadcaster and robot_state_publisher publish them, the parts' markers and the clock; an arm's own
+state gives its own joint states (at its control rate; a front end listens to it only while needed). Built only
+for topics someone listens to (`wanted`), each message once for all its listeners, as rosbags typestore messages
+(rosbridge sends them as JSON, rmw_zenoh as CDR), with `fleet.record.line_to_ros` (the recordings' own converter,
+so a live line and its recording show the same frames and names)."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
+import time
 
-from fleet.bus.messages import ArmState, PartsState
+import numpy as np
+
+from fleet.bus.messages import ArmState, LineView
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.ros_types import ros_type, time_msg
 from fleet.ros import names
 from scenes.schema import Scene
 
+VIEW_TOPICS = frozenset({names.JOINT_STATES, names.TF, names.PARTS, names.CLOCK})
+
+
+class RateCap:
+    """At most `hz` messages per wall second per stream (0: no cap): a watcher of a lockstep line running at ten
+    times real time gets its newest moments, not ten times what it can draw."""
+
+    def __init__(self, hz: float) -> None:
+        self.period_s = 1.0 / hz if hz > 0 else 0.0
+        self._last: dict[str, float] = {}
+
+    def admits(self, stream: str) -> bool:
+        now = time.monotonic()
+        if now - self._last.get(stream, -math.inf) < self.period_s:
+            return False
+        self._last[stream] = now
+        return True
+
 
 class LineTopics:
-    """One scene's topics, message by message; `latched` keeps what a late subscriber gets at once."""
+    """One scene's topics, message by message; `latched` keeps what a late subscriber gets at once. Views and each
+    arm's states are turned into topics at most `max_rate_hz` times a wall second (`RateCap`)."""
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, scene: Scene, max_rate_hz: float = names.DEFAULT_MAX_RATE_HZ) -> None:
         self.ros = LineToRos(scene)
         self.arms = [a.name for a in scene.arms]
         self.types = names.line_topics(self.arms)
         self.clock_s = -1.0
         self.latched = {names.TF_STATIC: self.ros.tf_static(), names.CELL: self.ros.cell_markers()}
+        self.cap = RateCap(max_rate_hz)
 
     def from_state(self, state: ArmState, wanted: set[str]) -> list[tuple[str, object]]:
-        """The topics one arm state feeds, among those `wanted`."""
-        if state.arm not in self.ros.arms:
-            return []
-        out = []
+        """The topic one arm state feeds (its own joint states), if `wanted`."""
         own = names.arm_joint_states(state.arm)
-        if own in wanted or names.JOINT_STATES in wanted:
-            joints = self.ros.joint_state(state)
-            if own in wanted:
-                out.append((own, joints))
-            if names.JOINT_STATES in wanted:
-                prefixed = [f"{state.arm}/{n}" for n in joints.name]
-                out.append((names.JOINT_STATES, dataclasses.replace(joints, name=prefixed)))
-        if names.TF in wanted:
-            out.append((names.TF, self.ros.tf([state])))
-        if state.sim_time_s > self.clock_s:
-            self.clock_s = state.sim_time_s
+        if own not in wanted or state.arm not in self.ros.arms or not self.cap.admits(own):
+            return []
+        return [(own, self.ros.joint_state(state))]
+
+    def arms_wanted(self, wanted: set[str]) -> set[str]:
+        """The arms whose own joint states someone listens to."""
+        return {a for a in self.arms if names.arm_joint_states(a) in wanted}
+
+    @staticmethod
+    def view_wanted(wanted: set[str]) -> bool:
+        """Whether someone listens to a topic the line's view feeds."""
+        return bool(wanted & VIEW_TOPICS)
+
+    def from_view(self, view: LineView, wanted: set[str]) -> list[tuple[str, object]]:
+        """The topics the line's view feeds (every arm's joints and links, the parts, the clock), among those
+        `wanted`."""
+        if not self.cap.admits("view"):
+            return []
+        arms = [s for s in view.arms if s.arm in self.ros.arms]
+        out = []
+        if view.sim_time_s > self.clock_s:
+            self.clock_s = view.sim_time_s
             if names.CLOCK in wanted:
-                out.append((names.CLOCK, ros_type("rosgraph_msgs/msg/Clock")(clock=time_msg(state.sim_time_s))))
+                out.append((names.CLOCK, ros_type("rosgraph_msgs/msg/Clock")(clock=time_msg(view.sim_time_s))))
+        if names.JOINT_STATES in wanted and arms:
+            out.append((names.JOINT_STATES, self._all_joints(arms)))
+        if names.TF in wanted and arms:
+            out.append((names.TF, self.ros.tf(arms)))
+        if names.PARTS in wanted:
+            out.append((names.PARTS, self.ros.parts_markers(view.parts)))
         return out
 
-    def from_parts(self, parts: PartsState, wanted: set[str]) -> list[tuple[str, object]]:
-        return [(names.PARTS, self.ros.parts_markers(parts))] if names.PARTS in wanted else []
+    def _all_joints(self, states: list[ArmState]):
+        """One `JointState` of every arm's joints, named `<arm>/<joint>`, stamped with the view's time."""
+        each = [self.ros.joint_state(s) for s in states]
+        return dataclasses.replace(
+            each[0],
+            name=[f"{s.arm}/{n}" for s, m in zip(states, each) for n in m.name],
+            position=np.concatenate([m.position for m in each]),
+            velocity=np.concatenate([m.velocity for m in each]),
+        )

@@ -20,6 +20,8 @@ TOPIC_TYPES = {
 }
 LATCHED = (TF_STATIC, CELL)  # TRANSIENT_LOCAL: a late subscriber gets the last message at once
 
+DEFAULT_MAX_RATE_HZ = 50.0  # wall: topics from the line's view and states at most this often (a lockstep line is fast)
+
 FOLLOW_JOINT_TRAJECTORY = "control_msgs/action/FollowJointTrajectory"
 GRIPPER_COMMAND = "control_msgs/action/GripperCommand"
 ESTOP, PAUSE, RESUME = "/estop", "/pause", "/resume"

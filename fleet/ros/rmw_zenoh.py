@@ -133,6 +133,12 @@ class Ros2Publisher:
         else:
             self._pub = session.declare_publisher(key, encoding=cdr)
 
+    @property
+    def heard(self) -> bool:
+        """Whether any subscriber matches now (a latched topic: always, its cache serves late joiners)."""
+        status = getattr(self._pub, "matching_status", None)
+        return status is None or status.matching
+
     def put(self, message: object) -> None:
         self.seq += 1
         body = bytes(TYPESTORE.serialize_cdr(message, self.typename))

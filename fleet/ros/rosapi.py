@@ -1,12 +1,14 @@
 """The `rosapi` services rosbridge clients use to look around (roslibpy's `get_topics`, roslibjs, Foxglove):
-topics, services, action servers and their types, nodes, and the time (sim time)."""
+topics, services, action servers and their types, message definitions, nodes, and the time (sim time)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
 from fleet.ros import names
+from fleet.ros.line_services import ServiceError
 from fleet.ros.ros_json import time_json
+from fleet.ros.rosapi_types import full_text, message_details
 
 NODE = "/clawfleet_rosbridge"
 
@@ -26,6 +28,15 @@ class Rosapi:
         name = service.rsplit("/", 1)[-1]
         if name == "topics":
             return {"topics": list(self.topics), "types": list(self.topics.values())}
+        if name == "topics_and_raw_types":
+            types = list(self.topics.values())
+            return {"topics": list(self.topics), "types": types, "typedefs_full_text": [full_text(t) for t in types]}
+        if name == "message_details":
+            kind = str(args.get("type", ""))
+            try:
+                return {"typedefs": message_details(kind)}
+            except KeyError:
+                raise ServiceError(f"message_details: no message type {kind!r} on this line") from None
         if name == "topic_type":
             return {"type": self.topics.get(str(args.get("topic", "")), "")}
         if name == "topics_for_type":
@@ -45,6 +56,8 @@ class Rosapi:
 
 SERVICES = {
     "/rosapi/topics": "Topics",
+    "/rosapi/topics_and_raw_types": "TopicsAndRawTypes",
+    "/rosapi/message_details": "MessageDetails",
     "/rosapi/topic_type": "TopicType",
     "/rosapi/topics_for_type": "TopicsForType",
     "/rosapi/services": "Services",

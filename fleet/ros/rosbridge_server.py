@@ -16,7 +16,8 @@ from collections.abc import Callable
 import websockets
 
 from fleet.bus.codec import Decoder, DropCounter
-from fleet.bus.messages import ArmState, GoalResultMsg, PartsState
+from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmState, GoalResultMsg, LineView
 from fleet.ros import names
 from fleet.ros.line_actions import GoalReplies, LineActions
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
@@ -46,10 +47,12 @@ def _field(message: dict, name: str, kind: type | tuple[type, ...], default: obj
 class RosbridgeServer:
     """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
 
-    def __init__(self, scene: Scene, bus: LineBus, secret: str | None = None) -> None:
+    def __init__(
+        self, scene: Scene, bus: LineBus, secret: str | None = None, max_rate_hz: float = names.DEFAULT_MAX_RATE_HZ
+    ) -> None:
         self.bus = bus
         self.secret = secret  # with one, a client's first request must be `auth` with a valid MAC (`rosauth`)
-        self.topics = LineTopics(scene)
+        self.topics = LineTopics(scene, max_rate_hz)
         arms = self.topics.arms
         self.actions = LineActions({a.name: get_robot(a.model) for a in scene.arms}, bus.send_goal)
         self.rosapi = Rosapi(arms, lambda: max(self.topics.clock_s, 0.0))
@@ -58,7 +61,7 @@ class RosbridgeServer:
         self._decoders = {
             "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
-            "parts": Decoder(PartsState, self.drops),
+            "view": Decoder(LineView, self.drops),
         }
         self._numbers = 0
         self.requests_refused = 0
@@ -78,7 +81,14 @@ class RosbridgeServer:
         elif isinstance(msg, GoalResultMsg):
             self.actions.on_result(msg)
         else:
-            self._publish(self.topics.from_parts(msg, wanted))
+            self._publish(self.topics.from_view(msg, wanted))
+
+    def needed(self, keys: Keys) -> set[str]:
+        """The bus keys this server needs now: the states of arms its clients' goals drive or whose own joint states
+        they watch, the line's view while they watch a topic it feeds (`OnDemandSubscriptions`)."""
+        wanted = {t for c in self.clients for t in c.subscriptions}
+        arms = self.actions.arms_in_flight() | self.topics.arms_wanted(wanted)
+        return {keys.arm_state(a) for a in arms} | ({keys.view} if self.topics.view_wanted(wanted) else set())
 
     def _publish(self, messages: list[tuple[str, object]]) -> None:
         for topic, msg in messages:

@@ -29,6 +29,7 @@ from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, open_session
 from fleet.common.processes import read_when_written, stop_children
 from fleet.common.scene_loading import load_scene
+from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from fleet.run.hosts import Hosts, load_hosts
 from fleet.run.node_commands import NodeCommands
 from fleet.run.node_factory import NodeFactory
@@ -67,6 +68,7 @@ class RunOptions:
     rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
     ros2_domain: int | None = None  # publish the line's ROS 2 topics natively (rmw_zenoh) in this ROS domain
     ros2_arms: tuple[str, ...] | None = None  # the arms an outside ROS 2 stack (login `ros_client`) may drive; all
+    ros_max_rate_hz: float = DEFAULT_MAX_RATE_HZ  # the ROS front ends' topics at most this often (wall); 0: no cap
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login

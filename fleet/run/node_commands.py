@@ -112,12 +112,12 @@ class NodeCommands:
 
     def rosbridge_node(self) -> Node:
         """The rosbridge server, with the `ros` login."""
-        extra = ["--port", str(self.options.rosbridge_port)]
+        extra = ["--port", str(self.options.rosbridge_port), "--max-rate-hz", str(self.options.ros_max_rate_hz)]
         return self._attached_node("rosbridge", "fleet.nodes.rosbridge_node", "ros", extra, url=True)
 
     def ros2_node(self) -> Node:
-        """The native ROS 2 publisher (rmw_zenoh's layout on the run's router), with the `ros` login."""
-        extra = ["--domain-id", str(self.options.ros2_domain)]
+        """The native ROS 2 node (rmw_zenoh's layout on the run's router), with the `ros` login."""
+        extra = ["--domain-id", str(self.options.ros2_domain), "--max-rate-hz", str(self.options.ros_max_rate_hz)]
         return self._attached_node("ros2", "fleet.nodes.ros2_node", "ros", extra)
 
     @property

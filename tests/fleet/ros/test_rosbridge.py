@@ -34,6 +34,11 @@ def test_a_ros_client_sees_the_lines_topics_actions_and_frames(session):
     assert set(seen["actions"]) >= {"/arm_0/follow_joint_trajectory", "/arm_1/follow_joint_trajectory"}
     assert "arm_0/elbow" in seen["everyone_names"] and "arm_1/elbow" in seen["everyone_names"]
     assert set(seen["after_reach"]) == {"header", "name", "position", "velocity", "effort"}, "a message's own fields"
+    details = {t["type"]: t for t in seen["details"]["typedefs"]}
+    assert details["sensor_msgs/JointState"]["fieldtypes"][:3] == ["std_msgs/Header", "string", "double"]
+    assert "builtin_interfaces/Time" in details, "and every type inside it"
+    raw = dict(zip(seen["raw_types"]["topics"], seen["raw_types"]["typedefs_full_text"]))
+    assert raw["/tf"].startswith("geometry_msgs/TransformStamped[] transforms"), "definitions Foxglove decodes by"
     frames = {t["child_frame_id"] for t in seen["tf_static"][0]["transforms"]}
     assert any(f.startswith("arm_0/") for f in frames), "the arms' roots on /tf_static, latched"
 
