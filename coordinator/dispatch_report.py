@@ -18,6 +18,7 @@ class DispatchReport:
     def report(self) -> dict:
         return self.ledger.totals() | {
             "allocator": self.allocator.name,
+            "allocator_faults": dict(getattr(self.allocator, "faults", {})),  # a plug-in's (`GuardedAllocator`)
             "pipeline": self.ledger.pipeline,
             "arm_events": self.losses,
             "unfinished_parts": self.ledger.unfinished(),

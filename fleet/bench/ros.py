@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from websockets.sync.client import connect
 
+from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import get_robot
 
@@ -68,7 +69,9 @@ def _subscriber(launcher: Launcher, counts: list[int], i: int, stop: threading.E
                 return
 
 
-def _run(arms: int, seconds: float, subscribers: int | None) -> tuple[float, float]:
+def _run(
+    arms: int, seconds: float, subscribers: int | None, max_rate_hz: float = DEFAULT_MAX_RATE_HZ
+) -> tuple[float, float]:
     """One lockstep run; with `subscribers` (not None) a rosbridge server and that many clients, and the native
     ROS 2 node publishing. The sim loop's wall seconds and the messages each client got."""
     served = subscribers is not None
@@ -78,6 +81,7 @@ def _run(arms: int, seconds: float, subscribers: int | None) -> tuple[float, flo
         duration_s=seconds,
         rosbridge_port=0 if served else None,
         ros2_domain=0 if served else None,
+        ros_max_rate_hz=max_rate_hz,
     )
     counts, stop = [0] * (subscribers or 0), threading.Event()
     with Launcher(options) as launcher:
@@ -94,12 +98,18 @@ def _run(arms: int, seconds: float, subscribers: int | None) -> tuple[float, flo
     return float(summary["loop_wall_seconds"]), float(np.mean(counts)) if counts else 0.0
 
 
-def bench_ros_cost(arms: int = 4, seconds: float = 60.0, subscribers: int = 10, repeats: int = 3) -> list[RosCostRow]:
+def bench_ros_cost(
+    arms: int = 4,
+    seconds: float = 60.0,
+    subscribers: int = 10,
+    repeats: int = 3,
+    max_rate_hz: float = DEFAULT_MAX_RATE_HZ,
+) -> list[RosCostRow]:
     """Plain and served runs in turn, `repeats` pairs; medians, and the median of the pairs' ratios."""
     plain, served, got = [], [], []
     for _ in range(repeats):
         plain.append(_run(arms, seconds, None)[0])
-        wall, per_client = _run(arms, seconds, subscribers)
+        wall, per_client = _run(arms, seconds, subscribers, max_rate_hz)
         served.append(wall)
         got.append(per_client)
     ratio = float(np.median(np.array(served) / np.array(plain)))

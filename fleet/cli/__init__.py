@@ -11,10 +11,10 @@ import os
 import sys
 from collections.abc import Sequence
 
-from fleet.cli import bench, monitor, record, robots, ros, run, scenes, sweep
+from fleet.cli import allocators, bench, monitor, record, robots, ros, run, scenes, sweep
 from fleet.cli.errors import user_errors
 
-GROUPS = (run, record, sweep, monitor, ros, scenes, robots, bench)
+GROUPS = (run, record, sweep, allocators, monitor, ros, scenes, robots, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:

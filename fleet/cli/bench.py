@@ -191,7 +191,7 @@ def cmd_bench_safety(args: argparse.Namespace) -> int:
 def cmd_bench_ros(args: argparse.Namespace) -> int:
     from fleet.bench.ros import bench_ros_cost, bench_ros_latency
 
-    cost = bench_ros_cost(args.arms, args.seconds, args.subscribers, args.repeats)
+    cost = bench_ros_cost(args.arms, args.seconds, args.subscribers, args.repeats, args.max_rate_hz)
     table = Table("variant", "sim loop wall s (median)", "ratio to plain", "messages per client")
     for r in cost:
         table.add_row(
@@ -390,12 +390,15 @@ def _add_collision(bench: argparse._SubParsersAction) -> None:
 
 
 def _add_ros(bench: argparse._SubParsersAction) -> None:
+    from fleet.cli.ros import add_rate_argument
+
     b = bench.add_parser("ros", help="rosbridge: what N subscribed clients cost a lockstep line; ROS goal latency")
     b.add_argument("--arms", type=int, default=4)
     b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per lockstep run")
     b.add_argument("--subscribers", type=int, default=10, help="clients subscribed to /joint_states and /tf")
     b.add_argument("--repeats", type=int, default=3, help="pairs of runs (plain, served)")
     b.add_argument("--goals", type=int, default=20, help="FollowJointTrajectory goals timed on a realtime line")
+    add_rate_argument(b)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_ros)
 

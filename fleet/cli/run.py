@@ -20,6 +20,7 @@ from rich.table import Table
 
 from fleet.bus.faults import add_fault_arguments
 from fleet.bus.session import add_bus_arguments
+from fleet.cli.allocators import allocator_spec
 from fleet.cli.errors import (
     UsageError,
     err,
@@ -38,6 +39,7 @@ if TYPE_CHECKING:
 
 def check_run_flags(args: argparse.Namespace) -> None:
     """Every `fleet run` flag that cannot work, refused in one line before any process starts."""
+    allocator_spec(args.allocator)
     from fleet.bus.faults import network_from_args
     from fleet.bus.keys import Keys
     from fleet.bus.session import BusEndpoints, make_config
@@ -272,15 +274,15 @@ def print_run_summary(s: dict) -> None:
         ("parts spawned / completed", f"{s['parts_spawned']} / {s['parts_completed']}"),
         ("missed / failed / on the line", f"{s['parts_missed']} / {s['parts_failed']} / {s['parts_in_progress']}"),
         ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
+        ("allocator", _allocator_row(s)),
         (
-            "capacity bound (per minute)",
+            "nominal bound (per minute, the scene's rates)",
             "-"
             if s.get("throughput_bound_per_min") is None
-            else f"{s['throughput_bound_per_min']:.2f}: {_share(s['bound_fraction'])} of it achieved, "
-            f"limited by {s['bottleneck']['name']}",
+            else f"{s['throughput_bound_per_min']:.2f}, limited by {s['bottleneck']['name']}",
         ),
         (
-            "bound of this run's arrivals (per minute)",
+            "this run's bound (per minute, its own arrivals)",
             "-"
             if not s.get("run_bound_per_min")
             else f"{s['run_bound_per_min']:.2f}: {_share(s['run_bound_fraction'])} of it achieved; "
@@ -320,6 +322,13 @@ def _router_row(refused: dict | None) -> str:
     return f"{sum(refused.values())} (most: {top}, {refused[top]})"
 
 
+def _allocator_row(s: dict) -> str:
+    """The allocator, and a plug-in's decisions greedy took instead (raised, invalid, overran)."""
+    faults = s.get("allocator_faults") or {}
+    said = ", ".join(f"{kind} {n}" for kind, n in sorted(faults.items()))
+    return f"{s.get('allocator')}" + (f" (decisions greedy took instead: {said})" if said else "")
+
+
 def _share(fraction: float | None) -> str:
     """A fraction as a percentage, or "-" where there is none (a bound of 0: nothing could be done)."""
     return "-" if fraction is None else f"{fraction:.0%}"
@@ -355,9 +364,9 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--allocator",
-        choices=("optimal", "auction", "greedy"),
         default="optimal",
-        help="how tasks go to arms (default optimal)",
+        help="how tasks go to arms: optimal (default), auction, greedy, an installed plug-in or package.module:Name "
+        "(`fleet allocators`)",
     )
     p.add_argument(
         "--no-pipeline",

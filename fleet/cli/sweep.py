@@ -16,6 +16,7 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from fleet.cli.allocators import allocator_spec
 from fleet.cli.errors import (
     UsageError,
     err,
@@ -43,6 +44,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
     jobs = sweep_jobs(args)
+    for spec in args.allocator:
+        allocator_spec(spec)
     try:
         overrides = [Override.parse(t) for t in args.set or ()] + [
             Override(f"network.{field}", tuple(values))
@@ -134,7 +137,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scene", help="bundled scene name or scene file")
     p.add_argument("--seeds", default="0-4", help="a range (0-19) or a list (1,4,9); default 0-4")
-    p.add_argument("--allocator", nargs="+", default=["optimal"], choices=("optimal", "auction", "greedy"))
+    p.add_argument(
+        "--allocator",
+        nargs="+",
+        default=["optimal"],
+        help="allocators to compare: built-ins (optimal, auction, greedy), installed plug-ins, package.module:Name",
+    )
     p.add_argument(
         "--set",
         action="append",

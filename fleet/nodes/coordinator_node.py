@@ -26,7 +26,7 @@ import time
 import numpy as np
 import zenoh
 
-from coordinator.allocation import ALLOCATORS, Allocator, PartView, make_allocator
+from coordinator.allocation import Allocator, PartView, make_allocator
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT
@@ -297,7 +297,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="fleet-coordinator", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    parser.add_argument("--allocator", choices=tuple(ALLOCATORS), default="optimal")
+    parser.add_argument(
+        "--allocator",
+        default="optimal",
+        help="a built-in (optimal, auction, greedy), an installed plug-in's name, or package.module:Name",
+    )
     parser.add_argument(
         "--no-pipeline",
         dest="pipeline",
@@ -325,13 +329,18 @@ def main(argv: list[str] | None = None) -> int:
     if not 1 <= args.incarnation <= 1000:
         print(f"coordinator: --incarnation {args.incarnation} must be within 1..1000", file=sys.stderr)
         return 2
+    try:
+        allocator = make_allocator(args.allocator, scene)
+    except ValueError as exc:  # AllocatorError: unknown, or a plug-in that cannot be loaded or made
+        print(f"coordinator: {exc}", file=sys.stderr)
+        return 2
     with open_session(BusEndpoints.from_args(args)) as session:
         node = CoordinatorNode(
             session,
             Keys(args.run),
             scene,
             lockstep=args.mode == "lockstep",
-            allocator=make_allocator(args.allocator, scene),
+            allocator=allocator,
             incarnation=args.incarnation,
             pipeline=args.pipeline,
             roster=args.roster,

@@ -103,6 +103,7 @@ class RunSummary:
                 "seed": self.seed,
                 "randomised": dict(self.scene.randomised),
                 "allocator": coord.get("allocator"),
+                "allocator_faults": coord.get("allocator_faults", {}),  # a plug-in's decisions greedy took instead
                 "pipeline": coord.get("pipeline"),
                 "bus": "secure" if self.bus is not None and self.bus.secure else "insecure",
                 "status": status,

@@ -1,0 +1,100 @@
+"""Allocators by name: the built-ins, those installed packages declare (entry point group `clawfleet.allocators`),
+and any `package.module:Name` on the path. A plug-in is a class (or any callable) taking the scene and returning
+an object with `name` and `allocate(...)` (`coordinator.allocation.Allocator`; `docs/allocators.md`); it runs
+behind `GuardedAllocator`, so a faulty one costs a decision, never the run.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+
+from coordinator.allocation import ALLOCATORS, Allocator
+from scenes.schema import Scene
+
+ENTRY_POINT_GROUP = "clawfleet.allocators"
+
+
+class AllocatorError(ValueError):
+    """An allocator that cannot be had by that name; the message is one line and lists the valid names."""
+
+
+@dataclass(frozen=True)
+class AllocatorSource:
+    """Where an allocator comes from: `built-in`, an installed distribution's entry point, or a module path."""
+
+    name: str
+    target: str  # `module:attr`
+    origin: str
+    summary: str = ""
+
+
+def installed_allocators() -> dict[str, AllocatorSource]:
+    """The allocators installed packages declare in `clawfleet.allocators`, by entry point name."""
+    found = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        dist = getattr(ep, "dist", None)
+        origin = f"{dist.name} {dist.version}" if dist is not None else "installed"
+        found[ep.name] = AllocatorSource(ep.name, ep.value, origin)
+    return found
+
+
+def known_allocators() -> dict[str, AllocatorSource]:
+    """Every allocator a name reaches: the built-ins, then installed plug-ins (a built-in's name wins)."""
+    out = {
+        name: AllocatorSource(name, f"{cls.__module__}:{cls.__qualname__}", "built-in", _summary(cls))
+        for name, cls in ALLOCATORS.items()
+    }
+    for name, source in installed_allocators().items():
+        out.setdefault(name, source)
+    return out
+
+
+def _summary(obj: object) -> str:
+    """The first sentence of a docstring."""
+    return " ".join((getattr(obj, "__doc__", None) or "").split()).split(". ")[0].rstrip(".")
+
+
+def _load(target: str, spec: str) -> Callable[[Scene], Allocator]:
+    module_name, _, attr = target.partition(":")
+    try:
+        obj = importlib.import_module(module_name)
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError) as exc:
+        raise AllocatorError(f"allocator {spec!r}: cannot load {target} ({exc.__class__.__name__}: {exc})") from None
+    if not callable(obj):
+        raise AllocatorError(f"allocator {spec!r}: {target} is not a class or a function of the scene")
+    return obj
+
+
+def allocator_factory(spec: str) -> Callable[[Scene], Allocator]:
+    """What makes the allocator `spec` names (a built-in, an installed plug-in, or `package.module:Name`)."""
+    if spec in ALLOCATORS:
+        return ALLOCATORS[spec]
+    known = known_allocators()
+    if spec in known:
+        return _load(known[spec].target, spec)
+    if ":" in spec and all(spec.partition(":")[::2]):
+        return _load(spec, spec)
+    raise AllocatorError(
+        f"unknown allocator {spec!r}; valid allocators: {', '.join(known)} (or package.module:Name of a plug-in)"
+    )
+
+
+def describe(source: AllocatorSource) -> str:
+    """What an allocator does (its docstring's first sentence), or why it does not load."""
+    if source.summary:
+        return source.summary
+    try:
+        return _summary(_load(source.target, source.name)) or source.target
+    except AllocatorError as exc:
+        return f"does not load: {exc}"
+
+
+def check_allocator(spec: str) -> str:
+    """`spec` if it names an allocator that loads; AllocatorError otherwise (a CLI checks before it starts a line)."""
+    allocator_factory(spec)
+    return spec

@@ -1,0 +1,65 @@
+"""Plug-in allocators that go wrong, each in one way, loaded by `package.module:Name` as a user's would be."""
+
+from __future__ import annotations
+
+import time
+
+from coordinator.allocation import GreedyNearest
+
+
+class Raises:
+    """Raises on every decision."""
+
+    name = "raises"
+
+    def __init__(self, scene) -> None:
+        self.scene = scene
+
+    def allocate(self, tasks, arms, parts, busy_stations):
+        raise ZeroDivisionError("division by zero in the plug-in")
+
+
+class GivesBusyArms:
+    """Gives the oldest task to an arm that is not free."""
+
+    name = "gives_busy_arms"
+
+    def __init__(self, scene) -> None:
+        self.scene = scene
+
+    def allocate(self, tasks, arms, parts, busy_stations):
+        busy = [a for a in arms if not a.free]
+        return [(tasks[0].task_id, busy[0].name)] if tasks and busy else [("one", 2)]
+
+
+class Slow:
+    """Greedy's answer, after a sleep longer than any budget."""
+
+    name = "slow"
+
+    def __init__(self, scene) -> None:
+        self.greedy = GreedyNearest(scene)
+
+    def allocate(self, tasks, arms, parts, busy_stations):
+        time.sleep(0.2)
+        return self.greedy.allocate(tasks, arms, parts, busy_stations)
+
+
+class RaisesEveryThird:
+    """Greedy, but every third decision raises: a plug-in with a bug on some inputs."""
+
+    name = "raises_every_third"
+
+    def __init__(self, scene) -> None:
+        self.greedy, self.calls = GreedyNearest(scene), 0
+
+    def allocate(self, tasks, arms, parts, busy_stations):
+        self.calls += 1
+        if self.calls % 3 == 0:
+            raise KeyError("a part it did not expect")
+        return self.greedy.allocate(tasks, arms, parts, busy_stations)
+
+
+def not_an_allocator(scene):
+    """Makes something without `allocate`."""
+    return object()

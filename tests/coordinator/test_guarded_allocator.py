@@ -1,0 +1,81 @@
+"""A plug-in allocator runs behind a guard: whatever it does wrong (raise, answer with arms or tasks it was not
+given, take too long) costs that decision only: greedy decides instead, the fault is said once and counted."""
+
+import numpy as np
+import pytest
+
+from coordinator.allocation import ArmView, CachedReach, GreedyNearest, PartView, make_allocator
+from coordinator.allocator_plugins import AllocatorError, allocator_factory, known_allocators
+from coordinator.guarded_allocator import GuardedAllocator, assignment_problem
+from coordinator.ledger import Ledger
+from robots.frames import yaw_transform
+from robots.registry import get_robot
+from robots.top_down import TopDownIK
+from scenes import load_scene
+
+FAULTY = "tests.coordinator.faulty_allocators"
+
+
+@pytest.fixture(scope="module")
+def decision():
+    """A sorting line of 3 arms, arm_2 busy, a part of each colour in front of each arm: one decision's inputs."""
+    scene = load_scene("sorting_line", arms=3)
+    home = tuple(get_robot("openclaw").home_q)
+    reach = {
+        a.name: CachedReach(TopDownIK(get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)))
+        for a in scene.arms
+    }
+    arms = [ArmView(a.name, a.base.xyz, a.name != "arm_2", reach[a.name], home) for a in scene.arms]
+    ledger, parts = Ledger(scene), {}
+    for pid in range(3):
+        parts[pid] = PartView(np.array([scene.arms[pid].base.xyz[0] - 0.09, 0.0, 0.095]), np.array([0.06, 0.0, 0.0]))
+        ledger.arrived(pid, "mixed", pid, 1.0)
+    return scene, ledger.refresh(1.0), arms, parts
+
+
+def test_a_sound_plug_in_decides_and_nothing_is_counted(decision):
+    scene, tasks, arms, parts = decision
+    guarded = make_allocator(f"{FAULTY}:RaisesEveryThird", scene)
+    assert isinstance(guarded, GuardedAllocator) and guarded.name == "raises_every_third"
+    assert guarded.allocate(tasks, arms, parts, set()) == GreedyNearest(scene).allocate(tasks, arms, parts, set())
+    assert not guarded.faults
+
+
+@pytest.mark.parametrize(
+    "plug_in, kind, said",
+    [
+        ("Raises", "raised", "ZeroDivisionError: division by zero in the plug-in"),
+        ("GivesBusyArms", "invalid", "arm 'arm_2' is not a free arm of this line"),
+        ("Slow", "overran", "(budget 50 ms)"),
+    ],
+)
+def test_each_fault_costs_one_decision_greedy_takes_said_once_counted_always(decision, plug_in, kind, said):
+    scene, tasks, arms, parts = decision
+    lines = []
+    guarded = GuardedAllocator(allocator_factory(f"{FAULTY}:{plug_in}")(scene), scene, say=lines.append)
+    greedy = GreedyNearest(scene).allocate(tasks, arms, parts, set())
+    for _ in range(3):
+        assert guarded.allocate(tasks, arms, parts, set()) == greedy
+    assert guarded.faults == {kind: 3} and len(lines) == 1 and said in lines[0] and "greedy decides" in lines[0]
+
+
+def test_answers_that_break_the_rules_every_allocator_obeys_are_named(decision):
+    scene, tasks, arms, parts = decision
+    first, second = tasks[0].task_id, tasks[1].task_id
+    assert assignment_problem("arm_0", tasks, arms, parts, set(), scene).startswith("returned str")
+    assert "not one of the open tasks" in assignment_problem([(999, "arm_0")], tasks, arms, parts, set(), scene)
+    assert "given twice" in assignment_problem([(first, "arm_0"), (first, "arm_1")], tasks, arms, parts, set(), scene)
+    assert "given twice" in assignment_problem([(first, "arm_0"), (second, "arm_0")], tasks, arms, parts, set(), scene)
+    far = [t for t in tasks if parts[t.part_id].position[0] > scene.arms[1].base.xyz[0]][0].task_id
+    assert "cannot serve" in assignment_problem([(far, "arm_0")], tasks, arms, parts, set(), scene)
+    assert assignment_problem([], tasks, arms, parts, set(), scene) == ""
+
+
+def test_allocators_are_found_by_name_and_a_bad_one_is_one_line():
+    assert list(known_allocators())[:3] == ["optimal", "auction", "greedy"]
+    with pytest.raises(AllocatorError, match="valid allocators: optimal, auction, greedy"):
+        allocator_factory("fastest")
+    with pytest.raises(AllocatorError, match="cannot load tests.coordinator.nowhere:X"):
+        allocator_factory("tests.coordinator.nowhere:X")
+    with pytest.raises(AllocatorError, match="has no allocate"):
+        make_allocator(f"{FAULTY}:not_an_allocator", load_scene("sorting_line", arms=2))
