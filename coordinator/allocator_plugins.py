@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 
 from coordinator.allocation import ALLOCATORS, Allocator
+from coordinator.guarded_allocator import GuardedAllocator
 from scenes.schema import Scene
 
 ENTRY_POINT_GROUP = "clawfleet.allocators"
@@ -98,3 +99,18 @@ def check_allocator(spec: str) -> str:
     """`spec` if it names an allocator that loads; AllocatorError otherwise (a CLI checks before it starts a line)."""
     allocator_factory(spec)
     return spec
+
+
+def make_any_allocator(spec: str, scene: Scene) -> Allocator:
+    """An allocator by name: a built-in, an installed plug-in or `package.module:Name`; a plug-in runs guarded
+    (`GuardedAllocator`). AllocatorError for one that is unknown, cannot be loaded or cannot be made."""
+    factory = allocator_factory(spec)
+    if spec in ALLOCATORS:
+        return factory(scene)
+    try:
+        inner = factory(scene)
+    except Exception as exc:  # a plug-in's constructor: its fault, said in one line
+        raise AllocatorError(f"allocator {spec!r} could not be made: {exc.__class__.__name__}: {exc}") from None
+    if not callable(getattr(inner, "allocate", None)):
+        raise AllocatorError(f"allocator {spec!r}: what it made has no allocate(tasks, arms, parts, busy_stations)")
+    return GuardedAllocator(inner, scene)

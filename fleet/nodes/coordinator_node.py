@@ -27,6 +27,7 @@ import numpy as np
 import zenoh
 
 from coordinator.allocation import Allocator, PartView, make_allocator
+from coordinator.allocator_plugins import AllocatorError, make_any_allocator
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT
@@ -293,7 +294,8 @@ def motion_request(s: ArmState) -> TimedPath | None:
     )
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The coordinator's flags (the scene's, its mode and allocator, the bus's)."""
     parser = argparse.ArgumentParser(prog="fleet-coordinator", description=__doc__.splitlines()[0])
     add_scene_arguments(parser)
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
@@ -322,6 +324,11 @@ def main(argv: list[str] | None = None) -> int:
         help="believe only the controllers' starts the launcher's roster names (`fleet run` sets it)",
     )
     add_bus_arguments(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
     opened = node_arguments(parser, argv, "coordinator")
     if opened is None:
         return 2
@@ -330,8 +337,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"coordinator: --incarnation {args.incarnation} must be within 1..1000", file=sys.stderr)
         return 2
     try:
-        allocator = make_allocator(args.allocator, scene)
-    except ValueError as exc:  # AllocatorError: unknown, or a plug-in that cannot be loaded or made
+        allocator = make_any_allocator(args.allocator, scene)
+    except AllocatorError as exc:  # unknown, or a plug-in that cannot be loaded or made
         print(f"coordinator: {exc}", file=sys.stderr)
         return 2
     with open_session(BusEndpoints.from_args(args)) as session:

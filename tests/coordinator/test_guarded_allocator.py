@@ -4,8 +4,8 @@ given, take too long) costs that decision only: greedy decides instead, the faul
 import numpy as np
 import pytest
 
-from coordinator.allocation import ArmView, CachedReach, GreedyNearest, PartView, make_allocator
-from coordinator.allocator_plugins import AllocatorError, allocator_factory, known_allocators
+from coordinator.allocation import ArmView, CachedReach, GreedyNearest, PartView
+from coordinator.allocator_plugins import AllocatorError, allocator_factory, known_allocators, make_any_allocator
 from coordinator.guarded_allocator import GuardedAllocator, assignment_problem
 from coordinator.ledger import Ledger
 from robots.frames import yaw_transform
@@ -35,7 +35,7 @@ def decision():
 
 def test_a_sound_plug_in_decides_and_nothing_is_counted(decision):
     scene, tasks, arms, parts = decision
-    guarded = make_allocator(f"{FAULTY}:RaisesEveryThird", scene)
+    guarded = make_any_allocator(f"{FAULTY}:RaisesEveryThird", scene)
     assert isinstance(guarded, GuardedAllocator) and guarded.name == "raises_every_third"
     assert guarded.allocate(tasks, arms, parts, set()) == GreedyNearest(scene).allocate(tasks, arms, parts, set())
     assert not guarded.faults
@@ -78,4 +78,4 @@ def test_allocators_are_found_by_name_and_a_bad_one_is_one_line():
     with pytest.raises(AllocatorError, match="cannot load tests.coordinator.nowhere:X"):
         allocator_factory("tests.coordinator.nowhere:X")
     with pytest.raises(AllocatorError, match="has no allocate"):
-        make_allocator(f"{FAULTY}:not_an_allocator", load_scene("sorting_line", arms=2))
+        make_any_allocator(f"{FAULTY}:not_an_allocator", load_scene("sorting_line", arms=2))

@@ -1,0 +1,61 @@
+"""Allocator plug-ins in whole lines: the example package, installed as a user installs it, is listed by
+`fleet allocators` and runs a line by its entry point name; a plug-in with a bug on some decisions costs the line
+only those decisions (greedy's instead), counted in the summary."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.test_run import assert_nothing_left
+
+pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "allocator_plugin"
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    """The example plug-in installed into a folder of its own (its dist-info and entry point with it), on the path
+    of the commands that follow."""
+    target = tmp_path_factory.mktemp("plugins")
+    pip = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--target", str(target)]
+    done = subprocess.run([*pip, str(EXAMPLE)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(target), os.environ.get("PYTHONPATH", "")])}
+
+
+def test_an_installed_plug_in_is_listed_and_runs_a_line(installed, tmp_path):
+    listed = subprocess.run(
+        [sys.executable, "-m", "fleet", "allocators"], env=installed, capture_output=True, text=True, timeout=60
+    )
+    assert listed.returncode == 0 and "deadline_first" in listed.stdout and "clawfleet-deadline-first" in listed.stdout
+    summary_file = tmp_path / "summary.json"
+    run = ["fleet", "run", "sorting_line", "--arms", "2", "--duration", "30", "--allocator", "deadline_first"]
+    done = subprocess.run(
+        [sys.executable, "-m", *run, "--summary", str(summary_file)],
+        env=installed,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    summary = json.loads(summary_file.read_text())
+    assert summary["allocator"] == "deadline_first" and summary["allocator_faults"] == {}
+    assert summary["parts_completed"] > 0 and summary["inter_arm_contacts"] == 0
+
+
+def test_a_plug_in_that_raises_on_some_decisions_costs_only_those():
+    options = RunOptions(
+        "sorting_line", arms=2, duration_s=30.0, allocator="tests.coordinator.faulty_allocators:RaisesEveryThird"
+    )
+    with Launcher(options) as launcher:
+        summary = launcher.run()
+    assert summary["status"] == "ok" and summary["allocator"] == "raises_every_third"
+    assert summary["allocator_faults"]["raised"] > 0, "every faulty decision counted"
+    assert summary["parts_completed"] > 0, "greedy decided those, the line went on"
+    assert_nothing_left(summary, launcher.endpoint)
