@@ -38,8 +38,19 @@ def sweep_jobs(args: argparse.Namespace) -> int:
     return jobs
 
 
+def load_list(text: str) -> list[float]:
+    """`--load`'s value: positive numbers separated by commas (argparse's `type`)."""
+    try:
+        loads = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        loads = []
+    if not loads or not all(math.isfinite(v) and v > 0 for v in loads):
+        raise argparse.ArgumentTypeError(f"{text!r}: give positive multiples of capacity, e.g. 0.5,1.0,1.5")
+    return loads
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scenes_for
+    from fleet.sweep.grid import LOAD, GridError, Override, grid, parse_seeds, scenes_for
     from fleet.sweep.results import write_results
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
@@ -51,7 +62,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             Override(f"network.{field}", tuple(values))
             for field, values in (("latency_ms", args.latency_ms), ("jitter_ms", args.jitter_ms), ("loss", args.loss))
             if values
-        ]
+        ] + ([Override(LOAD, tuple(args.load))] if args.load else [])
         cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, overrides)
     except GridError as exc:
         raise UsageError(str(exc)) from None
@@ -148,6 +159,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         action="append",
         metavar="FIELD.PATH=V1,V2",
         help="a scene field and the values it takes (repeatable), e.g. conveyor.speed_m_per_s=0.05,0.1",
+    )
+    p.add_argument(
+        "--load",
+        type=load_list,
+        metavar="L1,L2",
+        help="offered loads: every feeder scaled so parts arrive at these multiples of what the arms can just "
+        "complete (1.0), e.g. 0.5,0.75,1.0,1.25,1.5; draws throughput, missed parts and utilisation against load",
     )
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
     p.add_argument("--duration", type=float, default=60.0, help="sim seconds per run (default 60)")

@@ -3,6 +3,7 @@ the monitors' view and the status, each put in flight on its link and sent when 
 
 from __future__ import annotations
 
+import math
 import time
 from typing import TYPE_CHECKING
 
@@ -24,6 +25,9 @@ if TYPE_CHECKING:
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 
 
+VIEW_MAX_WALL_HZ = 60.0  # views for watchers (monitors, ROS front ends), at most this often in wall time
+
+
 class SimOutputs:
     """What goes out of one sim server."""
 
@@ -32,6 +36,7 @@ class SimOutputs:
         # pose noise: repeats for a seed
         self._noise_rng = np.random.default_rng([sim.world.scene_model.seed, 0x401_5E])
         self._status_at = 0.0
+        self._view_at = -math.inf  # wall time of the last view built
 
     def results(self, arm: str, results: list[GoalResult]) -> None:
         for r in results:
@@ -90,7 +95,7 @@ class SimOutputs:
         for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
             link.next_tick = tick + link.period_ticks
         frame = self.sim.coordinator and tick % self.sim.coord_period_ticks == 0
-        view = tick % self.sim.view_every_ticks == 0 and bus.watched()  # built only while watched
+        view = tick % self.sim.view_every_ticks == 0 and bus.watched() and self._view_due()  # only while watched
         if due or frame or view:
             names = list(w.arms) if (frame or view) else [link.name for link in due]
             states = {name: self._state(name) for name in names}
@@ -112,6 +117,15 @@ class SimOutputs:
                 if view:
                     bus.put(bus.view_pub, "view", encode(line))
         self._deliver()
+
+    def _view_due(self) -> bool:
+        """A view at most `VIEW_MAX_WALL_HZ` times a wall second: watchers draw no faster, and a lockstep line runs
+        ten times real time (views feed only watchers: the coordinator's frames, and the line, never depend on them)."""
+        now = time.monotonic()
+        if now - self._view_at < 1.0 / VIEW_MAX_WALL_HZ:
+            return False
+        self._view_at = now
+        return True
 
     def _deliver(self) -> None:
         """Send what reaches its process now: states (a delayed one stamped with the tick it arrives), frames."""

@@ -4,6 +4,9 @@ An override (`--set conveyor.speed_m_per_s=0.05,0.1`) sets one field of the scen
 (list items by index: `feeders.0.arrival.rate_per_min`), to each of its values in turn (YAML scalars:
 `none` removes an optional section, e.g. `randomise=none`). Each overridden scene is written to the sweep's
 folder and checked like any scene file, so a bad path or value names the field and the file.
+
+Offered load (`--load 0.5,1.0,1.5`) is the override `load`: every feeder's rate scaled so parts arrive at that
+multiple of the rate the line's arms can just complete (`coordinator.offered_load`), after the other overrides.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from fleet.common.scene_loading import load_scene
 from scenes.loader import SceneError, resolve_scene_path, yaml_text
 from scenes.yaml_file import named_in
 
+LOAD = "load"  # the override that scales the feeders (`--load`), not a field of the scene file
 MAX_RUNS = 100_000  # runs in one sweep: at a few seconds each, more would take a machine weeks
 
 
@@ -114,7 +118,8 @@ def _index(node: list, part: str, where: str, label: str) -> int:
 
 
 def scene_with(scene: str, overrides: dict, folder: Path) -> str:
-    """The scene to run: `scene` itself without overrides, else a checked copy with them written under `folder`."""
+    """The scene to run: `scene` itself without overrides, else a checked copy with them written under `folder`
+    (the offered load last: it scales the feeders of the scene the other overrides make)."""
     if not overrides:
         return scene
     source = resolve_scene_path(scene)
@@ -124,7 +129,16 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
         data["robot_files"] = [str(named_in(source, f)) if isinstance(f, str) else f for f in data["robot_files"]]
     label = f"{source} with --set {', '.join(f'{k}={v}' for k, v in overrides.items())}"
     for path, value in overrides.items():
-        set_path(data, path, value, label)
+        if path != LOAD:
+            set_path(data, path, value, label)
+    target = _write_checked(data, source, folder, label)
+    if LOAD not in overrides:
+        return target
+    _scale_feeders(data, load_scene(target), overrides[LOAD], label)
+    return _write_checked(data, source, folder, label)
+
+
+def _write_checked(data: dict, source: Path, folder: Path, label: str) -> str:
     digest = hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:12]
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / f"{source.stem}-{digest}.yaml"
@@ -134,6 +148,26 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
     except SceneError as exc:
         raise SceneError(label, exc.field, exc.reason) from None
     return str(target)
+
+
+def _scale_feeders(data: dict, scene, load: object, label: str) -> None:
+    """Each feeder of the file at the rate of the offered load (a scheduled feeder's times drawn closer or apart)."""
+    from coordinator.offered_load import feeder_rates_for_load
+
+    if not isinstance(load, (int, float)) or isinstance(load, bool):
+        raise SceneError(label, LOAD, f"{load!r} is not a number")
+    try:
+        rates = feeder_rates_for_load(scene, float(load))
+    except ValueError as exc:
+        raise SceneError(label, LOAD, str(exc)) from None
+    feeders = {f.get("name"): f for f in data.get("feeders") or [] if isinstance(f, dict)}
+    for name, rate in rates.items():
+        arrival = feeders[name].setdefault("arrival", {})
+        if arrival.get("rate_per_min") is not None:
+            arrival["rate_per_min"] = rate
+        else:
+            factor = 60.0 * len(arrival["schedule_s"]) / max(max(arrival["schedule_s"]), 1.0) / rate
+            arrival["schedule_s"] = [round(t * factor, 4) for t in arrival["schedule_s"]]
 
 
 def scenes_for(cells: list[RunCell], folder: Path) -> dict[str, str]:

@@ -2,7 +2,8 @@
 `cells.csv` (per group of runs that differ only in seed: mean and 95% confidence interval of each figure),
 `pairs.csv` (each pair of allocators over the same seeds and arguments: the paired difference in throughput
 with its 95% interval and Student's paired t-test), `throughput.png` (per allocator and override),
-`throughput_vs_<field>.png` for a numeric override."""
+`throughput_vs_<field>.png` for a numeric override; with offered loads (`--load`), the saturation curve
+`throughput_vs_load.png` (and the line's capacity) with `parts_missed_vs_load.png` and `utilisation_vs_load.png`."""
 
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ FIGURES = (
     "parts_missed",
     "bound_fraction",
     "run_bound_fraction",
+    "throughput_bound_per_min",
+    "utilisation_mean",
     "inter_arm_contacts",
     "min_separation_m",
     "grants_denied",
@@ -46,6 +49,8 @@ def run_rows(results: list[dict]) -> list[dict]:
         }
         row |= {f"set:{k}": v for k, v in sorted(cell["overrides"].items())}
         row |= {k: v for k, v in sorted(summary.items()) if _scalar(v) and k not in row}
+        busy = [float(v) for v in (summary.get("utilisation") or {}).values() if isinstance(v, (int, float))]
+        row["utilisation_mean"] = round(float(np.mean(busy)), 4) if busy else None  # the arms' mean busy share
         rows.append(row)
     return rows
 
@@ -164,8 +169,16 @@ def plot_throughput(cells: list[dict], path: Path) -> Path:
     return path
 
 
-def plot_against(cells: list[dict], field: str, path: Path) -> Path:
-    """Mean throughput against a numeric override, one line per allocator."""
+FIGURE_LABELS = {
+    "throughput_per_min": "parts per sim minute (mean, 95% CI)",
+    "parts_missed": "parts missed per run (mean, 95% CI)",
+    "utilisation_mean": "arms' mean busy share (mean, 95% CI)",
+}
+
+
+def plot_against(cells: list[dict], field: str, path: Path, figure: str = "throughput_per_min") -> Path:
+    """A figure's mean against a numeric override, one line per allocator; against offered load, the throughput
+    plot also draws the line's capacity (the nominal bound at load 1)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -176,14 +189,17 @@ def plot_against(cells: list[dict], field: str, path: Path) -> Path:
         mine = sorted((c for c in cells if c["allocator"] == allocator), key=lambda c: c[f"set:{field}"])
         ax.errorbar(
             [c[f"set:{field}"] for c in mine],
-            [c["throughput_per_min_mean"] for c in mine],
-            yerr=[0 if math.isnan(c["throughput_per_min_ci95"]) else c["throughput_per_min_ci95"] for c in mine],
+            [c[f"{figure}_mean"] for c in mine],
+            yerr=[0 if math.isnan(c[f"{figure}_ci95"]) else c[f"{figure}_ci95"] for c in mine],
             capsize=4,
             marker="o",
             label=allocator,
         )
-    ax.set_xlabel(field)
-    ax.set_ylabel("parts per sim minute (mean, 95% CI)")
+    at_one = [c["throughput_bound_per_min_mean"] for c in cells if c.get(f"set:{field}") == 1.0]
+    if field == "load" and figure == "throughput_per_min" and at_one and not math.isnan(at_one[0]):
+        ax.axhline(at_one[0], color="grey", linestyle="--", linewidth=1, label="capacity (load 1)")
+    ax.set_xlabel("offered load (x capacity)" if field == "load" else field)
+    ax.set_ylabel(FIGURE_LABELS.get(figure, figure))
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -204,5 +220,9 @@ def write_results(results: list[dict], out: Path) -> tuple[list[dict], list[Path
         for key in sorted({k for c in cells for k in c if k.startswith("set:")}):
             values = {c[key] for c in cells}
             if len(values) > 1 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-                written.append(plot_against(cells, key[4:], out / f"throughput_vs_{key[4:].replace('.', '_')}.png"))
+                field = key[4:]
+                written.append(plot_against(cells, field, out / f"throughput_vs_{field.replace('.', '_')}.png"))
+                if field == "load":
+                    for figure in ("parts_missed", "utilisation_mean"):
+                        written.append(plot_against(cells, field, out / f"{figure}_vs_load.png", figure))
     return cells, written
