@@ -58,11 +58,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     for spec in args.allocator:
         allocator_spec(spec)
     try:
-        overrides = [Override.parse(t) for t in args.set or ()] + [
-            Override(f"network.{field}", tuple(values))
-            for field, values in (("latency_ms", args.latency_ms), ("jitter_ms", args.jitter_ms), ("loss", args.loss))
-            if values
-        ] + ([Override(LOAD, tuple(args.load))] if args.load else [])
+        overrides = (
+            [Override.parse(t) for t in args.set or ()]
+            + [
+                Override(f"network.{field}", tuple(values))
+                for field, values in (
+                    ("latency_ms", args.latency_ms),
+                    ("jitter_ms", args.jitter_ms),
+                    ("loss", args.loss),
+                )
+                if values
+            ]
+            + ([Override(LOAD, tuple(args.load))] if args.load else [])
+        )
         cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, overrides)
     except GridError as exc:
         raise UsageError(str(exc)) from None
