@@ -49,8 +49,20 @@ def load_list(text: str) -> list[float]:
     return loads
 
 
+def sweep_overrides(args: argparse.Namespace) -> list:
+    """The grid's overrides: `--set`, the network levels, the offered loads."""
+    from fleet.sweep.grid import LOAD, Override
+
+    network = (("latency_ms", args.latency_ms), ("jitter_ms", args.jitter_ms), ("loss", args.loss))
+    return (
+        [Override.parse(t) for t in args.set or ()]
+        + [Override(f"network.{field}", tuple(values)) for field, values in network if values]
+        + ([Override(LOAD, tuple(args.load))] if args.load else [])
+    )
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from fleet.sweep.grid import LOAD, GridError, Override, grid, parse_seeds, scenes_for
+    from fleet.sweep.grid import GridError, grid, parse_seeds, scenes_for
     from fleet.sweep.results import write_results
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
@@ -58,20 +70,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     for spec in args.allocator:
         allocator_spec(spec)
     try:
-        overrides = (
-            [Override.parse(t) for t in args.set or ()]
-            + [
-                Override(f"network.{field}", tuple(values))
-                for field, values in (
-                    ("latency_ms", args.latency_ms),
-                    ("jitter_ms", args.jitter_ms),
-                    ("loss", args.loss),
-                )
-                if values
-            ]
-            + ([Override(LOAD, tuple(args.load))] if args.load else [])
+        cells = grid(
+            args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, sweep_overrides(args)
         )
-        cells = grid(args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, overrides)
     except GridError as exc:
         raise UsageError(str(exc)) from None
     load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything runs
