@@ -22,6 +22,7 @@ from fleet.ros.ros_interfaces import DEFINITIONS
 from fleet.ros.ros_json import from_json
 from fleet.run.launcher import Launcher
 from robots.registry import get_robot
+from tests.fleet.ros.pyzeros_user import use_the_line
 
 DOMAIN = 7
 SEPARATOR = "=" * 80 + "\n"
@@ -87,11 +88,14 @@ class Ros2Listener:
         self.definitions = definitions
 
     def __call__(self, launcher: Launcher, heard: dict, after: threading.Event) -> None:
-        """Listen at once; drive arm_1 once `after` is set (the rosbridge user is done with the line)."""
+        """Listen at once; drive arm_1 once `after` is set (the rosbridge user is done with the line); then a pyzeros
+        user (`pyzeros_user`) listens and calls the e-stop too."""
         try:
             self._listen(launcher, heard)
             after.wait(150)
             self._drive(heard)
+            config = launcher.bus.config_for("ros_client")
+            heard["pyzeros"] = use_the_line(config, launcher.endpoint, DOMAIN)
         except Exception as exc:
             heard["error"] = repr(exc)
         finally:
