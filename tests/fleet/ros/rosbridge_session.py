@@ -86,6 +86,7 @@ def drive(launcher: Launcher, seen: dict) -> None:
         spec = get_robot("openclaw")
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
         seen["topics"] = d.ros.get_topics()
+        seen["crowd"] = crowd(seen["ws_port"], 20)
         seen["details"] = d.ros.get_message_details("sensor_msgs/JointState")
         raw = roslibpy.Service(d.ros, "/rosapi/topics_and_raw_types", "rosapi_msgs/srv/TopicsAndRawTypes")
         seen["raw_types"] = raw.call(roslibpy.ServiceRequest({}), timeout=10)
@@ -159,6 +160,29 @@ def drive(launcher: Launcher, seen: dict) -> None:
         d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
     except Exception as exc:  # the test reports it
         seen["error"] = repr(exc)
+
+
+def crowd(port: int, clients: int) -> list[int]:
+    """`clients` connections at once, each subscribed to `/joint_states`: how many messages each got in 2 s."""
+    got = [0] * clients
+
+    def one(i: int) -> None:
+        with connect(f"ws://127.0.0.1:{port}") as ws:
+            ws.send(json.dumps({"op": "subscribe", "topic": "/joint_states", "id": f"crowd{i}"}))
+            deadline = time.monotonic() + 2.0
+            while time.monotonic() < deadline:
+                try:
+                    if json.loads(ws.recv(timeout=0.5)).get("topic") == "/joint_states":
+                        got[i] += 1
+                except TimeoutError:
+                    continue
+
+    threads = [threading.Thread(target=one, args=(i,)) for i in range(clients)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+    return got
 
 
 def wait_for(condition, timeout_s: float) -> None:

@@ -44,6 +44,11 @@ def test_a_ros_client_sees_the_lines_topics_actions_and_frames(session):
     assert any(f.startswith("arm_0/") for f in frames), "the arms' roots on /tf_static, latched"
 
 
+def test_twenty_clients_subscribed_at_once_each_get_the_joint_states(session):
+    _, seen = session
+    assert len(seen["crowd"]) == 20 and min(seen["crowd"]) >= 5, seen["crowd"]
+
+
 def test_a_trajectory_goal_succeeds_and_the_arm_stands_where_it_was_sent(session):
     _, seen = session
     reach = seen["reach"]
