@@ -4,8 +4,14 @@
 from __future__ import annotations
 
 import asyncio
+import os
+import tempfile
+from pathlib import Path
 
 import zenoh
+
+# pyzeros' CDR (cydr) compiles its code into a cache, by default in the working directory: the checkout
+os.environ.setdefault("CYDR_CACHE_DIR", str(Path(tempfile.gettempdir()) / "clawfleet-test-cydr-cache"))
 
 TOPICS = ("/joint_states", "/clock")
 
