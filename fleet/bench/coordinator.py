@@ -75,3 +75,45 @@ def bench_allocation(tasks: int, arms: int = 8, repeats: int = 20, seed: int = 0
     cost = rng.uniform(2.0, 20.0, size=(tasks, arms))
     cost[rng.random((tasks, arms)) < 0.25] = np.inf
     return AllocationRow(tasks, arms, _timed(lambda: assign_min_cost(cost), repeats) * 1e3)
+
+
+@dataclass(frozen=True)
+class DecisionRow:
+    allocator: str
+    arms: int
+    pending: int
+    decisions: int
+    p50_ms: float
+    p99_ms: float
+
+
+def bench_decisions(arms: int = 12, pending: int = 50, decisions: int = 200, seed: int = 0) -> list[DecisionRow]:
+    """Whole decisions of each built-in allocator on the sorting line with `arms` arms, every one free, and `pending`
+    belt parts riding on (each decision 0.1 s later: the coordinator's rate): reach, time costs and the solve, as the
+    coordinator spends them. The first `decisions // 5` fill the reach caches and are not counted."""
+    from coordinator.allocation import ALLOCATORS, ArmView, CachedReach, PartView, make_allocator
+    from coordinator.ledger import Ledger
+    from fleet.common.scene_loading import load_scene
+
+    scene = load_scene("sorting_line", arms=arms)
+    rng = np.random.default_rng(seed)
+    xs = [a.base.xyz[0] for a in scene.arms]
+    views = [ArmView(a.name, a.base.xyz, True, CachedReach.of(a), tuple(get_robot(a.model).home_q)) for a in scene.arms]
+    ledger, start = Ledger(scene), {}
+    kinds = len(scene.feeder("mixed").parts)
+    for pid in range(pending):
+        start[pid] = np.array([rng.uniform(min(xs) - 0.3, max(xs)), rng.uniform(-0.03, 0.03), 0.095])
+        ledger.arrived(pid, "mixed", int(rng.integers(kinds)), 0.0)
+    tasks, speed = ledger.refresh(0.0), np.array([scene.conveyor.speed_m_per_s, 0.0, 0.0])
+    rows = []
+    for name in ALLOCATORS:
+        allocator, times = make_allocator(name, scene), []
+        for k in range(decisions):
+            parts = {pid: PartView(p + speed * 0.1 * k, speed) for pid, p in start.items()}
+            began = time.perf_counter()
+            allocator.allocate(tasks, views, parts, set())
+            if k >= decisions // 5:
+                times.append(time.perf_counter() - began)
+        ms = np.array(times) * 1e3
+        rows.append(DecisionRow(name, arms, pending, len(times), float(np.median(ms)), float(np.percentile(ms, 99))))
+    return rows

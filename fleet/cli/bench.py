@@ -218,6 +218,16 @@ def cmd_bench_allocation(args: argparse.Namespace) -> int:
     return print_bench(table, rows, args.json)
 
 
+def cmd_bench_decisions(args: argparse.Namespace) -> int:
+    from fleet.bench.coordinator import bench_decisions
+
+    table = Table("allocator", "arms", "pending hops", "decisions", "p50 (ms)", "p99 (ms)")
+    rows = bench_decisions(args.arms, args.pending, args.decisions)
+    for r in rows:
+        table.add_row(r.allocator, str(r.arms), str(r.pending), str(r.decisions), f"{r.p50_ms:.2f}", f"{r.p99_ms:.2f}")
+    return print_bench(table, rows, args.json)
+
+
 def cmd_bench_lines(args: argparse.Namespace) -> int:
     from fleet.bench.runtime import bench_lines
 
@@ -417,6 +427,14 @@ def _add_allocation(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--arms", type=int, default=8)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_allocation)
+    b = bench.add_parser(
+        "decisions", help="whole decisions of each built-in allocator (reach, time costs, solve) on a long line"
+    )
+    b.add_argument("--arms", type=int, default=12)
+    b.add_argument("--pending", type=int, default=50, help="belt parts waiting for an arm")
+    b.add_argument("--decisions", type=int, default=200)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_decisions)
 
 
 def _add_lines(bench: argparse._SubParsersAction) -> None:

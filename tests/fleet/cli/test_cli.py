@@ -185,3 +185,11 @@ def test_bench_env_against_robosuite_without_it_is_one_line_before_any_env_runs(
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and says in lines[0] and python in lines[0], result.stderr
     assert "agent-steps/s" not in result.stdout  # no env row was timed
+
+
+def test_bench_decisions_times_every_built_in_allocator_on_a_long_line():
+    result = fleet("bench", "decisions", "--arms", "6", "--pending", "10", "--decisions", "10", "--json", timeout=120)
+    assert result.returncode == 0, result.stderr
+    rows = json.loads(result.stdout.strip().splitlines()[-1])  # the table, then the rows as one JSON line
+    assert [r["allocator"] for r in rows] == ["optimal", "auction", "greedy"]
+    assert all(r["decisions"] == 8 and 0 < r["p50_ms"] <= r["p99_ms"] for r in rows)
