@@ -14,6 +14,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, Assignment, ControllerStep, CoordTick, LineEvent, LineView, PartsState
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.sim_time_trigger import SimTimeTrigger
 from tests.fleet.test_run import QUICK_LINE, WALL_FIGURES, assert_nothing_left
 
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
@@ -59,16 +60,13 @@ def run(with_lies: bool) -> tuple[dict, int]:
         arms = [a.name for a in launcher.scene.arms]
         with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
 
-            def tell(progress) -> None:
-                # while every process surely runs; progress comes every 0.5 s of wall time, many sim seconds on a fast
-                # line
-                if with_lies and 1.0 < progress.sim_time_s < 15.0 and len(told) < 5:
-                    for key, payload in lies(keys, arms):
-                        session.put(key, payload)
-                    told.append(len(lies(keys, arms)))
+            def tell() -> None:
+                for key, payload in lies(keys, arms):
+                    session.put(key, payload)
+                told.append(len(lies(keys, arms)))
 
-            launcher.on_progress = tell
-            summary = launcher.run()
+            with SimTimeTrigger(session, keys, [1.0, 4.0, 7.0, 10.0, 13.0] if with_lies else [], tell):
+                summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     return summary, sum(told)
 

@@ -11,6 +11,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmStatus, Assignment, ControllerStep, MotionGrant
 from fleet.bus.session import open_session
 from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.sim_time_trigger import SimTimeTrigger
 from tests.fleet.test_bus_lies import COUNTED
 from tests.fleet.test_run import QUICK_LINE, assert_nothing_left
 
@@ -50,17 +51,16 @@ def run(lie: bool) -> dict:
             open_session(launcher.client_endpoints("coordinator")) as as_coordinator,
         ):
 
-            def pour(progress) -> None:
-                if lie and 1.0 < progress.sim_time_s < 10.0 and len(poured) < 5:
-                    for key, payload in controller_lies(keys, LIAR_ARM, arms[1]):
-                        as_arm.put(key, payload)
-                    for arm in arms:
-                        for key, payload in coordinator_lies(keys, arm):
-                            as_coordinator.put(key, payload)
-                    poured.append(1)
+            def pour() -> None:
+                for key, payload in controller_lies(keys, LIAR_ARM, arms[1]):
+                    as_arm.put(key, payload)
+                for arm in arms:
+                    for key, payload in coordinator_lies(keys, arm):
+                        as_coordinator.put(key, payload)
+                poured.append(launcher.last_sim_time_s)
 
-            launcher.on_progress = pour
-            summary = launcher.run()
+            with SimTimeTrigger(as_arm, keys, [1.0, 3.0, 5.0, 7.0, 9.0] if lie else [], pour):
+                summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert not lie or poured, "the lies went out while the line ran"
     return summary

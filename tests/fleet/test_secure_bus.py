@@ -12,6 +12,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import Assignment, EStop, LineEvent, SimControl
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.sim_time_trigger import SimTimeTrigger
 from tests.fleet.test_bus_lies import COUNTED
 from tests.fleet.test_run import QUICK_LINE, assert_nothing_left
 
@@ -51,16 +52,16 @@ def run(intruders: tuple[str, ...]) -> dict:
                 endpoints = launcher.client_endpoints(who)
             speakers[who] = sessions.enter_context(open_session(endpoints))
 
-        def pour(progress) -> None:
-            if intruders and 1.0 < progress.sim_time_s < 10.0 and len(poured) < 5:
-                for who, session in speakers.items():
-                    for key, payload in intrusions(keys, arms):
-                        if not (who == "monitor" and key in (keys.estop, keys.control)):  # the monitor's own role
-                            session.put(key, payload)
-                poured.append(1)
+        def pour() -> None:
+            for who, session in speakers.items():
+                for key, payload in intrusions(keys, arms):
+                    if not (who == "monitor" and key in (keys.estop, keys.control)):  # the monitor's own role
+                        session.put(key, payload)
+            poured.append(1)
 
-        launcher.on_progress = pour
-        summary = launcher.run()
+        listener = sessions.enter_context(open_session(launcher.client_endpoints("monitor")))
+        with SimTimeTrigger(listener, keys, [1.0, 3.0, 5.0, 7.0, 9.0] if intruders else [], pour):
+            summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert not intruders or poured, "the intrusions went out while the line ran"
     return summary
