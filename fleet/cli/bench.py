@@ -400,7 +400,7 @@ def _add_collision(bench: argparse._SubParsersAction) -> None:
 
 
 def _add_ros(bench: argparse._SubParsersAction) -> None:
-    from fleet.cli.ros import add_rate_argument
+    from fleet.nodes.attached import add_rate_argument
 
     b = bench.add_parser("ros", help="rosbridge: what N subscribed clients cost a lockstep line; ROS goal latency")
     b.add_argument("--arms", type=int, default=4)

@@ -7,7 +7,7 @@ import math
 
 from fleet.bus.session import BusEndpoints, add_bus_arguments
 from fleet.cli.errors import UsageError
-from fleet.ros.names import DEFAULT_MAX_RATE_HZ
+from fleet.nodes.attached import add_rate_argument
 
 
 def checked_rate(hz: float, flag: str = "--max-rate-hz") -> float:
@@ -15,18 +15,6 @@ def checked_rate(hz: float, flag: str = "--max-rate-hz") -> float:
     if not (math.isfinite(hz) and hz >= 0):
         raise UsageError(f"{flag} {hz:g}: give a rate in wall Hz (0: no cap)")
     return hz
-
-
-def add_rate_argument(p: argparse.ArgumentParser, flag: str = "--max-rate-hz") -> None:
-    """The ROS front ends' cap on topics from the line's view and states, in wall Hz."""
-    p.add_argument(
-        flag,
-        type=float,
-        default=DEFAULT_MAX_RATE_HZ,
-        metavar="HZ",
-        help=f"ROS topics from the line's view and states at most this often in wall time (0: every one; default "
-        f"{DEFAULT_MAX_RATE_HZ:g}); a lockstep line runs many times faster than ROS tools draw",
-    )
 
 
 def cmd_rosbridge(args: argparse.Namespace) -> int:

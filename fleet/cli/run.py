@@ -28,9 +28,10 @@ from fleet.cli.errors import (
     output_folder,
     writable_file,
 )
-from fleet.cli.ros import add_rate_argument, checked_rate
+from fleet.cli.ros import checked_rate
 from fleet.common.scene_loading import load_scene
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
+from fleet.nodes.attached import add_rate_argument
 from scenes.yaml_file import DeclarationError
 
 if TYPE_CHECKING:

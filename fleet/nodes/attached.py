@@ -3,6 +3,7 @@ line's scene, asked of its sim, or one line saying why there is none; the ROS fr
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from collections.abc import Callable
@@ -13,8 +14,40 @@ from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EStop, SimControl
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene
+from fleet.bus.session import add_bus_arguments
 from fleet.ros.line_services import LineBus
+from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from scenes.schema import Scene
+
+ROS_NICENESS = 10  # what ROS tools watch must not slow the line down (as the monitor)
+
+
+def add_rate_argument(parser: argparse.ArgumentParser, flag: str = "--max-rate-hz") -> None:
+    """The ROS front ends' cap on topics from the line's view and states, in wall Hz (`fleet.ros.line_topics`)."""
+    parser.add_argument(
+        flag,
+        type=float,
+        default=DEFAULT_MAX_RATE_HZ,
+        metavar="HZ",
+        help=f"ROS topics from the line's view and states at most this often in wall time (0: every one; default "
+        f"{DEFAULT_MAX_RATE_HZ:g}); a lockstep line runs many times faster than ROS tools draw",
+    )
+
+
+def add_ros_node_arguments(parser: argparse.ArgumentParser) -> None:
+    """What both ROS front ends' processes take: the run, how long to wait for its scene, their niceness, the
+    topics' rate cap, the report, and the bus."""
+    parser.add_argument("--run", default="line", help="run id of the line to serve")
+    parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
+    parser.add_argument(
+        "--nice",
+        type=int,
+        default=ROS_NICENESS,
+        help=f"scheduling niceness: a front end for ROS tools yields the CPU to the line (default {ROS_NICENESS})",
+    )
+    add_rate_argument(parser)
+    parser.add_argument("--report", help="write the node's figures to this JSON file at exit")
+    add_bus_arguments(parser)
 
 
 def line_scene(session: zenoh.Session, keys: Keys, timeout_s: float, prog: str) -> Scene | None:

@@ -15,9 +15,9 @@ import sys
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, GoalResultMsg, LineView
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.bus.session import BusEndpoints, Inbox, open_session
 from fleet.common.processes import StopFlag, write_report
-from fleet.nodes.attached import OnDemandSubscriptions, line_scene, ros_line_bus
+from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
 from fleet.ros import names
 from fleet.ros import trajectory_action as fjt
 from fleet.ros.line_actions import LineActions
@@ -36,18 +36,8 @@ TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet-ros2", description=__doc__.splitlines()[0])
-    parser.add_argument("--run", default="line", help="run id of the line to serve")
     parser.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID of the topics (0..232)")
-    parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
-    parser.add_argument("--nice", type=int, default=10, help="scheduling niceness: the line comes first (default 10)")
-    parser.add_argument(
-        "--max-rate-hz",
-        type=float,
-        default=names.DEFAULT_MAX_RATE_HZ,
-        help="topics from the line's view and states at most this often, in wall time (0: every one; default 50)",
-    )
-    parser.add_argument("--report", help="write the node's figures to this JSON file at exit")
-    add_bus_arguments(parser)
+    add_ros_node_arguments(parser)
     return parser
 
 

@@ -14,14 +14,12 @@ import sys
 from pathlib import Path
 
 from fleet.bus.keys import Keys
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, is_loopback_host, open_session
+from fleet.bus.session import BusEndpoints, Inbox, is_loopback_host, open_session
 from fleet.common.processes import StopFlag, write_report, write_text_atomically
-from fleet.nodes.attached import OnDemandSubscriptions, line_scene, ros_line_bus
-from fleet.ros import names
+from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
 from fleet.ros.rosbridge_server import RosbridgeServer
 
 SOURCE = "rosbridge"
-ROSBRIDGE_NICENESS = 10  # what ROS tools watch must not slow the line down (as the monitor)
 DRAIN_S = 0.005  # how often the bus's queued messages are taken onto the server's loop
 
 
@@ -59,30 +57,15 @@ def read_secret(path: str) -> str | None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fleet-rosbridge", description=__doc__.splitlines()[0])
-    parser.add_argument("--run", default="line", help="run id of the line to serve")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (loopback; see docs/ros2.md)")
     parser.add_argument("--port", type=int, default=9090, help="WebSocket port (0: any free one)")
-    parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
-    parser.add_argument(
-        "--nice",
-        type=int,
-        default=ROSBRIDGE_NICENESS,
-        help="scheduling niceness: a bridge for watchers yields the CPU to the line (default 10)",
-    )
     parser.add_argument(
         "--secret-file",
         help="a file holding the secret clients' MACs are made with (rosauth): every client must `auth` first; "
         "needed to listen beyond loopback",
     )
     parser.add_argument("--url-file", help="write the server's ws:// URL to this file once it listens")
-    parser.add_argument(
-        "--max-rate-hz",
-        type=float,
-        default=names.DEFAULT_MAX_RATE_HZ,
-        help="topics from the line's view and states at most this often, in wall time (0: every one; default 50)",
-    )
-    parser.add_argument("--report", help="write the server's figures to this JSON file at exit")
-    add_bus_arguments(parser)
+    add_ros_node_arguments(parser)
     return parser
 
 
