@@ -95,10 +95,6 @@ class OnDemandSubscriptions:
         for key in [k for k in self._subs if k not in keys and now - self._needed_at[k] > self.LINGER_S]:
             self._subs.pop(key).undeclare()
 
-    @property
-    def keys(self) -> set[str]:
-        return set(self._subs)
-
     def close(self) -> None:
         for sub in self._subs.values():
             sub.undeclare()

@@ -19,7 +19,6 @@ from fleet.bus.session import BusEndpoints, Inbox, open_session
 from fleet.common.processes import StopFlag, write_report
 from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
 from fleet.ros import names
-from fleet.ros import trajectory_action as fjt
 from fleet.ros.line_actions import LineActions
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
 from fleet.ros.line_topics import LineTopics
@@ -83,16 +82,16 @@ class NativeLine:
         for topic, msg in self.topics.latched.items():  # said once: their publishers keep them for late joiners
             self.pubs[topic].put(msg)
         while not stop.should_stop():
-            self._from_bus()
+            heard = {t for t, pub in self.pubs.items() if pub.heard}  # only the topics someone subscribes to are built
+            self._from_bus(heard)
             self._answer_services()
             self._take_commands()
             for action in self.native:
                 action.poll(max(self.topics.clock_s, 0.0))
-            self.listened.want(self._needed())
+            self.listened.want(self.topics.keys_needed(self.keys, heard, self.actions.arms_in_flight()))
             self.inbox.wait(0.05)
 
-    def _from_bus(self) -> None:
-        wanted = self._heard()
+    def _from_bus(self, wanted: set[str]) -> None:
         for key, payload in self.inbox.drain():
             decoder = self.decoders.get(key.rsplit("/", 1)[-1])
             msg = decoder.decode(key, payload) if decoder else None
@@ -110,18 +109,6 @@ class NativeLine:
                 self.pubs[topic].put(ros_msg)
                 self.sent += 1
 
-    def _needed(self) -> set[str]:
-        """The bus keys needed now: states of arms a goal drives or whose own joint states are heard, the view while
-        a topic it feeds is."""
-        heard = self._heard()
-        arms = self.actions.arms_in_flight() | self.topics.arms_wanted(heard)
-        view = {self.keys.view} if self.topics.view_wanted(heard) else set()
-        return {self.keys.arm_state(a) for a in arms} | view
-
-    def _heard(self) -> set[str]:
-        """The topics some subscriber listens to now (only theirs are built)."""
-        return {t for t, pub in self.pubs.items() if pub.heard}
-
     def _answer_services(self) -> None:
         for name, service in self.services.items():
             for request in service.take():
@@ -137,11 +124,9 @@ class NativeLine:
         for arm, sub in self.commands.items():
             for msg in sub.take():
                 try:
-                    goal = fjt.goal_message(arm, self.actions.new_goal_id(), {"trajectory": to_json(msg)})
+                    self.actions.send_trajectory(arm, to_json(msg))
                 except ValueError:
                     self.refused += 1
-                    continue
-                self.bus.send_goal(goal)
 
     def figures(self) -> dict:
         unreadable = sum(x.unreadable for x in [*self.native, *self.services.values(), *self.commands.values()])

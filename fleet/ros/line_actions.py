@@ -73,6 +73,11 @@ class LineActions:
         self.send_goal(msg)
         self.sent += 1
 
+    def send_trajectory(self, arm: str, trajectory: object) -> None:
+        """A fire-and-forget `trajectory_msgs/JointTrajectory` (JSON-like values) to the arm: a goal whose result goes
+        to nobody; `GoalError` for one that cannot be read."""
+        self.send_goal(fjt.goal_message(arm, self.new_goal_id(), {"trajectory": trajectory}))
+
     def cancel(self, owner: object, op_id: object) -> bool:
         """Cancel the owner's goal `op_id`: the arm holds where it is commanded now (the goal ends CANCELED)."""
         for p in self.pending.values():

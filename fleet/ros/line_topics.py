@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, LineView
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.ros_types import ros_type, time_msg
@@ -58,14 +59,11 @@ class LineTopics:
             return []
         return [(own, self.ros.joint_state(state))]
 
-    def arms_wanted(self, wanted: set[str]) -> set[str]:
-        """The arms whose own joint states someone listens to."""
-        return {a for a in self.arms if names.arm_joint_states(a) in wanted}
-
-    @staticmethod
-    def view_wanted(wanted: set[str]) -> bool:
-        """Whether someone listens to a topic the line's view feeds."""
-        return bool(wanted & VIEW_TOPICS)
+    def keys_needed(self, keys: Keys, wanted: set[str], driven: set[str]) -> set[str]:
+        """The bus keys a front end needs now (`OnDemandSubscriptions`): the states of the arms its clients' goals
+        drive (`driven`) or whose own joint states are `wanted`, the line's view while a topic it feeds is."""
+        arms = driven | {a for a in self.arms if names.arm_joint_states(a) in wanted}
+        return {keys.arm_state(a) for a in arms} | ({keys.view} if wanted & VIEW_TOPICS else set())
 
     def from_view(self, view: LineView, wanted: set[str]) -> list[tuple[str, object]]:
         """The topics the line's view feeds (every arm's joints and links, the parts, the clock), among those

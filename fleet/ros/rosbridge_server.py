@@ -26,7 +26,6 @@ from fleet.ros.ros_json import to_json
 from fleet.ros.rosapi import Rosapi
 from fleet.ros.rosauth import auth_problem, auth_request
 from fleet.ros.rosbridge_client import Client, Subscription
-from fleet.ros.trajectory_action import goal_message
 from robots.registry import get_robot
 from scenes.schema import Scene
 
@@ -87,8 +86,7 @@ class RosbridgeServer:
         """The bus keys this server needs now: the states of arms its clients' goals drive or whose own joint states
         they watch, the line's view while they watch a topic it feeds (`OnDemandSubscriptions`)."""
         wanted = {t for c in self.clients for t in c.subscriptions}
-        arms = self.actions.arms_in_flight() | self.topics.arms_wanted(wanted)
-        return {keys.arm_state(a) for a in arms} | ({keys.view} if self.topics.view_wanted(wanted) else set())
+        return self.topics.keys_needed(keys, wanted, self.actions.arms_in_flight())
 
     def _publish(self, messages: list[tuple[str, object]]) -> None:
         for topic, msg in messages:
@@ -196,9 +194,8 @@ class RosbridgeServer:
         topic = _field(m, "topic", str)
         arm = self._commanded_arm(topic)
         msg = _field(m, "msg", dict)
-        goal_id = self.actions.new_goal_id()
         try:
-            self.bus.send_goal(goal_message(arm, goal_id, {"trajectory": msg}))
+            self.actions.send_trajectory(arm, msg)
         except ValueError as exc:
             raise RequestError(f"{topic}: {exc}") from None
 
