@@ -22,6 +22,7 @@ import yaml
 
 from fleet.common.scene_loading import load_scene
 from scenes.loader import SceneError, resolve_scene_path, yaml_text
+from scenes.schema import Scene
 from scenes.yaml_file import named_in
 
 LOAD = "load"  # the override that scales the feeders (`--load`), not a field of the scene file
@@ -131,26 +132,26 @@ def scene_with(scene: str, overrides: dict, folder: Path) -> str:
     for path, value in overrides.items():
         if path != LOAD:
             set_path(data, path, value, label)
-    target = _write_checked(data, source, folder, label)
+    target, made = _write_checked(data, source, folder, label)
     if LOAD not in overrides:
         return target
-    _scale_feeders(data, load_scene(target), overrides[LOAD], label)
-    return _write_checked(data, source, folder, label)
+    _scale_feeders(data, made, overrides[LOAD], label)
+    return _write_checked(data, source, folder, label)[0]
 
 
-def _write_checked(data: dict, source: Path, folder: Path, label: str) -> str:
+def _write_checked(data: dict, source: Path, folder: Path, label: str) -> tuple[str, Scene]:
+    """`data` written as a scene file under `folder` and loaded (so checked): its path and the scene."""
     digest = hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:12]
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / f"{source.stem}-{digest}.yaml"
     target.write_text(yaml.safe_dump(data, sort_keys=False))
     try:
-        load_scene(target)
+        return str(target), load_scene(target)
     except SceneError as exc:
         raise SceneError(label, exc.field, exc.reason) from None
-    return str(target)
 
 
-def _scale_feeders(data: dict, scene, load: object, label: str) -> None:
+def _scale_feeders(data: dict, scene: Scene, load: object, label: str) -> None:
     """Each feeder of the file at the rate of the offered load (a scheduled feeder's times drawn closer or apart)."""
     from coordinator.offered_load import feeder_rates_for_load
 
