@@ -138,6 +138,29 @@ class Eligibility:
     def in_reach(arm: ArmView, point) -> bool:
         return arm.reach(np.asarray(point, float) + [0.0, 0.0, HOVER_M])
 
+    def may_own_belt_points(self, arms: list[ArmView], points: np.ndarray) -> np.ndarray:
+        """For points (..., 3): (..., arms), False where an arm certainly does not own the point (`owns_belt_point`),
+        in one numpy pass; True where it may (a hair of slack, so the exact check alone decides the close calls).
+        Lets an allocator skip the arms a belt part's pick point is not near, without a reach check for each."""
+        points = np.asarray(points, float)[..., None, :2]
+        live = list(self.bases)
+        if len(live) < 2:
+            return np.ones((*points.shape[:-2], len(arms)), bool)
+        xy = np.array([self.bases[n][:2] for n in live])
+        to_live = np.hypot(*np.moveaxis(points - xy, -1, 0))  # (..., live arms)
+        nearest = to_live.argmin(axis=-1)
+        two = np.partition(to_live, 1, axis=-1)
+        out = []
+        for arm in arms:
+            mine = np.hypot(*np.moveaxis(points[..., 0, :] - arm.base_xyz[:2], -1, 0))
+            others = (
+                two[..., 0]
+                if arm.name not in self.bases
+                else np.where(nearest == live.index(arm.name), two[..., 1], two[..., 0])
+            )
+            out.append(mine + CELL_MARGIN_M <= others + 1e-9)
+        return np.stack(out, axis=-1)
+
     def owns_belt_point(self, arm: ArmView, point) -> bool:
         mine = horizontal_distance_m(arm.base_xyz, point)
         return all(
@@ -147,7 +170,7 @@ class Eligibility:
     def pick_point(self, task: Task, part: PartView) -> np.ndarray:
         """Where the arm will meet the part: ahead along the belt for conveyor parts."""
         if task.source == CONVEYOR:
-            return part.position + part.velocity * PICK_LEAD_S
+            return lead_pick_point(part)
         return part.position
 
     def can_serve(self, arm: ArmView, task: Task, part: PartView) -> bool:
@@ -316,9 +339,7 @@ class OptimalAssignment:
         soon = [a for a in arms if not a.free and a.free_in_s is not None]
         columns = free + soon
         wait_s = [0.0] * len(free) + [a.free_in_s for a in soon]
-        cost = np.array(
-            [[w + cost_of(a, t, later(parts[t.part_id], w)) for a, w in zip(columns, wait_s)] for t in pending]
-        )
+        cost = self._cost_matrix(pending, columns, wait_s, parts, cost_of)
         coming = self._coming(pending, free, parts, cost, cost_of)  # belt parts a free arm can take once in its reach
         # more tasks than arms: the sooner due go first
         cost += URGENCY_S_PER_S * np.array([[due_s(t)] for t in pending])
@@ -332,6 +353,26 @@ class OptimalAssignment:
         return out
 
     @staticmethod
+    def _cost_matrix(
+        pending: list[Task], columns: list[ArmView], wait_s: list[float], parts: dict[int, PartView], cost_of: TimeCost
+    ) -> np.ndarray:
+        """(tasks, columns): the wait plus the estimated seconds of each task by each arm then (inf: cannot serve).
+        A belt task is costed only for the arms that may own its pick point then (most arms of a long line
+        cannot, and a reach check each would dominate the decision)."""
+        cost = np.full((len(pending), len(columns)), math.inf)
+        belt = [r for r, t in enumerate(pending) if t.source == CONVEYOR]
+        may = np.ones(cost.shape, bool)
+        if belt:
+            picks = lead_pick_points([parts[pending[r].part_id] for r in belt], wait_s)
+            diagonal = np.arange(len(columns))
+            may[belt] = cost_of.rules.may_own_belt_points(columns, picks)[:, diagonal, diagonal]  # each at its wait
+        for r, t in enumerate(pending):
+            for c, (a, w) in enumerate(zip(columns, wait_s)):
+                if may[r, c]:
+                    cost[r, c] = w + cost_of(a, t, later(parts[t.part_id], w))
+        return cost
+
+    @staticmethod
     def _coming(
         pending: list[Task], free: list[ArmView], parts: dict[int, PartView], cost: np.ndarray, cost_of: TimeCost
     ) -> set[tuple[int, int]]:
@@ -340,28 +381,59 @@ class OptimalAssignment:
         assignment gives such a task stays free for it instead of starting work that can wait (a tray part) and
         losing the belt part meanwhile."""
         out = set()
-        for r, t in enumerate(pending):
-            for c, a in enumerate(free):
-                if math.isfinite(cost[r, c]):
-                    continue  # served now
-                found = served_after_wait(a, t, parts[t.part_id], cost_of)
+        belt = [r for r, t in enumerate(pending) if t.source == CONVEYOR]  # a part at rest does not come nearer
+        if not belt:
+            return out
+        picks = lead_pick_points([parts[pending[r].part_id] for r in belt], LOOKAHEAD_WAITS_S)
+        may_all = cost_of.rules.may_own_belt_points(free, picks)  # (belt rows, waits, free arms)
+        comes_all = may_all.any(axis=1)
+        for c, a in enumerate(free):
+            may, comes = may_all[..., c], comes_all[:, c]
+            for row, r in enumerate(belt):
+                if math.isfinite(cost[r, c]) or not comes[row]:
+                    continue  # served now, or its part never rides onto this arm's stretch in time
+                found = served_after_wait(a, pending[r], parts[pending[r].part_id], cost_of, may[row])
                 if found is not None:
                     cost[r, c] = sum(found)
                     out.add((r, c))
         return out
 
 
-def served_after_wait(arm: ArmView, task: Task, part: PartView, cost_of: TimeCost) -> tuple[float, float] | None:
+LOOKAHEAD_WAITS_S = tuple(k * LOOKAHEAD_STEP_S for k in range(1, int(LOOKAHEAD_S / LOOKAHEAD_STEP_S) + 1))
+
+
+def lead_pick_point(part: PartView) -> np.ndarray:
+    """Where an arm meets a belt part (`Eligibility.pick_point` of a belt task), for many parts at once."""
+    return part.position + part.velocity * PICK_LEAD_S
+
+
+def lead_pick_points(parts: list[PartView], waits_s) -> np.ndarray:
+    """(parts, waits, 3): `lead_pick_point` of each part after each wait (`later`), in one numpy pass (the same
+    arithmetic, so the same floats)."""
+    position = np.array([p.position for p in parts], float)[:, None, :]
+    velocity = np.array([p.velocity for p in parts], float)[:, None, :]
+    return position + velocity * np.asarray(waits_s, float)[None, :, None] + velocity * PICK_LEAD_S
+
+
+def served_after_wait(
+    arm: ArmView, task: Task, part: PartView, cost_of: TimeCost, may: np.ndarray | None = None
+) -> tuple[float, float] | None:
     """For a belt task `arm` cannot serve yet: the least wait (within `LOOKAHEAD_S`, in `LOOKAHEAD_STEP_S` steps)
     after which its part has ridden into the arm's reach, and the estimated seconds of the task then. None for a
-    part at rest, a station out of the arm's reach wherever the part is, or a part that does not come in time."""
+    part at rest, a station out of the arm's reach wherever the part is, or a part that does not come in time.
+    `may`: per wait, whether the arm may own the pick point then (`Eligibility.may_own_belt_points`), if known."""
     if task.source != CONVEYOR:
         return None
+    if may is None:
+        may = cost_of.rules.may_own_belt_points([arm], lead_pick_points([part], LOOKAHEAD_WAITS_S)[0])[:, 0]
+    if not may.any():
+        return None  # its pick point never comes onto this arm's stretch of belt in time
     station = cost_of.rules.scene.station(task.target)
     if not cost_of.rules.in_reach(arm, (*station.pose.xyz[:2], station.surface_z_m)):
         return None
-    for k in range(1, int(LOOKAHEAD_S / LOOKAHEAD_STEP_S) + 1):
-        wait = k * LOOKAHEAD_STEP_S
+    for wait, maybe in zip(LOOKAHEAD_WAITS_S, may):
+        if not maybe:
+            continue
         ahead = cost_of(arm, task, later(part, wait))
         if math.isfinite(ahead):
             return wait, ahead

@@ -4,8 +4,18 @@ import itertools
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from coordinator.allocation import ALLOCATORS, ArmView, CachedReach, PartView, assign_min_cost, make_allocator
+from coordinator.allocation import (
+    ALLOCATORS,
+    ArmView,
+    CachedReach,
+    Eligibility,
+    PartView,
+    assign_min_cost,
+    make_allocator,
+)
 from coordinator.ledger import Ledger
 from robots.frames import yaw_transform
 from robots.registry import get_robot, is_available
@@ -207,3 +217,34 @@ def test_reach_cells_solved_from_a_reached_neighbour_give_the_full_searchs_answe
         if q is not None:  # a real reach: the claw's grasp centre is at the spot
             tool = full.base_to_world @ full.km.frame_pose(full.km.full_q(q))
             assert np.linalg.norm(tool[:3, :3] @ centre + tool[:3, 3] - c) < 1e-3
+
+
+def owner_views(bases_xy: list[tuple[float, float]], live: list[bool]) -> list[ArmView]:
+    """Arms standing at `bases_xy` (no reach needed: only belt ownership is asked of them)."""
+    return [ArmView(f"arm_{i}", (x, y, 0.0), True, None, live=up) for i, ((x, y), up) in enumerate(zip(bases_xy, live))]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    bases=st.lists(st.tuples(st.floats(-2, 2), st.floats(-1, 1)), min_size=1, max_size=8),
+    live_draw=st.lists(st.booleans(), min_size=8, max_size=8),
+    points=st.lists(st.tuples(st.floats(-2.5, 2.5), st.floats(-1.5, 1.5), st.just(0.1)), min_size=1, max_size=12),
+)
+def test_the_one_pass_belt_ownership_filter_never_rules_out_an_arm_that_owns_the_point(bases, live_draw, points):
+    """The optimal allocator costs a belt task only for the arms the filter leaves; an owner it dropped would lose
+    the part."""
+    arms = owner_views(bases, live_draw[: len(bases)])
+    rules = Eligibility(load_scene("sorting_line"), arms)
+    may = rules.may_own_belt_points(arms, np.array(points))
+    for p, point in enumerate(points):
+        for a, arm in enumerate(arms):
+            if rules.owns_belt_point(arm, point):
+                assert may[p, a], (arm.name, point)
+
+
+def test_the_one_pass_filter_leaves_few_arms_of_a_long_line():
+    """On a 12-arm row, a belt point may belong to one arm at most: the filter's whole point."""
+    arms = owner_views([(0.55 * i, -0.35) for i in range(12)], [True] * 12)
+    rules = Eligibility(load_scene("sorting_line"), arms)
+    points = np.column_stack([np.linspace(-0.5, 6.5, 141), np.zeros(141), np.full(141, 0.1)])
+    assert rules.may_own_belt_points(arms, points).sum(axis=1).max() == 1
