@@ -1,9 +1,19 @@
 """Suite-wide: robots a test registers (a robot file, a tuning candidate) are gone after it, so that no test sees
-another's robots (a scene error lists the valid models)."""
+another's robots (a scene error lists the valid models); the lines tests run in this process fork their nodes from
+one kept node factory, as a sweep's worker does (a run's own factory costs ~2 s of imports, and the suite runs
+dozens of lines)."""
 
 import pytest
 
 import robots.registry
+from fleet.run.node_factory import close_kept_factory, keep_factory
+
+
+@pytest.fixture(autouse=True, scope="session")
+def lines_fork_their_nodes_from_one_kept_factory():
+    keep_factory()
+    yield
+    close_kept_factory()
 
 
 @pytest.fixture(autouse=True)

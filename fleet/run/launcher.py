@@ -16,6 +16,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,7 +33,7 @@ from fleet.common.scene_loading import load_scene
 from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from fleet.run.hosts import Hosts, load_hosts
 from fleet.run.node_commands import NodeCommands
-from fleet.run.node_factory import NodeFactory
+from fleet.run.node_factory import NodeFactory, adopting, kept_factory
 from fleet.run.run_node import (
     RECORDER_GRACE_S,
     STOP_GRACE_S,
@@ -110,8 +111,9 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         on_message: Callable[[str], None] | None = None,
         factory: NodeFactory | None = None,
     ) -> None:
-        """`factory`: a node factory that outlives this run (a sweep's worker keeps one for all its runs); else,
-        with `fork_nodes`, the run starts its own and closes it at the end."""
+        """`factory`: a node factory that outlives this run; else this process's kept one
+        (`node_factory.keep_factory`: a sweep's worker keeps one for all its runs), else, with `fork_nodes`, the
+        run starts its own and closes it at the end."""
         self.options = options
         self.on_message = on_message or (lambda text: print(text, file=sys.stderr, flush=True))
         self.server_urls: dict[str, str] = {}  # role -> where it serves (`Supervision._check_servers`)
@@ -134,7 +136,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
         # forks the nodes; its own is closed after they all stopped
-        self.factory = factory if options.fork_nodes else None
+        self.factory = (factory or kept_factory()) if options.fork_nodes else None
         self._own_factory = False
         self.respawns = 0
         self.interrupted = ""
@@ -164,6 +166,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         try:
             if self.options.fork_nodes and self.factory is None:
                 self.factory, self._own_factory = NodeFactory(self.dir / "node_factory.log"), True
+            elif self.factory is not None and not self.factory.adopt:
+                adopting(+1)  # a kept factory's nodes come here if it dies under this run
             sim = self.sim_node()
             self.nodes = [self._start(sim)]
             if self.options.record:  # beside the sim: it waits for the sim's spool while both import
@@ -203,6 +207,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
             stop_children([self.recorder.child], RECORDER_GRACE_S)
         if self._own_factory:
             self.factory.close()
+        elif self.factory is not None and not self.factory.adopt:
+            adopting(-1)
         if not self.keep_dir:
             shutil.rmtree(self.dir, ignore_errors=True)
 
@@ -214,7 +220,10 @@ class Launcher(RunSummary, Supervision, NodeCommands):
     def run(self) -> dict:
         """Run until the sim's duration ends, a node crashes or the launcher is told to stop; then the summary."""
         started = time.monotonic()
-        previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        # Ctrl-C and SIGTERM stop the line cleanly; only the main thread may take signals (a line run from another
+        # thread is stopped by whoever owns that thread, or by its own duration)
+        signals = (signal.SIGINT, signal.SIGTERM) if threading.current_thread() is threading.main_thread() else ()
+        previous = {sig: signal.signal(sig, self._on_signal) for sig in signals}
         error = ""
         try:
             mine = self.client_endpoints("launcher")

@@ -80,8 +80,9 @@ class ForkedProc:
 _FACTORIES_OPEN = [0]
 
 
-def _adopting(change: int) -> None:
-    """This process adopts orphans while it has a factory open (and only then: it reaps only its nodes)."""
+def adopting(change: int) -> None:
+    """This process adopts orphans while it has a factory open or a run on a kept one (and only then: it reaps only
+    its nodes; a subreaper for longer would keep, unreaped, whatever else it started that outlived its parent)."""
     before = _FACTORIES_OPEN[0]
     _FACTORIES_OPEN[0] = max(0, before + change)
     if (before == 0) != (_FACTORIES_OPEN[0] == 0):
@@ -109,10 +110,12 @@ class FactoryError(RuntimeError):
 class NodeFactory:
     """The launcher's side: `spawn(argv, log, idle)` a node, `close()` at the end (use in a `with` block)."""
 
-    def __init__(self, log: Path | None, preload: tuple[str, ...] = NODE_MODULES) -> None:
-        """`log`: where the factory's own output goes (None: nowhere; each node has its own log either way)."""
-        self.log = log
-        _adopting(+1)  # the nodes outlive a factory killed under them: they come here to be stopped and reaped
+    def __init__(self, log: Path | None, preload: tuple[str, ...] = NODE_MODULES, adopt: bool = True) -> None:
+        """`log`: where the factory's own output goes (None: nowhere; each node has its own log either way).
+        `adopt`: be the subreaper while it is open (False: a kept factory, whose runs adopt while they run)."""
+        self.log, self.adopt = log, adopt
+        if adopt:
+            adopting(+1)  # the nodes outlive a factory killed under them: they come here to be stopped and reaped
         with open(log if log is not None else os.devnull, "ab") as out:
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "fleet.run.node_factory", *preload],
@@ -125,6 +128,7 @@ class NodeFactory:
         self._exits: dict[int, int] = {}
         self._replies: list[dict] = []
         self._heard = threading.Condition()
+        self._one_spawn = threading.Lock()
         self._closing = False
         self._reader = threading.Thread(target=self._read, name="node-factory", daemon=True)
         self._reader.start()
@@ -150,7 +154,7 @@ class NodeFactory:
         if module is None:
             raise ValueError(f"not a node the factory can fork: {' '.join(argv)}")
         request = {"module": module, "args": args, "log": str(log), "idle": idle}
-        with self._heard:
+        with self._one_spawn, self._heard:  # one request in flight: the next reply is its own
             try:
                 self.proc.stdin.write(json.dumps(request).encode() + b"\n")
                 self.proc.stdin.flush()
@@ -202,13 +206,43 @@ class NodeFactory:
             self.proc.kill()
             self.proc.wait()
         self._reader.join(timeout=1)
-        _adopting(-1)
+        if self.adopt:
+            adopting(-1)
 
     def __enter__(self) -> NodeFactory:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+_KEPT: dict[str, NodeFactory | None] = {"factory": None}
+
+
+def keep_factory() -> NodeFactory:
+    """From now on, this process's runs fork their nodes from one kept factory (a sweep's worker, a test session: a
+    program that runs many lines one after another pays the imports once, not once a run, ~2 s each). Returns it,
+    started at the first call and replaced when it died (a run that lost its factory fails; the next gets a new
+    one). `close_kept_factory` ends it; it dies with this process anyway."""
+    kept = _KEPT["factory"]
+    if kept is None or kept.proc.poll() is not None:
+        if kept is not None:
+            kept.close()
+        # no log of its own: it outlives every run's folder (each node logs there)
+        kept = _KEPT["factory"] = NodeFactory(None, adopt=False)  # each run on it adopts while it runs
+    return kept
+
+
+def kept_factory() -> NodeFactory | None:
+    """The kept factory if `keep_factory` was called (a new one if it died), else None (each run starts its own)."""
+    return keep_factory() if _KEPT["factory"] is not None else None
+
+
+def close_kept_factory() -> None:
+    """Stop keeping a factory: close it (its nodes, if any still run, are killed)."""
+    kept, _KEPT["factory"] = _KEPT["factory"], None
+    if kept is not None:
+        kept.close()
 
 
 # --- the factory process ------------------------------------------------------------------------------------

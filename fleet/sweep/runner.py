@@ -22,7 +22,6 @@ RUNS_DIR = "runs"
 
 _POOL_PARENT: int | None = None  # in a local pool's worker: the sweep's pid
 _INTERRUPTED = False  # in a local pool's worker: a Ctrl-C or SIGTERM came (or the sweep died): start no run after it
-_FACTORY = None  # in a worker (local or Ray): the node factory its runs fork their nodes from, kept from run to run
 
 
 def _pool_worker_start() -> None:
@@ -58,21 +57,11 @@ def run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None = No
             os._exit(0)  # its run was stopped with it; nobody is left to take a result
 
 
-def worker_factory():
-    """This worker's node factory: started at its first run and kept, so that its runs import the node modules
-    once between them, not once a run (it dies with the worker; a dead one is replaced)."""
-    global _FACTORY
-    from fleet.run.node_factory import NodeFactory
-
-    if _FACTORY is None or _FACTORY.proc.poll() is not None:
-        _FACTORY = NodeFactory(None)  # no log of its own: it outlives every run's folder (each node logs there)
-    return _FACTORY
-
-
 def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) -> dict:
     import tempfile
 
     from fleet.run.launcher import Launcher, RunOptions
+    from fleet.run.node_factory import keep_factory
 
     with tempfile.TemporaryDirectory(prefix="clawfleet-sweep-") as tmp:
         if scene_text is not None:
@@ -86,7 +75,8 @@ def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) ->
             allocator=cell.allocator,
             run_id=run_id,
         )
-        with Launcher(options, on_message=lambda _text: None, factory=worker_factory()) as launcher:
+        keep_factory()  # a worker's runs fork their nodes from one factory, kept from run to run
+        with Launcher(options, on_message=lambda _text: None) as launcher:
             return launcher.run()
 
 

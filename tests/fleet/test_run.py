@@ -4,6 +4,7 @@ Every test checks that no process of the run is left and that the sim's port is 
 """
 
 import contextlib
+import functools
 import json
 import os
 import signal
@@ -11,6 +12,7 @@ import socket
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -58,13 +60,28 @@ def assert_nothing_left(summary: dict, endpoint: str) -> None:
 
 
 def run_line(on_progress=None, **options) -> tuple[dict, Launcher]:
-    with Launcher(RunOptions(scene=QUICK_LINE, **options), on_progress) as launcher:
+    with Launcher(RunOptions(**{"scene": QUICK_LINE, **options}), on_progress) as launcher:
         summary = launcher.run()
     return summary, launcher
 
 
+def run_lines_together(*options: dict) -> list[tuple[dict, Launcher]]:
+    """Several quick lines at once, each run from a thread of its own: a lockstep run's outcome does not depend on
+    how loaded the machine is, so two that must agree may as well share it."""
+    with ThreadPoolExecutor(len(options)) as pool:
+        return list(pool.map(lambda o: run_line(**o), options))
+
+
+@functools.cache
+def clean_line_30s_seed_5() -> dict:
+    """The quick line, 30 s, seed 5, nothing done to it: what runs that lost a node must still come to (run once)."""
+    summary, launcher = run_line(duration_s=30.0, seed=5)
+    assert_nothing_left(summary, launcher.endpoint)
+    return summary
+
+
 def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
-    first, launcher = run_line(duration_s=18.0, seed=5)
+    (first, launcher), (second, second_launcher) = run_lines_together(*[{"duration_s": 18.0, "seed": 5}] * 2)
     assert_nothing_left(first, launcher.endpoint)
     assert first["status"] == "ok" and first["sim_seconds"] == pytest.approx(18.0)
     assert first["parts_completed"] >= 2, first["unfinished_parts"]
@@ -81,8 +98,7 @@ def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
     )
     assert {p["role"] for p in first["processes"]} == {"sim", "coordinator", "controller"}
     assert all(p["exit_code"] == 0 for p in first["processes"])
-    second, launcher = run_line(duration_s=18.0, seed=5)
-    assert_nothing_left(second, launcher.endpoint)
+    assert_nothing_left(second, second_launcher.endpoint)
     strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
     assert strip(first) == strip(second)
 
@@ -239,7 +255,7 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
         k: summary[k] for k in ("parts_spawned", *fates)
     }
     assert summary["inter_arm_contacts"] == 0 and summary["dropped_messages"] == 0
-    clean, _ = run_line(duration_s=30.0, seed=5)
+    clean = clean_line_30s_seed_5()
     assert [summary[k] for k in ("parts_spawned", *fates)] == [clean[k] for k in ("parts_spawned", *fates)], (
         "nothing lost"
     )
@@ -267,7 +283,7 @@ def test_a_hung_coordinator_with_respawn_is_replaced_and_the_line_goes_on():
     assert "the coordinator said nothing for 10 s; replacing it" in said
     assert [p["exit_code"] for p in summary["processes"] if p["pid"] == stopped[0]] == [-9]
     assert summary["coordinator_takeover"]["incarnation"] == 2
-    clean, _ = run_line(duration_s=30.0, seed=5)
+    clean = clean_line_30s_seed_5()
     fates = ("parts_spawned", "parts_completed", "parts_missed", "parts_failed", "parts_in_progress")
     assert [summary[k] for k in fates] == [clean[k] for k in fates], "nothing lost"
 
@@ -406,12 +422,10 @@ def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_pat
     }
     scene = tmp_path / "randomised_line.yaml"
     scene.write_text(yaml.safe_dump(data))
-    runs = []
-    for _ in range(2):
-        with Launcher(RunOptions(scene=str(scene), duration_s=15.0, seed=9)) as launcher:
-            runs.append(launcher.run())
-        assert_nothing_left(runs[-1], launcher.endpoint)
-    first, second = runs
+    runs = run_lines_together(*[{"scene": str(scene), "duration_s": 15.0, "seed": 9}] * 2)
+    for summary, launcher in runs:
+        assert_nothing_left(summary, launcher.endpoint)
+    (first, _), (second, _) = runs
     assert first["status"] == "ok" and set(first["randomised"]) == {
         "part_friction",
         "belt_speed_scale",
@@ -425,14 +439,13 @@ def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_pat
 
 def test_a_line_with_bus_faults_repeats_for_its_seed_and_says_what_was_injected():
     faults = {"latency_ms": 50.0, "jitter_ms": 10.0, "loss": 0.05}
-    first, launcher = run_line(duration_s=15.0, seed=5, **faults)
+    (first, launcher), (second, _) = run_lines_together(*[{"duration_s": 15.0, "seed": 5, **faults}] * 2)
     assert_nothing_left(first, launcher.endpoint)
     assert first["status"] == "ok" and first["arms_lost"] == [] and first["inter_arm_contacts"] == 0
     links = first["network_faults"]["links"]
     assert set(links) == {*first["arm_ids"], "coordinator"}
     assert all(link["latency_ms"] == 50.0 and link["down"]["lost"] > 0 for link in links.values())
     assert first["parts_completed"] >= 1, first["unfinished_parts"]
-    second, launcher = run_line(duration_s=15.0, seed=5, **faults)
     strip = lambda s: {k: v for k, v in s.items() if k not in WALL_FIGURES}  # noqa: E731
     assert strip(first) == strip(second), "lockstep faults act in sim time: the same losses, delays and run"
 

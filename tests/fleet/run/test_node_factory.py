@@ -7,6 +7,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
@@ -23,8 +24,14 @@ def command(*args: str) -> list[str]:
 
 
 def gone(pid: int, within_s: float = 5.0) -> bool:
+    """The process ended within `within_s` and was reaped: one whose parent died comes to this process while the
+    suite keeps a node factory (a subreaper then, `adopt_orphans`), and is reaped here."""
     deadline = time.monotonic() + within_s
     while time.monotonic() < deadline:
+        try:
+            os.waitpid(pid, os.WNOHANG)
+        except ChildProcessError:
+            pass  # not ours: whoever adopted it reaps it
         try:
             os.kill(pid, 0)
         except ProcessLookupError:
@@ -68,6 +75,14 @@ def test_a_signalled_node_reads_as_popen_would_and_closing_the_factory_leaves_no
         left.wait(timeout=0.2)
     factory.close()
     assert gone(left.pid) and gone(factory.proc.pid)
+
+
+def test_nodes_asked_for_from_many_threads_at_once_each_get_their_own_process(tmp_path):
+    """Lines run from threads share a kept factory: each spawn's answer must be its own node, not a neighbour's."""
+    with NodeFactory(tmp_path / "factory.log", preload=()) as factory, ThreadPoolExecutor(8) as pool:
+        spawned = list(pool.map(lambda k: factory.spawn(command("exit", str(k)), tmp_path / f"{k}.log"), range(24)))
+        assert [proc.wait(timeout=30) for proc in spawned] == list(range(24))
+        assert all(fields(tmp_path / f"{k}.log")["pid"] == str(proc.pid) for k, proc in enumerate(spawned))
 
 
 def test_a_module_that_cannot_be_imported_is_one_line(tmp_path):
