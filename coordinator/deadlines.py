@@ -33,6 +33,20 @@ def belt_deadline_s(conveyor: Conveyor, last_reach_m: float | None, part: PartVi
     return now_s + max(0.0, last_reach_m - along) / conveyor.speed_m_per_s
 
 
+def rides_off_within(
+    conveyor: Conveyor,
+    last_reach_m: float | None,
+    parts: dict[int, PartView],
+    part_id: int,
+    now_s: float,
+    lead_s: float,
+) -> bool:
+    """Whether a seen belt part passes the last reachable point within `lead_s` (a buffer may still save it)."""
+    part = parts.get(part_id)
+    deadline = None if part is None else belt_deadline_s(conveyor, last_reach_m, part, now_s)
+    return deadline is not None and deadline - now_s <= lead_s
+
+
 def cannot_make_it(rules: Eligibility, arm: ArmView, task: Task, part: PartView) -> bool:
     """True for a belt task its arm can no longer meet: the pick point left the arm's reach or its stretch of belt."""
     return task.source == CONVEYOR and not rules.can_serve(arm, task, part)

@@ -21,7 +21,7 @@ from coordinator.capacity import (
     CapacityBound,
     capacity_bound,
 )
-from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m, rides_off_within
 from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
 from coordinator.dispatch_report import DispatchReport
@@ -36,6 +36,10 @@ from robots.frames import yaw_transform
 from robots.phase import IDLE_PHASES, Phase
 from robots.registry import get_robot
 from scenes.schema import Scene
+
+# a belt part this close (sim seconds) to riding out of every arm's reach, its next station not ready for it, is set
+# down at a buffer if the scene has a free one: about an approach and a grasp before the part is out of reach
+BUFFER_LEAD_S = 8.0
 
 _BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
 
@@ -249,13 +253,12 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
 
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""
-        pending = self.ledger.refresh(now_s)
+        belt = self.scene.conveyor, self.last_reach_along_belt_m, self.parts
+        pending = self.ledger.refresh(now_s, lambda part: rides_off_within(*belt, part.part_id, now_s, BUFFER_LEAD_S))
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)
-                task.deadline_s = belt_deadline_s(
-                    self.scene.conveyor, self.last_reach_along_belt_m, self.parts[task.part_id], now_s
-                )
+                task.deadline_s = belt_deadline_s(*belt[:2], self.parts[task.part_id], now_s)
         return pending
 
     def reassign_late_tasks(self) -> list[CancelOrder]:

@@ -13,8 +13,10 @@ it, and `may_enter` says when it may move in. One part (or one assembly) ahead a
 
 from __future__ import annotations
 
-from collections import Counter
+from collections.abc import Callable
 
+from coordinator.ledger_accounts import LedgerAccounts
+from coordinator.ledger_buffers import LedgerBuffers
 from coordinator.ledger_stations import LedgerStations
 from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
 from robots.failures import FailureCode
@@ -32,7 +34,7 @@ PLACED_GRACE_S = 3.0
 PIPELINE_DEFAULT = True
 
 
-class Ledger(LedgerStations):
+class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
     """Parts and tasks of one run; all times are sim seconds."""
 
     def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = PIPELINE_DEFAULT) -> None:
@@ -81,6 +83,9 @@ class Ledger(LedgerStations):
                 self.stacks[station].append(part_id)
             if part.next_station is None:
                 part.fate = PartFate.COMPLETED
+        elif task is not None and task.target == station:  # set down at a buffer: its next hop is still to come
+            task.done_s = now_s
+            self._close(task, TaskState.DONE, "")
 
     def lost(self, part_id: int, reason: str, now_s: float) -> None:
         part = self.parts.get(part_id)
@@ -190,22 +195,32 @@ class Ledger(LedgerStations):
         return self.tasks[tid] if tid is not None else None
 
     # --- tasks ----------------------------------------------------------------------
-    def refresh(self, now_s: float) -> list[Task]:
-        """Create a task for every part that is ready for its next hop; returns the pending tasks."""
+    def refresh(self, now_s: float, soon_lost: Callable[[PartRecord], bool] | None = None) -> list[Task]:
+        """Create a task for every part that is ready for its next hop; returns the pending tasks. `soon_lost`: whether
+        a belt part rides out of every arm's reach soon (the dispatcher knows the belt); such a part whose next
+        station is not ready for it is set down at a free buffer instead (`Station.buffer`), and goes on from there."""
         for part in self.parts.values():
+            if part.part_id in self._open_by_part:
+                self._unbuffer(self.tasks[self._open_by_part[part.part_id]], part)
             if part.fate != PartFate.ON_LINE or part.part_id in self._open_by_part or part.location in (HELD, INCOMING):
                 continue
             target = part.next_station
-            if target is None or not self._ready(part, target):
+            if target is None:
                 continue
-            self._new_task(part, now_s)
+            if not self._ready(part, target):
+                target = self._buffer_for(part, soon_lost)
+                if target is None:
+                    continue
+            self._new_task(part, now_s, target=target)
         return [t for t in self.tasks.values() if t.state == TaskState.PENDING]
 
-    def _new_task(self, part: PartRecord, now_s: float, task_id: int | None = None) -> Task:
-        """A task for the part's next hop (`task_id`: one an arm already works on), pending."""
+    def _new_task(self, part: PartRecord, now_s: float, task_id: int | None = None, target: str | None = None) -> Task:
+        """A task for the part's next hop, or to `target` (a buffer) on the way; `task_id`: one an arm already works
+        on. Pending."""
         task_id = self._next_task_id if task_id is None else task_id
-        task = Task(task_id, part.part_id, part.location, part.next_station, now_s)
-        task.alternatives = tuple(s for s in self._alternatives(part) if s != task.target)
+        task = Task(task_id, part.part_id, part.location, target or part.next_station, now_s)
+        if task.target == part.next_station:
+            task.alternatives = tuple(s for s in self._alternatives(part) if s != task.target)
         task.refused_by = tuple(sorted(part.refused_by))
         self._next_task_id = max(self._next_task_id, task_id + 1)
         self.tasks[task.task_id] = task
@@ -227,10 +242,13 @@ class Ledger(LedgerStations):
             return f"part {part_id} is not on the line"
         if part_id in self._open_by_part or task_id in self.tasks:
             return f"part {part_id} has a task already"
-        if part.next_station is None or (target != part.next_station and target not in self._alternatives(part)):
+        buffer = target in self.scene.buffers() and part.location == CONVEYOR
+        if part.next_station is None or (
+            target != part.next_station and target not in self._alternatives(part) and not buffer
+        ):
             return f"part {part_id} does not go to {target} next"
-        task = self._new_task(part, now_s, task_id)
-        self.assign(task.task_id, arm, now_s, target)
+        task = self._new_task(part, now_s, task_id, target=target if buffer else None)
+        self.assign(task.task_id, arm, now_s, None if buffer else target)
         return ""
 
     def open_tasks(self) -> list[Task]:
@@ -253,24 +271,3 @@ class Ledger(LedgerStations):
         task.state, task.arm, task.assigned_s, task.reason = TaskState.PENDING, None, None, reason
         task.reassignments += 1
         return task
-
-    # --- accounting -----------------------------------------------------------------
-    def totals(self) -> dict:
-        fates = Counter(p.fate.value for p in self.parts.values())
-        return {
-            "parts_spawned": len(self.parts),
-            "parts_completed": fates[PartFate.COMPLETED.value],
-            "parts_missed": fates[PartFate.MISSED.value],
-            "parts_failed": fates[PartFate.FAILED.value],
-            "parts_in_progress": fates[PartFate.ON_LINE.value],
-            "tasks_done": sum(t.state == TaskState.DONE for t in self.tasks.values()),
-            "tasks_failed": sum(t.state == TaskState.FAILED for t in self.tasks.values()),
-        }
-
-    def unfinished(self) -> list[dict]:
-        """Each part not completed, with its fate and why: nothing is silently dropped from a summary."""
-        return [
-            {"part_id": p.part_id, "fate": p.fate.value, "location": p.location, "reason": p.reason}
-            for p in self.parts.values()
-            if p.fate != PartFate.COMPLETED
-        ]

@@ -190,13 +190,23 @@ def _check_feeders(scene: Scene, label: str) -> None:
             raise SceneError(
                 label, f"feeders.{i}.into", f"no station {f.into!r}; stations: {', '.join(sorted(station_names))}"
             )
+    buffers = set(scene.buffers())
     for i, f in enumerate(scene.feeders):
+        if f.into in buffers:
+            raise SceneError(label, f"feeders.{i}.into", f"{f.into!r} is a buffer: only arms set parts down there")
         for k, stop in enumerate(f.route):
             if stop not in station_names:
                 raise SceneError(
                     label,
                     f"feeders.{i}.route.{k}",
                     f"no station {stop!r}; stations: {', '.join(sorted(station_names))}",
+                )
+            if stop in buffers:
+                raise SceneError(
+                    label,
+                    f"feeders.{i}.route.{k}",
+                    f"{stop!r} is a buffer: a part goes there only when "
+                    "its next station is not ready for it, never as a stop of its route",
                 )
         if not f.route:
             for t, part in enumerate(f.parts):

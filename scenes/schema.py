@@ -131,6 +131,16 @@ class Station(Strict):
     accepts_colour: Colour | list[Colour] | None = None
     assembles: list[Name] = []
     """Feeders whose parts are stacked here, bottom first; the bottom part moves on only when the stack is whole."""
+    buffer: bool = False
+    """A spot to set one belt part down on when its next station is not ready for it and it would otherwise ride
+    off the belt (a second base while the fixture is taken); the part goes on from here once the station is ready.
+    On no route, takes any colour, holds one part at a time."""
+
+    @model_validator(mode="after")
+    def _buffer_is_a_plain_surface(self) -> Station:
+        if self.buffer and (self.kind == "fixture" or self.assembles or self.accepts_colour is not None):
+            raise ValueError("a buffer is a plain tray or bin: no fixture, assembles or accepts_colour")
+        return self
 
     @property
     def surface_z_m(self) -> float:
@@ -299,6 +309,10 @@ class Scene(Strict):
             return []
         colour = feeder.parts[type_index].colour.lower()
         return [s.name for s in self.stations if colour in s.colours]
+
+    def buffers(self) -> list[str]:
+        """The buffer stations, in scene order (`Station.buffer`)."""
+        return [s.name for s in self.stations if s.buffer]
 
     def source_names(self) -> set[str]:
         """Where feeders put parts: `conveyor` and the stations fed directly."""

@@ -1,6 +1,8 @@
 """The task ledger on the assembly line: precedence, retries, lost arms and parts, every part accounted for."""
 
 import numpy as np
+import pytest
+import yaml
 
 from coordinator.allocation import Eligibility, PartView
 from coordinator.capacity import arm_views
@@ -9,6 +11,7 @@ from coordinator.tasks import TaskState
 from robots.failures import FailureCode
 from robots.skills.pick_plans import UNREACHABLE
 from scenes import load_scene
+from scenes.loader import BUNDLED_DIR, SceneError
 
 
 def ledger() -> Ledger:
@@ -162,3 +165,64 @@ def test_an_arm_whose_skill_cannot_reach_a_part_as_it_lies_is_not_given_it_again
         FailureCode.GRASP_MISSED,
     )
     assert only(lg.refresh(3.2)).refused_by == ("arm_1",)
+
+
+def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_buffer_and_goes_on_from_there():
+    lg = Ledger(load_scene("assembly_line"))  # pipelined, as `fleet run`
+    lg.arrived(0, "bases", 0, 1.0)
+    first = only(lg.refresh(1.0))
+    lg.assign(first.task_id, "arm_0", 1.0)
+    lg.arm_report("arm_0", first.task_id, "lift", 4.0)  # held at the fixture's edge, say
+    lg.arrived(1, "bases", 0, 5.0)
+    assert lg.refresh(5.0, soon_lost=lambda part: False) == [], "the fixture's base is on its way: the next waits"
+    buffered = only(lg.refresh(6.0, soon_lost=lambda part: part.part_id == 1))
+    assert (buffered.part_id, buffered.source, buffered.target) == (1, "conveyor", "base_buffer")
+    assert buffered.stations == ("base_buffer",) and buffered.alternatives == ()
+    lg.assign(buffered.task_id, "arm_1", 6.0)
+    lg.arrived(2, "bases", 0, 7.0)
+    assert lg.refresh(8.0, soon_lost=lambda part: True) == [], "one part at a time on a buffer"
+    lg.at_station(1, "base_buffer", 11.0)
+    assert buffered.state == TaskState.DONE and lg.parts[1].location == "base_buffer" and lg.parts[1].hop == 0
+    lg.at_station(0, "fixture_0", 12.0)
+    lg.arrived(3, "tops", 0, 12.0)
+    lg.at_station(3, "tops_bin", 12.5)
+    top = only(lg.refresh(13.0))
+    lg.assign(top.task_id, "arm_1", 13.0)
+    lg.at_station(3, "fixture_0", 18.0)
+    ship = only(lg.refresh(18.0))
+    lg.assign(ship.task_id, "arm_2", 18.0)
+    onward = only(lg.refresh(18.5))  # the assembly whole and its ship given out: the buffered base is next
+    assert (onward.part_id, onward.source, onward.target) == (1, "base_buffer", "fixture_0")
+
+
+def test_a_buffer_task_no_arm_took_yet_goes_straight_to_the_station_once_it_is_ready():
+    lg = Ledger(load_scene("assembly_line"))
+    lg.arrived(0, "bases", 0, 1.0)
+    first = only(lg.refresh(1.0))
+    lg.assign(first.task_id, "arm_0", 1.0)
+    lg.arrived(1, "bases", 0, 2.0)
+    buffered = only(lg.refresh(3.0, soon_lost=lambda part: True))
+    assert buffered.target == "base_buffer"
+    lg.lost(0, "fell to the floor", 4.0)  # the fixture's base is gone: the fixture is free again
+    assert only(lg.refresh(4.5)) is buffered and (buffered.target, buffered.stations) == ("fixture_0", ("fixture_0",))
+
+
+@pytest.mark.parametrize(
+    "change, field, says",
+    [
+        (lambda d: d["stations"][3].update(kind="fixture"), "stations.3", "a buffer is a plain tray or bin"),
+        (lambda d: d["stations"][3].update(accepts_colour="#3070d0"), "stations.3", "a buffer is a plain tray or bin"),
+        (lambda d: d["feeders"][0]["route"].insert(1, "base_buffer"), "feeders.0.route.1", "is a buffer"),
+        (lambda d: d["feeders"][1].update(into="base_buffer"), "feeders.1.into", "is a buffer"),
+    ],
+    ids=["fixture", "colour", "on a route", "fed"],
+)
+def test_a_buffer_is_a_plain_surface_off_every_route(tmp_path, change, field, says):
+    data = yaml.safe_load((BUNDLED_DIR / "assembly_line.yaml").read_text())
+    assert data["stations"][3]["name"] == "base_buffer"
+    change(data)
+    path = tmp_path / "line.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(SceneError) as raised:
+        load_scene(path)
+    assert str(path) in str(raised.value) and field in str(raised.value) and says in str(raised.value)
