@@ -18,6 +18,11 @@ def test_allocate_mode_with_the_action_mask_in_the_observation_passes_them_too(s
     conformance.check(scenario, "allocate", mask_in_observation=True)
 
 
+@pytest.mark.parametrize("scenario", ["line", "handover"])
+def test_decision_stepping_passes_them_too(scenario):
+    conformance.check(scenario, "allocate", decision_steps=True, mask_in_observation=True)
+
+
 def test_ee_delta_moves_the_claw_the_way_it_is_told():
     penv = parallel_env(n_arms=1, max_cycles=100, action_mode="ee_delta")
     penv.reset(seed=0)

@@ -198,6 +198,38 @@ def test_allocate_mode_action_masks_let_a_random_masked_policy_pick_only_real_ch
         env.close()
 
 
+def first_choice_episode(seed: int, **options) -> tuple[int, dict[str, float], dict, float]:
+    """An episode of a fixed policy (each arm takes its first choice, if it has one): env steps, summed rewards,
+    the ledger's totals and the sim time it covered."""
+    env = parallel_env(scenario="line", action_mode="allocate", n_arms=2, max_cycles=300, **options)
+    try:
+        env.reset(seed=seed)
+        steps, returns = 0, dict.fromkeys(env.possible_agents, 0.0)
+        while env.agents:
+            actions = {a: 1 if env._options.get(a) else 0 for a in env.agents}
+            _, rewards, _, _, _ = env.step(actions)
+            steps += 1
+            for a, r in rewards.items():
+                returns[a] += r
+        return steps, returns, env.chooser.dispatcher.ledger.totals(), env.world.sim_time_s
+    finally:
+        env.close()
+
+
+def test_decision_stepping_asks_only_at_choices_and_a_fixed_policy_ends_as_tick_stepping_does():
+    ticks, decisions = first_choice_episode(4), first_choice_episode(4, decision_steps=True)
+    (tick_steps, tick_returns, tick_totals, tick_time), (steps, returns, totals, sim_time) = ticks, decisions
+    assert (totals, sim_time) == (tick_totals, tick_time), "the same episode: every part's fate, the same length"
+    assert returns == pytest.approx(tick_returns), "each arm's return, summed over the periods a step covered"
+    assert totals["parts_completed"] >= 1, "the policy got parts done"
+    assert steps < tick_steps / 2, f"{steps} decisions against {tick_steps} periods"
+
+
+def test_decision_stepping_is_refused_outside_allocate_mode():
+    with pytest.raises(ValueError, match="decision_steps applies to action_mode 'allocate'"):
+        parallel_env(scenario="reach", action_mode="joint_delta", decision_steps=True)
+
+
 def test_action_masks_in_the_observation_are_refused_outside_allocate_mode():
     with pytest.raises(ValueError, match="mask_in_observation applies to action_mode 'allocate'"):
         parallel_env(scenario="reach", action_mode="joint_delta", mask_in_observation=True)

@@ -1,0 +1,31 @@
+"""Decision stepping (allocate mode, `decision_steps=True`): an env step runs on, period after period with every arm
+waiting, until some arm has a choice (or the episode's time is up), so training sees decisions, not ticks.
+
+The time in between is simulated as in any step: the world, the skills, the ledger. A step's rewards are summed over
+the periods it covered; its infos are the last period's, with `success` and `collision` true if they were in any
+period, the choice's outcome (`choice`) from the first, and `periods`, how many it covered. An episode still lasts
+`max_cycles` periods of sim time, so a fixed policy's episode is the tick-stepping one's (tests/fleet/env).
+"""
+
+from __future__ import annotations
+
+ANY_PERIOD = ("success", "collision")  # info flags true for a step if true in any period it covered
+
+
+class DecisionSteps:
+    """Running a step on to the next choice: one concern of `CellParallelEnv`, kept apart."""
+
+    def _on_to_a_choice(self, rewards: dict, infos: dict, seen: tuple) -> tuple[dict, dict, tuple]:
+        """Step on with every arm waiting while no arm has a choice and time is left; the summed rewards, the merged
+        infos and the last period's observation inputs."""
+        periods = 1
+        while self.cycles < self.max_cycles and not any(self._options.get(a) for a in self.agents):
+            more, later, seen = self._step_once({})
+            periods += 1
+            for a in rewards:
+                rewards[a] += more[a]
+                merged = later[a] | {k: infos[a][k] or later[a][k] for k in ANY_PERIOD}
+                infos[a] = merged | ({"choice": infos[a]["choice"]} if "choice" in infos[a] else {})
+        for a in infos:
+            infos[a]["periods"] = periods
+        return rewards, infos, seen
