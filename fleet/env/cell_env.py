@@ -22,7 +22,7 @@ from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
 from fleet.common.scene_loading import load_scene
 from fleet.env.actions import EnvActions
 from fleet.env.allocate_mode import TaskChooser
-from fleet.env.decision_steps import DecisionSteps
+from fleet.env.choice_steps import ChoiceSteps
 from fleet.env.limits import (
     CONTACT_PENALTY,
     LIMIT_PENALTY,
@@ -43,7 +43,7 @@ RENDER_MODES = ("human", "rgb_array")
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
-class CellParallelEnv(EnvActions, EnvObservations, DecisionSteps, ParallelEnv):
+class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
     """Arms `arm_0 ... arm_{n-1}` of a scene, each an agent."""
 
     metadata = {"name": "clawfleet_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
@@ -61,7 +61,7 @@ class CellParallelEnv(EnvActions, EnvObservations, DecisionSteps, ParallelEnv):
         monitor_port: int = 8080,
         mask_in_observation: bool = False,
         task: str | None = None,
-        decision_steps: bool = False,
+        choice_steps: bool = False,
     ) -> None:
         scenario, action_mode = renamed_options(scenario, action_mode, task)
         self._init_kwargs = dict(
@@ -75,7 +75,7 @@ class CellParallelEnv(EnvActions, EnvObservations, DecisionSteps, ParallelEnv):
             distributed=distributed,
             monitor_port=monitor_port,
             mask_in_observation=mask_in_observation,
-            decision_steps=decision_steps,
+            choice_steps=choice_steps,
         )
         check_options(scenario, action_mode, render_mode, max_cycles, control_hz, distributed)
         if mask_in_observation and action_mode != "allocate":
@@ -84,12 +84,12 @@ class CellParallelEnv(EnvActions, EnvObservations, DecisionSteps, ParallelEnv):
                 "has none"
             )
         self.mask_in_observation = mask_in_observation
-        if decision_steps and action_mode != "allocate":
+        if choice_steps and action_mode != "allocate":
             raise ValueError(
-                f"decision_steps applies to action_mode 'allocate' (choices to step between); {action_mode!r} "
+                f"choice_steps applies to action_mode 'allocate' (choices to step between); {action_mode!r} "
                 "acts every period"
             )
-        self.decision_steps = decision_steps
+        self.choice_steps = choice_steps
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(scenario, "sorting_line")
@@ -190,7 +190,7 @@ class CellParallelEnv(EnvActions, EnvObservations, DecisionSteps, ParallelEnv):
 
     def step(self, actions: dict[str, np.ndarray]):
         rewards, infos, seen = self._step_once(actions)
-        if self.decision_steps:
+        if self.choice_steps:
             rewards, infos, seen = self._on_to_a_choice(rewards, infos, seen)
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}

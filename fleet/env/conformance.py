@@ -29,7 +29,7 @@ def check(scenario: str, action_mode: str, n_arms: int | None = 2, cycles: int =
     parallel_api_test(parallel_env(**options), num_cycles=cycles)
     api_test(env(**options), num_cycles=cycles)
     parallel_seed_test(lambda: parallel_env(**options), num_cycles=cycles)
-    if kwargs.get("decision_steps"):
+    if kwargs.get("choice_steps"):
         return  # an episode lasts max_cycles periods of sim time, in fewer steps: PettingZoo's test counts steps
     without_cycles = {k: v for k, v in options.items() if k != "max_cycles"}
     max_cycles_test(

@@ -19,8 +19,8 @@ def test_allocate_mode_with_the_action_mask_in_the_observation_passes_them_too(s
 
 
 @pytest.mark.parametrize("scenario", ["line", "handover"])
-def test_decision_stepping_passes_them_too(scenario):
-    conformance.check(scenario, "allocate", decision_steps=True, mask_in_observation=True)
+def test_choice_stepping_passes_them_too(scenario):
+    conformance.check(scenario, "allocate", choice_steps=True, mask_in_observation=True)
 
 
 def test_ee_delta_moves_the_claw_the_way_it_is_told():

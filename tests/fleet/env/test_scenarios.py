@@ -216,18 +216,18 @@ def first_choice_episode(seed: int, **options) -> tuple[int, dict[str, float], d
         env.close()
 
 
-def test_decision_stepping_asks_only_at_choices_and_a_fixed_policy_ends_as_tick_stepping_does():
-    ticks, decisions = first_choice_episode(4), first_choice_episode(4, decision_steps=True)
-    (tick_steps, tick_returns, tick_totals, tick_time), (steps, returns, totals, sim_time) = ticks, decisions
+def test_choice_stepping_asks_only_at_choices_and_a_fixed_policy_ends_as_tick_stepping_does():
+    ticks, choices = first_choice_episode(4), first_choice_episode(4, choice_steps=True)
+    (tick_steps, tick_returns, tick_totals, tick_time), (steps, returns, totals, sim_time) = ticks, choices
     assert (totals, sim_time) == (tick_totals, tick_time), "the same episode: every part's fate, the same length"
     assert returns == pytest.approx(tick_returns), "each arm's return, summed over the periods a step covered"
     assert totals["parts_completed"] >= 1, "the policy got parts done"
-    assert steps < tick_steps / 2, f"{steps} decisions against {tick_steps} periods"
+    assert steps < tick_steps / 2, f"{steps} choices against {tick_steps} periods"
 
 
-def test_decision_stepping_is_refused_outside_allocate_mode():
-    with pytest.raises(ValueError, match="decision_steps applies to action_mode 'allocate'"):
-        parallel_env(scenario="reach", action_mode="joint_delta", decision_steps=True)
+def test_choice_stepping_is_refused_outside_allocate_mode():
+    with pytest.raises(ValueError, match="choice_steps applies to action_mode 'allocate'"):
+        parallel_env(scenario="reach", action_mode="joint_delta", choice_steps=True)
 
 
 def test_action_masks_in_the_observation_are_refused_outside_allocate_mode():

@@ -1,5 +1,5 @@
-"""Decision stepping (allocate mode, `decision_steps=True`): an env step runs on, period after period with every arm
-waiting, until some arm has a choice (or the episode's time is up), so training sees decisions, not ticks.
+"""Choice stepping (allocate mode, `choice_steps=True`): an env step runs on, period after period with every arm
+waiting, until some arm has a choice (or the episode's time is up), so training sees choices, not ticks.
 
 The time in between is simulated as in any step: the world, the skills, the ledger. A step's rewards are summed over
 the periods it covered; its infos are the last period's, with `success` and `collision` true if they were in any
@@ -12,7 +12,7 @@ from __future__ import annotations
 ANY_PERIOD = ("success", "collision")  # info flags true for a step if true in any period it covered
 
 
-class DecisionSteps:
+class ChoiceSteps:
     """Running a step on to the next choice: one concern of `CellParallelEnv`, kept apart."""
 
     def _on_to_a_choice(self, rewards: dict, infos: dict, seen: tuple) -> tuple[dict, dict, tuple]:
