@@ -4,6 +4,7 @@ only those decisions (greedy's instead), counted in the summary."""
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -23,8 +24,10 @@ def installed(tmp_path_factory):
     """The example plug-in installed into a folder of its own (its dist-info and entry point with it), on the path
     of the commands that follow."""
     target = tmp_path_factory.mktemp("plugins")
+    source = tmp_path_factory.mktemp("plugin_source") / EXAMPLE.name  # a build writes beside its sources: not here
+    shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
     pip = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--target", str(target)]
-    done = subprocess.run([*pip, str(EXAMPLE)], capture_output=True, text=True, timeout=300)
+    done = subprocess.run([*pip, str(source)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(target), os.environ.get("PYTHONPATH", "")])}
 
