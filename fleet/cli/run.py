@@ -273,7 +273,11 @@ def print_run_summary(s: dict) -> None:
     rows = [
         ("sim / wall seconds", f"{s['sim_seconds']:.1f} / {s['wall_seconds']:.1f}"),
         ("parts spawned / completed", f"{s['parts_spawned']} / {s['parts_completed']}"),
-        ("missed / failed / on the line", f"{s['parts_missed']} / {s['parts_failed']} / {s['parts_in_progress']}"),
+        (
+            "missed / failed / on the line",
+            f"{s['parts_missed']} / {s['parts_failed']} / {s['parts_in_progress']}"
+            + (f" ({n} set down at a buffer)" if (n := s.get("parts_buffered")) else ""),
+        ),
         ("throughput (per sim minute)", f"{s['throughput_per_min']:.2f}"),
         ("allocator", _allocator_row(s)),
         (

@@ -153,6 +153,7 @@ class RunSummary:
             "parts_failed": counts["parts_failed"],
             "parts_in_progress": max(0, in_progress),
             "parts_unannounced": unannounced,
+            "parts_buffered": coord.get("parts_buffered", 0),
             "throughput_per_min": round(completed / (sim_s / 60.0), 3) if sim_s > 0 else 0.0,
             "utilisation": sim.get("utilisation", {}),
             "arm_time": self._arm_time(sim.get("arm_time", {}), coord.get("held_at_station_s", {}), sim_s),

@@ -183,6 +183,7 @@ def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_
     assert lg.refresh(8.0, soon_lost=lambda part: True) == [], "one part at a time on a buffer"
     lg.at_station(1, "base_buffer", 11.0)
     assert buffered.state == TaskState.DONE and lg.parts[1].location == "base_buffer" and lg.parts[1].hop == 0
+    assert lg.totals()["parts_buffered"] == 1
     lg.at_station(0, "fixture_0", 12.0)
     lg.arrived(3, "tops", 0, 12.0)
     lg.at_station(3, "tops_bin", 12.5)
