@@ -35,6 +35,7 @@ from fleet.run.hosts import Hosts, load_hosts
 from fleet.run.node_commands import NodeCommands
 from fleet.run.node_factory import NodeFactory, adopting, kept_factory
 from fleet.run.run_node import (
+    HUNG_COORDINATOR_S,
     RECORDER_GRACE_S,
     STOP_GRACE_S,
     Node,
@@ -55,6 +56,7 @@ class RunOptions:
     speed: float = 1.0
     seed: int | None = None
     respawn: bool = False
+    hung_after_s: float = HUNG_COORDINATOR_S  # with `respawn`: a live coordinator silent this long (wall) is replaced
     realtime_priority: bool = False
     run_id: str = "line"
     listen: str | None = None

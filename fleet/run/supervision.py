@@ -9,7 +9,6 @@ from fleet.bus.codec import encode
 from fleet.bus.messages import Progress, RespawnRequest, Roster, SimStatus
 from fleet.bus.session import Inbox
 from fleet.run.run_node import (
-    HUNG_COORDINATOR_S,
     MAX_COORDINATOR_STARTS,
     Node,
 )
@@ -101,7 +100,7 @@ class Supervision:
                     else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
                 )
             if self._hung(coordinator):
-                self.on_message(f"the coordinator said nothing for {HUNG_COORDINATOR_S:.0f} s; replacing it")
+                self.on_message(f"the coordinator said nothing for {self.options.hung_after_s:g} s; replacing it")
                 coordinator.child.kill()
             code = coordinator.poll()
             if code is not None:
@@ -117,13 +116,13 @@ class Supervision:
         return ""
 
     def _hung(self, coordinator: Node) -> bool:
-        """With `respawn`: the coordinator is alive but has not said its progress for `HUNG_COORDINATOR_S` since it
+        """With `respawn`: the coordinator is alive but has not said its progress for `hung_after_s` since it
         first did (one still starting, computing the line's capacity or taking over, has said nothing yet)."""
         return (
             self.options.respawn
             and coordinator.alive
             and self.progress_at is not None
-            and time.monotonic() - self.progress_at > HUNG_COORDINATOR_S
+            and time.monotonic() - self.progress_at > self.options.hung_after_s
             and coordinator.starts < MAX_COORDINATOR_STARTS
         )
 

@@ -262,8 +262,9 @@ def test_a_coordinator_killed_with_respawn_is_replaced_and_takes_over_the_line_w
 
 
 def test_a_hung_coordinator_with_respawn_is_replaced_and_the_line_goes_on():
-    """Alive but silent (SIGSTOP): with `--respawn` the launcher replaces it once it has said nothing for 10 s,
-    and the new coordinator takes over the line, which ends as a clean run does."""
+    """Alive but silent (SIGSTOP): with `--respawn` the launcher replaces it once it has said nothing for
+    `hung_after_s` (10 s unless told; 3 s here), and the new coordinator takes over the line, which ends as a clean
+    run does."""
     stopped = []
 
     def freeze_coordinator(progress):
@@ -274,13 +275,15 @@ def test_a_hung_coordinator_with_respawn_is_replaced_and_the_line_goes_on():
 
     launcher_ref, said = [], []
     with Launcher(
-        RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True), freeze_coordinator, on_message=said.append
+        RunOptions(scene=QUICK_LINE, duration_s=30.0, seed=5, respawn=True, hung_after_s=3.0),
+        freeze_coordinator,
+        on_message=said.append,
     ) as launcher:
         launcher_ref.append(launcher)
         summary = launcher.run()
     assert_nothing_left(summary, launcher.endpoint)
     assert stopped and summary["status"] == "ok", summary["error"]
-    assert "the coordinator said nothing for 10 s; replacing it" in said
+    assert "the coordinator said nothing for 3 s; replacing it" in said
     assert [p["exit_code"] for p in summary["processes"] if p["pid"] == stopped[0]] == [-9]
     assert summary["coordinator_takeover"]["incarnation"] == 2
     clean = clean_line_30s_seed_5()
