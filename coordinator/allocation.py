@@ -403,7 +403,7 @@ LOOKAHEAD_WAITS_S = tuple(k * LOOKAHEAD_STEP_S for k in range(1, int(LOOKAHEAD_S
 
 
 def lead_pick_point(part: PartView) -> np.ndarray:
-    """Where an arm meets a belt part (`Eligibility.pick_point` of a belt task), for many parts at once."""
+    """Where an arm meets a belt part (`Eligibility.pick_point` of a belt task); `lead_pick_points` for many."""
     return part.position + part.velocity * PICK_LEAD_S
 
 

@@ -48,6 +48,7 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         self._open_by_part: dict[int, int] = {}
         self._finished_at: dict[int, float] = {}  # task id -> when its arm said the skill was done
         self._station_names = {s.name for s in scene.stations}
+        self.buffers = frozenset(scene.buffers())  # `Station.buffer`: asked about each refresh, so worked out once
 
     # --- line events ------------------------------------------------------------------
     def arrived(self, part_id: int, feeder: str, type_index: int, now_s: float) -> None:
@@ -200,7 +201,7 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         a belt part rides out of every arm's reach soon (the dispatcher knows the belt); such a part whose next
         station is not ready for it is set down at a free buffer instead (`Station.buffer`), and goes on from there."""
         for part in self.parts.values():
-            if part.part_id in self._open_by_part:
+            if self.buffers and part.part_id in self._open_by_part:
                 self._unbuffer(self.tasks[self._open_by_part[part.part_id]], part)
             if part.fate != PartFate.ON_LINE or part.part_id in self._open_by_part or part.location in (HELD, INCOMING):
                 continue
@@ -242,7 +243,7 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
             return f"part {part_id} is not on the line"
         if part_id in self._open_by_part or task_id in self.tasks:
             return f"part {part_id} has a task already"
-        buffer = target in self.scene.buffers() and part.location == CONVEYOR
+        buffer = target in self.buffers and part.location == CONVEYOR
         if part.next_station is None or (
             target != part.next_station and target not in self._alternatives(part) and not buffer
         ):

@@ -12,7 +12,6 @@ class LedgerAccounts:
 
     def totals(self) -> dict:
         fates = Counter(p.fate.value for p in self.parts.values())
-        buffers = set(self.scene.buffers())
         return {
             "parts_spawned": len(self.parts),
             "parts_completed": fates[PartFate.COMPLETED.value],
@@ -21,7 +20,7 @@ class LedgerAccounts:
             "parts_in_progress": fates[PartFate.ON_LINE.value],
             "tasks_done": sum(t.state == TaskState.DONE for t in self.tasks.values()),
             "tasks_failed": sum(t.state == TaskState.FAILED for t in self.tasks.values()),
-            "parts_buffered": sum(t.state == TaskState.DONE and t.target in buffers for t in self.tasks.values()),
+            "parts_buffered": sum(t.state == TaskState.DONE and t.target in self.buffers for t in self.tasks.values()),
         }
 
     def unfinished(self) -> list[dict]:

@@ -14,16 +14,14 @@ class LedgerBuffers:
     def _unbuffer(self, task: Task, part: PartRecord) -> None:
         """A pending task to a buffer whose part's next station became ready before an arm took it goes straight
         there instead."""
-        if task.state != TaskState.PENDING or task.target not in self.scene.buffers() or part.next_station is None:
+        if task.state != TaskState.PENDING or task.target not in self.buffers or part.next_station is None:
             return  # (a buffer is on no route: a task to one is a detour)
         if self._ready(part, part.next_station):
-            task.target = part.next_station
-            task.alternatives = tuple(s for s in self._alternatives(part) if s != task.target)
-            task.stations = tuple(s for s in (task.source, task.target) if s != CONVEYOR)
+            task.go_to(part.next_station, tuple(s for s in self._alternatives(part) if s != part.next_station))
 
     def _buffer_for(self, part: PartRecord, soon_lost: Callable[[PartRecord], bool] | None) -> str | None:
         """A free buffer for a belt part about to be lost (nothing resting there, nothing on its way), or None."""
-        free = [b for b in self.scene.buffers() if not self._occupants(b) and not self._inbound(b)]
-        if not free or part.location != CONVEYOR or soon_lost is None or not soon_lost(part):
+        if not self.buffers or part.location != CONVEYOR or soon_lost is None:
             return None
-        return free[0]
+        free = [b for b in self.scene.buffers() if not self._occupants(b) and not self._inbound(b)]  # scene order
+        return free[0] if free and soon_lost(part) else None

@@ -76,9 +76,12 @@ class Task:
     def retarget(self, target: str) -> None:
         """Make `target` (the target or one of the alternatives) the station this task goes to."""
         if target != self.target:
-            self.alternatives = tuple(s for s in (self.target, *self.alternatives) if s != target)
-            self.target = target
-            self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)
+            self.go_to(target, tuple(s for s in (self.target, *self.alternatives) if s != target))
+
+    def go_to(self, target: str, alternatives: tuple[str, ...] = ()) -> None:
+        """Send this task to `target`, with `alternatives` the other stations that would do as well."""
+        self.target, self.alternatives = target, alternatives
+        self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)
 
     def __post_init__(self) -> None:
-        self.stations = tuple(s for s in (self.source, self.target) if s != CONVEYOR)
+        self.go_to(self.target, self.alternatives)
