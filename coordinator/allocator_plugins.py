@@ -1,7 +1,8 @@
-"""Allocators by name: the built-ins, those installed packages declare (entry point group `clawfleet.allocators`),
-and any `package.module:Name` on the path. A plug-in is a class (or any callable) taking the scene and returning
-an object with `name` and `allocate(...)` (`coordinator.allocation.Allocator`; `docs/allocators.md`); it runs
-behind `GuardedAllocator`, so a faulty one costs a decision, never the run.
+"""Allocators by name: the built-ins, a trained policy's file (`policy:FILE`), those installed packages declare
+(entry point group `clawfleet.allocators`), and any `package.module:Name` on the path. A plug-in is a class (or any
+callable) taking the scene and returning an object with `name` and `allocate(...)`
+(`coordinator.allocation.Allocator`; `docs/allocators.md`); it runs behind `GuardedAllocator`, so a faulty one costs a
+decision, never the run.
 """
 
 from __future__ import annotations
@@ -10,9 +11,13 @@ import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from pathlib import Path
 
 from coordinator.allocation import ALLOCATORS, Allocator
 from coordinator.guarded_allocator import GuardedAllocator
+from coordinator.policy_allocator import PREFIX as POLICY_PREFIX
+from coordinator.policy_allocator import PolicyAllocator
+from coordinator.policy_file import PolicyFileError, load_policy
 from scenes.schema import Scene
 
 ENTRY_POINT_GROUP = "clawfleet.allocators"
@@ -72,16 +77,24 @@ def _load(target: str, spec: str) -> Callable[[Scene], Allocator]:
 
 
 def allocator_factory(spec: str) -> Callable[[Scene], Allocator]:
-    """What makes the allocator `spec` names (a built-in, an installed plug-in, or `package.module:Name`)."""
+    """What makes the allocator `spec` names (a built-in, a trained policy's file `policy:FILE`, an installed
+    plug-in, or `package.module:Name`)."""
     if spec in ALLOCATORS:
         return ALLOCATORS[spec]
+    if spec.startswith(POLICY_PREFIX):
+        try:
+            policy = load_policy(spec.removeprefix(POLICY_PREFIX))
+        except PolicyFileError as exc:
+            raise AllocatorError(f"allocator {spec!r}: {exc}") from None
+        return lambda scene: PolicyAllocator(scene, policy)
     known = known_allocators()
     if spec in known:
         return _load(known[spec].target, spec)
     if ":" in spec and all(spec.partition(":")[::2]):
         return _load(spec, spec)
     raise AllocatorError(
-        f"unknown allocator {spec!r}; valid allocators: {', '.join(known)} (or package.module:Name of a plug-in)"
+        f"unknown allocator {spec!r}; valid allocators: {', '.join(known)} (or package.module:Name of a plug-in, "
+        "or policy:FILE of a trained policy)"
     )
 
 
@@ -96,8 +109,11 @@ def describe(source: AllocatorSource) -> str:
 
 
 def check_allocator(spec: str) -> str:
-    """`spec` if it names an allocator that loads; AllocatorError otherwise (a CLI checks before it starts a line)."""
+    """`spec` if it names an allocator that loads (a policy file's path made absolute: the line's processes may
+    start elsewhere); AllocatorError otherwise (a CLI checks before it starts a line)."""
     allocator_factory(spec)
+    if spec.startswith(POLICY_PREFIX):
+        return POLICY_PREFIX + str(Path(spec.removeprefix(POLICY_PREFIX)).resolve())
     return spec
 
 
@@ -105,7 +121,7 @@ def make_any_allocator(spec: str, scene: Scene) -> Allocator:
     """An allocator by name: a built-in, an installed plug-in or `package.module:Name`; a plug-in runs guarded
     (`GuardedAllocator`). AllocatorError for one that is unknown, cannot be loaded or cannot be made."""
     factory = allocator_factory(spec)
-    if spec in ALLOCATORS:
+    if spec in ALLOCATORS or spec.startswith(POLICY_PREFIX):  # a policy's answers are valid by construction
         return factory(scene)
     try:
         inner = factory(scene)

@@ -7,7 +7,7 @@ import numpy as np
 
 from coordinator.allocation import ArmView, Eligibility, PartView
 from coordinator.tasks import CONVEYOR, Task
-from scenes.schema import Conveyor
+from scenes.schema import Conveyor, Scene
 
 SCAN_STEP_M = 0.02
 
@@ -24,13 +24,35 @@ def last_reach_along_belt_m(conveyor: Conveyor, arms: list[ArmView], part_z_m: f
     return None
 
 
-def belt_deadline_s(conveyor: Conveyor, last_reach_m: float | None, part: PartView, now_s: float) -> float | None:
-    """Sim time at which the riding part passes the last reachable point (None: no arm reaches the belt,
-    or the belt stands still)."""
+_LAST_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
+
+
+def layout_last_reach_m(scene: Scene, arms: list[ArmView]) -> float | None:
+    """`last_reach_along_belt_m` of a scene's belt and arms (None without a belt): IK misses cost, so worked out once
+    per layout in a process (an env resets often; the dispatcher and a policy allocator ask for the same)."""
+    conveyor = scene.conveyor
+    if conveyor is None:
+        return None
+    key = repr((conveyor.model_dump_json(), [(a.model, a.base.xyz, a.base.yaw_rad) for a in scene.arms]))
+    if key not in _LAST_REACH_M:
+        _LAST_REACH_M[key] = last_reach_along_belt_m(conveyor, arms, conveyor.pose.xyz[2] + 0.015)
+    return _LAST_REACH_M[key]
+
+
+def time_left_s(conveyor: Conveyor, last_reach_m: float | None, part: PartView) -> float | None:
+    """Seconds until the riding part passes the last reachable point (None: no arm reaches the belt, or the belt
+    stands still)."""
     if last_reach_m is None or conveyor.speed_m_per_s <= 0:
         return None
     along = float(np.dot(part.position[:2] - np.asarray(conveyor.pose.xyz[:2]), np.asarray(conveyor.direction[:2])))
-    return now_s + max(0.0, last_reach_m - along) / conveyor.speed_m_per_s
+    return max(0.0, last_reach_m - along) / conveyor.speed_m_per_s
+
+
+def belt_deadline_s(conveyor: Conveyor, last_reach_m: float | None, part: PartView, now_s: float) -> float | None:
+    """Sim time at which the riding part passes the last reachable point (None: no arm reaches the belt,
+    or the belt stands still)."""
+    left = time_left_s(conveyor, last_reach_m, part)
+    return None if left is None else now_s + left
 
 
 def rides_off_within(

@@ -21,7 +21,7 @@ from coordinator.capacity import (
     CapacityBound,
     capacity_bound,
 )
-from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m, rides_off_within
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, layout_last_reach_m, rides_off_within
 from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
 from coordinator.dispatch_report import DispatchReport
@@ -40,8 +40,6 @@ from scenes.schema import Scene
 # a belt part this close (sim seconds) to riding out of every arm's reach, its next station not ready for it, is set
 # down at a buffer if the scene has a free one: about an approach and a grasp before the part is out of reach
 BUFFER_LEAD_S = 8.0
-
-_BELT_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
 
 
 class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, OutsideDrivers):
@@ -97,17 +95,8 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         self.told_standby: set[int] = set()  # tasks whose held transfer was told to stand by (once a task)
         # candidate id -> (task id, station), of the last `candidates`
         self._candidates: dict[int, tuple[int, str]] = {}
-        self.last_reach_along_belt_m = self._belt_reach()  # where a belt task's deadline falls
-
-    def _belt_reach(self) -> float | None:
-        """The belt's last point an arm reaches: IK misses cost, so worked out once per layout (an env resets often)."""
-        conveyor = self.scene.conveyor
-        if conveyor is None:
-            return None
-        key = repr((conveyor.model_dump_json(), [(a.model, a.base.xyz, a.base.yaw_rad) for a in self.scene.arms]))
-        if key not in _BELT_REACH_M:
-            _BELT_REACH_M[key] = last_reach_along_belt_m(conveyor, self.arm_views(), conveyor.pose.xyz[2] + 0.015)
-        return _BELT_REACH_M[key]
+        # where a belt task's deadline falls
+        self.last_reach_along_belt_m = layout_last_reach_m(self.scene, self.arm_views())
 
     @functools.cached_property
     def capacity(self) -> CapacityBound:

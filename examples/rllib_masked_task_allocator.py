@@ -33,8 +33,8 @@ from rich.table import Table
 from rllib_ppo_reach import start_ray
 from train_ippo_reach import write_rows
 
+from coordinator.choice_slots import WAIT
 from fleet.env import parallel_env
-from fleet.env.allocate_mode import WAIT
 
 ENV_NAME = "clawfleet_allocate_mode"
 

@@ -27,8 +27,8 @@ def cmd_allocators(args: argparse.Namespace) -> int:
         table.add_row(source.name, source.origin, describe(source))
     out.print(table)
     out.print(
-        f"plug-ins: an installed package's entry point in `{ENTRY_POINT_GROUP}`, or --allocator package.module:Name "
-        "(docs/allocators.md)",
+        f"plug-ins: an installed package's entry point in `{ENTRY_POINT_GROUP}`, or --allocator package.module:Name; "
+        "a trained policy: --allocator policy:FILE (docs/allocators.md)",
         markup=False,
         highlight=False,
     )

@@ -40,7 +40,7 @@ if TYPE_CHECKING:
 
 def check_run_flags(args: argparse.Namespace) -> None:
     """Every `fleet run` flag that cannot work, refused in one line before any process starts."""
-    allocator_spec(args.allocator)
+    args.allocator = allocator_spec(args.allocator)
     from fleet.bus.faults import network_from_args
     from fleet.bus.keys import Keys
     from fleet.bus.session import BusEndpoints, make_config
@@ -370,8 +370,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--allocator",
         default="optimal",
-        help="how tasks go to arms: optimal (default), auction, greedy, an installed plug-in or package.module:Name "
-        "(`fleet allocators`)",
+        help="how tasks go to arms: optimal (default), auction, greedy, an installed plug-in, package.module:Name, "
+        "or policy:FILE of a trained policy (`fleet allocators`)",
     )
     p.add_argument(
         "--no-pipeline",

@@ -67,8 +67,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
     jobs = sweep_jobs(args)
-    for spec in args.allocator:
-        allocator_spec(spec)
+    args.allocator = [allocator_spec(spec) for spec in args.allocator]
     try:
         cells = grid(
             args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, sweep_overrides(args)
@@ -161,7 +160,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--allocator",
         nargs="+",
         default=["optimal"],
-        help="allocators to compare: built-ins (optimal, auction, greedy), installed plug-ins, package.module:Name",
+        help="allocators to compare: built-ins (optimal, auction, greedy), installed plug-ins, package.module:Name, "
+        "policy:FILE",
     )
     p.add_argument(
         "--set",

@@ -1,6 +1,8 @@
-"""The `task` action mode: each free arm chooses which pending task of the line it takes next, and the
+"""The `allocate` action mode: each free arm chooses which pending task of the line it takes next, and the
 pick-and-place skill does the work. A policy learns allocation on the same choices the coordinator's
-allocators make (`allocator_actions` turns an allocator's answer into env actions, for comparison).
+allocators make (`allocator_actions` turns an allocator's answer into env actions, for comparison). What an arm
+may choose and what it sees of its choices are `coordinator.choice_slots`, which the coordinator's `policy:FILE`
+allocator builds the same way, so a policy trained here runs the real line.
 
 The tasks, their belt deadlines, their eligibility (reach, belt stretches, one task per station), their
 time estimates, the orders that start them and the reassignment of belt tasks an arm can no longer meet
@@ -9,22 +11,12 @@ are the coordinator's own (`Dispatcher`, `Eligibility`, `TimeCost`): one impleme
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from coordinator.allocation import (
-    LOOKAHEAD_S,
-    Allocator,
-    ArmView,
-    CachedReach,
-    Eligibility,
-    PartView,
-    TimeCost,
-    open_candidates,
-    served_after_wait,
-)
+from coordinator.allocation import Allocator, ArmView, CachedReach, Eligibility, PartView, TimeCost
 from coordinator.cadence import moves_need_grants
+from coordinator.choice_slots import WAIT, ArmChoices, arm_choices, choice_features
+from coordinator.deadlines import time_left_s
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.tasks import OPEN_STATES, Task, TaskState
@@ -34,11 +26,6 @@ from fleet.sim.world import World
 from robots.skills.interface import PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Scene
-
-SLOTS = 4  # the first SLOTS tasks an arm can serve, oldest first, are its choices
-# valid, pick point xyz, place point xyz, estimated seconds / 10, on the belt (0/1), slack seconds / 10
-SLOT_FEATURES = 10
-WAIT = 0  # action 0: take nothing new this step
 
 
 class TaskChooser:
@@ -70,7 +57,8 @@ class TaskChooser:
         }
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
-        self.coming_s: dict[str, float] = {a: LOOKAHEAD_S for a in self.agents}
+        self.arm_choices: dict[str, ArmChoices] = {}
+        self.seen: dict[int, PartView] = {}
         self.outcomes: dict[str, list[TaskState]] = {a: [] for a in self.agents}
 
     # --- what each arm sees ---------------------------------------------------------
@@ -111,43 +99,24 @@ class TaskChooser:
         return self.dispatcher.pending(self.world.sim_time_s)
 
     def choices(self) -> dict[str, list[tuple[Task, float]]]:
-        """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS. Also
-        sets `coming_s`: per free arm, how soon a belt part it cannot serve yet rides into its reach (as the
-        optimal allocator's look-ahead sees it; `LOOKAHEAD_S` when none does)."""
-        views, parts = self.arm_views(), self.parts()
+        """Per arm: the tasks it may take now (and their estimated seconds), oldest first, at most SLOTS, as the
+        coordinator's `policy:FILE` allocator works them out (`coordinator.choice_slots`: the stations busy for every
+        free arm, the belt parts coming into reach). Kept, with the parts seen, for this step's features."""
+        views, self.seen = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
         candidates = self.dispatcher.candidates(self.pending())
-        out = {}
-        for view in views:
-            open_tasks = open_candidates(candidates, parts, self.busy_stations(view.name)) if view.free else []
-            scored = [(t, cost(view, t, parts[t.part_id])) for t in open_tasks]
-            out[view.name] = [(t, s) for t, s in scored if math.isfinite(s)][:SLOTS]
-            waits = [served_after_wait(view, t, parts[t.part_id], cost) for t, s in scored if not math.isfinite(s)]
-            self.coming_s[view.name] = min([w[0] for w in waits if w is not None], default=LOOKAHEAD_S)
-        return out
+        self.arm_choices = arm_choices(views, candidates, self.seen, self.busy_stations(), cost)
+        return {a: list(c.options) for a, c in self.arm_choices.items()}
 
-    def features(self, agent: str, options: list[tuple[Task, float]]) -> np.ndarray:
-        """What an arm sees of its choices: how soon a belt part rides into its reach / `LOOKAHEAD_S`, then per slot
-        valid, pick point, place point, estimated seconds / 10, on the belt (0/1) and the slack to its deadline
-        (seconds left after the task / 10; 0 for a part at rest)."""
-        out = np.zeros((SLOTS, SLOT_FEATURES))
-        parts = {p.part_id: p.position for p in self.world.active_parts()}
-        now = self.world.sim_time_s
-        for i, (task, seconds) in enumerate(options):
-            station = self.scene.station(task.target)
-            belt = task.deadline_s is not None
-            slack = task.deadline_s - now - seconds if belt else 0.0
-            out[i] = [
-                1.0,
-                *parts[task.part_id],
-                station.pose.xyz[0],
-                station.pose.xyz[1],
-                station.surface_z_m,
-                seconds / 10.0,
-                float(belt),
-                slack / 10.0,
-            ]
-        return np.concatenate([[self.coming_s[agent] / LOOKAHEAD_S], out.ravel()])
+    def features(self, agent: str) -> np.ndarray:
+        """What an arm sees of its choices (`coordinator.choice_slots.choice_features`)."""
+        conveyor, last_reach_m = self.scene.conveyor, self.dispatcher.last_reach_along_belt_m
+        return choice_features(
+            self.scene,
+            self.arm_choices.get(agent, ArmChoices()),
+            self.seen,
+            lambda task: time_left_s(conveyor, last_reach_m, self.seen[task.part_id]),
+        )
 
     # --- acting ---------------------------------------------------------------------
     def choose(self, actions: dict[str, int], options: dict[str, list[tuple[Task, float]]]) -> dict[str, str]:

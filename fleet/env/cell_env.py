@@ -40,6 +40,9 @@ from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 ACTION_MODES = (*CONTINUOUS_MODES, "allocate")
 ALLOCATE_SCENARIOS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
 RENDER_MODES = ("human", "rgb_array")
+# what an agent observes: its arm, the others and its choices (`cell`); or only its choices (`choices`, allocate mode:
+# what the coordinator's `policy:FILE` allocator builds in the running line, so such a policy can be deployed)
+OBSERVE = ("cell", "choices")
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
@@ -62,6 +65,7 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
         mask_in_observation: bool = False,
         task: str | None = None,
         choice_steps: bool = False,
+        observe: str = "cell",
     ) -> None:
         scenario, action_mode = renamed_options(scenario, action_mode, task)
         self._init_kwargs = dict(
@@ -76,20 +80,11 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
             monitor_port=monitor_port,
             mask_in_observation=mask_in_observation,
             choice_steps=choice_steps,
+            observe=observe,
         )
         check_options(scenario, action_mode, render_mode, max_cycles, control_hz, distributed)
-        if mask_in_observation and action_mode != "allocate":
-            raise ValueError(
-                f"mask_in_observation applies to action_mode 'allocate' (choices that can be invalid); {action_mode!r} "
-                "has none"
-            )
-        self.mask_in_observation = mask_in_observation
-        if choice_steps and action_mode != "allocate":
-            raise ValueError(
-                f"choice_steps applies to action_mode 'allocate' (choices to step between); {action_mode!r} "
-                "acts every period"
-            )
-        self.choice_steps = choice_steps
+        check_allocate_options(action_mode, mask_in_observation, choice_steps, observe)
+        self.mask_in_observation, self.choice_steps, self.observe = mask_in_observation, choice_steps, observe
         if render_mode == "rgb_array":
             require_render()  # a clear RenderUnavailable where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(scenario, "sorting_line")
@@ -288,6 +283,21 @@ def renamed_options(scenario: str, action_mode: str, task: str | None) -> tuple[
         warnings.warn('action_mode="task" is now action_mode="allocate"', DeprecationWarning, stacklevel=3)
         action_mode = "allocate"
     return scenario, action_mode
+
+
+def check_allocate_options(action_mode: str, mask_in_observation: bool, choice_steps: bool, observe: str) -> None:
+    """Refuse the allocate mode's own options in another mode, and an unknown `observe`, each with what is valid."""
+    if observe not in OBSERVE:
+        raise ValueError(f"observe {observe!r} is not available; valid: {', '.join(OBSERVE)}")
+    if action_mode == "allocate":
+        return
+    for name, value, why in (
+        ("mask_in_observation", mask_in_observation, "choices that can be invalid"),
+        ("choice_steps", choice_steps, "choices to step between"),
+        ("observe='choices'", observe == "choices", "choices to observe"),
+    ):
+        if value:
+            raise ValueError(f"{name} applies to action_mode 'allocate' ({why}); {action_mode!r} has none")
 
 
 def check_options(

@@ -8,7 +8,7 @@ import functools
 import gymnasium
 import numpy as np
 
-from fleet.env.allocate_mode import SLOT_FEATURES, SLOTS
+from coordinator.choice_slots import CHOICE_FEATURES, SLOTS
 from fleet.env.limits import (
     OBS_LIMIT,
     SEPARATION_CAP_M,
@@ -21,8 +21,10 @@ class EnvObservations:
     @functools.cache
     def observation_space(self, agent: str) -> gymnasium.spaces.Space:
         n, others = self._dof[agent], len(self.possible_agents) - 1
-        if self.action_mode == "allocate":
-            size = n + n + 1 + 2 + 3 + 3 * others + 1 + 1 + SLOTS * SLOT_FEATURES
+        if self.observe == "choices":
+            size = CHOICE_FEATURES
+        elif self.action_mode == "allocate":
+            size = n + n + 1 + 2 + 3 + 3 * others + 1 + CHOICE_FEATURES
         else:
             size = n + n + 1 + 3 + 3 + 3 * others + 1
         box = gymnasium.spaces.Box(-OBS_LIMIT, OBS_LIMIT, shape=(size,), dtype=np.float32)
@@ -69,6 +71,8 @@ class EnvObservations:
         joints: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
         targets: dict[str, np.ndarray] | None = None,
     ) -> dict[str, np.ndarray]:
+        if self.observe == "choices":
+            return {a: self._masked(a, self.chooser.features(a)) for a in self.agents}
         joints = joints or self._joints()
         separation = separation or self._separations(joints)
         tools = tools or self._tools()
@@ -85,16 +89,18 @@ class EnvObservations:
                     [float(self.chooser.task_of[a] is None and not skill.active), skill.progress],
                     tools[a],
                 ]
-                extra = [self.chooser.features(a, self._options.get(a, []))]
+                extra = [self.chooser.features(a)]
             else:
                 target = targets[a] if targets else self.scenario.target(a, self.world)
                 own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
                 extra = []
             vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
-            out[a] = np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector)
-            if self.mask_in_observation:
-                out[a] = {"observation": out[a], "action_mask": self.action_mask(a)}
+            out[a] = self._masked(a, np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector))
         return out
+
+    def _masked(self, agent: str, vector: np.ndarray) -> np.ndarray | dict:
+        """The observation vector, with the action mask beside it when the env was asked for it."""
+        return {"observation": vector, "action_mask": self.action_mask(agent)} if self.mask_in_observation else vector
 
     def _opening(self, agent: str) -> float:
         arm = self.world.arms[agent]
