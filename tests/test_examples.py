@@ -1,5 +1,6 @@
 """The examples run (for a few steps) so they never rot."""
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -90,6 +91,27 @@ def test_stable_baselines3_ppo_through_supersuit_trains_a_few_iterations():
     )
     assert result.returncode == 0, result.stderr[-2000:]
     assert "trained 1024 agent-steps on 2 cell(s) x 2 arms" in result.stdout and "mean return per arm" in result.stdout
+
+
+def test_a_policy_trained_with_sb3_in_the_env_is_exported_and_allocates_a_real_line(tmp_path):
+    """The trained policy's file, as `fleet run --allocator policy:FILE` takes it: the coordinator process loads it and
+    the line runs with the guard and the real controllers."""
+    policy = tmp_path / "learned.pt2"
+    quick = ["--timesteps", "256", "--n-steps", "64", "--max-cycles", "60", "--episodes", "1", "--save", str(policy)]
+    trained = subprocess.run(
+        [sys.executable, str(EXAMPLES / "sb3_choice_allocator.py"), *quick],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=EXAMPLES,
+    )
+    assert trained.returncode == 0, trained.stderr[-3000:]
+    assert "trained 256 choices" in trained.stdout and "learned:" in trained.stdout and "optimal:" in trained.stdout
+    summary = tmp_path / "summary.json"
+    run = ["run", "mixed_infeed", "--duration", "10", "--allocator", f"policy:{policy}", "--summary", str(summary)]
+    done = subprocess.run([sys.executable, "-m", "fleet", *run], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert json.loads(summary.read_text())["allocator"] == "policy:learned.pt2"
 
 
 def test_rllib_multi_agent_ppo_trains_a_policy_per_arm_for_an_iteration():

@@ -1,0 +1,117 @@
+"""A learned allocator, trained in the env and deployed in the real line: Stable-Baselines3 PPO in the allocate mode,
+observing only each arm's choices (`observe="choices"`: what the coordinator can build) and stepping from choice to
+choice (`choice_steps=True`), one policy shared by every arm. The trained policy is exported as a policy file, played
+in the env against the coordinator's allocators on the same seeds, and is then an allocator of the real line:
+
+    python examples/sb3_choice_allocator.py --scene mixed_infeed --load 1.0 --timesteps 20000 --save learned.pt2
+    fleet sweep mixed_infeed --load 1.0 --allocator greedy optimal policy:learned.pt2 --seeds 0-19 --out sweep
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import supersuit
+import torch
+from allocate_mode_allocators import against, line_totals
+from stable_baselines3 import PPO
+from stable_baselines3.common.logger import Logger
+
+from coordinator.allocation import make_allocator
+from coordinator.choice_slots import masked_choice
+from coordinator.policy_file import load_policy, save_policy
+from fleet.env import parallel_env
+from fleet.env.allocate_mode import allocator_actions
+from fleet.sweep.grid import LOAD, scene_with
+
+
+def cell(scene: str, max_cycles: int, decision_hz: float):
+    """The allocate-mode cell a deployable policy trains in: choices only, a step per choice."""
+    return parallel_env(
+        scene=scene,
+        scenario="line",
+        action_mode="allocate",
+        observe="choices",
+        choice_steps=True,
+        max_cycles=max_cycles,
+        control_hz=decision_hz,
+    )
+
+
+class Logits(torch.nn.Module):
+    """An SB3 actor-critic policy's actor, from choice features to action logits: what a policy file holds."""
+
+    def __init__(self, policy) -> None:
+        super().__init__()
+        self.extract, self.body, self.head = (
+            policy.pi_features_extractor,
+            policy.mlp_extractor.policy_net,
+            policy.action_net,
+        )
+
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        return self.head(self.body(self.extract(features)))
+
+
+def play(scene: str, max_cycles: int, decision_hz: float, seed: int, policy) -> dict:
+    """One episode on `seed`, the arms' actions from `policy(env, observations)`: the line's counts."""
+    env = cell(scene, max_cycles, decision_hz)
+    obs, _ = env.reset(seed=seed)
+    while env.agents:
+        obs, *_ = env.step(policy(env, obs))
+    out = line_totals(env)
+    env.close()
+    return out
+
+
+def file_policy(path: Path):
+    """A policy file acting in the env as the coordinator's `policy:FILE` allocator acts (the best valid choice)."""
+    policy = load_policy(path)
+    return lambda env, obs: {a: masked_choice(policy.logits(obs[a][None])[0], env.action_mask(a)) for a in env.agents}
+
+
+def allocator_policy(name: str):
+    return lambda env, obs: allocator_actions(env.chooser, make_allocator(name, env.scene), env._options)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="mixed_infeed")
+    parser.add_argument("--load", type=float, default=1.0, help="offered load the feeders are scaled to")
+    parser.add_argument("--timesteps", type=int, default=20_000, help="agent-steps (choices) to train for")
+    parser.add_argument("--max-cycles", type=int, default=600, help="an episode's decision periods")
+    parser.add_argument("--decision-hz", type=float, default=10.0)
+    parser.add_argument("--n-steps", type=int, default=128, help="PPO rollout length per arm")
+    parser.add_argument("--episodes", type=int, default=5, help="evaluation episodes (seeds 1000...)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--save", type=Path, default=Path("learned_allocator.pt2"), help="the policy file to write")
+    args = parser.parse_args()
+    scene = scene_with(args.scene, {LOAD: args.load}, Path(tempfile.mkdtemp(prefix="clawfleet-load-")))
+    venv = supersuit.pettingzoo_env_to_vec_env_v1(cell(scene, args.max_cycles, args.decision_hz))
+    venv = supersuit.concat_vec_envs_v1(venv, 1, num_cpus=0, base_class="stable_baselines3")
+    torch.manual_seed(args.seed)
+    model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.n_steps * venv.num_envs, verbose=0)
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    start = time.perf_counter()
+    model.learn(total_timesteps=args.timesteps)
+    wall = time.perf_counter() - start
+    venv.close()
+    trained_on = f"{args.scene} at load {args.load:g}, SB3 PPO, {args.timesteps} choices, seed {args.seed}"
+    save_policy(Logits(model.policy), args.save, trained_on=trained_on)
+    print(f"trained {args.timesteps} choices in {wall:.0f} s; policy file {args.save} ({trained_on})")
+    seeds = range(1000, 1000 + args.episodes)
+    runs = {"learned": [play(scene, args.max_cycles, args.decision_hz, s, file_policy(args.save)) for s in seeds]}
+    for name in ("greedy", "optimal"):
+        runs[name] = [play(scene, args.max_cycles, args.decision_hz, s, allocator_policy(name)) for s in seeds]
+    for name, rows in runs.items():
+        completed = np.mean([r["completed"] for r in rows])
+        print(f"{name}: {completed:.1f} parts an episode, vs greedy {against(rows, runs['greedy'])}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
