@@ -18,7 +18,9 @@ import numpy as np
 import supersuit
 import torch
 from allocate_mode_allocators import against, line_totals
+from rich.progress import Progress
 from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 
 from coordinator.allocation import make_allocator
@@ -55,6 +57,18 @@ class Logits(torch.nn.Module):
 
     def forward(self, features: torch.Tensor) -> torch.Tensor:
         return self.head(self.body(self.extract(features)))
+
+
+class Shown(BaseCallback):
+    """Training's progress on the terminal: choices made of those asked for."""
+
+    def __init__(self, progress: Progress, total: int) -> None:
+        super().__init__()
+        self.progress, self.bar = progress, progress.add_task("training (choices)", total=total)
+
+    def _on_step(self) -> bool:
+        self.progress.update(self.bar, completed=self.num_timesteps)
+        return True
 
 
 def play(scene: str, max_cycles: int, decision_hz: float, seed: int, policy) -> dict:
@@ -97,7 +111,8 @@ def main() -> int:
     model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.n_steps * venv.num_envs, verbose=0)
     model.set_logger(Logger(folder=None, output_formats=[]))
     start = time.perf_counter()
-    model.learn(total_timesteps=args.timesteps)
+    with Progress(transient=True) as progress:
+        model.learn(total_timesteps=args.timesteps, callback=Shown(progress, args.timesteps))
     wall = time.perf_counter() - start
     venv.close()
     trained_on = f"{args.scene} at load {args.load:g}, SB3 PPO, {args.timesteps} choices, seed {args.seed}"

@@ -4,9 +4,12 @@ listen on every interface of their host, and there that is 127.0.0.1 alone."""
 from __future__ import annotations
 
 import contextlib
+import os
 import secrets
+import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -35,10 +38,20 @@ def loopback_namespace() -> Iterator[None]:
         subprocess.run(in_netns("ip", "link", "set", "lo", "up"), check=True)
         yield
     finally:
-        subprocess.run(
-            in_netns(sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"), capture_output=True, timeout=120
-        )
+        # what runs in the namespace is Ray's and the test's: killed there (`ray stop` would stop every Ray on the
+        # machine, and waits for each to exit)
+        kill_namespace_processes()
         subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
+
+
+def kill_namespace_processes(timeout_s: float = 30.0) -> None:
+    """SIGKILL every process in the namespace, until none is left."""
+    deadline = time.monotonic() + timeout_s
+    while (pids := _pids_in_namespace()) and time.monotonic() < deadline:
+        for pid in pids:
+            with contextlib.suppress(ProcessLookupError, ValueError):
+                os.kill(int(pid), signal.SIGKILL)
+        time.sleep(0.05)
 
 
 def _pids_in_namespace() -> list[str]:

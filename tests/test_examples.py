@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.ray_namespace import in_netns, loopback_namespace
+from tests.ray_namespace import in_netns
 
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
@@ -114,23 +114,26 @@ def test_a_policy_trained_with_sb3_in_the_env_is_exported_and_allocates_a_real_l
     assert json.loads(summary.read_text())["allocator"] == "policy:learned.pt2"
 
 
-def test_rllib_multi_agent_ppo_trains_a_policy_per_arm_for_an_iteration():
-    """A policy per arm on a local Ray instance the example starts, in a namespace whose only interface is loopback
-    (the shared policy is the same loop with one policy id; joining a running cluster is the sweep's Ray test)."""
+@pytest.mark.xdist_group("ray")  # one Ray head for the session: its namespace and port are fixed
+def test_rllib_multi_agent_ppo_trains_a_policy_per_arm_for_an_iteration(ray_head):
+    """A policy per arm on the tests' Ray head, in a namespace whose only interface is loopback (the shared policy is
+    the same loop with one policy id)."""
     pytest.importorskip("ray.rllib")
     quick = ["--iterations", "1", "--batch", "200", "--max-cycles", "20", "--epochs", "1", "--env-runners", "1"]
-    with loopback_namespace():
-        done = subprocess.run(
-            in_netns(sys.executable, str(EXAMPLES / "rllib_ppo_reach.py"), *quick, "--policies", "per-arm"),
-            capture_output=True,
-            text=True,
-            timeout=600,
-        )
+    done = subprocess.run(
+        in_netns(
+            sys.executable, str(EXAMPLES / "rllib_ppo_reach.py"), *quick, "--policies", "per-arm", "--address", ray_head
+        ),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     assert "iteration 1: episode return" in done.stdout and "with policies arm_0, arm_1 on 2 arms" in done.stdout
 
 
-def test_the_masked_task_allocator_trains_with_rllib_and_is_measured_against_the_allocators(tmp_path):
+@pytest.mark.xdist_group("ray")
+def test_the_masked_task_allocator_trains_with_rllib_and_is_measured_against_the_allocators(tmp_path, ray_head):
     pytest.importorskip("ray.rllib")
     argv = [
         "--iterations",
@@ -145,14 +148,15 @@ def test_the_masked_task_allocator_trains_with_rllib_and_is_measured_against_the
         "1",
         "--curve",
         str(tmp_path / "curve"),
+        "--address",
+        ray_head,
     ]
-    with loopback_namespace():
-        done = subprocess.run(
-            in_netns(sys.executable, str(EXAMPLES / "rllib_masked_task_allocator.py"), *argv),
-            capture_output=True,
-            text=True,
-            timeout=600,
-        )
+    done = subprocess.run(
+        in_netns(sys.executable, str(EXAMPLES / "rllib_masked_task_allocator.py"), *argv),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     assert all(name in done.stdout for name in ("learned", "random", "optimal", "auction", "greedy"))
     assert (tmp_path / "curve.csv").read_text().startswith("iteration,wall_s,env_steps,episode_return")

@@ -16,7 +16,7 @@ from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
 from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
-from tests.ray_namespace import in_netns, loopback_namespace, start_head
+from tests.ray_namespace import in_netns
 
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
@@ -238,14 +238,8 @@ def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_
     assert pool_workers() - workers_before == set(), "a pool worker outlived the sweep"
 
 
-@pytest.fixture
-def ray_cluster_in_a_namespace():
-    pytest.importorskip("ray")
-    with loopback_namespace():
-        yield start_head()
-
-
-def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_cluster_in_a_namespace):
+@pytest.mark.xdist_group("ray")  # one Ray head for the session: its namespace and port are fixed
+def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_head):
     argv = [
         "sweep",
         "assembly_line",
@@ -264,9 +258,7 @@ def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_cluster_
     )
     assert pool.returncode == 0, pool.stderr[-2000:]
     on_ray = subprocess.run(
-        in_netns(
-            sys.executable, "-m", "fleet", *argv, "--ray", ray_cluster_in_a_namespace, "--out", str(tmp_path / "ray")
-        ),
+        in_netns(sys.executable, "-m", "fleet", *argv, "--ray", ray_head, "--out", str(tmp_path / "ray")),
         capture_output=True,
         text=True,
         timeout=300,
