@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
@@ -11,6 +12,12 @@ from scenes import bundled_scene_names
 
 def fleet(*args, timeout=300):
     return subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=timeout)
+
+
+def fleets(*argvs: list[str], timeout=300) -> list[subprocess.CompletedProcess]:
+    """Several `fleet` commands at once (each a process of its own; most of their time is Python's imports)."""
+    with ThreadPoolExecutor(4) as pool:
+        return list(pool.map(lambda argv: fleet(*argv, timeout=timeout), argvs))
 
 
 @pytest.mark.parametrize("name", bundled_scene_names())
@@ -63,33 +70,32 @@ def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line
     )
 
 
-@pytest.mark.parametrize(
-    "args, says",
-    [
-        (["run", "no_such_scene"], "no such scene"),
-        (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
-        (["run", "--allocator", "fastest"], "unknown allocator 'fastest'; valid allocators: optimal, auction, greedy"),
-        (["run", "--allocator", "policy:/no/such.pt2"], "policy file /no/such.pt2: no such file"),
-        (["sweep", "pick_cell", "--out", "o", "--allocator", "greedy", "policy:/no/such.pt2"], "/no/such.pt2: no such"),
-        (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be lower-case"),
-        (["run", "--listen", "garbage"], "argument --listen: 'garbage' is not an endpoint"),
-        (["run", "--duration", "nan"], "--duration nan: give a positive number"),
-        (["run", "--duration", "inf"], "--duration inf: give a positive number"),
-        (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
-        (["run", "--monitor", "--port", "99999"], "--port 99999: a TCP port is 0 to 65535"),
-        (["run", "--rosbridge", "--rosbridge-port", "-1"], "--rosbridge-port -1: a TCP port is 0 to 65535"),
-        (["run", "--loss", "1.5"], "--loss 1.5: Input should be less than 1"),
-        (["run", "--latency-ms", "-5"], "--latency-ms -5: Input should be greater than or equal to 0"),
-        (["check", "/dev/null"], "/dev/null: not a regular file"),
-        (["check", "/"], "/: a directory, not a scene file"),
-    ],
-)
-def test_run_refuses_bad_input_with_one_line_and_starts_nothing(args, says):
-    result = fleet(*args)
-    assert result.returncode == 2
-    lines = result.stderr.strip().splitlines()
-    assert says in lines[-1] and "Traceback" not in result.stderr
-    assert "sim" not in result.stderr.split("error")[0]  # no progress bar: nothing was started
+BAD_INPUT = [
+    (["run", "no_such_scene"], "no such scene"),
+    (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
+    (["run", "--allocator", "fastest"], "unknown allocator 'fastest'; valid allocators: optimal, auction, greedy"),
+    (["run", "--allocator", "policy:/no/such.pt2"], "policy file /no/such.pt2: no such file"),
+    (["sweep", "pick_cell", "--out", "o", "--allocator", "greedy", "policy:/no/such.pt2"], "/no/such.pt2: no such"),
+    (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be lower-case"),
+    (["run", "--listen", "garbage"], "argument --listen: 'garbage' is not an endpoint"),
+    (["run", "--duration", "nan"], "--duration nan: give a positive number"),
+    (["run", "--duration", "inf"], "--duration inf: give a positive number"),
+    (["run", "--zenoh-config", "/dev/null"], "--zenoh-config /dev/null: not a readable file"),
+    (["run", "--monitor", "--port", "99999"], "--port 99999: a TCP port is 0 to 65535"),
+    (["run", "--rosbridge", "--rosbridge-port", "-1"], "--rosbridge-port -1: a TCP port is 0 to 65535"),
+    (["run", "--loss", "1.5"], "--loss 1.5: Input should be less than 1"),
+    (["run", "--latency-ms", "-5"], "--latency-ms -5: Input should be greater than or equal to 0"),
+    (["check", "/dev/null"], "/dev/null: not a regular file"),
+    (["check", "/"], "/: a directory, not a scene file"),
+]
+
+
+def test_run_refuses_bad_input_with_one_line_and_starts_nothing():
+    for (args, says), result in zip(BAD_INPUT, fleets(*(args for args, _ in BAD_INPUT))):
+        assert result.returncode == 2, (args, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        assert says in lines[-1] and "Traceback" not in result.stderr, (args, result.stderr)
+        assert "sim" not in result.stderr.split("error")[0], args  # no progress bar: nothing was started
 
 
 def test_check_refuses_binary_and_oversized_files_at_once(tmp_path):
@@ -163,8 +169,7 @@ def test_run_refuses_bad_hosts_and_bus_config_flags_with_one_line(tmp_path):
         ),
     ]
     hosts.write_text("nodes:\n  arm_9: somewhere\n")
-    for args, says in cases:
-        result = fleet(*args)
+    for (args, says), result in zip(cases, fleets(*(args for args, _ in cases))):
         assert result.returncode == 2 and says in result.stderr and len(result.stderr.strip().splitlines()) == 1, (
             args,
             result.stderr,
