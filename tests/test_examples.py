@@ -114,7 +114,6 @@ def test_a_policy_trained_with_sb3_in_the_env_is_exported_and_allocates_a_real_l
     assert json.loads(summary.read_text())["allocator"] == "policy:learned.pt2"
 
 
-@pytest.mark.xdist_group("ray")  # one Ray head for the session: its namespace and port are fixed
 def test_rllib_multi_agent_ppo_trains_a_policy_per_arm_for_an_iteration(ray_head):
     """A policy per arm on the tests' Ray head, in a namespace whose only interface is loopback (the shared policy is
     the same loop with one policy id)."""
@@ -132,7 +131,6 @@ def test_rllib_multi_agent_ppo_trains_a_policy_per_arm_for_an_iteration(ray_head
     assert "iteration 1: episode return" in done.stdout and "with policies arm_0, arm_1 on 2 arms" in done.stdout
 
 
-@pytest.mark.xdist_group("ray")
 def test_the_masked_task_allocator_trains_with_rllib_and_is_measured_against_the_allocators(tmp_path, ray_head):
     pytest.importorskip("ray.rllib")
     argv = [

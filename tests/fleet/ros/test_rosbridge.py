@@ -164,5 +164,6 @@ def test_the_ros_client_login_drives_only_the_arms_it_is_given(session):
     arm_0_goals = re.compile(r"arm_0[/%]follow_joint_trajectory[/%]_action[/%]send_goal")
     assert all(k.startswith("ros_client: ") and arm_0_goals.search(k) for k in refused), (
         "the router refused nothing of any login but that goal (its query or its client's declarations: Zenoh logs"
-        " a refused query only when it decides per message, not when it decided at the querier's declaration)"
+        " a refused query only when it decides per message, not when it decided at the querier's declaration)",
+        refused,
     )

@@ -238,7 +238,6 @@ def test_a_sweep_killed_by_sigterm_alone_leaves_no_worker_and_no_run_behind(tmp_
     assert pool_workers() - workers_before == set(), "a pool worker outlived the sweep"
 
 
-@pytest.mark.xdist_group("ray")  # one Ray head for the session: its namespace and port are fixed
 def test_a_sweep_on_a_ray_cluster_gives_the_pools_results(tmp_path, ray_head):
     argv = [
         "sweep",
