@@ -5,14 +5,12 @@ arm takes its best valid one, arms in id order, the first arm to a part keeping 
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from coordinator.allocation import ArmView, Eligibility, PartView, TimeCost
 from coordinator.choice_slots import ArmChoices, arm_choices, choice_features, choice_mask, chosen_pairs, masked_choice
 from coordinator.deadlines import layout_last_reach_m, time_left_s
-from coordinator.policy_file import ChoicePolicy, load_policy
+from coordinator.policy_file import ChoicePolicy
 from coordinator.tasks import Task
 from scenes.schema import Scene
 
@@ -25,10 +23,6 @@ class PolicyAllocator:
     def __init__(self, scene: Scene, policy: ChoicePolicy) -> None:
         self.scene, self.policy = scene, policy
         self.name = f"policy:{policy.path.name}"
-
-    @classmethod
-    def from_file(cls, scene: Scene, path: str | Path) -> PolicyAllocator:
-        return cls(scene, load_policy(path))
 
     def allocate(
         self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]
