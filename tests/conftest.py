@@ -2,13 +2,70 @@
 another's robots (a scene error lists the valid models); the lines tests run in this process fork their nodes from
 one kept node factory, as a sweep's worker does (a run's own factory costs ~2 s of imports, and the suite runs
 dozens of lines); the tests that need a Ray cluster share one head, in a network namespace whose only interface is
-loopback (each a head of its own cost ~9 s)."""
+loopback (each a head of its own cost ~9 s).
+
+The suite runs on two workers (pytest-xdist, `addopts` in pyproject.toml), a test file to a worker. A test that runs
+against the wall clock (a realtime line, a browser, a watchdog, a wait in wall time, a plug-in's time budget) could
+turn flaky beside another test's line, so it runs alone on the machine: it takes a lock both workers share
+exclusively, every other test takes it shared (`WALL_TIME`)."""
+
+import fcntl
+import os
+import tempfile
+from pathlib import Path
 
 import pytest
 
 import robots.registry
 from fleet.run.node_factory import close_kept_factory, keep_factory
 from tests.ray_namespace import loopback_namespace, start_head
+
+# test files (or folders) that run against the wall clock: alone on the machine under xdist
+WALL_TIME = (
+    "tests/fleet/monitor/",  # browsers, a realtime line, the monitor's pacing
+    "tests/fleet/ros/",  # realtime lines served to ROS clients
+    "tests/fleet/hosts_apart/",
+    "tests/fleet/record/",  # a recorder tapping a running line, Ctrl-C
+    "tests/fleet/nodes/",  # watchdogs, faults in wall time, processes killed mid-run
+    "tests/fleet/run/",  # the node factory's processes, killed launchers
+    "tests/fleet/bus/test_session.py",
+    "tests/fleet/bus/test_faults.py",
+    "tests/fleet/bus/test_lockstep.py",
+    "tests/fleet/bus/test_router_audit.py",
+    "tests/fleet/env/test_distributed.py",
+    "tests/fleet/env/test_watch.py",
+    "tests/fleet/sweep/test_sweep.py",  # sweeps stopped by signals
+    "tests/fleet/test_run.py",  # realtime pacing, hung and killed nodes, the e-stop
+    "tests/fleet/test_pipelined_run.py",  # three lines at once must never wait out a lockstep step
+    "tests/fleet/test_allocator_plugins.py",  # a plug-in's 50 ms budget
+    "tests/fleet/test_goal_storm.py",
+    "tests/fleet/test_secure_bus.py",
+    "tests/fleet/test_bus_lies.py",
+    "tests/fleet/test_rightful_lies.py",
+    "tests/fleet/test_bus_fuzz.py",
+)
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.path.relative_to(ROOT).as_posix().startswith(WALL_TIME):
+            item.add_marker(pytest.mark.wall_time)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
+    """Under xdist: a wall-time test (setup, call, teardown) holds the workers' lock alone, any other shares it."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run is None:
+        yield
+        return
+    with open(Path(tempfile.gettempdir()) / f"clawfleet-tests-{run}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX if item.get_closest_marker("wall_time") else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 
 import pytest
 
-NETNS = "clawfleet_ray"
+NETNS = f"clawfleet_ray_{os.getpid()}"  # a test session's own (two xdist workers may each have one)
 RAY_TOKEN = secrets.token_hex(32)  # the test cluster's own: a fresh machine has no ~/.ray/auth_token
 HEAD = "127.0.0.1:6390"
 
