@@ -11,6 +11,7 @@ exclusively, every other test takes it shared (`WALL_TIME`)."""
 
 import fcntl
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -53,15 +54,32 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.wall_time)
 
 
+LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the xdist controller for its workers
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if not hasattr(config, "workerinput") and config.getoption("numprocesses", None):
+        os.environ[LOCKS] = tempfile.mkdtemp(prefix="clawfleet-tests-")  # the workers start after this
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if not hasattr(config, "workerinput") and LOCKS in os.environ:
+        shutil.rmtree(os.environ.pop(LOCKS), ignore_errors=True)
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
     """Under xdist: a wall-time test (setup, call, teardown) holds the workers' lock alone, any other shares it."""
-    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
-    if run is None:
+    if not hasattr(item.config, "workerinput") or LOCKS not in os.environ:
         yield
         return
-    with open(Path(tempfile.gettempdir()) / f"clawfleet-tests-{run}.lock", "a") as lock:
+    folder = Path(os.environ[LOCKS])
+    with open(folder / "run.lock", "a") as lock, open(folder / "turnstile.lock", "a") as turn:
+        # the turnstile: a wall-time test waiting for the lock holds it, so the other worker's next test waits
+        # behind it instead of taking the lock shared again and again
+        fcntl.flock(turn, fcntl.LOCK_EX)
         fcntl.flock(lock, fcntl.LOCK_EX if item.get_closest_marker("wall_time") else fcntl.LOCK_SH)
+        fcntl.flock(turn, fcntl.LOCK_UN)
         try:
             yield
         finally:
