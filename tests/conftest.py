@@ -35,7 +35,6 @@ WALL_TIME = (
     "tests/fleet/bus/test_router_audit.py",
     "tests/fleet/env/test_distributed.py",
     "tests/fleet/env/test_watch.py",
-    "tests/fleet/sweep/test_sweep.py",  # sweeps stopped by signals
     "tests/fleet/test_run.py",  # realtime pacing, hung and killed nodes, the e-stop
     "tests/fleet/test_pipelined_run.py",  # three lines at once must never wait out a lockstep step
     "tests/fleet/test_allocator_plugins.py",  # a plug-in's 50 ms budget
