@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import shutil
 import signal
 import subprocess
 import sys
@@ -17,6 +18,9 @@ import pytest
 NETNS = f"clawfleet_ray_{os.getpid()}"  # a test session's own (two xdist workers may each have one)
 RAY_TOKEN = secrets.token_hex(32)  # the test cluster's own: a fresh machine has no ~/.ray/auth_token
 HEAD = "127.0.0.1:6390"
+# the head's files: a session's own (`ray start` takes a head whose address file it finds in its temp dir, and whose
+# GCS process it sees on the machine, for one already running, whatever the namespace)
+RAY_TEMP = f"/tmp/ray_{os.getpid()}"
 
 
 def in_netns(*argv: str) -> list[str]:
@@ -42,6 +46,7 @@ def loopback_namespace() -> Iterator[None]:
         # machine, and waits for each to exit)
         kill_namespace_processes()
         subprocess.run(["ip", "netns", "del", NETNS], capture_output=True)
+        shutil.rmtree(RAY_TEMP, ignore_errors=True)
 
 
 def kill_namespace_processes(timeout_s: float = 30.0) -> None:
@@ -77,6 +82,8 @@ def start_head() -> str:
             "--include-dashboard",
             "false",
             "--disable-usage-stats",
+            "--temp-dir",
+            RAY_TEMP,
         ),
         capture_output=True,
         text=True,
