@@ -56,17 +56,12 @@ def belt_deadline_s(conveyor: Conveyor, last_reach_m: float | None, part: PartVi
 
 
 def rides_off_within(
-    conveyor: Conveyor,
-    last_reach_m: float | None,
-    parts: dict[int, PartView],
-    part_id: int,
-    now_s: float,
-    lead_s: float,
+    conveyor: Conveyor, last_reach_m: float | None, parts: dict[int, PartView], part_id: int, lead_s: float
 ) -> bool:
     """Whether a seen belt part passes the last reachable point within `lead_s` (a buffer may still save it)."""
     part = parts.get(part_id)
-    deadline = None if part is None else belt_deadline_s(conveyor, last_reach_m, part, now_s)
-    return deadline is not None and deadline - now_s <= lead_s
+    left = None if part is None else time_left_s(conveyor, last_reach_m, part)
+    return left is not None and left <= lead_s
 
 
 def cannot_make_it(rules: Eligibility, arm: ArmView, task: Task, part: PartView) -> bool:

@@ -243,7 +243,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""
         belt = self.scene.conveyor, self.last_reach_along_belt_m, self.parts
-        pending = self.ledger.refresh(now_s, lambda part: rides_off_within(*belt, part.part_id, now_s, BUFFER_LEAD_S))
+        pending = self.ledger.refresh(now_s, lambda part: rides_off_within(*belt, part.part_id, BUFFER_LEAD_S))
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)

@@ -221,7 +221,7 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         task_id = self._next_task_id if task_id is None else task_id
         task = Task(task_id, part.part_id, part.location, target or part.next_station, now_s)
         if task.target == part.next_station:
-            task.alternatives = tuple(s for s in self._alternatives(part) if s != task.target)
+            task.alternatives = self._other_stations(part)
         task.refused_by = tuple(sorted(part.refused_by))
         self._next_task_id = max(self._next_task_id, task_id + 1)
         self.tasks[task.task_id] = task
@@ -233,6 +233,10 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         if part.hop != len(part.route) - 1:
             return ()
         return tuple(self.scene.stations_for_colour(part.feeder, part.type_index))
+
+    def _other_stations(self, part: PartRecord) -> tuple[str, ...]:
+        """The part's alternatives besides its next station (what a task to the next station carries)."""
+        return tuple(s for s in self._alternatives(part) if s != part.next_station)
 
     def adopt(self, task_id: int, part_id: int, target: str, arm: str, now_s: float) -> str:
         """A task `arm` already works on, as the arm tells it (a respawned coordinator takes over a running line):

@@ -17,7 +17,7 @@ class LedgerBuffers:
         if task.state != TaskState.PENDING or task.target not in self.buffers or part.next_station is None:
             return  # (a buffer is on no route: a task to one is a detour)
         if self._ready(part, part.next_station):
-            task.go_to(part.next_station, tuple(s for s in self._alternatives(part) if s != part.next_station))
+            task.go_to(part.next_station, self._other_stations(part))
 
     def _buffer_for(self, part: PartRecord, soon_lost: Callable[[PartRecord], bool] | None) -> str | None:
         """A free buffer for a belt part about to be lost (nothing resting there, nothing on its way), or None."""

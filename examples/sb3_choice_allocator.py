@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import supersuit
 import torch
-from allocate_mode_allocators import against, line_totals
+from allocate_mode_allocators import against, run_episode
 from rich.progress import Progress
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
@@ -71,25 +71,19 @@ class Shown(BaseCallback):
         return True
 
 
-def play(scene: str, max_cycles: int, decision_hz: float, seed: int, policy) -> dict:
-    """One episode on `seed`, the arms' actions from `policy(env, observations)`: the line's counts."""
-    env = cell(scene, max_cycles, decision_hz)
-    obs, _ = env.reset(seed=seed)
-    while env.agents:
-        obs, *_ = env.step(policy(env, obs))
-    out = line_totals(env)
-    env.close()
-    return out
-
-
 def file_policy(path: Path):
     """A policy file acting in the env as the coordinator's `policy:FILE` allocator acts (the best valid choice)."""
     policy = load_policy(path)
     return lambda env, obs: {a: masked_choice(policy.logits(obs[a][None])[0], env.action_mask(a)) for a in env.agents}
 
 
-def allocator_policy(name: str):
-    return lambda env, obs: allocator_actions(env.chooser, make_allocator(name, env.scene), env._options)
+def play(scene: str, max_cycles: int, decision_hz: float, seed: int, player) -> dict:
+    """One episode on `seed` played by `player`: an allocator's name, or a policy (`file_policy`); the line's counts."""
+    env = cell(scene, max_cycles, decision_hz)
+    if isinstance(player, str):
+        allocator = make_allocator(player, env.scene)
+        player = lambda env, _: allocator_actions(env.chooser, allocator, env._options)
+    return run_episode(env, seed, player)
 
 
 def main() -> int:
@@ -121,9 +115,8 @@ def main() -> int:
     if args.episodes < 1:
         return 0
     seeds = range(1000, 1000 + args.episodes)
-    runs = {"learned": [play(scene, args.max_cycles, args.decision_hz, s, file_policy(args.save)) for s in seeds]}
-    for name in ("greedy", "optimal"):
-        runs[name] = [play(scene, args.max_cycles, args.decision_hz, s, allocator_policy(name)) for s in seeds]
+    players = {"learned": file_policy(args.save), "greedy": "greedy", "optimal": "optimal"}
+    runs = {name: [play(scene, args.max_cycles, args.decision_hz, s, p) for s in seeds] for name, p in players.items()}
     for name, rows in runs.items():
         completed = np.mean([r["completed"] for r in rows])
         print(f"{name}: {completed:.1f} parts an episode, vs greedy {against(rows, runs['greedy'])}")

@@ -24,15 +24,20 @@ def example(script: str, *args: str, netns: bool = False) -> list[str]:
     return in_netns(*argv) if netns else argv
 
 
+def on_ray(script: str, ray_head: str, *args: str) -> list[str]:
+    """An RLlib example's run on the tests' Ray head, in its loopback namespace."""
+    return example(script, *args, "--address", ray_head, netns=True)
+
+
 def commands(folder: Path, ray_head: str | None) -> dict[str, list[str]]:
     """Each example's quick run, by name, longest first."""
     out = {}
     if ray_head is not None:
-        out["rllib_masked_task_allocator"] = example(
+        out["rllib_masked_task_allocator"] = on_ray(
             "rllib_masked_task_allocator.py",
+            ray_head,
             *("--iterations", "1", "--batch", "200", "--max-cycles", "40", "--epochs", "1", "--episodes", "1"),
-            *("--curve", str(folder / "masked_curve"), "--address", ray_head),
-            netns=True,
+            *("--curve", str(folder / "masked_curve")),
         )
     out["sb3_choice_allocator"] = example(
         "sb3_choice_allocator.py",
@@ -40,11 +45,11 @@ def commands(folder: Path, ray_head: str | None) -> dict[str, list[str]]:
         *("--save", str(folder / "learned.pt2")),
     )
     if ray_head is not None:
-        out["rllib_per_arm"] = example(
+        out["rllib_per_arm"] = on_ray(
             "rllib_ppo_reach.py",
+            ray_head,
             *("--iterations", "1", "--batch", "200", "--max-cycles", "20", "--epochs", "1", "--env-runners", "1"),
-            *("--policies", "per-arm", "--address", ray_head),
-            netns=True,
+            *("--policies", "per-arm"),
         )
     out["ippo"] = example(
         "train_ippo_reach.py",

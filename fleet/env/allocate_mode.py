@@ -105,7 +105,8 @@ class TaskChooser:
         views, self.seen = self.arm_views(), self.parts()
         cost = TimeCost(Eligibility(self.scene, views))
         candidates = self.dispatcher.candidates(self.pending())
-        self.arm_choices = arm_choices(views, candidates, self.seen, self.busy_stations(), cost)
+        busy = self.dispatcher.busy_for_all([v.name for v in views if v.free])  # as `busy_stations()`, views in hand
+        self.arm_choices = arm_choices(views, candidates, self.seen, busy, cost)
         return {a: list(c.options) for a, c in self.arm_choices.items()}
 
     def features(self, agent: str) -> np.ndarray:

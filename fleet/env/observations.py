@@ -8,7 +8,7 @@ import functools
 import gymnasium
 import numpy as np
 
-from coordinator.choice_slots import CHOICE_FEATURES, SLOTS
+from coordinator.choice_slots import CHOICE_FEATURES, SLOTS, ArmChoices, choice_mask
 from fleet.env.limits import (
     OBS_LIMIT,
     SEPARATION_CAP_M,
@@ -36,10 +36,7 @@ class EnvObservations:
     def action_mask(self, agent: str) -> np.ndarray:
         """Allocate mode: which actions choose something real now (1) or an empty slot (0); waiting (0) is always valid.
         A busy arm may only wait. Two arms may still pick the same task in one step: the later one is refused."""
-        mask = np.zeros(SLOTS + 1, dtype=np.int8)
-        mask[0] = 1
-        mask[1 : 1 + len(self._options.get(agent, []))] = 1
-        return mask
+        return choice_mask(self.chooser.arm_choices.get(agent, ArmChoices()))
 
     @functools.cache
     def action_space(self, agent: str) -> gymnasium.spaces.Space:
