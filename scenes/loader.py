@@ -12,8 +12,10 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from pydantic import ValidationError
+
 from scenes.randomise import draw
-from scenes.schema import Arm, Scene, Station
+from scenes.schema import Arm, Conveyor, Scene, Station
 from scenes.yaml_file import DeclarationError, first_error, named_in, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
 from scenes.yaml_file import yaml_text as declaration_text
 
@@ -143,7 +145,26 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
                 accepts_colour=colours[i % len(colours)] if n >= len(colours) else colours[i::n],
             )
         )
-    return scene.model_copy(update={"arms": arms, "stations": stations, "arm_row": None})
+    update = {"arms": arms, "stations": stations, "arm_row": None}
+    if scene.conveyor is not None and row.belt_past_last_m is not None:
+        last = (x0 + along[0] * row.spacing_m * (n - 1), y0 + along[1] * row.spacing_m * (n - 1))
+        try:
+            update["conveyor"] = belt_reaching(scene.conveyor, last, row.belt_past_last_m)
+        except ValidationError as exc:
+            why = f"{n} arms need a longer belt than a conveyor may be: {exc.errors()[0]['msg']}"
+            raise SceneError(label, "arm_row.belt_past_last_m", why) from None
+    return scene.model_copy(update=update)
+
+
+def belt_reaching(conveyor: Conveyor, xy: tuple[float, float], past_m: float) -> Conveyor:
+    """`conveyor`, lengthened where it must be to run `past_m` beyond the point of `xy` along it (never shortened)."""
+    x0, y0, _ = conveyor.pose.xyz
+    yaw = conveyor.pose.yaw_rad
+    along_m = (xy[0] - x0) * math.cos(yaw) + (xy[1] - y0) * math.sin(yaw)
+    length_m = max(conveyor.length_m, round(along_m + past_m, 6))
+    if length_m == conveyor.length_m:
+        return conveyor
+    return Conveyor.model_validate(conveyor.model_dump() | {"length_m": length_m})
 
 
 def _unique(label: str, field: str, names: list[str]) -> None:

@@ -166,14 +166,17 @@ class ArmRow(Strict):
     """A row of identical arms along the conveyor, each with its own bin; `--arms N` changes `count`."""
 
     model: Name = "openclaw"
-    count: int = Field(ge=1, le=12)
+    count: int = Field(ge=1, le=24)
     first_xyz: Vec3
     spacing_m: float = Field(gt=0.2, le=3.0)
     bin_offset_m: float = Field(0.15, ge=0.0, le=1.0)
     """How far each bin stands behind its arm's base, away from the belt."""
     bin_along_m: float = Field(0.27, ge=-1.0, le=1.0)
     """How far each bin stands beside its arm's base, downstream along the belt."""
-    max_count: int = Field(12, ge=1, le=12)
+    max_count: int = Field(12, ge=1, le=24)
+    belt_past_last_m: float | None = Field(None, ge=0.0, le=2.0)
+    """At least this much belt beyond the last arm's base: a longer row lengthens the conveyor (None: the belt stays
+    as declared, and a row past its end is the scene's choice)."""
 
 
 class Draw(Strict):

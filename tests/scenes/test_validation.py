@@ -16,16 +16,37 @@ def test_bundled_scenes_are_valid(name):
     assert scene.arms and all(a.name.startswith("arm_") for a in scene.arms)
 
 
-@pytest.mark.parametrize("n", [1, 6, 12])
-def test_sorting_line_takes_one_to_twelve_arms(n):
+@pytest.mark.parametrize("n", [1, 6, 12, 16, 24])
+def test_sorting_line_takes_one_to_twenty_four_arms(n):
     scene = load_scene("sorting_line", arms=n, robots=robot_facts())
     assert [a.name for a in scene.arms] == [f"arm_{i}" for i in range(n)]
     assert len([s for s in scene.stations if s.kind == "bin"]) == n
 
 
-def test_sorting_line_refuses_thirteen_arms():
+@pytest.mark.parametrize("n", [1, 4, 12])
+def test_up_to_twelve_arms_ride_the_belt_the_scene_declares(n):
+    assert load_scene("sorting_line", arms=n).conveyor.length_m == 7.0
+
+
+@pytest.mark.parametrize("n", [13, 24])
+def test_a_longer_row_grows_the_belt_to_end_past_its_last_arm(n):
+    scene = load_scene("sorting_line", arms=n)
+    belt_end_x = scene.conveyor.pose.xyz[0] + scene.conveyor.length_m
+    assert belt_end_x == pytest.approx(scene.arms[-1].base.xyz[0] + 0.35)
+
+
+def test_sorting_line_refuses_twenty_five_arms():
     with pytest.raises(SceneError, match="arm_row.count"):
-        load_scene("sorting_line", arms=13)
+        load_scene("sorting_line", arms=25)
+
+
+def test_a_row_too_long_for_any_belt_names_the_field(tmp_path):
+    data = yaml.safe_load((BUNDLED_DIR / "sorting_line.yaml").read_text())
+    data["arm_row"]["spacing_m"] = 1.0
+    path = tmp_path / "long_row.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(SceneError, match=r"long_row.yaml.*arm_row.belt_past_last_m.*24 arms need a longer belt"):
+        load_scene(str(path), arms=24)
 
 
 def broken(tmp_path: Path, edit) -> Path:
