@@ -4,10 +4,12 @@ one kept node factory, as a sweep's worker does (a run's own factory costs ~2 s 
 dozens of lines); the tests that need a Ray cluster share one head, in a network namespace whose only interface is
 loopback (each a head of its own cost ~9 s).
 
-The suite runs on two workers (pytest-xdist, `addopts` in pyproject.toml), a test file to a worker. A test that runs
-against the wall clock (a realtime line, a browser, a watchdog, a wait in wall time, a plug-in's time budget) could
-turn flaky beside another test's line, so it runs alone on the machine: it takes a lock both workers share
-exclusively, every other test takes it shared (`WALL_TIME`)."""
+The suite runs on two workers (pytest-xdist, `addopts` in pyproject.toml), a test file to a worker, and three locks
+the workers share keep the tests that run against the wall clock (a realtime line, a watchdog, a wait in wall time,
+a plug-in's time budget: `WALL_TIME`) from turning flaky beside another test's work. A wall-time test runs beside no
+other test that runs a line or other processes (`slow`, or a file in `HEAVY`): those two kinds take the `lines` lock,
+exclusively or shared. It may run beside a light test (one process on the other core). A browser test (`ALONE`)
+runs alone on the machine: every other test shares the `machine` lock."""
 
 import fcntl
 import os
@@ -44,13 +46,19 @@ WALL_TIME = (
     "tests/fleet/test_rightful_lies.py",
     "tests/fleet/test_bus_fuzz.py",
 )
+# tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
+HEAVY = ("tests/fleet/cli/test_cli.py", "tests/fleet/robot_tools/test_robots_cli.py")
+# a browser (and a line for it to draw) runs alone on the machine
+ALONE = ("tests/fleet/monitor/test_browser.py", "tests/fleet/monitor/test_replay_browser.py")
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
-        if item.path.relative_to(ROOT).as_posix().startswith(WALL_TIME):
-            item.add_marker(pytest.mark.wall_time)
+        path = item.path.relative_to(ROOT).as_posix()
+        for marker, paths in (("wall_time", WALL_TIME), ("heavy", HEAVY), ("alone", ALONE)):
+            if path.startswith(paths):
+                item.add_marker(marker)
 
 
 LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the xdist controller for its workers
@@ -66,23 +74,42 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         shutil.rmtree(os.environ.pop(LOCKS), ignore_errors=True)
 
 
+def lock_modes(item: pytest.Item) -> tuple[int, int | None]:
+    """The modes a test takes the `machine` and `lines` locks in (None: it does not take `lines`)."""
+    if item.get_closest_marker("alone"):
+        return fcntl.LOCK_EX, None
+    if item.get_closest_marker("wall_time"):
+        return fcntl.LOCK_SH, fcntl.LOCK_EX
+    if item.get_closest_marker("slow") or item.get_closest_marker("heavy"):
+        return fcntl.LOCK_SH, fcntl.LOCK_SH
+    return fcntl.LOCK_SH, None
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
-    """Under xdist: a wall-time test (setup, call, teardown) holds the workers' lock alone, any other shares it."""
+    """Under xdist: a test (setup, call, teardown) holds the workers' locks in its modes (`lock_modes`)."""
     if not hasattr(item.config, "workerinput") or LOCKS not in os.environ:
         yield
         return
     folder = Path(os.environ[LOCKS])
-    with open(folder / "run.lock", "a") as lock, open(folder / "turnstile.lock", "a") as turn:
-        # the turnstile: a wall-time test waiting for the lock holds it, so the other worker's next test waits
-        # behind it instead of taking the lock shared again and again
+    machine_mode, lines_mode = lock_modes(item)
+    with (
+        open(folder / "machine.lock", "a") as machine,
+        open(folder / "lines.lock", "a") as lines,
+        open(folder / "turnstile.lock", "a") as turn,
+    ):
+        # the turnstile: a test waiting for a lock holds it, so the other worker's next test waits behind it
+        # instead of taking the lock shared again and again; locks are always taken in one order (no deadlock)
         fcntl.flock(turn, fcntl.LOCK_EX)
-        fcntl.flock(lock, fcntl.LOCK_EX if item.get_closest_marker("wall_time") else fcntl.LOCK_SH)
+        fcntl.flock(machine, machine_mode)
+        if lines_mode is not None:
+            fcntl.flock(lines, lines_mode)
         fcntl.flock(turn, fcntl.LOCK_UN)
         try:
             yield
         finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+            fcntl.flock(lines, fcntl.LOCK_UN)
+            fcntl.flock(machine, fcntl.LOCK_UN)
 
 
 @pytest.fixture(autouse=True, scope="session")

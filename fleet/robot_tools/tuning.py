@@ -26,9 +26,16 @@ SPACE: dict[str, tuple[float, ...]] = {
     "approach_speed": (0.2, 0.4, 0.6, 0.8, 1.0),
     "transfer_speed": (0.15, 0.3, 0.45, 0.7, 1.0),
     "lift_s": (0.5, 0.8),
+    "hover_m": (0.04, 0.06, 0.08, 0.10),
+    "lift_m": (0.06, 0.09, 0.12),
+    "pregrasp_clearance_m": (0.016, 0.024, 0.032),
 }
 """What is searched: factors on the registered drive gains (arm stiffness and damping together; the gripper's force
-limit), the skill's speeds (fractions of the joints' velocity limits) and the lift's duration (seconds)."""
+limit), the skill's speeds (fractions of the joints' velocity limits), the lift's duration (seconds) and the pick's
+heights and widths: how high the claw hovers before it descends (and over the place), how high it lifts a part, how
+much wider than the part it opens on the way down (metres)."""
+TIMING = ("approach_speed", "transfer_speed", "lift_s", "hover_m", "lift_m", "pregrasp_clearance_m")
+"""The searched values that are pick timing fields (`PickPlaceTiming`); the others scale drive gains."""
 
 
 @dataclass(frozen=True)
@@ -40,12 +47,15 @@ class Candidate:
     approach_speed: float | None = None
     transfer_speed: float | None = None
     lift_s: float | None = None
+    hover_m: float | None = None
+    lift_m: float | None = None
+    pregrasp_clearance_m: float | None = None
 
     def spec_for(self, spec: RobotSpec, uid: str) -> RobotSpec:
         """The robot with this setting, under `uid`."""
         a, g = spec.arm_gains, spec.gripper_gains
         timing = dict(spec.pick_timing)
-        for name in ("approach_speed", "transfer_speed", "lift_s"):
+        for name in TIMING:
             value = getattr(self, name)
             if value is not None:
                 timing[name] = value
@@ -67,9 +77,7 @@ class Candidate:
             "arm_stiffness": tuned.arm_gains.stiffness,
             "arm_damping": tuned.arm_gains.damping,
             "gripper_force_limit": tuned.gripper_gains.force_limit,
-            "approach_speed": timing.approach_speed,
-            "transfer_speed": timing.transfer_speed,
-            "lift_s": timing.lift_s,
+            **{name: getattr(timing, name) for name in TIMING},
         }
 
 

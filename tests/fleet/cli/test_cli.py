@@ -72,7 +72,7 @@ def test_trials_refuse_a_physics_rate_the_servo_rate_does_not_divide_in_one_line
 
 BAD_INPUT = [
     (["run", "no_such_scene"], "no such scene"),
-    (["run", "sorting_line", "--arms", "20"], "arm_row.count"),
+    (["run", "sorting_line", "--arms", "25"], "arm_row.count"),
     (["run", "--allocator", "fastest"], "unknown allocator 'fastest'; valid allocators: optimal, auction, greedy"),
     (["run", "--allocator", "policy:/no/such.pt2"], "policy file /no/such.pt2: no such file"),
     (["sweep", "pick_cell", "--out", "o", "--allocator", "greedy", "policy:/no/such.pt2"], "/no/such.pt2: no such"),

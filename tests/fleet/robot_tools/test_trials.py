@@ -8,6 +8,7 @@ import pytest
 from fleet.robot_tools.trials import graspable, run_trial, trial_scene
 from fleet.robot_tools.tuning import Candidate, candidates, search
 from robots.registry import get_robot, is_available
+from robots.skills.pick_place import PickPlaceTiming
 
 
 def test_a_few_seeded_openclaw_picks_succeed():
@@ -38,6 +39,13 @@ def test_the_tuning_search_starts_from_the_registered_robot_and_draws_distinct_s
     assert math.isclose(
         tuned.arm_gains.stiffness, get_robot("openclaw").arm_gains.stiffness * drawn[1].arm_stiffness_scale
     )
+    timing = PickPlaceTiming.for_robot(tuned)  # the heights searched reach the pick skill
+    assert (timing.hover_m, timing.lift_m, timing.pregrasp_clearance_m) == (
+        drawn[1].hover_m,
+        drawn[1].lift_m,
+        drawn[1].pregrasp_clearance_m,
+    )
+    assert drawn[1].describe(get_robot("openclaw"))["hover_m"] == drawn[1].hover_m
     results = search("openclaw", 2, 1, seed=0)
     assert len(results) == 2 and results[0].rank_key <= results[1].rank_key
 
