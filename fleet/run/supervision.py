@@ -86,34 +86,38 @@ class Supervision:
             self.say_roster()
             self._on_bus(inbox)
             self._check_servers()
-            code = sim.poll()
+            # every node's state read before the factory's: nodes it forked die with it, and a death seen first must
+            # not be blamed on the node
+            code, coordinator_code = sim.poll(), coordinator.poll()
+            gone = [n for n in self.nodes[2:] if n.role == "controller" and n.poll() is not None]
             if self.factory is not None and (died := self.factory.died):
                 return f"{died}; logs in {self.dir}"
             if code is not None:
-                if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
-                    return (
-                        f"the sim stopped: the coordinator did not answer in the lockstep timeout; logs in {self.dir}"
-                    )
-                return (
-                    ""
-                    if code == 0
-                    else f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
-                )
-            if self._hung(coordinator):
+                return self._sim_ended(sim, code)
+            if coordinator_code is None and self._hung(coordinator):
                 self.on_message(f"the coordinator said nothing for {self.options.hung_after_s:g} s; replacing it")
                 coordinator.child.kill()
-            code = coordinator.poll()
-            if code is not None:
+                coordinator_code = coordinator.poll()
+            if coordinator_code is not None:
                 if not (self.options.respawn and coordinator.starts < MAX_COORDINATOR_STARTS):
                     tail = coordinator.log_tail() or "no output"
-                    return f"the coordinator crashed (exit {code}): {tail}; logs in {self.dir}"
-                self.on_message(f"the coordinator crashed (exit {code}); starting another to take over the line")
+                    return f"the coordinator crashed (exit {coordinator_code}): {tail}; logs in {self.dir}"
+                self.on_message(
+                    f"the coordinator crashed (exit {coordinator_code}); starting another to take over the line"
+                )
                 self._restart(coordinator)
-            for node in self.nodes[2:]:
-                if node.role == "controller" and node.poll() is not None and self.options.respawn:
-                    self._restart(node)
+            for node in gone if self.options.respawn else []:
+                self._restart(node)
             time.sleep(0.02)
         return ""
+
+    def _sim_ended(self, sim: Node, code: int) -> str:
+        """Why the run ends with the sim ("" for a clean end)."""
+        if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
+            return f"the sim stopped: the coordinator did not answer in the lockstep timeout; logs in {self.dir}"
+        if code == 0:
+            return ""
+        return f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
 
     def _hung(self, coordinator: Node) -> bool:
         """With `respawn`: the coordinator is alive but has not said its progress for `hung_after_s` since it
