@@ -84,14 +84,15 @@ def cmd_tune(args: argparse.Namespace) -> int:
     from fleet.robot_tools.tuning import search
 
     uid = robot_uid(args.robot)
-    if args.candidates < 1 or args.trials < 1:
-        raise UsageError("--candidates and --trials must be at least 1")
+    if args.candidates < 1 or args.trials < 1 or args.jobs < 1:
+        raise UsageError("--candidates, --trials and --jobs must be at least 1")
     spec = get_robot(uid)
     with Progress(
         TextColumn(f"{uid} tuning"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=err
     ) as progress:
         bar = progress.add_task("tune", total=args.candidates)
-        results = search(uid, args.candidates, args.trials, args.seed, lambda _t: progress.update(bar, advance=1))
+        advance = lambda _t: progress.update(bar, advance=1)  # noqa: E731
+        results = search(uid, args.candidates, args.trials, args.seed, advance, jobs=args.jobs)
     names = list(results[0].candidate.describe(spec))
     table = Table(
         "rank",
@@ -213,5 +214,8 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--trials", type=int, default=20, help="seeded pick trials per setting")
     p.add_argument("--seed", type=int, default=0, help="seed of the draws and first trial seed")
+    p.add_argument(
+        "--jobs", type=int, default=1, help="settings tried at once, each in a process of its own (same results)"
+    )
     p.add_argument("--json", action="store_true", help="last stdout line: one JSON object")
     p.set_defaults(func=cmd_tune)

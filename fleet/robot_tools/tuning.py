@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import multiprocessing
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -104,22 +106,39 @@ def candidates(count: int, seed: int) -> list[Candidate]:
     return [Candidate()] + [Candidate(**dict(zip(SPACE, (float(v) for v in grid[i])))) for i in picks]
 
 
+def try_candidate(uid: str, k: int, cand: Candidate, trials: int, seed: int) -> Tried:
+    """One candidate's trials, under its own uid (`<uid>__tune<k>`)."""
+    name = f"{uid}__tune{k}"
+    if name not in robot_names():
+        register(cand.spec_for(get_robot(uid), name))
+    runs = run_trials(name, trials, seed)
+    failed = tuple(f"seed {r.seed}: {r.phase}: {r.reason}" for r in runs if not r.success)
+    return Tried(cand, sum(r.success for r in runs), len(runs), float(np.mean([r.sim_seconds for r in runs])), failed)
+
+
 def search(
-    uid: str, count: int, trials: int, seed: int, on_tried: Callable[[Tried], None] | None = None
+    uid: str,
+    count: int,
+    trials: int,
+    seed: int,
+    on_tried: Callable[[Tried], None] | None = None,
+    jobs: int = 1,
 ) -> list[Tried]:
-    """Try `count` candidates on `trials` seeded trials each; best first."""
-    spec = get_robot(uid)
-    results = []
-    for k, cand in enumerate(candidates(count, seed)):
-        name = f"{uid}__tune{k}"
-        if name not in robot_names():
-            register(cand.spec_for(spec, name))
-        runs = run_trials(name, trials, seed)
-        failed = tuple(f"seed {r.seed}: {r.phase}: {r.reason}" for r in runs if not r.success)
-        tried = Tried(
-            cand, sum(r.success for r in runs), len(runs), float(np.mean([r.sim_seconds for r in runs])), failed
-        )
-        results.append(tried)
-        if on_tried is not None:
-            on_tried(tried)
+    """Try `count` candidates on `trials` seeded trials each, `jobs` candidates at once (forked processes: a robot
+    registered here, from a file too, is theirs); best first, ties in the order drawn (the same for any `jobs`)."""
+    get_robot(uid)  # an unknown name or a missing extra fails before any work
+    drawn = candidates(count, seed)
+    if jobs <= 1:
+        results = []
+        for k, cand in enumerate(drawn):
+            results.append(try_candidate(uid, k, cand, trials, seed))
+            if on_tried is not None:
+                on_tried(results[-1])
+    else:
+        with ProcessPoolExecutor(min(jobs, len(drawn)), mp_context=multiprocessing.get_context("fork")) as pool:
+            futures = [pool.submit(try_candidate, uid, k, cand, trials, seed) for k, cand in enumerate(drawn)]
+            for done in as_completed(futures):
+                if on_tried is not None:
+                    on_tried(done.result())
+            results = [f.result() for f in futures]
     return sorted(results, key=lambda t: t.rank_key)

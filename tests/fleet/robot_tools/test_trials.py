@@ -48,6 +48,7 @@ def test_the_tuning_search_starts_from_the_registered_robot_and_draws_distinct_s
     assert drawn[1].describe(get_robot("openclaw"))["hover_m"] == drawn[1].hover_m
     results = search("openclaw", 2, 1, seed=0)
     assert len(results) == 2 and results[0].rank_key <= results[1].rank_key
+    assert search("openclaw", 2, 1, seed=0, jobs=2) == results  # settings tried at once, in processes of their own
 
 
 @pytest.mark.skipif(not is_available("panda"), reason="needs the models extra")
