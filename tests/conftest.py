@@ -9,12 +9,14 @@ the workers share keep the tests that run against the wall clock (a realtime lin
 a plug-in's time budget: `WALL_TIME`) from turning flaky beside another test's work. A wall-time test runs beside no
 other test that runs a line or other processes (`slow`, or a file in `HEAVY`): those two kinds take the `lines` lock,
 exclusively or shared. It may run beside a light test (one process on the other core). A browser test (`ALONE`)
-runs alone on the machine: every other test shares the `machine` lock."""
+runs alone on the machine: every other test shares the `machine` lock. `CLAWFLEET_TEST_TIMELINE=FILE` writes when
+each test asked for its locks, got them and ended, per worker: where the suite's time goes."""
 
 import fcntl
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -60,6 +62,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 
 LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the xdist controller for its workers
+TIMELINE = "CLAWFLEET_TEST_TIMELINE"  # a file: each test's worker, when it asked for its locks, got them, ended
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -98,16 +101,22 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
     ):
         # the turnstile: a test waiting for a lock holds it, so the other worker's next test waits behind it
         # instead of taking the lock shared again and again; locks are always taken in one order (no deadlock)
+        asked = time.time()
         fcntl.flock(turn, fcntl.LOCK_EX)
         fcntl.flock(machine, machine_mode)
         if lines_mode is not None:
             fcntl.flock(lines, lines_mode)
         fcntl.flock(turn, fcntl.LOCK_UN)
+        started = time.time()
         try:
             yield
         finally:
             fcntl.flock(lines, fcntl.LOCK_UN)
             fcntl.flock(machine, fcntl.LOCK_UN)
+            if timeline := os.environ.get(TIMELINE):
+                with open(timeline, "a") as out:  # one short line per test: appends from two workers do not mix
+                    worker = item.config.workerinput["workerid"]
+                    out.write(f"{worker} {asked:.3f} {started:.3f} {time.time():.3f} {item.nodeid}\n")
 
 
 @pytest.fixture(autouse=True, scope="session")
