@@ -81,25 +81,29 @@ def check_robot_lines(uid: str, trials: int, seed: int) -> int:
 
 def cmd_tune(args: argparse.Namespace) -> int:
     """`fleet tune`: a seeded search over a robot's gains and pick timing, each candidate judged by pick trials."""
-    from fleet.robot_tools.tuning import search
+    from fleet.robot_tools.tuning import candidates, search
 
     uid = robot_uid(args.robot)
     if args.candidates < 1 or args.trials < 1 or args.jobs < 1:
         raise UsageError("--candidates, --trials and --jobs must be at least 1")
+    try:
+        count = len(candidates(args.candidates, args.seed, args.vary))  # fewer where the values varied allow fewer
+    except ValueError as exc:
+        raise UsageError(f"--vary: {exc}") from None
     spec = get_robot(uid)
     with Progress(
         TextColumn(f"{uid} tuning"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=err
     ) as progress:
-        bar = progress.add_task("tune", total=args.candidates)
+        bar = progress.add_task("tune", total=count)
         advance = lambda _t: progress.update(bar, advance=1)  # noqa: E731
-        results = search(uid, args.candidates, args.trials, args.seed, advance, jobs=args.jobs)
+        results = search(uid, count, args.trials, args.seed, advance, jobs=args.jobs, vary=args.vary)
     names = list(results[0].candidate.describe(spec))
     table = Table(
         "rank",
         "placed",
         "sim s / trial",
         *names,
-        title=f"{uid}: {args.candidates} settings x {args.trials} trials (seed {args.seed})",
+        title=f"{uid}: {count} settings x {args.trials} trials (seed {args.seed})",
     )
     for rank, tried in enumerate(results, 1):
         values = tried.candidate.describe(spec)
@@ -216,6 +220,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the draws and first trial seed")
     p.add_argument(
         "--jobs", type=int, default=1, help="settings tried at once, each in a process of its own (same results)"
+    )
+    p.add_argument(
+        "--vary",
+        nargs="+",
+        metavar="VALUE",
+        help="search only these values, the others as registered (a wrong name lists the valid ones; default: all)",
     )
     p.add_argument("--json", action="store_true", help="last stdout line: one JSON object")
     p.set_defaults(func=cmd_tune)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import multiprocessing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 
@@ -98,12 +98,17 @@ class Tried:
         return (-self.successes, self.mean_sim_s)
 
 
-def candidates(count: int, seed: int) -> list[Candidate]:
-    """The registered robot first, then `count - 1` distinct settings drawn from `SPACE` with `seed`."""
-    grid = list(itertools.product(*SPACE.values()))
+def candidates(count: int, seed: int, vary: Sequence[str] | None = None) -> list[Candidate]:
+    """The registered robot first, then `count - 1` distinct settings drawn from `SPACE` with `seed` (only the
+    values named in `vary`, when given: the others stay as registered)."""
+    names = list(SPACE) if vary is None else list(dict.fromkeys(vary))
+    unknown = [n for n in names if n not in SPACE]
+    if unknown or not names:
+        raise ValueError(f"cannot vary {', '.join(unknown) or 'nothing'}; valid values: {', '.join(SPACE)}")
+    grid = list(itertools.product(*(SPACE[n] for n in names)))
     rng = np.random.default_rng(seed)
     picks = rng.choice(len(grid), size=min(count - 1, len(grid)), replace=False) if count > 1 else []
-    return [Candidate()] + [Candidate(**dict(zip(SPACE, (float(v) for v in grid[i])))) for i in picks]
+    return [Candidate()] + [Candidate(**dict(zip(names, (float(v) for v in grid[i])))) for i in picks]
 
 
 def try_candidate(uid: str, k: int, cand: Candidate, trials: int, seed: int) -> Tried:
@@ -123,11 +128,12 @@ def search(
     seed: int,
     on_tried: Callable[[Tried], None] | None = None,
     jobs: int = 1,
+    vary: Sequence[str] | None = None,
 ) -> list[Tried]:
     """Try `count` candidates on `trials` seeded trials each, `jobs` candidates at once (forked processes: a robot
     registered here, from a file too, is theirs); best first, ties in the order drawn (the same for any `jobs`)."""
     get_robot(uid)  # an unknown name or a missing extra fails before any work
-    drawn = candidates(count, seed)
+    drawn = candidates(count, seed, vary)
     if jobs <= 1:
         results = []
         for k, cand in enumerate(drawn):

@@ -86,6 +86,7 @@ BAD_INPUT = [
     (["run", "--loss", "1.5"], "--loss 1.5: Input should be less than 1"),
     (["run", "--latency-ms", "-5"], "--latency-ms -5: Input should be greater than or equal to 0"),
     (["check", "/dev/null"], "/dev/null: not a regular file"),
+    (["tune", "--vary", "hover_m", "hover_height"], "cannot vary hover_height; valid values: arm_stiffness_scale"),
     (["check", "/"], "/: a directory, not a scene file"),
 ]
 

@@ -51,6 +51,14 @@ def test_the_tuning_search_starts_from_the_registered_robot_and_draws_distinct_s
     assert search("openclaw", 2, 1, seed=0, jobs=2) == results  # settings tried at once, in processes of their own
 
 
+def test_a_search_may_vary_only_some_values_and_tries_each_setting_of_them_once():
+    heights = candidates(100, seed=0, vary=["hover_m", "lift_m"])
+    assert len(heights) == 1 + 4 * 3 and len(set(heights)) == len(heights)
+    assert all(c.approach_speed is None and c.arm_stiffness_scale == 1.0 for c in heights)
+    with pytest.raises(ValueError, match="cannot vary hover; valid values: arm_stiffness_scale"):
+        candidates(5, seed=0, vary=["hover"])
+
+
 @pytest.mark.skipif(not is_available("panda"), reason="needs the models extra")
 def test_a_few_seeded_panda_picks_succeed_with_its_own_natural_yaw():
     results = [run_trial("panda", seed) for seed in range(3)]
