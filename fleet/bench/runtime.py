@@ -14,6 +14,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -108,8 +109,9 @@ class RunRow:
     replay_physics_seconds: float  # the same scene stepped in one process with the run's own drive targets (median)
     parts_completed: int
     contacts: int
-    p99_ms: float | None
+    p99_ms: float | None  # the bus's state -> answer round trip
     messages_per_arm_per_s: float
+    decision_p99_ms: float | None = None  # the coordinator's decisions, wall time (median of the repeats)
 
     @property
     def realtime_factor(self) -> float:
@@ -148,14 +150,18 @@ def replay_physics_seconds(arms: int, targets_file: str) -> float:
     return time.perf_counter() - start
 
 
-def bench_run(arms: int, sim_seconds: float = 60.0, repeats: int = 3) -> RunRow:
+def bench_run(
+    arms: int, sim_seconds: float = 60.0, repeats: int = 3, on_run: Callable[[int], None] | None = None
+) -> RunRow:
     """Lockstep `fleet run`s of the sorting line, each followed at once by raw physics (arms still) and by a replay of
     its own drive targets (same motion) of the same scene and sim time; medians, so the machine's drift hits all
     alike."""
-    walls, raws, replays, summary = [], [], [], {}
+    walls, raws, replays, decisions, summary = [], [], [], [], {}
     with tempfile.TemporaryDirectory(prefix="clawfleet-benchrun-") as tmp:
         targets = str(Path(tmp) / "targets.npz")
-        for _ in range(repeats):
+        for k in range(repeats):
+            if on_run is not None:
+                on_run(k)
             with Launcher(
                 RunOptions(scene=SCENE, arms=arms, duration_s=sim_seconds, run_id="benchrun", record_targets=targets)
             ) as launcher:
@@ -163,6 +169,7 @@ def bench_run(arms: int, sim_seconds: float = 60.0, repeats: int = 3) -> RunRow:
             if summary["status"] != "ok":
                 raise RuntimeError(f"the benchmark run failed: {summary['error']}")
             walls.append(summary["loop_wall_seconds"])
+            decisions.append(summary["decision_wall_ms"].get("p99"))
             raws.append(raw_physics_seconds(arms, sim_seconds))
             replays.append(replay_physics_seconds(arms, targets))
     per_arm = sum(summary["bus_messages_per_arm_per_s"].values()) + STATUS_PER_ARM_PER_S
@@ -176,6 +183,7 @@ def bench_run(arms: int, sim_seconds: float = 60.0, repeats: int = 3) -> RunRow:
         summary["inter_arm_contacts"],
         summary["latency_p99_ms"],
         round(per_arm, 1),
+        float(np.median(decisions)) if None not in decisions else None,
     )
 
 

@@ -9,6 +9,7 @@ import os
 from rich.table import Table
 
 from fleet.cli.errors import (
+    err,
     out,
 )
 
@@ -72,11 +73,13 @@ def cmd_bench_run(args: argparse.Namespace) -> int:
         "parts done",
         "contacts",
         "bus msgs/arm/s",
-        "p99 (ms)",
+        "bus round trip p99 (ms)",
+        "decisions p99 (ms)",
     )
     rows = []
     for n in args.arms:
-        row = bench_run(n, args.seconds, args.repeats)
+        say = lambda k, n=n: err.print(f"{n} arms: run {k + 1} of {args.repeats}", highlight=False)  # noqa: E731
+        row = bench_run(n, args.seconds, args.repeats, on_run=say)
         rows.append(row)
         table.add_row(
             str(n),
@@ -89,6 +92,7 @@ def cmd_bench_run(args: argparse.Namespace) -> int:
             str(row.contacts),
             f"{row.messages_per_arm_per_s:.0f}",
             f"{row.p99_ms}",
+            "-" if row.decision_p99_ms is None else f"{row.decision_p99_ms:.1f}",
         )
     out.print(table)
     if args.json:
