@@ -148,18 +148,12 @@ class Eligibility:
             return np.ones((*points.shape[:-2], len(arms)), bool)
         xy = np.array([self.bases[n][:2] for n in live])
         to_live = np.hypot(*np.moveaxis(points - xy, -1, 0))  # (..., live arms)
-        nearest = to_live.argmin(axis=-1)
+        nearest = to_live.argmin(axis=-1)[..., None]
         two = np.partition(to_live, 1, axis=-1)
-        out = []
-        for arm in arms:
-            mine = np.hypot(*np.moveaxis(points[..., 0, :] - arm.base_xyz[:2], -1, 0))
-            others = (
-                two[..., 0]
-                if arm.name not in self.bases
-                else np.where(nearest == live.index(arm.name), two[..., 1], two[..., 0])
-            )
-            out.append(mine + CELL_MARGIN_M <= others + 1e-9)
-        return np.stack(out, axis=-1)
+        mine = np.hypot(*np.moveaxis(points - np.array([a.base_xyz[:2] for a in arms]), -1, 0))  # (..., arms)
+        index = np.array([live.index(a.name) if a.name in self.bases else -1 for a in arms])  # -1: not a live arm
+        others = np.where(nearest == index, two[..., 1:2], two[..., 0:1])  # each arm's nearest live other
+        return mine + CELL_MARGIN_M <= others + 1e-9
 
     def owns_belt_point(self, arm: ArmView, point) -> bool:
         mine = horizontal_distance_m(arm.base_xyz, point)

@@ -233,6 +233,7 @@ class ArmGeometry:
 
 
 _PLAIN = fcl.DistanceRequest()
+_POINTS = fcl.DistanceRequest(enable_nearest_points=True)
 
 
 class CellBounds:
@@ -300,6 +301,13 @@ def separation_m(a: ArmGeometry, b: ArmGeometry, below_m: float = math.inf) -> f
 
 def closest_points(a: ArmGeometry, b: ArmGeometry) -> tuple[float, np.ndarray, np.ndarray]:
     """The distance between two arms as placed and the nearest point of each (world frame, metres)."""
-    d, result = _nearest(a, b, fcl.DistanceRequest(enable_nearest_points=True))
+    return closest_points_below(a, b, math.inf)
+
+
+def closest_points_below(a: ArmGeometry, b: ArmGeometry, below_m: float) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """`closest_points`, or None where the arms are not nearer than `below_m` (nothing is measured past it)."""
+    d, result = _nearest(a, b, _POINTS, below_m)
+    if result is None:
+        return None
     p_a, p_b = result.nearest_points
     return d, np.asarray(p_a, float), np.asarray(p_b, float)

@@ -24,10 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.geometry import ArmGeometry, CellBounds, closest_points, neighbours, separation_m
+from coordinator.geometry import ArmGeometry, CellBounds, closest_points_below, neighbours, separation_m
 from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
 
 DEFAULT_MARGIN_M = 0.02
+TIE_M = 1e-9  # two distances this close are one (each arm's nearest pairs include every pair at its distance)
 
 
 @dataclass(frozen=True)
@@ -174,16 +175,25 @@ class CollisionGuard:
 
     def nearest_pairs(self) -> list[NearestPair]:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among
-        them."""
-        nearest = self.nearest_other_m()
-        out: dict[tuple[str, str], NearestPair] = {}
+        them. One pass, as `nearest_other_m` measures, with the nearest points of each pair measured."""
+        for name, q in self.state.items():
+            self.arms[name].place(q)
+        nearest = {name: math.inf for name in self.arms}
+        measured: dict[tuple[str, str], tuple[float, np.ndarray, np.ndarray]] = {}
         for gap, a, b in self._pairs_by_bound():
-            if (a, b) in out or gap > max(nearest[a], nearest[b]) + 1e-9:
-                continue
-            d, p_a, p_b = closest_points(self.arms[a], self.arms[b])
-            if abs(d - nearest[a]) < 1e-9 or abs(d - nearest[b]) < 1e-9:
-                out[(a, b)] = NearestPair(a, b, d, p_a, p_b)
-        return sorted(out.values(), key=lambda p: p.distance_m)
+            worse = max(nearest[a], nearest[b]) + TIE_M  # a pair as near as another (within TIE_M) is one too
+            if gap >= worse:
+                continue  # cannot be nearer than what both already have
+            found = closest_points_below(self.arms[a], self.arms[b], worse)
+            if found is not None:
+                measured[(a, b)] = found
+                nearest[a], nearest[b] = min(nearest[a], found[0]), min(nearest[b], found[0])
+        out = [
+            NearestPair(a, b, d, p_a, p_b)
+            for (a, b), (d, p_a, p_b) in measured.items()
+            if abs(d - nearest[a]) < TIE_M or abs(d - nearest[b]) < TIE_M
+        ]
+        return sorted(out, key=lambda p: p.distance_m)
 
     def _pairs_by_bound(self, gaps: np.ndarray | None = None) -> list[tuple[float, str, str]]:
         """Every pair of arms as placed now, nearest first by a lower bound on their distance (their shapes'

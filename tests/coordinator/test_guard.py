@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from coordinator.geometry import ArmGeometry, separation_m
+from coordinator.geometry import ArmGeometry, closest_points, separation_m
 from coordinator.guard import CollisionGuard, TimedPath
 from robots.frames import yaw_transform
 from robots.registry import get_robot
@@ -130,3 +130,33 @@ def test_the_local_stage_after_a_move_is_checked_and_held_by_its_grant():
     assert "arm_0" in guard.grants, "the grant lasts until the local stage is over"
     guard.expire(2.1)
     assert "arm_0" not in guard.grants
+
+
+def test_each_arms_nearest_pair_comes_with_its_nearest_points_as_measured_pair_by_pair():
+    """`nearest_pairs` measures in one bounded pass; every arm's nearest other arm (ties included), once, nearest
+    first, is what measuring every pair exactly gives, with the same distance and nearest points."""
+    spec = get_robot("openclaw")
+    bases = [(0.0, 0.0), (0.55, 0.0), (1.1, 0.0), (1.65, 0.0), (3.0, 0.0)]
+    arms = {
+        f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, y, 0.0), np.pi * (i % 2)))
+        for i, (x, y) in enumerate(bases)
+    }
+    guard = CollisionGuard(arms)
+    lower, upper = np.array([-1.5, -0.3, -0.3, -1.0, -0.8, -1.0]), np.array([1.5, 1.2, 1.2, 1.0, 0.8, 1.0])
+    rng = np.random.default_rng(5)
+    states = [{name: HOME for name in arms}]  # every arm at home: neighbours equally near (ties)
+    states += [{name: rng.uniform(lower, upper) for name in arms} for _ in range(25)]
+    for state in states:
+        for name, q in state.items():
+            guard.set_state(name, q)
+        got = guard.nearest_pairs()
+        exact = {(a, b): closest_points(arms[a], arms[b]) for a in arms for b in arms if a < b}
+        nearest = {n: min(d for pair, (d, _, _) in exact.items() if n in pair) for n in arms}
+        want = {pair for pair, (d, _, _) in exact.items() if any(abs(d - nearest[n]) < 1e-9 for n in pair)}
+        assert {(p.a, p.b) for p in got} == want
+        assert [p.distance_m for p in got] == sorted(p.distance_m for p in got)
+        for p in got:
+            d, p_a, p_b = exact[(p.a, p.b)]
+            assert p.distance_m == pytest.approx(d, abs=1e-9)
+            np.testing.assert_allclose(p.point_a, p_a, atol=1e-9)
+            np.testing.assert_allclose(p.point_b, p_b, atol=1e-9)
