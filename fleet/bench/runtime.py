@@ -187,6 +187,39 @@ def bench_run(
     )
 
 
+def plot_run_rows(rows: list[RunRow], path: Path) -> Path:
+    """Wall time over raw physics (still, and the replay of the same motion) and sim seconds per wall second,
+    against the number of arms."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    arms = [r.arms for r in rows]
+    fig, (ratio, speed) = plt.subplots(1, 2, figsize=(9, 3.6))
+    ratio.plot(arms, [r.ratio_to_physics for r in rows], "o-", label="wall / raw physics (arms still)")
+    ratio.plot(arms, [r.ratio_to_replay for r in rows], "s-", label="wall / replay (same motion)")
+    ratio.axhline(1.7, color="grey", ls="--", lw=1, label="goal 1.7")
+    ratio.set_xlabel("arms")
+    ratio.set_ylim(bottom=0)
+    ratio.legend(fontsize=8)
+    speed.plot(arms, [r.realtime_factor for r in rows], "o-", color="#55A868")
+    speed.axhline(2.0, color="grey", ls="--", lw=1, label="2x real time")
+    speed.set_xlabel("arms")
+    speed.set_ylabel("sim s per wall s")
+    speed.set_yscale("log")
+    speed.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+    speed.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    speed.set_yticks([1, 2, 5, 10, 20])
+    speed.legend(fontsize=8)
+    fig.suptitle(f"fleet run {SCENE} --arms N, {rows[0].sim_seconds:.0f} s of sim time", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 @dataclass(frozen=True)
 class LineRow:
     scene: str

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from pathlib import Path
 
 from rich.table import Table
 
@@ -61,7 +62,7 @@ def cmd_bench_bus(args: argparse.Namespace) -> int:
 
 
 def cmd_bench_run(args: argparse.Namespace) -> int:
-    from fleet.bench.runtime import bench_run
+    from fleet.bench.runtime import bench_run, plot_run_rows
 
     table = Table(
         "arms",
@@ -95,6 +96,8 @@ def cmd_bench_run(args: argparse.Namespace) -> int:
             "-" if row.decision_p99_ms is None else f"{row.decision_p99_ms:.1f}",
         )
     out.print(table)
+    if args.plot:
+        err.print(f"figure: {plot_run_rows(rows, Path(args.plot))}", highlight=False)
     if args.json:
         print(
             json.dumps(
@@ -369,6 +372,7 @@ def _add_run(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--arms", type=int, nargs="+", default=[1, 2, 4, 8])
     b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per run")
     b.add_argument("--repeats", type=int, default=3, help="runs per arm count (medians)")
+    b.add_argument("--plot", metavar="FILE", help="draw the ratios and the speed against arms to FILE (.png)")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_run)
 
