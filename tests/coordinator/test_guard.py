@@ -80,21 +80,27 @@ def test_free_paths_of_both_arms_are_granted_at_once():
     assert guard.request(TimedPath("arm_1", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0)).granted
 
 
+POSE_RANGE = (np.array([-1.5, -0.3, -0.3, -1.0, -0.8, -1.0]), np.array([1.5, 1.2, 1.2, 1.0, 0.8, 1.0]))
+
+
+def row_of_arms(xs_m: list[float]) -> dict[str, ArmGeometry]:
+    """OpenClaw arms along x, every other one turned to face the one before."""
+    spec = get_robot("openclaw")
+    return {
+        f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, 0.0, 0.0), np.pi * (i % 2)))
+        for i, x in enumerate(xs_m)
+    }
+
+
 def test_nearest_other_with_a_cap_is_the_exact_distance_or_the_cap():
     """The capped query skips what cannot come under the cap; what it returns is min(exact distance, cap)."""
-    spec = get_robot("openclaw")
-    bases = [(0.0, 0.0), (0.55, 0.0), (1.1, 0.0), (3.0, 0.0)]  # the last one stands far from the rest
-    arms = {
-        f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, y, 0.0), np.pi * (i % 2)))
-        for i, (x, y) in enumerate(bases)
-    }
+    arms = row_of_arms([0.0, 0.55, 1.1, 3.0])  # the last one stands far from the rest
     guard = CollisionGuard(arms)
-    lower, upper = np.array([-1.5, -0.3, -0.3, -1.0, -0.8, -1.0]), np.array([1.5, 1.2, 1.2, 1.0, 0.8, 1.0])
     rng = np.random.default_rng(3)
     capped_somewhere = measured_somewhere = False
     for _ in range(30):
         for name in arms:
-            guard.set_state(name, rng.uniform(lower, upper))
+            guard.set_state(name, rng.uniform(*POSE_RANGE))
         for cap in (0.05, 0.2):
             got = guard.nearest_other_m(cap_m=cap)  # places every arm at its state, as the exact distances below need
             for name in arms:
@@ -135,17 +141,11 @@ def test_the_local_stage_after_a_move_is_checked_and_held_by_its_grant():
 def test_each_arms_nearest_pair_comes_with_its_nearest_points_as_measured_pair_by_pair():
     """`nearest_pairs` measures in one bounded pass; every arm's nearest other arm (ties included), once, nearest
     first, is what measuring every pair exactly gives, with the same distance and nearest points."""
-    spec = get_robot("openclaw")
-    bases = [(0.0, 0.0), (0.55, 0.0), (1.1, 0.0), (1.65, 0.0), (3.0, 0.0)]
-    arms = {
-        f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((x, y, 0.0), np.pi * (i % 2)))
-        for i, (x, y) in enumerate(bases)
-    }
+    arms = row_of_arms([0.0, 0.55, 1.1, 1.65, 3.0])
     guard = CollisionGuard(arms)
-    lower, upper = np.array([-1.5, -0.3, -0.3, -1.0, -0.8, -1.0]), np.array([1.5, 1.2, 1.2, 1.0, 0.8, 1.0])
     rng = np.random.default_rng(5)
     states = [{name: HOME for name in arms}]  # every arm at home: neighbours equally near (ties)
-    states += [{name: rng.uniform(lower, upper) for name in arms} for _ in range(25)]
+    states += [{name: rng.uniform(*POSE_RANGE) for name in arms} for _ in range(25)]
     for state in states:
         for name, q in state.items():
             guard.set_state(name, q)
