@@ -25,9 +25,7 @@ import robots.registry
 from fleet.run.node_factory import close_kept_factory, keep_factory
 from tests.ray_namespace import loopback_namespace, start_head
 
-# test files (or folders) that run against the wall clock: beside no line under xdist. A lockstep line is not one of
-# them: beside another it waits longer for its processes, never differently (its wall-clock limits, 1 s for a
-# controller's answer and 3 s for the coordinator's, are about a hundred times a loaded machine's answer)
+# test files (or folders) that run against the wall clock: alone on the machine under xdist
 WALL_TIME = (
     "tests/fleet/monitor/",  # browsers, a realtime line, the monitor's pacing
     "tests/fleet/ros/",  # realtime lines served to ROS clients
@@ -42,8 +40,12 @@ WALL_TIME = (
     "tests/fleet/env/test_distributed.py",
     "tests/fleet/env/test_watch.py",
     "tests/fleet/test_run.py",  # realtime pacing, hung and killed nodes, the e-stop
+    "tests/fleet/test_pipelined_run.py",  # three lines at once must never wait out a lockstep step
     "tests/fleet/test_allocator_plugins.py",  # a plug-in's 50 ms budget
     "tests/fleet/test_goal_storm.py",
+    "tests/fleet/test_secure_bus.py",
+    "tests/fleet/test_bus_lies.py",
+    "tests/fleet/test_rightful_lies.py",
     "tests/fleet/test_bus_fuzz.py",
 )
 # tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
