@@ -34,7 +34,6 @@ WALL_TIME = (
     "tests/fleet/nodes/",  # watchdogs, faults in wall time, processes killed mid-run
     "tests/fleet/run/",  # the node factory's processes, killed launchers
     "tests/fleet/bus/test_session.py",
-    "tests/fleet/bus/test_faults.py",
     "tests/fleet/bus/test_lockstep.py",
     "tests/fleet/bus/test_router_audit.py",
     "tests/fleet/env/test_distributed.py",
