@@ -20,6 +20,7 @@ waits cannot form a cycle: the classic crossing case resolves in request order.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -158,42 +159,50 @@ class CollisionGuard:
         """Each arm's distance to its nearest other arm, at the current states; a pair is measured only if it
         could beat what one of its two arms already has. With `cap_m`, distances at or beyond it read `cap_m`
         (a pair whose bound is past the cap is not measured at all)."""
-        for name, q in self.state.items():
-            self.arms[name].place(q)
-        out = {name: cap_m for name in self.arms}
-        gaps = self._bounds.gaps_m()
-        rows, cols = self._upper
-        if rows.size == 0 or gaps[rows, cols].min() >= cap_m:
-            return out  # every pair is beyond the cap: nothing to measure
-        for gap, a, b in self._pairs_by_bound(gaps):
-            worse = max(out[a], out[b])
-            if gap >= worse:
-                continue  # cannot be nearer than what both already have
-            d = separation_m(self.arms[a], self.arms[b], below_m=worse)
-            out[a], out[b] = min(out[a], d), min(out[b], d)
-        return out
+
+        def distance(a: ArmGeometry, b: ArmGeometry, below_m: float) -> tuple[float] | None:
+            d = separation_m(a, b, below_m=below_m)
+            return None if math.isinf(d) else (d,)
+
+        return self._nearest_pass(distance, cap_m)[0]
 
     def nearest_pairs(self) -> list[NearestPair]:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among
-        them. One pass, as `nearest_other_m` measures, with the nearest points of each pair measured."""
-        for name, q in self.state.items():
-            self.arms[name].place(q)
-        nearest = {name: math.inf for name in self.arms}
-        measured: dict[tuple[str, str], tuple[float, np.ndarray, np.ndarray]] = {}
-        for gap, a, b in self._pairs_by_bound():
-            worse = max(nearest[a], nearest[b]) + TIE_M  # a pair as near as another (within TIE_M) is one too
-            if gap >= worse:
-                continue  # cannot be nearer than what both already have
-            found = closest_points_below(self.arms[a], self.arms[b], worse)
-            if found is not None:
-                measured[(a, b)] = found
-                nearest[a], nearest[b] = min(nearest[a], found[0]), min(nearest[b], found[0])
+        them. The pass of `nearest_other_m`, with the nearest points of each pair it measures."""
+        nearest, measured = self._nearest_pass(closest_points_below, math.inf, TIE_M)
         out = [
             NearestPair(a, b, d, p_a, p_b)
             for (a, b), (d, p_a, p_b) in measured.items()
             if abs(d - nearest[a]) < TIE_M or abs(d - nearest[b]) < TIE_M
         ]
         return sorted(out, key=lambda p: p.distance_m)
+
+    def _nearest_pass(
+        self,
+        measure: Callable[[ArmGeometry, ArmGeometry, float], tuple | None],
+        cap_m: float,
+        tie_m: float = 0.0,
+    ) -> tuple[dict[str, float], dict[tuple[str, str], tuple]]:
+        """Each arm's nearest distance (at most `cap_m`) and what `measure(a, b, below_m)` said of each pair it was
+        asked about (its first item the distance; None: not below): pairs nearest first by their bound, a pair asked
+        only if it could come within `tie_m` of what one of its two arms already has."""
+        for name, q in self.state.items():
+            self.arms[name].place(q)
+        nearest = {name: cap_m for name in self.arms}
+        measured: dict[tuple[str, str], tuple] = {}
+        gaps = self._bounds.gaps_m()
+        rows, cols = self._upper
+        if rows.size == 0 or gaps[rows, cols].min() >= cap_m:
+            return nearest, measured  # every pair is beyond the cap: nothing to measure
+        for gap, a, b in self._pairs_by_bound(gaps):
+            worse = max(nearest[a], nearest[b]) + tie_m
+            if gap >= worse:
+                continue  # cannot be nearer than what both already have
+            found = measure(self.arms[a], self.arms[b], worse)
+            if found is not None:
+                measured[(a, b)] = found
+                nearest[a], nearest[b] = min(nearest[a], found[0]), min(nearest[b], found[0])
+        return nearest, measured
 
     def _pairs_by_bound(self, gaps: np.ndarray | None = None) -> list[tuple[float, str, str]]:
         """Every pair of arms as placed now, nearest first by a lower bound on their distance (their shapes'
