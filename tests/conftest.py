@@ -25,7 +25,7 @@ import robots.registry
 from fleet.run.node_factory import close_kept_factory, keep_factory
 from tests.ray_namespace import loopback_namespace, start_head
 
-# test files (or folders) that run against the wall clock: alone on the machine under xdist
+# test files (or folders) that run against the wall clock: under xdist, beside no test that runs lines
 WALL_TIME = (
     "tests/fleet/monitor/",  # browsers, a realtime line, the monitor's pacing
     "tests/fleet/ros/",  # realtime lines served to ROS clients

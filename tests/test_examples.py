@@ -16,7 +16,6 @@ from tests.ray_namespace import in_netns
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-RLLIB = ("rllib_masked_task_allocator", "rllib_per_arm")
 
 
 def example(script: str, *args: str, netns: bool = False) -> list[str]:

@@ -106,8 +106,9 @@ class Supervision:
                     f"the coordinator crashed (exit {coordinator_code}); starting another to take over the line"
                 )
                 self._restart(coordinator)
-            for node in gone if self.options.respawn else []:
-                self._restart(node)
+            if self.options.respawn:
+                for node in gone:
+                    self._restart(node)
             time.sleep(0.02)
         return ""
 
