@@ -162,6 +162,17 @@ class ArmGeometry:
         self.reach_bound_m = _REACH_BOUND_M[spec.uid]
         self.place(np.asarray(spec.home_q, float))
 
+    def __getstate__(self) -> dict:
+        """Everything but the FCL objects (they do not pickle): a run's snapshot holds its guards."""
+        return {k: v for k, v in vars(self).items() if k not in ("shapes", "_objects")}
+
+    def __setstate__(self, state: dict) -> None:
+        """The FCL objects made again from the robot's URDF; each takes its pose when next measured."""
+        vars(self).update(state)
+        self.shapes = link_shapes(self.spec)
+        self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
+        self._posed = [False] * len(self.shapes)
+
     def joint_levers_m(self) -> np.ndarray:
         """For each arm joint (spec order), how far from its origin any shape it carries can be, in any
         configuration: the chain's fixed offsets from it to the shape's link, plus the shape's offset and radius.

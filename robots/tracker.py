@@ -54,6 +54,11 @@ class PlannedGoal:
         return self.active.spline
 
 
+def mean_opening(gripper_q: np.ndarray) -> float:
+    """A gripper's opening read as the mean of its joints (a gripper whose joints run 0 closed to 1 open)."""
+    return float(np.mean(gripper_q))
+
+
 class ArmTracker(GripperTracking):
     """One arm: joint names and limits in the arm's order, the gripper's opening read through `opening_of`."""
 
@@ -72,7 +77,7 @@ class ArmTracker(GripperTracking):
         self.servo_period_s = servo_period_s  # ticks at multiples of it read the trajectory from a grid built once
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         self.hold_q = np.asarray(hold_q, float).copy()
-        self.opening_of = opening_of or (lambda gripper_q: float(np.mean(gripper_q)))
+        self.opening_of = opening_of or mean_opening
         self.default_effort_n = default_effort_n
         self.active: _Active | None = None
         self.next: _Active | None = None  # accepted with a start time still ahead: the current path runs until then

@@ -40,13 +40,13 @@ SERVICE_NODES = (
 ANY_RUN = f"{ROOT}/*"
 # what each client may publish (ingress at the router); `{arm}` is the controller's own arm
 PUBLISHES = {
-    "coordinator": ("arm/*/assign", "coord/**"),
+    "coordinator": ("arm/*/assign", "coord/**", "snapshot/coordinator"),
     "monitor": ("estop", "world/control", "launcher/respawn"),
     "recorder": ("recorder/ready",),
     "launcher": ("launcher/roster",),
     "ros": ("arm/*/drive", "estop", "world/control"),  # the ROS front ends: outside goals, e-stop, pause
     "ros_client": (),  # a ROS 2 stack: nothing of clawfleet's own; the line's ROS services and actions (`--ros2`)
-    "controller": ("arm/{arm}/step", "arm/{arm}/goal", "arm/{arm}/status"),
+    "controller": ("arm/{arm}/step", "arm/{arm}/goal", "arm/{arm}/status", "snapshot/{arm}"),
 }
 
 

@@ -120,6 +120,18 @@ class Keys:
         return f"{ROOT}/{self.run}/launcher/roster"
 
     @property
+    def snapshot_ask(self) -> str:
+        """The sim's `SnapshotAsk`: every node's state for a snapshot of the run (not recorded)."""
+        return f"{ROOT}/{self.run}/world/snapshot"
+
+    def snapshot_part(self, node: str) -> str:
+        """A node's `SnapshotPart` (`coordinator` or an arm id) for the sim's snapshot (not recorded)."""
+        return f"{ROOT}/{self.run}/snapshot/{node}"
+
+    def snapshot_parts(self) -> str:
+        return f"{ROOT}/{self.run}/snapshot/*"
+
+    @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"
 

@@ -359,6 +359,34 @@ class RespawnRequest(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
+class SnapshotAsk(Message, frozen=True, array_like=True):
+    """Sim -> nodes, at a lockstep tick boundary with every answer in: send your state as of `tick`. The coordinator
+    is asked first (`node` "coordinator") once it has every line event published so far (`events`); then the
+    controllers (`node` "controllers"), each once it has the orders the coordinator sent it (`orders`, by arm in the
+    scene's order) and the parts message of `parts_tick` (-1: none yet)."""
+
+    tick: int
+    node: str
+    events: int = 0
+    orders: tuple[int, ...] = ()
+    parts_tick: int = -1
+    version: int = PROTOCOL_VERSION
+
+
+class SnapshotPart(Message, frozen=True, array_like=True):
+    """Node -> sim: its state for the snapshot of `tick` (`state`, opaque to everyone but the node), or why it has
+    none (`error`); the coordinator adds the newest order it sent each arm (`orders`, scene order). Sent again with
+    `restored` and no state by a node started from a snapshot, once it has put its state back."""
+
+    node: str
+    tick: int
+    state: bytes = b""
+    error: str = ""
+    orders: tuple[int, ...] = ()
+    restored: bool = False
+    version: int = PROTOCOL_VERSION
+
+
 def wire_layout(message_type: type[Message]) -> str:
     """How `message_type` goes on the wire: one MessagePack array, its tag first where it has one, then its fields
     in this order (trailing fields with defaults may be left out). `docs/protocol.md` lists every type's."""
@@ -422,4 +450,6 @@ MESSAGE_TYPES = (
     Roster,
     EnvAction,
     EnvTargets,
+    SnapshotAsk,
+    SnapshotPart,
 )

@@ -29,6 +29,7 @@ from fleet.cli.errors import (
     writable_file,
 )
 from fleet.cli.ros import checked_rate
+from fleet.cli.run_snapshots import add_snapshot_arguments, check_snapshot_flags, open_snapshot, snapshot_options
 from fleet.common.scene_loading import load_scene
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from fleet.nodes.attached import add_rate_argument
@@ -177,6 +178,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         bus_config=args.bus_config,
         hosts=args.hosts,
         insecure=args.insecure,
+        **snapshot_options(args),
     )
 
 
@@ -192,9 +194,19 @@ def bus_line(launcher, run_id: str) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    _, folder = open_snapshot(args)
+    try:
+        return _run(args)
+    finally:
+        if folder is not None:
+            folder.cleanup()
+
+
+def _run(args: argparse.Namespace) -> int:
     from fleet.run.launcher import Launcher
 
     check_run_flags(args)
+    check_snapshot_flags(args)
     scene = load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
     check_ros2_flags(args, [a.name for a in scene.arms])
     check_placement_flags(args)
@@ -354,11 +366,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
 def _add_run(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run the line: sim server, coordinator and one controller per arm as processes")
-    p.add_argument(
-        "scene", nargs="?", default="assembly_line", help="bundled scene name or scene file (default assembly_line)"
-    )
+    p.add_argument("scene", nargs="?", help="bundled scene name or scene file (default assembly_line)")
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
-    p.add_argument("--duration", type=float, default=120.0, help="sim seconds to run (default 120)")
+    p.add_argument("--duration", type=float, default=None, help="sim seconds to run (default 120)")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
     p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
@@ -400,6 +410,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots",
     )
+    add_snapshot_arguments(p)
     _add_placement_arguments(p)
     _add_rosbridge_arguments(p)
     add_monitor_arguments(p)

@@ -42,6 +42,9 @@ from fleet.bus.plausible import Incarnations, TickClock
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
+from fleet.snapshot.node_desk import SnapshotDesk
+from fleet.snapshot.process_state import StateError, capture, restore
+from fleet.snapshot.snapshot_file import SnapshotError, node_state
 from robots.frames import yaw_transform
 from robots.phase import Phase
 from robots.registry import get_robot
@@ -50,6 +53,19 @@ from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
 from scenes.schema import Arm, Scene
 
 HEARTBEAT_S = 0.2  # wall seconds between heartbeats, on their own timer whatever the state traffic
+# what belongs to this process alone, never in a snapshot: its bus handles and queues
+CONTROLLER_LIVE = (
+    "session",
+    "keys",
+    "_decoders",
+    "wake",
+    "_inboxes",
+    "_subs",
+    "_step_pub",
+    "_goal_pub",
+    "_status_pub",
+    "snapshot_desk",
+)
 
 
 def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
@@ -116,6 +132,7 @@ class ArmController(ControllerOrders):
         decl = arm_declaration(scene, arm, rate_hz)
         self.holders = Incarnations(from_roster=roster)  # which coordinator's orders to believe
         self.arm, self.keys, self.session = arm, keys, session
+        self.arm_index = [a.name for a in scene.arms].index(arm)  # its place in the coordinator's order counts
         self.spec = get_robot(decl.model)
         self.period_ticks = max(1, round(scene.control_hz / rate_hz))
         self.hz = scene.control_hz
@@ -168,6 +185,7 @@ class ArmController(ControllerOrders):
         self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
         self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
         self._status_pub = session.declare_publisher(keys.arm_status(self.arm))
+        self.snapshot_desk = SnapshotDesk(session, keys, self.arm, "controllers", self.drops, self.wake)
 
     def report(self) -> dict:
         """The controller's figures at the end of a run."""
@@ -189,6 +207,32 @@ class ArmController(ControllerOrders):
             sub.undeclare()
         for pub in (self._step_pub, self._goal_pub, self._status_pub):
             pub.undeclare()
+        self.snapshot_desk.close()
+
+    # --- snapshots ------------------------------------------------------------------
+    def snapshot_ready(self, ask) -> bool:
+        """Whether every order the coordinator sent this arm and the newest parts message are in (the sim asks once
+        it has every answer: nothing else is on its way)."""
+        self._take_assignments()
+        for msg in self._believable("parts", self._problem):
+            self.sim_clock.believe(msg.tick)
+            self.parts_seen.append(msg)
+        sent = ask.orders[self.arm_index] if self.arm_index < len(ask.orders) else 0
+        parts_in = ask.parts_tick < 0 or (bool(self.parts_seen) and self.parts_seen[-1].tick >= ask.parts_tick)
+        return (self.assign_seq or 0) >= sent and parts_in
+
+    def snapshot_capture(self, ask) -> tuple[bytes, tuple]:
+        """This controller's state, written and put back (so it goes on exactly as a controller restored from it)."""
+        state = capture(self, CONTROLLER_LIVE)
+        self.restore_state(state)
+        return state, ()
+
+    def restore_state(self, state: bytes) -> None:
+        """Put back a state from `snapshot_capture` (this process's bus handles stay)."""
+        restore(self, state)
+        for decoder in self._decoders.values():
+            decoder.drops = self.drops
+        self.snapshot_desk.use_drops(self.drops)
 
     def _parts_for_tick(self, tick: int) -> None:
         """The parts as of `tick` (the newest sampled no later: a state delayed on the bus is matched with the parts
@@ -210,6 +254,8 @@ class ArmController(ControllerOrders):
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
+        if self.snapshot_desk.serve(self.snapshot_ready, self.snapshot_capture):
+            return True
         state = self._latest("state")
         self._take_assignments()
         if state is None or state.tick in self.answered:
@@ -352,6 +398,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO); falls back with a warning"
     )
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
+    parser.add_argument(
+        "--from", dest="from_snapshot", metavar="SNAPSHOT", help="start from this arm's state in a run's snapshot"
+    )
     add_bus_arguments(parser)
     return parser
 
@@ -374,6 +423,15 @@ def main(argv: list[str] | None = None) -> int:
             incarnation=args.incarnation,
             roster=args.roster,
         )
+        if args.from_snapshot:
+            try:
+                snapshot, state = node_state(args.from_snapshot, args.arm)
+                controller.restore_state(state)
+            except (SnapshotError, StateError) as exc:
+                print(f"arm_controller: {exc}", file=sys.stderr)
+                controller.close()
+                return 2
+            controller.snapshot_desk.back(snapshot.tick)
         beats = Heartbeat(controller)  # liveness on its own thread and clock, however long a decision takes
         try:
             while not stop.should_stop():

@@ -52,12 +52,27 @@ from fleet.nodes.coordinator_beats import CoordinatorBeats
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
+from fleet.snapshot.node_desk import SnapshotDesk
+from fleet.snapshot.process_state import StateError, capture, restore
+from fleet.snapshot.snapshot_file import SnapshotError, node_state
 from robots.registry import get_robot
 from scenes.schema import Scene
 
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
+# what belongs to this process alone, never in a snapshot: its bus handles and queues
+COORDINATOR_LIVE = (
+    "keys",
+    "_decoders",
+    "inbox",
+    "_subs",
+    "_assign_pubs",
+    "_tick_pub",
+    "_progress_pub",
+    "_separation_pub",
+    "snapshot_desk",
+)
 
 
 class CoordinatorNode(CoordinatorBeats):
@@ -118,6 +133,7 @@ class CoordinatorNode(CoordinatorBeats):
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
+        self.snapshot_desk = SnapshotDesk(session, keys, "coordinator", "coordinator", self.drops, self.inbox.wake)
 
     @property
     def events_seen(self) -> int:
@@ -128,6 +144,29 @@ class CoordinatorNode(CoordinatorBeats):
             sub.undeclare()
         for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub, self._separation_pub]:
             pub.undeclare()
+        self.snapshot_desk.close()
+
+    # --- snapshots ------------------------------------------------------------------
+    def snapshot_capture(self, ask) -> tuple[bytes, tuple]:
+        """The coordinator's state (ledger, dispatcher, guard, allocator), written and put back, and the newest
+        order it sent each arm (the controllers' parts wait for them)."""
+        state = capture(self, COORDINATOR_LIVE)
+        self.restore_state(state)
+        return state, tuple(self.assign_seq[a] for a in self.arm_names)
+
+    def restore_state(self, state: bytes, allocator: Allocator | None = None) -> None:
+        """Put back a state from `snapshot_capture` (this process's bus handles stay); with `allocator`, it allocates
+        from here on (a branch). Wall-clock stamps start afresh: a heartbeat heard before is no silence now."""
+        restore(self, state)
+        for decoder in self._decoders.values():
+            decoder.drops = self.drops
+        self.snapshot_desk.use_drops(self.drops)
+        if allocator is not None:
+            self.dispatcher.allocator = allocator
+        now = time.monotonic()
+        self._frame_at = self._progress_at = now
+        self.heartbeat_at = {arm: now for arm in self.heartbeat_at}
+        self._heard_at = {arm: now for arm in self._heard_at}
 
     def wait(self, timeout_s: float) -> None:
         """Sleep until a message arrives (heartbeat checks still run every `timeout_s`)."""
@@ -160,6 +199,7 @@ class CoordinatorNode(CoordinatorBeats):
                 self._on_status(key, msg)
         self._check_heartbeats()
         self._decide_when_complete()
+        self.snapshot_desk.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_capture)
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)
@@ -323,6 +363,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="believe only the controllers' starts the launcher's roster names (`fleet run` sets it)",
     )
+    parser.add_argument(
+        "--from",
+        dest="from_snapshot",
+        metavar="SNAPSHOT",
+        help="start from the coordinator's state in a run's snapshot (another --allocator than the snapshot's "
+        "allocates from there on)",
+    )
     add_bus_arguments(parser)
     return parser
 
@@ -354,7 +401,15 @@ def main(argv: list[str] | None = None) -> int:
         )
         _ = node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:
-            if args.incarnation > 1:
+            if args.from_snapshot:
+                try:
+                    snapshot, state = node_state(args.from_snapshot, "coordinator")
+                    node.restore_state(state, allocator if args.allocator != snapshot.allocator else None)
+                except (SnapshotError, StateError) as exc:
+                    print(f"coordinator: {exc}", file=sys.stderr, flush=True)
+                    return 2
+                node.snapshot_desk.back(snapshot.tick)
+            elif args.incarnation > 1:
                 try:
                     node.take_over(session)
                 except HistoryUnavailable as exc:

@@ -30,6 +30,7 @@ import json
 import math
 import sys
 import threading
+from pathlib import Path
 
 import numpy as np
 import zenoh
@@ -41,7 +42,10 @@ from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
 from fleet.sim.server import COORDINATOR_TIMEOUT_S, SimServer
+from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, await_restored, restore_sim
 from fleet.sim.world import World
+from fleet.snapshot.process_state import StateError
+from fleet.snapshot.snapshot_file import SceneSource, SnapshotError, node_state
 
 
 def save_target_log(path: str, log: list) -> None:
@@ -125,9 +129,51 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the endpoint it listens on to this file once it does (without --listen or "
         "--zenoh-config: a free loopback port)",
     )
+    add_snapshot_arguments(parser)
     add_fault_arguments(parser)
     add_bus_arguments(parser)
     return parser
+
+
+def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
+    """Snapshots of the run (lockstep): when to take them, where to write them; and a run started from one."""
+    parser.add_argument(
+        "--snapshot-at", metavar="S,S,...", default="", help="take a snapshot of the run at these sim seconds"
+    )
+    parser.add_argument("--snapshot-every", type=float, metavar="S", help="take a snapshot every S sim seconds")
+    parser.add_argument("--snapshot-dir", metavar="DIR", help="where snapshots are written")
+    parser.add_argument("--allocator", default="optimal", help="the coordinator's allocator (written in snapshots)")
+    parser.add_argument(
+        "--from", dest="from_snapshot", metavar="SNAPSHOT", help="start from the sim's state in a run's snapshot"
+    )
+
+
+def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: int) -> None:
+    """Snapshots due at `--snapshot-at` and every `--snapshot-every` (both in sim seconds), into `--snapshot-dir`."""
+    hz = server.world.scene_model.control_hz
+    at = [float(v) for v in args.snapshot_at.split(",") if v.strip()]
+    if not (at or args.snapshot_every) or not args.snapshot_dir:
+        return
+    facts = RunFacts(
+        server.world.scene_model.name, SceneSource.of(args.scene, args.arms, args.seed), args.allocator, total_ticks
+    )
+    every = round(args.snapshot_every * hz) if args.snapshot_every else 0
+    server.snapshots = SimSnapshots(server, facts, Path(args.snapshot_dir), {round(t * hz) for t in at}, every)
+
+
+def restore_from(server: SimServer, path: str) -> str:
+    """Put the sim back to its state in the snapshot at `path`, then hold until every node says it is back too;
+    why it could not ("" when it could)."""
+    try:
+        snapshot, state = node_state(path, "sim")
+        restore_sim(server, state)
+    except (SnapshotError, StateError) as exc:
+        return str(exc)
+    if server.snapshots is not None:
+        server.snapshots.last_tick = snapshot.tick
+    nodes = (["coordinator"] if server.coordinator else []) + [n for n, link in server.links.items() if not link.lost]
+    missing = await_restored(server, snapshot.tick, nodes)
+    return f"{', '.join(missing)} did not start from the snapshot" if missing else ""
 
 
 def open_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
@@ -148,7 +194,7 @@ def serve(server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: in
         print(f"sim_server: no recorder said it listens within {args.await_recorder:.0f} s", file=sys.stderr)
         return 1
     try:
-        server.run_ticks(ticks)
+        server.run_ticks(ticks - server.world.tick)
         if not stop.should_stop() and server.world.tick >= ticks:
             server.announce_the_rest()
             server.settle()
@@ -200,7 +246,15 @@ def main(argv: list[str] | None = None) -> int:
             speed=args.speed,
         )
         server.spool = spool
-        return serve(server, args, stop, math.ceil(args.duration * scene.control_hz - 1e-9))
+        ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
+        attach_snapshots(server, args, ticks)
+        if args.from_snapshot:
+            why = restore_from(server, args.from_snapshot)
+            if why:
+                server.close()
+                print(f"sim_server: {why}", file=sys.stderr)
+                return 2
+        return serve(server, args, stop, ticks)
 
 
 if __name__ == "__main__":

@@ -84,6 +84,10 @@ class RunOptions:
     latency_ms: float | None = None  # network faults on every link (None: the scene's)
     jitter_ms: float | None = None
     loss: float | None = None
+    snapshot_at: tuple[float, ...] = ()  # sim seconds at which the sim takes a snapshot of the run (lockstep)
+    snapshot_every_s: float | None = None
+    snapshot_dir: str | None = None  # where snapshots are written
+    restore_from: str | None = None  # a snapshot every node starts from (`scene` is then the one it holds)
 
 
 class RunError(RuntimeError):

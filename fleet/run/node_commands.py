@@ -73,7 +73,22 @@ class NodeCommands:
         for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
             if value is not None:
                 sim_args += [flag, repr(value)]
+        sim_args += ["--allocator", o.allocator, *self._snapshot_args()]
+        if o.restore_from:
+            sim_args += ["--from", o.restore_from]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
+
+    def _snapshot_args(self) -> list[str]:
+        """The sim's snapshot flags: when (sim seconds) and where."""
+        o = self.options
+        if not o.snapshot_dir or not (o.snapshot_at or o.snapshot_every_s):
+            return []
+        args = ["--snapshot-dir", o.snapshot_dir]
+        if o.snapshot_at:
+            args += ["--snapshot-at", ",".join(repr(t) for t in o.snapshot_at)]
+        if o.snapshot_every_s:
+            args += ["--snapshot-every", repr(o.snapshot_every_s)]
+        return args
 
     def client_nodes(self) -> list[Node]:
         """The coordinator and one controller per arm, connecting to the sim's endpoint."""
@@ -83,17 +98,21 @@ class NodeCommands:
                 "coordinator",
                 "coordinator",
                 "fleet.nodes.coordinator_node",
-                ["--mode", o.mode, "--allocator", o.allocator, "--roster", *([] if o.pipeline else ["--no-pipeline"])],
+                ["--mode", o.mode, "--allocator", o.allocator, "--roster", *([] if o.pipeline else ["--no-pipeline"])]
+                + self._from(),
             )
         ]
         nodes[0].counts_starts = True  # `--incarnation N`: from the 2nd start on, it takes over the running line
         for arm in self.scene.arms:
             grants = ["--grants"] if moves_need_grants(self.scene) else []  # a lone arm has nobody to ask about
-            extra = ["--arm", arm.name, "--roster", *grants] + (["--rt"] if o.realtime_priority else [])
+            extra = ["--arm", arm.name, "--roster", *grants] + (["--rt"] if o.realtime_priority else []) + self._from()
             node = self._node("controller", arm.name, "fleet.nodes.arm_controller", extra)
             node.counts_starts = True
             nodes.append(node)
         return nodes
+
+    def _from(self) -> list[str]:
+        return ["--from", self.options.restore_from] if self.options.restore_from else []
 
     def _attached_node(self, role: str, module: str, login: str, extra: list[str], url: bool = False) -> Node:
         """A node that attaches to the running line over the bus with `login` (it asks the sim for the scene, so

@@ -102,6 +102,7 @@ class SimServer(SimLockstep):
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
         self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks
         self.started = not controllers  # every controller answered once (realtime waits until then)
+        self.snapshots = None  # with `--snapshot-at/--snapshot-every`: a `fleet.sim.sim_snapshot.SimSnapshots`
         self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
 
     def close(self) -> None:
@@ -221,6 +222,8 @@ class SimServer(SimLockstep):
                 self.bus.inbox.wait(0.05)
                 pace.restart()
                 continue
+            if self.snapshots is not None and self.snapshots.due(self.world.tick):
+                self.snapshots.take()
             self.tick()
             done += 1
             if stop is not None and stop.should_stop():
@@ -253,6 +256,7 @@ class SimServer(SimLockstep):
             | self.stats.outcome(arms, sim_s)
             | {"randomised": dict(self.world.scene_model.randomised), "network_faults": faults_report(self.faults)}
             | self.stats.wall_clock()
+            | (self.snapshots.report() if self.snapshots is not None else {})
         )
 
 

@@ -41,6 +41,7 @@ class SimBus:
         self.inbox = Inbox()  # answers and goals in one queue: handled in arrival order
         self.estop_inbox, self.coord_inbox = Inbox(wake=self.inbox.wake), Inbox(wake=self.inbox.wake)
         self.control_inbox = Inbox(wake=self.inbox.wake)
+        self.snapshot_inbox = Inbox()  # the nodes' parts of a snapshot (`fleet/sim/sim_snapshot.py`)
         self._subs = [
             session.declare_subscriber(keys.all_arms("step"), self.inbox),
             session.declare_subscriber(keys.all_arms("goal"), self.inbox),
@@ -48,6 +49,7 @@ class SimBus:
             session.declare_subscriber(keys.estop, self.estop_inbox),
             session.declare_subscriber(keys.coord("tick"), self.coord_inbox),
             session.declare_subscriber(keys.control, self.control_inbox),
+            session.declare_subscriber(keys.snapshot_parts(), self.snapshot_inbox),
         ]
         self._queryables = [serve_scene(session, keys, scene_json), serve_history(session, keys, history)]
         self.status_pub = session.declare_publisher(keys.sim_status)
@@ -57,6 +59,7 @@ class SimBus:
         self.result_pubs = {name: session.declare_publisher(keys.arm_result(name)) for name in arms}
         self.parts_pub = session.declare_publisher(keys.parts)
         self.events_pub = session.declare_publisher(keys.events)
+        self.snapshot_pub = session.declare_publisher(keys.snapshot_ask)
 
     def put(self, pub: zenoh.Publisher, leaf: str, payload: bytes) -> None:
         pub.put(payload)
@@ -79,6 +82,7 @@ class SimBus:
             self.status_pub,
             self.view_pub,
             self.frame_pub,
+            self.snapshot_pub,
         ]
         for pub in pubs:
             pub.undeclare()

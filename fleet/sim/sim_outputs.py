@@ -36,6 +36,7 @@ class SimOutputs:
         # pose noise: repeats for a seed
         self._noise_rng = np.random.default_rng([sim.world.scene_model.seed, 0x401_5E])
         self._status_at = 0.0
+        self.parts_tick = -1  # of the newest parts message published
         self._view_at = -math.inf  # wall time of the last view built
 
     def results(self, arm: str, results: list[GoalResult]) -> None:
@@ -110,6 +111,7 @@ class SimOutputs:
             if due:
                 seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
                 bus.put(bus.parts_pub, "parts", encode(seen))
+                self.parts_tick = tick
             if frame or view:
                 line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg)
                 if frame:

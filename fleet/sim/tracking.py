@@ -24,6 +24,18 @@ from robots.tracker import ArmTracker
 OUTSIDE_RELEASE_S = 2.0  # an outside driver lets go of an arm this long (sim s) after its last path ends
 
 
+@dataclasses.dataclass(frozen=True)
+class GripperOpening:
+    """How open a gripper is (0 closed, 1 open) from its joints: the mean of each joint's way from closed to open.
+    A class, not a closure, so a tracker holding it is part of a run's snapshot."""
+
+    closed: np.ndarray
+    span: np.ndarray
+
+    def __call__(self, gripper_q: np.ndarray) -> float:
+        return float(np.mean((gripper_q - self.closed) / self.span))
+
+
 class TrackedArms:
     """Trackers by arm id over a world; call `apply()` before each tick's physics and `update()` after it."""
 
@@ -40,7 +52,7 @@ class TrackedArms:
                 lower[:n],
                 upper[:n],
                 arm.qpos()[:n],
-                opening_of=lambda g, c=c, span=span: float(np.mean((g - c) / span)),
+                opening_of=GripperOpening(c, span),
                 default_effort_n=spec.gripper_gains.force_limit,
                 servo_period_s=world.control_dt_s,
             )

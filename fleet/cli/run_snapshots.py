@@ -1,0 +1,104 @@
+"""`fleet run`'s snapshot flags: `--snapshot-at T1,T2`, `--snapshot-every S` (written under `--out DIR`), and
+`--from SNAPSHOT` (the run starts where the snapshot was taken, with the scene the snapshot holds)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+from pathlib import Path
+
+from fleet.cli.errors import UsageError
+from fleet.snapshot.snapshot_file import RunSnapshot, SnapshotError, read_snapshot
+
+DEFAULT_DURATION_S = 120.0
+SNAPSHOT_FOLDER = "snapshots"
+
+
+def sim_seconds_list(text: str) -> tuple[float, ...]:
+    """`--snapshot-at 30,70.5`: positive sim seconds, comma-separated."""
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give sim seconds separated by commas, e.g. 30,70") from None
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: give positive sim seconds separated by commas, e.g. 30,70")
+    return values
+
+
+def add_snapshot_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--snapshot-at",
+        type=sim_seconds_list,
+        metavar="S,S,...",
+        default=(),
+        help="lockstep: take a snapshot of the whole run at these sim seconds (into --out DIR/snapshots)",
+    )
+    p.add_argument(
+        "--snapshot-every", type=float, metavar="S", help="lockstep: take a snapshot every S sim seconds (with --out)"
+    )
+    p.add_argument(
+        "--from",
+        dest="from_snapshot",
+        metavar="SNAPSHOT",
+        help="start every process from a snapshot (its scene and seed; --duration: sim seconds from there, default "
+        "to where the snapshot's run was to end; another --allocator branches)",
+    )
+
+
+def check_snapshot_flags(args: argparse.Namespace) -> None:
+    """Snapshot flags that cannot work, refused in one line."""
+    wanted = bool(args.snapshot_at or args.snapshot_every is not None)
+    if args.snapshot_every is not None and not (math.isfinite(args.snapshot_every) and args.snapshot_every > 0):
+        raise UsageError(f"--snapshot-every {args.snapshot_every:g}: give a positive number of sim seconds")
+    if wanted and not args.out:
+        raise UsageError("--snapshot-at/--snapshot-every write into --out DIR: give it")
+    if wanted and args.mode != "lockstep":
+        raise UsageError("snapshots are taken in lockstep runs only (--mode lockstep)")
+
+
+def open_snapshot(args: argparse.Namespace) -> tuple[RunSnapshot | None, tempfile.TemporaryDirectory | None]:
+    """With `--from`: the snapshot, read and checked, and `args` made to run its scene (written into a temporary
+    folder, returned for the caller to remove) from its tick to its run's end or `--duration` more."""
+    if not args.from_snapshot:
+        args.scene = args.scene or "assembly_line"
+        args.duration = DEFAULT_DURATION_S if args.duration is None else args.duration
+        return None, None
+    try:
+        snapshot = read_snapshot(args.from_snapshot)
+    except SnapshotError as exc:
+        raise UsageError(str(exc)) from None
+    if args.scene and args.scene not in (snapshot.scene_name, snapshot.scene.file_name):
+        raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
+    for flag, given in (("--arms", args.arms), ("--seed", args.seed)):
+        if given is not None:
+            raise UsageError(f"--from starts the snapshot's own line: leave out {flag}")
+    if args.mode != "lockstep" or snapshot.mode != "lockstep":
+        raise UsageError("--from restores lockstep runs only (--mode lockstep)")
+    folder = tempfile.TemporaryDirectory(prefix="clawfleet-snapshot-")
+    try:
+        args.scene = str(snapshot.scene.write(Path(folder.name)))
+    except (SnapshotError, OSError) as exc:
+        folder.cleanup()
+        raise UsageError(f"{args.from_snapshot}: {exc}") from None
+    args.arms, args.seed = snapshot.scene.arms, snapshot.scene.seed
+    seconds_per_tick = snapshot.sim_time_s / snapshot.tick
+    args.duration = (
+        snapshot.end_tick * seconds_per_tick if args.duration is None else snapshot.sim_time_s + args.duration
+    )
+    args.from_snapshot = str(Path(args.from_snapshot).resolve())
+    return snapshot, folder
+
+
+def snapshot_options(args: argparse.Namespace) -> dict:
+    """The launcher's snapshot options from the flags."""
+    wanted = bool(args.snapshot_at or args.snapshot_every)
+    folder = Path(args.out) / SNAPSHOT_FOLDER if wanted else None
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    return {
+        "snapshot_at": tuple(args.snapshot_at),
+        "snapshot_every_s": args.snapshot_every,
+        "snapshot_dir": str(folder.resolve()) if folder else None,
+        "restore_from": args.from_snapshot,
+    }

@@ -1,0 +1,187 @@
+"""The sim's side of a run's snapshots (lockstep): at a tick boundary, with every answer in, the coordinator's state,
+then every controller's, then its own, into one file; and a sim started from a snapshot, put back and holding the
+line until every node says it is back too.
+
+The cut is consistent because lockstep makes it so: the sim has every answer to what it delivered (in its flight
+books), the coordinator has every line event published, and each controller every order the coordinator says it sent
+and the newest parts message. Nothing else is on its way while the sim waits. Each process then goes on from the
+state it wrote, read back (`fleet.snapshot.process_state`): the run that took the snapshot and a run restored from it
+continue from byte-identical states (a world put back from PhysX's pack matches the one packed only to about 1e-6).
+"""
+
+from __future__ import annotations
+
+import pickle
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fleet.bus.codec import Decoder, encode
+from fleet.bus.lockstep import unanswered
+from fleet.bus.messages import SnapshotAsk, SnapshotPart
+from fleet.snapshot.process_state import StateError, capture, restore
+from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
+
+NODE_TIMEOUT_S = 10.0  # wall seconds a node has to send its part of a snapshot
+RESTORED_TIMEOUT_S = 60.0  # wall seconds every node of a restored run has to say it is back
+ASK_AGAIN_S = 0.5
+# the sim's attributes that belong to this process alone: its bus, its physics world (packed apart), its stop flag
+SIM_LIVE = ("world", "bus", "drops", "stop", "spool", "target_log", "snapshots")
+
+
+class SnapshotFailed(RuntimeError):
+    """A snapshot that could not be taken (a node silent or unable to write its state); one line."""
+
+
+@dataclass
+class RunFacts:
+    """What a snapshot file says about the run beside the states: its scene's source, allocator and end."""
+
+    scene_name: str
+    scene: SceneSource
+    allocator: str
+    end_tick: int
+
+
+@dataclass
+class SimSnapshots:
+    """Snapshots due at `ticks` (and every `every_ticks` from the start, if set), written to `directory`."""
+
+    sim: object
+    facts: RunFacts
+    directory: Path
+    ticks: set[int] = field(default_factory=set)
+    every_ticks: int = 0
+    written: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)
+    stall_s: list[float] = field(default_factory=list)
+    last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
+
+    def due(self, tick: int) -> bool:
+        every = self.every_ticks > 0 and tick % self.every_ticks == 0
+        return tick != self.last_tick and tick > 0 and (tick in self.ticks or every)
+
+    def take(self) -> Path | None:
+        """The run's snapshot at this tick boundary, written; None (the reason counted and printed) if it failed.
+        The line goes on either way."""
+        t0 = time.perf_counter()
+        sim = self.sim
+        self.last_tick = sim.world.tick
+        try:
+            states = self._gather()
+        except (SnapshotFailed, StateError) as exc:
+            self.failed.append(f"tick {sim.world.tick}: {exc}")
+            print(f"sim_server: no snapshot at {sim.world.sim_time_s:.2f} s: {exc}", flush=True)
+            return None
+        f = self.facts
+        snapshot = RunSnapshot(
+            f.scene_name, f.scene, sim.mode, sim.world.tick, sim.world.sim_time_s, f.end_tick, f.allocator, states
+        )
+        path = self.directory / f"snapshot-{sim.world.tick:09d}{SUFFIX}"
+        write_snapshot(snapshot, path)
+        self.written.append(str(path))
+        self.stall_s.append(time.perf_counter() - t0)
+        return path
+
+    def _gather(self) -> dict[str, bytes]:
+        sim = self.sim
+        self._settle()
+        tick = sim.world.tick
+        coord = self._ask(SnapshotAsk(tick, "coordinator", events=len(sim.event_log)), ["coordinator"])
+        arms = [name for name, link in sim.links.items() if not link.lost]
+        ask = SnapshotAsk(tick, "controllers", orders=coord["coordinator"].orders, parts_tick=sim.outputs.parts_tick)
+        parts = self._ask(ask, arms)
+        missing = sorted(set(sim.links) - set(arms))
+        if missing:
+            raise SnapshotFailed(f"the controllers of {', '.join(missing)} are lost")
+        states = {"sim": capture_sim(sim), "coordinator": coord["coordinator"].state}
+        states |= {arm: parts[arm].state for arm in sim.links}
+        restore_sim(sim, states["sim"])  # go on from the state written, as a run restored from it will
+        return states
+
+    def _settle(self) -> None:
+        """Until every state and frame delivered is answered (with the goals the answers name)."""
+        sim = self.sim
+        deadline = time.monotonic() + NODE_TIMEOUT_S
+        while True:
+            sim.inputs.take()
+            waiting, coord = unanswered(list(sim.links.values()), sim.coord_book if sim.coordinator else None)
+            if not waiting and not coord:
+                return
+            if time.monotonic() > deadline:
+                names = [link.name for link in waiting] + (["coordinator"] if coord else [])
+                raise SnapshotFailed(f"{', '.join(names)} did not answer within {NODE_TIMEOUT_S:g} s")
+            sim.bus.inbox.wait(0.01)
+
+    def _ask(self, ask: SnapshotAsk, nodes: list[str]) -> dict[str, SnapshotPart]:
+        """`ask` published (again every `ASK_AGAIN_S`) until each of `nodes` sent its part for this tick."""
+        sim = self.sim
+        decoder = Decoder(SnapshotPart, sim.drops)
+        got: dict[str, SnapshotPart] = {}
+        deadline, asked = time.monotonic() + NODE_TIMEOUT_S, -float("inf")
+        while len(got) < len(nodes):
+            if time.monotonic() - asked > ASK_AGAIN_S:
+                sim.bus.snapshot_pub.put(encode(ask))
+                asked = time.monotonic()
+            for key, payload in sim.bus.snapshot_inbox.drain():
+                part = decoder.decode(key, payload)
+                if part is None or part.tick != ask.tick or part.restored or part.node not in nodes:
+                    continue
+                if part.error:
+                    raise SnapshotFailed(f"{part.node}: {part.error}")
+                got[part.node] = part
+            if time.monotonic() > deadline:
+                silent = [n for n in nodes if n not in got]
+                raise SnapshotFailed(f"{', '.join(silent)} sent no state within {NODE_TIMEOUT_S:g} s")
+            sim.bus.snapshot_inbox.wait(0.01)
+        return got
+
+    def report(self) -> dict:
+        stalls = sorted(self.stall_s)
+        return {
+            "snapshots": list(self.written),
+            "snapshots_failed": list(self.failed),
+            "snapshot_stall_ms_max": round(1e3 * stalls[-1], 1) if stalls else None,
+        }
+
+
+def capture_sim(sim) -> bytes:
+    """The sim server's state: its world packed, every other attribute but its live handles."""
+    blob = capture(sim, SIM_LIVE, live={"world": sim.world, "server": sim})
+    return pickle.dumps(
+        {"world": sim.world.pack_state(), "server": blob, "drops": dict(sim.drops.counts)},
+        protocol=pickle.HIGHEST_PROTOCOL,
+    )
+
+
+def restore_sim(sim, part: bytes) -> None:
+    """Put a state from `capture_sim` back into a sim server of the same scene."""
+    try:
+        saved = pickle.loads(part)
+    except Exception as exc:  # noqa: BLE001 - any fault of a foreign blob is one line
+        raise StateError(f"cannot read back the sim's state: {exc}") from exc
+    sim.world.restore_state(saved["world"])
+    restore(sim, saved["server"], live={"world": sim.world, "server": sim})
+    sim.drops.counts = Counter(saved["drops"])
+    sim.bus.stats = sim.stats  # the bus counts what it sends in the sim's figures
+
+
+def await_restored(sim, tick: int, nodes: list[str], timeout_s: float = RESTORED_TIMEOUT_S) -> list[str]:
+    """A restored sim, before its first tick: ask until each of `nodes` said it is back at `tick`; those that did not
+    within `timeout_s` (empty: all did)."""
+    decoder = Decoder(SnapshotPart, sim.drops)
+    back: set[str] = set()
+    deadline, asked = time.monotonic() + timeout_s, -float("inf")
+    while back < set(nodes) and time.monotonic() < deadline:
+        if sim.stop is not None and sim.stop.should_stop():
+            break
+        if time.monotonic() - asked > ASK_AGAIN_S:
+            sim.bus.snapshot_pub.put(encode(SnapshotAsk(tick, "restored")))
+            asked = time.monotonic()
+        for key, payload in sim.bus.snapshot_inbox.drain():
+            part = decoder.decode(key, payload)
+            if part is not None and part.restored and part.tick == tick:
+                back.add(part.node)
+        sim.bus.snapshot_inbox.wait(0.05)
+    return [n for n in nodes if n not in back]

@@ -1,0 +1,134 @@
+"""The snapshot file: one run's state at a lockstep tick boundary, every process's part of it, and the scene (with its
+robot files) that run loaded, so the file alone starts the line again.
+
+On disk: `CLAWSNAP`, the format version (4 bytes), the SHA-256 of the body (32 bytes), then the body: the
+`RunSnapshot` as MessagePack, zlib-compressed. A file is checked whole (magic, version, checksum) before any byte of a
+process's state is read back: a truncated, corrupted or other-version file is refused in one line. A process's state
+is a Python pickle: open snapshots you trust, as you would a model checkpoint.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import struct
+import zlib
+from pathlib import Path
+
+import msgspec
+import yaml
+
+from fleet.bus.messages import PROTOCOL_VERSION
+from scenes.loader import resolve_scene_path
+from scenes.yaml_file import named_in
+
+MAGIC = b"CLAWSNAP"
+FORMAT_VERSION = 1
+SUFFIX = ".clawsnap"
+_HEADER = struct.Struct("<8sI32s")
+
+
+class SnapshotError(ValueError):
+    """A snapshot file that cannot be used (missing, truncated, corrupted, another version or scene); one line."""
+
+
+class SceneSource(msgspec.Struct, frozen=True):
+    """The scene as a run loaded it: its file's text and name, the robot files it names (path as the scene writes
+    it -> text), the arm count and seed it was loaded with."""
+
+    file_name: str
+    text: str
+    robot_files: dict[str, str]
+    arms: int | None
+    seed: int | None
+
+    @classmethod
+    def of(cls, name_or_path: str, arms: int | None, seed: int | None) -> SceneSource:
+        """The source of a scene given by bundled name or path (as `fleet run` takes it)."""
+        path = resolve_scene_path(name_or_path)
+        text = path.read_text(encoding="utf-8")
+        named = (yaml.safe_load(text) or {}).get("robot_files") or []
+        files = {str(f): named_in(path, f).read_text(encoding="utf-8") for f in named}
+        return cls(path.name, text, files, arms, seed)
+
+    def write(self, directory: Path) -> Path:
+        """The scene file and its robot files written under `directory` as the scene names them; the scene's path."""
+        directory.mkdir(parents=True, exist_ok=True)
+        for name, text in self.robot_files.items():
+            target = (directory / name).resolve()
+            if directory.resolve() not in target.parents:
+                raise SnapshotError(f"the snapshot's robot file {name!r} would be written outside {directory}")
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_text(text, encoding="utf-8")
+        scene = directory / Path(self.file_name).name
+        scene.write_text(self.text, encoding="utf-8")
+        return scene
+
+
+class RunSnapshot(msgspec.Struct, frozen=True):
+    """A whole run at the start of tick `tick`: each process's state by node (`sim`, `coordinator`, arm ids)."""
+
+    scene_name: str
+    scene: SceneSource
+    mode: str
+    tick: int
+    sim_time_s: float
+    end_tick: int  # where the run that took it was to end
+    allocator: str
+    states: dict[str, bytes]
+    protocol_version: int = PROTOCOL_VERSION
+
+    @property
+    def arms(self) -> list[str]:
+        return [n for n in self.states if n not in ("sim", "coordinator")]
+
+
+def write_snapshot(snapshot: RunSnapshot, path: str | Path) -> int:
+    """Write `snapshot` to `path` (whole or not at all: a reader never sees half a file); the bytes written."""
+    body = zlib.compress(msgspec.msgpack.encode(snapshot), 6)
+    data = _HEADER.pack(MAGIC, FORMAT_VERSION, hashlib.sha256(body).digest()) + body
+    target = Path(path)
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, target)
+    return len(data)
+
+
+def read_snapshot(path: str | Path) -> RunSnapshot:
+    """The snapshot in `path`, checked whole; a `SnapshotError` (one line) for anything else."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise SnapshotError(f"{p}: no such snapshot file") from None
+    except OSError as exc:
+        raise SnapshotError(f"{p}: cannot read it ({exc.strerror or exc})") from None
+    if len(data) < _HEADER.size or not data.startswith(MAGIC):
+        raise SnapshotError(f"{p}: not a clawfleet snapshot (it does not start with {MAGIC.decode()})")
+    _, version, digest = _HEADER.unpack_from(data)
+    if version != FORMAT_VERSION:
+        raise SnapshotError(f"{p}: snapshot format {version}; this clawfleet reads format {FORMAT_VERSION}")
+    body = data[_HEADER.size :]
+    if hashlib.sha256(body).digest() != digest:
+        raise SnapshotError(f"{p}: truncated or corrupted (its checksum does not match its {len(body)} bytes)")
+    try:
+        snapshot = msgspec.msgpack.decode(zlib.decompress(body), type=RunSnapshot)
+    except (zlib.error, msgspec.MsgspecError, ValueError) as exc:
+        raise SnapshotError(f"{p}: unreadable snapshot body ({str(exc)[:120]})") from None
+    if snapshot.protocol_version != PROTOCOL_VERSION:
+        raise SnapshotError(
+            f"{p}: taken by a clawfleet with bus protocol {snapshot.protocol_version}; "
+            f"this one speaks {PROTOCOL_VERSION}"
+        )
+    missing = [n for n in ("sim", "coordinator") if n not in snapshot.states]
+    if missing:
+        raise SnapshotError(f"{p}: holds no state for {', '.join(missing)}")
+    return snapshot
+
+
+def node_state(path: str | Path, node: str) -> tuple[RunSnapshot, bytes]:
+    """The snapshot in `path` and `node`'s state in it; a `SnapshotError` if either is not there."""
+    snapshot = read_snapshot(path)
+    if node not in snapshot.states:
+        raise SnapshotError(f"{path}: holds no state for {node!r}; nodes: {', '.join(snapshot.states)}")
+    return snapshot, snapshot.states[node]
