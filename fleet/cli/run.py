@@ -324,9 +324,17 @@ def print_run_summary(s: dict) -> None:
         ("refused by the router", _router_row(s.get("bus_refused"))),
         ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
     ]
+    if s.get("snapshots") or s.get("snapshots_failed"):
+        rows.append(("snapshots (written / failed)", _snapshot_row(s)))
     for row in rows:
         table.add_row(*row)
     out.print(table)
+
+
+def _snapshot_row(s: dict) -> str:
+    """The snapshots written and failed, and the longest the line stood still for one."""
+    stall = s.get("snapshot_stall_ms_max")
+    return f"{len(s['snapshots'])} / {len(s['snapshots_failed'])}" + (f" (line held {stall} ms at most)" if stall else "")
 
 
 def _router_row(refused: dict | None) -> str:

@@ -197,6 +197,9 @@ class RunSummary:
             "dropped_messages": dropped,
             "refused_messages": self._refused(sim, coord, controllers, monitor),
             "bus_refused": sim.get("bus_refused"),
+            "snapshots": sim.get("snapshots", []),
+            "snapshots_failed": sim.get("snapshots_failed", []),
+            "snapshot_stall_ms_max": sim.get("snapshot_stall_ms_max"),
         }
 
     @staticmethod

@@ -20,6 +20,7 @@ from pathlib import Path
 from fleet.bus.codec import Decoder, encode
 from fleet.bus.lockstep import unanswered
 from fleet.bus.messages import SnapshotAsk, SnapshotPart
+from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError, capture, restore
 from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
 
@@ -97,7 +98,10 @@ class SimSnapshots:
             raise SnapshotFailed(f"the controllers of {', '.join(missing)} are lost")
         states = {"sim": capture_sim(sim), "coordinator": coord["coordinator"].state}
         states |= {arm: parts[arm].state for arm in sim.links}
-        restore_sim(sim, states["sim"])  # go on from the state written, as a run restored from it will
+        # go on from the state written, in a world built afresh, exactly as a run restored from it will (PhysX put
+        # back into the world it was packed from keeps solver caches a fresh world does not have)
+        sim.world = World(sim.world.scene_model)
+        restore_sim(sim, states["sim"])
         return states
 
     def _settle(self) -> None:
