@@ -334,7 +334,8 @@ def print_run_summary(s: dict) -> None:
 def _snapshot_row(s: dict) -> str:
     """The snapshots written and failed, and the longest the line stood still for one."""
     stall = s.get("snapshot_stall_ms_max")
-    return f"{len(s['snapshots'])} / {len(s['snapshots_failed'])}" + (f" (line held {stall} ms at most)" if stall else "")
+    held = f" (line held {stall} ms at most)" if stall else ""
+    return f"{len(s['snapshots'])} / {len(s['snapshots_failed'])}{held}"
 
 
 def _router_row(refused: dict | None) -> str:
