@@ -101,6 +101,11 @@ def declared_robots() -> list[RobotSpec]:
     return [_REGISTRY[uid] for uid in robot_names()]
 
 
+def registered(uid: str) -> RobotSpec | None:
+    """The declaration registered as `uid`, None if none is (no entry points loaded, no error)."""
+    return _REGISTRY.get(uid)
+
+
 def get_robot(uid: str) -> RobotSpec:
     """The declaration of `uid`; raises with the valid names, or with the extra to install."""
     _load_entry_points()

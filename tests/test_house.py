@@ -17,6 +17,7 @@ FLEET_LAYERS: dict[str, int] = {
     "fleet.common": 0,
     "fleet.bus": 1,
     "fleet.record": 2,
+    "fleet.snapshot": 2,
     "fleet.sim": 3,
     "fleet.monitor": 3,
     "fleet.ros": 3,

@@ -194,7 +194,7 @@ def bus_line(launcher, run_id: str) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    _, folder = open_snapshot(args)
+    folder = open_snapshot(args)
     try:
         return _run(args)
     finally:
@@ -388,9 +388,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--allocator",
-        default="optimal",
-        help="how tasks go to arms: optimal (default), auction, greedy, an installed plug-in, package.module:Name, "
-        "or policy:FILE of a trained policy (`fleet allocators`)",
+        help="how tasks go to arms: optimal (default; with --from, the snapshot's), auction, greedy, an installed "
+        "plug-in, package.module:Name, or policy:FILE of a trained policy (`fleet allocators`)",
     )
     p.add_argument(
         "--no-pipeline",

@@ -9,7 +9,7 @@ import tempfile
 from pathlib import Path
 
 from fleet.cli.errors import UsageError
-from fleet.snapshot.snapshot_file import RunSnapshot, SnapshotError, read_snapshot
+from fleet.snapshot.snapshot_file import SnapshotError
 
 DEFAULT_DURATION_S = 120.0
 SNAPSHOT_FOLDER = "snapshots"
@@ -57,37 +57,35 @@ def check_snapshot_flags(args: argparse.Namespace) -> None:
         raise UsageError("snapshots are taken in lockstep runs only (--mode lockstep)")
 
 
-def open_snapshot(args: argparse.Namespace) -> tuple[RunSnapshot | None, tempfile.TemporaryDirectory | None]:
-    """With `--from`: the snapshot, read and checked, and `args` made to run its scene (written into a temporary
-    folder, returned for the caller to remove) from its tick to its run's end or `--duration` more."""
+def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | None:
+    """With `--from`: `args` made to run the snapshot's scene (written into a temporary folder, returned for the
+    caller to remove), seed and allocator (unless `--allocator` branches) from its tick to its run's end or
+    `--duration` more; without, the defaults of a fresh run."""
+    from fleet.run.restore import restore_options
+
     if not args.from_snapshot:
         args.scene = args.scene or "assembly_line"
         args.duration = DEFAULT_DURATION_S if args.duration is None else args.duration
-        return None, None
-    try:
-        snapshot = read_snapshot(args.from_snapshot)
-    except SnapshotError as exc:
-        raise UsageError(str(exc)) from None
-    if args.scene and args.scene not in (snapshot.scene_name, snapshot.scene.file_name):
-        raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
+        args.allocator = args.allocator or "optimal"
+        return None
     for flag, given in (("--arms", args.arms), ("--seed", args.seed)):
         if given is not None:
             raise UsageError(f"--from starts the snapshot's own line: leave out {flag}")
-    if args.mode != "lockstep" or snapshot.mode != "lockstep":
+    if args.mode != "lockstep":
         raise UsageError("--from restores lockstep runs only (--mode lockstep)")
     folder = tempfile.TemporaryDirectory(prefix="clawfleet-snapshot-")
     try:
-        args.scene = str(snapshot.scene.write(Path(folder.name)))
+        options, snapshot = restore_options(args.from_snapshot, Path(folder.name), args.duration)
     except (SnapshotError, OSError) as exc:
         folder.cleanup()
-        raise UsageError(f"{args.from_snapshot}: {exc}") from None
-    args.arms, args.seed = snapshot.scene.arms, snapshot.scene.seed
-    seconds_per_tick = snapshot.sim_time_s / snapshot.tick
-    args.duration = (
-        snapshot.end_tick * seconds_per_tick if args.duration is None else snapshot.sim_time_s + args.duration
-    )
-    args.from_snapshot = str(Path(args.from_snapshot).resolve())
-    return snapshot, folder
+        raise UsageError(str(exc)) from None
+    if args.scene and args.scene not in (snapshot.scene_name, snapshot.scene.file_name):
+        folder.cleanup()
+        raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
+    args.scene, args.arms, args.seed, args.duration = options.scene, options.arms, options.seed, options.duration_s
+    args.allocator = args.allocator or options.allocator
+    args.from_snapshot = options.restore_from
+    return folder
 
 
 def snapshot_options(args: argparse.Namespace) -> dict:
