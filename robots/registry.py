@@ -7,6 +7,7 @@ cannot be loaded is not fatal: it is listed by `entry_point_problems` (and `flee
 
 from __future__ import annotations
 
+import copyreg
 import dataclasses
 from importlib import metadata
 from pathlib import Path
@@ -99,11 +100,6 @@ def robot_names() -> list[str]:
 def declared_robots() -> list[RobotSpec]:
     """Every registered declaration, installed or not, by uid."""
     return [_REGISTRY[uid] for uid in robot_names()]
-
-
-def registered(uid: str) -> RobotSpec | None:
-    """The declaration registered as `uid`, None if none is (no entry points loaded, no error)."""
-    return _REGISTRY.get(uid)
 
 
 def get_robot(uid: str) -> RobotSpec:
@@ -219,3 +215,14 @@ PANDA = register(
         needs_extra="models",
     )
 )
+
+
+def _pickled_spec(spec: RobotSpec) -> tuple:
+    """A registered declaration pickles as its name (a run's snapshot holds many; every process of the run has the
+    registry, and a built-in's URDF is found by a function, which does not pickle); a variant of one whole."""
+    if _REGISTRY.get(spec.uid) is spec:
+        return (get_robot, (spec.uid,))
+    return spec.__reduce_ex__(2)
+
+
+copyreg.pickle(RobotSpec, _pickled_spec)

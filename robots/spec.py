@@ -71,15 +71,6 @@ class RobotSpec:
     declared_in: str = "clawfleet"
     """Where the declaration came from: clawfleet itself, a robot file's path, or an entry point."""
 
-    def __reduce__(self):
-        """Pickled as its name when it is the registered declaration (every process of a run has the registry; a
-        built-in's URDF is found by a function, which does not pickle); a variant of one (tuned gains) whole."""
-        from robots.registry import registered
-
-        if registered(self.uid) is self:
-            return (_registered_spec, (self.uid,))
-        return object.__reduce__(self)
-
     @property
     def arm_dof(self) -> int:
         return len(self.arm_joints)
@@ -111,10 +102,3 @@ class RobotSpec:
             root = self.package_root_dir if self.package_root_dir is not None else path.parents[2]
             text = text.replace(self.package_prefix, str(root) + "/")
         return re.sub(r"<mimic[^>]*/>", "", text)
-
-
-def _registered_spec(uid: str) -> RobotSpec:
-    """The registered declaration of `uid` (a pickled `RobotSpec` read back)."""
-    from robots.registry import get_robot
-
-    return get_robot(uid)

@@ -42,8 +42,9 @@ from fleet.bus.plausible import Incarnations, TickClock
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
+from fleet.nodes.node_snapshots import SnapshotNode
 from fleet.snapshot.node_desk import SnapshotDesk
-from fleet.snapshot.process_state import StateError, capture, restore
+from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
 from robots.frames import yaw_transform
 from robots.phase import Phase
@@ -114,7 +115,7 @@ def observation_of(state: ArmState) -> ArmObservation:
     )
 
 
-class ArmController(ControllerOrders):
+class ArmController(ControllerOrders, SnapshotNode):
     """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
     def __init__(
@@ -209,7 +210,8 @@ class ArmController(ControllerOrders):
             pub.undeclare()
         self.snapshot_desk.close()
 
-    # --- snapshots ------------------------------------------------------------------
+    SNAPSHOT_LIVE = CONTROLLER_LIVE
+
     def snapshot_ready(self, ask) -> bool:
         """Whether every order the coordinator sent this arm and the newest parts message are in (the sim asks once
         it has every answer: nothing else is on its way)."""
@@ -220,19 +222,6 @@ class ArmController(ControllerOrders):
         sent = ask.orders[self.arm_index] if self.arm_index < len(ask.orders) else 0
         parts_in = ask.parts_tick < 0 or (bool(self.parts_seen) and self.parts_seen[-1].tick >= ask.parts_tick)
         return (self.assign_seq or 0) >= sent and parts_in
-
-    def snapshot_capture(self, ask) -> tuple[bytes, tuple]:
-        """This controller's state, written and put back (so it goes on exactly as a controller restored from it)."""
-        state = capture(self, CONTROLLER_LIVE)
-        self.restore_state(state)
-        return state, ()
-
-    def restore_state(self, state: bytes) -> None:
-        """Put back a state from `snapshot_capture` (this process's bus handles stay)."""
-        restore(self, state)
-        for decoder in self._decoders.values():
-            decoder.drops = self.drops
-        self.snapshot_desk.use_drops(self.drops)
 
     def _parts_for_tick(self, tick: int) -> None:
         """The parts as of `tick` (the newest sampled no later: a state delayed on the bus is matched with the parts
@@ -254,7 +243,7 @@ class ArmController(ControllerOrders):
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
-        if self.snapshot_desk.serve(self.snapshot_ready, self.snapshot_capture):
+        if self.snapshot_desk.serve(self.snapshot_ready, lambda ask: (self.capture_state(), ())):
             return True
         state = self._latest("state")
         self._take_assignments()

@@ -52,8 +52,9 @@ from fleet.nodes.coordinator_beats import CoordinatorBeats
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
+from fleet.nodes.node_snapshots import SnapshotNode
 from fleet.snapshot.node_desk import SnapshotDesk
-from fleet.snapshot.process_state import StateError, capture, restore
+from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
 from robots.registry import get_robot
 from scenes.schema import Scene
@@ -75,7 +76,7 @@ COORDINATOR_LIVE = (
 )
 
 
-class CoordinatorNode(CoordinatorBeats):
+class CoordinatorNode(CoordinatorBeats, SnapshotNode):
     """Decode, dispatch, publish: feed it with `poll()` in a loop; `report()` gives the coordinator's part of the
     run summary. Every decision is the `Dispatcher`'s; this node owns the bus, the wall clock (heartbeats,
     how long to wait for a decision's events) and the order counts of the protocol."""
@@ -147,22 +148,15 @@ class CoordinatorNode(CoordinatorBeats):
         self.snapshot_desk.close()
 
     # --- snapshots ------------------------------------------------------------------
-    def snapshot_capture(self, ask) -> tuple[bytes, tuple]:
-        """The coordinator's state (ledger, dispatcher, guard, allocator), written and put back, and the newest
-        order it sent each arm (the controllers' parts wait for them)."""
-        state = capture(self, COORDINATOR_LIVE)
-        self.restore_state(state)
-        return state, tuple(self.assign_seq[a] for a in self.arm_names)
+    SNAPSHOT_LIVE = COORDINATOR_LIVE
 
-    def restore_state(self, state: bytes, allocator: Allocator | None = None) -> None:
-        """Put back a state from `snapshot_capture` (this process's bus handles stay); with `allocator`, it allocates
-        from here on (a branch). Wall-clock stamps start afresh: a heartbeat heard before is no silence now."""
-        restore(self, state)
-        for decoder in self._decoders.values():
-            decoder.drops = self.drops
-        self.snapshot_desk.use_drops(self.drops)
-        if allocator is not None:
-            self.dispatcher.allocator = allocator
+    def snapshot_part(self, ask) -> tuple[bytes, tuple]:
+        """The coordinator's state (ledger, dispatcher, guard, allocator) and the newest order it sent each arm (the
+        controllers' parts wait for them)."""
+        return self.capture_state(), tuple(self.assign_seq[a] for a in self.arm_names)
+
+    def after_restore(self) -> None:
+        """Wall-clock stamps start afresh: a heartbeat heard before the snapshot is no silence now."""
         now = time.monotonic()
         self._frame_at = self._progress_at = now
         self.heartbeat_at = {arm: now for arm in self.heartbeat_at}
@@ -199,7 +193,7 @@ class CoordinatorNode(CoordinatorBeats):
                 self._on_status(key, msg)
         self._check_heartbeats()
         self._decide_when_complete()
-        self.snapshot_desk.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_capture)
+        self.snapshot_desk.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_part)
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)
@@ -404,7 +398,9 @@ def main(argv: list[str] | None = None) -> int:
             if args.from_snapshot:
                 try:
                     snapshot, state = node_state(args.from_snapshot, "coordinator")
-                    node.restore_state(state, allocator if args.allocator != snapshot.allocator else None)
+                    node.restore_state(state)
+                    if args.allocator != snapshot.allocator:  # a branch: another allocator from here on
+                        node.dispatcher.allocator = allocator
                 except (SnapshotError, StateError) as exc:
                     print(f"coordinator: {exc}", file=sys.stderr, flush=True)
                     return 2

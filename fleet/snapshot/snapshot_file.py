@@ -33,12 +33,13 @@ class SnapshotError(ValueError):
 
 
 class SceneSource(msgspec.Struct, frozen=True):
-    """The scene as a run loaded it: its file's text and name, the robot files it names (path as the scene writes
-    it -> text), the arm count and seed it was loaded with."""
+    """The scene as a run loaded it, made to stand alone: its file's text (its robot files renamed to lie beside it),
+    each robot file (its URDF, when given by a relative path, renamed to lie beside it too), keyed by file name; the
+    arm count and seed it was loaded with. Meshes a URDF names are not carried: they must be where it says."""
 
     file_name: str
     text: str
-    robot_files: dict[str, str]
+    files: dict[str, str]  # file name -> text: the robot files and their URDFs, beside the scene
     arms: int | None
     seed: int | None
 
@@ -47,20 +48,34 @@ class SceneSource(msgspec.Struct, frozen=True):
         """The source of a scene given by bundled name or path (as `fleet run` takes it)."""
         path = resolve_scene_path(name_or_path)
         text = path.read_text(encoding="utf-8")
-        named = (yaml.safe_load(text) or {}).get("robot_files") or []
-        files = {str(f): named_in(path, f).read_text(encoding="utf-8") for f in named}
-        return cls(path.name, text, files, arms, seed)
+        declared = yaml.safe_load(text) or {}
+        named = declared.get("robot_files") or []
+        if not named:
+            return cls(path.name, text, {}, arms, seed)
+        files: dict[str, str] = {}
+        renamed = []
+        for i, name in enumerate(named):
+            robot_path = named_in(path, name)
+            robot = yaml.safe_load(robot_path.read_text(encoding="utf-8")) or {}
+            urdf = robot.get("urdf")
+            if isinstance(urdf, str) and not Path(urdf).expanduser().is_absolute():
+                urdf_name = f"robot_{i}_{Path(urdf).name}"
+                files[urdf_name] = named_in(robot_path, urdf).read_text(encoding="utf-8")
+                robot["urdf"] = urdf_name
+            renamed.append(f"robot_{i}_{Path(name).name}")
+            files[renamed[-1]] = yaml.safe_dump(robot, sort_keys=False)
+        declared["robot_files"] = renamed
+        return cls(path.name, yaml.safe_dump(declared, sort_keys=False), files, arms, seed)
 
     def write(self, directory: Path) -> Path:
-        """The scene file and its robot files written under `directory` as the scene names them; the scene's path."""
+        """The scene file and the files beside it written into `directory`; the scene's path."""
         directory.mkdir(parents=True, exist_ok=True)
-        for name, text in self.robot_files.items():
-            target = (directory / name).resolve()
-            if directory.resolve() not in target.parents:
-                raise SnapshotError(f"the snapshot's robot file {name!r} would be written outside {directory}")
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_text(text, encoding="utf-8")
-        scene = directory / Path(self.file_name).name
+        for name in (self.file_name, *self.files):
+            if Path(name).name != name or name in ("", ".", ".."):
+                raise SnapshotError(f"the snapshot names a file {name!r} that is not a plain file name")
+        for name, text in self.files.items():
+            (directory / name).write_text(text, encoding="utf-8")
+        scene = directory / self.file_name
         scene.write_text(self.text, encoding="utf-8")
         return scene
 

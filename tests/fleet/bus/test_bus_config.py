@@ -38,8 +38,13 @@ def test_the_router_lets_each_node_publish_only_its_own_keys():
         "clawfleet/*/arm/arm_0/step",
         "clawfleet/*/arm/arm_0/goal",
         "clawfleet/*/arm/arm_0/status",
+        "clawfleet/*/snapshot/arm_0",
+    ], "its own arm's answers, goals and heartbeats, and its own part of a snapshot"
+    assert publishes["publish_coordinator"] == [
+        "clawfleet/*/arm/*/assign",
+        "clawfleet/*/coord/**",
+        "clawfleet/*/snapshot/coordinator",
     ]
-    assert publishes["publish_coordinator"] == ["clawfleet/*/arm/*/assign", "clawfleet/*/coord/**"]
     assert publishes["publish_launcher"] == ["clawfleet/*/launcher/roster"], "the launcher says only its roster"
     assert publishes["publish_ros"] == ["clawfleet/*/arm/*/drive", "clawfleet/*/estop", "clawfleet/*/world/control"], (
         "ROS clients drive arms only as outside drivers (the arm is taken), never as its controller"

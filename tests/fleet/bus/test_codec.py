@@ -28,6 +28,8 @@ from fleet.bus.messages import (
     Separations,
     SimControl,
     SimStatus,
+    SnapshotAsk,
+    SnapshotPart,
     TrajectoryGoalMsg,
     wire_layout,
 )
@@ -107,6 +109,11 @@ EXAMPLES = [
     MotionGrant("arm_0", 5, 4, "grant", "", 0.3, 12.05),
     EnvAction("arm_0", 5, "act", (0.1, -1.0, 0.0, 1.0)),
     EnvTargets("arm_0", 5, (0.2,) * 6, 1.0),
+    SnapshotAsk(900, "coordinator", events=12),
+    SnapshotAsk(900, "controllers", orders=(3, 0, 5), parts_tick=895),
+    SnapshotPart("coordinator", 900, b"\x80\x05state", orders=(3, 0, 5)),
+    SnapshotPart("arm_0", 900, error="cannot snapshot ArmController (attributes x): no"),
+    SnapshotPart("arm_0", 900, restored=True),
     MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
     LineView(
         3,
