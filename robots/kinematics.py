@@ -35,6 +35,15 @@ class KinematicModel:
         self._closed_q[self.gripper_q_index] = spec.gripper_closed
         self._pan: tuple[np.ndarray, float] | None = None
 
+    def __getstate__(self) -> dict:
+        """All but Pinocchio's data (work space every computation writes before it reads: 100 times the model's
+        size to pickle); a run's snapshot holds many models."""
+        return {k: v for k, v in vars(self).items() if k != "data"}
+
+    def __setstate__(self, state: dict) -> None:
+        vars(self).update(state)
+        self.data = self.model.createData()
+
     def first_joint_axis(self) -> tuple[np.ndarray, float]:
         """Where the first arm joint's axis stands in the base frame (its origin at the home pose) and +1 or -1 as
         it turns about +z or -z: the joint that aims the arm (every registered arm's is vertical)."""
@@ -135,6 +144,9 @@ class PlacedFrames:
                 self.model.addFrame(pin.Frame(name, parent.parentJoint, placement, pin.FrameType.OP_FRAME))
             )
         self.data = self.model.createData()
+
+    __getstate__ = KinematicModel.__getstate__
+    __setstate__ = KinematicModel.__setstate__
 
     def poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) world poses of the frames for the full configuration `q`."""

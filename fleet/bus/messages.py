@@ -374,9 +374,10 @@ class SnapshotAsk(Message, frozen=True, array_like=True):
 
 
 class SnapshotPart(Message, frozen=True, array_like=True):
-    """Node -> sim: its state for the snapshot of `tick` (`state`, opaque to everyone but the node), or why it has
-    none (`error`); the coordinator adds the newest order it sent each arm (`orders`, scene order). Sent again with
-    `restored` and no state by a node started from a snapshot, once it has put its state back."""
+    """Node -> sim: its state for the snapshot of `tick` (`state`, zlib-compressed, opaque to everyone but the
+    node), or why it has none (`error`); the coordinator adds the newest order it sent each arm (`orders`, scene
+    order). Sent again with `restored` and no state by a node started from a snapshot, once it has put its state
+    back."""
 
     node: str
     tick: int

@@ -243,7 +243,7 @@ class ArmController(ControllerOrders, SnapshotNode):
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
-        if self.snapshot_desk.serve(self.snapshot_ready, lambda ask: (self.capture_state(), ())):
+        if self.snapshot_desk.serve(self.snapshot_ready, lambda ask: (self.capture_state(), ()), self.restore_state):
             return True
         state = self._latest("state")
         self._take_assignments()

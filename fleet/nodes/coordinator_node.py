@@ -193,7 +193,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
                 self._on_status(key, msg)
         self._check_heartbeats()
         self._decide_when_complete()
-        self.snapshot_desk.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_part)
+        self.snapshot_desk.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_part, self.restore_state)
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)

@@ -12,10 +12,8 @@ class SnapshotNode:
     SNAPSHOT_LIVE: tuple[str, ...] = ()
 
     def capture_state(self) -> bytes:
-        """This node's state, written and put back."""
-        state = capture(self, self.SNAPSHOT_LIVE)
-        self.restore_state(state)
-        return state
+        """This node's state (put it back with `restore_state`: the node that wrote it goes on from it too)."""
+        return capture(self, self.SNAPSHOT_LIVE)
 
     def restore_state(self, state: bytes) -> None:
         """Put back a state from `capture_state` (this process's bus handles stay; its decoders count into the

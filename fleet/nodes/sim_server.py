@@ -30,6 +30,7 @@ import json
 import math
 import sys
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -164,6 +165,7 @@ def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: i
 def restore_from(server: SimServer, path: str) -> str:
     """Put the sim back to its state in the snapshot at `path`, then hold until every node says it is back too;
     why it could not ("" when it could)."""
+    started = time.monotonic()
     try:
         snapshot, state = node_state(path, "sim")
         restore_sim(server, state)
@@ -173,6 +175,7 @@ def restore_from(server: SimServer, path: str) -> str:
         server.snapshots.last_tick = snapshot.tick
     nodes = (["coordinator"] if server.coordinator else []) + [n for n, link in server.links.items() if not link.lost]
     missing = await_restored(server, snapshot.tick, nodes)
+    server.restored_from = {"tick": snapshot.tick, "wall_s": round(time.monotonic() - started, 3)}
     return f"{', '.join(missing)} did not start from the snapshot" if missing else ""
 
 

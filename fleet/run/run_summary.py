@@ -197,9 +197,13 @@ class RunSummary:
             "dropped_messages": dropped,
             "refused_messages": self._refused(sim, coord, controllers, monitor),
             "bus_refused": sim.get("bus_refused"),
+            "restored_from": sim.get("restored_from"),
             "snapshots": sim.get("snapshots", []),
             "snapshots_failed": sim.get("snapshots_failed", []),
             "snapshot_stall_ms_max": sim.get("snapshot_stall_ms_max"),
+            "snapshot_stall_ms_by_stage": sim.get("snapshot_stall_ms_by_stage", {}),
+            "snapshot_bytes_max": sim.get("snapshot_bytes_max"),
+            "snapshot_write_ms_max": sim.get("snapshot_write_ms_max"),
         }
 
     @staticmethod

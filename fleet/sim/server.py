@@ -103,6 +103,7 @@ class SimServer(SimLockstep):
         self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks
         self.started = not controllers  # every controller answered once (realtime waits until then)
         self.snapshots = None  # with `--snapshot-at/--snapshot-every`: a `fleet.sim.sim_snapshot.SimSnapshots`
+        self.restored_from: dict | None = None  # from a snapshot: its tick, wall s until every node was back
         self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
 
     def close(self) -> None:
@@ -257,6 +258,7 @@ class SimServer(SimLockstep):
             | {"randomised": dict(self.world.scene_model.randomised), "network_faults": faults_report(self.faults)}
             | self.stats.wall_clock()
             | (self.snapshots.report() if self.snapshots is not None else {})
+            | {"restored_from": self.restored_from}
         )
 
 

@@ -12,7 +12,9 @@ continue from byte-identical states (a world put back from PhysX's pack matches 
 from __future__ import annotations
 
 import pickle
+import threading
 import time
+import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,6 +59,11 @@ class SimSnapshots:
     written: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
     stall_s: list[float] = field(default_factory=list)
+    stages_ms: list[dict[str, float]] = field(default_factory=list)  # each snapshot's stall, by stage
+    bytes_written: list[int] = field(default_factory=list)
+    write_ms: list[float] = field(default_factory=list)  # compressing and writing each file (the line goes on)
+    _stage_at: float = 0.0
+    _writer: threading.Thread | None = None
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
 
     def due(self, tick: int) -> bool:
@@ -66,7 +73,8 @@ class SimSnapshots:
     def take(self) -> Path | None:
         """The run's snapshot at this tick boundary, written; None (the reason counted and printed) if it failed.
         The line goes on either way."""
-        t0 = time.perf_counter()
+        t0 = self._stage_at = time.perf_counter()
+        self.stages_ms.append({})
         sim = self.sim
         self.last_tick = sim.world.tick
         try:
@@ -80,29 +88,68 @@ class SimSnapshots:
             f.scene_name, f.scene, sim.mode, sim.world.tick, sim.world.sim_time_s, f.end_tick, f.allocator, states
         )
         path = self.directory / f"snapshot-{sim.world.tick:09d}{SUFFIX}"
-        write_snapshot(snapshot, path)
-        self.written.append(str(path))
         self.stall_s.append(time.perf_counter() - t0)
+        self.finish()  # one file written at a time
+        self._writer = threading.Thread(target=self._write, args=(snapshot, path), name="snapshot-writer")
+        self._writer.start()  # compressed and written while the line goes on
         return path
+
+    def _write(self, snapshot: RunSnapshot, path: Path) -> None:
+        t0 = time.perf_counter()
+        self.bytes_written.append(write_snapshot(snapshot, path))
+        self.write_ms.append(round(1e3 * (time.perf_counter() - t0), 1))
+        self.written.append(str(path))
+
+    def finish(self) -> None:
+        """Wait for the snapshot file being written, if any."""
+        if self._writer is not None:
+            self._writer.join()
+            self._writer = None
+
+    def _stage(self, name: str) -> None:
+        """The time since the last stage ended, counted as `name`'s."""
+        now = time.perf_counter()
+        self.stages_ms[-1][name] = round(1e3 * (now - self._stage_at), 1)
+        self._stage_at = now
 
     def _gather(self) -> dict[str, bytes]:
         sim = self.sim
+        spare: list[World] = []  # the world the line goes on in, built while the nodes write their states
+        builder = threading.Thread(target=lambda: spare.append(World(sim.world.scene_model)), name="spare-world")
+        builder.start()
+        try:
+            states = self._node_states()
+        finally:
+            builder.join()  # no other PhysX work while it builds: the sim's own world is packed after
+        self._stage("world")
+        if not spare:
+            raise SnapshotFailed("the world to go on in could not be built (see the log)")
+        own = capture_sim(sim)
+        states["sim"] = zlib.compress(own, 1)
+        self._stage("sim")
+        # go on from the state written, in a world built afresh, exactly as a run restored from it will (PhysX put
+        # back into the world it was packed from keeps solver caches a fresh world does not have)
+        sim.world = spare[0]
+        restore_sim(sim, own)
+        self._stage("restore")
+        return states
+
+    def _node_states(self) -> dict[str, bytes]:
+        """The nodes' states at this tick: the coordinator's, then each controller's."""
+        sim = self.sim
         self._settle()
+        self._stage("settle")
         tick = sim.world.tick
         coord = self._ask(SnapshotAsk(tick, "coordinator", events=len(sim.event_log)), ["coordinator"])
+        self._stage("coordinator")
         arms = [name for name, link in sim.links.items() if not link.lost]
         ask = SnapshotAsk(tick, "controllers", orders=coord["coordinator"].orders, parts_tick=sim.outputs.parts_tick)
         parts = self._ask(ask, arms)
+        self._stage("controllers")
         missing = sorted(set(sim.links) - set(arms))
         if missing:
             raise SnapshotFailed(f"the controllers of {', '.join(missing)} are lost")
-        states = {"sim": capture_sim(sim), "coordinator": coord["coordinator"].state}
-        states |= {arm: parts[arm].state for arm in sim.links}
-        # go on from the state written, in a world built afresh, exactly as a run restored from it will (PhysX put
-        # back into the world it was packed from keeps solver caches a fresh world does not have)
-        sim.world = World(sim.world.scene_model)
-        restore_sim(sim, states["sim"])
-        return states
+        return {"coordinator": coord["coordinator"].state} | {arm: parts[arm].state for arm in sim.links}
 
     def _settle(self) -> None:
         """Until every state and frame delivered is answered (with the goals the answers name)."""
@@ -142,11 +189,16 @@ class SimSnapshots:
         return got
 
     def report(self) -> dict:
-        stalls = sorted(self.stall_s)
+        """The snapshots written and failed; how long the line stood still for the longest, by stage; their size."""
+        self.finish()
+        longest = max(range(len(self.stall_s)), key=self.stall_s.__getitem__, default=None)
         return {
             "snapshots": list(self.written),
             "snapshots_failed": list(self.failed),
-            "snapshot_stall_ms_max": round(1e3 * stalls[-1], 1) if stalls else None,
+            "snapshot_stall_ms_max": None if longest is None else round(1e3 * self.stall_s[longest], 1),
+            "snapshot_stall_ms_by_stage": {} if longest is None else self.stages_ms[longest],
+            "snapshot_bytes_max": max(self.bytes_written, default=None),
+            "snapshot_write_ms_max": max(self.write_ms, default=None),
         }
 
 

@@ -7,6 +7,7 @@ The node owns the decision of when it is ready (`ready`) and what its state is (
 from __future__ import annotations
 
 import threading
+import zlib
 from collections.abc import Callable
 
 import zenoh
@@ -40,10 +41,14 @@ class SnapshotDesk:
         self._sent: tuple[int, bytes] | None = None  # the last part sent: asked again, it goes again as it was
 
     def serve(
-        self, ready: Callable[[SnapshotAsk], bool], capture: Callable[[SnapshotAsk], tuple[bytes, tuple]]
+        self,
+        ready: Callable[[SnapshotAsk], bool],
+        capture: Callable[[SnapshotAsk], tuple[bytes, tuple]],
+        restore: Callable[[bytes], None],
     ) -> bool:
         """Handle the asks queued: "are you back" answered, a part sent once `ready(ask)` (its state and orders from
-        `capture(ask)`, which also puts the node back to what it wrote). True when a part was made now."""
+        `capture(ask)`), then the node put back to what it wrote (`restore`: it goes on exactly as a node restored
+        from it will; after sending, so the sim does not wait for it). True when a part was made now."""
         for key, payload in self.inbox.drain():
             ask = self._decoder.decode(key, payload)
             if ask is None:
@@ -59,14 +64,17 @@ class SnapshotDesk:
         if self.pending is None or not ready(self.pending):
             return False
         ask, self.pending = self.pending, None
+        state = b""
         try:
             state, orders = capture(ask)
-            part = SnapshotPart(self.node, ask.tick, state, orders=orders)
+            part = SnapshotPart(self.node, ask.tick, zlib.compress(state, 1), orders=orders)
         except StateError as exc:
             part = SnapshotPart(self.node, ask.tick, error=str(exc)[:400])
         payload = encode(part)
         self._sent = (ask.tick, payload)
         self._pub.put(payload)
+        if state:
+            restore(state)
         return True
 
     def use_drops(self, drops: DropCounter) -> None:

@@ -81,7 +81,8 @@ class SceneSource(msgspec.Struct, frozen=True):
 
 
 class RunSnapshot(msgspec.Struct, frozen=True):
-    """A whole run at the start of tick `tick`: each process's state by node (`sim`, `coordinator`, arm ids)."""
+    """A whole run at the start of tick `tick`: each process's state by node (`sim`, `coordinator`, arm ids),
+    zlib-compressed by the process that wrote it (`node_state` gives it back as written)."""
 
     scene_name: str
     scene: SceneSource
@@ -100,7 +101,7 @@ class RunSnapshot(msgspec.Struct, frozen=True):
 
 def write_snapshot(snapshot: RunSnapshot, path: str | Path) -> int:
     """Write `snapshot` to `path` (whole or not at all: a reader never sees half a file); the bytes written."""
-    body = zlib.compress(msgspec.msgpack.encode(snapshot), 6)
+    body = zlib.compress(msgspec.msgpack.encode(snapshot), 1)  # the states are compressed already
     data = _HEADER.pack(MAGIC, FORMAT_VERSION, hashlib.sha256(body).digest()) + body
     target = Path(path)
     tmp = target.with_name(target.name + ".tmp")
@@ -146,4 +147,7 @@ def node_state(path: str | Path, node: str) -> tuple[RunSnapshot, bytes]:
     snapshot = read_snapshot(path)
     if node not in snapshot.states:
         raise SnapshotError(f"{path}: holds no state for {node!r}; nodes: {', '.join(snapshot.states)}")
-    return snapshot, snapshot.states[node]
+    try:
+        return snapshot, zlib.decompress(snapshot.states[node])
+    except zlib.error as exc:
+        raise SnapshotError(f"{path}: the state of {node} is damaged ({exc})") from None

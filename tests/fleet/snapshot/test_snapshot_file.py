@@ -6,6 +6,7 @@ from __future__ import annotations
 import struct
 import subprocess
 import sys
+import zlib
 from pathlib import Path
 
 import msgspec
@@ -36,7 +37,7 @@ def a_snapshot(**changes) -> RunSnapshot:
         "sim_time_s": 9.0,
         "end_tick": 3000,
         "allocator": "greedy",
-        "states": {"sim": b"\x01" * 100, "coordinator": b"\x02" * 50, "arm_0": b"\x03" * 10},
+        "states": {n: zlib.compress(bytes([i]) * 100) for i, n in enumerate(("sim", "coordinator", "arm_0"))},
     }
     return RunSnapshot(**(fields | changes))
 
@@ -47,7 +48,7 @@ def test_a_snapshot_reads_back_as_written(tmp_path):
     assert size == (tmp_path / "s.clawsnap").stat().st_size
     assert read_snapshot(tmp_path / "s.clawsnap") == snapshot
     assert snapshot.arms == ["arm_0"]
-    assert node_state(tmp_path / "s.clawsnap", "arm_0")[1] == b"\x03" * 10
+    assert node_state(tmp_path / "s.clawsnap", "arm_0")[1] == b"\x02" * 100, "as its process wrote it"
     assert not list(tmp_path.glob("*.tmp")), "written whole, then renamed"
 
 
@@ -116,7 +117,6 @@ def test_any_damage_to_a_file_is_a_snapshot_error_never_another(tmp_path, data):
 def test_the_body_is_decoded_only_as_a_snapshot(tmp_path):
     """A well-formed file whose body is some other MessagePack is refused, not half-read."""
     import hashlib
-    import zlib
 
     body = zlib.compress(msgspec.msgpack.encode({"hello": "world"}))
     path = tmp_path / "other.clawsnap"
@@ -147,3 +147,10 @@ def test_a_file_name_that_would_leave_the_folder_is_refused(tmp_path):
     with pytest.raises(SnapshotError, match="not a plain file name"):
         source.write(tmp_path / "out")
     assert not (tmp_path.parent / "evil.yaml").exists()
+
+
+def test_a_damaged_state_inside_a_sound_file_is_refused_for_its_node(tmp_path):
+    write_snapshot(a_snapshot(states={"sim": b"not zlib", "coordinator": zlib.compress(b"x")}), tmp_path / "s.clawsnap")
+    assert node_state(tmp_path / "s.clawsnap", "coordinator")[1] == b"x"
+    with pytest.raises(SnapshotError, match="the state of sim is damaged"):
+        node_state(tmp_path / "s.clawsnap", "sim")
