@@ -46,7 +46,7 @@ from fleet.sim.server import COORDINATOR_TIMEOUT_S, SimServer
 from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, await_restored, restore_sim
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError
-from fleet.snapshot.snapshot_file import SceneSource, SnapshotError, node_state
+from fleet.snapshot.snapshot_file import SceneSource, SnapshotError, node_state, read_snapshot
 
 
 def save_target_log(path: str, log: list) -> None:
@@ -150,16 +150,24 @@ def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: int) -> None:
-    """Snapshots due at `--snapshot-at` and every `--snapshot-every` (both in sim seconds), into `--snapshot-dir`."""
+    """Snapshots due at `--snapshot-at` and every `--snapshot-every` (both in sim seconds), into `--snapshot-dir`;
+    started `--from` a snapshot without either, the snapshots its run took later, taken again but not written."""
     hz = server.world.scene_model.control_hz
-    at = [float(v) for v in args.snapshot_at.split(",") if v.strip()]
-    if not (at or args.snapshot_every) or not args.snapshot_dir:
+    at = {round(float(v) * hz) for v in args.snapshot_at.split(",") if v.strip()}
+    every = round(args.snapshot_every * hz) if args.snapshot_every else 0
+    directory = Path(args.snapshot_dir) if args.snapshot_dir and (at or every) else None
+    if directory is None and args.from_snapshot:
+        try:
+            original = read_snapshot(args.from_snapshot)
+        except SnapshotError:
+            return  # said when it is restored from
+        at, every = set(original.later_ticks), original.every_ticks
+    if not (at or every):
         return
     facts = RunFacts(
         server.world.scene_model.name, SceneSource.of(args.scene, args.arms, args.seed), args.allocator, total_ticks
     )
-    every = round(args.snapshot_every * hz) if args.snapshot_every else 0
-    server.snapshots = SimSnapshots(server, facts, Path(args.snapshot_dir), {round(t * hz) for t in at}, every)
+    server.snapshots = SimSnapshots(server, facts, directory, at, every)
 
 
 def restore_from(server: SimServer, path: str) -> str:

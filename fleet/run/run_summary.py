@@ -200,6 +200,7 @@ class RunSummary:
             "restored_from": sim.get("restored_from"),
             "snapshots": sim.get("snapshots", []),
             "snapshots_failed": sim.get("snapshots_failed", []),
+            "snapshots_retaken": sim.get("snapshots_retaken", 0),
             "snapshot_stall_ms_max": sim.get("snapshot_stall_ms_max"),
             "snapshot_stall_ms_by_stage": sim.get("snapshot_stall_ms_by_stage", {}),
             "snapshot_bytes_max": sim.get("snapshot_bytes_max"),

@@ -49,11 +49,12 @@ class RunFacts:
 
 @dataclass
 class SimSnapshots:
-    """Snapshots due at `ticks` (and every `every_ticks` from the start, if set), written to `directory`."""
+    """Snapshots due at `ticks` (and every `every_ticks` from the start, if set), written to `directory` (None: taken,
+    not written; a restored run retakes its original's, so as to go on exactly as it did)."""
 
     sim: object
     facts: RunFacts
-    directory: Path
+    directory: Path | None
     ticks: set[int] = field(default_factory=set)
     every_ticks: int = 0
     written: list[str] = field(default_factory=list)
@@ -83,12 +84,23 @@ class SimSnapshots:
             self.failed.append(f"tick {sim.world.tick}: {exc}")
             print(f"sim_server: no snapshot at {sim.world.sim_time_s:.2f} s: {exc}", flush=True)
             return None
-        f = self.facts
-        snapshot = RunSnapshot(
-            f.scene_name, f.scene, sim.mode, sim.world.tick, sim.world.sim_time_s, f.end_tick, f.allocator, states
-        )
-        path = self.directory / f"snapshot-{sim.world.tick:09d}{SUFFIX}"
         self.stall_s.append(time.perf_counter() - t0)
+        if self.directory is None:  # a restored run retaking its original's snapshots: the line, not the file
+            return None
+        f, tick = self.facts, sim.world.tick
+        snapshot = RunSnapshot(
+            f.scene_name,
+            f.scene,
+            sim.mode,
+            tick,
+            sim.world.sim_time_s,
+            f.end_tick,
+            f.allocator,
+            states,
+            sorted(t for t in self.ticks if t > tick),
+            self.every_ticks,
+        )
+        path = self.directory / f"snapshot-{tick:09d}{SUFFIX}"
         self.finish()  # one file written at a time
         self._writer = threading.Thread(target=self._write, args=(snapshot, path), name="snapshot-writer")
         self._writer.start()  # compressed and written while the line goes on
@@ -194,6 +206,7 @@ class SimSnapshots:
         longest = max(range(len(self.stall_s)), key=self.stall_s.__getitem__, default=None)
         return {
             "snapshots": list(self.written),
+            "snapshots_retaken": len(self.stall_s) if self.directory is None else 0,
             "snapshots_failed": list(self.failed),
             "snapshot_stall_ms_max": None if longest is None else round(1e3 * self.stall_s[longest], 1),
             "snapshot_stall_ms_by_stage": {} if longest is None else self.stages_ms[longest],

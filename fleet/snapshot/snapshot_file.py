@@ -92,6 +92,10 @@ class RunSnapshot(msgspec.Struct, frozen=True):
     end_tick: int  # where the run that took it was to end
     allocator: str
     states: dict[str, bytes]
+    # the run's later snapshots (ticks, and every so many ticks): a run restored from this one takes them too, for
+    # a snapshot goes on from a world built afresh (it matches the one packed to about 1e-6, not exactly)
+    later_ticks: list[int] = []
+    every_ticks: int = 0
     protocol_version: int = PROTOCOL_VERSION
 
     @property
