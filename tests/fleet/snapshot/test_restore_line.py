@@ -31,9 +31,10 @@ def run(options: RunOptions) -> dict:
 
 
 def line_figures(summary: dict) -> dict:
-    """The summary without wall-clock figures and without the snapshots taken (where, how long, how large: the
-    restored runs take none)."""
-    return {k: v for k, v in summary.items() if k not in WALL_FIGURES and not k.startswith("snapshot")}
+    """The summary without wall-clock figures, the snapshots taken (where, how long, how large), where it was restored
+    from and what its recording holds (a restored run records from there on)."""
+    skip = (*WALL_FIGURES, "restored_from", "recording")
+    return {k: v for k, v in summary.items() if k not in skip and not k.startswith("snapshot")}
 
 
 @pytest.mark.parametrize("scene", bundled_scene_names())

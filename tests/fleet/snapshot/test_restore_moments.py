@@ -1,0 +1,104 @@
+"""Snapshots at the awkward moments restore exactly: an arm mid-grasp, a part handed over between two arms (on the
+pad, the second arm's task open), goals sent and not yet applied. Each restore ends with the uninterrupted run's
+summary, and records, from the moment it starts, the same messages on every topic that does not follow the wall
+clock."""
+
+from __future__ import annotations
+
+import io
+import pickle
+import zlib
+from collections import defaultdict
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from fleet.run.launcher import RunOptions
+from fleet.run.restore import restore_options
+from fleet.snapshot.snapshot_file import read_snapshot
+from robots.phase import GRASP_PHASES
+from tests.fleet.snapshot.test_restore_line import line_figures, run
+
+pytestmark = pytest.mark.slow
+
+# topics whose messages follow the wall clock (heartbeats, progress, the launcher's roster, the sim's status) and the
+# summary written at the end (its wall-clock figures)
+WALL_TOPICS = ("status", "sim_status", "progress", "roster", "summary")
+
+
+class _Names(pickle.Unpickler):
+    """Reads a state that names objects of its process (the sim's world) without them."""
+
+    def persistent_load(self, pid: str) -> None:
+        return None
+
+
+def states_of(path: str) -> dict[str, dict]:
+    """Every process's state in a snapshot, as attributes (read here to find what moment it holds)."""
+    snapshot = read_snapshot(path)
+    raw = {node: zlib.decompress(blob) for node, blob in snapshot.states.items()}
+    sim = pickle.loads(raw.pop("sim"))
+    out = {"sim": _Names(io.BytesIO(sim["server"])).load()}
+    return out | {node: _Names(io.BytesIO(blob)).load() for node, blob in raw.items()}
+
+
+def moments(path: str) -> set[str]:
+    """What is going on in a snapshot: an arm mid-grasp, a part handed over, goals not yet applied."""
+    states = states_of(path)
+    found = set()
+    if any(s["skill"].phase in GRASP_PHASES for node, s in states.items() if node not in ("sim", "coordinator")):
+        found.add("mid-grasp")
+    ledger = states["coordinator"]["dispatcher"].ledger
+    if any(p.location == "handover_pad" and ledger._open_task(p.part_id) is not None for p in ledger.parts.values()):
+        found.add("mid-handover")
+    if any(link.goals for link in states["sim"]["links"].values()):
+        found.add("goal pending")
+    return found
+
+
+def recorded(path: Path, from_s: float) -> dict[str, list[bytes]]:
+    """Each topic's messages logged from `from_s` on (a message sent again unchanged counted once: resends follow
+    the wall clock), but the wall-clock topics."""
+    out: dict[str, list[bytes]] = defaultdict(list)
+    with open(path, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            if message.log_time < from_s * 1e9 or channel.topic.endswith(WALL_TOPICS):
+                continue
+            if not out[channel.topic] or out[channel.topic][-1] != message.data:
+                out[channel.topic].append(message.data)
+    return out
+
+
+def test_snapshots_mid_grasp_mid_handover_and_with_goals_pending_restore_exactly(tmp_path):
+    whole = run(
+        RunOptions(
+            scene="handover",
+            duration_s=24.0,
+            snapshot_every_s=1.0,
+            snapshot_dir=str(tmp_path),
+            record=str(tmp_path / "whole.mcap"),
+        )
+    )
+    assert whole["status"] == "ok" and len(whole["snapshots"]) == 23 and whole["parts_completed"] >= 1
+    held = {path: moments(path) for path in whole["snapshots"]}
+    chosen = {}
+    for moment in ("mid-grasp", "mid-handover", "goal pending"):
+        found = [p for p, m in held.items() if moment in m and p not in chosen.values()]
+        assert found, f"no snapshot {moment} in 23 seconds of handover: {held}"
+        chosen[moment] = found[0]
+    runs = [
+        restore_options(path, tmp_path / moment, record=str(tmp_path / f"{moment}.mcap"))[0]
+        for moment, path in chosen.items()
+    ]
+    with ThreadPoolExecutor(2) as pool:
+        ends = list(pool.map(run, runs))
+    for (moment, path), end, options in zip(chosen.items(), ends, runs):
+        assert end["status"] == "ok" and end["restored_from"]["tick"] == read_snapshot(path).tick, moment
+        assert line_figures(end) == line_figures(whole), moment
+        start_s = read_snapshot(path).sim_time_s + 0.5  # messages of the first ticks may be logged either side
+        mine, theirs = recorded(Path(options.record), start_s), recorded(tmp_path / "whole.mcap", start_s)
+        assert set(mine) == set(theirs) and len(mine) >= 20, moment
+        for topic in mine:
+            assert mine[topic] == theirs[topic], f"{moment}: {topic}"
