@@ -6,6 +6,7 @@ import argparse
 import importlib.util
 import math
 import os
+from pathlib import Path
 
 from rich.progress import (
     BarColumn,
@@ -28,7 +29,9 @@ from fleet.common.scene_loading import load_scene
 
 def sweep_jobs(args: argparse.Namespace) -> int:
     """Runs at a time, once the flags that cannot work are refused in one line."""
-    if not (math.isfinite(args.duration) and 0 < args.duration <= 24 * 3600):
+    if args.duration is None:
+        args.duration = None if args.from_snapshot else DEFAULT_DURATION_S
+    if args.duration is not None and not (math.isfinite(args.duration) and 0 < args.duration <= 24 * 3600):
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a day)")
     jobs = args.jobs or os.cpu_count() or 1
     if args.ray and importlib.util.find_spec("ray") is None:
@@ -36,6 +39,44 @@ def sweep_jobs(args: argparse.Namespace) -> int:
     if jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: at least 1")
     return jobs
+
+
+DEFAULT_DURATION_S = 60.0
+
+
+def branch_scene(args: argparse.Namespace) -> str:
+    """`--from SNAPSHOT`: the snapshot's scene (its name, for the results), once the flags a branch cannot take are
+    refused in one line; without `--from`, the scene given."""
+    if not args.from_snapshot:
+        if not args.scene:
+            raise UsageError("give a scene (bundled name or file), or --from SNAPSHOT")
+        return args.scene
+    from fleet.snapshot.snapshot_file import SnapshotError, read_snapshot
+
+    try:
+        snapshot = read_snapshot(args.from_snapshot)
+    except SnapshotError as exc:
+        raise UsageError(str(exc)) from None
+    if args.scene and args.scene not in (snapshot.scene_name, snapshot.scene.file_name):
+        raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
+    given = {
+        "--set": args.set,
+        "--load": args.load,
+        "--arms": args.arms,
+        "--latency-ms": args.latency_ms,
+        "--jitter-ms": args.jitter_ms,
+        "--loss": args.loss,
+        "--ray": args.ray,
+    }
+    refused = [flag for flag, value in given.items() if value]
+    if refused:
+        raise UsageError(
+            f"a branch from a snapshot compares allocators over seeds on this machine: leave out {', '.join(refused)}"
+        )
+    if snapshot.mode != "lockstep":
+        raise UsageError(f"{args.from_snapshot}: a snapshot of a {snapshot.mode} run; only lockstep runs branch")
+    args.from_snapshot = str(Path(args.from_snapshot).resolve())
+    return snapshot.scene_name
 
 
 def load_list(text: str) -> list[float]:
@@ -67,16 +108,26 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
     jobs = sweep_jobs(args)
+    scene = branch_scene(args)
     args.allocator = [allocator_spec(spec) for spec in args.allocator]
     try:
         cells = grid(
-            args.scene, parse_seeds(args.seeds), args.allocator, args.duration, args.arms, sweep_overrides(args)
+            scene,
+            parse_seeds(args.seeds),
+            args.allocator,
+            args.duration,
+            args.arms,
+            sweep_overrides(args),
+            args.from_snapshot,
         )
     except GridError as exc:
         raise UsageError(str(exc)) from None
-    load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything runs
     out_dir = output_folder("--out", args.out)
-    scenes = scenes_for(cells, out_dir / "scenes")  # a bad --set: one line, before anything runs
+    if args.from_snapshot:
+        scenes = {c.run_id: args.from_snapshot for c in cells}  # a branch's runs take the snapshot's scene
+    else:
+        load_scene(scene, arms=args.arms)  # a bad scene: one line, before anything runs
+        scenes = scenes_for(cells, out_dir / "scenes")  # a bad --set: one line, before anything runs
     done = finished(out_dir, cells)
     todo = [c for c in cells if c.run_id not in done]
     err.print(
@@ -154,7 +205,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "sweep", help="a grid of runs over seeds, allocators and scene overrides, in parallel (or on Ray), resumable"
     )
-    p.add_argument("scene", help="bundled scene name or scene file")
+    p.add_argument("scene", nargs="?", help="bundled scene name or scene file (with --from: the snapshot's)")
     p.add_argument("--seeds", default="0-4", help="a range (0-19) or a list (1,4,9); default 0-4")
     p.add_argument(
         "--allocator",
@@ -177,7 +228,19 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "complete (1.0), e.g. 0.5,0.75,1.0,1.25,1.5; draws throughput, missed parts and utilisation against load",
     )
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
-    p.add_argument("--duration", type=float, default=60.0, help="sim seconds per run (default 60)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="sim seconds per run (default 60; with --from: from the snapshot on, default to where its run was to end)",
+    )
+    p.add_argument(
+        "--from",
+        dest="from_snapshot",
+        metavar="SNAPSHOT",
+        help="branch every run from this snapshot (`fleet run --snapshot-at`): each allocator from one identical "
+        "state, each seed drawing its own arrivals from there on; paired intervals as for any sweep",
+    )
     p.add_argument(
         "--latency-ms",
         type=float,

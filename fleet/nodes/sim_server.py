@@ -147,6 +147,12 @@ def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--from", dest="from_snapshot", metavar="SNAPSHOT", help="start from the sim's state in a run's snapshot"
     )
+    parser.add_argument(
+        "--reseed",
+        type=int,
+        metavar="N",
+        help="with --from: the feeders draw arrivals from seed N from the snapshot on (a branch's own arrivals)",
+    )
 
 
 def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: int) -> None:
@@ -170,13 +176,15 @@ def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: i
     server.snapshots = SimSnapshots(server, facts, directory, at, every)
 
 
-def restore_from(server: SimServer, path: str) -> str:
+def restore_from(server: SimServer, path: str, reseed: int | None = None) -> str:
     """Put the sim back to its state in the snapshot at `path`, then hold until every node says it is back too;
     why it could not ("" when it could)."""
     started = time.monotonic()
     try:
         snapshot, state = node_state(path, "sim")
         restore_sim(server, state)
+        if reseed is not None:
+            server.world.reseed_feeders(reseed)
     except (SnapshotError, StateError) as exc:
         return str(exc)
     if server.snapshots is not None:
@@ -260,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
         attach_snapshots(server, args, ticks)
         if args.from_snapshot:
-            why = restore_from(server, args.from_snapshot)
+            why = restore_from(server, args.from_snapshot, args.reseed)
             if why:
                 server.close()
                 print(f"sim_server: {why}", file=sys.stderr)

@@ -88,6 +88,7 @@ class RunOptions:
     snapshot_every_s: float | None = None
     snapshot_dir: str | None = None  # where snapshots are written
     restore_from: str | None = None  # a snapshot every node starts from (`scene` is then the one it holds)
+    reseed: int | None = None  # with `restore_from`: the feeders draw their arrivals from this seed from there on
 
 
 class RunError(RuntimeError):

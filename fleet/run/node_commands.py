@@ -76,6 +76,8 @@ class NodeCommands:
         sim_args += ["--allocator", o.allocator, *self._snapshot_args()]
         if o.restore_from:
             sim_args += ["--from", o.restore_from]
+        if o.reseed is not None:
+            sim_args += ["--reseed", str(o.reseed)]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
 
     def _snapshot_args(self) -> list[str]:

@@ -15,7 +15,8 @@ def restore_options(
 ) -> tuple[RunOptions, RunSnapshot]:
     """Options that start every process from the snapshot at `path` (its scene and robot files written under
     `folder`, which must outlive the run), running to where the snapshot's run was to end, or `duration_s` sim
-    seconds more; `options` sets the rest (another allocator: a branch). A `SnapshotError` (one line) if it cannot."""
+    seconds more; `options` sets the rest (another allocator, `reseed`: a branch). A `SnapshotError` (one line) if it
+    cannot."""
     snapshot = read_snapshot(path)
     if snapshot.mode != "lockstep":
         raise SnapshotError(f"{path}: a snapshot of a {snapshot.mode} run; only lockstep runs restore")

@@ -107,8 +107,15 @@ class SimSnapshots:
         return path
 
     def _write(self, snapshot: RunSnapshot, path: Path) -> None:
+        """Compress and write one file (on the writer thread); a file that cannot be written is counted, once said."""
         t0 = time.perf_counter()
-        self.bytes_written.append(write_snapshot(snapshot, path))
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self.bytes_written.append(write_snapshot(snapshot, path))
+        except OSError as exc:
+            self.failed.append(f"tick {snapshot.tick}: cannot write {path}: {exc.strerror or exc}")
+            print(f"sim_server: {self.failed[-1]}", flush=True)
+            return
         self.write_ms.append(round(1e3 * (time.perf_counter() - t0), 1))
         self.written.append(str(path))
 

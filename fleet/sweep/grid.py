@@ -62,6 +62,7 @@ class RunCell:
     duration_s: float
     arms: int | None = None
     overrides: dict = field(default_factory=dict)
+    restore_from: str | None = None  # a snapshot every run branches from (the seed then draws its later arrivals)
 
     @property
     def group(self) -> dict:
@@ -71,6 +72,7 @@ class RunCell:
             "arms": self.arms,
             "allocator": self.allocator,
             "duration_s": self.duration_s,
+            **({"from": Path(self.restore_from).name} if self.restore_from else {}),
             **self.overrides,
         }
 
@@ -187,6 +189,7 @@ def grid(
     duration_s: float,
     arms: int | None = None,
     overrides: list[Override] = (),
+    restore_from: str | None = None,
 ) -> list[RunCell]:
     """Every combination, seeds innermost (so the first runs already cover every group); refused in one line when
     there would be more than `MAX_RUNS` (counted before any is made)."""
@@ -201,7 +204,7 @@ def grid(
     cells = []
     for allocator, *values in combos:
         for seed in seeds:
-            cells.append(RunCell(scene, seed, allocator, duration_s, arms, dict(zip(paths, values))))
+            cells.append(RunCell(scene, seed, allocator, duration_s, arms, dict(zip(paths, values)), restore_from))
     return sorted(cells, key=lambda c: (c.seed, json.dumps(c.group, sort_keys=True, default=str)))
 
 

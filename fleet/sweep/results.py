@@ -47,6 +47,8 @@ def run_rows(results: list[dict]) -> list[dict]:
             "seed": cell["seed"],
             "duration_s": cell["duration_s"],
         }
+        if cell.get("restore_from"):
+            row["from"] = Path(cell["restore_from"]).name  # a branch: every run from this snapshot
         row |= {f"set:{k}": v for k, v in sorted(cell["overrides"].items())}
         row |= {k: v for k, v in sorted(summary.items()) if _scalar(v) and k not in row}
         busy = [float(v) for v in (summary.get("utilisation") or {}).values() if isinstance(v, (int, float))]
@@ -65,7 +67,7 @@ def group_key(row: dict) -> tuple:
     return tuple(
         (k, json.dumps(row[k]))
         for k in sorted(row)
-        if k in ("scene", "arms", "allocator", "duration_s") or k.startswith("set:")
+        if k in ("scene", "arms", "allocator", "duration_s", "from") or k.startswith("set:")
     )
 
 

@@ -67,14 +67,26 @@ def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) ->
         if scene_text is not None:
             scene = str(Path(tmp) / Path(scene).name)
             Path(scene).write_text(scene_text)
-        options = RunOptions(
-            scene=scene,
-            arms=cell.arms,
-            duration_s=cell.duration_s,
-            seed=cell.seed,
-            allocator=cell.allocator,
-            run_id=run_id,
-        )
+        if cell.restore_from:  # a branch: the snapshot's line, this allocator, this seed's arrivals from there on
+            from fleet.run.restore import restore_options
+
+            options, _ = restore_options(
+                cell.restore_from,
+                Path(tmp) / "scene",
+                cell.duration_s,
+                allocator=cell.allocator,
+                run_id=run_id,
+                reseed=cell.seed,
+            )
+        else:
+            options = RunOptions(
+                scene=scene,
+                arms=cell.arms,
+                duration_s=cell.duration_s,
+                seed=cell.seed,
+                allocator=cell.allocator,
+                run_id=run_id,
+            )
         keep_factory()  # a worker's runs fork their nodes from one factory, kept from run to run
         with Launcher(options, on_message=lambda _text: None) as launcher:
             return launcher.run()

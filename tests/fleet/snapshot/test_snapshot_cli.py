@@ -1,0 +1,46 @@
+"""`fleet run` and `fleet sweep` refuse snapshot flags that cannot work in one line, exit 2, starting nothing."""
+
+from __future__ import annotations
+
+import zlib
+
+import pytest
+
+from fleet.cli import main
+from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, write_snapshot
+
+
+@pytest.fixture
+def snapshot(tmp_path) -> str:
+    """A sound file of pick_cell (its states are never read: every command here is refused before)."""
+    path = tmp_path / "pick.clawsnap"
+    states = {n: zlib.compress(b"x") for n in ("sim", "coordinator", "arm_0")}
+    write_snapshot(
+        RunSnapshot("pick_cell", SceneSource.of("pick_cell", None, 0), "lockstep", 500, 5.0, 3000, "greedy", states),
+        path,
+    )
+    return str(path)
+
+
+CASES = [
+    (["run", "--from", "{missing}"], "no such snapshot file"),
+    (["run", "--from", "{bad}"], "not a clawfleet snapshot"),
+    (["run", "sorting_line", "--from", "{snapshot}"], "is a snapshot of pick_cell, not of sorting_line"),
+    (["run", "--from", "{snapshot}", "--arms", "3"], "leave out --arms"),
+    (["run", "--from", "{snapshot}", "--mode", "realtime"], "lockstep runs only"),
+    (["run", "--snapshot-at", "5"], "write into --out DIR"),
+    (["run", "--snapshot-every", "0", "--out", "{dir}"], "--snapshot-every 0"),
+    (["run", "--snapshot-at", "5", "--out", "{dir}", "--mode", "realtime"], "lockstep runs only"),
+    (["sweep", "--from", "{snapshot}", "--set", "seed=1,2", "--out", "{dir}"], "leave out --set"),
+    (["sweep", "--from", "{missing}", "--out", "{dir}"], "no such snapshot file"),
+    (["sweep", "--out", "{dir}"], "give a scene"),
+]
+
+
+@pytest.mark.parametrize(("argv", "says"), CASES, ids=lambda v: " ".join(v) if isinstance(v, list) else None)
+def test_a_snapshot_flag_that_cannot_work_is_one_line_and_exit_2(argv, says, snapshot, tmp_path, capsys):
+    (tmp_path / "bad.clawsnap").write_bytes(b"PK\x03\x04" * 20)
+    names = {"snapshot": snapshot, "missing": str(tmp_path / "none.clawsnap"), "bad": str(tmp_path / "bad.clawsnap")}
+    code = main([a.format(dir=str(tmp_path / "out"), **names) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and says in err[-1] and len(err) == 1, err
