@@ -102,32 +102,32 @@ def sweep_overrides(args: argparse.Namespace) -> list:
     )
 
 
-def cmd_sweep(args: argparse.Namespace) -> int:
+def sweep_cells(args: argparse.Namespace) -> tuple[list, dict[str, str], Path]:
+    """The sweep's runs, the scene each runs (a branch: the snapshot) and its output folder; a flag, scene or
+    override that cannot work refused in one line before anything runs."""
     from fleet.sweep.grid import GridError, grid, parse_seeds, scenes_for
+
+    scene = branch_scene(args)
+    args.allocator = [allocator_spec(spec) for spec in args.allocator]
+    try:
+        seeds = parse_seeds(args.seeds)
+        overrides = sweep_overrides(args)
+        cells = grid(scene, seeds, args.allocator, args.duration, args.arms, overrides, args.from_snapshot)
+    except GridError as exc:
+        raise UsageError(str(exc)) from None
+    if args.from_snapshot:  # a branch runs the snapshot's scene
+        return cells, {c.run_id: args.from_snapshot for c in cells}, output_folder("--out", args.out)
+    load_scene(scene, arms=args.arms)
+    out_dir = output_folder("--out", args.out)
+    return cells, scenes_for(cells, out_dir / "scenes"), out_dir
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
     from fleet.sweep.results import write_results
     from fleet.sweep.runner import finished, load_results, run_local, run_ray
 
     jobs = sweep_jobs(args)
-    scene = branch_scene(args)
-    args.allocator = [allocator_spec(spec) for spec in args.allocator]
-    try:
-        cells = grid(
-            scene,
-            parse_seeds(args.seeds),
-            args.allocator,
-            args.duration,
-            args.arms,
-            sweep_overrides(args),
-            args.from_snapshot,
-        )
-    except GridError as exc:
-        raise UsageError(str(exc)) from None
-    out_dir = output_folder("--out", args.out)
-    if args.from_snapshot:
-        scenes = {c.run_id: args.from_snapshot for c in cells}  # a branch's runs take the snapshot's scene
-    else:
-        load_scene(scene, arms=args.arms)  # a bad scene: one line, before anything runs
-        scenes = scenes_for(cells, out_dir / "scenes")  # a bad --set: one line, before anything runs
+    cells, scenes, out_dir = sweep_cells(args)
     done = finished(out_dir, cells)
     todo = [c for c in cells if c.run_id not in done]
     err.print(
@@ -214,19 +214,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="allocators to compare: built-ins (optimal, auction, greedy), installed plug-ins, package.module:Name, "
         "policy:FILE",
     )
-    p.add_argument(
-        "--set",
-        action="append",
-        metavar="FIELD.PATH=V1,V2",
-        help="a scene field and the values it takes (repeatable), e.g. conveyor.speed_m_per_s=0.05,0.1",
-    )
-    p.add_argument(
-        "--load",
-        type=load_list,
-        metavar="L1,L2",
-        help="offered loads: every feeder scaled so parts arrive at these multiples of what the arms can just "
-        "complete (1.0), e.g. 0.5,0.75,1.0,1.25,1.5; draws throughput, missed parts and utilisation against load",
-    )
+    _add_grid_arguments(p)
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
     p.add_argument(
         "--duration",
@@ -241,14 +229,6 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="branch every run from this snapshot (`fleet run --snapshot-at`): each allocator from one identical "
         "state, each seed drawing its own arrivals from there on; paired intervals as for any sweep",
     )
-    p.add_argument(
-        "--latency-ms",
-        type=float,
-        nargs="+",
-        metavar="MS",
-        help="bus latency levels, each way on every link (network.latency_ms)",
-    )
-    p.add_argument("--jitter-ms", type=float, nargs="+", metavar="MS", help="bus jitter levels (network.jitter_ms)")
     p.add_argument("--loss", type=float, nargs="+", metavar="P", help="bus loss levels (network.loss)")
     p.add_argument("--jobs", type=int, default=None, help="runs at a time on this machine (default: its cores)")
     p.add_argument(
@@ -263,3 +243,28 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="results: runs/*.json, runs.csv, cells.csv, plots; a run already there is not run again",
     )
     p.set_defaults(func=cmd_sweep)
+
+
+def _add_grid_arguments(p: argparse.ArgumentParser) -> None:
+    """What a sweep varies besides seeds and allocators: scene fields, offered load, the bus's faults."""
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="FIELD.PATH=V1,V2",
+        help="a scene field and the values it takes (repeatable), e.g. conveyor.speed_m_per_s=0.05,0.1",
+    )
+    p.add_argument(
+        "--load",
+        type=load_list,
+        metavar="L1,L2",
+        help="offered loads: every feeder scaled so parts arrive at these multiples of what the arms can just "
+        "complete (1.0), e.g. 0.5,0.75,1.0,1.25,1.5; draws throughput, missed parts and utilisation against load",
+    )
+    p.add_argument(
+        "--latency-ms",
+        type=float,
+        nargs="+",
+        metavar="MS",
+        help="bus latency levels, each way on every link (network.latency_ms)",
+    )
+    p.add_argument("--jitter-ms", type=float, nargs="+", metavar="MS", help="bus jitter levels (network.jitter_ms)")

@@ -57,6 +57,7 @@ class TaskChooser:
         }
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
+        self.pending: dict[str, object] = {}  # arm -> an assignment given it, to start when its skill is free
         self.arm_choices: dict[str, ArmChoices] = {}
         self.seen: dict[int, PartView] = {}
         self.outcomes: dict[str, list[TaskState]] = {a: [] for a in self.agents}
@@ -170,10 +171,22 @@ class TaskChooser:
                         order.request_seq, order.decision, order.conflict_arm, self.world.sim_time_s, order.start_s
                     )
             parts = part_observations(self.world)
+            for agent in [a for a, order in self.pending.items() if order is not None and self.skills[a].available]:
+                self._start_assigned(agent, self.pending.pop(agent), parts)
             for agent in self.agents:
                 if self.skills[agent].active:
                     self.tracked.decide(agent, self.skills[agent], parts)
         self.tracked.apply()
+
+    def _start_assigned(self, agent: str, order, parts: dict) -> None:
+        """An assignment the arm had been given (an episode from a line's snapshot) started now its skill is free."""
+        if order.part_id not in parts:
+            self.skills[agent].reject(f"part {order.part_id} is not on the line")
+            return
+        job = PickPlaceJob(order.part_id, order.surface_z_m, tuple(order.place_xyz), tuple(order.surface_velocity))
+        observed = arm_observation(self.world, agent, self.tracked.trackers[agent])
+        self.skills[agent].start(job, observed, parts[order.part_id])
+        self.task_of[agent] = order.task_id
 
     def report(self) -> None:
         """After a tick: the trackers' results; each arm's skill phase goes to the ledger; a closed task frees its

@@ -32,6 +32,7 @@ from fleet.env.limits import (
 )
 from fleet.env.observations import EnvObservations
 from fleet.env.scenarios import SCENARIOS, Scenario, make_scenario
+from fleet.env.snapshot_episode import resume_chooser, start_from_snapshot
 from fleet.sim.render import require_render
 from fleet.sim.world import World
 from robots.frames import yaw_transform
@@ -160,11 +161,14 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
         self.world.restore_state(self._start)
         # each episode its own arrivals: seed S gives those of `fleet run --seed S`; no seed, a draw from the env's
         # stream
-        self.world.reseed_feeders(seed if seed is not None else int(self.np_random.integers(2**32)))
+        feeder_seed = seed if seed is not None else int(self.np_random.integers(2**32))
+        self.world.reseed_feeders(feeder_seed)
         self.agents = list(self.possible_agents)
         self.cycles = 0
         self.scenario.home_tool = self._tools()
         self.scenario.reset(self.world, self.np_random)
+        snapshot = (options or {}).get("snapshot")
+        moment = start_from_snapshot(self, snapshot, feeder_seed) if snapshot is not None else None
         start_q = {a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents}
         for uid, translator in self.translators.items():
             translator.reset(np.array([start_q[a] for a in self._arms_of_model[uid]]))
@@ -173,6 +177,8 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
             self.actuator.reset(start_q)
         if self.chooser is not None:
             self.chooser.reset(self.scenario.book.dispatcher)
+            if moment is not None:
+                resume_chooser(self.chooser, moment)
         self._options = self.chooser.choices() if self.chooser else {}
         observations = self._observe()  # places the guard's arms, which the human render draws
         if self.render_mode == "human":

@@ -52,13 +52,18 @@ def capture(owner: object, keep: Iterable[str], live: Mapping[str, object] | Non
 
 def restore(owner: object, blob: bytes, live: Mapping[str, object] | None = None) -> None:
     """Put a state from `capture` back into `owner` (its live handles stay as they are)."""
+    vars(owner).update(read_state(blob, live, type(owner).__name__))
+
+
+def read_state(blob: bytes, live: Mapping[str, object] | None = None, owner: str = "a process") -> dict:
+    """A state from `capture` as its attributes by name (objects of `live` found by name), without an owner: what
+    another front end takes of it (an env episode from a line's snapshot)."""
     try:
-        state = _Unpickler(io.BytesIO(blob), live or {}).load()
+        return _Unpickler(io.BytesIO(blob), live or {}).load()
     except StateError:
         raise
     except Exception as exc:  # noqa: BLE001 - any fault of a foreign blob is one line
-        raise StateError(f"cannot read back the state of {type(owner).__name__}: {exc}") from exc
-    vars(owner).update(state)
+        raise StateError(f"cannot read back the state of {owner}: {exc}") from exc
 
 
 def _pickles(value: object, live: Mapping[str, object]) -> bool:
