@@ -57,7 +57,7 @@ class TaskChooser:
         }
         self.tracked = TrackedArms(self.world)  # the arms follow the skills' goals, as the sim server's trackers do
         self.task_of: dict[str, int | None] = {a: None for a in self.agents}
-        self.pending: dict[str, object] = {}  # arm -> an assignment given it, to start when its skill is free
+        self.unstarted: dict[str, object] = {}  # arm -> an assignment given it, to start when its skill is free
         self.arm_choices: dict[str, ArmChoices] = {}
         self.seen: dict[int, PartView] = {}
         self.outcomes: dict[str, list[TaskState]] = {a: [] for a in self.agents}
@@ -171,8 +171,8 @@ class TaskChooser:
                         order.request_seq, order.decision, order.conflict_arm, self.world.sim_time_s, order.start_s
                     )
             parts = part_observations(self.world)
-            for agent in [a for a, order in self.pending.items() if order is not None and self.skills[a].available]:
-                self._start_assigned(agent, self.pending.pop(agent), parts)
+            for agent in [a for a, order in self.unstarted.items() if order is not None and self.skills[a].available]:
+                self._start_assigned(agent, self.unstarted.pop(agent), parts)
             for agent in self.agents:
                 if self.skills[agent].active:
                     self.tracked.decide(agent, self.skills[agent], parts)

@@ -104,7 +104,7 @@ def apply_goals(tracked: TrackedArms, moment: LineMoment) -> None:
 def resume_chooser(chooser, moment: LineMoment) -> None:
     """The allocate mode's arms as the line had them: skills, trackers (with the goals not yet applied), the task
     each works on; the orders each controller had received and not acted on, acted on now (a grant answered, a
-    cancel, an assignment started when its skill is free: `TaskChooser.pending`)."""
+    cancel, an assignment started when its skill is free: `TaskChooser.unstarted`)."""
     chooser.tracked = moment.tracked
     apply_goals(chooser.tracked, moment)
     now = chooser.world.sim_time_s
@@ -126,7 +126,7 @@ def resume_chooser(chooser, moment: LineMoment) -> None:
             skill.on_grant(
                 g.request_seq, g.decision, g.conflict_arm, now, g.start_time_s if g.start_time_s >= 0 else None
             )
-        chooser.pending[arm] = pending
+        chooser.unstarted[arm] = pending
         if pending is not None:  # taken: no other task is offered to it meanwhile
             chooser.task_of[arm] = pending.task_id
 
@@ -138,7 +138,13 @@ def start_from_snapshot(env, option: object, feeder_seed: int) -> LineMoment:
         raise SnapshotEpisodeError(
             f"an episode from a line's snapshot needs scenario='line' (this env runs {env.scenario_name!r})"
         )
-    moment = read_moment(pick_snapshot(option, env.np_random), env.world, list(env.possible_agents))
+    path = pick_snapshot(option, env.np_random)
+    # a world built afresh: PhysX put back into a world that has run keeps contact caches a fresh one has not, and
+    # one seed must give one episode
+    env.world = World(env.scene)
+    if env.chooser is not None:
+        env.chooser.world = env.world
+    moment = read_moment(path, env.world, list(env.possible_agents))
     restore_world(env.world, moment)
     env.world.reseed_feeders(feeder_seed)
     book = env.scenario.book
