@@ -195,6 +195,38 @@ def cmd_bench_safety(args: argparse.Namespace) -> int:
     return print_bench(table, rows, args.json)
 
 
+def cmd_bench_snapshot(args: argparse.Namespace) -> int:
+    from fleet.bench.snapshots import bench_snapshots
+
+    table = Table(
+        "arms",
+        "snapshots",
+        "line held (ms, max)",
+        "by stage (ms)",
+        "file (kB, max)",
+        "write (ms, beside the line)",
+        "restore to first tick (s)",
+        "restored ends the same",
+    )
+    rows = []
+    for n in args.arms:
+        err.print(f"snapshot bench: {n} arms, {args.seconds:g} s, {args.snapshots} snapshots, then a restore")
+        rows.append(bench_snapshots(n, args.seconds, args.snapshots))
+    for r in rows:
+        stages = ", ".join(f"{k} {v:g}" for k, v in r.stall_ms_by_stage.items())
+        table.add_row(
+            str(r.arms),
+            str(r.snapshots),
+            f"{r.stall_ms_max:.0f}",
+            stages,
+            f"{r.bytes_max / 1e3:.0f}",
+            f"{r.write_ms_max:.0f}",
+            f"{r.restore_to_first_tick_s:.2f}",
+            "yes" if r.restored_ends_the_same else "NO",
+        )
+    return print_bench(table, rows, args.json)
+
+
 def cmd_bench_ros(args: argparse.Namespace) -> int:
     from fleet.bench.ros import bench_ros_cost, bench_ros_latency
 
@@ -345,6 +377,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     _add_record(bench)
     _add_collision(bench)
     _add_safety(bench)
+    _add_snapshot(bench)
     _add_ros(bench)
     _add_allocation(bench)
     _add_lines(bench)
@@ -427,6 +460,15 @@ def _add_safety(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--goals", type=int, default=400)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_safety)
+
+
+def _add_snapshot(bench: argparse._SubParsersAction) -> None:
+    b = bench.add_parser("snapshot", help="what a snapshot costs a lockstep line, and a restore: the sorting line")
+    b.add_argument("--arms", type=int, nargs="+", default=[6])
+    b.add_argument("--seconds", type=float, default=30.0, help="sim seconds of the run that takes them")
+    b.add_argument("--snapshots", type=int, default=3, help="evenly spaced in the run")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_snapshot)
 
 
 def _add_allocation(bench: argparse._SubParsersAction) -> None:
