@@ -66,6 +66,11 @@ class ChoicePolicy:
         self.module, self.header, self.path = module, header, path
         self._torch = _torch()
 
+    def __reduce__(self):
+        """Pickled as its file (a run's snapshot): read again where it is read back, so the file must still be
+        there (an exported torch program does not pickle)."""
+        return (load_policy, (str(self.path),))
+
     def logits(self, features: np.ndarray) -> np.ndarray:
         """(rows, `SLOTS + 1`) logits for (rows, `CHOICE_FEATURES`) features."""
         with self._torch.no_grad():

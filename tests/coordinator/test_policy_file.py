@@ -23,6 +23,17 @@ def test_a_saved_policy_reads_back_to_the_same_logits(tmp_path):
     assert policy.header.trained_on == "test"
 
 
+def test_a_loaded_policy_pickles_as_its_file_and_reads_back_to_the_same_logits(tmp_path):
+    """A run's snapshot holds the coordinator's allocator: a policy goes in as its file, read again on restore."""
+    import pickle
+
+    policy = load_policy(save_policy(random_policy(seed=4), tmp_path / "p.pt2", trained_on="test"))
+    again = pickle.loads(pickle.dumps(policy))
+    features = np.random.default_rng(1).normal(size=(5, CHOICE_FEATURES)).astype(np.float32)
+    np.testing.assert_array_equal(again.logits(features), policy.logits(features))
+    assert len(pickle.dumps(policy)) < 1000, "the file's path, not the program"
+
+
 def test_the_allocator_spec_names_the_file_by_its_absolute_path(tmp_path, monkeypatch):
     policy_file(tmp_path)
     monkeypatch.chdir(tmp_path)
