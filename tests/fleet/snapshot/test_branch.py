@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow
 
 def test_a_sweep_branches_allocators_and_seeds_from_one_snapshot(tmp_path):
     whole = run(
-        RunOptions(scene="mixed_infeed", duration_s=40.0, snapshot_at=(20.0,), snapshot_dir=str(tmp_path / "snap"))
+        RunOptions(scene="mixed_infeed", duration_s=24.0, snapshot_at=(12.0,), snapshot_dir=str(tmp_path / "snap"))
     )
     snapshot = whole["snapshots"][0]
     tick = read_snapshot(snapshot).tick
@@ -26,7 +26,7 @@ def test_a_sweep_branches_allocators_and_seeds_from_one_snapshot(tmp_path):
     run_local(cells, tmp_path / "sweep", 2, lambda cell, summary: None)
     results = {(r["cell"]["seed"], r["cell"]["allocator"]): r["summary"] for r in load_results(tmp_path / "sweep")}
     assert len(results) == 4 and all(s["status"] == "ok" for s in results.values())
-    assert all(s["restored_from"]["tick"] == tick and s["sim_seconds"] == pytest.approx(40.0) for s in results.values())
+    assert all(s["restored_from"]["tick"] == tick and s["sim_seconds"] == pytest.approx(24.0) for s in results.values())
     assert all(s["allocator"] == allocator for (_, allocator), s in results.items())
     spawned = {key: s["parts_spawned"] for key, s in results.items()}
     assert spawned[(0, "optimal")] == spawned[(0, "greedy")] and spawned[(1, "optimal")] == spawned[(1, "greedy")], (

@@ -20,7 +20,7 @@ from tests.fleet.test_run import WALL_FIGURES, assert_nothing_left
 
 pytestmark = pytest.mark.slow
 
-DURATION_S = 30.0
+DURATION_S = 20.0
 
 
 def run(options: RunOptions) -> dict:
