@@ -6,7 +6,7 @@ joint targets by its own process over Zenoh); minimum separations come from the
 coordinator's collision guard (python-fcl), contacts from the physics, tasks in
 `task` mode from the coordinator's ledger and eligibility rules. Episodes end by
 truncation at `max_cycles`; arms never leave mid-episode. `reset(seed)` puts back
-the world's first snapshot and draws the episode from the seed, so a seed repeats it.
+the world's packed start and draws the episode from the seed, so a seed repeats it.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from coordinator.guard import CollisionGuard
 from fleet.bus.messages import separations_from_pairs
 from fleet.bus.session import LOOPBACK
 from fleet.monitor.cell_view import CellView
-from fleet.monitor.feed import LineSnapshot
+from fleet.monitor.feed import LineSight
 from fleet.sim.world import World
 from fleet.sim.world_messages import arm_state, parts_state
 from scenes.schema import Scene
@@ -41,7 +41,7 @@ class EnvMonitor:
 
     def update(self, world: World, guard: CollisionGuard | None = None) -> None:
         """Draw the arms, the parts and (with a guard holding the arms' states) each arm's nearest neighbour."""
-        snap = LineSnapshot(
+        snap = LineSight(
             arms={name: arm_state(world, name) for name in world.arms},
             parts=parts_state(world, world.active_parts()),
         )

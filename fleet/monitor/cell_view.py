@@ -16,7 +16,7 @@ import viser
 from viser.extras import ViserUrdf
 
 from fleet.bus.messages import ArmState
-from fleet.monitor.feed import LineSnapshot
+from fleet.monitor.feed import LineSight
 from robots.phase import Phase
 from robots.registry import get_robot
 from robots.spec import RobotSpec
@@ -97,7 +97,7 @@ class ArmModel:
 
 
 class CellView:
-    """Everything drawn in the 3D scene; `show(snapshot)` brings it up to date."""
+    """Everything drawn in the 3D scene; `show(sight)` brings it up to date."""
 
     def __init__(self, server: viser.ViserServer, scene: Scene) -> None:
         self.server, self.scene = server, scene
@@ -170,7 +170,7 @@ class CellView:
         )
 
     # --- live ---------------------------------------------------------------------
-    def show(self, snap: LineSnapshot) -> None:
+    def show(self, snap: LineSight) -> None:
         for name, state in snap.arms.items():
             if name in self.arms:
                 self.arms[name].show(state)
@@ -188,7 +188,7 @@ class CellView:
             return self.server.scene.add_cylinder(name, radius=size[0] / 2, height=size[2], color=rgb)
         return self.server.scene.add_box(name, color=rgb, dimensions=size)
 
-    def _show_parts(self, snap: LineSnapshot) -> None:
+    def _show_parts(self, snap: LineSight) -> None:
         p = snap.parts
         if p is None:
             return
@@ -204,7 +204,7 @@ class CellView:
             self.parts.pop(pid).remove()
         self._show_assigned(snap, seen)
 
-    def _show_assigned(self, snap: LineSnapshot, active: set[int]) -> None:
+    def _show_assigned(self, snap: LineSight, active: set[int]) -> None:
         """A wireframe cage in the arm's colour around each part an arm is working on."""
         wanted = {}
         for arm, a in snap.assignments.items():
@@ -222,7 +222,7 @@ class CellView:
                     wireframe=True,
                 )
 
-    def _show_separations(self, snap: LineSnapshot) -> None:
+    def _show_separations(self, snap: LineSight) -> None:
         """A line between the closest points of each arm and its nearest neighbour: red below the guard's margin."""
         s = snap.separations
         if s is None or not s.distances_m:
@@ -239,7 +239,7 @@ class CellView:
         else:
             self.separation_lines.points, self.separation_lines.colors = points, colours
 
-    def _show_contact(self, snap: LineSnapshot) -> None:
+    def _show_contact(self, snap: LineSight) -> None:
         st = snap.status
         recent = st is not None and st.last_contact_s >= 0 and snap.sim_time_s - st.last_contact_s < CONTACT_FLAG_S
         if recent:

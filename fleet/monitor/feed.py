@@ -19,7 +19,7 @@ from fleet.bus.messages import ArmOrder, ArmState, Assignment, LineView, PartsSt
 
 
 @dataclass
-class LineSnapshot:
+class LineSight:
     """The line as last heard: per-arm states and assignments (by arm id), and the latest of each line-wide message."""
 
     arms: dict[str, ArmState] = field(default_factory=dict)
@@ -40,7 +40,7 @@ class LiveFeed:
     def __init__(self, session: zenoh.Session, keys: Keys, arms: list[str]) -> None:
         self.keys = keys
         self.drops = DropCounter()
-        self.snapshot = LineSnapshot()
+        self.sight = LineSight()
         self.taken = 0
         # an arm's orders are assignments and motion grants on one key: both are the coordinator's, the view shows
         # assignments
@@ -66,9 +66,9 @@ class LiveFeed:
             sub.undeclare()
         self._subs = []
 
-    def take(self) -> LineSnapshot:
-        """The snapshot updated with the newest sample of every key heard since the last call."""
-        snap = self.snapshot
+    def take(self) -> LineSight:
+        """The sight updated with the newest sample of every key heard since the last call."""
+        snap = self.sight
         for sub, key, decoder in self._subs:
             sample = sub.try_recv()
             if sample is None:

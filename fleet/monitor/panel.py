@@ -12,7 +12,7 @@ import viser
 import viser.uplot
 
 from fleet.monitor.controls import LineControls
-from fleet.monitor.feed import LineSnapshot
+from fleet.monitor.feed import LineSight
 from scenes.schema import Scene
 
 PLOT_EVERY_S = 0.5  # sim seconds between plotted samples
@@ -29,7 +29,7 @@ class History:
         self.separation = deque(maxlen=PLOT_POINTS)
         self.utilisation = {a: deque(maxlen=PLOT_POINTS) for a in arms}
 
-    def add(self, snap: LineSnapshot) -> bool:
+    def add(self, snap: LineSight) -> bool:
         """Take a sample if sim time moved on by `PLOT_EVERY_S`; True if it did."""
         t = snap.sim_time_s
         if snap.progress is None or snap.status is None or (self.t and t - self.t[-1] < PLOT_EVERY_S):
@@ -43,7 +43,7 @@ class History:
         return True
 
 
-def figures_markdown(snap: LineSnapshot) -> str:
+def figures_markdown(snap: LineSight) -> str:
     """The figures as a small markdown table (what a line engineer reads first)."""
     st, pr = snap.status, snap.progress
     if st is None:
@@ -80,14 +80,14 @@ def figures_markdown(snap: LineSnapshot) -> str:
     return "| | |\n|---|---|\n" + "\n".join(f"| {k} | {v} |" for k, v in rows)
 
 
-def utilisation_markdown(snap: LineSnapshot, arms: list[str]) -> str:
+def utilisation_markdown(snap: LineSight, arms: list[str]) -> str:
     if snap.status is None:
         return ""
     return "\n".join(f"- **{a}** {u * 100:.0f} % busy" for a, u in zip(arms, snap.status.utilisation))
 
 
 class Panel:
-    """The GUI: figures, plots and controls; `show(snapshot)` refreshes the figures."""
+    """The GUI: figures, plots and controls; `show(sight)` refreshes the figures."""
 
     def __init__(self, server: viser.ViserServer, scene: Scene, controls: LineControls) -> None:
         self.gui, self.controls = server.gui, controls
@@ -138,7 +138,7 @@ class Panel:
         speed.on_update(lambda _: self.controls.set_speed(float(speed.value)))
         respawn.on_click(lambda _: self.controls.respawn(str(arm.value)))
 
-    def show(self, snap: LineSnapshot) -> None:
+    def show(self, snap: LineSight) -> None:
         text = figures_markdown(snap)
         if self.figures.content != text:
             self.figures.content = text

@@ -62,8 +62,8 @@ def test_the_sim_serves_its_scene_and_status_and_obeys_pause_resume_and_speed(re
     with LiveFeed(session, keys, ["arm_0", "arm_1"]) as feed:
         controls = LineControls(session, keys, source="test")
         try:
-            assert wait_for(lambda: feed.take().status is not None and len(feed.snapshot.arms) == 2)
-            assert feed.snapshot.status.mode == "realtime" and not feed.snapshot.status.paused
+            assert wait_for(lambda: feed.take().status is not None and len(feed.sight.arms) == 2)
+            assert feed.sight.status.mode == "realtime" and not feed.sight.status.paused
             controls.pause(True)
             assert wait_for(lambda: feed.take().status.paused)
             tick = server.world.tick
@@ -71,7 +71,7 @@ def test_the_sim_serves_its_scene_and_status_and_obeys_pause_resume_and_speed(re
             assert server.world.tick == tick, "paused: the clock stands still"
             controls.set_speed(3.0)
             controls.pause(False)
-            assert wait_for(lambda: not feed.take().status.paused and feed.snapshot.status.speed == 3.0)
+            assert wait_for(lambda: not feed.take().status.paused and feed.sight.status.speed == 3.0)
             t0, w0 = server.world.sim_time_s, time.monotonic()
             time.sleep(0.6)
             rate = (server.world.sim_time_s - t0) / (time.monotonic() - w0)
