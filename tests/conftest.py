@@ -45,6 +45,7 @@ WALL_TIME = (
     "tests/fleet/test_bus_lies.py",
     "tests/fleet/test_rightful_lies.py",
     "tests/fleet/test_bus_fuzz.py",
+    "tests/fleet/snapshot/test_snapshot_now.py",  # realtime lines
 )
 # tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
 HEAVY = (

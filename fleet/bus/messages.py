@@ -14,7 +14,7 @@ import msgspec
 
 from robots.phase import Phase
 
-PROTOCOL_VERSION = 7
+PROTOCOL_VERSION = 8
 Floats = tuple[float, ...]
 
 
@@ -280,12 +280,13 @@ class EStop(Message, frozen=True, array_like=True):
 
 
 class SimControl(Message, frozen=True, array_like=True):
-    """Anyone -> sim: pause or resume the clock, or change the realtime speed factor (None leaves a setting as it
-    is)."""
+    """Anyone -> sim: pause or resume the clock, change the realtime speed factor (None leaves a setting as it
+    is), or take a snapshot of the run at the next tick boundary (`snapshot`)."""
 
     source: str
     paused: bool | None = None
     speed: float | None = None
+    snapshot: bool = False
     version: int = PROTOCOL_VERSION
 
 

@@ -32,11 +32,10 @@ def add_snapshot_arguments(p: argparse.ArgumentParser) -> None:
         type=sim_seconds_list,
         metavar="S,S,...",
         default=(),
-        help="lockstep: take a snapshot of the whole run at these sim seconds (into --out DIR/snapshots)",
+        help="take a snapshot of the whole run at these sim seconds (into --out DIR/snapshots; with --out, the "
+        "monitor's button takes one when asked)",
     )
-    p.add_argument(
-        "--snapshot-every", type=float, metavar="S", help="lockstep: take a snapshot every S sim seconds (with --out)"
-    )
+    p.add_argument("--snapshot-every", type=float, metavar="S", help="take a snapshot every S sim seconds (with --out)")
     p.add_argument(
         "--from",
         dest="from_snapshot",
@@ -53,8 +52,6 @@ def check_snapshot_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--snapshot-every {args.snapshot_every:g}: give a positive number of sim seconds")
     if wanted and not args.out:
         raise UsageError("--snapshot-at/--snapshot-every write into --out DIR: give it")
-    if wanted and args.mode != "lockstep":
-        raise UsageError("snapshots are taken in lockstep runs only (--mode lockstep)")
 
 
 def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | None:
@@ -71,8 +68,6 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     for flag, given in (("--arms", args.arms), ("--seed", args.seed)):
         if given is not None:
             raise UsageError(f"--from starts the snapshot's own line: leave out {flag}")
-    if args.mode != "lockstep":
-        raise UsageError("--from restores lockstep runs only (--mode lockstep)")
     folder = tempfile.TemporaryDirectory(prefix="clawfleet-snapshot-")
     try:
         options, snapshot = restore_options(args.from_snapshot, Path(folder.name), args.duration)
@@ -90,13 +85,11 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
 
 def snapshot_options(args: argparse.Namespace) -> dict:
     """The launcher's snapshot options from the flags."""
-    wanted = bool(args.snapshot_at or args.snapshot_every)
-    folder = Path(args.out) / SNAPSHOT_FOLDER if wanted else None
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
+    # with --out, snapshots asked for while the line runs (the monitor's button) have somewhere to go too
+    folder = Path(args.out) / SNAPSHOT_FOLDER if args.out else None
     return {
         "snapshot_at": tuple(args.snapshot_at),
         "snapshot_every_s": args.snapshot_every,
-        "snapshot_dir": str(folder.resolve()) if folder else None,
+        "snapshot_dir": str(folder.resolve()) if folder else None,  # made by the sim when it writes one
         "restore_from": args.from_snapshot,
     }

@@ -73,8 +73,6 @@ def branch_scene(args: argparse.Namespace) -> str:
         raise UsageError(
             f"a branch from a snapshot compares allocators over seeds on this machine: leave out {', '.join(refused)}"
         )
-    if snapshot.mode != "lockstep":
-        raise UsageError(f"{args.from_snapshot}: a snapshot of a {snapshot.mode} run; only lockstep runs branch")
     args.from_snapshot = str(Path(args.from_snapshot).resolve())
     return snapshot.scene_name
 

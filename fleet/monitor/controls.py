@@ -14,7 +14,8 @@ SPEED_RANGE = (0.01, 100.0)
 
 
 class LineControls:
-    """Publishers for e-stop, pause/resume, speed factor and respawn requests; `close()` undeclares them."""
+    """Publishers for e-stop, pause/resume, speed factor, snapshots and respawn requests; `close()` undeclares
+    them."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, source: str = "monitor") -> None:
         self.source = source
@@ -43,6 +44,11 @@ class LineControls:
             raise ValueError(f"speed factor {factor} outside {lo}..{hi}")
         self._control.put(encode(SimControl(self.source, speed=float(factor))))
         self.sent.append(f"speed {factor:g}")
+
+    def snapshot(self) -> None:
+        """Ask the sim for a snapshot of the whole run at its next tick boundary (into the run's `--out` folder)."""
+        self._control.put(encode(SimControl(self.source, snapshot=True)))
+        self.sent.append("snapshot")
 
     def respawn(self, arm: str) -> None:
         """Ask the launcher to start `arm`'s controller again (it refuses if that controller is alive and heard)."""

@@ -128,6 +128,7 @@ class Panel:
             release = self.gui.add_button("Release e-stop")
             pause = self.gui.add_button("Pause")
             resume = self.gui.add_button("Resume")
+            snapshot = self.gui.add_button("Snapshot now", icon=viser.Icon.CAMERA)
             speed = self.gui.add_slider("Speed (realtime)", min=0.1, max=10.0, step=0.1, initial_value=1.0)
             arm = self.gui.add_dropdown("Arm", tuple(self.arms))
             respawn = self.gui.add_button("Respawn controller")
@@ -135,6 +136,7 @@ class Panel:
         release.on_click(lambda _: self.controls.emergency_stop(False))
         pause.on_click(lambda _: self.controls.pause(True))
         resume.on_click(lambda _: self.controls.pause(False))
+        snapshot.on_click(lambda _: self.controls.snapshot())
         speed.on_update(lambda _: self.controls.set_speed(float(speed.value)))
         respawn.on_click(lambda _: self.controls.respawn(str(arm.value)))
 

@@ -62,8 +62,11 @@ from scenes.schema import Scene
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
-# what belongs to this process alone, never in a snapshot: its bus handles and queues
+# what belongs to this process alone, never in a snapshot: its bus handles and queues, and how it was started (the
+# clock it answers in, its heartbeat timeout: a restored run may be started otherwise)
 COORDINATOR_LIVE = (
+    "lockstep",
+    "heartbeat_timeout_s",
     "keys",
     "_decoders",
     "inbox",

@@ -43,7 +43,7 @@ from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
 from fleet.sim.server import COORDINATOR_TIMEOUT_S, SimServer
-from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, await_restored, restore_sim
+from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, await_restored, forget_wall_clock_flights, restore_sim
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SceneSource, SnapshotError, node_state, read_snapshot
@@ -156,19 +156,20 @@ def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: int) -> None:
-    """Snapshots due at `--snapshot-at` and every `--snapshot-every` (both in sim seconds), into `--snapshot-dir`;
-    started `--from` a snapshot without either, the snapshots its run took later, taken again but not written."""
+    """Snapshots due at `--snapshot-at` and every `--snapshot-every` (both in sim seconds), and any asked for while
+    the line runs, into `--snapshot-dir`; started `--from` a snapshot without either, the snapshots its run took
+    later, taken again (written only into a folder given)."""
     hz = server.world.scene_model.control_hz
     at = {round(float(v) * hz) for v in args.snapshot_at.split(",") if v.strip()}
     every = round(args.snapshot_every * hz) if args.snapshot_every else 0
-    directory = Path(args.snapshot_dir) if args.snapshot_dir and (at or every) else None
-    if directory is None and args.from_snapshot:
+    directory = Path(args.snapshot_dir) if args.snapshot_dir else None
+    if not (at or every) and args.from_snapshot:
         try:
             original = read_snapshot(args.from_snapshot)
         except SnapshotError:
             return  # said when it is restored from
         at, every = set(original.later_ticks), original.every_ticks
-    if not (at or every):
+    if not (at or every or directory):
         return
     facts = RunFacts(
         server.world.scene_model.name, SceneSource.of(args.scene, args.arms, args.seed), args.allocator, total_ticks
@@ -183,6 +184,8 @@ def restore_from(server: SimServer, path: str, reseed: int | None = None) -> str
     try:
         snapshot, state = node_state(path, "sim")
         restore_sim(server, state)
+        if snapshot.mode == "realtime":
+            forget_wall_clock_flights(server)
         if reseed is not None:
             server.world.reseed_feeders(reseed)
     except (SnapshotError, StateError) as exc:

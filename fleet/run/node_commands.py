@@ -83,7 +83,7 @@ class NodeCommands:
     def _snapshot_args(self) -> list[str]:
         """The sim's snapshot flags: when (sim seconds) and where."""
         o = self.options
-        if not o.snapshot_dir or not (o.snapshot_at or o.snapshot_every_s):
+        if not o.snapshot_dir:
             return []
         args = ["--snapshot-dir", o.snapshot_dir]
         if o.snapshot_at:

@@ -7,7 +7,7 @@ import dataclasses
 from pathlib import Path
 
 from fleet.run.launcher import RunOptions
-from fleet.snapshot.snapshot_file import RunSnapshot, SnapshotError, read_snapshot
+from fleet.snapshot.snapshot_file import RunSnapshot, read_snapshot
 
 
 def restore_options(
@@ -15,11 +15,9 @@ def restore_options(
 ) -> tuple[RunOptions, RunSnapshot]:
     """Options that start every process from the snapshot at `path` (its scene and robot files written under
     `folder`, which must outlive the run), running to where the snapshot's run was to end, or `duration_s` sim
-    seconds more; `options` sets the rest (another allocator, `reseed`: a branch). A `SnapshotError` (one line) if it
-    cannot."""
+    seconds more; `options` sets the rest (another allocator, `reseed`: a branch; `mode`: lockstep by default, and
+    only lockstep repeats). A `SnapshotError` (one line) if it cannot."""
     snapshot = read_snapshot(path)
-    if snapshot.mode != "lockstep":
-        raise SnapshotError(f"{path}: a snapshot of a {snapshot.mode} run; only lockstep runs restore")
     scene = snapshot.scene.write(Path(folder))
     seconds_per_tick = snapshot.sim_time_s / snapshot.tick
     end_s = snapshot.end_tick * seconds_per_tick if duration_s is None else snapshot.sim_time_s + duration_s

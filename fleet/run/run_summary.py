@@ -201,6 +201,7 @@ class RunSummary:
             "snapshots": sim.get("snapshots", []),
             "snapshots_failed": sim.get("snapshots_failed", []),
             "snapshots_retaken": sim.get("snapshots_retaken", 0),
+            "snapshots_refused": sim.get("snapshots_refused", []),
             "snapshot_stall_ms_max": sim.get("snapshot_stall_ms_max"),
             "snapshot_stall_ms_by_stage": sim.get("snapshot_stall_ms_by_stage", {}),
             "snapshot_bytes_max": sim.get("snapshot_bytes_max"),

@@ -104,6 +104,8 @@ class SimServer(SimLockstep):
         self.started = not controllers  # every controller answered once (realtime waits until then)
         self.snapshots = None  # with `--snapshot-at/--snapshot-every`: a `fleet.sim.sim_snapshot.SimSnapshots`
         self.restored_from: dict | None = None  # from a snapshot: its tick, wall s until every node was back
+        self.snapshot_asked_by = ""  # who asked for a snapshot now (`SimControl.snapshot`): taken at the next tick
+        self.snapshots_refused: list[str] = []  # snapshots asked for that this run cannot take, and why
         self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
 
     def close(self) -> None:
@@ -198,6 +200,19 @@ class SimServer(SimLockstep):
                 if link.last_step.request_seq > 0:
                     self.stats.grant_wait_ticks[name] += 1
 
+    def _snapshot_if_due(self) -> bool:
+        """A snapshot due now (`--snapshot-at/--snapshot-every`) or asked for (`SimControl.snapshot`) is taken here,
+        at the tick boundary; one asked of a run with nowhere to write it is refused, and the refusal counted."""
+        asked, self.snapshot_asked_by = self.snapshot_asked_by, ""
+        if self.snapshots is None:
+            if asked:
+                self.snapshots_refused.append(f"{asked}: this run writes no snapshots (fleet run --out DIR)")
+            return False
+        if asked or self.snapshots.due(self.world.tick):
+            self.snapshots.take()
+            return True
+        return False
+
     def announce_the_rest(self) -> None:
         """After the last tick: the line's events since the last watch (a part released in the last ticks would
         otherwise never be announced as arrived)."""
@@ -220,11 +235,12 @@ class SimServer(SimLockstep):
                 self.spool.pump()
             if self.paused:
                 self.inputs.take()
+                self._snapshot_if_due()  # a paused line may be snapshotted: it stands still already
                 self.bus.inbox.wait(0.05)
                 pace.restart()
                 continue
-            if self.snapshots is not None and self.snapshots.due(self.world.tick):
-                self.snapshots.take()
+            if self._snapshot_if_due():
+                pace.restart()  # realtime: the line was paused for it; the clock goes on from here
             self.tick()
             done += 1
             if stop is not None and stop.should_stop():
@@ -258,7 +274,7 @@ class SimServer(SimLockstep):
             | {"randomised": dict(self.world.scene_model.randomised), "network_faults": faults_report(self.faults)}
             | self.stats.wall_clock()
             | (self.snapshots.report() if self.snapshots is not None else {})
-            | {"restored_from": self.restored_from}
+            | {"restored_from": self.restored_from, "snapshots_refused": list(self.snapshots_refused)}
         )
 
 

@@ -45,6 +45,8 @@ class SimInputs:
                 continue
             self.sim.paused = self.sim.paused if msg.paused is None else msg.paused
             self.sim.speed = self.sim.speed if msg.speed is None else msg.speed
+            if msg.snapshot:
+                self.sim.snapshot_asked_by = msg.source  # taken at the next tick boundary
         for key, payload in bus.inbox.drain():
             if key.endswith(("/goal", "/drive")):
                 self._on_goal(key, payload)

@@ -29,8 +29,28 @@ from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write
 NODE_TIMEOUT_S = 10.0  # wall seconds a node has to send its part of a snapshot
 RESTORED_TIMEOUT_S = 60.0  # wall seconds every node of a restored run has to say it is back
 ASK_AGAIN_S = 0.5
-# the sim's attributes that belong to this process alone: its bus, its physics world (packed apart), its stop flag
-SIM_LIVE = ("world", "bus", "drops", "stop", "spool", "target_log", "snapshots")
+# the sim's attributes that belong to this process alone: its bus, its physics world (packed apart), its stop flag,
+# and how it was started (clock, speed, timeouts, who it waits for: a restored run may be started otherwise)
+SIM_LIVE = (
+    "world",
+    "bus",
+    "drops",
+    "stop",
+    "spool",
+    "target_log",
+    "snapshots",
+    "snapshot_asked_by",
+    "snapshots_refused",
+    "restored_from",
+    "mode",
+    "speed",
+    "barrier",
+    "watchdog_s",
+    "lockstep_timeout_s",
+    "controllers",
+    "coordinator",
+    "count_contacts",
+)
 
 
 class SnapshotFailed(RuntimeError):
@@ -68,6 +88,7 @@ class SimSnapshots:
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
 
     def due(self, tick: int) -> bool:
+        """Whether a snapshot is scheduled at this tick (never twice at one)."""
         every = self.every_ticks > 0 and tick % self.every_ticks == 0
         return tick != self.last_tick and tick > 0 and (tick in self.ticks or every)
 
@@ -174,9 +195,10 @@ class SimSnapshots:
         """Until every state and frame delivered is answered (with the goals the answers name)."""
         sim = self.sim
         deadline = time.monotonic() + NODE_TIMEOUT_S
+        coord_book = sim.coord_book if sim.coordinator and sim.mode == "lockstep" else None  # realtime: unanswered
         while True:
             sim.inputs.take()
-            waiting, coord = unanswered(list(sim.links.values()), sim.coord_book if sim.coordinator else None)
+            waiting, coord = unanswered(list(sim.links.values()), coord_book)
             if not waiting and not coord:
                 return
             if time.monotonic() > deadline:
@@ -241,6 +263,15 @@ def restore_sim(sim, part: bytes) -> None:
     restore(sim, saved["server"], live={"world": sim.world, "server": sim})
     sim.drops.counts = Counter(saved["drops"])
     sim.bus.stats = sim.stats  # the bus counts what it sends in the sim's figures
+
+
+def forget_wall_clock_flights(sim) -> None:
+    """A sim restored from a realtime run's snapshot: the states, frames and messages it had in flight were timed on
+    that run's wall clock and its answers applied on arrival; none of them is awaited or delivered here."""
+    sim.coord_book.clear()
+    for link in sim.links.values():
+        link.book.clear()
+    sim.delayed = type(sim.delayed)()
 
 
 def await_restored(sim, tick: int, nodes: list[str], timeout_s: float = RESTORED_TIMEOUT_S) -> list[str]:

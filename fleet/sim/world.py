@@ -58,6 +58,7 @@ class WorldState:
     feeders: list[dict]
     next_part_id: int
     events: list[WorldEvent] = field(default_factory=list)
+    belt_running: bool = True  # False while the line is e-stopped
 
 
 def configure_physx(scene: Scene) -> None:
@@ -253,6 +254,7 @@ class World(WorldFeeders):
             ],
             next_part_id=self.next_part_id,
             events=list(self.events),
+            belt_running=self.belt_running,
         )
 
     def observable_state(self) -> np.ndarray:
@@ -297,3 +299,4 @@ class World(WorldFeeders):
         self.tick = state.tick
         self.next_part_id = state.next_part_id
         self.events = list(state.events)
+        self.belt_running = state.belt_running

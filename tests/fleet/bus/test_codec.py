@@ -100,6 +100,7 @@ EXAMPLES = [
     EStop(True, "monitor"),
     SimControl("monitor", paused=True),
     SimControl("monitor", speed=2.0),
+    SimControl("monitor", snapshot=True),
     SimStatus(300, 3.0, "lockstep", False, False, 1.0, (0.5, 0.25), 1.8, 0),
     SimStatus(300, 3.0, "realtime", True, True, 2.0, (0.5,), 1.8, 4, ("arm_0-arm_1",), 2.9, ("arm_1",), 3),
     Separations(3.0, ("arm_0",), ("arm_1",), (0.1,), (0.0, 0.0, 0.2, 0.1, 0.0, 0.2), 0.02),

@@ -137,6 +137,8 @@ def test_the_page_draws_the_arms_and_its_emergency_stop_holds_every_arm(tmp_path
                     # the drives' jitter is ~0.05
                     assert speed < 0.1, f"{a} still moves: mean joint speed {speed:.3f} rad/s"
                 assert page.get_by_text("E-STOP").count() >= 1, "the page shows the e-stop"
+                # this run has no --out folder: the sim hears the button and says it cannot write a snapshot
+                page.get_by_role("button", name="Snapshot now").click(timeout=30_000)
             finally:
                 browser.close()
     finally:
@@ -150,7 +152,8 @@ def test_the_page_draws_the_arms_and_its_emergency_stop_holds_every_arm(tmp_path
     assert run.returncode == 130, err[-2000:]
     summary = json.loads(summary_file.read_text())
     assert summary["monitor"]["url"] == url and summary["monitor"]["frames"] > 0
-    assert "estop" in summary["monitor"]["controls_sent"]
+    assert "estop" in summary["monitor"]["controls_sent"] and "snapshot" in summary["monitor"]["controls_sent"]
+    assert summary["snapshots_refused"] == ["monitor: this run writes no snapshots (fleet run --out DIR)"]
     assert {p["role"] for p in summary["processes"]} == {"sim", "coordinator", "controller", "monitor"}
     for p in summary["processes"]:
         with pytest.raises(ProcessLookupError):
