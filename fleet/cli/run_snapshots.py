@@ -40,8 +40,14 @@ def add_snapshot_arguments(p: argparse.ArgumentParser) -> None:
         "--from",
         dest="from_snapshot",
         metavar="SNAPSHOT",
-        help="start every process from a snapshot (its scene and seed; --duration: sim seconds from there, default "
-        "to where the snapshot's run was to end; another --allocator branches)",
+        help="start every process from a snapshot, or from one a recording carries (its scene and seed; --duration: "
+        "sim seconds from there, default to where the snapshot's run was to end; another --allocator branches)",
+    )
+    p.add_argument(
+        "--at",
+        type=float,
+        metavar="S",
+        help="with --from RECORDING: the newest snapshot it carries at or before S sim seconds (default: its last)",
     )
 
 
@@ -58,8 +64,10 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     """With `--from`: `args` made to run the snapshot's scene (written into a temporary folder, returned for the
     caller to remove), seed and allocator (unless `--allocator` branches) from its tick to its run's end or
     `--duration` more; without, the defaults of a fresh run."""
-    from fleet.run.restore import restore_options
+    from fleet.run.restore import restore_options, snapshot_path
 
+    if args.at is not None and not args.from_snapshot:
+        raise UsageError("--at picks a snapshot in the recording given with --from: give --from RECORDING")
     if not args.from_snapshot:
         args.scene = args.scene or "assembly_line"
         args.duration = DEFAULT_DURATION_S if args.duration is None else args.duration
@@ -70,7 +78,8 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
             raise UsageError(f"--from starts the snapshot's own line: leave out {flag}")
     folder = tempfile.TemporaryDirectory(prefix="clawfleet-snapshot-")
     try:
-        options, snapshot = restore_options(args.from_snapshot, Path(folder.name), args.duration)
+        path = snapshot_path(args.from_snapshot, args.at, Path(folder.name) / "from")
+        options, snapshot = restore_options(path, Path(folder.name), args.duration)
     except (SnapshotError, OSError) as exc:
         folder.cleanup()
         raise UsageError(str(exc)) from None

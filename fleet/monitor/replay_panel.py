@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import viser
 
+from fleet.record.mcap_file import Recording
 from fleet.record.replay import Player
 
 SPEEDS = ("0.25", "0.5", "1", "2", "5", "10")
@@ -30,11 +31,14 @@ class ReplayPanel:
             self.play = server.gui.add_button("Play / pause", icon=viser.Icon.PLAYER_PLAY)
             self.speed = server.gui.add_dropdown("Replay speed", SPEEDS, initial_value="1")
             self.info = server.gui.add_markdown("")
+            self.branch = server.gui.add_button("Branch from here", icon=viser.Icon.GIT_BRANCH)
+            self.branch_info = server.gui.add_markdown("")
         self.seeks = 0
         self._shown_s = round(clock.position_s, 1)  # the slider's value as `show` last set it
         self.time.on_update(self._on_time)
         self.play.on_click(lambda _: self._toggle())
         self.speed.on_update(self._on_speed)
+        self.branch.on_click(lambda _: self._offer_branch())
 
     def _on_time(self, event: viser.GuiEvent) -> None:
         if event.client is None:  # the slider moved by `show`, not by a person
@@ -47,6 +51,11 @@ class ReplayPanel:
         if not clock.playing and clock.position_s >= clock.end_s:
             self.player.seek(clock.start_s)  # play again from the start
         clock.playing = not clock.playing
+
+    def _offer_branch(self) -> None:
+        """The command that starts a line from the newest snapshot the recording carries at or before where the
+        replay stands (the recording was made with snapshots: `fleet run --snapshot-every S --out DIR`)."""
+        self.branch_info.content = branch_command(self.player.recording, self.player.clock.position_s)
 
     def _on_speed(self, event: viser.GuiEvent) -> None:
         if event.client is not None:
@@ -61,3 +70,13 @@ class ReplayPanel:
         text = f"{state} at **{clock.position_s:.1f}** of {clock.end_s:.1f} sim s, x{clock.speed:g}"
         if self.info.content != text:
             self.info.content = text
+
+
+def branch_command(recording: Recording, at_s: float) -> str:
+    """What the page says to branch from `at_s`: the snapshot it would start from and the command, or why none."""
+    at = [t / 1e9 for t in recording.snapshot_times_ns.values() if t <= round(at_s * 1e9)]
+    if not at:
+        have = sorted(t / 1e9 for t in recording.snapshot_times_ns.values())
+        said = ", ".join(f"{t:g}" for t in have) or "none (record with fleet run --snapshot-every S --out DIR)"
+        return f"no snapshot at or before {at_s:.1f} s; snapshots at: {said}"
+    return f"from the snapshot at **{max(at):g} s**: `fleet run --from {recording.path} --at {at_s:.1f}`"

@@ -40,6 +40,9 @@ def qos_profile(latched: bool) -> str:
     return _QOS.format(durability=1 if latched else 2)
 
 
+SNAPSHOT_MEDIA_TYPE = "application/x-clawfleet-snapshot"
+
+
 class RecordingWriter:
     """Writes one recording; use in a `with` block (the file is finished, with its index, on leaving)."""
 
@@ -68,6 +71,12 @@ class RecordingWriter:
             self.closed = True
             self._writer.finish()
             self._stream.close()
+
+    def attach(self, name: str, data: bytes, log_time_ns: int, media_type: str) -> None:
+        """A file carried in the recording (a snapshot of the run), at the sim time it belongs to."""
+        self._writer.add_attachment(
+            create_time=log_time_ns, log_time=log_time_ns, name=name, media_type=media_type, data=data
+        )
 
     def _schema(self, typename: str) -> int:
         if typename not in self._schemas:
@@ -144,6 +153,25 @@ class Recording:
         self.message_counts = {
             summary.channels[cid].topic: n for cid, n in (stats.channel_message_counts.items() if stats else ())
         }
+        # the snapshots it carries (`fleet run --snapshot-* --out` records them), by sim time
+        self.snapshot_times_ns = {
+            a.name: a.log_time for a in summary.attachment_indexes if a.media_type == SNAPSHOT_MEDIA_TYPE
+        }
+
+    def snapshot_at(self, time_s: float | None) -> tuple[str, bytes]:
+        """The newest snapshot it carries at or before `time_s` (None: the last): its name and bytes; a
+        `RecordingError` (one line) when there is none."""
+        chosen = [(t, n) for n, t in self.snapshot_times_ns.items() if time_s is None or t <= round(time_s * 1e9)]
+        if not chosen:
+            have = ", ".join(f"{t / 1e9:g} s" for t in sorted(self.snapshot_times_ns.values())) or "none"
+            where = "" if time_s is None else f" at or before {time_s:g} s"
+            raise RecordingError(f"{self.path}: no snapshot{where} (it carries: {have})")
+        _, name = max(chosen)
+        with open(self.path, "rb") as f:
+            for attachment in make_reader(f).iter_attachments():
+                if attachment.name == name:
+                    return name, attachment.data
+        raise RecordingError(f"{self.path}: snapshot {name} is listed but not in the file")
 
     @property
     def scene(self):

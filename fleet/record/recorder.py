@@ -10,10 +10,12 @@ heard before it (goals, orders, e-stops), so nothing is stamped before the messa
 from __future__ import annotations
 
 import json
+import logging
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
+from pathlib import Path
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
@@ -44,9 +46,12 @@ from fleet.bus.messages import (
 )
 from fleet.record.forked_build import LaterInChild, serialized
 from fleet.record.line_to_ros import LineToRos
-from fleet.record.mcap_file import RecordingWriter
+from fleet.record.mcap_file import SNAPSHOT_MEDIA_TYPE, RecordingWriter
 from fleet.record.ros_types import ros_type, sim_ns, to_ros
+from fleet.snapshot.snapshot_file import SnapshotError, read_snapshot
 from scenes.schema import Scene
+
+log = logging.getLogger("clawfleet.record")
 
 ARM_LEAVES = {
     "state": ArmState,
@@ -218,7 +223,8 @@ class Recorder:
         return out
 
     def finish(self, summary: dict | None) -> None:
-        """The run's summary (latched, at the last sim time heard), then the file's index."""
+        """The run's summary (latched, at the last sim time heard) and the snapshots it lists (attached at their sim
+        times: a replay can branch from them), then the file's index."""
         if summary is not None:
             w = self.writer
             w.ros(
@@ -227,4 +233,15 @@ class Recorder:
                 sim_ns(self.now_s),
                 latched=True,
             )
+            for path in summary.get("snapshots") or []:
+                self.carry_snapshot(Path(path))
         self.writer.close()
+
+    def carry_snapshot(self, path: Path) -> None:
+        """A snapshot file of the run, attached at its sim time (one that cannot be read is left out, and said)."""
+        try:
+            snapshot = read_snapshot(path)
+        except SnapshotError as exc:
+            log.warning("the recording leaves out a snapshot: %s", exc)
+            return
+        self.writer.attach(path.name, path.read_bytes(), sim_ns(snapshot.sim_time_s), SNAPSHOT_MEDIA_TYPE)

@@ -6,8 +6,9 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from fleet.record.mcap_file import MAGIC, Recording, RecordingError
 from fleet.run.launcher import RunOptions
-from fleet.snapshot.snapshot_file import RunSnapshot, read_snapshot
+from fleet.snapshot.snapshot_file import RunSnapshot, SnapshotError, read_snapshot
 
 
 def restore_options(
@@ -30,3 +31,26 @@ def restore_options(
         restore_from=str(Path(path).resolve()),
     )
     return dataclasses.replace(base, **options), snapshot
+
+
+def snapshot_path(path: str | Path, at_s: float | None, folder: Path) -> Path:
+    """The snapshot file to start from: `path` itself, or, where `path` is a recording, the newest snapshot it
+    carries at or before `at_s` sim seconds (None: its last), written into `folder`. A `SnapshotError` (one line)
+    for a recording without one, or `at_s` given with a snapshot file."""
+    p = Path(path)
+    try:
+        with open(p, "rb") as f:
+            is_recording = f.read(len(MAGIC)) == MAGIC
+    except OSError:
+        is_recording = False  # read_snapshot says what is wrong with it
+    if not is_recording:
+        if at_s is not None:
+            raise SnapshotError(f"--at picks a snapshot in a recording; {p} is a snapshot file itself")
+        return p
+    try:
+        name, data = Recording(p).snapshot_at(at_s)
+    except RecordingError as exc:
+        raise SnapshotError(str(exc)) from None
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / name).write_bytes(data)
+    return folder / name

@@ -15,8 +15,10 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
+from fleet.monitor.replay_panel import branch_command
+from fleet.record.mcap_file import Recording
 from fleet.run.launcher import RunOptions
-from fleet.run.restore import restore_options
+from fleet.run.restore import restore_options, snapshot_path
 from fleet.snapshot.snapshot_file import read_snapshot
 from robots.phase import GRASP_PHASES
 from tests.fleet.snapshot.test_restore_line import line_figures, run
@@ -88,6 +90,16 @@ def test_snapshots_mid_grasp_mid_handover_and_with_goals_pending_restore_exactly
         found = [p for p, m in held.items() if moment in m and p not in chosen.values()]
         assert found, f"no snapshot {moment} in 23 seconds of handover: {held}"
         chosen[moment] = found[0]
+    recording = Recording(tmp_path / "whole.mcap")  # it carries every snapshot, at its sim time
+    assert sorted(recording.snapshot_times_ns) == [Path(p).name for p in whole["snapshots"]]
+    for path in chosen.values():
+        t = read_snapshot(path).sim_time_s
+        assert recording.snapshot_times_ns[Path(path).name] == round(t * 1e9)
+        assert "--at" in branch_command(recording, t + 0.5)
+    # one moment starts from the recording (`fleet run --from RECORDING --at S`), the others from their files
+    mid_grasp_s = read_snapshot(chosen["mid-grasp"]).sim_time_s
+    chosen["mid-grasp"] = str(snapshot_path(tmp_path / "whole.mcap", mid_grasp_s + 0.99, tmp_path / "from"))
+    assert Path(chosen["mid-grasp"]).read_bytes() == Path(whole["snapshots"][round(mid_grasp_s) - 1]).read_bytes()
     runs = [
         restore_options(path, tmp_path / moment, record=str(tmp_path / f"{moment}.mcap"))[0]
         for moment, path in chosen.items()

@@ -7,6 +7,8 @@ import zlib
 import pytest
 
 from fleet.cli import main
+from fleet.common.scene_loading import load_scene
+from fleet.record.mcap_file import RecordingWriter
 from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, write_snapshot
 
 
@@ -32,13 +34,24 @@ CASES = [
     (["sweep", "--from", "{snapshot}", "--set", "seed=1,2", "--out", "{dir}"], "leave out --set"),
     (["sweep", "--from", "{missing}", "--out", "{dir}"], "no such snapshot file"),
     (["sweep", "--out", "{dir}"], "give a scene"),
+    (["run", "--at", "3"], "give --from RECORDING"),
+    (["run", "--from", "{snapshot}", "--at", "3"], "is a snapshot file itself"),
+    (["run", "--from", "{recording}"], "no snapshot (it carries: none)"),
+    (["run", "--from", "{recording}", "--at", "2"], "no snapshot at or before 2 s"),
 ]
 
 
 @pytest.mark.parametrize(("argv", "says"), CASES, ids=lambda v: " ".join(v) if isinstance(v, list) else None)
 def test_a_snapshot_flag_that_cannot_work_is_one_line_and_exit_2(argv, says, snapshot, tmp_path, capsys):
     (tmp_path / "bad.clawsnap").write_bytes(b"PK\x03\x04" * 20)
-    names = {"snapshot": snapshot, "missing": str(tmp_path / "none.clawsnap"), "bad": str(tmp_path / "bad.clawsnap")}
+    with RecordingWriter(tmp_path / "plain.mcap", load_scene("pick_cell").model_dump_json(), "line"):
+        pass  # a recording that carries no snapshot
+    names = {
+        "snapshot": snapshot,
+        "missing": str(tmp_path / "none.clawsnap"),
+        "bad": str(tmp_path / "bad.clawsnap"),
+        "recording": str(tmp_path / "plain.mcap"),
+    }
     code = main([a.format(dir=str(tmp_path / "out"), **names) for a in argv])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and says in err[-1] and len(err) == 1, err
