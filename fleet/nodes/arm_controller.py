@@ -212,6 +212,10 @@ class ArmController(ControllerOrders, SnapshotNode):
 
     SNAPSHOT_LIVE = CONTROLLER_LIVE
 
+    def snapshot_part(self, ask) -> tuple[bytes, tuple]:
+        """This controller's state, and the newest order it holds (the sim checks it against the coordinator's)."""
+        return self.capture_state(), (self.assign_seq or 0,)
+
     def snapshot_ready(self, ask) -> bool:
         """Whether every order the coordinator sent this arm and the newest parts message are in (the sim asks once
         it has every answer: nothing else is on its way)."""
@@ -243,7 +247,7 @@ class ArmController(ControllerOrders, SnapshotNode):
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
-        if self.snapshot_desk.serve(self.snapshot_ready, lambda ask: (self.capture_state(), ()), self.restore_state):
+        if self.snapshot_desk.serve(self.snapshot_ready, self.snapshot_part, self.restore_state):
             return True
         state = self._latest("state")
         self._take_assignments()

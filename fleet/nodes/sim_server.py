@@ -276,6 +276,8 @@ def main(argv: list[str] | None = None) -> int:
                 server.close()
                 print(f"sim_server: {why}", file=sys.stderr)
                 return 2
+        if server.snapshots is not None:
+            server.snapshots.build_spare()  # the world the line goes on in after its first snapshot
         return serve(server, args, stop, ticks)
 
 

@@ -126,6 +126,10 @@ class SimArm:
         for joint in self.joints[self.spec.arm_dof :]:
             joint.set_drive_property(gains.stiffness, gains.damping, force_limit, "force")
 
+    def gripper_force_limit(self) -> float:
+        """The gripper drives' force limit now (the last grasp's effort, or the robot's own)."""
+        return float(self.joints[self.spec.arm_dof].force_limit) if len(self.joints) > self.spec.arm_dof else 0.0
+
     def restore_targets(self, position: np.ndarray, velocity: np.ndarray) -> None:
         """Write every joint's drive targets (a state restore), position and velocity, arm then gripper joints."""
         position, velocity = np.asarray(position, float).tolist(), np.asarray(velocity, float).tolist()

@@ -20,15 +20,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fleet.bus.codec import Decoder, encode
-from fleet.bus.lockstep import unanswered
 from fleet.bus.messages import SnapshotAsk, SnapshotPart
+from fleet.sim.snapshot_asks import ASK_AGAIN_S, SnapshotFailed, node_states
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError, capture, restore
 from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
 
-NODE_TIMEOUT_S = 10.0  # wall seconds a node has to send its part of a snapshot
 RESTORED_TIMEOUT_S = 60.0  # wall seconds every node of a restored run has to say it is back
-ASK_AGAIN_S = 0.5
 # the sim's attributes that belong to this process alone: its bus, its physics world (packed apart), its stop flag,
 # and how it was started (clock, speed, timeouts, who it waits for: a restored run may be started otherwise)
 SIM_LIVE = (
@@ -51,10 +49,6 @@ SIM_LIVE = (
     "coordinator",
     "count_contacts",
 )
-
-
-class SnapshotFailed(RuntimeError):
-    """A snapshot that could not be taken (a node silent or unable to write its state); one line."""
 
 
 @dataclass
@@ -85,6 +79,8 @@ class SimSnapshots:
     write_ms: list[float] = field(default_factory=list)  # compressing and writing each file (the line goes on)
     _stage_at: float = 0.0
     _writer: threading.Thread | None = None
+    _builder: threading.Thread | None = None  # building the spare world
+    _spare: list = field(default_factory=list)  # the world the line goes on in after the next snapshot
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
 
     def due(self, tick: int) -> bool:
@@ -141,10 +137,13 @@ class SimSnapshots:
         self.written.append(str(path))
 
     def finish(self) -> None:
-        """Wait for the snapshot file being written, if any."""
+        """Wait for the snapshot file being written and the spare world being built, if any."""
         if self._writer is not None:
             self._writer.join()
             self._writer = None
+        if self._builder is not None:
+            self._builder.join()
+            self._builder = None
 
     def _stage(self, name: str) -> None:
         """The time since the last stage ended, counted as `name`'s."""
@@ -154,80 +153,36 @@ class SimSnapshots:
 
     def _gather(self) -> dict[str, bytes]:
         sim = self.sim
-        spare: list[World] = []  # the world the line goes on in, built while the nodes write their states
-        builder = threading.Thread(target=lambda: spare.append(World(sim.world.scene_model)), name="spare-world")
-        builder.start()
-        try:
-            states = self._node_states()
-        finally:
-            builder.join()  # no other PhysX work while it builds: the sim's own world is packed after
+        states = node_states(sim, self._stage)
+        world = self._spare_world()
         self._stage("world")
-        if not spare:
-            raise SnapshotFailed("the world to go on in could not be built (see the log)")
         own = capture_sim(sim)
         states["sim"] = zlib.compress(own, 1)
         self._stage("sim")
         # go on from the state written, in a world built afresh, exactly as a run restored from it will (PhysX put
-        # back into the world it was packed from keeps solver caches a fresh world does not have)
-        sim.world = spare[0]
+        # back into a world that has run keeps articulation caches a fresh world does not have)
+        sim.world = world
         restore_sim(sim, own)
+        self.build_spare()  # the next snapshot's, while the line goes on
         self._stage("restore")
         return states
 
-    def _node_states(self) -> dict[str, bytes]:
-        """The nodes' states at this tick: the coordinator's, then each controller's."""
-        sim = self.sim
-        self._settle()
-        self._stage("settle")
-        tick = sim.world.tick
-        coord = self._ask(SnapshotAsk(tick, "coordinator", events=len(sim.event_log)), ["coordinator"])
-        self._stage("coordinator")
-        arms = [name for name, link in sim.links.items() if not link.lost]
-        ask = SnapshotAsk(tick, "controllers", orders=coord["coordinator"].orders, parts_tick=sim.outputs.parts_tick)
-        parts = self._ask(ask, arms)
-        self._stage("controllers")
-        missing = sorted(set(sim.links) - set(arms))
-        if missing:
-            raise SnapshotFailed(f"the controllers of {', '.join(missing)} are lost")
-        return {"coordinator": coord["coordinator"].state} | {arm: parts[arm].state for arm in sim.links}
+    def build_spare(self) -> None:
+        """Build the world the line will go on in after the next snapshot, on a thread beside the running line (a
+        fresh PhysX scene of its own: the line's stepping is bit for bit the same meanwhile, tests/fleet/sim)."""
+        if self._builder is None and not self._spare:
+            scene = self.sim.world.scene_model
+            self._builder = threading.Thread(
+                target=lambda: self._spare.append(World(scene)), name="spare-world", daemon=True
+            )
+            self._builder.start()
 
-    def _settle(self) -> None:
-        """Until every state and frame delivered is answered (with the goals the answers name)."""
-        sim = self.sim
-        deadline = time.monotonic() + NODE_TIMEOUT_S
-        coord_book = sim.coord_book if sim.coordinator and sim.mode == "lockstep" else None  # realtime: unanswered
-        while True:
-            sim.inputs.take()
-            waiting, coord = unanswered(list(sim.links.values()), coord_book)
-            if not waiting and not coord:
-                return
-            if time.monotonic() > deadline:
-                names = [link.name for link in waiting] + (["coordinator"] if coord else [])
-                raise SnapshotFailed(f"{', '.join(names)} did not answer within {NODE_TIMEOUT_S:g} s")
-            sim.bus.inbox.wait(0.01)
-
-    def _ask(self, ask: SnapshotAsk, nodes: list[str]) -> dict[str, SnapshotPart]:
-        """`ask` published (again every `ASK_AGAIN_S`) until each of `nodes` sent its part for this tick."""
-        sim = self.sim
-        decoder = Decoder(SnapshotPart, sim.drops)
-        got: dict[str, SnapshotPart] = {}
-        deadline, asked = time.monotonic() + NODE_TIMEOUT_S, -float("inf")
-        while len(got) < len(nodes):
-            if time.monotonic() - asked > ASK_AGAIN_S:
-                sim.bus.snapshot_pub.put(encode(ask))
-                asked = time.monotonic()
-            for key, payload in sim.bus.snapshot_inbox.drain():
-                part = decoder.decode(key, payload)
-                if part is None or part.tick != ask.tick or part.restored or part.node not in nodes:
-                    continue
-                if part.error:
-                    raise SnapshotFailed(f"{part.node}: {part.error}")
-                got[part.node] = part
-            if time.monotonic() > deadline:
-                silent = [n for n in nodes if n not in got]
-                raise SnapshotFailed(f"{', '.join(silent)} sent no state within {NODE_TIMEOUT_S:g} s")
-            sim.bus.snapshot_inbox.wait(0.01)
-        return got
+    def _spare_world(self) -> World:
+        """The spare world, waiting for it if it is still being built (built here if it could not be)."""
+        if self._builder is not None:
+            self._builder.join()
+            self._builder = None
+        return self._spare.pop() if self._spare else World(self.sim.world.scene_model)
 
     def report(self) -> dict:
         """The snapshots written and failed; how long the line stood still for the longest, by stage; their size."""

@@ -59,6 +59,7 @@ class WorldState:
     next_part_id: int
     events: list[WorldEvent] = field(default_factory=list)
     belt_running: bool = True  # False while the line is e-stopped
+    gripper_force_limits: dict[str, float] = field(default_factory=dict)  # arm -> its gripper drives' force limit
 
 
 def configure_physx(scene: Scene) -> None:
@@ -255,6 +256,7 @@ class World(WorldFeeders):
             next_part_id=self.next_part_id,
             events=list(self.events),
             belt_running=self.belt_running,
+            gripper_force_limits={n: a.gripper_force_limit() for n, a in self.arms.items()},
         )
 
     def observable_state(self) -> np.ndarray:
@@ -289,6 +291,8 @@ class World(WorldFeeders):
         self.physx.unpack(state.physx)
         for name, arm in self.arms.items():
             arm.restore_targets(state.drive_targets[name], state.drive_velocity_targets[name])
+            if name in state.gripper_force_limits:  # a grasp's effort is the drive's, not in PhysX's pack
+                arm.set_gripper_effort(state.gripper_force_limits[name])
         for clock, saved in zip(self.feeders, state.feeders):
             clock.rng.bit_generator.state = copy.deepcopy(saved["rng"])
             clock.next_time_s = saved["next_time_s"]

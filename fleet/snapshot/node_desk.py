@@ -38,7 +38,7 @@ class SnapshotDesk:
         self._pub = session.declare_publisher(keys.snapshot_part(node))
         self.pending: SnapshotAsk | None = None
         self.restored_tick: int | None = None  # set by a node started from a snapshot, once it is back
-        self._sent: tuple[int, bytes] | None = None  # the last part sent: asked again, it goes again as it was
+        self._sent: tuple[SnapshotAsk, bytes] | None = None  # the last part sent: asked again, it goes again
 
     def serve(
         self,
@@ -57,10 +57,10 @@ class SnapshotDesk:
                 if self.restored_tick == ask.tick:
                     self._pub.put(encode(SnapshotPart(self.node, ask.tick, restored=True)))
             elif ask.node == self.role:
-                if self._sent is not None and self._sent[0] == ask.tick:
+                if self._sent is not None and self._sent[0] == ask:
                     self._pub.put(self._sent[1])  # the sim asks again: it missed the part
                 else:
-                    self.pending = ask
+                    self.pending = ask  # a new ask (or the same tick's, naming more orders: made again)
         if self.pending is None or not ready(self.pending):
             return False
         ask, self.pending = self.pending, None
@@ -71,7 +71,7 @@ class SnapshotDesk:
         except StateError as exc:
             part = SnapshotPart(self.node, ask.tick, error=str(exc)[:400])
         payload = encode(part)
-        self._sent = (ask.tick, payload)
+        self._sent = (ask, payload)
         self._pub.put(payload)
         if state:
             restore(state)

@@ -87,3 +87,31 @@ def test_a_scene_sets_its_solver_iterations():
     light = World(load_scene("pick_cell").model_copy(update={"solver_position_iterations": 4}))
     assert {a.articulation.get_solver_position_iterations() for a in grasping.arms.values()} == {20}
     assert {a.articulation.get_solver_position_iterations() for a in light.arms.values()} == {4}
+
+
+def test_a_grasps_effort_is_part_of_the_state(scene):
+    """A gripper's force limit (a goal's max effort) is the drive's, not in PhysX's pack: the world's state keeps it."""
+    world = World(scene)
+    arm = next(iter(world.arms))
+    world.arms[arm].set_gripper_effort(3.5)
+    fresh = World(scene)
+    fresh.restore_state(world.pack_state())
+    assert fresh.arms[arm].gripper_force_limit() == pytest.approx(3.5)
+
+
+def test_a_world_built_beside_a_stepping_one_changes_none_of_its_steps(scene):
+    """A snapshot's spare world is built on a thread while the line steps: the line's steps stay bit for bit."""
+    import threading
+
+    def stepped(beside: bool) -> np.ndarray:
+        world = World(scene)
+        for _ in range(5):
+            builder = threading.Thread(target=lambda: World(scene)) if beside else None
+            if builder is not None:
+                builder.start()
+            drive(world, 60)
+            if builder is not None:
+                builder.join()
+        return world.observable_state()
+
+    assert np.array_equal(stepped(False), stepped(True))
