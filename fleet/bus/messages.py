@@ -386,6 +386,7 @@ class SnapshotPart(Message, frozen=True, array_like=True):
     error: str = ""
     orders: tuple[int, ...] = ()
     restored: bool = False
+    incarnation: int = 0  # which start of the node this is (a restored run starts it in the same)
     version: int = PROTOCOL_VERSION
 
 

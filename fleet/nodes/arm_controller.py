@@ -186,7 +186,9 @@ class ArmController(ControllerOrders, SnapshotNode):
         self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
         self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
         self._status_pub = session.declare_publisher(keys.arm_status(self.arm))
-        self.snapshot_desk = SnapshotDesk(session, keys, self.arm, "controllers", self.drops, self.wake)
+        self.snapshot_desk = SnapshotDesk(
+            session, keys, self.arm, "controllers", self.drops, self.wake, lambda: self.incarnation
+        )
 
     def report(self) -> dict:
         """The controller's figures at the end of a run."""

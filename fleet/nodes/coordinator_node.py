@@ -137,7 +137,9 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
-        self.snapshot_desk = SnapshotDesk(session, keys, "coordinator", "coordinator", self.drops, self.inbox.wake)
+        self.snapshot_desk = SnapshotDesk(
+            session, keys, "coordinator", "coordinator", self.drops, self.inbox.wake, lambda: self.incarnation
+        )
 
     @property
     def events_seen(self) -> int:

@@ -89,6 +89,7 @@ class RunOptions:
     snapshot_dir: str | None = None  # where snapshots are written
     restore_from: str | None = None  # a snapshot every node starts from (`scene` is then the one it holds)
     reseed: int | None = None  # with `restore_from`: the feeders draw their arrivals from this seed from there on
+    incarnations: tuple[tuple[str, int], ...] = ()  # with `restore_from`: each node starts in this incarnation
 
 
 class RunError(RuntimeError):

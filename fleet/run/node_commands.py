@@ -55,7 +55,9 @@ class NodeCommands:
         if o.arms is not None:
             argv += ["--arms", str(o.arms)]
         report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
-        return Node(role, name, [*argv, "--report", str(report)], report, log)
+        started = Node(role, name, [*argv, "--report", str(report)], report, log)
+        started.starts = max(0, dict(o.incarnations).get(name, 1) - 1)  # restored: the start the snapshot was in
+        return started
 
     def sim_node(self) -> Node:
         o = self.options

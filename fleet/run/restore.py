@@ -29,6 +29,7 @@ def restore_options(
         duration_s=end_s,
         allocator=snapshot.allocator,
         restore_from=str(Path(path).resolve()),
+        incarnations=tuple(sorted(snapshot.incarnations.items())),
     )
     return dataclasses.replace(base, **options), snapshot
 

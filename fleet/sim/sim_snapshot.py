@@ -80,6 +80,7 @@ class SimSnapshots:
     _stage_at: float = 0.0
     _writer: threading.Thread | None = None
     _builder: threading.Thread | None = None  # building the spare world
+    _incarnations: dict = field(default_factory=dict)  # of the nodes, at the last snapshot
     _spare: list = field(default_factory=list)  # the world the line goes on in after the next snapshot
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
 
@@ -116,6 +117,7 @@ class SimSnapshots:
             states,
             sorted(t for t in self.ticks if t > tick),
             self.every_ticks,
+            self._incarnations,
         )
         path = self.directory / f"snapshot-{tick:09d}{SUFFIX}"
         self.finish()  # one file written at a time
@@ -153,7 +155,9 @@ class SimSnapshots:
 
     def _gather(self) -> dict[str, bytes]:
         sim = self.sim
-        states = node_states(sim, self._stage)
+        parts = node_states(sim, self._stage)
+        self._incarnations = {node: part.incarnation for node, part in parts.items()}
+        states = {node: part.state for node, part in parts.items()}
         world = self._spare_world()
         self._stage("world")
         own = capture_sim(sim)

@@ -24,8 +24,8 @@ class SnapshotFailed(RuntimeError):
     """A snapshot that could not be taken (a node silent or unable to write its state); one line."""
 
 
-def node_states(sim, stage: Callable[[str], None]) -> dict[str, bytes]:
-    """Every node's state for a snapshot at this tick (`stage(name)` marks where the time goes)."""
+def node_states(sim, stage: Callable[[str], None]) -> dict[str, SnapshotPart]:
+    """Every node's part of a snapshot at this tick (`stage(name)` marks where the time goes)."""
     settle(sim)
     stage("settle")
     tick = sim.world.tick
@@ -45,7 +45,7 @@ def node_states(sim, stage: Callable[[str], None]) -> dict[str, bytes]:
         stage("coordinator")
         parts |= ask(sim, [controllers_ask(sim, parts["coordinator"].orders)], arms)
         stage("controllers")
-    return {node: part.state for node, part in parts.items()}
+    return parts
 
 
 def orders_announced(sim) -> tuple[int, ...]:

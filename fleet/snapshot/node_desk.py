@@ -30,8 +30,9 @@ class SnapshotDesk:
         role: str,
         drops: DropCounter,
         wake: threading.Event | None = None,
+        incarnation: Callable[[], int] = lambda: 0,
     ) -> None:
-        self.node, self.role = node, role
+        self.node, self.role, self.incarnation = node, role, incarnation
         self.inbox = Inbox(wake=wake) if wake is not None else Inbox()
         self._decoder = Decoder(SnapshotAsk, drops)
         self._sub = session.declare_subscriber(keys.snapshot_ask, self.inbox)
@@ -67,7 +68,9 @@ class SnapshotDesk:
         state = b""
         try:
             state, orders = capture(ask)
-            part = SnapshotPart(self.node, ask.tick, zlib.compress(state, 1), orders=orders)
+            part = SnapshotPart(
+                self.node, ask.tick, zlib.compress(state, 1), orders=orders, incarnation=self.incarnation()
+            )
         except StateError as exc:
             part = SnapshotPart(self.node, ask.tick, error=str(exc)[:400])
         payload = encode(part)

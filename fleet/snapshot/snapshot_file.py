@@ -96,6 +96,7 @@ class RunSnapshot(msgspec.Struct, frozen=True):
     # a snapshot goes on from a world built afresh (it matches the one packed to about 1e-6, not exactly)
     later_ticks: list[int] = []
     every_ticks: int = 0
+    incarnations: dict[str, int] = {}  # node -> which start of it the run was in (after a respawn: 2, ...)
     protocol_version: int = PROTOCOL_VERSION
 
     @property

@@ -6,7 +6,9 @@ clock."""
 from __future__ import annotations
 
 import io
+import os
 import pickle
+import signal
 import zlib
 from collections import defaultdict
 from concurrent.futures import ThreadPoolExecutor
@@ -17,11 +19,12 @@ from mcap.reader import make_reader
 
 from fleet.monitor.replay_panel import branch_command
 from fleet.record.mcap_file import Recording
-from fleet.run.launcher import RunOptions
+from fleet.run.launcher import Launcher, RunOptions
 from fleet.run.restore import restore_options, snapshot_path
 from fleet.snapshot.snapshot_file import read_snapshot
 from robots.phase import GRASP_PHASES
 from tests.fleet.snapshot.test_restore_line import line_figures, run
+from tests.fleet.test_run import QUICK_LINE
 
 pytestmark = pytest.mark.slow
 
@@ -114,3 +117,28 @@ def test_snapshots_mid_grasp_mid_handover_and_with_goals_pending_restore_exactly
         assert set(mine) == set(theirs) and len(mine) >= 20, moment
         for topic in mine:
             assert mine[topic] == theirs[topic], f"{moment}: {topic}"
+
+
+def test_a_snapshot_after_a_respawn_starts_each_node_in_the_incarnation_it_was_in(tmp_path):
+    """A controller killed and respawned (its 2nd start) before the snapshot: the snapshot says so, the restored run
+    starts it as its 2nd too (the launcher's roster and the node's own count agree), and the line goes on with
+    nothing refused, respawns armed again."""
+    killed, launcher_ref = [], []
+
+    def kill_arm_0(progress) -> None:
+        if not killed and progress.sim_time_s > 3.0:
+            node = next(n for n in launcher_ref[0].nodes if n.name == "arm_0")
+            killed.append(node.proc.pid)
+            os.kill(node.proc.pid, signal.SIGKILL)
+
+    options = RunOptions(
+        scene=QUICK_LINE, duration_s=24.0, seed=5, respawn=True, snapshot_at=(18.0,), snapshot_dir=str(tmp_path)
+    )
+    with Launcher(options, kill_arm_0) as launcher:
+        launcher_ref.append(launcher)
+        whole = launcher.run()
+    assert killed and whole["respawns"] == 1 and whole["snapshots"], whole["snapshots_failed"]
+    assert read_snapshot(whole["snapshots"][0]).incarnations["arm_0"] == 2
+    again = run(restore_options(whole["snapshots"][0], tmp_path / "scene", respawn=True)[0])
+    assert again["status"] == "ok" and again["respawns"] == 0 and not again["arms_lost"]
+    assert not again["refused_messages"], again["refused_messages"]
