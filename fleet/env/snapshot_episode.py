@@ -62,7 +62,7 @@ def read_moment(path: str, world: World, agents: list[str]) -> LineMoment:
     except SnapshotError as exc:
         raise SnapshotEpisodeError(str(exc)) from None
     scene = world.scene_model
-    if snapshot.scene_name != scene.name or snapshot.arms != list(agents):
+    if snapshot.scene_name != scene.name or sorted(snapshot.arms) != sorted(agents):
         raise SnapshotEpisodeError(
             f"{path}: a snapshot of {snapshot.scene_name} with arms {', '.join(snapshot.arms)}; this env runs "
             f"{scene.name} with arms {', '.join(agents)}"

@@ -157,7 +157,7 @@ class SimSnapshots:
         sim = self.sim
         parts = node_states(sim, self._stage)
         self._incarnations = {node: part.incarnation for node, part in parts.items()}
-        states = {node: part.state for node, part in parts.items()}
+        states = {node: parts[node].state for node in ["coordinator", *sim.links]}  # the scene's order, not arrival
         world = self._spare_world()
         self._stage("world")
         own = capture_sim(sim)

@@ -15,6 +15,7 @@ import pytest
 from fleet.common.scene_loading import load_scene
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.run.restore import restore_options
+from fleet.snapshot.snapshot_file import read_snapshot
 from scenes.loader import bundled_scene_names
 from tests.fleet.test_run import WALL_FIGURES, assert_nothing_left
 
@@ -44,6 +45,7 @@ def test_a_run_restored_at_30_and_70_percent_ends_as_the_uninterrupted_run(scene
     assert whole["status"] == "ok" and not whole["snapshots_failed"]
     hz = load_scene(scene).control_hz
     assert [Path(p).name for p in whole["snapshots"]] == [f"snapshot-{round(t * hz):09d}.clawsnap" for t in at]
+    assert all(read_snapshot(p).arms == whole["arm_ids"] for p in whole["snapshots"]), "in the scene's order"
     restored = [restore_options(path, tmp_path / f"scene_{i}")[0] for i, path in enumerate(whole["snapshots"])]
     with ThreadPoolExecutor(2) as pool:
         ends = list(pool.map(run, restored))
