@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import math
 import sys
 import tempfile
 from pathlib import Path
@@ -65,3 +67,15 @@ def writable_file(flag: str, path: str) -> Path:
         raise UsageError(f"{flag} {path}: no folder {target.parent}")
     _can_write_in(flag, path, target.parent)
     return target
+
+
+def positive_numbers(text: str, what: str) -> list[float]:
+    """A flag's list of positive numbers separated by commas (argparse's `type`); `what` says what they are, with
+    an example, in the one-line refusal."""
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: give {what}")
+    return values

@@ -8,7 +8,7 @@ import math
 import tempfile
 from pathlib import Path
 
-from fleet.cli.errors import UsageError
+from fleet.cli.errors import UsageError, positive_numbers
 from fleet.snapshot.snapshot_file import SnapshotError
 
 DEFAULT_DURATION_S = 120.0
@@ -17,13 +17,7 @@ SNAPSHOT_FOLDER = "snapshots"
 
 def sim_seconds_list(text: str) -> tuple[float, ...]:
     """`--snapshot-at 30,70.5`: positive sim seconds, comma-separated."""
-    try:
-        values = tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give sim seconds separated by commas, e.g. 30,70") from None
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise argparse.ArgumentTypeError(f"{text!r}: give positive sim seconds separated by commas, e.g. 30,70")
-    return values
+    return tuple(positive_numbers(text, "positive sim seconds separated by commas, e.g. 30,70"))
 
 
 def add_snapshot_arguments(p: argparse.ArgumentParser) -> None:

@@ -23,6 +23,7 @@ from fleet.cli.errors import (
     err,
     out,
     output_folder,
+    positive_numbers,
 )
 from fleet.common.scene_loading import load_scene
 
@@ -79,13 +80,7 @@ def branch_scene(args: argparse.Namespace) -> str:
 
 def load_list(text: str) -> list[float]:
     """`--load`'s value: positive numbers separated by commas (argparse's `type`)."""
-    try:
-        loads = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        loads = []
-    if not loads or not all(math.isfinite(v) and v > 0 for v in loads):
-        raise argparse.ArgumentTypeError(f"{text!r}: give positive multiples of capacity, e.g. 0.5,1.0,1.5")
-    return loads
+    return positive_numbers(text, "positive multiples of capacity, e.g. 0.5,1.0,1.5")
 
 
 def sweep_overrides(args: argparse.Namespace) -> list:
