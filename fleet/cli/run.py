@@ -231,7 +231,7 @@ def _run(args: argparse.Namespace) -> int:
         console=err,
         transient=False,
     ) as progress:
-        bar = progress.add_task("run", total=args.duration, scene=args.scene, done=0, spawned=0, rate=0.0)
+        bar = progress.add_task("run", total=args.duration, scene=args.scene_label, done=0, spawned=0, rate=0.0)
 
         def on_progress(p) -> None:
             rate = p.parts_completed / (p.sim_time_s / 60) if p.sim_time_s > 0 else 0.0
@@ -324,8 +324,11 @@ def print_run_summary(s: dict) -> None:
         ("refused by the router", _router_row(s.get("bus_refused"))),
         ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
     ]
-    if s.get("snapshots") or s.get("snapshots_failed"):
-        rows.append(("snapshots (written / failed)", _snapshot_row(s)))
+    if s.get("restored_from"):
+        r = s["restored_from"]
+        rows.append(("restored from a snapshot", f"tick {r['tick']}, every process back in {r['wall_s']:.2f} s"))
+    if s.get("snapshots") or s.get("snapshots_failed") or s.get("snapshots_refused"):
+        rows.append(("snapshots (written / failed / refused)", _snapshot_row(s)))
     for row in rows:
         table.add_row(*row)
     out.print(table)
@@ -335,7 +338,7 @@ def _snapshot_row(s: dict) -> str:
     """The snapshots written and failed, and the longest the line stood still for one."""
     stall = s.get("snapshot_stall_ms_max")
     held = f" (line held {stall} ms at most)" if stall else ""
-    return f"{len(s['snapshots'])} / {len(s['snapshots_failed'])}{held}"
+    return f"{len(s['snapshots'])} / {len(s['snapshots_failed'])} / {len(s.get('snapshots_refused') or [])}{held}"
 
 
 def _router_row(refused: dict | None) -> str:

@@ -63,7 +63,7 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     if args.at is not None and not args.from_snapshot:
         raise UsageError("--at picks a snapshot in the recording given with --from: give --from RECORDING")
     if not args.from_snapshot:
-        args.scene = args.scene or "assembly_line"
+        args.scene = args.scene_label = args.scene or "assembly_line"
         args.duration = DEFAULT_DURATION_S if args.duration is None else args.duration
         args.allocator = args.allocator or "optimal"
         return None
@@ -81,6 +81,7 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
         folder.cleanup()
         raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
     args.scene, args.arms, args.seed, args.duration = options.scene, options.arms, options.seed, options.duration_s
+    args.scene_label = f"{snapshot.scene_name} from {snapshot.sim_time_s:g} s"
     args.allocator = args.allocator or options.allocator
     args.from_snapshot = options.restore_from
     return folder
