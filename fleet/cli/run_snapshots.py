@@ -62,6 +62,7 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
 
     if args.at is not None and not args.from_snapshot:
         raise UsageError("--at picks a snapshot in the recording given with --from: give --from RECORDING")
+    args.incarnations = ()
     if not args.from_snapshot:
         args.scene = args.scene_label = args.scene or "assembly_line"
         args.duration = DEFAULT_DURATION_S if args.duration is None else args.duration
@@ -83,7 +84,7 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     args.scene, args.arms, args.seed, args.duration = options.scene, options.arms, options.seed, options.duration_s
     args.scene_label = f"{snapshot.scene_name} from {snapshot.sim_time_s:g} s"
     args.allocator = args.allocator or options.allocator
-    args.from_snapshot = options.restore_from
+    args.from_snapshot, args.incarnations = options.restore_from, options.incarnations
     return folder
 
 
@@ -96,4 +97,5 @@ def snapshot_options(args: argparse.Namespace) -> dict:
         "snapshot_every_s": args.snapshot_every,
         "snapshot_dir": str(folder.resolve()) if folder else None,  # made by the sim when it writes one
         "restore_from": args.from_snapshot,
+        "incarnations": args.incarnations,  # after a respawn, the start each node was in
     }

@@ -55,3 +55,22 @@ def test_a_snapshot_flag_that_cannot_work_is_one_line_and_exit_2(argv, says, sna
     code = main([a.format(dir=str(tmp_path / "out"), **names) for a in argv])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and says in err[-1] and len(err) == 1, err
+
+
+def test_fleet_run_from_a_snapshot_starts_each_node_in_the_incarnation_it_was_in(tmp_path):
+    """What `fleet run --from` hands the launcher: the snapshot's scene, seed, allocator and its nodes' starts."""
+    from fleet.cli import build_parser
+    from fleet.cli.run_snapshots import open_snapshot, snapshot_options
+
+    path = tmp_path / "respawned.clawsnap"
+    states = {n: zlib.compress(b"x") for n in ("sim", "coordinator", "arm_0")}
+    scene = SceneSource.of("pick_cell", None, 0)
+    snapshot = RunSnapshot("pick_cell", scene, "lockstep", 500, 5.0, 3000, "greedy", states, incarnations={"arm_0": 2})
+    write_snapshot(snapshot, path)
+    args = build_parser().parse_args(["run", "--from", str(path)])
+    folder = open_snapshot(args)
+    try:
+        assert args.allocator == "greedy" and args.seed == 0 and args.duration == pytest.approx(30.0)
+        assert snapshot_options(args)["incarnations"] == (("arm_0", 2),)
+    finally:
+        folder.cleanup()
