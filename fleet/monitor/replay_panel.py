@@ -74,9 +74,10 @@ class ReplayPanel:
 
 def branch_command(recording: Recording, at_s: float) -> str:
     """What the page says to branch from `at_s`: the snapshot it would start from and the command, or why none."""
-    at = [t / 1e9 for t in recording.snapshot_times_ns.values() if t <= round(at_s * 1e9)]
-    if not at:
+    name = recording.snapshot_name_at(at_s)
+    if name is None:
         have = sorted(t / 1e9 for t in recording.snapshot_times_ns.values())
         said = ", ".join(f"{t:g}" for t in have) or "none (record with fleet run --snapshot-every S --out DIR)"
         return f"no snapshot at or before {at_s:.1f} s; snapshots at: {said}"
-    return f"from the snapshot at **{max(at):g} s**: `fleet run --from {recording.path} --at {at_s:.1f}`"
+    taken_s = recording.snapshot_times_ns[name] / 1e9
+    return f"from the snapshot at **{taken_s:g} s**: `fleet run --from {recording.path} --at {at_s:.1f}`"

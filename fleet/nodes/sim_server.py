@@ -43,10 +43,11 @@ from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
 from fleet.sim.server import COORDINATOR_TIMEOUT_S, SimServer
-from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, await_restored, forget_wall_clock_flights, restore_sim
+from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, forget_wall_clock_flights, restore_sim
+from fleet.sim.snapshot_asks import await_restored
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError
-from fleet.snapshot.snapshot_file import SceneSource, SnapshotError, node_state, read_snapshot
+from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, SnapshotError, read_snapshot, state_of
 
 
 def save_target_log(path: str, log: list) -> None:
@@ -155,19 +156,17 @@ def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: int) -> None:
+def attach_snapshots(
+    server: SimServer, args: argparse.Namespace, total_ticks: int, original: RunSnapshot | None = None
+) -> None:
     """Snapshots due at `--snapshot-at` and every `--snapshot-every` (both in sim seconds), and any asked for while
-    the line runs, into `--snapshot-dir`; started `--from` a snapshot without either, the snapshots its run took
-    later, taken again (written only into a folder given)."""
+    the line runs, into `--snapshot-dir`; started from a snapshot (`original`) without either, the snapshots its run
+    took later, taken again (written only into a folder given)."""
     hz = server.world.scene_model.control_hz
     at = {round(float(v) * hz) for v in args.snapshot_at.split(",") if v.strip()}
     every = round(args.snapshot_every * hz) if args.snapshot_every else 0
     directory = Path(args.snapshot_dir) if args.snapshot_dir else None
-    if not (at or every) and args.from_snapshot:
-        try:
-            original = read_snapshot(args.from_snapshot)
-        except SnapshotError:
-            return  # said when it is restored from
+    if not (at or every) and original is not None:
         at, every = set(original.later_ticks), original.every_ticks
     if not (at or every or directory):
         return
@@ -177,19 +176,18 @@ def attach_snapshots(server: SimServer, args: argparse.Namespace, total_ticks: i
     server.snapshots = SimSnapshots(server, facts, directory, at, every)
 
 
-def restore_from(server: SimServer, path: str, reseed: int | None = None) -> str:
-    """Put the sim back to its state in the snapshot at `path`, then hold until every node says it is back too;
-    why it could not ("" when it could)."""
+def restore_from(server: SimServer, snapshot: RunSnapshot, path: str, reseed: int | None = None) -> str:
+    """Put the sim back to its state in `snapshot` (read from `path`), then hold until every node says it is back
+    too; why it could not ("" when it could)."""
     started = time.monotonic()
     try:
-        snapshot, state = node_state(path, "sim")
-        restore_sim(server, state)
-        if snapshot.mode == "realtime":
-            forget_wall_clock_flights(server)
-        if reseed is not None:
-            server.world.reseed_feeders(reseed)
+        restore_sim(server, state_of(snapshot, "sim", path))
     except (SnapshotError, StateError) as exc:
         return str(exc)
+    if snapshot.mode == "realtime":
+        forget_wall_clock_flights(server)
+    if reseed is not None:
+        server.world.reseed_feeders(reseed)
     if server.snapshots is not None:
         server.snapshots.last_tick = snapshot.tick
     nodes = (["coordinator"] if server.coordinator else []) + [n for n, link in server.links.items() if not link.lost]
@@ -269,9 +267,15 @@ def main(argv: list[str] | None = None) -> int:
         )
         server.spool = spool
         ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
-        attach_snapshots(server, args, ticks)
-        if args.from_snapshot:
-            why = restore_from(server, args.from_snapshot, args.reseed)
+        try:
+            original = read_snapshot(args.from_snapshot) if args.from_snapshot else None
+        except SnapshotError as exc:
+            server.close()
+            print(f"sim_server: {exc}", file=sys.stderr)
+            return 2
+        attach_snapshots(server, args, ticks, original)
+        if original is not None:
+            why = restore_from(server, original, args.from_snapshot, args.reseed)
             if why:
                 server.close()
                 print(f"sim_server: {why}", file=sys.stderr)

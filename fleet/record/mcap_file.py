@@ -158,15 +158,19 @@ class Recording:
             a.name: a.log_time for a in summary.attachment_indexes if a.media_type == SNAPSHOT_MEDIA_TYPE
         }
 
+    def snapshot_name_at(self, time_s: float | None) -> str | None:
+        """The name of the newest snapshot it carries at or before `time_s` (None: the last); None if there is none."""
+        chosen = [(t, n) for n, t in self.snapshot_times_ns.items() if time_s is None or t <= round(time_s * 1e9)]
+        return max(chosen)[1] if chosen else None
+
     def snapshot_at(self, time_s: float | None) -> tuple[str, bytes]:
         """The newest snapshot it carries at or before `time_s` (None: the last): its name and bytes; a
         `RecordingError` (one line) when there is none."""
-        chosen = [(t, n) for n, t in self.snapshot_times_ns.items() if time_s is None or t <= round(time_s * 1e9)]
-        if not chosen:
+        name = self.snapshot_name_at(time_s)
+        if name is None:
             have = ", ".join(f"{t / 1e9:g} s" for t in sorted(self.snapshot_times_ns.values())) or "none"
             where = "" if time_s is None else f" at or before {time_s:g} s"
             raise RecordingError(f"{self.path}: no snapshot{where} (it carries: {have})")
-        _, name = max(chosen)
         with open(self.path, "rb") as f:
             for attachment in make_reader(f).iter_attachments():
                 if attachment.name == name:

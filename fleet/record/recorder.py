@@ -48,7 +48,7 @@ from fleet.record.forked_build import LaterInChild, serialized
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.mcap_file import SNAPSHOT_MEDIA_TYPE, RecordingWriter
 from fleet.record.ros_types import ros_type, sim_ns, to_ros
-from fleet.snapshot.snapshot_file import SnapshotError, read_snapshot
+from fleet.snapshot.snapshot_file import SnapshotError, parse_snapshot
 from scenes.schema import Scene
 
 log = logging.getLogger("clawfleet.record")
@@ -240,8 +240,9 @@ class Recorder:
     def carry_snapshot(self, path: Path) -> None:
         """A snapshot file of the run, attached at its sim time (one that cannot be read is left out, and said)."""
         try:
-            snapshot = read_snapshot(path)
-        except SnapshotError as exc:
+            data = path.read_bytes()
+            snapshot = parse_snapshot(data, path)
+        except (OSError, SnapshotError) as exc:
             log.warning("the recording leaves out a snapshot: %s", exc)
             return
-        self.writer.attach(path.name, path.read_bytes(), sim_ns(snapshot.sim_time_s), SNAPSHOT_MEDIA_TYPE)
+        self.writer.attach(path.name, data, sim_ns(snapshot.sim_time_s), SNAPSHOT_MEDIA_TYPE)

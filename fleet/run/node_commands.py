@@ -75,9 +75,7 @@ class NodeCommands:
         for flag, value in (("--latency-ms", o.latency_ms), ("--jitter-ms", o.jitter_ms), ("--loss", o.loss)):
             if value is not None:
                 sim_args += [flag, repr(value)]
-        sim_args += ["--allocator", o.allocator, *self._snapshot_args()]
-        if o.restore_from:
-            sim_args += ["--from", o.restore_from]
+        sim_args += ["--allocator", o.allocator, *self._snapshot_args(), *self._from()]
         if o.reseed is not None:
             sim_args += ["--reseed", str(o.reseed)]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))

@@ -1,5 +1,5 @@
-"""The sim's side of a run's snapshots (lockstep): at a tick boundary, with every answer in, the coordinator's state,
-then every controller's, then its own, into one file; and a sim started from a snapshot, put back and holding the
+"""The sim's side of a run's snapshots: at a tick boundary, with every answer in, every node's state
+(`fleet.sim.snapshot_asks`) and its own, into one file; and a sim started from a snapshot, put back and holding the
 line until every node says it is back too.
 
 The cut is consistent because lockstep makes it so: the sim has every answer to what it delivered (in its flight
@@ -19,14 +19,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleet.bus.codec import Decoder, encode
-from fleet.bus.messages import SnapshotAsk, SnapshotPart
-from fleet.sim.snapshot_asks import ASK_AGAIN_S, SnapshotFailed, node_states
+from fleet.sim.snapshot_asks import SnapshotFailed, node_states
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError, capture, restore
 from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
 
-RESTORED_TIMEOUT_S = 60.0  # wall seconds every node of a restored run has to say it is back
 # the sim's attributes that belong to this process alone: its bus, its physics world (packed apart), its stop flag,
 # and how it was started (clock, speed, timeouts, who it waits for: a restored run may be started otherwise)
 SIM_LIVE = (
@@ -120,7 +117,7 @@ class SimSnapshots:
             self._incarnations,
         )
         path = self.directory / f"snapshot-{tick:09d}{SUFFIX}"
-        self.finish()  # one file written at a time
+        self._await_writer()  # one file written at a time (the spare world builds on meanwhile)
         self._writer = threading.Thread(target=self._write, args=(snapshot, path), name="snapshot-writer")
         self._writer.start()  # compressed and written while the line goes on
         return path
@@ -138,11 +135,14 @@ class SimSnapshots:
         self.write_ms.append(round(1e3 * (time.perf_counter() - t0), 1))
         self.written.append(str(path))
 
-    def finish(self) -> None:
-        """Wait for the snapshot file being written and the spare world being built, if any."""
+    def _await_writer(self) -> None:
         if self._writer is not None:
             self._writer.join()
             self._writer = None
+
+    def finish(self) -> None:
+        """Wait for the snapshot file being written and the spare world being built, if any."""
+        self._await_writer()
         if self._builder is not None:
             self._builder.join()
             self._builder = None
@@ -231,23 +231,3 @@ def forget_wall_clock_flights(sim) -> None:
     for link in sim.links.values():
         link.book.clear()
     sim.delayed = type(sim.delayed)()
-
-
-def await_restored(sim, tick: int, nodes: list[str], timeout_s: float = RESTORED_TIMEOUT_S) -> list[str]:
-    """A restored sim, before its first tick: ask until each of `nodes` said it is back at `tick`; those that did not
-    within `timeout_s` (empty: all did)."""
-    decoder = Decoder(SnapshotPart, sim.drops)
-    back: set[str] = set()
-    deadline, asked = time.monotonic() + timeout_s, -float("inf")
-    while back < set(nodes) and time.monotonic() < deadline:
-        if sim.stop is not None and sim.stop.should_stop():
-            break
-        if time.monotonic() - asked > ASK_AGAIN_S:
-            sim.bus.snapshot_pub.put(encode(SnapshotAsk(tick, "restored")))
-            asked = time.monotonic()
-        for key, payload in sim.bus.snapshot_inbox.drain():
-            part = decoder.decode(key, payload)
-            if part is not None and part.restored and part.tick == tick:
-                back.add(part.node)
-        sim.bus.snapshot_inbox.wait(0.05)
-    return [n for n in nodes if n not in back]

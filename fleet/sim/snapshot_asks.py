@@ -1,4 +1,5 @@
-"""The sim asking the nodes for their states at a snapshot's tick boundary: one concern of `SimSnapshots`, kept apart.
+"""The sim asking the nodes for their states at a snapshot's tick boundary (one concern of `SimSnapshots`, kept
+apart), and a restored sim asking them whether they are back.
 
 The cut: the sim first waits until every state and frame it delivered is answered (lockstep makes that a
 consistent cut: nothing else is on its way). In lockstep it then asks the coordinator and every controller at
@@ -17,6 +18,7 @@ from fleet.bus.lockstep import unanswered
 from fleet.bus.messages import SnapshotAsk, SnapshotPart
 
 NODE_TIMEOUT_S = 10.0  # wall seconds a node has to send its part of a snapshot
+RESTORED_TIMEOUT_S = 60.0  # wall seconds every node of a restored run has to say it is back
 ASK_AGAIN_S = 0.5
 
 
@@ -78,29 +80,50 @@ def settle(sim) -> None:
 
 
 def ask(sim, asks: list[SnapshotAsk], nodes: list[str]) -> dict[str, SnapshotPart]:
-    """`asks` published (again every `ASK_AGAIN_S`) until each of `nodes` sent its part for this tick; a part made
-    for another ask of the same tick (fewer orders) is not taken."""
+    """`asks` published until each of `nodes` sent its part for this tick; a part made for another ask of the same
+    tick (fewer orders) is not taken."""
+    controllers, arms, tick = next((a for a in asks if a.node == "controllers"), None), list(sim.links), asks[0].tick
+
+    def take(part: SnapshotPart) -> bool:
+        if part.restored or part.tick != tick:
+            return False
+        if part.error:
+            raise SnapshotFailed(f"{part.node}: {part.error}")
+        return part.node == "coordinator" or _answers(part, controllers, arms)
+
+    got = collect(sim, asks, nodes, take, NODE_TIMEOUT_S)
+    silent = [n for n in nodes if n not in got]
+    if silent:
+        raise SnapshotFailed(f"{', '.join(silent)} sent no state within {NODE_TIMEOUT_S:g} s")
+    return got
+
+
+def await_restored(sim, tick: int, nodes: list[str], timeout_s: float = RESTORED_TIMEOUT_S) -> list[str]:
+    """A restored sim, before its first tick: ask until each of `nodes` said it is back at `tick`; those that did not
+    within `timeout_s` or before the sim was stopped (empty: all did)."""
+    back = collect(sim, [SnapshotAsk(tick, "restored")], nodes, lambda p: p.restored and p.tick == tick, timeout_s)
+    return [n for n in nodes if n not in back]
+
+
+def collect(
+    sim, asks: list[SnapshotAsk], nodes: list[str], take: Callable[[SnapshotPart], bool], timeout_s: float
+) -> dict[str, SnapshotPart]:
+    """`asks` published (again every `ASK_AGAIN_S`), and the parts `take` accepts kept by node, until each of `nodes`
+    sent one, `timeout_s` passed or the sim is stopped."""
     decoder = Decoder(SnapshotPart, sim.drops)
-    wanted = {a.node: a for a in asks}
     got: dict[str, SnapshotPart] = {}
-    deadline, asked = time.monotonic() + NODE_TIMEOUT_S, -float("inf")
-    while len(got) < len(nodes):
+    deadline, asked = time.monotonic() + timeout_s, -float("inf")
+    while len(got) < len(nodes) and time.monotonic() < deadline:
+        if sim.stop is not None and sim.stop.should_stop():
+            break
         if time.monotonic() - asked > ASK_AGAIN_S:
             for a in asks:
                 sim.bus.snapshot_pub.put(encode(a))
             asked = time.monotonic()
         for key, payload in sim.bus.snapshot_inbox.drain():
             part = decoder.decode(key, payload)
-            if part is None or part.restored or part.node not in nodes or part.tick != asks[0].tick:
-                continue
-            if part.error:
-                raise SnapshotFailed(f"{part.node}: {part.error}")
-            if part.node != "coordinator" and not _answers(part, wanted.get("controllers"), list(sim.links)):
-                continue
-            got[part.node] = part
-        if time.monotonic() > deadline:
-            silent = [n for n in nodes if n not in got]
-            raise SnapshotFailed(f"{', '.join(silent)} sent no state within {NODE_TIMEOUT_S:g} s")
+            if part is not None and part.node in nodes and take(part):
+                got[part.node] = part
         sim.bus.snapshot_inbox.wait(0.01)
     return got
 

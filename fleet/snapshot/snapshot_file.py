@@ -124,6 +124,13 @@ def read_snapshot(path: str | Path) -> RunSnapshot:
         raise SnapshotError(f"{p}: no such snapshot file") from None
     except OSError as exc:
         raise SnapshotError(f"{p}: cannot read it ({exc.strerror or exc})") from None
+    return parse_snapshot(data, p)
+
+
+def parse_snapshot(data: bytes, label: str | Path) -> RunSnapshot:
+    """A snapshot file's bytes (`label` names it in errors), checked whole; a `SnapshotError` (one line) for
+    anything else."""
+    p = label
     if len(data) < _HEADER.size or not data.startswith(MAGIC):
         raise SnapshotError(f"{p}: not a clawfleet snapshot (it does not start with {MAGIC.decode()})")
     _, version, digest = _HEADER.unpack_from(data)
@@ -150,9 +157,14 @@ def read_snapshot(path: str | Path) -> RunSnapshot:
 def node_state(path: str | Path, node: str) -> tuple[RunSnapshot, bytes]:
     """The snapshot in `path` and `node`'s state in it; a `SnapshotError` if either is not there."""
     snapshot = read_snapshot(path)
+    return snapshot, state_of(snapshot, node, path)
+
+
+def state_of(snapshot: RunSnapshot, node: str, label: str | Path) -> bytes:
+    """`node`'s state in a snapshot read already (`label` names the file in errors), as its process wrote it."""
     if node not in snapshot.states:
-        raise SnapshotError(f"{path}: holds no state for {node!r}; nodes: {', '.join(snapshot.states)}")
+        raise SnapshotError(f"{label}: holds no state for {node!r}; nodes: {', '.join(snapshot.states)}")
     try:
-        return snapshot, zlib.decompress(snapshot.states[node])
+        return zlib.decompress(snapshot.states[node])
     except zlib.error as exc:
-        raise SnapshotError(f"{path}: the state of {node} is damaged ({exc})") from None
+        raise SnapshotError(f"{label}: the state of {node} is damaged ({exc})") from None
