@@ -126,6 +126,19 @@ def link_shapes(spec: RobotSpec, inflate_m: float = 0.0) -> list[LinkShape]:
     return shapes
 
 
+_SHAPES: dict[int, tuple[RobotSpec, list[LinkShape]]] = {}  # by the id of a declaration held here
+
+
+def _shapes_of(spec: RobotSpec) -> list[LinkShape]:
+    """The robot's collision shapes, read from its URDF once per process (FCL shapes are fixed: arms share them)."""
+    entry = _SHAPES.get(id(spec))
+    if entry is None or entry[0] is not spec:
+        if len(_SHAPES) >= 64:  # robot variants tried one after another (`fleet tune`): keep the newest
+            _SHAPES.clear()
+        entry = _SHAPES[id(spec)] = (spec, link_shapes(spec))
+    return entry[1]
+
+
 def _fcl_transform(T: np.ndarray) -> fcl.Transform:
     return fcl.Transform(T[:3, :3], T[:3, 3])
 
@@ -142,7 +155,7 @@ class ArmGeometry:
         self.name, self.spec = name, spec
         self.km = model or KinematicModel(spec)
         self.base_to_world = np.asarray(transform_base_to_world, float)
-        self.shapes = link_shapes(spec)
+        self.shapes = _shapes_of(spec)
         self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
         self._placed = PlacedFrames(
             self.km, self.base_to_world, [(s.link, s.transform_shape_to_link) for s in self.shapes]
@@ -167,9 +180,9 @@ class ArmGeometry:
         return {k: v for k, v in vars(self).items() if k not in ("shapes", "_objects")}
 
     def __setstate__(self, state: dict) -> None:
-        """The FCL objects made again from the robot's URDF; each takes its pose when next measured."""
+        """The FCL objects made again from the robot's shapes; each takes its pose when next measured."""
         vars(self).update(state)
-        self.shapes = link_shapes(self.spec)
+        self.shapes = _shapes_of(self.spec)
         self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
         self._posed = [False] * len(self.shapes)
 

@@ -11,11 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from robots.built_once import BuiltOnce
 from robots.spec import RobotSpec
 
 
-class KinematicModel:
-    """Pinocchio model and data of one robot, with name lookups that list valid names on error."""
+class KinematicModel(BuiltOnce):
+    """Pinocchio model and data of one robot, with name lookups that list valid names on error (pickled as its
+    robot: `robots.built_once`)."""
 
     def __init__(self, spec: RobotSpec) -> None:
         self.spec = spec
@@ -34,15 +36,11 @@ class KinematicModel:
         self._closed_q = pin.neutral(self.model)  # the neutral configuration with the gripper closed
         self._closed_q[self.gripper_q_index] = spec.gripper_closed
         self._pan: tuple[np.ndarray, float] | None = None
+        self._built_from((spec,), self.built_key(spec))
 
-    def __getstate__(self) -> dict:
-        """All but Pinocchio's data (work space every computation writes before it reads: 100 times the model's
-        size to pickle); a run's snapshot holds many models."""
-        return {k: v for k, v in vars(self).items() if k != "data"}
-
-    def __setstate__(self, state: dict) -> None:
-        vars(self).update(state)
-        self.data = self.model.createData()
+    @classmethod
+    def built_key(cls, spec: RobotSpec) -> int:
+        return id(spec)
 
     def first_joint_axis(self) -> tuple[np.ndarray, float]:
         """Where the first arm joint's axis stands in the base frame (its origin at the home pose) and +1 or -1 as
@@ -117,12 +115,12 @@ def _se3(transform: np.ndarray) -> pin.SE3:
     return pin.SE3(transform[:3, :3].copy(), transform[:3, 3].copy())
 
 
-class PlacedFrames:
+class PlacedFrames(BuiltOnce):
     """World poses of fixed frames on an arm's links (e.g. its collision shapes), from one forward-kinematics pass.
 
     A copy of the arm's Pinocchio model carries the base's placement in the world and one frame per pose asked
     for, so a configuration's poses cost one pass and one read per frame: no per-frame products in numpy (the
-    collision guard places every arm of a cell this way, every env step)."""
+    collision guard places every arm of a cell this way, every env step). Pickled as what it was built from."""
 
     def __init__(
         self, km: KinematicModel, transform_base_to_world: np.ndarray, frames: list[tuple[str, np.ndarray]]
@@ -144,9 +142,16 @@ class PlacedFrames:
                 self.model.addFrame(pin.Frame(name, parent.parentJoint, placement, pin.FrameType.OP_FRAME))
             )
         self.data = self.model.createData()
+        self._km = km  # held: the key names its robot by id
+        args = (km, np.array(transform_base_to_world, float), [(link, np.array(t, float)) for link, t in frames])
+        self._built_from(args, self.built_key(*args))
 
-    __getstate__ = KinematicModel.__getstate__
-    __setstate__ = KinematicModel.__setstate__
+    @classmethod
+    def built_key(
+        cls, km: KinematicModel, transform_base_to_world: np.ndarray, frames: list[tuple[str, np.ndarray]]
+    ) -> tuple:
+        placed = tuple((link, np.asarray(t, float).tobytes()) for link, t in frames)
+        return (id(km.spec), np.asarray(transform_base_to_world, float).tobytes(), placed)
 
     def poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) world poses of the frames for the full configuration `q`."""

@@ -18,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from robots.built_once import BuiltOnce
 from robots.frames import top_down_rotation, transform, wrap_angle
 from robots.ik import IKOptions, IKResult, solve_ik
 from robots.kinematics import KinematicModel
@@ -40,8 +41,9 @@ def tilted_rotation(yaw_rad: float, tilt_rad: float, outward_xy: np.ndarray) -> 
     return pin.AngleAxis(tilt_rad, tangent).toRotationMatrix() @ down
 
 
-class TopDownIK:
-    """IK for top-down tool poses of an arm whose base stands at `transform_base_to_world`."""
+class TopDownIK(BuiltOnce):
+    """IK for top-down tool poses of an arm whose base stands at `transform_base_to_world` (pickled as what it was
+    built from: `robots.built_once`)."""
 
     def __init__(
         self,
@@ -74,6 +76,19 @@ class TopDownIK:
         self.reach_tilts_rad = self.tilts_rad[::every] + (
             [self.tilts_rad[-1]] if (len(self.tilts_rad) - 1) % every else []
         )
+        args = (spec, self.base_to_world.copy(), self.km, options)
+        self._built_from(args, self.built_key(*args))
+
+    @classmethod
+    def built_key(
+        cls,
+        spec: RobotSpec,
+        transform_base_to_world: np.ndarray,
+        model: KinematicModel | None = None,
+        options: IKOptions = IKOptions(restarts=2),
+    ) -> tuple:
+        # the robot by id (the instance holds it); its model is the robot's, whichever instance
+        return (id(spec), np.asarray(transform_base_to_world, float).tobytes(), options)
 
     def outward(self, position_world: np.ndarray) -> np.ndarray:
         """Horizontal direction from the arm's turning axis to the spot (world frame): where a tilted approach leans,

@@ -19,7 +19,10 @@ class SnapshotBenchRow:
     arms: int
     snapshots: int
     stall_ms_max: float
+    stall_ms_median: float
     stall_ms_by_stage: dict[str, float] = field(default_factory=dict)
+    next_ticks_ms_median: float | None = None  # how much longer the ticks after one took (nodes writing states)
+    next_ticks_ms_max: float | None = None
     bytes_max: int = 0
     write_ms_max: float = 0.0  # on a thread of its own, while the line goes on
     restore_to_first_tick_s: float = 0.0  # reading the file, every process back (the sim's count)
@@ -53,7 +56,10 @@ def bench_snapshots(arms: int, seconds: float, snapshots: int) -> SnapshotBenchR
         arms,
         snapshots,
         whole["snapshot_stall_ms_max"],
+        whole["snapshot_stall_ms_median"],
         whole["snapshot_stall_ms_by_stage"],
+        whole["snapshot_next_ticks_ms_median"],
+        whole["snapshot_next_ticks_ms_max"],
         whole["snapshot_bytes_max"],
         whole["snapshot_write_ms_max"],
         again["restored_from"]["wall_s"],

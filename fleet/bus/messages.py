@@ -14,7 +14,7 @@ import msgspec
 
 from robots.phase import Phase
 
-PROTOCOL_VERSION = 8
+PROTOCOL_VERSION = 9  # 9: states and frames name the next snapshot tick; frames their delivery tick
 Floats = tuple[float, ...]
 
 
@@ -71,6 +71,7 @@ class ArmState(Message, frozen=True, array_like=True):
     period_ticks: int = 0  # the controller's period: its answer to the state at `next_tick` takes effect a period later
     delivered_tick: int = -1  # the tick this copy reached its controller (its own clock; -1: `tick`, no network delay)
     taken: bool = False
+    snapshot_tick: int = -1  # the tick of the run's next snapshot (-1: none due): from it on, hold what comes
     version: int = PROTOCOL_VERSION
 
 
@@ -205,6 +206,7 @@ class Assignment(Message, frozen=True, array_like=True, tag="assign"):
     place_xyz: Floats
     surface_velocity: Floats
     holder: int = 0  # the incarnation of the coordinator that gave it (0: not said); see `Roster`
+    decision_tick: int = -1  # the tick of the frame whose decision gave it (-1: not said)
     version: int = PROTOCOL_VERSION
 
 
@@ -222,6 +224,7 @@ class MotionGrant(Message, frozen=True, array_like=True, tag="grant"):
     min_separation_m: float = -1.0
     start_time_s: float = -1.0  # sim time the granted move starts (the arm's next state); -1: when heard
     holder: int = 0  # the incarnation of the coordinator that gave it (0: not said); see `Roster`
+    decision_tick: int = -1  # the tick of the frame whose decision gave it (-1: not said)
     version: int = PROTOCOL_VERSION
 
 
@@ -335,6 +338,8 @@ class LineView(Message, frozen=True, array_like=True):
     sim_time_s: float
     arms: tuple[ArmState, ...]
     parts: PartsState
+    delivered_tick: int = -1  # the tick this copy reached the coordinator (-1: `tick`, no network delay)
+    snapshot_tick: int = -1  # the tick of the run's next snapshot (-1: none due): from it on, hold what comes
     version: int = PROTOCOL_VERSION
 
 

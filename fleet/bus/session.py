@@ -16,7 +16,7 @@ import re
 import socket
 import threading
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import zenoh
@@ -144,19 +144,66 @@ def open_listening_session(endpoints: BusEndpoints, attempts: int = 5) -> tuple[
     raise AssertionError("unreachable")
 
 
+class Hold:
+    """Holds back what arrives at a node's inboxes after a mark (`start`) until `release`, then queues it in arrival
+    order: a node asked for its state as of a tick boundary (a run's snapshot) writes it while the line goes on, and
+    what the line sent after that boundary waits. `keeps(key, payload, mark)` says which arrivals are from after
+    the mark (each subscriber's callback runs on a thread of its own, so one sent before the mark may arrive after
+    it: those pass)."""
+
+    def __init__(self, keeps: Callable[[str, bytes, object], bool]) -> None:
+        self._keeps = keeps
+        self._lock = threading.Lock()
+        self._held: list[tuple[Inbox, tuple[str, bytes]]] | None = None
+        self._mark: object = None
+
+    def start(self, mark: object) -> None:
+        """Hold what `keeps` says is from after `mark`."""
+        with self._lock:
+            if self._held is None:
+                self._held = []
+            self._mark = mark
+
+    @property
+    def holding(self) -> bool:
+        return self._held is not None
+
+    def put(self, inbox: Inbox, item: tuple[str, bytes]) -> None:
+        """Queue `item` in `inbox`, or hold it there if it is from after the mark."""
+        with self._lock:
+            if self._held is not None and self._keeps(item[0], item[1], self._mark):
+                self._held.append((inbox, item))
+            else:
+                inbox.items.append(item)
+
+    def release(self) -> None:
+        """Everything held queued in its inbox, in arrival order, and the owners woken."""
+        with self._lock:
+            held, self._held, self._mark = self._held or [], None, None
+            for inbox, item in held:
+                inbox.items.append(item)
+        for inbox in {id(i): i for i, _ in held}.values():
+            inbox.wake.set()
+
+
 @dataclass
 class Inbox:
     """A subscriber callback that only queues raw payloads and wakes the owner; the owner's loop drains them.
 
     Several inboxes may share one `wake` event, so a node sleeps until any of them has work
-    instead of polling.
+    instead of polling. Inboxes sharing a `hold` are held back together (`Hold`).
     """
 
     items: deque = field(default_factory=deque)
     wake: threading.Event = field(default_factory=threading.Event)
+    hold: Hold | None = None
 
     def __call__(self, sample: zenoh.Sample) -> None:
-        self.items.append((str(sample.key_expr), sample.payload.to_bytes()))  # deque.append is thread-safe
+        item = (str(sample.key_expr), sample.payload.to_bytes())
+        if self.hold is None:
+            self.items.append(item)  # deque.append is thread-safe
+        else:
+            self.hold.put(self, item)
         self.wake.set()
 
     def wait(self, timeout_s: float) -> None:

@@ -201,8 +201,9 @@ def cmd_bench_snapshot(args: argparse.Namespace) -> int:
     table = Table(
         "arms",
         "snapshots",
-        "line held (ms, max)",
-        "by stage (ms)",
+        "line held (ms, median / max)",
+        "by stage (ms, the longest)",
+        "ticks after, slower by (ms, median / max)",
         "file (kB, max)",
         "write (ms, beside the line)",
         "restore to first tick (s)",
@@ -217,8 +218,9 @@ def cmd_bench_snapshot(args: argparse.Namespace) -> int:
         table.add_row(
             str(r.arms),
             str(r.snapshots),
-            f"{r.stall_ms_max:.0f}",
+            f"{r.stall_ms_median:.0f} / {r.stall_ms_max:.0f}",
             stages,
+            "-" if r.next_ticks_ms_max is None else f"{r.next_ticks_ms_median:.0f} / {r.next_ticks_ms_max:.0f}",
             f"{r.bytes_max / 1e3:.0f}",
             f"{r.write_ms_max:.0f}",
             f"{r.restore_to_first_tick_s:.2f}",

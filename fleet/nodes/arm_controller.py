@@ -39,10 +39,11 @@ from fleet.bus.messages import (
     Roster,
 )
 from fleet.bus.plausible import Incarnations, TickClock
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
 from fleet.nodes.node_snapshots import SnapshotNode
+from fleet.snapshot.after_cut import controller_after_cut
 from fleet.snapshot.node_desk import SnapshotDesk
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
@@ -61,6 +62,7 @@ CONTROLLER_LIVE = (
     "_decoders",
     "wake",
     "_inboxes",
+    "hold",
     "_subs",
     "_step_pub",
     "_goal_pub",
@@ -175,7 +177,8 @@ class ArmController(ControllerOrders, SnapshotNode):
             "roster": Decoder(Roster, self.drops),
         }
         self.wake = threading.Event()
-        self._inboxes = {name: Inbox(wake=self.wake) for name in ("state", "parts", "assign", "roster")}
+        self.hold = Hold(controller_after_cut)  # from a snapshot's tick until its part is sent
+        self._inboxes = {name: Inbox(wake=self.wake, hold=self.hold) for name in ("state", "parts", "assign", "roster")}
         self.sim_clock = TickClock(scene.control_hz)  # states and parts are the sim's: none may run far ahead of it
         self._subs = [
             session.declare_subscriber(keys.arm_state(self.arm), self._inboxes["state"]),
@@ -186,9 +189,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
         self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
         self._status_pub = session.declare_publisher(keys.arm_status(self.arm))
-        self.snapshot_desk = SnapshotDesk(
-            session, keys, self.arm, "controllers", self.drops, self.wake, lambda: self.incarnation
-        )
+        self.snapshot_desk = SnapshotDesk.of(self, session, keys, self.arm, "controllers", self.wake)
 
     def report(self) -> dict:
         """The controller's figures at the end of a run."""
@@ -255,6 +256,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         self._take_assignments()
         if state is None or state.tick in self.answered:
             return False  # nothing new (the sim re-sends a state it is still waiting for: answered already)
+        self.snapshot_desk.expect(state.snapshot_tick)  # from that tick on, held until this node's part is sent
         self._catch_up(state)
         obs = observation_of(state)
         self._hand_to_skill(obs)

@@ -46,13 +46,14 @@ from fleet.bus.messages import (
     separations_from_pairs,
 )
 from fleet.bus.plausible import Incarnations, TickClock, arm_state_problem, parts_problem
-from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
+from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_report
 from fleet.nodes.coordinator_beats import CoordinatorBeats
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
 from fleet.nodes.node_snapshots import SnapshotNode
+from fleet.snapshot.after_cut import coordinator_after_cut
 from fleet.snapshot.node_desk import SnapshotDesk
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
@@ -70,6 +71,7 @@ COORDINATOR_LIVE = (
     "keys",
     "_decoders",
     "inbox",
+    "hold",
     "_subs",
     "_assign_pubs",
     "_tick_pub",
@@ -116,7 +118,8 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         self.incarnations = Incarnations(from_roster=roster)  # which start of each controller to believe
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
-        self.inbox = Inbox()  # one queue for everything: messages are handled in arrival order
+        self.hold = Hold(coordinator_after_cut(scene.control_hz))  # from a snapshot's tick until its part is sent
+        self.inbox = Inbox(hold=self.hold)  # one queue for everything: messages are handled in arrival order
         self._subs = [
             session.declare_subscriber(k, self.inbox)
             for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
@@ -137,9 +140,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
-        self.snapshot_desk = SnapshotDesk(
-            session, keys, "coordinator", "coordinator", self.drops, self.inbox.wake, lambda: self.incarnation
-        )
+        self.snapshot_desk = SnapshotDesk.of(self, session, keys, "coordinator", "coordinator", self.inbox.wake)
 
     @property
     def events_seen(self) -> int:
@@ -218,6 +219,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
 
     def _on_frame(self, f: LineView) -> None:
         self._frame_at = time.monotonic()
+        self.snapshot_desk.expect(f.snapshot_tick)  # from that tick on, held until this node's part is sent
         for s in f.arms:
             self._on_state(s)
         self._on_parts(f.parts)
@@ -284,7 +286,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             )
         for order in decision.orders:
             self.assign_seq[order.arm] += 1
-            message = order_message(order, self.assign_seq[order.arm], self.incarnation)
+            message = order_message(order, self.assign_seq[order.arm], self.incarnation, decision.tick)
             self._assign_pubs[order.arm].put(encode(message))
         self._tick_pub.put(encode(CoordTick(decision.tick, tuple(self.assign_seq[a] for a in self.arm_names))))
 

@@ -9,9 +9,11 @@ from coordinator.orders import AssignOrder, CancelOrder, GrantOrder
 from fleet.bus.messages import Assignment, MotionGrant, Progress
 
 
-def order_message(order: AssignOrder | CancelOrder | GrantOrder, seq: int, holder: int) -> Assignment | MotionGrant:
+def order_message(
+    order: AssignOrder | CancelOrder | GrantOrder, seq: int, holder: int, decision_tick: int = -1
+) -> Assignment | MotionGrant:
     """One order as the arm's `assign` key carries it, numbered `seq` in that arm's count, from the coordinator
-    in its `holder`th start."""
+    in its `holder`th start, given by its decision at `decision_tick`."""
     if isinstance(order, GrantOrder):
         return MotionGrant(
             order.arm,
@@ -22,9 +24,12 @@ def order_message(order: AssignOrder | CancelOrder | GrantOrder, seq: int, holde
             order.min_separation_m if math.isfinite(order.min_separation_m) else -1.0,
             order.start_s if order.start_s is not None else -1.0,
             holder,
+            decision_tick,
         )
     if isinstance(order, CancelOrder):
-        return Assignment(order.arm, seq, None, order.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), holder)
+        return Assignment(
+            order.arm, seq, None, order.part_id, 0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), holder, decision_tick
+        )
     assert isinstance(order, AssignOrder)
     return Assignment(
         order.arm,
@@ -35,6 +40,7 @@ def order_message(order: AssignOrder | CancelOrder | GrantOrder, seq: int, holde
         order.place_xyz,
         order.surface_velocity,
         holder,
+        decision_tick,
     )
 
 

@@ -203,7 +203,10 @@ class RunSummary:
             "snapshots_retaken": sim.get("snapshots_retaken", 0),
             "snapshots_refused": sim.get("snapshots_refused", []),
             "snapshot_stall_ms_max": sim.get("snapshot_stall_ms_max"),
+            "snapshot_stall_ms_median": sim.get("snapshot_stall_ms_median"),
             "snapshot_stall_ms_by_stage": sim.get("snapshot_stall_ms_by_stage", {}),
+            "snapshot_next_ticks_ms_median": sim.get("snapshot_next_ticks_ms_median"),
+            "snapshot_next_ticks_ms_max": sim.get("snapshot_next_ticks_ms_max"),
             "snapshot_bytes_max": sim.get("snapshot_bytes_max"),
             "snapshot_write_ms_max": sim.get("snapshot_write_ms_max"),
         }

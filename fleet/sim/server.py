@@ -202,8 +202,11 @@ class SimServer(SimLockstep):
 
     def _snapshot_if_due(self) -> bool:
         """A snapshot due now (`--snapshot-at/--snapshot-every`) or asked for (`SimControl.snapshot`) is taken here,
-        at the tick boundary; one asked of a run with nowhere to write it is refused, and the refusal counted."""
+        at the tick boundary (the parts of one taken earlier taken in); one asked of a run with nowhere to write it
+        is refused, and the refusal counted."""
         asked, self.snapshot_asked_by = self.snapshot_asked_by, ""
+        if self.snapshots is not None:
+            self.snapshots.pump()  # the parts of one taken before, and what it cost the ticks after it
         if self.snapshots is None:
             if asked:
                 self.snapshots_refused.append(f"{asked}: this run writes no snapshots (fleet run --out DIR)")

@@ -37,6 +37,7 @@ class SimOutputs:
         self._noise_rng = np.random.default_rng([sim.world.scene_model.seed, 0x401_5E])
         self._status_at = 0.0
         self.parts_tick = -1  # of the newest parts message published
+        self.told: dict[str, int] = {}  # by node: the next snapshot's tick named in the newest state or frame sent it
         self._view_at = -math.inf  # wall time of the last view built
 
     def results(self, arm: str, results: list[GoalResult]) -> None:
@@ -86,7 +87,17 @@ class SimOutputs:
             result_reason=last.reason if last else "",
             next_tick=link.next_tick,
             period_ticks=link.period_ticks,
+            snapshot_tick=self.next_snapshot_tick(),
         )
+
+    def next_snapshot_tick(self) -> int:
+        """The tick of the run's next snapshot after this one, told to every node with its states and frames so it
+        holds what comes from then on (`fleet.snapshot.node_desk`); -1: none due, or not lockstep (a realtime line
+        is paused for a snapshot)."""
+        snapshots = self.sim.snapshots
+        if snapshots is None or self.sim.mode != "lockstep":
+            return -1
+        return snapshots.next_due(self.sim.world.tick)
 
     def states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
         """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
@@ -113,7 +124,9 @@ class SimOutputs:
                 bus.put(bus.parts_pub, "parts", encode(seen))
                 self.parts_tick = tick
             if frame or view:
-                line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg)
+                line = LineView(
+                    tick, w.sim_time_s, tuple(states.values()), parts_msg, snapshot_tick=self.next_snapshot_tick()
+                )
                 if frame:
                     self.sim.coord_book.send(tick, line, 1, now, self.sim.deferred_coord)
                 if view:
@@ -140,17 +153,18 @@ class SimOutputs:
                     state = msgspec.structs.replace(state, delivered_tick=tick)
                 flight.payload = encode(state)
                 bus.put(bus.state_pubs[link.name], "state", flight.payload)
+                self.told[link.name] = state.snapshot_tick
             elif not self.sim.deferred:
                 link.book.prune(tick, self.sim.max_period_ticks)
         flight = self.sim.coord_book.deliver(tick, now, self.sim.deferred_coord)
         if flight is not None:
             line = flight.message
             if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
-                line = msgspec.structs.replace(
-                    line, parts=msgspec.structs.replace(line.parts, events_published=len(self.sim.event_log))
-                )
+                parts = msgspec.structs.replace(line.parts, events_published=len(self.sim.event_log))
+                line = msgspec.structs.replace(line, parts=parts, delivered_tick=tick)
             flight.payload = encode(line)
             bus.put(bus.frame_pub, "frame", flight.payload)
+            self.told["coordinator"] = line.snapshot_tick
         elif not self.sim.deferred_coord:
             self.sim.coord_book.prune(tick, self.sim.max_period_ticks)
 

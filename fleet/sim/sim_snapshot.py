@@ -12,6 +12,7 @@ continue from byte-identical states (a world put back from PhysX's pack matches 
 from __future__ import annotations
 
 import pickle
+import statistics
 import threading
 import time
 import zlib
@@ -19,7 +20,9 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleet.sim.snapshot_asks import SnapshotFailed, node_states
+from fleet.bus.messages import SnapshotPart
+from fleet.sim.snapshot_asks import SnapshotFailed, asks_at_boundary, lockstep_asks, node_states, publish_asks
+from fleet.sim.snapshot_parts import BASELINE_WINDOWS, CostDue, NextTicks, PartsDue
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError, capture, restore
 from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
@@ -70,57 +73,154 @@ class SimSnapshots:
     every_ticks: int = 0
     written: list[str] = field(default_factory=list)
     failed: list[str] = field(default_factory=list)
-    stall_s: list[float] = field(default_factory=list)
+    stall_s: list[float] = field(default_factory=list)  # how long the sim loop stood still for each
+    next_ticks_s: list[float] = field(default_factory=list)  # how much longer the ticks after each took (`CostDue`)
     stages_ms: list[dict[str, float]] = field(default_factory=list)  # each snapshot's stall, by stage
     bytes_written: list[int] = field(default_factory=list)
     write_ms: list[float] = field(default_factory=list)  # compressing and writing each file (the line goes on)
     _stage_at: float = 0.0
     _writer: threading.Thread | None = None
     _builder: threading.Thread | None = None  # building the spare world
-    _incarnations: dict = field(default_factory=dict)  # of the nodes, at the last snapshot
     _spare: list = field(default_factory=list)  # the world the line goes on in after the next snapshot
+    _pending: tuple[PartsDue, tuple[int, float, bytes]] | None = None  # the parts still coming, the sim's facts
+    _costs: list[CostDue] = field(default_factory=list)  # snapshots whose ticks after are still being measured
+    _next_ticks: NextTicks = field(default_factory=lambda: NextTicks(1))
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
+
+    def __post_init__(self) -> None:
+        sim = self.sim  # a controller waits at most this long for its next state
+        self._next_ticks = NextTicks(max(sim.coord_period_ticks, sim.max_period_ticks) * BASELINE_WINDOWS)
 
     def due(self, tick: int) -> bool:
         """Whether a snapshot is scheduled at this tick (never twice at one)."""
         every = self.every_ticks > 0 and tick % self.every_ticks == 0
         return tick != self.last_tick and tick > 0 and (tick in self.ticks or every)
 
-    def take(self) -> Path | None:
-        """The run's snapshot at this tick boundary, written; None (the reason counted and printed) if it failed.
-        The line goes on either way."""
+    def next_due(self, tick: int) -> int:
+        """The tick of the next snapshot scheduled after `tick` (-1: none)."""
+        later = [t for t in self.ticks if t > tick]
+        if self.every_ticks > 0:
+            later.append((tick // self.every_ticks + 1) * self.every_ticks)
+        return min(later, default=-1)
+
+    def take(self) -> None:
+        """The run's snapshot at this tick boundary. In lockstep the nodes' parts are gathered while the line goes
+        on (`pump`), then the file written; in realtime the line waits for them. One that fails is counted and
+        said; the line goes on either way."""
         t0 = self._stage_at = time.perf_counter()
         self.stages_ms.append({})
         sim = self.sim
+        self._complete_pending()  # the last snapshot's parts all in before another is asked for
         self.last_tick = sim.world.tick
         try:
-            states = self._gather()
+            if sim.mode == "lockstep":
+                own, due, parts = self._take_lockstep()
+            else:
+                due, parts = None, node_states(sim, self._stage)
+                own = self._own_state()
         except (SnapshotFailed, StateError) as exc:
-            self.failed.append(f"tick {sim.world.tick}: {exc}")
-            print(f"sim_server: no snapshot at {sim.world.sim_time_s:.2f} s: {exc}", flush=True)
-            return None
+            self._failed(sim.world.tick, exc)
+            return
         self.stall_s.append(time.perf_counter() - t0)
-        if self.directory is None:  # a restored run retaking its original's snapshots: the line, not the file
-            return None
-        f, tick = self.facts, sim.world.tick
+        facts = (sim.world.tick, sim.world.sim_time_s, own)
+        if due is None:
+            self._write_file(facts, parts)
+            return
+        self._pending = (due, facts)
+        span = max([sim.coord_period_ticks, *(link.period_ticks for link in sim.links.values())])
+        self._costs.append(CostDue(sim.world.tick, span, self._next_ticks.before_s(span)))
+
+    def _take_lockstep(self) -> tuple[bytes, PartsDue | None, dict[str, SnapshotPart] | None]:
+        """With every answer in, the sim's own state, then every node asked for its part (also when either failed:
+        a node told of this tick holds what comes until it is asked). The parts are gathered while the line goes
+        on (`PartsDue`), unless a node was not told of this tick ahead (one asked for now): then the line waits."""
+        sim = self.sim
+        try:
+            asks, nodes, lost = lockstep_asks(sim, self._stage)
+        except SnapshotFailed:
+            publish_asks(sim, asks_at_boundary(sim))
+            raise
+        try:
+            own = self._own_state()  # before the nodes are asked: they write theirs while the line goes on
+        finally:
+            due = PartsDue(sim, asks, nodes)
+            self._stage("ask")
+        if lost:
+            raise SnapshotFailed(f"the controllers of {', '.join(lost)} are lost")
+        if all(sim.outputs.told.get(node) == due.tick for node in due.nodes):
+            return own, due, None
+        due.wait()
+        self._stage("nodes")
+        return own, None, due.parts()
+
+    def pump(self) -> None:
+        """At each tick boundary: the parts of the snapshot being gathered taken in (the file written once all are),
+        and what the last snapshots cost the ticks after them measured."""
+        tick = self.sim.world.tick
+        self._next_ticks.at_boundary()
+        if tick > self.last_tick:
+            self.build_spare()  # the next snapshot's world, once the line goes on (its thread takes the GIL at first)
+        for cost in list(self._costs):
+            extra = cost.extra_s(tick)
+            if extra is not None:
+                self._add_cost(cost, extra)
+        if self._pending is not None:
+            due = self._pending[0]
+            try:
+                due.take_arrived()
+            except SnapshotFailed as exc:
+                self._pending = None
+                self._failed(due.tick, exc)
+                return
+            if due.complete:
+                self._complete_pending()
+
+    def _add_cost(self, cost: CostDue, extra_s: float) -> None:
+        self._costs.remove(cost)
+        self.next_ticks_s.append(extra_s)
+
+    def _complete_pending(self) -> None:
+        """The snapshot being gathered, once every part is in (waited for), written; or counted as failed."""
+        if self._pending is None:
+            return
+        (due, facts), self._pending = self._pending, None
+        try:
+            due.wait()
+            parts = due.parts()
+        except SnapshotFailed as exc:
+            self._failed(due.tick, exc)
+            return
+        self._write_file(facts, parts)
+
+    def _failed(self, tick: int, exc: Exception) -> None:
+        self.failed.append(f"tick {tick}: {exc}")
+        print(f"sim_server: no snapshot at tick {tick}: {exc}", flush=True)
+
+    def _write_file(self, facts: tuple[int, float, bytes], parts: dict[str, SnapshotPart]) -> None:
+        """The snapshot of `facts` (tick, time, the sim's own state) with the nodes' `parts`, written on a thread
+        of its own while the line goes on (not at all by a restored run retaking its original's)."""
+        if self.directory is None:
+            return
+        tick, sim_time_s, own = facts
+        f = self.facts
+        states = {node: parts[node].state for node in ["coordinator", *self.sim.links]}  # the scene's order
         snapshot = RunSnapshot(
             f.scene_name,
             f.scene,
-            sim.mode,
+            self.sim.mode,
             tick,
-            sim.world.sim_time_s,
+            sim_time_s,
             f.end_tick,
             f.allocator,
-            states,
+            states | {"sim": own},
             sorted(t for t in self.ticks if t > tick),
             self.every_ticks,
-            self._incarnations,
+            {node: part.incarnation for node, part in parts.items()},
         )
         path = self.directory / f"snapshot-{tick:09d}{SUFFIX}"
         self._await_writer()  # one file written at a time (the spare world builds on meanwhile)
         self._writer = threading.Thread(target=self._write, args=(snapshot, path), name="snapshot-writer")
         self._writer.start()  # compressed and written while the line goes on
-        return path
 
     def _write(self, snapshot: RunSnapshot, path: Path) -> None:
         """Compress and write one file (on the writer thread); a file that cannot be written is counted, once said."""
@@ -141,7 +241,11 @@ class SimSnapshots:
             self._writer = None
 
     def finish(self) -> None:
-        """Wait for the snapshot file being written and the spare world being built, if any."""
+        """The snapshot being gathered completed, the file being written and the spare world being built waited
+        for, if any."""
+        self._complete_pending()
+        for cost in list(self._costs):  # the run ended before the ticks after it: as far as they went
+            self._add_cost(cost, cost.extra_s(self.sim.world.tick, ended=True) or 0.0)
         self._await_writer()
         if self._builder is not None:
             self._builder.join()
@@ -153,23 +257,19 @@ class SimSnapshots:
         self.stages_ms[-1][name] = round(1e3 * (now - self._stage_at), 1)
         self._stage_at = now
 
-    def _gather(self) -> dict[str, bytes]:
+    def _own_state(self) -> bytes:
+        """The sim's own state, compressed; the sim then goes on from it read back, in a world built afresh, exactly
+        as a run restored from it will (PhysX put back into a world that has run keeps articulation caches a fresh
+        world does not have)."""
         sim = self.sim
-        parts = node_states(sim, self._stage)
-        self._incarnations = {node: part.incarnation for node, part in parts.items()}
-        states = {node: parts[node].state for node in ["coordinator", *sim.links]}  # the scene's order, not arrival
         world = self._spare_world()
         self._stage("world")
         own = capture_sim(sim)
-        states["sim"] = zlib.compress(own, 1)
         self._stage("sim")
-        # go on from the state written, in a world built afresh, exactly as a run restored from it will (PhysX put
-        # back into a world that has run keeps articulation caches a fresh world does not have)
         sim.world = world
         restore_sim(sim, own)
-        self.build_spare()  # the next snapshot's, while the line goes on
         self._stage("restore")
-        return states
+        return zlib.compress(own, 1)
 
     def build_spare(self) -> None:
         """Build the world the line will go on in after the next snapshot, on a thread beside the running line (a
@@ -197,10 +297,17 @@ class SimSnapshots:
             "snapshots_retaken": len(self.stall_s) if self.directory is None else 0,
             "snapshots_failed": list(self.failed),
             "snapshot_stall_ms_max": None if longest is None else round(1e3 * self.stall_s[longest], 1),
+            "snapshot_stall_ms_median": _median_ms(self.stall_s),
             "snapshot_stall_ms_by_stage": {} if longest is None else self.stages_ms[longest],
+            "snapshot_next_ticks_ms_median": _median_ms(self.next_ticks_s),
+            "snapshot_next_ticks_ms_max": None if not self.next_ticks_s else round(1e3 * max(self.next_ticks_s), 1),
             "snapshot_bytes_max": max(self.bytes_written, default=None),
             "snapshot_write_ms_max": max(self.write_ms, default=None),
         }
+
+
+def _median_ms(values: list[float]) -> float | None:
+    return None if not values else round(1e3 * statistics.median(values), 1)
 
 
 def capture_sim(sim) -> bytes:

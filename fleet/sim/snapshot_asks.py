@@ -3,9 +3,10 @@ apart), and a restored sim asking them whether they are back.
 
 The cut: the sim first waits until every state and frame it delivered is answered (lockstep makes that a
 consistent cut: nothing else is on its way). In lockstep it then asks the coordinator and every controller at
-once: each controller waits for the orders the coordinator's answers to the frames announced (`CoordTick`), and
-one found to have fewer than the coordinator says it sent (an order outside a decision) is asked again with the
-coordinator's count. In realtime (the coordinator answers no frame) the coordinator is asked first.
+once and goes on (`fleet.sim.snapshot_parts` gathers the parts): each controller waits for the orders the
+coordinator's answers to the frames announced (`CoordTick`), and each node holds back what reaches it behind the
+ask. In realtime (the coordinator answers no frame) the coordinator is asked first, then the controllers with its
+counts, the line paused until every part is in.
 """
 
 from __future__ import annotations
@@ -26,28 +27,49 @@ class SnapshotFailed(RuntimeError):
     """A snapshot that could not be taken (a node silent or unable to write its state); one line."""
 
 
-def node_states(sim, stage: Callable[[str], None]) -> dict[str, SnapshotPart]:
-    """Every node's part of a snapshot at this tick (`stage(name)` marks where the time goes)."""
+def lockstep_asks(sim, stage: Callable[[str], None]) -> tuple[list[SnapshotAsk], list[str], list[str]]:
+    """At a lockstep tick boundary, with every answer in: the asks for every node's part (the coordinator's and the
+    controllers', sent at once), the nodes that owe one (the coordinator, then the arms in the scene's order) and the
+    arms whose controllers are lost (a snapshot fails then: it is asked for all the same)."""
     settle(sim)
     stage("settle")
-    tick = sim.world.tick
+    lost = sorted(name for name, link in sim.links.items() if link.lost)
+    return asks_at_boundary(sim), ["coordinator", *(a for a in sim.links if a not in lost)], lost
+
+
+def asks_at_boundary(sim) -> list[SnapshotAsk]:
+    """The coordinator's ask and the controllers' (each controller waits for the orders the coordinator's answers
+    to the frames announced)."""
+    coord_ask = SnapshotAsk(sim.world.tick, "coordinator", events=len(sim.event_log))
+    return [coord_ask, controllers_ask(sim, orders_announced(sim))]
+
+
+def node_states(sim, stage: Callable[[str], None]) -> dict[str, SnapshotPart]:
+    """Realtime (the coordinator answers no frame, so its orders are known only from its part): every node's part
+    of a snapshot at this tick, the coordinator asked first, then the controllers with its counts, the line paused
+    meanwhile (`stage(name)` marks where the time goes)."""
+    settle(sim)
+    stage("settle")
+    arms = _live_arms(sim)
+    parts = ask(sim, [SnapshotAsk(sim.world.tick, "coordinator", events=len(sim.event_log))], ["coordinator"])
+    stage("coordinator")
+    parts |= ask(sim, [controllers_ask(sim, parts["coordinator"].orders)], arms)
+    stage("controllers")
+    return parts
+
+
+def _live_arms(sim) -> list[str]:
+    """The arms whose controllers are with the line (a snapshot is refused while one is lost)."""
     arms = [name for name, link in sim.links.items() if not link.lost]
     lost = sorted(set(sim.links) - set(arms))
     if lost:
         raise SnapshotFailed(f"the controllers of {', '.join(lost)} are lost")
-    coord_ask = SnapshotAsk(tick, "coordinator", events=len(sim.event_log))
-    if sim.mode == "lockstep":
-        parts = ask(sim, [coord_ask, controllers_ask(sim, orders_announced(sim))], ["coordinator", *arms])
-        behind = [a for i, a in enumerate(sim.links) if parts[a].orders[:1] < parts["coordinator"].orders[i : i + 1]]
-        if behind:
-            parts |= ask(sim, [controllers_ask(sim, parts["coordinator"].orders)], behind)
-        stage("nodes")
-    else:
-        parts = ask(sim, [coord_ask], ["coordinator"])
-        stage("coordinator")
-        parts |= ask(sim, [controllers_ask(sim, parts["coordinator"].orders)], arms)
-        stage("controllers")
-    return parts
+    return arms
+
+
+def publish_asks(sim, asks: list[SnapshotAsk]) -> None:
+    for a in asks:
+        sim.bus.snapshot_pub.put(encode(a))
 
 
 def orders_announced(sim) -> tuple[int, ...]:
@@ -117,8 +139,7 @@ def collect(
         if sim.stop is not None and sim.stop.should_stop():
             break
         if time.monotonic() - asked > ASK_AGAIN_S:
-            for a in asks:
-                sim.bus.snapshot_pub.put(encode(a))
+            publish_asks(sim, asks)
             asked = time.monotonic()
         for key, payload in sim.bus.snapshot_inbox.drain():
             part = decoder.decode(key, payload)

@@ -1,5 +1,10 @@
-"""A node's side of a run's snapshots: the sim's asks queued (the callback only queues), the node's part sent once it
-has everything the ask names, and "I am back" answered by a node started from a snapshot.
+"""A node's side of a run's snapshots: the sim's asks queued, the node's part sent once it has everything the ask
+names, and "I am back" answered by a node started from a snapshot.
+
+In lockstep the sim names the tick of the run's next snapshot in every state and frame it sends (`snapshot_tick`),
+asks at that tick boundary and goes on without waiting for the parts: a node's state is its state as of the
+boundary. So a node told of one (`expect`) holds back what the line sends it from that tick on
+(`fleet.bus.session.Hold`: `fleet.snapshot.after_cut` says which messages those are) until its part is sent.
 
 The node owns the decision of when it is ready (`ready`) and what its state is (`capture`); the desk owns the bus.
 """
@@ -7,6 +12,7 @@ The node owns the decision of when it is ready (`ready`) and what its state is (
 from __future__ import annotations
 
 import threading
+import time
 import zlib
 from collections.abc import Callable
 
@@ -15,8 +21,11 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import SnapshotAsk, SnapshotPart
-from fleet.bus.session import Inbox
+from fleet.bus.session import Hold, Inbox
+from fleet.snapshot.after_cut import Cut
 from fleet.snapshot.process_state import StateError
+
+READY_TIMEOUT_S = 10.0  # wall seconds a node waits for what an ask names before it answers that it cannot
 
 
 class SnapshotDesk:
@@ -31,15 +40,34 @@ class SnapshotDesk:
         drops: DropCounter,
         wake: threading.Event | None = None,
         incarnation: Callable[[], int] = lambda: 0,
+        hold: Hold | None = None,
     ) -> None:
-        self.node, self.role, self.incarnation = node, role, incarnation
+        """`hold`: the one the node's other inboxes share (held from the tick of a snapshot it is told of until its
+        part is sent)."""
+        self.node, self.role, self.incarnation, self.hold = node, role, incarnation, hold
         self.inbox = Inbox(wake=wake) if wake is not None else Inbox()
         self._decoder = Decoder(SnapshotAsk, drops)
         self._sub = session.declare_subscriber(keys.snapshot_ask, self.inbox)
         self._pub = session.declare_publisher(keys.snapshot_part(node))
         self.pending: SnapshotAsk | None = None
+        self._pending_since = 0.0
         self.restored_tick: int | None = None  # set by a node started from a snapshot, once it is back
         self._sent: tuple[SnapshotAsk, bytes] | None = None  # the last part sent: asked again, it goes again
+        self._expected = -1  # the tick of the snapshot this node holds for (-1: none)
+
+    @classmethod
+    def of(cls, node, session: zenoh.Session, keys: Keys, name: str, role: str, wake: threading.Event) -> SnapshotDesk:
+        """The desk of a node object with `drops`, `hold` and `incarnation` (its current start)."""
+        return cls(session, keys, name, role, node.drops, wake, lambda: node.incarnation, node.hold)
+
+    def expect(self, snapshot_tick: int) -> None:
+        """A state or frame said the run's next snapshot is at `snapshot_tick` (-1: none): from that tick on, what
+        arrives is held until this node's part of it is sent. Call as the message is handled (nothing of that tick
+        can have been sent yet)."""
+        answered = self._sent[0].tick if self._sent is not None else -1
+        if self.hold is not None and snapshot_tick > max(answered, self._expected):
+            self._expected = snapshot_tick
+            self.hold.start(Cut(snapshot_tick))
 
     def serve(
         self,
@@ -60,10 +88,16 @@ class SnapshotDesk:
             elif ask.node == self.role:
                 if self._sent is not None and self._sent[0] == ask:
                     self._pub.put(self._sent[1])  # the sim asks again: it missed the part
-                else:
+                elif ask != self.pending:
                     self.pending = ask  # a new ask (or the same tick's, naming more orders: made again)
-        if self.pending is None or not ready(self.pending):
+                    self._pending_since = time.monotonic()
+        if self.pending is None:
             return False
+        if not ready(self.pending):
+            if time.monotonic() - self._pending_since < READY_TIMEOUT_S:
+                return False
+            self._answer(self.pending, error=f"not ready within {READY_TIMEOUT_S:g} s (what the ask names never came)")
+            return True
         ask, self.pending = self.pending, None
         state = b""
         try:
@@ -73,12 +107,27 @@ class SnapshotDesk:
             )
         except StateError as exc:
             part = SnapshotPart(self.node, ask.tick, error=str(exc)[:400])
+        self._send(ask, part)
+        if state:
+            restore(state)
+        self._release()  # what arrived from the cut on, now handled from the state written
+        return True
+
+    def _answer(self, ask: SnapshotAsk, error: str) -> None:
+        """No state for `ask`: say why, and stop holding."""
+        self.pending = None
+        self._send(ask, SnapshotPart(self.node, ask.tick, error=error[:400]))
+        self._release()
+
+    def _release(self) -> None:
+        self._expected = -1
+        if self.hold is not None:
+            self.hold.release()
+
+    def _send(self, ask: SnapshotAsk, part: SnapshotPart) -> None:
         payload = encode(part)
         self._sent = (ask, payload)
         self._pub.put(payload)
-        if state:
-            restore(state)
-        return True
 
     def use_drops(self, drops: DropCounter) -> None:
         """Count malformed asks in `drops` (a node's counter, put back from a snapshot)."""

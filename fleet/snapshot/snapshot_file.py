@@ -23,7 +23,7 @@ from scenes.loader import resolve_scene_path
 from scenes.yaml_file import named_in
 
 MAGIC = b"CLAWSNAP"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: fixed models (robots.built_once) written as what they are built from
 SUFFIX = ".clawsnap"
 _HEADER = struct.Struct("<8sI32s")
 

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from fleet.bus.messages import PROTOCOL_VERSION
 from fleet.snapshot.snapshot_file import (
+    FORMAT_VERSION,
     MAGIC,
     RunSnapshot,
     SceneSource,
@@ -120,7 +121,7 @@ def test_the_body_is_decoded_only_as_a_snapshot(tmp_path):
 
     body = zlib.compress(msgspec.msgpack.encode({"hello": "world"}))
     path = tmp_path / "other.clawsnap"
-    path.write_bytes(MAGIC + struct.pack("<I", 1) + hashlib.sha256(body).digest() + body)
+    path.write_bytes(MAGIC + struct.pack("<I", FORMAT_VERSION) + hashlib.sha256(body).digest() + body)
     assert "unreadable snapshot body" in _refusal(path)
 
 
