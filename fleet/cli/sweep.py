@@ -85,7 +85,8 @@ def load_list(text: str) -> list[float]:
 
 def sweep_overrides(args: argparse.Namespace) -> list:
     """The grid's overrides: `--set`, the network levels, the offered loads."""
-    from fleet.sweep.grid import LOAD, Override
+    from fleet.common.scene_overrides import LOAD
+    from fleet.sweep.grid import Override
 
     network = (("latency_ms", args.latency_ms), ("jitter_ms", args.jitter_ms), ("loss", args.loss))
     return (

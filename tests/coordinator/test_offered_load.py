@@ -6,7 +6,7 @@ import pytest
 from coordinator.capacity import capacity_bound
 from coordinator.offered_load import feeder_rates_for_load, saturating_scale
 from fleet.common.scene_loading import load_scene
-from fleet.sweep.grid import scene_with
+from fleet.common.scene_overrides import scene_with
 from scenes.loader import SceneError
 
 

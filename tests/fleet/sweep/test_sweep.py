@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
+from fleet.common.scene_overrides import scene_with
 from fleet.run.launcher import Launcher, RunOptions
-from fleet.sweep.grid import GridError, Override, grid, parse_seeds, scene_with
+from fleet.sweep.grid import GridError, Override, grid, parse_seeds
 from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
