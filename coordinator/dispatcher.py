@@ -101,7 +101,14 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
     @functools.cached_property
     def capacity(self) -> CapacityBound:
         """What the line could do at best (worked out when first asked: an env resets often)."""
+        self._capacity_of = self.scene.model_dump_json()
         return capacity_bound(self.scene, reach=self.reach)
+
+    def scene_changed(self) -> None:
+        """After a restore into a scene with a field set otherwise (`fleet run --from SNAPSHOT --set`): what was
+        worked out from the old one is worked out again when next asked."""
+        if "capacity" in vars(self) and getattr(self, "_capacity_of", None) != self.scene.model_dump_json():
+            del self.capacity
 
     # --- inputs ---------------------------------------------------------------------
     def on_event(self, kind: str, part_id: int, detail: str, type_index: int, time_s: float) -> None:

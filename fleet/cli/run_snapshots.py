@@ -8,6 +8,8 @@ import math
 import tempfile
 from pathlib import Path
 
+import yaml
+
 from fleet.cli.errors import UsageError, positive_numbers
 from fleet.snapshot.snapshot_file import SnapshotError
 
@@ -43,6 +45,22 @@ def add_snapshot_arguments(p: argparse.ArgumentParser) -> None:
         metavar="S",
         help="with --from RECORDING: the newest snapshot it carries at or before S sim seconds (default: its last)",
     )
+    p.add_argument(
+        "--set",
+        action="append",
+        type=scene_setting,
+        metavar="FIELD.PATH=V",
+        help="with --from: a field of the snapshot's scene set otherwise from there on (a branch), e.g. "
+        "conveyor.speed_m_per_s=0.05; only fields a restored run reads afresh",
+    )
+
+
+def scene_setting(text: str) -> tuple[str, object]:
+    """`--set conveyor.speed_m_per_s=0.05`: a dotted field path and one YAML value (argparse's `type`)."""
+    path, sep, value = text.partition("=")
+    if not sep or not path.strip() or not value or "," in value:
+        raise argparse.ArgumentTypeError(f"{text!r}: write FIELD.PATH=VALUE, e.g. conveyor.speed_m_per_s=0.05")
+    return path.strip(), yaml.safe_load(value)
 
 
 def check_snapshot_flags(args: argparse.Namespace) -> None:
@@ -62,6 +80,11 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
 
     if args.at is not None and not args.from_snapshot:
         raise UsageError("--at picks a snapshot in the recording given with --from: give --from RECORDING")
+    if args.set and not args.from_snapshot:
+        raise UsageError(
+            "--set changes a snapshot's scene from there on: give --from SNAPSHOT (a fresh run's is set "
+            "in its scene file, or over a grid by fleet sweep --set)"
+        )
     args.incarnations = ()
     if not args.from_snapshot:
         args.scene = args.scene_label = args.scene or "assembly_line"
@@ -74,7 +97,7 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     folder = tempfile.TemporaryDirectory(prefix="clawfleet-snapshot-")
     try:
         path = snapshot_path(args.from_snapshot, args.at, Path(folder.name) / "from")
-        options, snapshot = restore_options(path, Path(folder.name), args.duration)
+        options, snapshot = restore_options(path, Path(folder.name), args.duration, dict(args.set or ()))
     except (SnapshotError, OSError) as exc:
         folder.cleanup()
         raise UsageError(str(exc)) from None
@@ -82,7 +105,8 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
         folder.cleanup()
         raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
     args.scene, args.arms, args.seed, args.duration = options.scene, options.arms, options.seed, options.duration_s
-    args.scene_label = f"{snapshot.scene_name} from {snapshot.sim_time_s:g} s"
+    settings = "".join(f", {k}={v}" for k, v in args.set or ())
+    args.scene_label = f"{snapshot.scene_name} from {snapshot.sim_time_s:g} s{settings}"
     args.allocator = args.allocator or options.allocator
     args.from_snapshot, args.incarnations = options.restore_from, options.incarnations
     return folder

@@ -61,7 +61,6 @@ def branch_scene(args: argparse.Namespace) -> str:
     if args.scene and args.scene not in (snapshot.scene_name, snapshot.scene.file_name):
         raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
     given = {
-        "--set": args.set,
         "--load": args.load,
         "--arms": args.arms,
         "--latency-ms": args.latency_ms,
@@ -74,6 +73,13 @@ def branch_scene(args: argparse.Namespace) -> str:
         raise UsageError(
             f"a branch from a snapshot compares allocators over seeds on this machine: leave out {', '.join(refused)}"
         )
+    from fleet.run.restore import check_restore_overrides
+    from fleet.sweep.grid import GridError, Override
+
+    try:
+        check_restore_overrides({Override.parse(t).path: None for t in args.set or ()})
+    except (SnapshotError, GridError) as exc:
+        raise UsageError(str(exc)) from None
     args.from_snapshot = str(Path(args.from_snapshot).resolve())
     return snapshot.scene_name
 

@@ -69,9 +69,10 @@ def read_moment(path: str, world: World, agents: list[str]) -> LineMoment:
         )
     try:
         sim = pickle.loads(zlib.decompress(snapshot.states["sim"]))
-        server = read_state(sim["server"], {"world": world, "server": None}, "the sim")
-        coordinator = read_state(zlib.decompress(snapshot.states["coordinator"]), owner="the coordinator")
-        controllers = {a: read_state(zlib.decompress(snapshot.states[a]), owner=a) for a in agents}
+        server = read_state(sim["server"], {"world": world, "server": None, "scene": scene}, "the sim")
+        live = {"scene": scene}
+        coordinator = read_state(zlib.decompress(snapshot.states["coordinator"]), live, "the coordinator")
+        controllers = {a: read_state(zlib.decompress(snapshot.states[a]), live, a) for a in agents}
     except (StateError, zlib.error, pickle.UnpicklingError, KeyError) as exc:
         raise SnapshotEpisodeError(f"{path}: {exc}") from None
     return LineMoment(

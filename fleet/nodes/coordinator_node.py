@@ -162,7 +162,9 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         return self.capture_state(), tuple(self.assign_seq[a] for a in self.arm_names)
 
     def after_restore(self) -> None:
-        """Wall-clock stamps start afresh: a heartbeat heard before the snapshot is no silence now."""
+        """Wall-clock stamps start afresh: a heartbeat heard before the snapshot is no silence now; the line's bound
+        is worked out again if the scene has a field set otherwise."""
+        self.dispatcher.scene_changed()
         now = time.monotonic()
         self._frame_at = self._progress_at = now
         self.heartbeat_at = {arm: now for arm in self.heartbeat_at}

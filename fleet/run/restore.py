@@ -1,25 +1,53 @@
 """A run started from a snapshot: the launcher's options for it (its scene, written out of the snapshot, its seed and
-arm count, its end), whoever starts it (`fleet run --from`, a sweep, a test)."""
+arm count, its end), whoever starts it (`fleet run --from`, a sweep, a test).
+
+A branch may set a field of the scene otherwise (`--set`), but only one every process reads afresh from its scene
+after the restore (`RESTORE_OVERRIDES`): each process's state holds what it worked out from the rest (geometry,
+reach, feeder clocks, stations' bodies), so any other change would take effect in some processes and not others.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
 
+from fleet.common.scene_overrides import scene_with
 from fleet.record.mcap_file import MAGIC, Recording, RecordingError
 from fleet.run.launcher import RunOptions
 from fleet.snapshot.snapshot_file import RunSnapshot, SnapshotError, read_snapshot
+from scenes.loader import SceneError
+
+# fields a restored run takes from its scene afresh (the belt's speed: the sim's belt is built from the scene, and the
+# coordinator reads the speed at each decision and works its bound out again)
+RESTORE_OVERRIDES = ("conveyor.speed_m_per_s",)
+
+
+def check_restore_overrides(overrides: dict) -> None:
+    """A `SnapshotError` (one line) naming a field a restored run cannot take otherwise."""
+    refused = [path for path in overrides if path not in RESTORE_OVERRIDES]
+    if refused:
+        raise SnapshotError(
+            f"--set {refused[0]}: a run restored from a snapshot can set only {', '.join(RESTORE_OVERRIDES)} "
+            "(its processes hold what they worked out from the rest of the scene)"
+        )
 
 
 def restore_options(
-    path: str | Path, folder: Path, duration_s: float | None = None, **options
+    path: str | Path, folder: Path, duration_s: float | None = None, overrides: dict | None = None, **options
 ) -> tuple[RunOptions, RunSnapshot]:
     """Options that start every process from the snapshot at `path` (its scene and robot files written under
-    `folder`, which must outlive the run), running to where the snapshot's run was to end, or `duration_s` sim
-    seconds more; `options` sets the rest (another allocator, `reseed`: a branch; `mode`: lockstep by default, and
-    only lockstep repeats). A `SnapshotError` (one line) if it cannot."""
+    `folder`, which must outlive the run; `overrides` set in it, of `RESTORE_OVERRIDES`), running to where the
+    snapshot's run was to end, or `duration_s` sim seconds more; `options` sets the rest (another allocator,
+    `reseed`: a branch; `mode`: lockstep by default, and only lockstep repeats). A `SnapshotError` (one line) if it
+    cannot."""
+    check_restore_overrides(overrides or {})
     snapshot = read_snapshot(path)
     scene = snapshot.scene.write(Path(folder))
+    if overrides:
+        try:
+            scene = Path(scene_with(str(scene), overrides, Path(folder) / "set"))
+        except SceneError as exc:
+            raise SnapshotError(str(exc)) from None
     seconds_per_tick = snapshot.sim_time_s / snapshot.tick
     end_s = snapshot.end_tick * seconds_per_tick if duration_s is None else snapshot.sim_time_s + duration_s
     base = RunOptions(

@@ -310,9 +310,15 @@ def _median_ms(values: list[float]) -> float | None:
     return None if not values else round(1e3 * statistics.median(values), 1)
 
 
+def _sim_live(sim) -> dict:
+    """What the sim's state names rather than holds: its world, itself, its scene (so a sim restored into a scene
+    with a field set otherwise reads that)."""
+    return {"world": sim.world, "server": sim, "scene": sim.world.scene_model}
+
+
 def capture_sim(sim) -> bytes:
     """The sim server's state: its world packed, every other attribute but its live handles."""
-    blob = capture(sim, SIM_LIVE, live={"world": sim.world, "server": sim})
+    blob = capture(sim, SIM_LIVE, live=_sim_live(sim))
     return pickle.dumps(
         {"world": sim.world.pack_state(), "server": blob, "drops": dict(sim.drops.counts)},
         protocol=pickle.HIGHEST_PROTOCOL,
@@ -326,7 +332,7 @@ def restore_sim(sim, part: bytes) -> None:
     except Exception as exc:  # noqa: BLE001 - any fault of a foreign blob is one line
         raise StateError(f"cannot read back the sim's state: {exc}") from exc
     sim.world.restore_state(saved["world"])
-    restore(sim, saved["server"], live={"world": sim.world, "server": sim})
+    restore(sim, saved["server"], live=_sim_live(sim))
     sim.drops.counts = Counter(saved["drops"])
     sim.bus.stats = sim.stats  # the bus counts what it sends in the sim's figures
 

@@ -74,6 +74,7 @@ def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) ->
                 cell.restore_from,
                 Path(tmp) / "scene",
                 cell.duration_s,
+                dict(cell.overrides) or None,  # a field of the scene set otherwise from the snapshot on
                 allocator=cell.allocator,
                 run_id=run_id,
                 reseed=cell.seed,
