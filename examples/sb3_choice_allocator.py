@@ -26,9 +26,9 @@ from stable_baselines3.common.logger import Logger
 from coordinator.allocation import make_allocator
 from coordinator.choice_slots import masked_choice
 from coordinator.policy_file import load_policy, save_policy
+from fleet.common.scene_overrides import LOAD, scene_with
 from fleet.env import parallel_env
 from fleet.env.allocate_mode import allocator_actions
-from fleet.sweep.grid import LOAD, scene_with
 
 
 def cell(scene: str, max_cycles: int, decision_hz: float):

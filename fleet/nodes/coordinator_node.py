@@ -119,7 +119,9 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
         self.hold = Hold(coordinator_after_cut(scene.control_hz))  # from a snapshot's tick until its part is sent
-        self.inbox = Inbox(hold=self.hold)  # one queue for everything: messages are handled in arrival order
+        # one queue for everything, in the order the callbacks ran: per key the order sent, across keys not (each
+        # subscriber's callback has a thread of its own; a frame names the events before it, `EventGate` waits)
+        self.inbox = Inbox(hold=self.hold)
         self._subs = [
             session.declare_subscriber(k, self.inbox)
             for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
