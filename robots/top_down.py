@@ -80,15 +80,9 @@ class TopDownIK(BuiltOnce):
         self._built_from(args, self.built_key(*args))
 
     @classmethod
-    def built_key(
-        cls,
-        spec: RobotSpec,
-        transform_base_to_world: np.ndarray,
-        model: KinematicModel | None = None,
-        options: IKOptions = IKOptions(restarts=2),
-    ) -> tuple:
-        # the robot by id (the instance holds it); its model is the robot's, whichever instance
-        return (id(spec), np.asarray(transform_base_to_world, float).tobytes(), options)
+    def built_key(cls, spec: RobotSpec, base_to_world: np.ndarray, _model: object, options: IKOptions) -> tuple:
+        """The robot by id (the instance holds it), where it stands, the options; its model is the robot's."""
+        return (id(spec), np.asarray(base_to_world, float).tobytes(), options)
 
     def outward(self, position_world: np.ndarray) -> np.ndarray:
         """Horizontal direction from the arm's turning axis to the spot (world frame): where a tilted approach leans,

@@ -10,6 +10,7 @@ read passes: the node's loop drops and counts it.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -17,14 +18,6 @@ import msgspec
 
 from fleet.bus.messages import ArmOrder, ArmState, ArmStatus, LineEvent, LineView, PartsState
 
-_DECODERS = {
-    "state": msgspec.msgpack.Decoder(ArmState),
-    "parts": msgspec.msgpack.Decoder(PartsState),
-    "assign": msgspec.msgpack.Decoder(ArmOrder),
-    "events": msgspec.msgpack.Decoder(LineEvent),
-    "frame": msgspec.msgpack.Decoder(LineView),
-    "status": msgspec.msgpack.Decoder(ArmStatus),
-}
 _UNREADABLE = (msgspec.MsgspecError, UnicodeDecodeError, ValueError, OverflowError)
 
 
@@ -40,37 +33,33 @@ def _arrived_tick(msg: ArmState | LineView) -> int:
     return msg.delivered_tick if msg.delivered_tick >= 0 else msg.tick
 
 
-def controller_after_cut(key: str, payload: bytes, cut: Cut) -> bool:
-    """For an arm's controller: states, parts and orders; rosters always pass."""
+# by key leaf: the message type, and the tick it was sent at (a heartbeat's from its sim time, given the tick rate)
+_SENT_AT = {
+    "state": (msgspec.msgpack.Decoder(ArmState), lambda m, hz: _arrived_tick(m)),
+    "frame": (msgspec.msgpack.Decoder(LineView), lambda m, hz: _arrived_tick(m)),
+    "parts": (msgspec.msgpack.Decoder(PartsState), lambda m, hz: m.tick),
+    "events": (msgspec.msgpack.Decoder(LineEvent), lambda m, hz: m.tick),
+    "assign": (msgspec.msgpack.Decoder(ArmOrder), lambda m, hz: m.decision_tick),
+    "status": (msgspec.msgpack.Decoder(ArmStatus), lambda m, hz: round(m.sim_time_s * hz)),
+}
+
+
+def _after(leaves: tuple[str, ...], key: str, payload: bytes, cut: Cut, hz: float) -> bool:
     leaf = key.rsplit("/", 1)[-1]
-    if leaf not in ("state", "parts", "assign"):
+    if leaf not in leaves:
         return False
+    decoder, sent_at = _SENT_AT[leaf]
     try:
-        msg = _DECODERS[leaf].decode(payload)
+        return sent_at(decoder.decode(payload), hz) >= cut.tick
     except _UNREADABLE:
         return False
-    if leaf == "state":
-        return _arrived_tick(msg) >= cut.tick
-    if leaf == "parts":
-        return msg.tick >= cut.tick
-    return msg.decision_tick >= cut.tick
+
+
+def controller_after_cut(key: str, payload: bytes, cut: Cut) -> bool:
+    """For an arm's controller: states, parts and orders; rosters always pass."""
+    return _after(("state", "parts", "assign"), key, payload, cut, 0.0)
 
 
 def coordinator_after_cut(control_hz: float) -> Callable[[str, bytes, Cut], bool]:
-    """For the coordinator of a line ticking at `control_hz`; rosters always pass."""
-
-    def after(key: str, payload: bytes, cut: Cut) -> bool:
-        leaf = key.rsplit("/", 1)[-1]
-        if leaf not in ("events", "frame", "status"):
-            return False
-        try:
-            msg = _DECODERS[leaf].decode(payload)
-        except _UNREADABLE:
-            return False
-        if leaf == "events":
-            return msg.tick >= cut.tick
-        if leaf == "frame":
-            return _arrived_tick(msg) >= cut.tick
-        return msg.sim_time_s >= (cut.tick - 0.5) / control_hz
-
-    return after
+    """For the coordinator of a line ticking at `control_hz`: frames, line events and heartbeats; rosters pass."""
+    return functools.partial(_after, ("frame", "events", "status"), hz=control_hz)
