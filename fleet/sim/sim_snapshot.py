@@ -97,11 +97,12 @@ class SimSnapshots:
         return tick != self.last_tick and tick > 0 and (tick in self.ticks or every)
 
     def next_due(self, tick: int) -> int:
-        """The tick of the next snapshot scheduled after `tick` (-1: none)."""
+        """The tick of the next snapshot scheduled after `tick` and before the run's end (-1: none; one at the end
+        is never taken, and a node told of it would hold the line's last events)."""
         later = [t for t in self.ticks if t > tick]
         if self.every_ticks > 0:
             later.append((tick // self.every_ticks + 1) * self.every_ticks)
-        return min(later, default=-1)
+        return min((t for t in later if t < self.facts.end_tick), default=-1)
 
     def take(self) -> None:
         """The run's snapshot at this tick boundary. In lockstep the nodes' parts are gathered while the line goes
