@@ -366,10 +366,11 @@ class RespawnRequest(Message, frozen=True, array_like=True):
 
 
 class SnapshotAsk(Message, frozen=True, array_like=True):
-    """Sim -> nodes, at a lockstep tick boundary with every answer in: send your state as of `tick`. The coordinator
-    is asked first (`node` "coordinator") once it has every line event published so far (`events`); then the
-    controllers (`node` "controllers"), each once it has the orders the coordinator sent it (`orders`, by arm in the
-    scene's order) and the parts message of `parts_tick` (-1: none yet)."""
+    """Sim -> nodes, at a tick boundary with every answer in: send your state as of `tick`: the coordinator (`node`
+    "coordinator") once it has every line event published so far (`events`), the controllers (`node`
+    "controllers") each once it has the orders the coordinator sent it (`orders`, by arm in the scene's order) and
+    the parts message of `parts_tick` (-1: none yet). Lockstep asks both at once and goes on (each node, told of
+    `tick` ahead by `snapshot_tick`, holds what it is sent from then on); realtime asks the coordinator first."""
 
     tick: int
     node: str
