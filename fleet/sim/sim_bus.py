@@ -59,7 +59,9 @@ class SimBus:
         self.result_pubs = {name: session.declare_publisher(keys.arm_result(name)) for name in arms}
         self.parts_pub = session.declare_publisher(keys.parts)
         self.events_pub = session.declare_publisher(keys.events)
-        self.snapshot_pub = session.declare_publisher(keys.snapshot_ask)
+        # never dropped for a full queue: in lockstep a node told of a snapshot holds the line's messages until asked
+        block = zenoh.CongestionControl.BLOCK
+        self.snapshot_pub = session.declare_publisher(keys.snapshot_ask, congestion_control=block)
 
     def put(self, pub: zenoh.Publisher, leaf: str, payload: bytes) -> None:
         pub.put(payload)
