@@ -120,6 +120,7 @@ class SimSnapshots:
                 due, parts = None, node_states(sim, self._stage)
                 own = self._own_state()
         except (SnapshotFailed, StateError) as exc:
+            self.stages_ms.pop()  # by stage, as `stall_s`: the snapshots taken
             self._failed(sim.world.tick, exc)
             return
         self.stall_s.append(time.perf_counter() - t0)

@@ -110,16 +110,19 @@ class SnapshotDesk:
         self._send(ask, part)
         if state:
             restore(state)
-        self._release()  # what arrived from the cut on, now handled from the state written
+        self._release(ask.tick)  # what arrived from the cut on, now handled from the state written
         return True
 
     def _answer(self, ask: SnapshotAsk, error: str) -> None:
         """No state for `ask`: say why, and stop holding."""
         self.pending = None
         self._send(ask, SnapshotPart(self.node, ask.tick, error=error[:400]))
-        self._release()
+        self._release(ask.tick)
 
-    def _release(self) -> None:
+    def _release(self, tick: int) -> None:
+        """Stop holding, once the snapshot held for is answered (one asked for at once, before it, is not it)."""
+        if tick < self._expected:
+            return
         self._expected = -1
         if self.hold is not None:
             self.hold.release()
