@@ -65,6 +65,8 @@ class SnapshotDesk:
         arrives is held until this node's part of it is sent. Call as the message is handled (nothing of that tick
         can have been sent yet)."""
         answered = self._sent[0].tick if self._sent is not None else -1
+        if self.restored_tick is not None:  # a state delayed on a faulty link may name the one it was restored from
+            answered = max(answered, self.restored_tick)
         if self.hold is not None and snapshot_tick > max(answered, self._expected):
             self._expected = snapshot_tick
             self.hold.start(Cut(snapshot_tick))

@@ -52,3 +52,15 @@ def test_a_run_restored_at_30_and_70_percent_ends_as_the_uninterrupted_run(scene
     for end in ends:
         assert end["status"] == "ok" and end["sim_seconds"] == pytest.approx(DURATION_S)
         assert line_figures(end) == line_figures(whole)
+
+
+def test_a_run_with_a_faulty_network_restored_ends_as_the_uninterrupted_run(tmp_path):
+    """States and frames delayed on their links are still on their way at the cut: they name the snapshot being
+    taken (sampled before it), reach their nodes after it, and neither the run that took it nor the restored one
+    holds anything for it again; the restored run keeps the links' faults (they are the sim's state)."""
+    faults = {"latency_ms": 30.0, "jitter_ms": 10.0}
+    whole = run(RunOptions(scene="handover", duration_s=14.0, snapshot_at=(6.0,), snapshot_dir=str(tmp_path), **faults))
+    assert whole["status"] == "ok" and not whole["snapshots_failed"] and not whole["arms_lost"]
+    end = run(restore_options(whole["snapshots"][0], tmp_path / "scene")[0])
+    assert end["status"] == "ok" and not end["arms_lost"]
+    assert line_figures(end) == line_figures(whole)
