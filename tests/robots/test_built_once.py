@@ -19,11 +19,13 @@ def test_a_model_pickles_as_its_robot_and_reads_back_as_the_one_this_process_bui
     km = KinematicModel(get_robot("so101"))
     blob = pickle.dumps(km)
     assert len(blob) < 500  # the robot's name, not its Pinocchio model
-    assert pickle.loads(blob) is km
+    again = pickle.loads(blob)
+    # one this process built for the robot (this one, or one built before it): found, not built anew
+    assert again is pickle.loads(blob) and again.spec is km.spec and isinstance(again, KinematicModel)
     ik = TopDownIK(km.spec, BASE, km)
     link = next(iter(km.link_poses(km.full_q(np.asarray(km.spec.home_q, float)))))
     placed = PlacedFrames(km, BASE, [(link, np.eye(4))])
-    assert pickle.loads(pickle.dumps(ik)) is ik and pickle.loads(pickle.dumps(placed)) is placed
+    assert pickle.loads(pickle.dumps(ik)) is ik and pickle.loads(pickle.dumps(placed)) is placed  # placed here only
 
 
 def test_one_not_built_here_is_built_from_the_same_inputs_and_answers_alike():
