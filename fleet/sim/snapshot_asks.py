@@ -33,15 +33,14 @@ def lockstep_asks(sim, stage: Callable[[str], None]) -> tuple[list[SnapshotAsk],
     arms whose controllers are lost (a snapshot fails then: it is asked for all the same)."""
     settle(sim)
     stage("settle")
-    lost = sorted(name for name, link in sim.links.items() if link.lost)
+    lost = lost_arms(sim)
     return asks_at_boundary(sim), ["coordinator", *(a for a in sim.links if a not in lost)], lost
 
 
 def asks_at_boundary(sim) -> list[SnapshotAsk]:
     """The coordinator's ask and the controllers' (each controller waits for the orders the coordinator's answers
     to the frames announced)."""
-    coord_ask = SnapshotAsk(sim.world.tick, "coordinator", events=len(sim.event_log))
-    return [coord_ask, controllers_ask(sim, orders_announced(sim))]
+    return [coordinator_ask(sim), controllers_ask(sim, orders_announced(sim))]
 
 
 def node_states(sim, stage: Callable[[str], None]) -> dict[str, SnapshotPart]:
@@ -50,21 +49,19 @@ def node_states(sim, stage: Callable[[str], None]) -> dict[str, SnapshotPart]:
     meanwhile (`stage(name)` marks where the time goes)."""
     settle(sim)
     stage("settle")
-    arms = _live_arms(sim)
-    parts = ask(sim, [SnapshotAsk(sim.world.tick, "coordinator", events=len(sim.event_log))], ["coordinator"])
+    lost = lost_arms(sim)
+    if lost:
+        raise SnapshotFailed(f"the controllers of {', '.join(lost)} are lost")
+    parts = ask(sim, [coordinator_ask(sim)], ["coordinator"])
     stage("coordinator")
-    parts |= ask(sim, [controllers_ask(sim, parts["coordinator"].orders)], arms)
+    parts |= ask(sim, [controllers_ask(sim, parts["coordinator"].orders)], list(sim.links))
     stage("controllers")
     return parts
 
 
-def _live_arms(sim) -> list[str]:
-    """The arms whose controllers are with the line (a snapshot is refused while one is lost)."""
-    arms = [name for name, link in sim.links.items() if not link.lost]
-    lost = sorted(set(sim.links) - set(arms))
-    if lost:
-        raise SnapshotFailed(f"the controllers of {', '.join(lost)} are lost")
-    return arms
+def lost_arms(sim) -> list[str]:
+    """The arms whose controllers the line has lost (a snapshot fails while one is)."""
+    return sorted(name for name, link in sim.links.items() if link.lost)
 
 
 def publish_asks(sim, asks: list[SnapshotAsk]) -> None:
@@ -80,6 +77,10 @@ def orders_announced(sim) -> tuple[int, ...]:
             for name, seq in zip(sim.links, flight.answer.assign_seqs):
                 newest[name] = max(newest[name], seq)
     return tuple(newest[name] for name in sim.links)
+
+
+def coordinator_ask(sim) -> SnapshotAsk:
+    return SnapshotAsk(sim.world.tick, "coordinator", events=len(sim.event_log))
 
 
 def controllers_ask(sim, orders: tuple[int, ...]) -> SnapshotAsk:
@@ -104,14 +105,11 @@ def settle(sim) -> None:
 def ask(sim, asks: list[SnapshotAsk], nodes: list[str]) -> dict[str, SnapshotPart]:
     """`asks` published until each of `nodes` sent its part for this tick; a part made for another ask of the same
     tick (fewer orders) is not taken."""
-    controllers, arms, tick = next((a for a in asks if a.node == "controllers"), None), list(sim.links), asks[0].tick
+    controllers = next((a for a in asks if a.node == "controllers"), None)
+    arms, of_tick = list(sim.links), part_of(asks)
 
     def take(part: SnapshotPart) -> bool:
-        if part.restored or part.tick != tick:
-            return False
-        if part.error:
-            raise SnapshotFailed(f"{part.node}: {part.error}")
-        return part.node == "coordinator" or _answers(part, controllers, arms)
+        return of_tick(part) and (part.node == "coordinator" or _answers(part, controllers, arms))
 
     got = collect(sim, asks, nodes, take, NODE_TIMEOUT_S)
     silent = [n for n in nodes if n not in got]
@@ -141,12 +139,34 @@ def collect(
         if time.monotonic() - asked > ASK_AGAIN_S:
             publish_asks(sim, asks)
             asked = time.monotonic()
-        for key, payload in sim.bus.snapshot_inbox.drain():
-            part = decoder.decode(key, payload)
-            if part is not None and part.node in nodes and take(part):
-                got[part.node] = part
+        take_parts(sim, decoder, nodes, take, got)
         sim.bus.snapshot_inbox.wait(0.01)
     return got
+
+
+def take_parts(
+    sim, decoder: Decoder, nodes: list[str], take: Callable[[SnapshotPart], bool], got: dict[str, SnapshotPart]
+) -> None:
+    """The parts arrived so far that `take` accepts, from `nodes`, into `got` by node."""
+    for key, payload in sim.bus.snapshot_inbox.drain():
+        part = decoder.decode(key, payload)
+        if part is not None and part.node in nodes and take(part):
+            got[part.node] = part
+
+
+def part_of(asks: list[SnapshotAsk]) -> Callable[[SnapshotPart], bool]:
+    """Whether a part answers these asks' tick (not a restored node's "back"); a node's answer that it has no state
+    fails the snapshot (`SnapshotFailed`)."""
+    tick = asks[0].tick
+
+    def of_tick(part: SnapshotPart) -> bool:
+        if part.restored or part.tick != tick:
+            return False
+        if part.error:
+            raise SnapshotFailed(f"{part.node}: {part.error}")
+        return True
+
+    return of_tick
 
 
 def _answers(part: SnapshotPart, controllers: SnapshotAsk | None, arms: list[str]) -> bool:

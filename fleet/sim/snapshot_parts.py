@@ -3,10 +3,9 @@ what taking it cost the ticks after it.
 
 The sim asks at the tick boundary and goes on: each node, told of the boundary ahead, writes its state as of it,
 holding back whatever the line sends it from then on (`fleet.snapshot.node_desk`), and its part arrives while the
-next ticks run. So the line stands
-still only for the sim's own state; the nodes' writing shows up as later answers in the ticks after the cut, which
-`CostDue` measures against the same number of ticks before it (the median of a few such runs of ticks: one alone
-may hold a long decision).
+next ticks run. So the line stands still only for the sim's own state; the nodes' writing shows up as later answers
+in the ticks after the cut, which `CostDue` measures against the same number of ticks before it (the median of a
+few such runs of ticks: one alone may hold a long decision).
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ from dataclasses import dataclass, field
 
 from fleet.bus.codec import Decoder
 from fleet.bus.messages import SnapshotAsk, SnapshotPart
-from fleet.sim.snapshot_asks import ASK_AGAIN_S, NODE_TIMEOUT_S, SnapshotFailed, publish_asks
+from fleet.sim.snapshot_asks import ASK_AGAIN_S, NODE_TIMEOUT_S, SnapshotFailed, part_of, publish_asks, take_parts
 
 BASELINE_WINDOWS = 5  # runs of ticks before a cut whose median wall time the ticks after it are measured against
 
@@ -54,14 +53,7 @@ class PartsDue:
     def take_arrived(self) -> None:
         """The parts arrived so far kept (another tick's, or a restored node's, passed over); asked again when
         due. A node that answers it has no state fails the snapshot (`SnapshotFailed`)."""
-        decoder = Decoder(SnapshotPart, self.sim.drops)
-        for key, payload in self.sim.bus.snapshot_inbox.drain():
-            part = decoder.decode(key, payload)
-            if part is None or part.restored or part.tick != self.tick or part.node not in self.nodes:
-                continue
-            if part.error:
-                raise SnapshotFailed(f"{part.node}: {part.error}")
-            self.got[part.node] = part
+        take_parts(self.sim, Decoder(SnapshotPart, self.sim.drops), self.nodes, part_of(self.asks), self.got)
         if not self.complete and time.monotonic() - self.asked_at > ASK_AGAIN_S:
             self._publish()
 
