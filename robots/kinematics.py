@@ -142,7 +142,7 @@ class PlacedFrames(BuiltOnce):
                 self.model.addFrame(pin.Frame(name, parent.parentJoint, placement, pin.FrameType.OP_FRAME))
             )
         self.data = self.model.createData()
-        self._km = km  # held: the key names its robot by id
+        # the arguments are kept (and with them the model, so the robot the key names by id lives as long)
         args = (km, np.array(transform_base_to_world, float), [(link, np.array(t, float)) for link, t in frames])
         self._built_from(args, self.built_key(*args))
 

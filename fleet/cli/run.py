@@ -338,8 +338,10 @@ def _snapshot_row(s: dict) -> str:
     """The snapshots written and failed, the longest the line stood still for one, and (lockstep) how much longer
     the ticks after one took at most while the nodes wrote their states."""
     stall, after = s.get("snapshot_stall_ms_max"), s.get("snapshot_next_ticks_ms_max")
-    held = f" (line held {stall} ms at most" if stall else ""
-    held += (f"; ticks after it {after} ms slower at most)" if after is not None else ")") if stall else ""
+    held = ""
+    if stall:
+        after_row = f"; ticks after it {after} ms slower at most" if after is not None else ""
+        held = f" (line held {stall} ms at most{after_row})"
     return f"{len(s['snapshots'])} / {len(s['snapshots_failed'])} / {len(s.get('snapshots_refused') or [])}{held}"
 
 

@@ -56,7 +56,7 @@ class SimOutputs:
             left = left or e.kind in ("lost", "retired")
         return left
 
-    def _state(self, name: str) -> ArmState:
+    def _state(self, name: str, snapshot_tick: int) -> ArmState:
         link, tracker = self.sim.links[name], self.sim.tracked.trackers[name]
         step = link.last_step
         desired_q, desired_dq = tracker.desired_now
@@ -87,7 +87,7 @@ class SimOutputs:
             result_reason=last.reason if last else "",
             next_tick=link.next_tick,
             period_ticks=link.period_ticks,
-            snapshot_tick=self.next_snapshot_tick(),
+            snapshot_tick=snapshot_tick,
         )
 
     def next_snapshot_tick(self) -> int:
@@ -110,7 +110,8 @@ class SimOutputs:
         view = tick % self.sim.view_every_ticks == 0 and bus.watched() and self._view_due()  # only while watched
         if due or frame or view:
             names = list(w.arms) if (frame or view) else [link.name for link in due]
-            states = {name: self._state(name) for name in names}
+            snapshot_tick = self.next_snapshot_tick()
+            states = {name: self._state(name, snapshot_tick) for name in names}
             now = time.monotonic()
             for link in due:
                 if self.sim.controllers:  # someone must answer it (without controllers the states are feedback only)
@@ -124,9 +125,7 @@ class SimOutputs:
                 bus.put(bus.parts_pub, "parts", encode(seen))
                 self.parts_tick = tick
             if frame or view:
-                line = LineView(
-                    tick, w.sim_time_s, tuple(states.values()), parts_msg, snapshot_tick=self.next_snapshot_tick()
-                )
+                line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg, snapshot_tick=snapshot_tick)
                 if frame:
                     self.sim.coord_book.send(tick, line, 1, now, self.sim.deferred_coord)
                 if view:

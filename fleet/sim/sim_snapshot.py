@@ -84,12 +84,13 @@ class SimSnapshots:
     _spare: list = field(default_factory=list)  # the world the line goes on in after the next snapshot
     _pending: tuple[PartsDue, tuple[int, float, bytes]] | None = None  # the parts still coming, the sim's facts
     _costs: list[CostDue] = field(default_factory=list)  # snapshots whose ticks after are still being measured
-    _next_ticks: NextTicks = field(default_factory=lambda: NextTicks(1))
+    _next_ticks: NextTicks = field(init=False)  # the wall time at the last tick boundaries
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
 
     def __post_init__(self) -> None:
-        sim = self.sim  # a controller waits at most this long for its next state
-        self._next_ticks = NextTicks(max(sim.coord_period_ticks, sim.max_period_ticks) * BASELINE_WINDOWS)
+        # enough boundaries for the runs of ticks a cost is measured against: a few of the longest a node may wait
+        longest = max(self.sim.coord_period_ticks, self.sim.max_period_ticks)
+        self._next_ticks = NextTicks(longest * BASELINE_WINDOWS)
 
     def due(self, tick: int) -> bool:
         """Whether a snapshot is scheduled at this tick (never twice at one)."""
