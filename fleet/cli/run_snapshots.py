@@ -8,8 +8,6 @@ import math
 import tempfile
 from pathlib import Path
 
-import yaml
-
 from fleet.cli.errors import UsageError, positive_numbers
 from fleet.snapshot.snapshot_file import SnapshotError
 
@@ -56,11 +54,19 @@ def add_snapshot_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def scene_setting(text: str) -> tuple[str, object]:
-    """`--set conveyor.speed_m_per_s=0.05`: a dotted field path and one YAML value (argparse's `type`)."""
-    path, sep, value = text.partition("=")
-    if not sep or not path.strip() or not value or "," in value:
-        raise argparse.ArgumentTypeError(f"{text!r}: write FIELD.PATH=VALUE, e.g. conveyor.speed_m_per_s=0.05")
-    return path.strip(), yaml.safe_load(value)
+    """`--set conveyor.speed_m_per_s=0.05`: a dotted field path and one value, read as a sweep reads its `--set`
+    (argparse's `type`)."""
+    from fleet.sweep.grid import GridError, Override
+
+    try:
+        setting = Override.parse(text)
+    except GridError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if len(setting.values) != 1:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: one value (a sweep takes several), e.g. conveyor.speed_m_per_s=0.05"
+        )
+    return setting.path, setting.values[0]
 
 
 def check_snapshot_flags(args: argparse.Namespace) -> None:
