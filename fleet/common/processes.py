@@ -23,10 +23,10 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from fleet.common.scene_loading import load_scene
-from scenes.loader import SceneError
-from scenes.schema import Scene
+if TYPE_CHECKING:
+    from scenes.schema import Scene
 
 PR_SET_PDEATHSIG = 1
 PR_SET_CHILD_SUBREAPER = 36
@@ -95,6 +95,9 @@ def add_scene_arguments(parser: argparse.ArgumentParser, run_required: bool = Tr
 
 def load_node_scene(args: argparse.Namespace, prog: str) -> Scene | None:
     """The node's scene, or None after printing one line naming the file, field and reason."""
+    from fleet.common.scene_loading import load_scene  # here: the launcher starts its node factory before scenes
+    from scenes.loader import SceneError
+
     try:
         return load_scene(args.scene, arms=args.arms, seed=getattr(args, "seed", None))
     except SceneError as exc:

@@ -243,7 +243,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if network is not None:
         scene = scene.model_copy(update={"network": network})
-    world = World(scene)
     if args.router_audit:
         RouterAudit(args.router_audit).start()
     session, endpoint = open_session(args)
@@ -252,6 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     # it listens: whoever waits for the file may connect now (the spool hears them from the first)
     if args.endpoint_file:
         write_text_atomically(args.endpoint_file, endpoint)
+    world = World(scene)  # after: the other nodes start and connect while the physics scene is built
     with contextlib.closing(session), contextlib.closing(spool) if spool else contextlib.nullcontext():
         server = SimServer(
             world,

@@ -348,4 +348,7 @@ def _serve(preload: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(_serve(sys.argv[1:]))
+    code = _serve(sys.argv[1:])
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)  # no interpreter teardown of SAPIEN, Pinocchio and the BLAS pools (~0.2 s): nothing is left to close

@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 
@@ -97,6 +98,44 @@ def test_run_refuses_bad_input_with_one_line_and_starts_nothing():
         lines = result.stderr.strip().splitlines()
         assert says in lines[-1] and "Traceback" not in result.stderr, (args, result.stderr)
         assert "sim" not in result.stderr.split("error")[0], args  # no progress bar: nothing was started
+
+
+def started_by(pid: int) -> list[int]:
+    """Processes still running that `pid` started through `fleet.common.processes` (its node factory among them)."""
+    from fleet.common.processes import PARENT_ENV
+
+    mark = f"{PARENT_ENV}={pid}".encode()
+    left = []
+    for environ in Path("/proc").glob("[0-9]*/environ"):
+        try:
+            if mark in environ.read_bytes().split(b"\0"):
+                left.append(int(environ.parent.name))
+        except OSError:
+            pass  # gone, or not ours to read
+    return left
+
+
+@pytest.mark.parametrize(
+    "args, code",
+    [(["pick_cell", "--duration", "1"], 0), (["pick_cell", "--duration", "-1"], 2)],
+    ids=["ran", "refused"],
+)
+def test_run_starts_its_node_factory_ahead_and_leaves_nothing_behind(args, code):
+    """`fleet run` starts its node factory before its own imports and checks; run or refused, nothing stays."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "fleet", "run", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == code, stderr
+    assert started_by(proc.pid) == []
+
+
+def test_only_a_line_of_fleet_run_starts_a_factory_ahead():
+    from fleet.cli import starts_a_line
+
+    assert starts_a_line(["run"]) and starts_a_line(["run", "sorting_line", "--arms", "4"])
+    assert not starts_a_line(["run", "--help"]) and not starts_a_line(["sweep", "pick_cell"])
+    assert not starts_a_line([])
 
 
 def test_check_refuses_binary_and_oversized_files_at_once(tmp_path):
