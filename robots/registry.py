@@ -177,6 +177,7 @@ SO101 = register(
         arm_gains=DriveGains(stiffness=800.0, damping=40.0, force_limit=10.0),  # by `fleet tune`
         gripper_gains=DriveGains(stiffness=50.0, damping=2.0, force_limit=3.0),
         finger_links=("gripper_link", "moving_jaw_so101_v1_link"),
+        finger_friction=1.5,  # by `fleet tune`, with the fixed jaw's gap below (docs/benchmarks.md)
         closing_axis_tool=(1.0, 0.0, 0.0),  # the moving jaw swings towards the fixed one along the tool's x
         fixed_jaw_face_m=0.001,  # the tool frame sits at the fixed jaw's tip (measured on the collision shapes)
         carry_tilted=True,
@@ -188,6 +189,7 @@ SO101 = register(
             "approach_speed": 0.6,
             "transfer_speed": 0.15,
             "lift_s": 0.8,
+            "fixed_jaw_gap_m": 0.004,  # the fixed jaw comes down clear of the part: a grazed part tips out
         },  # fleet tune's best
         package_prefix="package://example-robot-data/robots/",
         needs_extra="models",

@@ -87,9 +87,10 @@ class RobotSpec:
         c, o = self.gripper_closed[0], self.gripper_open[0]
         return (width_m / self.width_per_gripper_unit_m - c) / (o - c)
 
-    def grasp_centre_tool(self, width_m: float) -> tuple[float, float, float]:
-        """Where a part `width_m` wide sits between the jaws, in the tool frame (the origin for symmetric jaws)."""
-        k = 0.0 if self.fixed_jaw_face_m is None else self.fixed_jaw_face_m - width_m / 2
+    def grasp_centre_tool(self, width_m: float, fixed_jaw_gap_m: float = 0.0) -> tuple[float, float, float]:
+        """Where a part `width_m` wide sits between the jaws, in the tool frame (the origin for symmetric jaws); a
+        fixed jaw comes down `fixed_jaw_gap_m` clear of the part's face (the part aimed that much further in)."""
+        k = 0.0 if self.fixed_jaw_face_m is None else self.fixed_jaw_face_m - width_m / 2 - fixed_jaw_gap_m
         return tuple(
             float(c * k - a * self.grip_depth_m) for c, a in zip(self.closing_axis_tool, self.approach_axis_tool)
         )

@@ -31,12 +31,23 @@ SPACE: dict[str, tuple[float, ...]] = {
     "hover_m": (0.04, 0.06, 0.08, 0.10),
     "lift_m": (0.06, 0.09, 0.12),
     "pregrasp_clearance_m": (0.016, 0.024, 0.032),
+    "fixed_jaw_gap_m": (0.0, 0.002, 0.004, 0.006),
+    "finger_friction": (1.2, 1.5, 2.0),
 }
 """What is searched: factors on the registered drive gains (arm stiffness and damping together; the gripper's force
 limit), the skill's speeds (fractions of the joints' velocity limits), the lift's duration (seconds) and the pick's
 heights and widths: how high the claw hovers before it descends (and over the place), how high it lifts a part, how
-much wider than the part it opens on the way down (metres)."""
-TIMING = ("approach_speed", "transfer_speed", "lift_s", "hover_m", "lift_m", "pregrasp_clearance_m")
+much wider than the part it opens on the way down, how far clear of the part a fixed jaw comes down (metres); and
+the friction of the finger pads (the material both sides of a grasp are given)."""
+TIMING = (
+    "approach_speed",
+    "transfer_speed",
+    "lift_s",
+    "hover_m",
+    "lift_m",
+    "pregrasp_clearance_m",
+    "fixed_jaw_gap_m",
+)
 """The searched values that are pick timing fields (`PickPlaceTiming`); the others scale drive gains."""
 
 
@@ -52,6 +63,8 @@ class Candidate:
     hover_m: float | None = None
     lift_m: float | None = None
     pregrasp_clearance_m: float | None = None
+    fixed_jaw_gap_m: float | None = None
+    finger_friction: float | None = None
 
     def spec_for(self, spec: RobotSpec, uid: str) -> RobotSpec:
         """The robot with this setting, under `uid`."""
@@ -69,6 +82,7 @@ class Candidate:
             ),
             gripper_gains=DriveGains(g.stiffness, g.damping, g.force_limit * self.gripper_force_scale),
             pick_timing=timing,
+            finger_friction=spec.finger_friction if self.finger_friction is None else self.finger_friction,
         )
 
     def describe(self, spec: RobotSpec) -> dict[str, float]:
@@ -79,6 +93,7 @@ class Candidate:
             "arm_stiffness": tuned.arm_gains.stiffness,
             "arm_damping": tuned.arm_gains.damping,
             "gripper_force_limit": tuned.gripper_gains.force_limit,
+            "finger_friction": tuned.finger_friction,
             **{name: getattr(timing, name) for name in TIMING},
         }
 

@@ -63,6 +63,7 @@ class PickPlaceTiming:
     approach_speed: float = 1.0  # fractions of each joint's velocity limit, reached at a move's peak (quintic timing)
     transfer_speed: float = 1.0
     pregrasp_clearance_m: float = 0.024
+    fixed_jaw_gap_m: float = 0.0  # a gripper with a fixed jaw: how far clear of the part's face that jaw comes down
     place_drop_m: float = 0.008
     clear_after_s: float = 1.0  # an arm idle this long away from home (a failed task, a respawned controller) goes home
     home_tolerance_rad: float = 0.05  # within this of the home pose on every joint counts as home
@@ -182,7 +183,7 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         self._timeline = []
         self.q_cmd = np.asarray(obs.q, float).copy()
         self.grasp_yaw = self._grasp_yaw(part)
-        self.grasp_centre = self.spec.grasp_centre_tool(part.width_m)
+        self.grasp_centre = self.spec.grasp_centre_tool(part.width_m, t.fixed_jaw_gap_m)
         tip = self.spec.fingertip_below_tool_m
         self.grasp_z = max(job.surface_z_m + part.height_m / 2, job.surface_z_m + tip + 0.004)
         self.grasp_z = min(self.grasp_z, job.surface_z_m + part.height_m + tip - 0.010)
