@@ -30,7 +30,6 @@ from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView, 
 from coordinator.tasks import CONVEYOR, Task
 from robots.registry import get_robot
 from scenes.schema import Scene
-from scenes.shapes import BELT_DROP_ALONG_M
 
 BELT_SAMPLE_M = 0.05  # belt pick points are tried this far apart
 
@@ -142,16 +141,19 @@ def pick_points(scene: Scene, hop: Hop) -> list[tuple[float, PartView]]:
         return [(0.0, PartView(np.array([s.pose.xyz[0], s.pose.xyz[1], s.surface_z_m + half]), np.zeros(3)))]
     c = scene.conveyor
     velocity = np.array(c.direction) * c.speed_m_per_s
+    drop_m = min(scene.drop_along_m(scene.feeder(hop.feeder)), c.length_m)
     if c.speed_m_per_s <= 0.0:  # a stopped belt: a part stays where it is dropped
-        x, y, z = c.point_at(min(BELT_DROP_ALONG_M, c.length_m), 0.0)
+        x, y, z = c.point_at(drop_m, 0.0)
         return [(0.0, PartView(np.array([x, y, z + half]), velocity))]
     n = max(2, int(c.length_m / BELT_SAMPLE_M) + 1)
     out = []
     for along in np.linspace(0.0, c.length_m, n):
+        if along < drop_m - 2 * BELT_SAMPLE_M:  # well upstream of its infeed: no part of this feeder is ever there
+            continue  # (the samples just before it count as at it, as the belt's start always has)
         x, y, z = c.point_at(float(along), 0.0)
         out.append(
             (
-                max(0.0, float(along) - BELT_DROP_ALONG_M) / c.speed_m_per_s,
+                max(0.0, float(along) - drop_m) / c.speed_m_per_s,
                 PartView(np.array([x, y, z + half]), velocity),
             )
         )

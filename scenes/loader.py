@@ -14,6 +14,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from scenes.bay_row import BayRowError, expand_bay_row
 from scenes.randomise import draw
 from scenes.schema import Arm, Conveyor, Scene, Station
 from scenes.yaml_file import DeclarationError, first_error, named_in, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
@@ -77,6 +78,10 @@ def load_scene(
     label = str(path)
     scene = read_declaration(path, label, "scene", MAX_SCENE_BYTES, Scene, SceneError)
     scene, robots = with_robot_files(scene, path, label, robots, read_robot_file)
+    try:
+        scene = expand_bay_row(scene, arms)
+    except BayRowError as exc:
+        raise SceneError(label, exc.field, exc.why) from None
     scene = expand_arm_row(scene, arms, label)
     if seed is not None:
         if seed < 0:
@@ -207,6 +212,11 @@ def _check_feeders(scene: Scene, label: str) -> None:
     for i, f in enumerate(scene.feeders):
         if f.into == "conveyor" and scene.conveyor is None:
             raise SceneError(label, f"feeders.{i}.into", "feeds the conveyor, but the scene has none")
+        if f.along_m is not None and f.into != "conveyor":
+            raise SceneError(label, f"feeders.{i}.along_m", "only a conveyor feeder sets parts down along the belt")
+        if f.along_m is not None and f.along_m > scene.conveyor.length_m - 0.05:
+            why = f"{f.along_m:g} m is past the belt's end (it is {scene.conveyor.length_m:g} m long)"
+            raise SceneError(label, f"feeders.{i}.along_m", why)
         if f.into != "conveyor" and f.into not in station_names:
             raise SceneError(
                 label, f"feeders.{i}.into", f"no station {f.into!r}; stations: {', '.join(sorted(station_names))}"

@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 FLOOR_M = 0.008
 """Thickness of bin and tray floors and walls (metres)."""
+BELT_DROP_ALONG_M = 0.06  # a conveyor feeder sets its parts down this far along the belt, unless it says
 NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
 MAX_ARMS = 64  # arms in one scene: each is an OS process of its own (`fleet run` forks one per arm)
 Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
@@ -108,12 +109,16 @@ class Arrival(Strict):
 
 
 class Feeder(Strict):
-    """A source of parts: onto the conveyor's start, or into a station (a bin of parts to pick)."""
+    """A source of parts: onto the conveyor (near its start, or `along_m` down it), or into a station (a bin of parts
+    to pick)."""
 
     name: Name
     parts: list[PartType] = Field(min_length=1)
     arrival: Arrival
     into: Name = "conveyor"
+    along_m: float | None = Field(None, ge=0.0, le=20.0)
+    """A conveyor feeder: how far along the belt it sets its parts down (None: `BELT_DROP_ALONG_M`, near the start);
+    an infeed part way down a long line."""
     lateral_jitter_m: float = Field(0.0, ge=0, le=0.2)
     capacity: int = Field(8, ge=1, le=64)
     route: list[Name] = []
@@ -177,6 +182,16 @@ class ArmRow(Strict):
     belt_past_last_m: float | None = Field(None, ge=0.0, le=2.0)
     """At least this much belt beyond the last arm's base: a longer row lengthens the conveyor (None: the belt stays
     as declared, and a row past its end is the scene's choice)."""
+
+
+class BayRow(Strict):
+    """The scene's arms, stations and feeders are one bay of a line; `--arms N` (a multiple of the bay's arms)
+    repeats it along the conveyor, each copy `spacing_m` further downstream, its conveyor feeders setting their parts
+    down as much further along the belt, which grows to carry them past the last bay."""
+
+    count: int = Field(1, ge=1, le=12)
+    max_count: int = Field(8, ge=1, le=12)
+    spacing_m: float = Field(gt=0.5, le=3.0)
 
 
 class Draw(Strict):
@@ -259,6 +274,7 @@ class Scene(Strict):
     arms: list[Arm] = Field([], max_length=MAX_ARMS)
     """At most `MAX_ARMS` (64): each arm is an OS process of its own, and the guard checks every pair."""
     arm_row: ArmRow | None = None
+    bay_row: BayRow | None = None
     randomise: Randomisation | None = None
     randomised: dict[str, float] = {}
     """The values drawn for this run (filled by `scenes.randomise.draw`; listed in the run summary)."""
@@ -284,7 +300,13 @@ class Scene(Strict):
             raise ValueError("physics_hz must be a whole multiple of control_hz")
         if not self.arms and self.arm_row is None:
             raise ValueError("a scene needs at least one arm (arms or arm_row)")
+        if self.bay_row is not None and (self.arm_row is not None or self.conveyor is None):
+            raise ValueError("a bay_row repeats a bay of declared arms along the conveyor: no arm_row, a conveyor")
         return self
+
+    def drop_along_m(self, feeder: Feeder) -> float:
+        """How far along the belt a conveyor feeder sets its parts down."""
+        return BELT_DROP_ALONG_M if feeder.along_m is None else feeder.along_m
 
     @property
     def substeps(self) -> int:

@@ -12,7 +12,6 @@ from scenes.schema import FLOOR_M, Conveyor, Station
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
 BELT_DEPTH_M = 0.04
-BELT_DROP_ALONG_M = 0.06  # a conveyor feeder sets its parts down this far along the belt
 WALL_M = FLOOR_M
 
 

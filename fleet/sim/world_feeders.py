@@ -7,7 +7,8 @@ import math
 from fleet.sim.arm import yaw_pose
 from fleet.sim.parts import FeederClock, SimPart, park
 from fleet.sim.world_events import FeederFull, PartRetired, PartSpawned
-from scenes.shapes import BELT_DROP_ALONG_M, WALL_M
+from scenes.schema import Feeder
+from scenes.shapes import WALL_M
 
 
 class WorldFeeders:
@@ -32,19 +33,20 @@ class WorldFeeders:
         feeder = clock.feeder
         spacing_m = self._drop_spacing_m[feeder.name]
         if feeder.into == "conveyor":
-            clear = self._nobody_within(self._drop_point("conveyor"), spacing_m + feeder.lateral_jitter_m)
-            return self._drop_point("conveyor", lateral_m) if clear else None
+            clear = self._nobody_within(self._drop_point(feeder), spacing_m + feeder.lateral_jitter_m)
+            return self._drop_point(feeder, lateral_m) if clear else None
         for x, y in self._station_spots[feeder.name]:
             if self._nobody_within((x, y), 0.75 * spacing_m):
-                return x, y, self._drop_point(feeder.into)[2]
+                return x, y, self._drop_point(feeder)[2]
         return None
 
-    def _drop_point(self, into: str, lateral_m: float = 0.0) -> tuple[float, float, float]:
-        """The conveyor's drop point (`lateral_m` off its centre line), or just above a station's floor at its
-        centre."""
-        if into == "conveyor":
-            return self.scene_model.conveyor.point_at(BELT_DROP_ALONG_M, lateral_m)
-        x, y, z = self.scene_model.station(into).pose.xyz
+    def _drop_point(self, feeder: Feeder, lateral_m: float = 0.0) -> tuple[float, float, float]:
+        """The feeder's drop point on the conveyor (`lateral_m` off its centre line), or just above its station's
+        floor at its centre."""
+        scene = self.scene_model
+        if feeder.into == "conveyor":
+            return scene.conveyor.point_at(scene.drop_along_m(feeder), lateral_m)
+        x, y, z = scene.station(feeder.into).pose.xyz
         return x, y, z + WALL_M + 0.01
 
     def _nobody_within(self, xy: tuple[float, ...], radius_m: float) -> bool:
@@ -65,7 +67,7 @@ class WorldFeeders:
             self.events.append(FeederFull(feeder.name, self.tick))
             return
         # `spawn_now` asks for a part now
-        spot = self._drop_spot(clock, lateral) or self._drop_point(feeder.into, lateral)
+        spot = self._drop_spot(clock, lateral) or self._drop_point(feeder, lateral)
         self._put(self.parts[free[0]], spot, yaw)
         clock.spawned += 1
 

@@ -49,6 +49,35 @@ def test_a_row_too_long_for_any_belt_names_the_field(tmp_path):
         load_scene(str(path), arms=24)
 
 
+def test_a_fixture_line_of_twenty_four_arms_is_eight_bays_each_with_its_own_infeed_fixture_and_routes():
+    one, row = load_scene("assembly_line"), load_scene("assembly_line", arms=24, robots=robot_facts())
+    assert [a.name for a in row.arms] == [f"arm_{i}" for i in range(24)]
+    assert row.arms[:3] == one.arms and row.stations[:4] == one.stations and row.feeders[:2] == one.feeders
+    assert row.arms[3].base.xyz == pytest.approx((one.arms[0].base.xyz[0] + 1.6, *one.arms[0].base.xyz[1:]))
+    fixtures = [s for s in row.stations if s.kind == "fixture"]
+    assert [s.name for s in fixtures] == ["fixture_0"] + [f"fixture_0_b{k}" for k in range(1, 8)]
+    assert fixtures[7].assembles == ["bases_b7", "tops_b7"]
+    bases = [f for f in row.feeders if f.name.startswith("bases")]
+    assert [f.route for f in bases[1:3]] == [["fixture_0_b1", "output_tray_b1"], ["fixture_0_b2", "output_tray_b2"]]
+    assert [row.drop_along_m(f) for f in bases] == pytest.approx([0.06 + 1.6 * k for k in range(8)])
+    assert row.feeder("tops_b5").into == "tops_bin_b5"
+    assert row.conveyor.length_m == pytest.approx(one.conveyor.length_m + 7 * 1.6)
+    assert load_scene("assembly_line", arms=3) == one
+
+
+def test_a_bay_to_repeat_names_its_arms_in_order(tmp_path):
+    path = broken(tmp_path, set_(["arms", 2, "name"], "arm_9"))
+    assert [a.name for a in load_scene(path).arms] == ["arm_0", "arm_1", "arm_9"]  # one bay: as declared
+    with pytest.raises(SceneError, match=r"broken.yaml: bay_row: a repeated bay names its arms arm_0 .. arm_2"):
+        load_scene(path, arms=6)
+
+
+@pytest.mark.parametrize("arms, says", [(4, "takes bays of 3 arms"), (27, "takes 3 to 24, 3 a bay")])
+def test_a_row_of_bays_takes_whole_bays_only(arms, says):
+    with pytest.raises(SceneError, match=f"bay_row.count: {arms} arms asked for; this scene {says}"):
+        load_scene("assembly_line", arms=arms)
+
+
 def broken(tmp_path: Path, edit) -> Path:
     data = yaml.safe_load((BUNDLED_DIR / "assembly_line.yaml").read_text())
     edit(data)
@@ -93,6 +122,8 @@ CASES = [
     ),
     ("duplicate arm", set_(["arms", 1, "name"], "arm_0"), "arms.1.name", "duplicate"),
     ("feeder into nothing", set_(["feeders", 1, "into"], "nowhere"), "feeders.1.into", "no station"),
+    ("infeed past the belt", set_(["feeders", 0, "along_m"], 1.3), "feeders.0.along_m", "past the belt's end"),
+    ("a bin fed along a belt", set_(["feeders", 1, "along_m"], 0.5), "feeders.1.along_m", "only a conveyor feeder"),
     ("control not dividing physics", set_(["control_hz"], 150), "(top level)", "whole multiple"),
     ("loss of one or more", set_(["network"], {"loss": 1.0}), "network.loss", "less than 1"),
     (

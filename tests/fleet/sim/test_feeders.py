@@ -1,6 +1,7 @@
 """A conveyor feeder never drops a part onto another: one due while the last still lies at the drop spot waits."""
 
 import numpy as np
+import pytest
 
 from fleet.sim.world import World
 from scenes import load_scene
@@ -54,3 +55,16 @@ def test_parts_dropped_into_a_tray_lie_side_by_side_and_a_part_with_no_free_spot
     world.retire_part(lying[0].part_id)  # an arm takes one away: the next is set down at once
     world.step()
     assert sum(p.active for p in world.parts) == 4 and world.feeders[0].held_s > held
+
+
+def test_an_infeed_down_the_belt_sets_its_parts_down_there_and_the_capacity_model_rides_them_from_there():
+    from coordinator.capacity import Hop, pick_points
+
+    scene = load_scene("assembly_line", arms=6)
+    world = World(scene)
+    part = world.part_info(world.spawn_now("bases_b1"))
+    along = np.dot(part.position[:2] - np.asarray(scene.conveyor.pose.xyz[:2]), scene.conveyor.direction[:2])
+    assert along == pytest.approx(0.06 + 1.6, abs=0.03)  # bay 1's infeed, 1.6 m down from bay 0's
+    points = pick_points(scene, Hop("bases_b1", 0, "conveyor", "fixture_0_b1"))
+    first = min(points, key=lambda p: p[0])
+    assert first[0] == 0.0 and first[1].position[0] >= scene.conveyor.pose.xyz[0] + 1.6 - 0.1
