@@ -1,7 +1,9 @@
-"""Deadlines of belt tasks: when a riding part leaves the last stretch any arm reaches, and which assigned
-tasks can no longer be met by their arm (so they go back to the pool while another arm still can)."""
+"""Deadlines of belt tasks: when a riding part leaves the last stretch of belt an arm able to take it reaches, and
+which assigned tasks can no longer be met by their arm (so they go back to the pool while another arm still can)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,19 +26,52 @@ def last_reach_along_belt_m(conveyor: Conveyor, arms: list[ArmView], part_z_m: f
     return None
 
 
-_LAST_REACH_M: dict[str, float | None] = {}  # layout -> the belt's last reachable point
+@dataclass(frozen=True)
+class BeltReach:
+    """How far along the belt (m from its start) a riding part can still be taken: the last point an arm reaches
+    that also reaches the part's next station, for a station on a route or a buffer (in a row of bays, only the
+    bay's own arms); for any other (a sorted part, whose station its colour picks at allocation) and where no arm
+    reaches the station, the last point any arm reaches. None: no arm reaches the belt."""
+
+    any_m: float | None
+    by_station_m: dict[str, float] = field(default_factory=dict)
+
+    def for_station(self, station: str | None) -> float | None:
+        return self.by_station_m.get(station, self.any_m) if station is not None else self.any_m
 
 
-def layout_last_reach_m(scene: Scene, arms: list[ArmView]) -> float | None:
-    """`last_reach_along_belt_m` of a scene's belt and arms (None without a belt): IK misses cost, so worked out once
-    per layout in a process (an env resets often; the dispatcher and a policy allocator ask for the same)."""
+_BELT_REACH: dict[str, BeltReach] = {}  # layout -> its belt reach
+
+
+def layout_belt_reach(scene: Scene, arms: list[ArmView]) -> BeltReach:
+    """The `BeltReach` of a scene's belt, arms and stations (`any_m` None without a belt): IK misses cost, so worked
+    out once per layout in a process (an env resets often; the dispatcher and a policy allocator ask for the same)."""
     conveyor = scene.conveyor
     if conveyor is None:
-        return None
-    key = repr((conveyor.model_dump_json(), [(a.model, a.base.xyz, a.base.yaw_rad) for a in scene.arms]))
-    if key not in _LAST_REACH_M:
-        _LAST_REACH_M[key] = last_reach_along_belt_m(conveyor, arms, conveyor.pose.xyz[2] + 0.015)
-    return _LAST_REACH_M[key]
+        return BeltReach(None)
+    key = repr(
+        (
+            scene.model_dump_json(include={"conveyor", "stations", "feeders"}),
+            [(a.model, a.base.xyz, a.base.yaw_rad) for a in scene.arms],
+        )
+    )
+    if key not in _BELT_REACH:
+        z = conveyor.pose.xyz[2] + 0.015
+        by_station = {}
+        for station in _routed_stations(scene):
+            s = scene.station(station)
+            able = [a for a in arms if Eligibility.in_reach(a, (*s.pose.xyz[:2], s.surface_z_m))]
+            last = last_reach_along_belt_m(conveyor, able, z) if able else None
+            if last is not None:
+                by_station[station] = last
+        _BELT_REACH[key] = BeltReach(last_reach_along_belt_m(conveyor, arms, z), by_station)
+    return _BELT_REACH[key]
+
+
+def _routed_stations(scene: Scene) -> list[str]:
+    """The stations a belt part may be bound for by name: its feeder's route, or a buffer (not a colour's)."""
+    named = [step for f in scene.feeders if f.into == "conveyor" for step in f.route] + scene.buffers()
+    return list(dict.fromkeys(named))
 
 
 def time_left_s(conveyor: Conveyor, last_reach_m: float | None, part: PartView) -> float | None:

@@ -21,7 +21,7 @@ from coordinator.capacity import (
     CapacityBound,
     capacity_bound,
 )
-from coordinator.deadlines import belt_deadline_s, cannot_make_it, layout_last_reach_m, rides_off_within
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, layout_belt_reach, rides_off_within
 from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
 from coordinator.dispatch_report import DispatchReport
@@ -96,7 +96,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         # candidate id -> (task id, station), of the last `candidates`
         self._candidates: dict[int, tuple[int, str]] = {}
         # where a belt task's deadline falls
-        self.last_reach_along_belt_m = layout_last_reach_m(self.scene, self.arm_views())
+        self.belt_reach = layout_belt_reach(self.scene, self.arm_views())
 
     @functools.cached_property
     def capacity(self) -> CapacityBound:
@@ -249,12 +249,16 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
 
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""
-        belt = self.scene.conveyor, self.last_reach_along_belt_m, self.parts
-        pending = self.ledger.refresh(now_s, lambda part: rides_off_within(*belt, part.part_id, BUFFER_LEAD_S))
+        belt, reach = self.scene.conveyor, self.belt_reach
+
+        def soon_lost(part) -> bool:
+            return rides_off_within(belt, reach.for_station(part.next_station), self.parts, part.part_id, BUFFER_LEAD_S)
+
+        pending = self.ledger.refresh(now_s, soon_lost)
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)
-                task.deadline_s = belt_deadline_s(*belt[:2], self.parts[task.part_id], now_s)
+                task.deadline_s = belt_deadline_s(belt, reach.for_station(task.target), self.parts[task.part_id], now_s)
         return pending
 
     def reassign_late_tasks(self) -> list[CancelOrder]:

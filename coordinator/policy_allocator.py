@@ -9,7 +9,7 @@ import numpy as np
 
 from coordinator.allocation import ArmView, Eligibility, PartView, TimeCost
 from coordinator.choice_slots import ArmChoices, arm_choices, choice_features, choice_mask, chosen_pairs, masked_choice
-from coordinator.deadlines import layout_last_reach_m, time_left_s
+from coordinator.deadlines import layout_belt_reach, time_left_s
 from coordinator.policy_file import ChoicePolicy
 from coordinator.tasks import Task
 from scenes.schema import Scene
@@ -42,8 +42,8 @@ class PolicyAllocator:
         if not tasks or not any(a.free for a in arms):
             return {}, {}
         choices = arm_choices(arms, tasks, parts, busy_stations, TimeCost(Eligibility(self.scene, arms)))
-        conveyor, last_reach_m = self.scene.conveyor, layout_last_reach_m(self.scene, arms)
-        left = lambda task: time_left_s(conveyor, last_reach_m, parts[task.part_id])
+        conveyor, reach = self.scene.conveyor, layout_belt_reach(self.scene, arms)
+        left = lambda task: time_left_s(conveyor, reach.for_station(task.target), parts[task.part_id])
         features = {
             a.name: choice_features(self.scene, choices[a.name], parts, left) for a in arms if choices[a.name].options
         }

@@ -112,12 +112,12 @@ class TaskChooser:
 
     def features(self, agent: str) -> np.ndarray:
         """What an arm sees of its choices (`coordinator.choice_slots.choice_features`)."""
-        conveyor, last_reach_m = self.scene.conveyor, self.dispatcher.last_reach_along_belt_m
+        conveyor, reach = self.scene.conveyor, self.dispatcher.belt_reach
         return choice_features(
             self.scene,
             self.arm_choices.get(agent, ArmChoices()),
             self.seen,
-            lambda task: time_left_s(conveyor, last_reach_m, self.seen[task.part_id]),
+            lambda task: time_left_s(conveyor, reach.for_station(task.target), self.seen[task.part_id]),
         )
 
     # --- acting ---------------------------------------------------------------------

@@ -60,3 +60,22 @@ def test_a_task_whose_arm_fell_behind_the_part_can_be_taken_by_the_next_arm(cell
     requeued = ledger.requeue(task.task_id, "arm_1 could no longer meet the part")
     assert requeued.state == TaskState.PENDING and requeued.arm is None and requeued.reassignments == 1
     assert ledger.parts[1].attempts == 0, "a reassignment is not a failed attempt"
+
+
+def test_in_a_row_of_bays_a_part_bound_for_its_bay_can_be_taken_until_it_leaves_that_bay():
+    from coordinator.capacity import arm_views
+    from coordinator.deadlines import layout_belt_reach
+
+    one = load_scene("assembly_line")
+    alone = layout_belt_reach(one, arm_views(one))
+    assert alone.for_station("fixture_0") == alone.any_m  # one bay: as it always was
+    row = load_scene("assembly_line", arms=9)
+    reach = layout_belt_reach(row, arm_views(row))
+    bays = [reach.for_station(f) for f in ("fixture_0", "fixture_0_b1", "fixture_0_b2")]
+    assert bays[0] >= alone.any_m  # a belt that goes on: bay 0's arms take parts past where the one bay's ended
+    assert bays[1] == pytest.approx(bays[0] + 1.6, abs=0.05)  # each bay 1.6 m further down
+    assert bays[2] == pytest.approx(row.conveyor.length_m)  # the last bay: to the belt's end, as one bay's
+    assert reach.for_station("base_buffer_b1") == reach.for_station("fixture_0_b1")
+    assert reach.any_m == bays[2] and reach.for_station(None) == reach.any_m  # the whole row: its last bay
+    sorting = load_scene("sorting_line", arms=3)
+    assert layout_belt_reach(sorting, arm_views(sorting)).by_station_m == {}  # a sorted part: any arm, as before
