@@ -252,7 +252,7 @@ class CollisionGuard:
             for other in neighbours:
                 geometry = self.arms[other]
                 geometry.place(self._where(other, t))
-                d = separation_m(me, geometry)
+                d = separation_m(me, geometry, below_m=here)  # no nearer than the nearest so far: not measured
                 here = min(here, d)
                 if d < closest:
                     closest, closest_arm, when = d, other, float(t)
