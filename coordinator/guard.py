@@ -217,8 +217,9 @@ class CollisionGuard:
         path = self.grants.get(arm)
         return path.at(t_s) if path is not None and path.t_start_s <= t_s + 1e-9 else self.state[arm]
 
-    def closing_speed_m_per_s(self, path: TimedPath) -> float:
-        """An upper bound on how fast any point of the asking arm and of the arms moving with it can approach."""
+    def closing_speed_m_per_s(self, path: TimedPath, among: list[str] | None = None) -> float:
+        """An upper bound on how fast any point of the asking arm and of the arms moving with it (`among` these:
+        its neighbours, the only arms it is measured against; every other arm when None) can approach."""
 
         def speed(p: TimedPath) -> float:
             move = QUINTIC_PEAK_SPEED * p.joint_travel_rad / max(p.t_end_s - p.t_start_s, 1e-9)
@@ -227,7 +228,10 @@ class CollisionGuard:
         others = [
             p
             for a, p in self.grants.items()
-            if a != path.arm and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s
+            if a != path.arm
+            and (among is None or a in among)
+            and p.t_done_s > path.t_start_s
+            and p.t_start_s < path.t_done_s
         ]
         return speed(path) + max((speed(p) for p in others), default=0.0)
 
@@ -241,7 +245,7 @@ class CollisionGuard:
         neighbours = self._neighbours(path.arm)
         if not neighbours:
             return Verdict("grant", None, math.inf)
-        speed = max(self.closing_speed_m_per_s(path), 1e-9)
+        speed = max(self.closing_speed_m_per_s(path, neighbours), 1e-9)  # an arm in another bay: not its concern
         closest, closest_arm, when = math.inf, None, None
         t = path.t_start_s
         self.last_check_samples = 0
