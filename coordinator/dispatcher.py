@@ -249,12 +249,10 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
 
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""
-        belt, reach = self.scene.conveyor, self.belt_reach
-
-        def soon_lost(part) -> bool:
-            return rides_off_within(belt, reach.for_station(part.next_station), self.parts, part.part_id, BUFFER_LEAD_S)
-
-        pending = self.ledger.refresh(now_s, soon_lost)
+        belt, reach, parts = self.scene.conveyor, self.belt_reach, self.parts
+        pending = self.ledger.refresh(  # a belt part soon out of reach of the arms that can take it: to a buffer
+            now_s, lambda p: rides_off_within(belt, reach.for_station(p.next_station), parts, p.part_id, BUFFER_LEAD_S)
+        )
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)
