@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from scenes.bay_row import BayRowError, expand_bay_row
 from scenes.randomise import draw
-from scenes.schema import Arm, Conveyor, Scene, Station
+from scenes.schema import Arm, ArmRow, Conveyor, Scene, Station
 from scenes.yaml_file import DeclarationError, first_error, named_in, read_declaration, regular_file  # noqa: F401 (first_error: re-exported)
 from scenes.yaml_file import yaml_text as declaration_text
 
@@ -134,6 +134,26 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
     colours = [p.colour for f in scene.feeders for p in f.parts] or ["#3070d0"]
     arms, stations = list(scene.arms), list(scene.stations)
     x0, y0, z0 = row.first_xyz
+    try:
+        _row_arms_and_bins(row, n, colours, (along, away), arms, stations)
+    except ValidationError as exc:  # a row that runs off the floor plan
+        raise SceneError(label, "arm_row.first_xyz", f"{n} arms: {exc.errors()[0]['msg']}") from None
+    update = {"arms": arms, "stations": stations, "arm_row": None}
+    if scene.conveyor is not None and row.belt_past_last_m is not None:
+        last = (x0 + along[0] * row.spacing_m * (n - 1), y0 + along[1] * row.spacing_m * (n - 1))
+        try:
+            update["conveyor"] = belt_reaching(scene.conveyor, last, row.belt_past_last_m)
+        except ValidationError as exc:
+            why = f"{n} arms need a longer belt than a conveyor may be: {exc.errors()[0]['msg']}"
+            raise SceneError(label, "arm_row.belt_past_last_m", why) from None
+    return scene.model_copy(update=update)
+
+
+def _row_arms_and_bins(
+    row: ArmRow, n: int, colours: list[str], axes: tuple[tuple[float, float], ...], arms: list, stations: list
+) -> None:
+    """The row's `n` arms `arm_i`, each facing the belt, and a bin `bin_i` beside each (appended)."""
+    (along, away), (x0, y0, z0) = axes, row.first_xyz
     for i in range(n):
         bx, by = x0 + along[0] * row.spacing_m * i, y0 + along[1] * row.spacing_m * i
         base_yaw_deg = math.degrees(math.atan2(-away[1], -away[0]))  # facing the belt
@@ -150,15 +170,6 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
                 accepts_colour=colours[i % len(colours)] if n >= len(colours) else colours[i::n],
             )
         )
-    update = {"arms": arms, "stations": stations, "arm_row": None}
-    if scene.conveyor is not None and row.belt_past_last_m is not None:
-        last = (x0 + along[0] * row.spacing_m * (n - 1), y0 + along[1] * row.spacing_m * (n - 1))
-        try:
-            update["conveyor"] = belt_reaching(scene.conveyor, last, row.belt_past_last_m)
-        except ValidationError as exc:
-            why = f"{n} arms need a longer belt than a conveyor may be: {exc.errors()[0]['msg']}"
-            raise SceneError(label, "arm_row.belt_past_last_m", why) from None
-    return scene.model_copy(update=update)
 
 
 def belt_reaching(conveyor: Conveyor, xy: tuple[float, float], past_m: float) -> Conveyor:

@@ -17,6 +17,7 @@ FLOOR_M = 0.008
 """Thickness of bin and tray floors and walls (metres)."""
 BELT_DROP_ALONG_M = 0.06  # a conveyor feeder sets its parts down this far along the belt, unless it says
 NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
+WORLD_M = 100.0  # every position in a scene lies within this of the origin (a line is metres, not kilometres)
 MAX_ARMS = 64  # arms in one scene: each is an OS process of its own (`fleet run` forks one per arm)
 Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
 Vec3 = tuple[float, float, float]
@@ -37,6 +38,13 @@ class Pose2D(Strict):
 
     xyz: Vec3
     yaw_deg: float = Field(0.0, ge=-360, le=360)
+
+    @field_validator("xyz")
+    @classmethod
+    def _within_the_world(cls, v: Vec3) -> Vec3:
+        if any(abs(c) > WORLD_M for c in v):
+            raise ValueError(f"every coordinate must lie within {WORLD_M:g} m of the origin")
+        return v
 
     @property
     def yaw_rad(self) -> float:
@@ -133,6 +141,14 @@ class Station(Strict):
     kind: Literal["bin", "fixture", "tray"]
     pose: Pose2D
     size_m: Vec3 = (0.16, 0.16, 0.05)
+
+    @field_validator("size_m")
+    @classmethod
+    def _a_station_sized(cls, v: Vec3) -> Vec3:
+        if any(not (0.005 <= s <= 3.0) for s in v):
+            raise ValueError("every size must lie between 0.005 and 3 m")
+        return v
+
     accepts_colour: Colour | list[Colour] | None = None
     assembles: list[Name] = []
     """Feeders whose parts are stacked here, bottom first; the bottom part moves on only when the stack is whole."""

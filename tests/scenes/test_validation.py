@@ -78,6 +78,15 @@ def test_a_row_of_bays_takes_whole_bays_only(arms, says):
         load_scene("assembly_line", arms=arms)
 
 
+def test_a_row_that_runs_off_the_floor_plan_names_its_first_arm(tmp_path):
+    data = yaml.safe_load((BUNDLED_DIR / "sorting_line.yaml").read_text())
+    data["arm_row"]["first_xyz"] = [99.0, -0.35, 0.0]  # found by hypothesis: the row's arms past 100 m raised
+    path = tmp_path / "far_row.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(SceneError, match=r"far_row.yaml: arm_row.first_xyz: 4 arms: .*within 100 m of the origin"):
+        load_scene(str(path))
+
+
 def broken(tmp_path: Path, edit) -> Path:
     data = yaml.safe_load((BUNDLED_DIR / "assembly_line.yaml").read_text())
     edit(data)
@@ -123,6 +132,9 @@ CASES = [
     ("duplicate arm", set_(["arms", 1, "name"], "arm_0"), "arms.1.name", "duplicate"),
     ("feeder into nothing", set_(["feeders", 1, "into"], "nowhere"), "feeders.1.into", "no station"),
     ("infeed past the belt", set_(["feeders", 0, "along_m"], 1.3), "feeders.0.along_m", "past the belt's end"),
+    # found by hypothesis (tests/fleet/cli/test_check_properties.py): the capacity check's reach cache overflowed
+    ("a station too tall", set_(["stations", 0, "size_m"], [0.1, 0.1, 1.8e306]), "stations.0.size_m", "and 3 m"),
+    ("a base far off", set_(["arms", 0, "base", "xyz"], [1e300, 0.0, 0.0]), "arms.0.base.xyz", "within 100 m"),
     ("a bin fed along a belt", set_(["feeders", 1, "along_m"], 0.5), "feeders.1.along_m", "only a conveyor feeder"),
     ("control not dividing physics", set_(["control_hz"], 150), "(top level)", "whole multiple"),
     ("loss of one or more", set_(["network"], {"loss": 1.0}), "network.loss", "less than 1"),
