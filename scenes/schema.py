@@ -23,6 +23,13 @@ Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
 Vec3 = tuple[float, float, float]
 
 
+def sizes_between(v: Vec3, low_m: float, high_m: float) -> Vec3:
+    """`v` when every size lies within [low_m, high_m]; else the one error a part's and a station's sizes give."""
+    if any(not (low_m <= s <= high_m) for s in v):
+        raise ValueError(f"every size must lie between {low_m:g} and {high_m:g} m")
+    return v
+
+
 class Strict(BaseModel):
     """Base for every scene model: unknown fields are errors, every number is finite; models are immutable."""
 
@@ -86,9 +93,7 @@ class PartType(Strict):
     @field_validator("size_m")
     @classmethod
     def _positive_sizes(cls, v: Vec3) -> Vec3:
-        if any(not (0.005 <= s <= 0.2) for s in v):
-            raise ValueError("every size must lie between 0.005 and 0.2 m")
-        return v
+        return sizes_between(v, 0.005, 0.2)
 
     @model_validator(mode="after")
     def _round_cylinder(self) -> PartType:
@@ -145,9 +150,7 @@ class Station(Strict):
     @field_validator("size_m")
     @classmethod
     def _a_station_sized(cls, v: Vec3) -> Vec3:
-        if any(not (0.005 <= s <= 3.0) for s in v):
-            raise ValueError("every size must lie between 0.005 and 3 m")
-        return v
+        return sizes_between(v, 0.005, 3.0)
 
     accepts_colour: Colour | list[Colour] | None = None
     assembles: list[Name] = []
