@@ -66,7 +66,8 @@ def choice_features(
     """One arm's choices as a vector (float32, `CHOICE_FEATURES` long): how soon a belt part rides into its reach /
     `LOOKAHEAD_S`, then per slot: valid, pick point, place point (the station's centre at its surface), estimated
     seconds / 10, on the belt (0/1) and the slack (seconds left to the part's deadline after the task / 10; 0 for a
-    part at rest). `time_left_s(task)`: seconds until a belt task's part rides out of every arm's reach."""
+    part at rest). `time_left_s(task)`: seconds until a belt task's part rides out of reach of the arms that can
+    take it."""
     slots = np.zeros((SLOTS, SLOT_FEATURES))
     for i, (task, seconds) in enumerate(choices.options):
         station = scene.station(task.target)

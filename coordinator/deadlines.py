@@ -37,7 +37,7 @@ class BeltReach:
     by_station_m: dict[str, float] = field(default_factory=dict)
 
     def for_station(self, station: str | None) -> float | None:
-        return self.by_station_m.get(station, self.any_m) if station is not None else self.any_m
+        return self.by_station_m.get(station, self.any_m)
 
 
 _BELT_REACH: dict[str, BeltReach] = {}  # layout -> its belt reach
@@ -69,8 +69,8 @@ def layout_belt_reach(scene: Scene, arms: list[ArmView]) -> BeltReach:
 
 
 def _routed_stations(scene: Scene) -> list[str]:
-    """The stations a belt part may be bound for by name: its feeder's route, or a buffer (not a colour's)."""
-    named = [step for f in scene.feeders if f.into == "conveyor" for step in f.route] + scene.buffers()
+    """The stations a belt part may be bound for by name: its feeder's route's first, or a buffer (not a colour's)."""
+    named = [f.route[0] for f in scene.feeders if f.into == "conveyor" and f.route] + scene.buffers()
     return list(dict.fromkeys(named))
 
 

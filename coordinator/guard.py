@@ -217,9 +217,9 @@ class CollisionGuard:
         path = self.grants.get(arm)
         return path.at(t_s) if path is not None and path.t_start_s <= t_s + 1e-9 else self.state[arm]
 
-    def closing_speed_m_per_s(self, path: TimedPath, among: list[str] | None = None) -> float:
-        """An upper bound on how fast any point of the asking arm and of the arms moving with it (`among` these:
-        its neighbours, the only arms it is measured against; every other arm when None) can approach."""
+    def closing_speed_m_per_s(self, path: TimedPath, among: list[str]) -> float:
+        """An upper bound on how fast any point of the asking arm and of the arms moving with it (`among` these: its
+        neighbours, the only arms it is measured against) can approach."""
 
         def speed(p: TimedPath) -> float:
             move = QUINTIC_PEAK_SPEED * p.joint_travel_rad / max(p.t_end_s - p.t_start_s, 1e-9)
@@ -228,10 +228,7 @@ class CollisionGuard:
         others = [
             p
             for a, p in self.grants.items()
-            if a != path.arm
-            and (among is None or a in among)
-            and p.t_done_s > path.t_start_s
-            and p.t_start_s < path.t_done_s
+            if a != path.arm and a in among and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s
         ]
         return speed(path) + max((speed(p) for p in others), default=0.0)
 

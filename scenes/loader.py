@@ -133,7 +133,7 @@ def expand_arm_row(scene: Scene, count: int | None, label: str = "<scene>") -> S
     away = (math.sin(yaw), -math.cos(yaw))  # to the belt's right, where the arms stand
     colours = [p.colour for f in scene.feeders for p in f.parts] or ["#3070d0"]
     arms, stations = list(scene.arms), list(scene.stations)
-    x0, y0, z0 = row.first_xyz
+    x0, y0, _ = row.first_xyz
     try:
         _row_arms_and_bins(row, n, colours, (along, away), arms, stations)
     except ValidationError as exc:  # a row that runs off the floor plan
