@@ -12,6 +12,7 @@ spot of belt.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -51,6 +52,8 @@ class CachedReach:
     does not converge does the full search run (every tilt, restarts: 100+ ms for a short arm that must lean). A
     belt part enters a new cell every few decisions, so this keeps a decision's reach checks short."""
 
+    search_s: float = 0.0  # wall time spent searching cells asked the first time (a class default: older pickles)
+
     def __init__(self, top_down: TopDownIK) -> None:
         self.top_down = top_down
         self.velocity_limit = top_down.km.arm_velocity_limit
@@ -66,10 +69,12 @@ class CachedReach:
         x, y, z = (point.tolist() if isinstance(point, np.ndarray) else [float(v) for v in point])[:3]
         key = (round(x / GRID_M), round(y / GRID_M), round(z / GRID_M))  # plain floats: numpy scalars cost more here
         if key not in self._cache:
+            started = time.perf_counter()
             spot = np.array(key, float) * GRID_M
             self._cache[key] = self._from_neighbour(key, spot) or self.top_down.reach_pose(spot)
             if self._cache[key] is not None:
                 self._reached.append(key)
+            self.search_s += time.perf_counter() - started
         found = self._cache[key]
         return None if found is None else found[1]
 

@@ -63,3 +63,20 @@ class RaisesEveryThird:
 def not_an_allocator(scene):
     """Makes something without `allocate`."""
     return object()
+
+
+class SearchesNewSpots:
+    """Greedy's answer, after asking each arm's reach about spots no one asked before (clawfleet's IK searches, not
+    the plug-in's own time): a sound plug-in whose first look at a spot is slow."""
+
+    name = "searches_new_spots"
+
+    def __init__(self, scene) -> None:
+        self.greedy, self.calls = GreedyNearest(scene), 0
+
+    def allocate(self, tasks, arms, parts, busy_stations):
+        self.calls += 1
+        for arm in arms:
+            for k in range(4):  # inside its declared reach_m, out of its real one: a full search each
+                arm.reach((arm.base_xyz[0] + 0.5 + 0.01 * k, arm.base_xyz[1] + 0.01 * self.calls, 0.3))
+        return self.greedy.allocate(tasks, arms, parts, busy_stations)

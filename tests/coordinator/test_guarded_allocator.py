@@ -6,7 +6,7 @@ import pytest
 
 from coordinator.allocation import ArmView, CachedReach, GreedyNearest, PartView
 from coordinator.allocator_plugins import AllocatorError, allocator_factory, known_allocators, make_any_allocator
-from coordinator.guarded_allocator import GuardedAllocator, assignment_problem
+from coordinator.guarded_allocator import GuardedAllocator, assignment_problem, reach_search_s
 from coordinator.ledger import Ledger
 from robots.frames import yaw_transform
 from robots.registry import get_robot
@@ -57,6 +57,17 @@ def test_each_fault_costs_one_decision_greedy_takes_said_once_counted_always(dec
     for _ in range(3):
         assert guarded.allocate(tasks, arms, parts, set()) == greedy
     assert guarded.faults == {kind: 3} and len(lines) == 1 and said in lines[0] and "greedy decides" in lines[0]
+
+
+def test_a_plug_in_is_not_charged_for_the_reach_searches_of_spots_asked_the_first_time(decision):
+    """The budget is the plug-in's own time: clawfleet's IK for a spot nobody asked before (cached after) is not."""
+    scene, tasks, arms, parts = decision
+    guarded = make_any_allocator(f"{FAULTY}:SearchesNewSpots", scene)
+    searched = reach_search_s(arms)
+    for _ in range(2):
+        assert guarded.allocate(tasks, arms, parts, set()) == GreedyNearest(scene).allocate(tasks, arms, parts, set())
+    assert reach_search_s(arms) - searched > 2 * guarded.budget_s, "the searches took longer than the budget"
+    assert not guarded.faults
 
 
 def test_answers_that_break_the_rules_every_allocator_obeys_are_named(decision):
