@@ -130,6 +130,7 @@ class NodeFactory:
         self._heard = threading.Condition()
         self._one_spawn = threading.Lock()
         self._closing = False
+        self._spawned = False  # asked to start a node at least once
         self._reader = threading.Thread(target=self._read, name="node-factory", daemon=True)
         self._reader.start()
 
@@ -154,6 +155,7 @@ class NodeFactory:
         if module is None:
             raise ValueError(f"not a node the factory can fork: {' '.join(argv)}")
         request = {"module": module, "args": args, "log": str(log), "idle": idle}
+        self._spawned = True
         with self._one_spawn, self._heard:  # one request in flight: the next reply is its own
             try:
                 self.proc.stdin.write(json.dumps(request).encode() + b"\n")
@@ -195,6 +197,8 @@ class NodeFactory:
         if self._closing:
             return
         self._closing = True
+        if not self._spawned and self.proc.poll() is None:  # nothing of it to reap (a refused `fleet run`): do not
+            self.proc.kill()  # wait for the imports it is still doing to end before it reads that it may go
         if self.proc.stdin and not self.proc.stdin.closed:
             try:
                 self.proc.stdin.close()
