@@ -42,7 +42,7 @@ from fleet.bus.router_audit import RouterAudit
 from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open_listening_session
 from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
 from fleet.record.spool import BusSpool
-from fleet.sim.server import COORDINATOR_TIMEOUT_S, SimServer
+from fleet.sim.server import COORDINATOR_TIMEOUT_S, LOCKSTEP_TIMEOUT_S, SimServer
 from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, forget_wall_clock_flights, restore_sim
 from fleet.sim.snapshot_asks import await_restored
 from fleet.sim.world import World
@@ -104,7 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="wait for the coordinator's tick (lockstep: every 10 Hz; realtime: at start)",
     )
     parser.add_argument(
-        "--lockstep-timeout", type=float, default=1.0, help="wall seconds before a silent controller is lost"
+        "--lockstep-timeout",
+        type=float,
+        default=LOCKSTEP_TIMEOUT_S,
+        help=f"wall seconds before a silent controller is lost (default {LOCKSTEP_TIMEOUT_S:g})",
     )
     parser.add_argument(
         "--coordinator-timeout",

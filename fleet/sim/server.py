@@ -41,6 +41,9 @@ MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for it
 VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
 COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent coordinator: a decision may search for
 # reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
+LOCKSTEP_TIMEOUT_S = 3.0  # wall seconds a lockstep tick waits for a silent controller before its arm is lost: it only
+# ends the wait for a dead or hung process (the line's outcome is the same tick either way), and a controller starved
+# of the CPU for over 1 s (two restored lines beside training examples on 2 cores) lost its arm at the 1 s this was
 
 
 class SimServer(SimLockstep):
@@ -57,7 +60,7 @@ class SimServer(SimLockstep):
         *,
         mode: str = "lockstep",
         watchdog_s: float = 0.25,
-        lockstep_timeout_s: float = 1.0,
+        lockstep_timeout_s: float = LOCKSTEP_TIMEOUT_S,
         coordinator_timeout_s: float | None = None,
         first_command_timeout_s: float = 30.0,
         coordinator: bool = False,
