@@ -5,8 +5,8 @@ decision: greedy decides instead. Each kind of fault is said once (standard erro
 
 Timing a call is the one thing that makes a lockstep run depend on the machine: a plug-in close to its budget
 may fall back on one run and not on another. The budget is the plug-in's own time: a reach answer clawfleet
-searches for it the first time a spot is asked (Pinocchio IK, 20-80 ms where a spot is out of reach; cached for the
-line after) is not charged to it. The built-ins are not guarded.
+searches for it the first time a spot is asked (Pinocchio IK, up to ~90 ms where a leaning arm cannot reach it;
+cached for the line after) is not charged to it. The built-ins are not guarded.
 """
 
 from __future__ import annotations

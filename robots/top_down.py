@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from robots.built_once import BuiltOnce
+from robots.chain_span import ChainSpan
 from robots.frames import top_down_rotation, transform, wrap_angle
 from robots.ik import IKOptions, IKResult, solve_ik
 from robots.kinematics import KinematicModel
@@ -75,6 +76,10 @@ class TopDownIK(BuiltOnce):
         every = round(REACH_TILT_STEP_DEG / TILT_STEP_DEG)  # reach checks try fewer tilts, each one the skill tries too
         self.reach_tilts_rad = self.tilts_rad[::every] + (
             [self.tilts_rad[-1]] if (len(self.tilts_rad) - 1) % every else []
+        )
+        self.chain_span = ChainSpan.of(self.km)  # where straight down cannot reach, told without IK
+        self._shoulder_world = (
+            (self.base_to_world @ np.append(self.chain_span.shoulder_base, 1.0))[:3] if self.chain_span else None
         )
         args = (spec, self.base_to_world.copy(), self.km, options)
         self._built_from(args, self.built_key(*args))
@@ -225,16 +230,17 @@ class TopDownIK(BuiltOnce):
         return None if found is None else found[1]
 
     def reach_pose(self, position_world: np.ndarray, within_m: float | None = None) -> tuple[float, np.ndarray] | None:
-        """`joints_for`'s answer with the tilt it leans by: (tilt_rad, arm joints), or None."""
+        """`joints_for`'s answer with the tilt it leans by: (tilt_rad, arm joints), or None. Straight down is not
+        searched where the chain cannot stretch that far (`ChainSpan`: a certain no, the search's own answer)."""
         if self.beyond(position_world, within_m):
             return None
-        return self.least_tilt(
-            np.asarray(position_world, float)[:3],
-            None,
-            self.aimed_home(position_world),
-            self._middling_centre(),
-            tilts_rad=self.reach_tilts_rad,
-        )
+        spot, centre = np.asarray(position_world, float)[:3], self._middling_centre()
+        tilts = self.reach_tilts_rad
+        if self.chain_span is not None and self.chain_span.beyond_straight_down(spot, centre, self._shoulder_world):
+            tilts = [t for t in tilts if t != 0.0]
+            if not tilts:
+                return None
+        return self.least_tilt(spot, None, self.aimed_home(position_world), centre, tilts_rad=tilts)
 
     def joints_near(self, position_world: np.ndarray, tilt_rad: float, q_near: np.ndarray) -> np.ndarray | None:
         """The joints reaching a spot next to one `reach_pose` answered (`tilt_rad`, `q_near`): one solve at that
