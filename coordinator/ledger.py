@@ -26,7 +26,7 @@ from scenes.schema import Scene
 HELD = "held"
 EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
-MAX_ATTEMPTS = 3  # failed attempts at a part (a grasp on nothing, a part not seen where placed) before it is given up
+MAX_ATTEMPTS = 3
 PLACED_GRACE_S = 3.0
 
 
@@ -174,8 +174,6 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
             part.refused_by.add(task.arm)
         if part.location == HELD and part.fate == PartFate.ON_LINE:
             self._put_back(part)
-        if code == FailureCode.MOTION_DENIED:
-            return  # an approach the guard denied left the part untouched: "not now", no attempt at it
         part.attempts += 1
         if part.attempts >= MAX_ATTEMPTS and part.fate == PartFate.ON_LINE:
             part.fate, part.reason = PartFate.FAILED, f"{MAX_ATTEMPTS} attempts failed; last: {reason}"

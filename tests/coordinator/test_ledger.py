@@ -70,19 +70,6 @@ def test_a_failed_grasp_is_retried_then_given_up_with_the_reason():
     ]
 
 
-def test_an_approach_the_guard_denies_is_no_attempt_however_often():
-    """A denied approach leaves the part untouched: the task goes back to the pool and the part is never given up
-    for it (a part given up stays where it lies: a tray part would block its tray for good)."""
-    lg = ledger()
-    lg.arrived(0, "bases", 0, 1.0)
-    for attempt in range(2 * MAX_ATTEMPTS):
-        task = only(lg.refresh(2.0 + attempt))
-        lg.assign(task.task_id, "arm_0", 2.0 + attempt)
-        lg.arm_report("arm_0", task.task_id, "failed", 2.5 + attempt, "motion denied", FailureCode.MOTION_DENIED)
-        assert task.state == TaskState.FAILED
-    assert only(lg.refresh(10.0)).part_id == 0 and lg.unfinished()[0]["fate"] == "on_line"
-
-
 def test_a_lost_arms_task_goes_back_to_the_pool_unless_the_part_is_in_its_claw():
     lg = Ledger(load_scene("sorting_line"))
     lg.arrived(0, "mixed", 0, 1.0)
