@@ -59,7 +59,7 @@ def test_each_fault_costs_one_decision_greedy_takes_said_once_counted_always(dec
     assert guarded.faults == {kind: 3} and len(lines) == 1 and said in lines[0] and "greedy decides" in lines[0]
 
 
-def test_a_plug_in_is_not_charged_for_the_reach_searches_of_spots_asked_the_first_time(decision):
+def test_a_plug_in_is_not_charged_for_the_reach_searches_of_spots_asked_the_first_time():
     """The budget is the plug-in's own time: clawfleet's IK for a spot nobody asked before (cached after) is not."""
     scene = load_scene("mixed_fleet")  # an OpenClaw, an SO-101 (whose searches are the long ones) and a Panda
     arms = [ArmView(a.name, a.base.xyz, True, CachedReach.of(a), tuple(get_robot(a.model).home_q)) for a in scene.arms]
