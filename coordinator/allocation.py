@@ -12,7 +12,6 @@ spot of belt.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -20,81 +19,22 @@ from typing import Protocol
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from coordinator.reach_cache import REACH_IK, CachedReach  # noqa: F401 (re-exported: the allocators' public helpers)
 from coordinator.tasks import CONVEYOR, Task
-from robots.frames import yaw_transform
-from robots.ik import IKOptions
-from robots.registry import get_robot
 from robots.skills.pick_place import PickPlaceTiming
-from robots.top_down import TopDownIK
 from robots.trajectory import JointSegment
-from scenes.schema import Arm, Scene
+from scenes.schema import Scene
 
 EARLIEST_ARRIVAL_S = 0.6  # the soonest an arm can be above a part
 PICK_LEAD_S = 1.5  # about the time an arm needs to arrive above a part
 GRASP_WINDOW_S = 1.5  # descend, close and lift: the part must stay in reach this long after arrival
 HOVER_M = 0.1  # reach is checked this far above the part or the station surface
-REACH_IK = IKOptions(restarts=8)  # a reach check must not miss a reachable spot for an unlucky start
 CELL_MARGIN_M = 0.06
-GRID_M = 0.01
-NEAR_CELLS, NEAR_TRIES = 6, 2  # a new reach cell is first solved from the nearest reached cells this close (cells)
 # optimal: which tasks go first is earliest-due first; which arm takes each is the least total time
 URGENCY_S_PER_S = 10.0
 LOOKAHEAD_S, LOOKAHEAD_STEP_S = 4.0, 0.5  # optimal: a free arm may wait this long for a belt part riding into its reach
 # a task with no deadline (a part at rest in a station) counts as due this long after it appeared
 NO_DEADLINE_HORIZON_S = 30.0
-
-
-class CachedReach:
-    """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK, cached on a 1 cm
-    grid.
-
-    A new cell near a reached one is first tried from that cell's answer (one solve, a few ms); only where that
-    does not converge does the full search run (every tilt, restarts: 100+ ms for a short arm that must lean). A
-    belt part enters a new cell every few decisions, so this keeps a decision's reach checks short."""
-
-    search_s: float = 0.0  # wall time spent searching cells asked the first time (a class default: older pickles)
-
-    def __init__(self, top_down: TopDownIK) -> None:
-        self.top_down = top_down
-        self.velocity_limit = top_down.km.arm_velocity_limit
-        self._cache: dict[tuple[int, int, int], tuple[float, np.ndarray] | None] = {}  # cell -> (tilt, joints) or None
-        self._reached: list[tuple[int, int, int]] = []  # the cells reached, in the order they were
-
-    @classmethod
-    def of(cls, arm: Arm) -> CachedReach:
-        """The reach of a scene's arm where it stands (its robot model, the reach checks' IK options)."""
-        return cls(TopDownIK(get_robot(arm.model), yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK))
-
-    def joints(self, point) -> np.ndarray | None:
-        x, y, z = (point.tolist() if isinstance(point, np.ndarray) else [float(v) for v in point])[:3]
-        key = (round(x / GRID_M), round(y / GRID_M), round(z / GRID_M))  # plain floats: numpy scalars cost more here
-        if key not in self._cache:
-            started = time.perf_counter()
-            spot = np.array(key, float) * GRID_M
-            self._cache[key] = self._from_neighbour(key, spot) or self.top_down.reach_pose(spot)
-            if self._cache[key] is not None:
-                self._reached.append(key)
-            self.search_s += time.perf_counter() - started
-        found = self._cache[key]
-        return None if found is None else found[1]
-
-    def _from_neighbour(self, key: tuple[int, int, int], spot: np.ndarray) -> tuple[float, np.ndarray] | None:
-        """The spot reached from the nearest reached cells (up to `NEAR_TRIES` of them within `NEAR_CELLS` on every
-        axis, nearest first, ties by the order they were reached: the same queries give the same cache), or None."""
-        if not self._reached:
-            return None
-        cells = np.array(self._reached)
-        offsets = cells - np.array(key)
-        close = np.flatnonzero(np.abs(offsets).max(axis=1) <= NEAR_CELLS)
-        for i in close[np.argsort((offsets[close] ** 2).sum(axis=1), kind="stable")][:NEAR_TRIES]:
-            tilt, q_near = self._cache[self._reached[i]]
-            q = self.top_down.joints_near(spot, tilt, q_near)
-            if q is not None:
-                return tilt, q
-        return None
-
-    def __call__(self, point) -> bool:
-        return self.joints(point) is not None
 
 
 @dataclass(frozen=True)

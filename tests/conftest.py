@@ -70,14 +70,27 @@ LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the x
 TIMELINE = "CLAWFLEET_TEST_TIMELINE"  # a file: each test's worker, when it asked for its locks, got them, ended
 
 
+CACHE = "CLAWFLEET_CACHE_DIR"  # the reach tables: one folder of the session's own, for all its workers and lines
+OWN_CACHE = "CLAWFLEET_TEST_OWN_CACHE"
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    if not hasattr(config, "workerinput") and config.getoption("numprocesses", None):
+    if hasattr(config, "workerinput"):
+        return
+    if config.getoption("numprocesses", None):
         os.environ[LOCKS] = tempfile.mkdtemp(prefix="clawfleet-tests-")  # the workers start after this
+    if CACHE not in os.environ:  # not the user's tables: a run's outcome never depends on them, its time would
+        os.environ[CACHE] = os.environ[OWN_CACHE] = tempfile.mkdtemp(prefix="clawfleet-cache-")
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    if not hasattr(config, "workerinput") and LOCKS in os.environ:
+    if hasattr(config, "workerinput"):
+        return
+    if LOCKS in os.environ:
         shutil.rmtree(os.environ.pop(LOCKS), ignore_errors=True)
+    if OWN_CACHE in os.environ:
+        shutil.rmtree(os.environ.pop(OWN_CACHE), ignore_errors=True)
+        os.environ.pop(CACHE, None)
 
 
 def lock_modes(item: pytest.Item) -> tuple[int, int | None]:

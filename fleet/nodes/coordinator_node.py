@@ -32,6 +32,7 @@ from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT
 from coordinator.orders import Decision
+from coordinator.reach_cache import save_shared
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.history import HistoryUnavailable
 from fleet.bus.keys import Keys
@@ -429,6 +430,7 @@ def main(argv: list[str] | None = None) -> int:
             node.publish_progress()
             node.close()
             write_report(args.report, node.report() | {"stopped_by": stop.reason})
+            save_shared()  # the reach this run worked out, for the next (a forked node runs no exit handlers)
     return 0
 
 

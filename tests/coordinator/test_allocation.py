@@ -194,31 +194,6 @@ def test_time_costs_use_each_arm_robots_own_timing_on_a_mixed_line():
     assert np.isfinite(own) and own > openclaws  # the SO-101 transfers at 0.15 of its joints' speed, not 0.45
 
 
-def test_reach_cells_solved_from_a_reached_neighbour_give_the_full_searchs_answers_with_few_full_searches():
-    if not is_available("so101"):
-        pytest.skip("needs the models extra")
-    so101 = load_scene("mixed_fleet").arm("arm_1")  # a short arm that must lean: its full search is the costly one
-    spec = get_robot("so101")
-    along_belt = [np.array([x, 0.0, 0.2]) for x in np.arange(0.45, 1.0, 0.02)]
-    cached = CachedReach.of(so101)
-    searches = []
-    search = cached.top_down.reach_pose
-    cached.top_down.reach_pose = lambda spot: searches.append(spot) or search(spot)  # counts the full searches
-    answers = [cached.joints(p) for p in along_belt]
-    full = CachedReach.of(so101).top_down
-    cells = [np.round(p / 0.01) * 0.01 for p in along_belt]
-    assert [a is not None for a in answers] == [full.joints_for(c) is not None for c in cells]
-    reached = sum(a is not None for a in answers)
-    assert reached >= 10 and len(searches) <= len(along_belt) - reached + 1, (
-        "each reached cell after the first came from a neighbour"
-    )
-    centre = np.asarray(spec.grasp_centre_tool(sum(spec.grasp_width_m) / 2))
-    for c, q in zip(cells, answers):
-        if q is not None:  # a real reach: the claw's grasp centre is at the spot
-            tool = full.base_to_world @ full.km.frame_pose(full.km.full_q(q))
-            assert np.linalg.norm(tool[:3, :3] @ centre + tool[:3, 3] - c) < 1e-3
-
-
 def owner_views(bases_xy: list[tuple[float, float]], live: list[bool]) -> list[ArmView]:
     """Arms standing at `bases_xy` (no reach needed: only belt ownership is asked of them)."""
     return [ArmView(f"arm_{i}", (x, y, 0.0), True, None, live=up) for i, ((x, y), up) in enumerate(zip(bases_xy, live))]

@@ -1,0 +1,119 @@
+"""Reach answers kept on disk, one file per arm placement: what one run worked out, every later run reads.
+
+Each cell's answer is a function of the cell alone (`coordinator.reach_cache`), so a table filled by any run, in any
+order, gives the same decisions; the file's name holds a hash of everything an answer depends on (the robot's
+declaration and URDF, where the arm stands, the IK options and code, the grid, the numerical libraries), so a
+changed input finds a file of its own. `CLAWFLEET_CACHE_DIR` says where the tables live (default
+`$XDG_CACHE_HOME/clawfleet`, else `~/.cache/clawfleet`); `off` keeps nothing on disk.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import fcntl
+import hashlib
+import importlib
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+import pinocchio
+
+from robots.top_down import TopDownIK
+
+CACHE_DIR_ENV = "CLAWFLEET_CACHE_DIR"
+# the modules whose code an answer depends on: a change to any of them is a new table
+ANSWERED_BY = (
+    "coordinator.reach_cache",
+    "robots.top_down",
+    "robots.ik",
+    "robots.chain_span",
+    "robots.kinematics",
+    "robots.frames",
+)
+
+
+def tables_dir() -> Path | None:
+    """Where reach tables are kept, or None when `CLAWFLEET_CACHE_DIR=off`."""
+    chosen = os.environ.get(CACHE_DIR_ENV, "")
+    if chosen == "off":
+        return None
+    if chosen:
+        return Path(chosen) / "reach"
+    home = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(home) / "clawfleet" / "reach"
+
+
+def table_key(top_down: TopDownIK, grid: tuple) -> str:
+    """A hash of everything a cell's answer depends on."""
+    spec = top_down.spec
+    h = hashlib.sha256()
+    for f in dataclasses.fields(spec):
+        value = getattr(spec, f.name)
+        if not callable(value):
+            h.update(f"{f.name}={value!r};".encode())
+    h.update(spec.urdf_text().encode())
+    h.update(np.asarray(top_down.base_to_world, float).tobytes())
+    h.update(repr((top_down.options, grid, np.__version__, pinocchio.__version__)).encode())
+    for name in ANSWERED_BY:
+        h.update(Path(importlib.import_module(name).__file__).read_bytes())
+    return h.hexdigest()[:24]
+
+
+def table_path(robot: str, key: str) -> Path | None:
+    """The file of a robot's table with this key (None when tables are off)."""
+    folder = tables_dir()
+    return None if folder is None else folder / f"{robot}-{key}.npz"
+
+
+def read_table(path: Path | None) -> dict:
+    """The cells a table file holds ({} when there is none, or it cannot be read: a table is only ever a cache)."""
+    if path is None or not path.exists():
+        return {}
+    try:
+        with np.load(path) as data:
+            cells, tilts, qs = data["cells"], data["tilt_rad"], data["q"]
+    except (OSError, ValueError, KeyError, EOFError):
+        return {}
+    return {tuple(map(int, c)): (None if np.isnan(t) else (float(t), q.copy())) for c, t, q in zip(cells, tilts, qs)}
+
+
+def write_table(path: Path, answers: dict, dof: int) -> None:
+    """Write `answers` merged with what the file holds now (another run may have added to it meanwhile), under a
+    lock, replacing the file in one step so a reader never sees half of it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        merged = read_table(path) | answers
+        cells = np.array(sorted(merged), dtype=np.int32).reshape(-1, 3)
+        tilts = np.array([np.nan if merged[c] is None else merged[c][0] for c in map(tuple, cells.tolist())])
+        qs = np.array([np.full(dof, np.nan) if merged[c] is None else merged[c][1] for c in map(tuple, cells.tolist())])
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, cells=cells, tilt_rad=tilts, q=qs.reshape(len(cells), dof))
+            os.replace(tmp, path)
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+
+
+def save_reach(reaches: Iterable) -> int:
+    """Add the cells these `CachedReach`es worked out to their arms' tables; returns how many cells were new to this
+    process's tables. A table that cannot be written is skipped (a read-only home must not fail a run)."""
+    written = 0
+    for reach in reaches:
+        fresh = getattr(reach, "worked_out", set())
+        if not fresh or reach.table_path is None:
+            continue
+        known = reach.answers()
+        try:
+            write_table(reach.table_path, {c: known[c] for c in fresh}, reach.top_down.spec.arm_dof)
+        except OSError:
+            continue
+        written += len(fresh)
+        reach.worked_out = set()
+    return written
