@@ -27,11 +27,20 @@ HELD = "held"
 EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
 MAX_ATTEMPTS = 3
+# a denied approach is no attempt; the arm is not given the part again for `DENIAL_HOLD_S` (it gives way meanwhile:
+# an arm left standing goes home), and a part denied `MAX_DENIALS` times is given up
+MAX_DENIALS = 10
+DENIAL_HOLD_S = 2.0
 PLACED_GRACE_S = 3.0
 
 
 # fixtures are pipelined unless a run asks otherwise (`--no-pipeline`): the one default of every front end
 PIPELINE_DEFAULT = True
+
+
+def refused_by(part: PartRecord) -> tuple[str, ...]:
+    """The arms a task for the part may not be given: those that cannot grasp it as it lies, those held off it."""
+    return tuple(sorted(part.refused_by | {a for a, _ in part.held_off}))
 
 
 class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
@@ -148,11 +157,11 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         if task.state == TaskState.ASSIGNED and phase not in IDLE_PHASES:
             task.state = TaskState.ACTIVE
         if phase == Phase.FAILED:
-            self._fail_attempt(task, failure or "the arm's skill failed", failure_code)
+            self._fail_attempt(task, failure or "the arm's skill failed", failure_code, now_s)
         elif phase == Phase.DONE:
             first = self._finished_at.setdefault(task.task_id, now_s)
             if now_s - first > PLACED_GRACE_S:
-                self._fail_attempt(task, f"placed, but never seen resting at {task.target}")
+                self._fail_attempt(task, f"placed, but never seen resting at {task.target}", now_s=now_s)
 
     def arm_lost(self, arm: str, now_s: float) -> list[int]:
         """Put a lost arm's tasks back; a part already in its claw is given up. Returns the task ids."""
@@ -166,9 +175,12 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
                     part.fate, part.reason = PartFate.FAILED, f"in the claw of lost arm {arm}"
         return ids
 
-    def _fail_attempt(self, task: Task, reason: str, code: str = "") -> None:
+    def _fail_attempt(self, task: Task, reason: str, code: str = "", now_s: float = 0.0) -> None:
         part = self.parts[task.part_id]
         self._close(task, TaskState.FAILED, reason)
+        if code == FailureCode.MOTION_DENIED and task.arm is not None:
+            self._denied(part, task.arm, reason, now_s)
+            return
         # its pose will not change: another arm must take it
         if code == FailureCode.UNREACHABLE and task.arm is not None:
             part.refused_by.add(task.arm)
@@ -177,6 +189,24 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         part.attempts += 1
         if part.attempts >= MAX_ATTEMPTS and part.fate == PartFate.ON_LINE:
             part.fate, part.reason = PartFate.FAILED, f"{MAX_ATTEMPTS} attempts failed; last: {reason}"
+
+    def _denied(self, part: PartRecord, arm: str, reason: str, now_s: float) -> None:
+        """An approach the guard denied: no attempt, but the arm is held off the part a while (two arms each in the
+        other's way would otherwise meet again at the next decision, for ever)."""
+        part.denials += 1
+        part.held_off = (*[(a, t) for a, t in part.held_off if a != arm], (arm, now_s + DENIAL_HOLD_S))
+        if part.denials >= MAX_DENIALS and part.fate == PartFate.ON_LINE:
+            part.fate, part.reason = PartFate.FAILED, f"{MAX_DENIALS} approaches denied; last: {reason}"
+
+    def _release_holds(self, part: PartRecord, now_s: float) -> None:
+        """Arms whose hold on the part is over may be given it again (its pending task no longer refuses them)."""
+        held = tuple((a, t) for a, t in part.held_off if t > now_s)
+        if held == part.held_off:
+            return
+        part.held_off = held
+        task = self._open_task(part.part_id)
+        if task is not None and task.state == TaskState.PENDING:
+            task.refused_by = refused_by(part)
 
     def _put_back(self, part: PartRecord) -> None:
         """A task failed with its part thought in the claw (a grasp that closed on nothing, a part never seen resting
@@ -201,6 +231,8 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         a belt part rides out of every arm's reach soon (the dispatcher knows the belt); such a part whose next
         station is not ready for it is set down at a free buffer instead (`Station.buffer`), and goes on from there."""
         for part in self.parts.values():
+            if part.held_off:
+                self._release_holds(part, now_s)
             if self.buffers and part.part_id in self._open_by_part:
                 self._unbuffer(self.tasks[self._open_by_part[part.part_id]], part)
             if part.fate != PartFate.ON_LINE or part.part_id in self._open_by_part or part.location in (HELD, INCOMING):
@@ -222,7 +254,7 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         task = Task(task_id, part.part_id, part.location, target or part.next_station, now_s)
         if task.target == part.next_station:
             task.alternatives = self._other_stations(part)
-        task.refused_by = tuple(sorted(part.refused_by))
+        task.refused_by = refused_by(part)
         self._next_task_id = max(self._next_task_id, task_id + 1)
         self.tasks[task.task_id] = task
         self._open_by_part[part.part_id] = task.task_id

@@ -46,6 +46,8 @@ class PartRecord:
     held_stack: tuple[int, ...] = ()
     # arms that could not grasp it as it lies (`FailureCode.UNREACHABLE`)
     refused_by: set[str] = field(default_factory=set)
+    denials: int = 0  # approaches to it the guard denied (no attempt: nothing was touched)
+    held_off: tuple[tuple[str, float], ...] = ()  # (arm, until_s): arms a denied approach keeps from it a while
 
     @property
     def next_station(self) -> str | None:
@@ -71,7 +73,7 @@ class Task:
     reassignments: int = 0
     # other stations that would do as the target (a sorted part: any bin of its colour)
     alternatives: tuple[str, ...] = ()
-    refused_by: tuple[str, ...] = ()  # arms whose skill found the part out of its reach as it lies: not given it again
+    refused_by: tuple[str, ...] = ()  # arms not given it: out of their reach as it lies, or held off by a denial
 
     def retarget(self, target: str) -> None:
         """Make `target` (the target or one of the alternatives) the station this task goes to."""

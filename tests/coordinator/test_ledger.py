@@ -6,7 +6,7 @@ import yaml
 
 from coordinator.allocation import Eligibility, PartView
 from coordinator.capacity import arm_views
-from coordinator.ledger import MAX_ATTEMPTS, Ledger
+from coordinator.ledger import DENIAL_HOLD_S, MAX_ATTEMPTS, MAX_DENIALS, Ledger
 from coordinator.tasks import TaskState
 from robots.failures import FailureCode
 from robots.skills.pick_plans import UNREACHABLE
@@ -165,6 +165,30 @@ def test_an_arm_whose_skill_cannot_reach_a_part_as_it_lies_is_not_given_it_again
         FailureCode.GRASP_MISSED,
     )
     assert only(lg.refresh(3.2)).refused_by == ("arm_1",)
+
+
+def test_a_denied_approach_is_no_attempt_and_holds_the_arm_off_the_part_while_it_gives_way():
+    """After an e-stop two arms planned again at once, each standing in the other's way: the guard denied one's
+    approach three times in 0.3 s and the part was given up. A denied approach touched nothing: no attempt is
+    spent, and the arm is not given the part again for `DENIAL_HOLD_S` (meanwhile it goes home, out of the way)."""
+    lg = ledger()
+    lg.arrived(0, "bases", 0, 1.0)
+    now = 2.0
+    for denial in range(MAX_DENIALS):
+        task = only(lg.refresh(now))
+        assert task.refused_by == ()
+        lg.assign(task.task_id, "arm_0", now)
+        reason = "motion denied: the approach would pass within the margin of arm_1"
+        lg.arm_report("arm_0", task.task_id, "failed", now + 0.1, reason, FailureCode.MOTION_DENIED)
+        assert lg.parts[0].attempts == 0
+        if denial == MAX_DENIALS - 1:
+            break
+        held = only(lg.refresh(now + 0.2))
+        assert held.refused_by == ("arm_0",), "another arm may take it meanwhile"
+        assert only(lg.refresh(now + 0.1 + DENIAL_HOLD_S - 0.05)) is held and held.refused_by == ("arm_0",)
+        now += 0.1 + DENIAL_HOLD_S
+    assert lg.refresh(now + 10.0) == []
+    assert lg.unfinished()[0]["reason"].startswith(f"{MAX_DENIALS} approaches denied; last: motion denied")
 
 
 def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_buffer_and_goes_on_from_there():
