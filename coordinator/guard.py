@@ -2,10 +2,12 @@
 
 An arm asks for a grant before a motion segment, with its joint path and time
 window. The guard walks the path by conservative advancement: a joint turning by
-dq moves no point of the arm more than reach * |dq|, so after measuring a
+dq moves no point of the arm more than lever * |dq| (its lever: how far its
+shapes can be from it, `ArmGeometry.joint_levers_m`), so after measuring a
 clearance d (with FCL, every other arm placed where its own granted path or its
 current state puts it at that time) it may skip ahead until the arms could have
-closed d - margin, never less than `step_m`. No link can pass through another
+closed d - margin (`coordinator.closing`: their travel along their timed paths),
+never less than `step_m`. No link can pass through another
 between two samples. The answer:
 
 - `grant`: clear by the margin everywhere; the path is recorded for later checks;
@@ -25,8 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coordinator.closing import GapClosing, PathTravel
 from coordinator.geometry import ArmGeometry, CellBounds, closest_points_below, neighbours, separation_m
-from robots.trajectory import QUINTIC_PEAK_SPEED, quintic
+from robots.trajectory import quintic
 
 DEFAULT_MARGIN_M = 0.02
 TIE_M = 1e-9  # two distances this close are one (each arm's nearest pairs include every pair at its distance)
@@ -66,18 +69,9 @@ class TimedPath:
         u = 1.0 if span <= 0 else quintic((t_s - self.t_start_s) / span)
         return (1 - u) * np.asarray(self.q_from) + u * np.asarray(self.q_to)
 
-    @property
-    def joint_travel_rad(self) -> float:
-        return float(np.abs(np.asarray(self.q_to) - np.asarray(self.q_from)).sum())
-
-    def local_speed_rad_per_s(self) -> float:
-        """The fastest joint-space speed (summed over joints) of the local stage's pieces."""
-        if not self.then_q:
-            return 0.0
-        poses = np.vstack([self.q_to, self.then_q])
-        dt = np.diff(np.concatenate([[0.0], self.then_after_s]))
-        travel = np.abs(np.diff(poses, axis=0)).sum(axis=1)
-        return float(max((d / max(t, 1e-9) for d, t in zip(travel, dt)), default=0.0))
+    def travel_m(self, levers_m: np.ndarray) -> float:
+        """The most any point of the arm moves along the move (`ArmGeometry.joint_levers_m`: sum_j lever_j |dq_j|)."""
+        return float(np.abs(np.asarray(self.q_to) - np.asarray(self.q_from)) @ levers_m)
 
 
 @dataclass(frozen=True)
@@ -217,20 +211,23 @@ class CollisionGuard:
         path = self.grants.get(arm)
         return path.at(t_s) if path is not None and path.t_start_s <= t_s + 1e-9 else self.state[arm]
 
-    def closing_speed_m_per_s(self, path: TimedPath, among: list[str]) -> float:
-        """An upper bound on how fast any point of the asking arm and of the arms moving with it (`among` these: its
-        neighbours, the only arms it is measured against) can approach."""
-
-        def speed(p: TimedPath) -> float:
-            move = QUINTIC_PEAK_SPEED * p.joint_travel_rad / max(p.t_end_s - p.t_start_s, 1e-9)
-            return max(move, p.local_speed_rad_per_s()) * self.arms[p.arm].spec.reach_m
-
+    def _closing(self, path: TimedPath, among: list[str]) -> GapClosing:
+        """How far the asking arm and the arms moving with it (`among` these: its neighbours, the only arms it is
+        measured against) can close on each other over any stretch of the path's time."""
         others = [
-            p
+            PathTravel(p, self.levers_m(a))
             for a, p in self.grants.items()
             if a != path.arm and a in among and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s
         ]
-        return speed(path) + max((speed(p) for p in others), default=0.0)
+        return GapClosing(PathTravel(path, self.levers_m(path.arm)), others)
+
+    def levers_m(self, arm: str) -> np.ndarray:
+        """How far from each of the arm's joints its shapes can be (a point moves at most lever * the turn)."""
+        if "_levers_m" not in vars(self):  # a guard read back from an older snapshot
+            self._levers_m = {}
+        if arm not in self._levers_m:
+            self._levers_m[arm] = self.arms[arm].joint_levers_m()
+        return self._levers_m[arm]
 
     def _neighbours(self, arm: str) -> list[str]:
         """Other arms whose bases stand close enough that their links could meet this arm's."""
@@ -242,7 +239,7 @@ class CollisionGuard:
         neighbours = self._neighbours(path.arm)
         if not neighbours:
             return Verdict("grant", None, math.inf)
-        speed = max(self.closing_speed_m_per_s(path, neighbours), 1e-9)  # an arm in another bay: not its concern
+        closing = self._closing(path, neighbours)
         closest, closest_arm, when = math.inf, None, None
         t = path.t_start_s
         self.last_check_samples = 0
@@ -259,7 +256,7 @@ class CollisionGuard:
                     closest, closest_arm, when = d, other, float(t)
             if closest < self.margin_m or t >= path.t_done_s:
                 break
-            t = min(path.t_done_s, t + max(self.step_m, here - self.margin_m) / speed)
+            t = closing.next_sample_s(t, max(self.step_m, here - self.margin_m), path.t_done_s)
         if closest >= self.margin_m:
             return Verdict("grant", None, closest)
         other_moves = closest_arm in self.grants and self.grants[closest_arm].t_done_s >= (when or 0.0)
