@@ -127,6 +127,9 @@ class CachedReach:
 
     def _solve(self, cell: Cell) -> Answer:
         spot = np.array(cell, float) * GRID_M
+        if self.top_down.beyond(spot):  # past the declared reach: "no" without IK, nothing a table need keep
+            self._cache[cell] = None
+            return None
         found = None
         parent = parent_cell(cell)
         if parent is not None:

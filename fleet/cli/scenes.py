@@ -1,4 +1,5 @@
-"""`fleet check` and `fleet scenes`: validate a scene and print its capacity bound; list the bundled scenes."""
+"""`fleet check`, `fleet scenes` and `fleet reach`: validate a scene and print its capacity bound; list the bundled
+scenes; fill a scene's reach tables ahead of its runs."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import argparse
 from rich.table import Table
 
 from fleet.cli.errors import (
+    UsageError,
+    err,
     out,
 )
 from fleet.common.scene_loading import load_scene
@@ -44,6 +47,36 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_reach(args: argparse.Namespace) -> int:
+    import os
+    import time
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from coordinator.reach_table import tables_dir
+    from fleet.common.reach_fill import fill_tables, missing_cells
+
+    if tables_dir() is None:
+        raise UsageError("reach tables are off (CLAWFLEET_CACHE_DIR=off): nothing to fill")
+    scene = load_scene(args.file, arms=args.arms)
+    jobs = args.jobs or os.cpu_count() or 1
+    started = time.perf_counter()
+    total = sum(len(cells) for _, cells, _ in missing_cells(scene).values())
+    columns = (TextColumn("reach"), BarColumn(), MofNCompleteColumn(), TextColumn("cells"), TimeElapsedColumn())
+    with Progress(*columns, console=err, disable=args.quiet) as progress:
+        bar = progress.add_task("cells", total=total)
+        fills = fill_tables(scene, jobs, lambda n: progress.advance(bar, n))
+    table = Table("arm", "cells a run asks", "worked out now", "of those reached")
+    for f in fills:
+        table.add_row(f.arm, str(f.cells), str(f.missing), str(f.reached) if f.missing else "-")
+    if not args.quiet:
+        out.print(table)
+    seconds = time.perf_counter() - started
+    where = tables_dir()
+    print(f"reach tables of {scene.name}: {total} cells worked out in {seconds:.1f} s on {jobs} processes; in {where}")
+    return 0
+
+
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     """This group's sub-commands."""
     p = sub.add_parser("check", help="validate a scene file: prints ok, or one line naming file, field and reason")
@@ -53,3 +86,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("scenes", help="list the bundled scenes")
     p.set_defaults(func=cmd_scenes)
+
+    p = sub.add_parser(
+        "reach",
+        help="work out every arm's reach over a scene's belt and stations ahead of its runs (kept on disk: "
+        "no decision of a later run waits on IK for them)",
+    )
+    p.add_argument("file", help="scene file path or bundled scene name")
+    p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument("--jobs", type=int, default=None, help="processes to work in (default: every core)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or table: the one closing line")
+    p.set_defaults(func=cmd_reach)

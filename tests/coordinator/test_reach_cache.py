@@ -4,7 +4,9 @@ disk by one process gives another the same answers without solving them."""
 import numpy as np
 import pytest
 
-from coordinator.reach_cache import GRID_M, CachedReach, parent_cell
+from coordinator.capacity import capacity_bound
+from coordinator.reach_cache import GRID_M, CachedReach, cell_of, parent_cell
+from coordinator.reach_cells import scene_cells
 from coordinator.reach_table import read_table, save_reach, table_key, table_path
 from robots.registry import get_robot, is_available
 from scenes import load_scene
@@ -95,3 +97,16 @@ def test_tables_can_be_turned_off(monkeypatch):
     arm = load_scene("sorting_line").arm("arm_0")
     reach = CachedReach.of(arm, shared=False)
     assert table_path("openclaw", table_key(reach.top_down, (GRID_M, (16, 4, 1)))) is None
+
+
+def test_the_cells_the_capacity_model_asks_are_among_those_fleet_reach_fills():
+    scene = load_scene("mixed_infeed")  # belt parts and a tray of parts
+    reach = {a.name: CachedReach.of(a, shared=False) for a in scene.arms}
+    asked = {name: set() for name in reach}
+    for name, r in reach.items():
+        joints = r.joints
+        r.joints = lambda point, name=name, joints=joints: asked[name].add(cell_of(point)) or joints(point)
+    capacity_bound(scene, reach=reach)
+    for arm in scene.arms:
+        within = {c for c in asked[arm.name] if not reach[arm.name].top_down.beyond(np.array(c) * GRID_M)}
+        assert within and within <= set(scene_cells(scene, arm)), sorted(within - set(scene_cells(scene, arm)))[:5]

@@ -1,6 +1,7 @@
 """The `fleet` command as a user runs it: real subprocesses, exit codes and one-line errors."""
 
 import json
+import os
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -11,8 +12,10 @@ import pytest
 from scenes import bundled_scene_names
 
 
-def fleet(*args, timeout=300):
-    return subprocess.run([sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=timeout)
+def fleet(*args, timeout=300, env=None):
+    return subprocess.run(
+        [sys.executable, "-m", "fleet", *args], capture_output=True, text=True, timeout=timeout, env=env
+    )
 
 
 def fleets(*argvs: list[str], timeout=300) -> list[subprocess.CompletedProcess]:
@@ -240,3 +243,18 @@ def test_bench_decisions_times_every_built_in_allocator_on_a_long_line():
     rows = json.loads(result.stdout.strip().splitlines()[-1])  # the table, then the rows as one JSON line
     assert [r["allocator"] for r in rows] == ["optimal", "auction", "greedy"]
     assert all(r["decisions"] == 8 and 0 < r["p50_ms"] <= r["p99_ms"] for r in rows)
+
+
+def test_reach_fills_a_scenes_tables_so_that_no_decision_of_a_run_waits_on_ik(tmp_path):
+    tables = {**os.environ, "CLAWFLEET_CACHE_DIR": str(tmp_path)}
+    first = fleet("reach", "pick_cell", "--jobs", "2", "--quiet", env=tables)
+    assert first.returncode == 0 and first.stdout.startswith("reach tables of pick_cell: "), first.stderr
+    assert int(first.stdout.split(": ")[1].split()[0]) > 1000  # the belt and the bin, every part height
+    again = fleet("reach", "pick_cell", "--quiet", env=tables)
+    assert again.stdout.startswith("reach tables of pick_cell: 0 cells worked out"), again.stdout
+    run = fleet("run", "pick_cell", "--duration", "20", "--json", env=tables)
+    summary = json.loads(run.stdout.strip().splitlines()[-1])
+    assert summary["status"] == "ok" and summary["parts_completed"] >= 1
+    assert summary["decision_wall_ms"]["reach_cells"] == 0, "every cell the run asked was in the table"
+    off = fleet("reach", "pick_cell", env={**os.environ, "CLAWFLEET_CACHE_DIR": "off"})
+    assert off.returncode == 2 and off.stderr.strip().count("\n") == 0 and "off" in off.stderr
