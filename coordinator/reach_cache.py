@@ -1,9 +1,10 @@
 """Whether (and with which joints) an arm points its claw straight down at a spot: Pinocchio IK on a 1 cm grid,
 each cell's answer a function of the cell alone.
 
-A new cell is solved from the answer of its parent, the cell on the next coarser lattice (4 cm, then 16 cm) next to
-it: one quick solve, a few ms, where the full search (every tilt, restarts) takes 100+ ms for a short arm that
-must lean. Only a cell whose parent is out of reach, or whose quick solve does not converge, is searched in full.
+A new cell is solved from the answer of its parent, the cell at its height on the next coarser lattice (4 cm, then
+16 cm) next to it: one quick solve, a few ms (else quick solves a cell apart along the way), where the full search
+(every tilt, restarts) takes 100+ ms for a short arm that must lean. Only a cell whose parent is out of reach, or
+whose walk from it does not converge, is searched in full.
 Since no answer depends on which cells were asked before, a table filled by another run, in another order, or ahead
 of time (`coordinator.reach_table`), gives every decision the same answer it would have worked out itself.
 """
@@ -88,6 +89,17 @@ class CachedReach:
                 atexit.register(save_shared)
             _SHARED[key] = cls(top_down, table_path(top_down.spec.uid, key))
         return _SHARED[key]
+
+    def __getstate__(self) -> dict:
+        """What a snapshot keeps: the cells worked out here, not the table's (read again on restore; a cell's answer
+        is its own, so one worked out again is the same)."""
+        state = dict(vars(self))
+        state["_cache"] = {c: self._cache[c] for c in getattr(self, "worked_out", ()) if c in self._cache}
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        vars(self).update(state)
+        self._cache = read_table(self.table_path) | state["_cache"]
 
     def joints(self, point) -> np.ndarray | None:
         key = cell_of(point)

@@ -110,3 +110,23 @@ def test_the_cells_the_capacity_model_asks_are_among_those_fleet_reach_fills():
     for arm in scene.arms:
         within = {c for c in asked[arm.name] if not reach[arm.name].top_down.beyond(np.array(c) * GRID_M)}
         assert within and within <= set(scene_cells(scene, arm)), sorted(within - set(scene_cells(scene, arm)))[:5]
+
+
+def test_a_pickled_reach_keeps_what_it_worked_out_and_reads_its_table_again(tmp_path, monkeypatch):
+    """A run's snapshot holds the coordinator's reach: not the whole table (thousands of cells after `fleet reach`),
+    only what the run worked out; restored, it answers as before."""
+    import pickle
+
+    monkeypatch.setenv("CLAWFLEET_CACHE_DIR", str(tmp_path))
+    arm = load_scene("sorting_line").arm("arm_1")
+    first = CachedReach.of(arm, shared=False)
+    first.table_path = table_path("openclaw", table_key(first.top_down, (GRID_M, (16, 4, 1))))
+    spots = along_the_belt(0.0, 0.19)
+    answers = [first.joints(p) for p in spots[:15]]
+    save_reach([first])  # the table holds those
+    answers += [first.joints(p) for p in spots[15:]]  # these only in memory
+    restored = pickle.loads(pickle.dumps(first))
+    assert set(restored.__getstate__()["_cache"]) == first.worked_out
+    for a, b in zip(answers, [restored.joints(p) for p in spots]):
+        assert (a is None) == (b is None) and (a is None or np.array_equal(a, b))
+    assert restored.worked_out == first.worked_out, "nothing worked out again"
