@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 from coordinator.ledger_accounts import LedgerAccounts
 from coordinator.ledger_buffers import LedgerBuffers
+from coordinator.ledger_holds import DENIAL_HOLD_S, MAX_DENIALS, LedgerHolds, refused_by  # noqa: F401 (re-exported)
 from coordinator.ledger_stations import LedgerStations
 from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
 from robots.failures import FailureCode
@@ -27,10 +28,6 @@ HELD = "held"
 EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 INCOMING = "incoming"  # dropped into a station by a feeder, not yet at rest there
 MAX_ATTEMPTS = 3
-# a denied approach is no attempt; the arm is not given the part again for `DENIAL_HOLD_S` (it gives way meanwhile:
-# an arm left standing goes home), and a part denied `MAX_DENIALS` times is given up
-MAX_DENIALS = 10
-DENIAL_HOLD_S = 2.0
 PLACED_GRACE_S = 3.0
 
 
@@ -38,12 +35,7 @@ PLACED_GRACE_S = 3.0
 PIPELINE_DEFAULT = True
 
 
-def refused_by(part: PartRecord) -> tuple[str, ...]:
-    """The arms a task for the part may not be given: those that cannot grasp it as it lies, those held off it."""
-    return tuple(sorted(part.refused_by | {a for a, _ in part.held_off}))
-
-
-class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
+class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
     """Parts and tasks of one run; all times are sim seconds."""
 
     def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = PIPELINE_DEFAULT) -> None:
@@ -189,24 +181,6 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts):
         part.attempts += 1
         if part.attempts >= MAX_ATTEMPTS and part.fate == PartFate.ON_LINE:
             part.fate, part.reason = PartFate.FAILED, f"{MAX_ATTEMPTS} attempts failed; last: {reason}"
-
-    def _denied(self, part: PartRecord, arm: str, reason: str, now_s: float) -> None:
-        """An approach the guard denied: no attempt, but the arm is held off the part a while (two arms each in the
-        other's way would otherwise meet again at the next decision, for ever)."""
-        part.denials += 1
-        part.held_off = (*[(a, t) for a, t in part.held_off if a != arm], (arm, now_s + DENIAL_HOLD_S))
-        if part.denials >= MAX_DENIALS and part.fate == PartFate.ON_LINE:
-            part.fate, part.reason = PartFate.FAILED, f"{MAX_DENIALS} approaches denied; last: {reason}"
-
-    def _release_holds(self, part: PartRecord, now_s: float) -> None:
-        """Arms whose hold on the part is over may be given it again (its pending task no longer refuses them)."""
-        held = tuple((a, t) for a, t in part.held_off if t > now_s)
-        if held == part.held_off:
-            return
-        part.held_off = held
-        task = self._open_task(part.part_id)
-        if task is not None and task.state == TaskState.PENDING:
-            task.refused_by = refused_by(part)
 
     def _put_back(self, part: PartRecord) -> None:
         """A task failed with its part thought in the claw (a grasp that closed on nothing, a part never seen resting
