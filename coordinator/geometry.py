@@ -230,6 +230,11 @@ class ArmGeometry:
         self._placed_key = key
 
     @property
+    def placed_key(self) -> bytes:
+        """The arm joints last placed, as bytes: two placements with the same key are the same placement."""
+        return self._placed_key
+
+    @property
     def centres(self) -> np.ndarray:
         """Each shape's origin in the world (the centre of its bounding sphere), as placed."""
         return self.transforms[:, :3, 3]

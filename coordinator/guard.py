@@ -29,6 +29,7 @@ import numpy as np
 
 from coordinator.closing import GapClosing, PathTravel
 from coordinator.geometry import ArmGeometry, CellBounds, closest_points_below, neighbours, separation_m
+from coordinator.pair_memo import PairMemo
 from robots.trajectory import quintic
 
 DEFAULT_MARGIN_M = 0.02
@@ -163,7 +164,9 @@ class CollisionGuard:
     def nearest_pairs(self) -> list[NearestPair]:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among
         them. The pass of `nearest_other_m`, with the nearest points of each pair it measures."""
-        nearest, measured = self._nearest_pass(closest_points_below, math.inf, TIE_M)
+        if "_watch_memo" not in vars(self):  # a guard read back from an older snapshot
+            self._watch_memo = PairMemo()
+        nearest, measured = self._nearest_pass(closest_points_below, math.inf, TIE_M, self._watch_memo)
         out = [
             NearestPair(a, b, d, p_a, p_b)
             for (a, b), (d, p_a, p_b) in measured.items()
@@ -176,10 +179,12 @@ class CollisionGuard:
         measure: Callable[[ArmGeometry, ArmGeometry, float], tuple | None],
         cap_m: float,
         tie_m: float = 0.0,
+        memo: PairMemo | None = None,
     ) -> tuple[dict[str, float], dict[tuple[str, str], tuple]]:
         """Each arm's nearest distance (at most `cap_m`) and what `measure(a, b, below_m)` said of each pair it was
         asked about (its first item the distance; None: not below): pairs nearest first by their bound, a pair asked
-        only if it could come within `tie_m` of what one of its two arms already has."""
+        only if it could come within `tie_m` of what one of its two arms already has (`memo`: a pair whose arms stood
+        still since it was last asked is answered as then)."""
         for name, q in self.state.items():
             self.arms[name].place(q)
         nearest = {name: cap_m for name in self.arms}
@@ -192,7 +197,8 @@ class CollisionGuard:
             worse = max(nearest[a], nearest[b]) + tie_m
             if gap >= worse:
                 continue  # cannot be nearer than what both already have
-            found = measure(self.arms[a], self.arms[b], worse)
+            pair = self.arms[a], self.arms[b]
+            found = measure(*pair, worse) if memo is None else memo.measured(*pair, worse, measure)
             if found is not None:
                 measured[(a, b)] = found
                 nearest[a], nearest[b] = min(nearest[a], found[0]), min(nearest[b], found[0])

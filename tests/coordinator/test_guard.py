@@ -160,3 +160,27 @@ def test_each_arms_nearest_pair_comes_with_its_nearest_points_as_measured_pair_b
             assert p.distance_m == pytest.approx(d, abs=1e-9)
             np.testing.assert_allclose(p.point_a, p_a, atol=1e-9)
             np.testing.assert_allclose(p.point_b, p_b, atol=1e-9)
+
+
+def test_the_separation_watch_reuses_what_it_measured_of_still_arms_and_answers_as_a_fresh_guard():
+    """Most arms of a line stand still from one decision to the next: the watch answers a pair whose arms have not
+    moved as it measured it, and its answers are a fresh guard's, pair for pair and point for point."""
+    spec = get_robot("openclaw")
+
+    def row() -> dict[str, ArmGeometry]:
+        return {f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((0.5 * i, 0.0, 0.0), 0.0)) for i in range(4)}
+
+    watch, rng = CollisionGuard(row()), np.random.default_rng(3)
+    state = {name: HOME.copy() for name in watch.arms}
+    for _ in range(25):
+        mover = f"arm_{rng.integers(4)}"
+        state[mover] = HOME + rng.normal(0.0, 0.5, HOME.size) * [1, 1, 1, 1, 1, 0]
+        fresh = CollisionGuard(row())
+        for name, q in state.items():
+            watch.set_state(name, q)
+            fresh.set_state(name, q)
+        seen, expected = watch.nearest_pairs(), fresh.nearest_pairs()
+        assert [(p.a, p.b, p.distance_m) for p in seen] == [(p.a, p.b, p.distance_m) for p in expected]
+        for p, e in zip(seen, expected):
+            assert np.array_equal(p.point_a, e.point_a) and np.array_equal(p.point_b, e.point_b)
+    assert watch._watch_memo.reused >= 25, "pairs of still arms were not measured again"
