@@ -92,7 +92,7 @@ class Eligibility:
         points = np.asarray(points, float)[..., None, :2]
         live = list(self.bases)
         if len(live) < 2:
-            return np.ones((*points.shape[:-3 if paired else -2], len(arms)), bool)
+            return np.ones((*points.shape[: -3 if paired else -2], len(arms)), bool)
         xy = np.array([self.bases[n][:2] for n in live])
         to_live = np.hypot(*np.moveaxis(points - xy, -1, 0))  # (..., [arms,] live arms)
         nearest = to_live.argmin(axis=-1)[..., None]
