@@ -23,9 +23,11 @@ class PathTravel:
     """How far any point of one arm can have moved along a timed path (`coordinator.guard.TimedPath`) since its
     start, as a function of time (metres, non-decreasing)."""
 
-    def __init__(self, path, levers_m: np.ndarray) -> None:
+    def __init__(self, path, levers_m: np.ndarray, standing_at: np.ndarray | None = None) -> None:
         self.t_start_s, self.t_end_s = path.t_start_s, path.t_end_s
         self.move_m = path.travel_m(levers_m)
+        # an arm placed where it stands until its path starts: the step to the path's first pose, at its start
+        self.jump_m = 0.0 if standing_at is None else float(np.abs(np.asarray(path.q_from) - standing_at) @ levers_m)
         span = self.t_end_s - self.t_start_s
         self.span_s = span
         self.times_s: list[float] = []
@@ -46,7 +48,12 @@ class PathTravel:
         self.peak_m_per_s = max(move_peak, local_peak)
 
     def at(self, t_s: float) -> float:
-        """The most any point has moved from the path's start until `t_s`."""
+        """The most any point has moved from the path's start until `t_s` (from where the arm stood before it)."""
+        if t_s < self.t_start_s - 1e-9:
+            return 0.0
+        return self.jump_m + self._along(t_s)
+
+    def _along(self, t_s: float) -> float:
         if t_s <= self.t_start_s:
             return 0.0
         if t_s < self.t_end_s:
@@ -65,13 +72,19 @@ class GapClosing:
     """How far the asking arm and any one of its moving neighbours can close their gap between two times: the
     asker's travel plus the most any one neighbour travels (each pair is measured apart)."""
 
-    def __init__(self, mine: PathTravel, others: list[PathTravel]) -> None:
+    def __init__(self, mine: PathTravel, others: dict[str, PathTravel]) -> None:
         self.mine, self.others = mine, others
-        self.peak_m_per_s = mine.peak_m_per_s + max((o.peak_m_per_s for o in others), default=0.0)
+        self.peak_m_per_s = mine.peak_m_per_s + max((o.peak_m_per_s for o in others.values()), default=0.0)
 
     def closed_m(self, t0_s: float, t1_s: float) -> float:
         own = self.mine.at(t1_s) - self.mine.at(t0_s)
-        return own + max((o.at(t1_s) - o.at(t0_s) for o in self.others), default=0.0)
+        return own + max((o.at(t1_s) - o.at(t0_s) for o in self.others.values()), default=0.0)
+
+    def pair_closed_m(self, other: str, t0_s: float, t1_s: float) -> float:
+        """How far the asker and `other` (a still arm if it has no path here) can close their gap in between."""
+        own = self.mine.at(t1_s) - self.mine.at(t0_s)
+        theirs = self.others.get(other)
+        return own if theirs is None else own + theirs.at(t1_s) - theirs.at(t0_s)
 
     def next_sample_s(self, t_s: float, gap_m: float, last_s: float) -> float:
         """The latest time up to `last_s` by which the arms cannot have closed `gap_m` from `t_s` on: from the step

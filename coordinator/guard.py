@@ -220,11 +220,11 @@ class CollisionGuard:
     def _closing(self, path: TimedPath, among: list[str]) -> GapClosing:
         """How far the asking arm and the arms moving with it (`among` these: its neighbours, the only arms it is
         measured against) can close on each other over any stretch of the path's time."""
-        others = [
-            PathTravel(p, self.levers_m(a))
+        others = {
+            a: PathTravel(p, self.levers_m(a), self.state[a])  # placed where it stands until its path starts
             for a, p in self.grants.items()
             if a != path.arm and a in among and p.t_done_s > path.t_start_s and p.t_start_s < path.t_done_s
-        ]
+        }
         return GapClosing(PathTravel(path, self.levers_m(path.arm)), others)
 
     def levers_m(self, arm: str) -> np.ndarray:
@@ -249,14 +249,21 @@ class CollisionGuard:
         closest, closest_arm, when = math.inf, None, None
         t = path.t_start_s
         self.last_check_samples = 0
+        seen: dict[str, tuple[float, float]] = {}  # neighbour -> (when, no nearer than): its last measurement
         while True:
             self.last_check_samples += 1
             me.place(path.at(t))
             here = math.inf
-            for other in neighbours:
+            bounds = {
+                o: (seen[o][1] - closing.pair_closed_m(o, seen[o][0], t) if o in seen else -1.0) for o in neighbours
+            }
+            for other in sorted(neighbours, key=bounds.__getitem__):  # likely nearest first: the rest skip soonest
+                if bounds[other] >= here:
+                    continue  # it cannot have come nearer than the nearest so far: no need to measure it
                 geometry = self.arms[other]
                 geometry.place(self._where(other, t))
                 d = separation_m(me, geometry, below_m=here)  # no nearer than the nearest so far: not measured
+                seen[other] = (t, min(d, here))
                 here = min(here, d)
                 if d < closest:
                     closest, closest_arm, when = d, other, float(t)

@@ -51,7 +51,7 @@ def test_the_walk_steps_long_near_the_ends_of_a_move_and_never_past_what_the_arm
     levers = geometry.joint_levers_m()
     rng = np.random.default_rng(4)
     mine, other = random_path(geometry, rng, 0), random_path(geometry, rng, 0)  # both rest to rest, at once
-    closing = GapClosing(PathTravel(mine, levers), [PathTravel(other, levers)])
+    closing = GapClosing(PathTravel(mine, levers), {"arm_1": PathTravel(other, levers)})
     gap = 0.01
     at_peak = gap / closing.peak_m_per_s
     t, steps = mine.t_start_s, []
@@ -69,6 +69,6 @@ def test_the_walk_steps_long_near_the_ends_of_a_move_and_never_past_what_the_arm
 def test_arms_that_do_not_move_close_nothing_and_the_walk_ends_at_once():
     geometry = arm("openclaw")
     still = TimedPath("arm_0", tuple(geometry.spec.home_q), tuple(geometry.spec.home_q), 0.0, 2.0)
-    closing = GapClosing(PathTravel(still, geometry.joint_levers_m()), [])
+    closing = GapClosing(PathTravel(still, geometry.joint_levers_m()), {})
     assert closing.closed_m(0.0, 2.0) == 0.0
     assert closing.next_sample_s(0.0, 0.01, 2.0) == 2.0

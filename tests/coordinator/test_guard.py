@@ -184,3 +184,59 @@ def test_the_separation_watch_reuses_what_it_measured_of_still_arms_and_answers_
         for p, e in zip(seen, expected):
             assert np.array_equal(p.point_a, e.point_a) and np.array_equal(p.point_b, e.point_b)
     assert watch._watch_memo.reused >= 25, "pairs of still arms were not measured again"
+
+
+class MeasuresEveryNeighbour(CollisionGuard):
+    """The guard as it was: every neighbour measured at every sample (no lower bound lets one be skipped)."""
+
+    def _closing(self, path, among):
+        closing = super()._closing(path, among)
+        closing.pair_closed_m = lambda *_: float("inf")
+        return closing
+
+
+def test_a_neighbour_skipped_for_its_lower_bound_leaves_every_verdict_as_measuring_them_all(monkeypatch):
+    """A neighbour whose last distance, less what the pair can close since, is past the nearest so far is not
+    measured at a sample: the verdicts, distances, times and samples are those of measuring every neighbour, with
+    neighbours moving on granted paths that start mid-check away from where they stand."""
+    spec = get_robot("openclaw")
+    lower, upper = np.array(spec.home_q) - 1.0, np.array(spec.home_q) + 1.0
+
+    def row() -> dict[str, ArmGeometry]:
+        return {f"arm_{i}": ArmGeometry(f"arm_{i}", spec, yaw_transform((0.45 * i, 0.0, 0.0), 0.0)) for i in range(4)}
+
+    import coordinator.guard as guard_module
+
+    measured = {"now": 0}
+    measure = guard_module.separation_m
+    monkeypatch.setattr(
+        guard_module,
+        "separation_m",
+        lambda *a, **k: measured.__setitem__("now", measured["now"] + 1) or measure(*a, **k),
+    )
+    rng, counts = np.random.default_rng(7), [0, 0]
+    for _ in range(40):
+        guards = CollisionGuard(row()), MeasuresEveryNeighbour(row())
+        states = {f"arm_{i}": rng.uniform(lower, upper) for i in range(4)}
+        grants = {
+            f"arm_{i}": TimedPath(
+                f"arm_{i}",
+                tuple(rng.uniform(lower, upper)),
+                tuple(rng.uniform(lower, upper)),
+                t0 := float(rng.uniform(0.0, 2.0)),
+                t0 + float(rng.uniform(0.5, 2.0)),
+            )
+            for i in (0, 2, 3)
+            if rng.random() < 0.6
+        }
+        asked = TimedPath("arm_1", tuple(states["arm_1"]), tuple(rng.uniform(lower, upper)), 0.5, 2.5)
+        verdicts = []
+        for k, guard in enumerate(guards):
+            for name, q in states.items():
+                guard.set_state(name, q)
+            guard.grants.update(grants)
+            measured["now"] = 0
+            verdicts.append((guard.check(asked), guard.last_check_samples))
+            counts[k] += measured["now"]
+        assert verdicts[0] == verdicts[1]
+    assert counts[0] < 0.8 * counts[1], counts
