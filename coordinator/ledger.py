@@ -149,11 +149,11 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         if task.state == TaskState.ASSIGNED and phase not in IDLE_PHASES:
             task.state = TaskState.ACTIVE
         if phase == Phase.FAILED:
-            self._fail_attempt(task, failure or "the arm's skill failed", failure_code, now_s)
+            self._fail_attempt(task, failure or "the arm's skill failed", now_s, failure_code)
         elif phase == Phase.DONE:
             first = self._finished_at.setdefault(task.task_id, now_s)
             if now_s - first > PLACED_GRACE_S:
-                self._fail_attempt(task, f"placed, but never seen resting at {task.target}", now_s=now_s)
+                self._fail_attempt(task, f"placed, but never seen resting at {task.target}", now_s)
 
     def arm_lost(self, arm: str, now_s: float) -> list[int]:
         """Put a lost arm's tasks back; a part already in its claw is given up. Returns the task ids."""
@@ -167,7 +167,7 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
                     part.fate, part.reason = PartFate.FAILED, f"in the claw of lost arm {arm}"
         return ids
 
-    def _fail_attempt(self, task: Task, reason: str, code: str = "", now_s: float = 0.0) -> None:
+    def _fail_attempt(self, task: Task, reason: str, now_s: float, code: str = "") -> None:
         part = self.parts[task.part_id]
         self._close(task, TaskState.FAILED, reason)
         if code == FailureCode.MOTION_DENIED and task.arm is not None:

@@ -34,6 +34,7 @@ Answer = tuple[float, np.ndarray] | None  # (tilt_rad, arm joints), or None: out
 
 
 _SHARED: dict[str, CachedReach] = {}  # by table key: the reaches `CachedReach.of` gave out in this process
+_PLACED: dict[tuple, str] = {}  # (robot, its declaration's id, base xyz, yaw) -> table key, as first worked out
 
 
 def save_shared() -> int:
@@ -80,10 +81,14 @@ class CachedReach:
         """The reach of a scene's arm where it stands (its robot model, the reach checks' IK options). `shared`: the
         one this process holds for that placement, first read from its table on disk (`coordinator.reach_table`) and
         written back when the process exits (answers depend on the cell alone, so every user may share them)."""
-        top_down = TopDownIK(get_robot(arm.model), yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK)
+        spec = get_robot(arm.model)
+        placement = (arm.model, id(spec), tuple(arm.base.xyz), arm.base.yaw_rad)
+        if shared and placement in _PLACED:  # an env's every reset asks again: no model built, nothing hashed
+            return _SHARED[_PLACED[placement]]
+        top_down = TopDownIK(spec, yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK)
         if not shared:
             return cls(top_down)
-        key = table_key(top_down, (GRID_M, LATTICE_CELLS))
+        key = _PLACED[placement] = table_key(top_down, (GRID_M, LATTICE_CELLS))
         if key not in _SHARED:
             if not _SHARED:
                 atexit.register(save_shared)

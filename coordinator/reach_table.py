@@ -109,9 +109,8 @@ def save_reach(reaches: Iterable) -> int:
         fresh = getattr(reach, "worked_out", set())
         if not fresh or reach.table_path is None:
             continue
-        known = reach.answers()
         try:
-            write_table(reach.table_path, {c: known[c] for c in fresh}, reach.top_down.spec.arm_dof)
+            write_table(reach.table_path, {c: reach.answer(c) for c in fresh}, reach.top_down.spec.arm_dof)
         except OSError:
             continue
         written += len(fresh)
