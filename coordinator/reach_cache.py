@@ -21,6 +21,7 @@ import numpy as np
 from coordinator.reach_table import read_table, save_reach, table_key, table_path
 from robots.frames import yaw_transform
 from robots.ik import IKOptions
+from robots.measured_reach import reach_m_of
 from robots.registry import get_robot
 from robots.top_down import TopDownIK
 from scenes.schema import Arm
@@ -85,7 +86,9 @@ class CachedReach:
         placement = (arm.model, id(spec), tuple(arm.base.xyz), arm.base.yaw_rad)
         if shared and placement in _PLACED:  # an env's every reset asks again: no model built, nothing hashed
             return _SHARED[_PLACED[placement]]
-        top_down = TopDownIK(spec, yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK)
+        top_down = TopDownIK(
+            spec, yaw_transform(arm.base.xyz, arm.base.yaw_rad), options=REACH_IK, reach_m=reach_m_of(spec)
+        )
         if not shared:
             return cls(top_down)
         key = _PLACED[placement] = table_key(top_down, (GRID_M, LATTICE_CELLS))
@@ -125,7 +128,8 @@ class CachedReach:
     def _timed(self, cell: Cell) -> Answer:
         started = time.perf_counter()
         found = self._solve(cell)
-        self.search_s += time.perf_counter() - started
+        if cell in getattr(self, "worked_out", ()):  # not a cell past the reach: "no" without IK, nothing worked out
+            self.search_s += time.perf_counter() - started
         return found
 
     def _walk(self, start: np.ndarray, spot: np.ndarray, answer: tuple[float, np.ndarray]) -> Answer:
@@ -144,7 +148,7 @@ class CachedReach:
 
     def _solve(self, cell: Cell) -> Answer:
         spot = np.array(cell, float) * GRID_M
-        if self.top_down.beyond(spot):  # past the declared reach: "no" without IK, nothing a table need keep
+        if self.top_down.beyond(spot):  # past the measured reach: "no" without IK, nothing a table need keep
             self._cache[cell] = None
             return None
         found = None

@@ -1,5 +1,5 @@
 """The reach cells a line's decisions ask of an arm: over the belt at each part type's pick height, over each
-station's surface and the parts resting on it, within the arm's declared reach. What `fleet reach` fills ahead."""
+station's surface and the parts resting on it, within the arm's reach. What `fleet reach` fills ahead."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import numpy as np
 
 from coordinator.allocation import HOVER_M
 from coordinator.reach_cache import GRID_M, Cell
+from robots.measured_reach import reach_m_of
 from robots.registry import get_robot
 from scenes.schema import Arm, Scene
 
@@ -34,7 +35,7 @@ def _rectangle(centre_xy, yaw_rad: float, along_m: float, across_m: float, along
 
 def scene_cells(scene: Scene, arm: Arm) -> list[Cell]:
     """The cells `arm`'s reach is asked in a run of `scene` (belt, stations), sorted; farther than its declared
-    `reach_m` from its base none are asked (answered "no" without IK)."""
+    reach (`reach_m_of`) from its base none are asked (answered "no" without IK)."""
     part_heights = {p.size_m[2] for f in scene.feeders for p in f.parts}
     found: set[Cell] = set()
     conveyor = scene.conveyor
@@ -54,5 +55,5 @@ def scene_cells(scene: Scene, arm: Arm) -> list[Cell]:
         for z_m in [station.surface_z_m + HOVER_M, *(station.surface_z_m + r + HOVER_M for r in resting)]:
             for z in _heights(z_m):
                 found.update((int(x), int(y), z) for x, y in xy)
-    base, reach = np.asarray(arm.base.xyz[:2]), get_robot(arm.model).reach_m
+    base, reach = np.asarray(arm.base.xyz[:2]), reach_m_of(get_robot(arm.model))
     return sorted(c for c in found if math.hypot(c[0] * GRID_M - base[0], c[1] * GRID_M - base[1]) <= reach)

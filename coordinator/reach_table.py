@@ -3,28 +3,24 @@
 Each cell's answer is a function of the cell alone (`coordinator.reach_cache`), so a table filled by any run, in any
 order, gives the same decisions; the file's name holds a hash of everything an answer depends on (the robot's
 declaration and URDF, where the arm stands, the IK options and code, the grid, the numerical libraries), so a
-changed input finds a file of its own. `CLAWFLEET_CACHE_DIR` says where the tables live (default
-`$XDG_CACHE_HOME/clawfleet`, else `~/.cache/clawfleet`); `off` keeps nothing on disk.
+changed input finds a file of its own. `CLAWFLEET_CACHE_DIR` says where the tables live (`robots.disk_cache`: default
+`$XDG_CACHE_HOME/clawfleet/reach`); `off` keeps nothing on disk.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import fcntl
-import hashlib
-import importlib
 import os
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
-import pinocchio
 
+from robots.disk_cache import cache_dir, declaration_key
 from robots.top_down import TopDownIK
 
-CACHE_DIR_ENV = "CLAWFLEET_CACHE_DIR"
 # the modules whose code an answer depends on: a change to any of them is a new table
 ANSWERED_BY = (
     "coordinator.reach_cache",
@@ -38,29 +34,18 @@ ANSWERED_BY = (
 
 def tables_dir() -> Path | None:
     """Where reach tables are kept, or None when `CLAWFLEET_CACHE_DIR=off`."""
-    chosen = os.environ.get(CACHE_DIR_ENV, "")
-    if chosen == "off":
-        return None
-    if chosen:
-        return Path(chosen) / "reach"
-    home = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(home) / "clawfleet" / "reach"
+    return cache_dir("reach")
 
 
 def table_key(top_down: TopDownIK, grid: tuple) -> str:
     """A hash of everything a cell's answer depends on."""
-    spec = top_down.spec
-    h = hashlib.sha256()
-    for f in dataclasses.fields(spec):
-        value = getattr(spec, f.name)
-        if not callable(value):
-            h.update(f"{f.name}={value!r};".encode())
-    h.update(spec.urdf_text().encode())
-    h.update(np.asarray(top_down.base_to_world, float).tobytes())
-    h.update(repr((top_down.options, grid, np.__version__, pinocchio.__version__)).encode())
-    for name in ANSWERED_BY:
-        h.update(Path(importlib.import_module(name).__file__).read_bytes())
-    return h.hexdigest()[:24]
+    return declaration_key(
+        top_down.spec,
+        ANSWERED_BY,
+        top_down.reach_m,
+        np.asarray(top_down.base_to_world, float),
+        (top_down.options, grid),
+    )
 
 
 def table_path(robot: str, key: str) -> Path | None:

@@ -150,7 +150,6 @@ OPENCLAW = register(
         gripper_open=(0.035, 0.035),
         gripper_closed=(0.002, 0.002),
         grasp_width_m=(0.02, 0.06),
-        reach_m=0.62,
         arm_gains=DriveGains(stiffness=2000.0, damping=120.0, force_limit=60.0),
         gripper_gains=DriveGains(stiffness=1500.0, damping=40.0, force_limit=25.0),
         finger_links=("finger_left_link", "finger_right_link"),
@@ -173,7 +172,6 @@ SO101 = register(
         gripper_open=(1.2,),
         gripper_closed=(-0.15,),
         grasp_width_m=(0.015, 0.05),
-        reach_m=0.36,
         arm_gains=DriveGains(stiffness=800.0, damping=40.0, force_limit=10.0),  # by `fleet tune`
         gripper_gains=DriveGains(stiffness=50.0, damping=2.0, force_limit=3.0),
         finger_links=("gripper_link", "moving_jaw_so101_v1_link"),
@@ -208,7 +206,6 @@ PANDA = register(
         gripper_open=(0.04, 0.04),
         gripper_closed=(0.0, 0.0),
         grasp_width_m=(0.01, 0.08),
-        reach_m=0.85,
         arm_gains=DriveGains(stiffness=3000.0, damping=200.0, force_limit=87.0),
         gripper_gains=DriveGains(stiffness=2000.0, damping=60.0, force_limit=40.0),
         finger_links=("panda_leftfinger", "panda_rightfinger"),

@@ -66,8 +66,8 @@ class RobotFile(_Strict):
     gripper_open_q: list[Finite]
     gripper_closed_q: list[Finite]
     grasp_width_m: tuple[Positive, Positive]
-    reach_m: Annotated[float, Field(gt=0.05, le=5.0)]
-    """Horizontal reach of the tool from the base (scenes check stations against it)."""
+    reach_m: None = None
+    """Not declared: measured from the kinematics (`robots.measured_reach`); a file that gives it is told so."""
     arm_gains: Gains
     gripper_gains: Gains
     finger_links: Annotated[list[JointName], Field(min_length=1, max_length=4)]
@@ -89,6 +89,13 @@ class RobotFile(_Strict):
     """An arm of fewer than six joints turns its claw to the grasp yaw with its last joint."""
     pick_timing: dict[str, Annotated[float, Field(gt=0, allow_inf_nan=False)]] = {}
     """Values for the pick skill's timing fields (hover_m, lift_m, approach_speed, transfer_speed, lift_s, ...)."""
+
+    @field_validator("reach_m", mode="before")
+    @classmethod
+    def _reach_is_measured(cls, value: object) -> None:
+        if value is not None:
+            raise ValueError("the reach is measured from the arm's kinematics, not declared: remove this field")
+        return None
 
     @field_validator("pick_timing")
     @classmethod
@@ -143,7 +150,6 @@ def load_robot_file(path: Path) -> RobotSpec:
         gripper_open=tuple(decl.gripper_open_q),
         gripper_closed=tuple(decl.gripper_closed_q),
         grasp_width_m=decl.grasp_width_m,
-        reach_m=decl.reach_m,
         arm_gains=decl.arm_gains.drive(),
         gripper_gains=decl.gripper_gains.drive(),
         finger_links=tuple(decl.finger_links),

@@ -35,7 +35,6 @@ class RobotSpec:
     gripper_open: tuple[float, ...]
     gripper_closed: tuple[float, ...]
     grasp_width_m: tuple[float, float]
-    reach_m: float
     arm_gains: DriveGains
     gripper_gains: DriveGains
     finger_links: tuple[str, ...]

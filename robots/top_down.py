@@ -52,8 +52,10 @@ class TopDownIK(BuiltOnce):
         transform_base_to_world: np.ndarray,
         model: KinematicModel | None = None,
         options: IKOptions = IKOptions(restarts=2),
+        reach_m: float = math.inf,
     ) -> None:
         self.spec = spec
+        self.reach_m = reach_m  # spots farther from the base are "no" without IK (the coordinator's: the measured)
         self.km = model or KinematicModel(spec)
         self.base_to_world = np.asarray(transform_base_to_world, float)
         self.world_to_base = np.linalg.inv(self.base_to_world)
@@ -81,13 +83,15 @@ class TopDownIK(BuiltOnce):
         self._shoulder_world = (
             (self.base_to_world @ np.append(self.chain_span.shoulder_base, 1.0))[:3] if self.chain_span else None
         )
-        args = (spec, self.base_to_world.copy(), self.km, options)
+        args = (spec, self.base_to_world.copy(), self.km, options, reach_m)
         self._built_from(args, self.built_key(*args))
 
     @classmethod
-    def built_key(cls, spec: RobotSpec, base_to_world: np.ndarray, _model: object, options: IKOptions) -> tuple:
-        """The robot by id (the instance holds it), where it stands, the options; its model is the robot's."""
-        return (id(spec), np.asarray(base_to_world, float).tobytes(), options)
+    def built_key(
+        cls, spec: RobotSpec, base_to_world: np.ndarray, _model: object, options: IKOptions, reach_m: float = math.inf
+    ) -> tuple:
+        """The robot by id (the instance holds it), where it stands, the options and cut; its model is the robot's."""
+        return (id(spec), np.asarray(base_to_world, float).tobytes(), options, reach_m)
 
     def outward(self, position_world: np.ndarray) -> np.ndarray:
         """Horizontal direction from the arm's turning axis to the spot (world frame): where a tilted approach leans,
@@ -219,13 +223,13 @@ class TopDownIK(BuiltOnce):
         return q
 
     def reachable(self, position_world: np.ndarray) -> bool:
-        """True when the tool can point straight down at this spot (beyond the spec's reach: no IK needed)."""
+        """True when the tool can point straight down at this spot (past `reach_m`: no IK needed)."""
         return self.joints_for(position_world) is not None
 
     def joints_for(self, position_world: np.ndarray, within_m: float | None = None) -> np.ndarray | None:
         """Arm joints pointing the claw at this spot as the skill would (straight down, else the least tilt the
-        robot allows), or None if it is out of reach; spots farther from the base than `within_m` (the declared
-        `reach_m` unless given) are out of reach without IK."""
+        robot allows), or None if it is out of reach; spots farther from the base than `within_m` (`reach_m` unless
+        given) are out of reach without IK."""
         found = self.reach_pose(position_world, within_m)
         return None if found is None else found[1]
 
@@ -254,10 +258,9 @@ class TopDownIK(BuiltOnce):
         return q if ok else None
 
     def beyond(self, position_world: np.ndarray, within_m: float | None = None) -> bool:
-        """Whether a spot is farther from the base, horizontally, than `within_m` (the declared `reach_m` unless
-        given)."""
+        """Whether a spot is farther from the base, horizontally, than `within_m` (`reach_m` unless given)."""
         p = self.world_to_base @ np.append(np.asarray(position_world, float)[:3], 1.0)
-        return math.hypot(p[0], p[1]) > (self.spec.reach_m if within_m is None else within_m)
+        return math.hypot(p[0], p[1]) > (self.reach_m if within_m is None else within_m)
 
     def _middling_centre(self) -> tuple[float, float, float]:
         return self.spec.grasp_centre_tool(sum(self.spec.grasp_width_m) / 2)  # a part of middling width

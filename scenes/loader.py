@@ -7,6 +7,7 @@ names exist and how far each reaches) is passed in by the caller as `RobotFacts`
 from __future__ import annotations
 
 import math
+from collections import ChainMap
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import resources
@@ -103,7 +104,7 @@ def with_robot_files(
     if not scene.robot_files:
         return scene, robots
     files = [str(named_in(path, f)) for f in scene.robot_files]
-    known = dict(robots) if robots is not None else None
+    known = ChainMap({}, robots) if robots is not None else None  # no robot's facts worked out before asked
     for i, file in enumerate(files):
         if read_robot_file is None:
             continue

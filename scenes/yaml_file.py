@@ -88,7 +88,8 @@ def _depth(value: object, limit: int = 10 * 32) -> int:
 def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, str]:
     """The first problem pydantic found: the field's dotted path (`top` for the model as a whole) and the reason."""
     err = exc.errors()[0]
-    return ".".join(str(p) for p in err["loc"]) or top, err["msg"]
+    reason = err["msg"].removeprefix("Value error, ")  # our validators' own words, without pydantic's label
+    return ".".join(str(p) for p in err["loc"]) or top, reason
 
 
 def read_declaration(

@@ -20,6 +20,7 @@ from fleet.cli.errors import (
     err,
     out,
 )
+from robots.measured_reach import reach_m_of
 from robots.registry import (
     declared_robots,
     entry_point_problems,
@@ -44,12 +45,13 @@ def cmd_robots(args: argparse.Namespace) -> int:
     table = Table("robot", "arm DoF", "gripper DoF", "reach (m)", "available", "declared in", "summary")
     for spec in declared_robots():
         uid = spec.uid
-        available = "yes" if is_available(uid) else f"needs the '{spec.needs_extra}' extra"
+        installed = is_available(uid)
+        available = "yes" if installed else f"needs the '{spec.needs_extra}' extra"
         table.add_row(
             uid,
             str(spec.arm_dof),
             str(len(spec.gripper_joints)),
-            f"{spec.reach_m:.2f}",
+            f"{reach_m_of(spec):.2f}" if installed else "-",  # measured from the kinematics: needs the description
             available,
             spec.declared_in,
             spec.summary,

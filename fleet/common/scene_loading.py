@@ -7,23 +7,44 @@ arm is built, planned for or drawn.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
-from robots.registry import declared_robots, register_file
+from robots.measured_reach import reach_m_of
+from robots.registry import declared_robots, get_robot, register_file
 from scenes import loader
 from scenes.loader import RobotFacts
 from scenes.schema import Scene
 
 
-def robot_facts() -> dict[str, RobotFacts]:
+class RegisteredRobots(Mapping[str, RobotFacts]):
+    """What scene validation needs of every registered robot, worked out only for the models a scene uses (a reach
+    is measured from the robot's kinematics: a model the scene does not name need not even be installed)."""
+
+    def __getitem__(self, uid: str) -> RobotFacts:
+        if uid not in self:
+            raise KeyError(uid)
+        return RobotFacts(reach_m_of(get_robot(uid)))
+
+    def __contains__(self, uid: object) -> bool:
+        return uid in {spec.uid for spec in declared_robots()}
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([spec.uid for spec in declared_robots()])
+
+    def __len__(self) -> int:
+        return len(declared_robots())
+
+
+def robot_facts() -> Mapping[str, RobotFacts]:
     """What scene validation needs of every registered robot."""
-    return {spec.uid: RobotFacts(spec.reach_m) for spec in declared_robots()}
+    return RegisteredRobots()
 
 
 def read_robot_file(path: Path) -> tuple[str, RobotFacts]:
     """Register the robot a scene's robot file declares; its uid and facts."""
     spec = register_file(path)
-    return spec.uid, RobotFacts(spec.reach_m)
+    return spec.uid, RobotFacts(reach_m_of(spec))
 
 
 def load_scene(name_or_path: str | Path, *, arms: int | None = None, seed: int | None = None) -> Scene:

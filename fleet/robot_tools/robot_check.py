@@ -3,13 +3,12 @@
 Kinematics (Pinocchio's link poses against SAPIEN's), the home pose (reached
 from the upright pose by the arm's own drives, above the floor, within the
 declared reach), the gripper (closes and opens on nothing within a second), the
-declared reach against how far the arm really picks, and a few seeded pick
-trials in the trial cell.
+reach measured from the kinematics, and a few seeded pick trials in the trial
+cell.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -19,6 +18,7 @@ import sapien
 
 from fleet.sim.arm import SimArm, yaw_pose
 from robots.kinematics import KinematicModel
+from robots.measured_reach import HEIGHTS_M, MARGIN_M, reach_m_of
 from robots.spec import RobotSpec
 
 CONFIGURATIONS = 50
@@ -27,8 +27,6 @@ HOME_TOLERANCE_RAD = 0.02
 GRIPPER_TOLERANCE = 0.1
 """Of the gripper's travel: how near its closed (open) position a gripper must come on nothing."""
 SETTLE_S = 1.5
-REACH_HEIGHTS_M = (0.05, 0.1, 0.2)
-REACH_SLACK = 0.25  # a declared reach this much beyond the measured one is a problem (the OpenClaw's: 22%)
 PHYSICS_HZ = 200.0
 
 
@@ -98,7 +96,7 @@ def check_kinematics(spec: RobotSpec) -> Finding:
 
 
 def check_home(spec: RobotSpec) -> Finding:
-    """Home reached by the arm's drives from the upright pose, above the floor and within the declared reach."""
+    """Home reached by the arm's drives from the upright pose, above the floor and within its reach."""
     km = KinematicModel(spec)
     home = np.asarray(spec.home_q, float)
     tool = km.frame_pose(km.full_q(home))[:3, 3]
@@ -107,9 +105,9 @@ def check_home(spec: RobotSpec) -> Finding:
             False, f"home puts the tool {-tool[2]:.3f} m below its base: it would be in the floor or the table"
         )
     horizontal = float(np.hypot(tool[0], tool[1]))
-    if horizontal > spec.reach_m:
+    if horizontal > reach_m_of(spec):
         return Finding(
-            False, f"home puts the tool {horizontal:.2f} m out, beyond the declared reach_m {spec.reach_m:.2f}"
+            False, f"home puts the tool {horizontal:.2f} m out, beyond its reach ({reach_m_of(spec):.2f} m, measured)"
         )
     scene, arm = _lone_arm(spec)
     start = np.clip(np.zeros(spec.arm_dof), km.lower[km.arm_q_index], km.upper[km.arm_q_index])
@@ -154,30 +152,18 @@ def check_gripper(spec: RobotSpec) -> Finding:
     return Finding(True, f"the gripper closes and opens on nothing within {SETTLE_S:g} s")
 
 
-def measured_reach_m(spec: RobotSpec) -> float:
-    """How far out from its base, horizontally, the arm points its claw down (or leaning as far as it may) at pick
-    heights (5, 10 and 20 cm above its base), by the coordinator's own reach rule: the farthest spot found in 1 cm
-    steps out from its turning axis."""
-    from robots.top_down import TopDownIK
-
-    ik = TopDownIK(spec, np.eye(4))
-    axis = ik.pan_origin_world[:2]
-    best = 0.0
-    for z in REACH_HEIGHTS_M:
-        for r in np.arange(0.05, spec.reach_m * 1.3, 0.01):
-            spot = np.array([axis[0] + r, axis[1], z])
-            if ik.joints_for(spot, within_m=math.inf) is not None:
-                best = max(best, float(np.hypot(*spot[:2])))
-    return best
-
-
 def check_reach(spec: RobotSpec) -> Finding:
-    """The declared `reach_m` (scenes check stations against it) against how far the arm really picks."""
-    measured = measured_reach_m(spec)
-    text = f"picks up to {measured:.2f} m out at 5-20 cm above its base (declared reach_m {spec.reach_m:.2f})"
-    if spec.reach_m > measured * (1 + REACH_SLACK):
-        return Finding(False, text + ": scenes would accept stations it cannot pick at or place on")
-    return Finding(True, text)
+    """The reach measured from the kinematics (`robots.measured_reach`: scenes check stations against it, the
+    coordinator answers "no" past it without IK); an arm that points its claw at no spot is a problem."""
+    reach = reach_m_of(spec)
+    heights = f"{HEIGHTS_M[0] * 100:.0f} to {HEIGHTS_M[-1] * 100:.0f} cm above its base"
+    if reach <= MARGIN_M:
+        return Finding(
+            False,
+            f"points its claw at no spot {heights}, straight down or leaning (check tool_frame, approach_axis_tool "
+            "and max_approach_tilt_deg)",
+        )
+    return Finding(True, f"reaches {reach:.2f} m out from its base (measured {heights}, as the skill reaches)")
 
 
 def check_trials(uid: str, trials: int, seed: int, on_trial: Callable[[], None] | None = None) -> list[Finding]:

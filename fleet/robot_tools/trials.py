@@ -19,6 +19,7 @@ from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
 from robots.frames import wrap_angle
 from robots.kinematics import KinematicModel
+from robots.measured_reach import reach_m_of
 from robots.registry import get_robot
 from robots.skills.interface import PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, Phase, PickPlaceSkill
@@ -26,7 +27,7 @@ from scenes.schema import Arrival, Scene
 from scenes.shapes import WALL_M
 
 TRIAL_SCENE = "pick_cell"
-REFERENCE_REACH_M = 0.62
+REFERENCE_ROBOT = "openclaw"  # the trial cell is laid out for its reach; a shorter arm's is scaled in
 SETTLE_S = 0.3
 TIME_LIMIT_S = 15.0
 FACING_MARGIN = 0.85  # of the first joint's range: the cell's yaw is kept while belt and bin are this well inside it
@@ -47,7 +48,7 @@ def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_i
     """The pick cell for `robot`, scaled in to a shorter arm's reach, with the trial's seed (and physics settings)."""
     spec = get_robot(robot)
     scene = load_scene(TRIAL_SCENE)
-    k = min(1.0, spec.reach_m / REFERENCE_REACH_M)
+    k = min(1.0, reach_m_of(spec) / reach_m_of(get_robot(REFERENCE_ROBOT)))
 
     def scaled(pose):  # move a placement towards the arm base at the origin
         x, y, z = pose.xyz

@@ -77,7 +77,7 @@ class SearchesNewSpots:
     def allocate(self, tasks, arms, parts, busy_stations):
         self.calls += 1
         for arm in arms:
-            out = 0.9 * arm.reach.top_down.spec.reach_m  # inside its declared reach_m, 30 cm up: an SO-101 leans and
+            out = 0.9 * arm.reach.top_down.reach_m  # inside its reach_m, 30 cm up: an SO-101 leans and
             for k in range(2):  # reaches none of these, each a full search of every tilt (~85 ms)
                 arm.reach((arm.base_xyz[0] + out, arm.base_xyz[1] + 0.01 * (2 * self.calls + k), 0.3))
         return self.greedy.allocate(tasks, arms, parts, busy_stations)

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from robots.measured_reach import reach_m_of
 from robots.registry import get_robot, is_available, register_file
 from robots.robot_file import RobotFileError, load_robot_file
 
@@ -19,7 +20,6 @@ FACTS = (
     "gripper_open",
     "gripper_closed",
     "grasp_width_m",
-    "reach_m",
     "arm_gains",
     "gripper_gains",
     "finger_links",
@@ -57,6 +57,7 @@ def test_the_example_file_declares_the_openclaw_under_a_new_uid():
     builtin = get_robot("openclaw")
     assert spec.uid == "my_claw" and spec.declared_in == str(EXAMPLE.resolve())
     assert {f: getattr(spec, f) for f in FACTS} == {f: getattr(builtin, f) for f in FACTS}
+    assert reach_m_of(spec) == reach_m_of(builtin)  # measured from the same kinematics
     assert spec.urdf_text() == builtin.urdf_text()
 
 
@@ -153,3 +154,4 @@ def test_an_arm_from_another_package_with_package_uris_loads_as_the_registered_o
     declared = load_robot_file(path)
     assert declared.urdf_text() == spec.urdf_text()  # package:// URIs resolved to the same meshes
     assert {f: getattr(declared, f) for f in FACTS} == facts
+    assert reach_m_of(declared) == reach_m_of(spec)

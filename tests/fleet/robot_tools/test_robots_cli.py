@@ -37,7 +37,7 @@ def test_check_of_a_sound_robot_file_says_ok_for_kinematics_home_gripper_and_pic
     assert lines[0].startswith("my_claw: 6-DoF arm, 2 gripper joint(s), declared in ")
     assert [line.split(":")[0] for line in lines[1:-1]] == ["ok"] * 5, lines
     assert "Pinocchio and SAPIEN agree on every link" in lines[1] and "2/2 seeded pick trials placed" in lines[5]
-    assert "picks up to 0.51 m out at 5-20 cm above its base (declared reach_m 0.62)" in lines[4]
+    assert "reaches 0.53 m out from its base (measured -10 to 40 cm above its base" in lines[4]
     assert lines[-1] == "my_claw: no problems found"
 
 
@@ -46,11 +46,11 @@ def test_check_says_what_does_not_work_in_plain_lines(tmp_path):
     done = fleet("robots", "--check", str(sunk), "--trials", "1")
     assert done.returncode == 1 and "problem: home puts the tool 0.146 m below its base" in done.stdout, done.stdout
     assert "pick trials" not in done.stdout  # not tried at picking with a broken home
-    far = robot_file(tmp_path, "far", uid="far_claw", reach_m=1.2)
+    far = robot_file(tmp_path, "far", uid="far_claw", reach_m=1.2)  # a reach is measured, not declared
     done = fleet("robots", "--check", str(far), "--trials", "0")
-    assert done.returncode == 1 and "reach_m 1.20): scenes would accept stations it cannot pick at" in done.stdout, (
-        done.stdout
-    )
+    said = done.stdout + done.stderr
+    assert done.returncode == 2 and "reach_m: the reach is measured from the arm's kinematics" in said, said
+    assert len(said.strip().splitlines()) == 1, said
     weak = robot_file(
         tmp_path, "weak", uid="weak_claw", gripper_gains={"stiffness": 1500, "damping": 40, "force_limit": 1e-5}
     )
