@@ -98,7 +98,12 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--save", type=Path, default=Path("learned_allocator.pt2"), help="the policy file to write")
     args = parser.parse_args()
-    scene = scene_with(args.scene, {LOAD: args.load}, Path(tempfile.mkdtemp(prefix="clawfleet-load-")))
+    with tempfile.TemporaryDirectory(prefix="clawfleet-load-") as folder:  # the scaled scene's file, removed after
+        return train_and_compare(args, scene_with(args.scene, {LOAD: args.load}, Path(folder)))
+
+
+def train_and_compare(args: argparse.Namespace, scene: str) -> int:
+    """Train on `scene` (a scene file at the asked load), save the policy, then play it against the built-ins."""
     venv = supersuit.pettingzoo_env_to_vec_env_v1(cell(scene, args.max_cycles, args.decision_hz))
     venv = supersuit.concat_vec_envs_v1(venv, 1, num_cpus=0, base_class="stable_baselines3")
     torch.manual_seed(args.seed)
