@@ -31,7 +31,14 @@ COARSE_STEPS = 4  # spots are tried inwards this many steps apart until one is r
 MARGIN_M = 0.02
 """Added to the farthest spot reached: the next step out was not reached (so the arm's reach at that height is
 less than a step more), and a height between the measured ones may reach up to about a step farther."""
-MEASURED_BY = ("robots.measured_reach", "robots.top_down", "robots.ik", "robots.chain_span", "robots.kinematics")
+MEASURED_BY = (
+    "robots.measured_reach",
+    "robots.top_down",
+    "robots.ik",
+    "robots.chain_span",
+    "robots.kinematics",
+    "robots.frames",
+)
 MOVES_NO_REACH = ("summary", "arm_gains", "gripper_gains", "finger_friction", "pick_timing", "declared_in")
 """Declaration fields no reach answer depends on: a robot tuned in these is not measured again."""
 
@@ -40,7 +47,7 @@ _MEASURED: dict[int, tuple[RobotSpec, float]] = {}  # by the declaration object 
 
 def reach_m_of(spec: RobotSpec) -> float:
     """The robot's measured reach: this process's, else the one kept on disk, else measured now (a few tenths of a
-    second for a 6-joint arm; ~10 s for one that leans, once per declaration) and kept."""
+    second for a 6-joint arm, ~3 s for one that leans: once per declaration) and kept."""
     known = _MEASURED.get(id(spec))
     if known is None:
         known = _MEASURED[id(spec)] = (spec, _kept_or_measured(spec))

@@ -70,7 +70,7 @@ LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the x
 TIMELINE = "CLAWFLEET_TEST_TIMELINE"  # a file: each test's worker, when it asked for its locks, got them, ended
 
 
-CACHE = "CLAWFLEET_CACHE_DIR"  # the reach tables: one folder of the session's own, for all its workers and lines
+CACHE = "CLAWFLEET_CACHE_DIR"  # reach tables, measured reaches: a folder of the session's own, for all its lines
 OWN_CACHE = "CLAWFLEET_TEST_OWN_CACHE"
 
 

@@ -1,8 +1,8 @@
 """Checks of a robot declaration against the physics: what `fleet robots --check` prints, one plain line each.
 
 Kinematics (Pinocchio's link poses against SAPIEN's), the home pose (reached
-from the upright pose by the arm's own drives, above the floor, within the
-declared reach), the gripper (closes and opens on nothing within a second), the
+from the upright pose by the arm's own drives, above the floor, within its
+reach), the gripper (closes and opens on nothing within a second), the
 reach measured from the kinematics, and a few seeded pick trials in the trial
 cell.
 """
