@@ -6,10 +6,13 @@ from pathlib import Path
 
 import pytest
 import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from robots.measured_reach import reach_m_of
 from robots.registry import get_robot, is_available, register_file
 from robots.robot_file import RobotFileError, load_robot_file
+from tests.wrong_values import WRONG, leaves, with_value
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "robots" / "my_claw.yaml"
 FACTS = (
@@ -85,6 +88,7 @@ def test_the_example_file_declares_the_openclaw_under_a_new_uid():
         ({"keyframes": {"up": [0, 0]}}, "keyframes.up", "2 values for 6 joints"),
         ({"pick_timing": {"hover": 0.05}}, "pick_timing", "no timing field 'hover'; fields: hover_m"),
         ({"max_approach_tilt_deg": 90}, "max_approach_tilt_deg", "less than or equal to 80"),
+        ({"reach_m": 0.62}, "reach_m", "the reach is measured from the arm's kinematics, not declared"),
     ],
 )
 def test_each_kind_of_mistake_is_one_line_naming_the_file_and_field(tmp_path, change, field, says):
@@ -155,3 +159,21 @@ def test_an_arm_from_another_package_with_package_uris_loads_as_the_registered_o
     assert declared.urdf_text() == spec.urdf_text()  # package:// URIs resolved to the same meshes
     assert {f: getattr(declared, f) for f in FACTS} == facts
     assert reach_m_of(declared) == reach_m_of(spec)
+
+
+@settings(
+    max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
+@given(st.data(), WRONG)
+def test_any_field_set_to_anything_gives_a_robot_or_one_line_naming_the_file(tmp_path, data, value):
+    """Every value of the example file, and every field whole, set to anything: a declaration, or a
+    `RobotFileError` of one line that names the file; never another exception."""
+    example = yaml.safe_load(EXAMPLE.read_text())
+    example["urdf"] = str((EXAMPLE.parent / example["urdf"]).resolve())
+    path = data.draw(st.sampled_from([p for p in leaves(example) if p != ("urdf",)] + [(k,) for k in example]))
+    file = tmp_path / "arm.yaml"
+    file.write_text(yaml.safe_dump(with_value(example, path, value)))
+    try:
+        load_robot_file(file)
+    except RobotFileError as exc:
+        assert str(exc).startswith(f"{file.resolve()}: ") and "\n" not in str(exc), (path, value, str(exc))
