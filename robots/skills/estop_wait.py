@@ -3,8 +3,9 @@ waits, then carries on.
 
 An e-stop aborts every goal and holds the arm (the tracker refuses goals while it lasts). That is not the task's
 failure: the skill sends nothing while its arm is held and, once it is released, plans again from where the arm
-stands: the pick from the start if the part was not yet in the claw, the transfer if it was, nothing more once it
-was let go. No attempt is spent on it.
+stands: the pick from the start if the part was not yet in the claw, the transfer if it was, the way home if it
+was let go (as the place would have ended: an approach from the bin's low pose swings the base joint farther than
+its drive follows in the approach's time, and the tracker aborts it off its path). No attempt is spent on it.
 """
 
 from __future__ import annotations
@@ -46,8 +47,11 @@ class EStopWait:
             return True
         phase, self.stopped_in = self.stopped_in, None
         self._now, self.q_cmd = obs.time_s, np.asarray(obs.q, float).copy()
-        if phase in LET_GO:
-            self._enter(Phase.DONE, obs.time_s)
+        if phase in LET_GO:  # the place is done: home, as it would have ended (the next approach starts there)
+            home = np.asarray(self.spec.home_q, float)
+            self._begin_segment(
+                self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s
+            )
         elif phase in CARRYING:
             self._after_lift(obs)
         elif (part := parts.get(self.job.part_id)) is not None:
