@@ -3,12 +3,13 @@ which assigned tasks can no longer be met by their arm (so they go back to the p
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from coordinator.allocation import ArmView, Eligibility, PartView
-from coordinator.tasks import CONVEYOR, Task
+from coordinator.tasks import CONVEYOR, PartRecord, Task
 from scenes.schema import Conveyor, Scene
 
 SCAN_STEP_M = 0.02
@@ -35,9 +36,19 @@ class BeltReach:
 
     any_m: float | None
     by_station_m: dict[str, float] = field(default_factory=dict)
+    # the buffers an arm reaches that also reaches the station and the belt (where a part for it may be set down)
+    buffers_by_station: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def for_station(self, station: str | None) -> float | None:
         return self.by_station_m.get(station, self.any_m)
+
+    def buffers_near(self, station: str) -> tuple[str, ...]:
+        return self.buffers_by_station.get(station, ())
+
+    def riding_off(self, conveyor: Conveyor, parts: dict[int, PartView], lead_s: float) -> Callable[[PartRecord], bool]:
+        """Whether a seen belt part passes, within `lead_s`, the last point an arm able to take it to its next
+        station reaches (then a buffer may still save it)."""
+        return lambda p: rides_off_within(conveyor, self.for_station(p.next_station), parts, p.part_id, lead_s)
 
 
 _BELT_REACH: dict[str, BeltReach] = {}  # layout -> its belt reach
@@ -57,15 +68,21 @@ def layout_belt_reach(scene: Scene, arms: list[ArmView]) -> BeltReach:
     )
     if key not in _BELT_REACH:
         z = conveyor.pose.xyz[2] + 0.015
-        by_station = {}
+        by_station, buffers = {}, {}
         for station in _routed_stations(scene):
-            s = scene.station(station)
-            able = [a for a in arms if Eligibility.in_reach(a, (*s.pose.xyz[:2], s.surface_z_m))]
+            able = [a for a in arms if _reaches(a, scene, station)]
             last = last_reach_along_belt_m(conveyor, able, z) if able else None
             if last is not None:
                 by_station[station] = last
-        _BELT_REACH[key] = BeltReach(last_reach_along_belt_m(conveyor, arms, z), by_station)
+                on_belt = [a for a in able if last_reach_along_belt_m(conveyor, [a], z) is not None]
+                buffers[station] = tuple(b for b in scene.buffers() if any(_reaches(a, scene, b) for a in on_belt))
+        _BELT_REACH[key] = BeltReach(last_reach_along_belt_m(conveyor, arms, z), by_station, buffers)
     return _BELT_REACH[key]
+
+
+def _reaches(arm: ArmView, scene: Scene, station: str) -> bool:
+    s = scene.station(station)
+    return Eligibility.in_reach(arm, (*s.pose.xyz[:2], s.surface_z_m))
 
 
 def _routed_stations(scene: Scene) -> list[str]:

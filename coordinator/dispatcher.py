@@ -21,7 +21,7 @@ from coordinator.capacity import (
     CapacityBound,
     capacity_bound,
 )
-from coordinator.deadlines import belt_deadline_s, cannot_make_it, layout_belt_reach, rides_off_within
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, layout_belt_reach
 from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
 from coordinator.dispatch_report import DispatchReport
@@ -250,9 +250,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
     def pending(self, now_s: float) -> list[Task]:
         """The tasks waiting for an arm, each belt task with its deadline (worked out once, when first seen)."""
         belt, reach, parts = self.scene.conveyor, self.belt_reach, self.parts
-        pending = self.ledger.refresh(  # a belt part soon out of reach of the arms that can take it: to a buffer
-            now_s, lambda p: rides_off_within(belt, reach.for_station(p.next_station), parts, p.part_id, BUFFER_LEAD_S)
-        )
+        pending = self.ledger.refresh(now_s, reach.riding_off(belt, parts, BUFFER_LEAD_S), reach.buffers_near)
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)

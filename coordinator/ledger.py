@@ -13,10 +13,8 @@ it, and `may_enter` says when it may move in. One part (or one assembly) ahead a
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from coordinator.ledger_accounts import LedgerAccounts
-from coordinator.ledger_buffers import LedgerBuffers
+from coordinator.ledger_buffers import BuffersNear, LedgerBuffers, SoonLost
 from coordinator.ledger_holds import DENIAL_HOLD_S, MAX_DENIALS, LedgerHolds, refused_by  # noqa: F401 (re-exported)
 from coordinator.ledger_stations import LedgerStations
 from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
@@ -200,25 +198,25 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         return self.tasks[tid] if tid is not None else None
 
     # --- tasks ----------------------------------------------------------------------
-    def refresh(self, now_s: float, soon_lost: Callable[[PartRecord], bool] | None = None) -> list[Task]:
+    def refresh(self, now_s: float, soon_lost: SoonLost | None = None, near: BuffersNear | None = None) -> list[Task]:
         """Create a task for every part that is ready for its next hop; returns the pending tasks. `soon_lost`: whether
         a belt part rides out of every arm's reach soon (the dispatcher knows the belt); such a part whose next
-        station is not ready for it is set down at a free buffer instead (`Station.buffer`), and goes on from there."""
-        for part in self.parts.values():
+        station is not ready for it is set down at a free buffer instead (`Station.buffer`), and goes on from there.
+        `near`: the buffers near a station, where a part for a taken fixture goes while more ride behind it."""
+        behind = self._waiting_on_belt() if self.buffers else []
+        for part in self._in_turn():
             if part.held_off:
                 self._release_holds(part, now_s)
-            if self.buffers and part.part_id in self._open_by_part:
-                self._unbuffer(self.tasks[self._open_by_part[part.part_id]], part)
+            self._review(part, behind, near)
             if part.fate != PartFate.ON_LINE or part.part_id in self._open_by_part or part.location in (HELD, INCOMING):
                 continue
             target = part.next_station
             if target is None:
                 continue
-            if not self._ready(part, target):
-                target = self._buffer_for(part, soon_lost)
-                if target is None:
-                    continue
-            self._new_task(part, now_s, target=target)
+            if self._ready(part, target):
+                self._rebuffer(self._new_task(part, now_s), part, behind, near)
+            elif buffers := self._buffer_for(part, soon_lost):
+                self._new_task(part, now_s, target=buffers[0]).go_to(buffers[0], buffers[1:])
         return [t for t in self.tasks.values() if t.state == TaskState.PENDING]
 
     def _new_task(self, part: PartRecord, now_s: float, task_id: int | None = None, target: str | None = None) -> Task:
@@ -272,7 +270,8 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         if target is not None and target != task.target:
             task.retarget(target)
             part = self.parts[task.part_id]
-            part.route[part.hop] = target
+            if target not in self.buffers:  # a buffer is a detour, not a stage of the route
+                part.route[part.hop] = target
         task.state, task.arm, task.assigned_s = TaskState.ASSIGNED, arm, now_s
         return task
 

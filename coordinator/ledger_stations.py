@@ -17,7 +17,7 @@ class LedgerStations:
             else:
                 stack.remove(part.part_id)
 
-    def _ready(self, part: PartRecord, target: str) -> bool:
+    def _ready(self, part: PartRecord, target: str, besides: Task | None = None) -> bool:
         """Precedence: an assembly layer needs the layers below it; a stack's bottom leaves only when whole.
         With pipelining, layers and parts on their way count as there (their arms wait at `may_enter`)."""
         here = self.stacks.get(part.location)
@@ -25,16 +25,22 @@ class LedgerStations:
             whole = len(self.scene.station(part.location).assembles)
             if here[0] != part.part_id or (not self.pipeline and len(here) < whole):
                 return False
-            if self.pipeline:  # every layer placed, or on its way (a second part of one layer is not the next layer)
+            if self.pipeline:  # every layer placed, or an arm bringing it (a second part of one layer is not the next)
                 have = {self._layer(self.parts[p], part.location) for p in here}
-                have |= {self._layer(self.parts[t.part_id], part.location) for t in self._inbound(part.location)}
+                have |= {
+                    self._layer(self.parts[t.part_id], part.location)
+                    for t in self._inbound(part.location, TAKEN_STATES)
+                }
                 if not set(range(whole)) <= have:
                     return False
         stack = self.stacks.get(target)
         assembles = self.scene.station(target).assembles
-        if self.pipeline and target in self.gated:
-            layer, have = self._layer(part, target), self._future_layers(target)
-            return layer not in have and all(below in have for below in range(layer))
+        if self.pipeline and target in self.gated:  # a layer below counts once an arm brings it: a task for it that
+            # waits for an arm must not wait behind this one, given to the same arm (which would hold this at the edge)
+            layer, coming = self._layer(part, target), self._future_layers(target, TAKEN_STATES, besides)
+            return layer not in self._future_layers(target, OPEN_STATES, besides) and all(
+                below in coming for below in range(layer)
+            )
         if stack is not None and part.feeder in assembles:
             if len(stack) != assembles.index(part.feeder):
                 return False
@@ -57,15 +63,27 @@ class LedgerStations:
             return self.stacks[station]
         return [p.part_id for p in self.parts.values() if p.location == station and p.fate == PartFate.ON_LINE]
 
-    def _future_parts(self, station: str) -> list[int]:
-        """The parts `station` will hold once the parts on their way are there and the ones an arm was sent to
-        take away are gone."""
+    def _future_parts(
+        self, station: str, states: tuple[TaskState, ...] = OPEN_STATES, besides: Task | None = None
+    ) -> list[int]:
+        """The parts `station` will hold once the parts on their way (tasks in `states`, but `besides`) are there
+        and the ones an arm was sent to take away are gone."""
         present = [] if self._leaving(station) else list(self._occupants(station))
-        return present + [t.part_id for t in self._inbound(station)]
+        return present + [t.part_id for t in self._inbound(station, states) if t is not besides]
 
-    def _future_layers(self, station: str) -> list[int]:
+    def _future_layers(
+        self, station: str, states: tuple[TaskState, ...] = OPEN_STATES, besides: Task | None = None
+    ) -> list[int]:
         """The layers of `_future_parts`."""
-        return [self._layer(self.parts[p], station) for p in self._future_parts(station)]
+        return [self._layer(self.parts[p], station) for p in self._future_parts(station, states, besides)]
+
+    def _withdraw_if_stale(self, task: Task, part: PartRecord) -> None:
+        """A pending task into a pipelined fixture that its part is no longer ready for (the layer below it was
+        lost, or failed, before an arm took it) is withdrawn: an arm given it would hold its part at the edge for
+        a layer that may never come, or that only it could bring."""
+        if task.state == TaskState.PENDING and self.pipeline and task.target in self.gated:
+            if task.target == part.next_station and not self._ready(part, task.target, besides=task):
+                self._drop(task)
 
     def _leaving(self, station: str) -> bool:
         """What rests at `station` is whole (an assembly with every layer) and an arm was sent to take it away."""

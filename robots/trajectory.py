@@ -54,8 +54,59 @@ class JointSegment:
         delta = self.q_end - self.q_start
         return self.q_start + s * delta, ds * delta
 
+    def state_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at time `t_s` (at rest at the ends)."""
+        q, dq = self.sample(t_s)
+        tau = (t_s - self.t0_s) / self.duration_s
+        dds = 0.0 if not 0.0 < tau < 1.0 else (60 * tau - 180 * tau**2 + 120 * tau**3) / self.duration_s**2
+        return q, dq, dds * (self.q_end - self.q_start)
+
     def done(self, t_s: float) -> bool:
         return t_s >= self.t_end_s
+
+
+SPLICE_SPEED_FRACTION = 0.95  # a move spliced into a moving arm keeps every joint under this share of its limit
+
+
+def spliced_duration_s(
+    moving: JointSegment, start_s: float, q_end: np.ndarray, duration_s: float, velocity_limit: np.ndarray
+) -> float | None:
+    """How long a move to rest at `q_end` must last when it starts at `start_s` while the arm follows `moving`: the
+    tracker splices it in from the arm's position, velocity and acceleration there (a quintic to rest), and a
+    duration timed for a start at rest may then turn a joint past its limit (the plant refuses such a goal).
+    The shortest of `duration_s` stretched by up to 3x in which no joint passes `SPLICE_SPEED_FRACTION` of its
+    limit (or the speed it already turns at, if faster); None if none does (a longer move overshoots further
+    against the arm's way: start it once `moving` has ended). `duration_s` as it is at rest."""
+    if not moving.t0_s < start_s < moving.t_end_s:
+        return duration_s
+    q0, dq0, ddq0 = moving.state_at(start_s)
+    ends = np.stack([np.stack([q0, dq0, ddq0]), np.stack([np.asarray(q_end, float), 0 * q0, 0 * q0])])
+    allowed = np.maximum(np.asarray(velocity_limit, float) * SPLICE_SPEED_FRACTION, np.abs(dq0) + 1e-6)  # (as fast)
+    u = np.linspace(0.0, 1.0, 65)
+    for stretch in np.arange(1.0, 3.0001, 0.05):
+        duration = duration_s * stretch
+        speed = BPoly.from_derivatives([0.0, duration], ends).derivative()
+        if (np.abs(speed(u * duration)).max(axis=0) <= allowed).all():
+            return float(duration)
+    return None
+
+
+def spliced(
+    moving: JointSegment | None, seg: JointSegment, start_s: float, velocity_limit: np.ndarray
+) -> tuple[JointSegment, float]:
+    """A free move `seg` and its start as it will run from `start_s`, if the move sent before, `moving`, is still
+    under way then (a task taken on the way home: the tracker splices the new move in at speed): from where that
+    move has got to, stretched to keep within the joints' limits; or, where no stretch does, from that move's end,
+    at rest. `seg` and `start_s` as they are otherwise."""
+    if moving is None or not moving.t0_s < start_s < moving.t_end_s:
+        return seg, start_s
+    duration = spliced_duration_s(moving, start_s, seg.q_end, seg.duration_s, velocity_limit)
+    if duration is not None:
+        return JointSegment(moving.sample(start_s)[0], seg.q_end, start_s, duration), start_s
+    at_rest = JointSegment.timed(moving.q_end, seg.q_end, moving.t_end_s, velocity_limit, 1.0).duration_s
+    as_timed = JointSegment.timed(seg.q_start, seg.q_end, start_s, velocity_limit, 1.0).duration_s
+    duration = seg.duration_s * at_rest / as_timed if as_timed > 0 else seg.duration_s
+    return JointSegment(moving.q_end, seg.q_end, moving.t_end_s, duration), moving.t_end_s
 
 
 def knot_velocities(times_s: np.ndarray, qs: np.ndarray) -> np.ndarray:

@@ -40,7 +40,7 @@ from robots.skills.pick_plans import PickPlans
 from robots.skills.recovery import SkillRecovery
 from robots.spec import RobotSpec
 from robots.top_down import TopDownIK
-from robots.trajectory import JointSegment
+from robots.trajectory import JointSegment, spliced
 
 DEFAULT_DECISION_HZ = 20.0  # a controller's decisions per sim second, unless it asks for another rate
 REPLAN_AFTER_S = 0.3
@@ -118,6 +118,7 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         self.outbox = GoalOutbox(tuple(spec.arm_joints))
         self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
         self.plan_end_s = 0.0
+        self._moving: JointSegment | None = None  # the free move sent last (another may be spliced into it)
         self.phase_t0 = 0.0
         self._idle_since_s: float | None = None  # when the skill last stopped being active (None: active)
         self._denied_since_s: float | None = None  # when the current free move was first denied
@@ -197,7 +198,7 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
 
     def _begin_segment(self, segment: JointSegment, phase: Phase, time_s: float) -> None:
         """Enter a free move; with grants required, ask for it first and hold still until answered."""
-        self.segment = segment
+        self.segment = spliced(self._moving, segment, self._earliest(time_s), self.km.arm_velocity_limit)[0]
         self._enter(phase, time_s)
         self.request = None
         self._denied_since_s = None
@@ -208,9 +209,8 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
 
     def _go(self, start_s: float) -> None:
         """Send the free move, starting at `start_s` (or as soon as it can)."""
-        start_s = self._earliest(start_s)
-        seg = self.segment
-        self.segment = JointSegment(seg.q_start, seg.q_end, start_s, seg.duration_s)
+        seg, start_s = spliced(self._moving, self.segment, self._earliest(start_s), self.km.arm_velocity_limit)
+        self.segment = self._moving = JointSegment(seg.q_start, seg.q_end, start_s, seg.duration_s)
         self._send_move(seg.q_end, seg.duration_s, start_s)
         if self.phase == Phase.HOME:
             self._send_gripper(1.0, start_s)

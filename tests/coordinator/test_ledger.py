@@ -191,8 +191,14 @@ def test_a_denied_approach_is_no_attempt_and_holds_the_arm_off_the_part_while_it
     assert lg.unfinished()[0]["reason"].startswith(f"{MAX_DENIALS} approaches denied; last: motion denied")
 
 
+def one_buffer_line():
+    """The main job's line with arm_1's buffer only."""
+    scene = load_scene("assembly_line")
+    return scene.model_copy(update={"stations": [s for s in scene.stations if s.name != "infeed_buffer"]})
+
+
 def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_buffer_and_goes_on_from_there():
-    lg = Ledger(load_scene("assembly_line"))  # pipelined, as `fleet run`
+    lg = Ledger(one_buffer_line())  # pipelined, as `fleet run`
     lg.arrived(0, "bases", 0, 1.0)
     first = only(lg.refresh(1.0))
     lg.assign(first.task_id, "arm_0", 1.0)
@@ -216,8 +222,54 @@ def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_
     lg.at_station(3, "fixture_0", 18.0)
     ship = only(lg.refresh(18.0))
     lg.assign(ship.task_id, "arm_2", 18.0)
-    onward = only(lg.refresh(18.5))  # the assembly whole and its ship given out: the buffered base is next
+    belt_first = only(lg.refresh(18.5))  # the assembly whole and its ship given out: a base may come
+    assert (belt_first.part_id, belt_first.target) == (2, "fixture_0"), "the belt's base first: it cannot wait"
+    lg.lost(2, "fell to the floor", 19.0)
+    onward = only(lg.refresh(19.0))
     assert (onward.part_id, onward.source, onward.target) == (1, "base_buffer", "fixture_0")
+
+
+def test_a_base_for_a_taken_fixture_goes_to_a_buffer_near_it_while_more_bases_ride_behind_it():
+    lg = Ledger(load_scene("assembly_line"))
+    near = {"fixture_0": ("base_buffer",)}.get
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.assign(only(lg.refresh(1.0, near=near)).task_id, "arm_0", 1.0)
+    lg.at_station(0, "fixture_0", 3.0)
+    lg.arrived(9, "tops", 0, 3.0)
+    lg.at_station(9, "tops_bin", 3.5)
+    lg.assign(only(lg.refresh(4.0, near=near)).task_id, "arm_1", 4.0)
+    lg.at_station(9, "fixture_0", 5.0)
+    lg.assign(only(lg.refresh(5.0, near=near)).task_id, "arm_2", 5.0)  # the ship: the assembly is still there
+    lg.arrived(1, "bases", 0, 6.0)
+    held = only(lg.refresh(6.0, near=near))
+    assert held.target == "fixture_0", "alone on the belt: picked and held at the fixture's edge, as before"
+    lg.arrived(2, "bases", 0, 7.0)
+    assert only(lg.refresh(7.0, near=lambda station: ())) is held and held.target == "fixture_0", "no buffer near"
+    buffered, behind = lg.refresh(7.0, near=near)
+    assert buffered is held and (held.target, held.stations) == ("base_buffer", ("base_buffer",)), "one rides behind"
+    assert (behind.part_id, behind.target) == (2, "fixture_0"), "the base behind it is next at the fixture"
+    lg.assign(held.task_id, "arm_1", 7.5)
+    assert held.target == "base_buffer" and lg.parts[1].route == ["fixture_0", "output_tray"], "a detour"
+    lg.lost(2, "fell to the floor", 8.0)
+    assert lg.refresh(8.0, near=near) == [] and held.target == "base_buffer", "an arm that took it keeps it"
+
+
+def test_a_buffer_task_offers_only_buffers_still_free():
+    lg = Ledger(load_scene("assembly_line"))  # two buffers: base_buffer (arm_1's), infeed_buffer (arm_0's)
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.assign(only(lg.refresh(1.0)).task_id, "arm_0", 1.0)
+    lg.arrived(1, "bases", 0, 2.0)
+    lg.arrived(2, "bases", 0, 2.5)
+    first, second = lg.refresh(3.0, soon_lost=lambda part: True)
+    assert (first.target, first.alternatives) == ("base_buffer", ("infeed_buffer",))
+    assert (second.target, second.alternatives) == ("infeed_buffer", ()), "one part on its way to a buffer at a time"
+    lg.assign(first.task_id, "arm_0", 3.0, "infeed_buffer")  # the allocator chose the alternative
+    assert lg.parts[1].route == ["fixture_0", "output_tray"], "a buffer is a detour, not a stage of the route"
+    assert only(lg.refresh(3.1, soon_lost=lambda part: True)) is second
+    assert (second.target, second.alternatives) == ("base_buffer", ()), "its buffer was taken: the other one"
+    lg.arrived(3, "bases", 0, 3.3)
+    lg.assign(second.task_id, "arm_1", 3.4)
+    assert lg.refresh(3.5, soon_lost=lambda part: True) == [], "both buffers taken: nowhere to set part 3 down"
 
 
 def test_a_buffer_task_no_arm_took_yet_goes_straight_to_the_station_once_it_is_ready():

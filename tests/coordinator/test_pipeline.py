@@ -33,20 +33,20 @@ def line() -> Ledger:
 
 
 def base_and_top_given_out(lg: Ledger):
-    """The base's and the top's tasks, given to arm_0 and arm_1 at once (the top's while its base travels)."""
-    tasks = by_part(lg.refresh(2.5))
-    base, top = tasks[0], tasks[1]
+    """The base's and the top's tasks, given to arm_0 and arm_1 (the top's while its base travels)."""
+    base = only(lg.refresh(2.5))
     lg.assign(base.task_id, "arm_0", 3.0)
+    top = only(lg.refresh(3.0))
     lg.assign(top.task_id, "arm_1", 3.0)
     return base, top
 
 
 def test_a_top_is_given_out_while_its_base_is_on_the_way_and_waits_for_it_at_the_fixture():
     lg = line()
-    tasks = by_part(lg.refresh(2.5))  # the top's task comes with its base's: the base is only on its way
-    base, top = tasks[0], tasks[1]
-    assert (top.source, top.target) == ("tops_bin", "fixture_0")
+    base = only(lg.refresh(2.5))  # no top yet: its base waits for an arm, maybe the one the top would go to
     lg.assign(base.task_id, "arm_0", 3.0)
+    top = only(lg.refresh(3.0))  # an arm brings the base: the top may come, and wait at the edge
+    assert (top.source, top.target) == ("tops_bin", "fixture_0")
     assert lg.place_height_m("fixture_0", top.part_id) == FIXTURE_TOP + BASE_H, "on the base to come"
     lg.assign(top.task_id, "arm_1", 3.0)
     assert lg.may_enter(base, "fixture_0") and not lg.may_enter(top, "fixture_0")
@@ -129,9 +129,8 @@ def test_the_dispatcher_holds_a_transfer_to_a_fixture_that_is_not_ready_and_coun
         },
         3.0,
     )
-    tasks = by_part(d.ledger.refresh(3.0))
-    d.ledger.assign(tasks[0].task_id, "arm_0", 3.0)
-    top = tasks[1]
+    d.ledger.assign(only(d.ledger.refresh(3.0)).task_id, "arm_0", 3.0)  # the base; then its top
+    top = only(d.ledger.refresh(3.0))
     d.ledger.assign(top.task_id, "arm_1", 3.0)
     for arm, q in home.items():
         d.on_arm(arm, q, "idle", 3.0)
@@ -195,3 +194,25 @@ def test_an_arm_on_its_way_home_from_a_fixture_takes_no_task_until_home():
     )
     d.on_arm("arm_0", q, "done", 6.0)
     assert {v.name: v.free for v in d.arm_views()}["arm_0"]
+
+
+def test_a_top_waits_until_an_arm_takes_its_base_for_one_arm_may_have_to_bring_both():
+    lg = line()
+    lg.at_station(0, "base_buffer", 2.0)  # the base set down on arm_1's buffer; arm_1 also fetches the tops
+    base = only(lg.refresh(2.5))
+    assert (base.source, base.target) == ("base_buffer", "fixture_0")
+    assert only(lg.refresh(2.6)) is base, "no top yet: given to arm_1 first, it would hold it at the edge for ever"
+    lg.assign(base.task_id, "arm_1", 3.0)
+    top = only(lg.refresh(3.0))
+    assert (top.part_id, top.target) == (1, "fixture_0")
+
+
+def test_a_top_not_yet_taken_is_withdrawn_when_the_base_it_waited_for_is_lost():
+    lg = line()
+    base = only(lg.refresh(2.5))
+    lg.assign(base.task_id, "arm_1", 3.0)  # arm_1 reaches the belt's end, and fetches the tops
+    top = only(lg.refresh(3.0))
+    lg.lost(0, "fell to the floor", 4.0)  # the base rode off before arm_1 had it
+    assert lg.refresh(4.0) == [] and top.task_id not in lg.tasks, "held at the edge, it would wait for ever"
+    lg.arrived(2, "bases", 0, 5.0)
+    assert only(lg.refresh(5.0)).part_id == 2, "the next base comes first, then its top"

@@ -52,7 +52,7 @@ def test_a_row_too_long_for_any_belt_names_the_field(tmp_path):
 def test_a_fixture_line_of_twenty_four_arms_is_eight_bays_each_with_its_own_infeed_fixture_and_routes():
     one, row = load_scene("assembly_line"), load_scene("assembly_line", arms=24, robots=robot_facts())
     assert [a.name for a in row.arms] == [f"arm_{i}" for i in range(24)]
-    assert row.arms[:3] == one.arms and row.stations[:4] == one.stations and row.feeders[:2] == one.feeders
+    assert row.arms[:3] == one.arms and row.stations[:5] == one.stations and row.feeders[:2] == one.feeders
     assert row.arms[3].base.xyz == pytest.approx((one.arms[0].base.xyz[0] + 1.6, *one.arms[0].base.xyz[1:]))
     fixtures = [s for s in row.stations if s.kind == "fixture"]
     assert [s.name for s in fixtures] == ["fixture_0"] + [f"fixture_0_b{k}" for k in range(1, 8)]
