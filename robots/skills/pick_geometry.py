@@ -23,6 +23,8 @@ def rise(up: np.ndarray, up_m: float, below_m: float = 0.0) -> np.ndarray:
 class PickGeometry:
     """The claw geometry of `PickPlaceSkill`, kept apart (it reads the skill's spec, IK and joints)."""
 
+    missed_yaws: dict[int, list[float]]  # part id -> the grasp yaws that closed on nothing (the skill's)
+
     def _ik(
         self, position_world: np.ndarray, yaw_world: float, q_start: np.ndarray, tilt_rad: float
     ) -> tuple[np.ndarray, bool]:
@@ -47,7 +49,9 @@ class PickGeometry:
         return self.top_down.natural_yaw(position_world)
 
     def _grasp_yaw(self, part: PartObservation) -> float:
-        """A yaw that closes the fingers across the part's narrow side, nearest the natural yaw."""
+        """A yaw that closes the fingers across the part's narrow side, nearest the natural yaw; for a part whose
+        grasp closed on nothing before (a jaw on a bin's wall or on a neighbour), across its other side where it
+        has one as narrow (a round or square part): the same grasp again would miss again."""
         natural = self._natural_yaw(part.position)
         if part.size_m is None:
             return natural
@@ -61,7 +65,9 @@ class PickGeometry:
             base = math.atan2(across[1], across[0]) - math.atan2(-cy, cx)
         step = math.pi / 2 if abs(sx - sy) < 1e-6 else math.pi
         candidates = [wrap_angle(base + k * step) for k in range(int(round(2 * math.pi / step)))]
-        return min(candidates, key=lambda c: abs(wrap_angle(c - natural)))
+        missed = self.missed_yaws.get(part.part_id, ())
+        untried = [c for c in candidates if all(abs(math.remainder(c - m, math.pi)) > 0.3 for m in missed)]
+        return min(untried or candidates, key=lambda c: abs(wrap_angle(c - natural)))
 
     def _segment(self, q_from: np.ndarray, q_to: np.ndarray, t0_s: float, speed: float) -> JointSegment:
         return JointSegment.timed(q_from, q_to, t0_s, self.km.arm_velocity_limit, speed)

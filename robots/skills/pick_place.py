@@ -119,6 +119,7 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         self._timeline: list[tuple[float, Phase]] = []  # phases planned to begin at later times
         self.plan_end_s = 0.0
         self._moving: JointSegment | None = None  # the free move sent last (another may be spliced into it)
+        self.missed_yaws: dict[int, list[float]] = {}  # part id -> the grasp yaws that closed on nothing
         self.phase_t0 = 0.0
         self._idle_since_s: float | None = None  # when the skill last stopped being active (None: active)
         self._denied_since_s: float | None = None  # when the current free move was first denied

@@ -79,6 +79,7 @@ class PickPlans:
         t, now = self.timing, obs.time_s
         if self._gripper_opening(obs) < 0.03:
             self._send_gripper(1.0, None)
+            self.missed_yaws.setdefault(self.job.part_id, []).append(self.grasp_yaw)  # not that way again
             self._fail(FailureCode.GRASP_MISSED, f"grasp of part {self.job.part_id} missed: the claw closed on nothing")
             return
         place = np.asarray(self.job.place_xyz, float)

@@ -1,0 +1,43 @@
+"""Where the jaws come down: across the part's narrow side, nearest the arm's natural yaw; after a grasp that
+closed on nothing (a jaw on a bin's wall: a top by a bin's side failed three grasps in a row, each the same way),
+across the part's other side where it has one as narrow."""
+
+import math
+
+import numpy as np
+
+from robots.frames import yaw_transform
+from robots.registry import get_robot
+from robots.skills.interface import PartObservation
+from robots.skills.pick_place import PickPlaceSkill
+
+SPEC = get_robot("openclaw")
+
+
+def part_at(xy, yaw_rad: float, size_m=(0.035, 0.035, 0.025)) -> PartObservation:
+    quaternion = np.array([math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)])
+    return PartObservation(12, np.array([*xy, 0.02]), quaternion, np.zeros(3), size_m[0], size_m[2], size_m)
+
+
+def axis_turn(a: float, b: float) -> float:
+    """How far apart two grasp yaws close (radians, 0..pi/2): 0 is the same way across the part."""
+    return abs(math.remainder(a - b, math.pi))
+
+
+def test_a_grasp_that_closed_on_nothing_is_tried_across_the_other_side_next():
+    skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
+    top = part_at((0.55, -0.65), math.radians(101))  # round: four yaws close across it
+    first = skill._grasp_yaw(top)
+    skill.missed_yaws[top.part_id] = [first]
+    second = skill._grasp_yaw(top)
+    assert axis_turn(first, second) == math.pi / 2
+    skill.missed_yaws[top.part_id].append(second)
+    assert skill._grasp_yaw(top) == first, "both ways missed: the one nearest the natural yaw again"
+
+
+def test_a_long_part_is_still_grasped_across_its_narrow_side_after_a_miss():
+    skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
+    bar = part_at((0.55, -0.65), 0.3, size_m=(0.03, 0.06, 0.03))
+    first = skill._grasp_yaw(bar)
+    skill.missed_yaws[bar.part_id] = [first]
+    assert axis_turn(skill._grasp_yaw(bar), first) < 1e-9, "its wide side does not fit the jaws"
