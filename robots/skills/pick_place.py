@@ -289,8 +289,9 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         if self._waiting_out_estop(obs, parts) or self._estop_ended(obs):
             return
         if obs.result_goal_id in self.sent_goals and obs.result_status in FAILED_STATUSES:
+            refused = self.phase == Phase.APPROACH and obs.result_status == "rejected"  # nothing touched: no attempt
             self._fail(
-                FailureCode.GOAL_FAILED,
+                FailureCode.MOTION_DENIED if refused else FailureCode.GOAL_FAILED,
                 f"trajectory goal {obs.result_goal_id} {obs.result_status}: {obs.result_reason}",
             )
             return

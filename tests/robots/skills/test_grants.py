@@ -4,6 +4,7 @@ home when released from an e-stop after letting its part go."""
 
 import numpy as np
 
+from robots.failures import FailureCode
 from robots.frames import yaw_transform
 from robots.joint_trajectory import GripperGoal, TrajectoryGoal
 from robots.registry import get_robot
@@ -219,3 +220,16 @@ def test_an_arm_released_from_an_estop_after_letting_its_part_go_goes_home_befor
     assert np.allclose(home.positions[-1], SPEC.home_q)
     skill.step(obs(SPEC.home_q, skill.plan_end_s + 0.01), {})
     assert skill.phase == Phase.DONE
+
+
+def test_an_approach_the_plant_refuses_is_given_back_as_a_denial_not_a_failed_attempt():
+    skill = started()
+    skill.on_grant(skill.request.seq, "grant", "", 0.1, start_time_s=0.15)
+    (move,) = [g for g in skill.step(obs(SPEC.home_q, 0.1), {7: part_at(0.0)}) if isinstance(g, TrajectoryGoal)]
+    refused = ArmObservation(
+        0.2, np.asarray(SPEC.home_q, float), np.zeros(len(SPEC.home_q)), np.array(SPEC.gripper_open),
+        move.goal_id, "rejected", "safety: its path comes within 10 mm of arm_1",
+    )  # fmt: skip
+    skill.step(refused, {7: part_at(0.0)})
+    assert skill.phase == Phase.FAILED and skill.failure.code == FailureCode.MOTION_DENIED
+    assert "its path comes within 10 mm of arm_1" in skill.failure.reason
