@@ -9,16 +9,13 @@ changed input finds a file of its own. `CLAWFLEET_CACHE_DIR` says where the tabl
 
 from __future__ import annotations
 
-import contextlib
 import fcntl
-import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 
-from robots.disk_cache import cache_dir, declaration_key
+from robots.disk_cache import cache_dir, declaration_key, replace_atomically
 from robots.top_down import TopDownIK
 
 # the modules whose code an answer depends on: a change to any of them is a new table
@@ -76,14 +73,9 @@ def write_table(path: Path, answers: dict, dof: int) -> None:
         cells = np.array(sorted(merged), dtype=np.int32).reshape(-1, 3)
         tilts = np.array([np.nan if merged[c] is None else merged[c][0] for c in map(tuple, cells.tolist())])
         qs = np.array([np.full(dof, np.nan) if merged[c] is None else merged[c][1] for c in map(tuple, cells.tolist())])
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, cells=cells, tilt_rad=tilts, q=qs.reshape(len(cells), dof))
-            os.replace(tmp, path)
-        finally:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
+        replace_atomically(
+            path, lambda f: np.savez(f, cells=cells, tilt_rad=tilts, q=qs.reshape(len(cells), dof)), ".npz.tmp"
+        )
 
 
 def save_reach(reaches: Iterable) -> int:

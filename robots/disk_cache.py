@@ -7,13 +7,15 @@ nothing on disk.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import importlib
 import os
-from collections.abc import Iterable
+import tempfile
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 import pinocchio
@@ -54,3 +56,17 @@ def declaration_key(spec: RobotSpec, modules: Iterable[str], *extra: object, ign
     for value in extra:
         h.update(value.tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
     return h.hexdigest()[:24]
+
+
+def replace_atomically(path: Path, write: Callable[[IO[bytes]], object], suffix: str = ".tmp") -> None:
+    """Write a cache file through `write` into a temporary file beside `path`, then put it in `path`'s place in one
+    step: a reader never sees half of it, and a failed write leaves no temporary file behind."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=suffix)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)

@@ -13,13 +13,11 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
-import tempfile
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robots.disk_cache import cache_dir, declaration_key
+from robots.disk_cache import cache_dir, declaration_key, replace_atomically
 
 if TYPE_CHECKING:
     from robots.spec import RobotSpec
@@ -67,20 +65,8 @@ def _kept_or_measured(spec: RobotSpec) -> float:
     reach = measure_reach_m(spec)
     if path is not None:
         with contextlib.suppress(OSError):
-            _write_atomically(path, json.dumps({"robot": spec.uid, "reach_m": reach}))
+            replace_atomically(path, lambda f: f.write(json.dumps({"robot": spec.uid, "reach_m": reach}).encode()))
     return reach
-
-
-def _write_atomically(path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
 
 
 def measure_reach_m(spec: RobotSpec) -> float:
