@@ -34,15 +34,14 @@ class LedgerBuffers:
         if task.state != TaskState.PENDING or part.location != CONVEYOR or station is None:
             return
         if task.target in self.buffers:
-            free = self._free_buffers(besides=task)
-            if self._ready(part, station) and not self._better_buffered(part, station, behind, near):
+            if self._ready(part, station) and not self._better_buffered(part, station, behind, near, task):
                 task.go_to(station, self._other_stations(part))
-            elif not free:  # another task took its buffers meanwhile: none to offer
+            elif not (free := self._free_buffers(besides=task)):  # another task took its buffers meanwhile
                 self._drop(task)
             else:  # only buffers still free (another task may have taken one of its alternatives)
                 target = task.target if task.target in free else free[0]
                 task.go_to(target, tuple(b for b in free if b != target))
-        elif (free := self._better_buffered(part, station, behind, near)) and task.target == station:
+        elif (free := self._better_buffered(part, station, behind, near, task)) and task.target == station:
             task.go_to(free[0], free[1:])
 
     def _in_turn(self) -> list[PartRecord]:
@@ -81,17 +80,17 @@ class LedgerBuffers:
         ]
 
     def _better_buffered(
-        self, part: PartRecord, station: str, behind: list[PartRecord], near: BuffersNear | None
+        self, part: PartRecord, station: str, behind: list[PartRecord], near: BuffersNear | None, task: Task
     ) -> tuple[str, ...]:
-        """The free buffers near `station` a belt part bound for it had better go to (none: it had not): the part
-        cannot enter the fixture now (pipelining would send an arm to hold it at the edge) and more parts for the
-        fixture ride behind it, which the held arm could not take."""
+        """The buffers near `station`, free but for `task` (the part's own), a belt part bound for it had better go
+        to (none: it had not): the part cannot enter the fixture now (pipelining would send an arm to hold it at the
+        edge) and more parts for the fixture ride behind it, which the held arm could not take."""
         if near is None or not (self.pipeline and station in self.gated) or self._enterable_now(part, station):
             return ()
         if not any(p.arrived_s > part.arrived_s and p.next_station == station for p in behind):
             return ()
         near_station = near(station)
-        return tuple(b for b in self._free_buffers() if b in near_station)
+        return tuple(b for b in self._free_buffers(besides=task) if b in near_station)
 
     def _enterable_now(self, part: PartRecord, station: str) -> bool:
         """Whether `part` could be set on `station` now: the layers below it placed, nothing there at its layer and

@@ -254,6 +254,33 @@ def test_a_base_for_a_taken_fixture_goes_to_a_buffer_near_it_while_more_bases_ri
     assert lg.refresh(8.0, near=near) == [] and held.target == "base_buffer", "an arm that took it keeps it"
 
 
+def test_a_buffered_base_keeps_its_buffer_when_the_fixture_frees_while_another_rides_behind_it():
+    lg = Ledger(load_scene("assembly_line"))
+    near = {"fixture_0": ("base_buffer", "infeed_buffer")}.get
+    lg.arrived(0, "bases", 0, 1.0)
+    lg.assign(only(lg.refresh(1.0, near=near)).task_id, "arm_0", 1.0)
+    lg.at_station(0, "fixture_0", 3.0)
+    lg.arrived(9, "tops", 0, 3.0)
+    lg.at_station(9, "tops_bin", 3.5)
+    lg.assign(only(lg.refresh(4.0, near=near)).task_id, "arm_1", 4.0)
+    lg.at_station(9, "fixture_0", 5.0)
+    lg.assign(only(lg.refresh(5.0, near=near)).task_id, "arm_2", 5.0)  # the ship: the assembly is still there
+    for part, at in ((1, 6.0), (2, 7.0), (3, 7.5)):
+        lg.arrived(part, "bases", 0, at)
+        lg.refresh(at, near=near)
+    assert [(t.part_id, t.target) for t in lg.refresh(7.6, near=near)] == [
+        (1, "base_buffer"),
+        (2, "infeed_buffer"),
+        (3, "fixture_0"),
+    ]
+    lg.lost(3, "fell to the floor", 7.9)  # the fixture's next slot is free again; base 2 still rides behind base 1
+    for now in (8.0, 8.1):
+        assert [(t.part_id, t.target) for t in lg.refresh(now, near=near)] == [
+            (1, "base_buffer"),
+            (2, "fixture_0"),
+        ], "its own buffer is free to it: no going back and forth between refreshes"
+
+
 def test_a_buffer_task_offers_only_buffers_still_free():
     lg = Ledger(load_scene("assembly_line"))  # two buffers: base_buffer (arm_1's), infeed_buffer (arm_0's)
     lg.arrived(0, "bases", 0, 1.0)
