@@ -23,7 +23,7 @@ from coordinator.reach_cache import REACH_IK, CachedReach  # noqa: F401 (re-expo
 from coordinator.tasks import CONVEYOR, Task
 from robots.skills.pick_place import PickPlaceTiming
 from robots.trajectory import JointSegment
-from scenes.schema import Scene
+from scenes.schema import Scene, Station
 
 EARLIEST_ARRIVAL_S = 0.6  # the soonest an arm can be above a part
 PICK_LEAD_S = 1.5  # about the time an arm needs to arrive above a part
@@ -83,6 +83,11 @@ class Eligibility:
     def in_reach(arm: ArmView, point) -> bool:
         return arm.reach(np.asarray(point, float) + [0.0, 0.0, HOVER_M])
 
+    @staticmethod
+    def reaches_station(arm: ArmView, station: Station) -> bool:
+        """Whether `arm` reaches the middle of `station`'s surface (where it sets parts down and picks them up)."""
+        return Eligibility.in_reach(arm, (*station.pose.xyz[:2], station.surface_z_m))
+
     def may_own_belt_points(self, arms: list[ArmView], points: np.ndarray, paired: bool = False) -> np.ndarray:
         """For points (..., 3): (..., arms), False where an arm certainly does not own the point (`owns_belt_point`),
         in one numpy pass; True where it may (a hair of slack, so the exact check alone decides the close calls).
@@ -124,8 +129,7 @@ class Eligibility:
     def can_serve(self, arm: ArmView, task: Task, part: PartView) -> bool:
         if arm.name in task.refused_by:
             return False  # its skill found this part out of its reach as it lies
-        station = self.scene.station(task.target)
-        if not self.in_reach(arm, (*station.pose.xyz[:2], station.surface_z_m)):
+        if not self.reaches_station(arm, self.scene.station(task.target)):
             return False
         pick = self.pick_point(task, part)
         if task.source != CONVEYOR:
@@ -375,8 +379,7 @@ def served_after_wait(
         may = cost_of.rules.may_own_belt_points([arm], lead_pick_points([part], LOOKAHEAD_WAITS_S)[0])[:, 0]
     if not may.any():
         return None  # its pick point never comes onto this arm's stretch of belt in time
-    station = cost_of.rules.scene.station(task.target)
-    if not cost_of.rules.in_reach(arm, (*station.pose.xyz[:2], station.surface_z_m)):
+    if not Eligibility.reaches_station(arm, cost_of.rules.scene.station(task.target)):
         return None
     for wait, maybe in zip(LOOKAHEAD_WAITS_S, may):
         if not maybe:

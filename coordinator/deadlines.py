@@ -70,19 +70,16 @@ def layout_belt_reach(scene: Scene, arms: list[ArmView]) -> BeltReach:
         z = conveyor.pose.xyz[2] + 0.015
         by_station, buffers = {}, {}
         for station in _routed_stations(scene):
-            able = [a for a in arms if _reaches(a, scene, station)]
+            able = [a for a in arms if Eligibility.reaches_station(a, scene.station(station))]
             last = last_reach_along_belt_m(conveyor, able, z) if able else None
             if last is not None:
                 by_station[station] = last
                 on_belt = [a for a in able if last_reach_along_belt_m(conveyor, [a], z) is not None]
-                buffers[station] = tuple(b for b in scene.buffers() if any(_reaches(a, scene, b) for a in on_belt))
+                buffers[station] = tuple(
+                    b for b in scene.buffers() if any(Eligibility.reaches_station(a, scene.station(b)) for a in on_belt)
+                )
         _BELT_REACH[key] = BeltReach(last_reach_along_belt_m(conveyor, arms, z), by_station, buffers)
     return _BELT_REACH[key]
-
-
-def _reaches(arm: ArmView, scene: Scene, station: str) -> bool:
-    s = scene.station(station)
-    return Eligibility.in_reach(arm, (*s.pose.xyz[:2], s.surface_z_m))
 
 
 def _routed_stations(scene: Scene) -> list[str]:
