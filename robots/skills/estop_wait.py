@@ -48,10 +48,7 @@ class EStopWait:
         phase, self.stopped_in = self.stopped_in, None
         self._now, self.q_cmd = obs.time_s, np.asarray(obs.q, float).copy()
         if phase in LET_GO:  # the place is done: home, as it would have ended (the next approach starts there)
-            home = np.asarray(self.spec.home_q, float)
-            self._begin_segment(
-                self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s
-            )
+            self._head_home(obs.time_s)
         elif phase in CARRYING:
             self._after_lift(obs)
         elif (part := parts.get(self.job.part_id)) is not None:

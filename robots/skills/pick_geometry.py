@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from robots.frames import rotation_from_wxyz, wrap_angle
+from robots.phase import Phase
 from robots.skills.interface import PartObservation
 from robots.trajectory import JointSegment
 
@@ -71,6 +72,11 @@ class PickGeometry:
 
     def _segment(self, q_from: np.ndarray, q_to: np.ndarray, t0_s: float, speed: float) -> JointSegment:
         return JointSegment.timed(q_from, q_to, t0_s, self.km.arm_velocity_limit, speed)
+
+    def _head_home(self, time_s: float) -> None:
+        """The free move home from where the arm was last sent, at the approach's speed."""
+        home = np.asarray(self.spec.home_q, float)
+        self._begin_segment(self._segment(self.q_cmd, home, time_s, self.timing.approach_speed), Phase.HOME, time_s)
 
     def _solve_path(self, points: list[np.ndarray], yaw: float, tilt_rad: float) -> np.ndarray:
         """Joints through Cartesian tool positions at one claw tilt, each IK seeded by the one before."""

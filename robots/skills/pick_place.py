@@ -324,7 +324,6 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
             if self.phase == Phase.LIFT:
                 self._after_lift(obs)
             elif self.phase == Phase.RETREAT:
-                home = np.asarray(self.spec.home_q, float)
-                self._begin_segment(self._segment(self.q_cmd, home, now, self.timing.approach_speed), Phase.HOME, now)
+                self._head_home(now)
             elif self.phase == Phase.HOME:
                 self.phase = Phase.DONE

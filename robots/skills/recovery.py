@@ -7,7 +7,6 @@ import numpy as np
 
 from robots.failures import FailureCode
 from robots.joint_trajectory import ArmGoal, TrajectoryGoal
-from robots.phase import Phase
 from robots.skills.interface import ArmObservation
 
 MAX_RESENDS = 2  # a batch of goals lost again after this many sends ends the task failed
@@ -55,7 +54,6 @@ class SkillRecovery:
         (a part still held drops where it is, and the line's events say what became of it)."""
         if self._idle_since_s is None:
             self._idle_since_s = obs.time_s
-        home = np.asarray(self.spec.home_q, float)
         q = np.asarray(obs.q, float)
         if obs.time_s - self._idle_since_s < self.timing.clear_after_s - 1e-9:
             return
@@ -67,6 +65,4 @@ class SkillRecovery:
         self.outbox.forget()
         self.q_cmd = q.copy()
         self._idle_since_s = None
-        self._begin_segment(
-            self._segment(self.q_cmd, home, obs.time_s, self.timing.approach_speed), Phase.HOME, obs.time_s
-        )
+        self._head_home(obs.time_s)
