@@ -19,7 +19,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from robots.spec import DriveGains, RobotSpec
-from scenes.schema import NAME_PATTERN
+from scenes.schema import NAME_PATTERN, FileName
 from scenes.yaml_file import DeclarationError, named_in, read_declaration, regular_file
 
 MAX_ROBOT_FILE_BYTES = 100_000
@@ -55,9 +55,9 @@ class RobotFile(_Strict):
 
     uid: Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
     summary: str = ""
-    urdf: Annotated[str, Field(min_length=1)]
+    urdf: FileName
     """The URDF, relative to the robot file (or absolute)."""
-    package_root: str | None = None
+    package_root: FileName | None = None
     """Folder that `package://NAME/...` URIs resolve in (as `<package_root>/NAME/...`), relative to the robot file."""
     arm_joints: Annotated[list[JointName], Field(min_length=1, max_length=12)]
     gripper_joints: Annotated[list[JointName], Field(min_length=1, max_length=4)]

@@ -11,7 +11,7 @@ import math
 import re
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
 
 FLOOR_M = 0.008
 """Thickness of bin and tray floors and walls (metres)."""
@@ -20,6 +20,15 @@ NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
 WORLD_M = 100.0  # every position in a scene lies within this of the origin (a line is metres, not kilometres)
 MAX_ARMS = 64  # arms in one scene: each is an OS process of its own (`fleet run` forks one per arm)
 Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
+
+
+def _no_nul(name: str) -> str:
+    if "\x00" in name:
+        raise ValueError("a file name cannot hold a NUL byte")
+    return name
+
+
+FileName = Annotated[str, Field(min_length=1), AfterValidator(_no_nul)]  # a file a declaration names
 Vec3 = tuple[float, float, float]
 
 
@@ -306,7 +315,7 @@ class Scene(Strict):
     """Standard deviation of the noise added to the part positions controllers see (metres)."""
     network: Network | None = None
     """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
-    robot_files: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field([], max_length=16)
+    robot_files: list[Annotated[FileName, Field(max_length=4096)]] = Field([], max_length=16)
     """Robot declaration files (YAML, docs/robots.md) whose uids this scene's arms may name; relative to the scene
     file."""
 

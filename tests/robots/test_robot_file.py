@@ -89,6 +89,8 @@ def test_the_example_file_declares_the_openclaw_under_a_new_uid():
         ({"pick_timing": {"hover": 0.05}}, "pick_timing", "no timing field 'hover'; fields: hover_m"),
         ({"max_approach_tilt_deg": 90}, "max_approach_tilt_deg", "less than or equal to 80"),
         ({"reach_m": 0.62}, "reach_m", "the reach is measured from the arm's kinematics, not declared"),
+        ({"urdf": "arm\x00.urdf"}, "urdf", "a file name cannot hold a NUL byte"),  # (hypothesis found it)
+        ({"package_root": "\x00"}, "package_root", "a file name cannot hold a NUL byte"),
     ],
 )
 def test_each_kind_of_mistake_is_one_line_naming_the_file_and_field(tmp_path, change, field, says):
