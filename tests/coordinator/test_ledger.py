@@ -229,9 +229,10 @@ def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_
     assert (onward.part_id, onward.source, onward.target) == (1, "base_buffer", "fixture_0")
 
 
-def test_a_base_for_a_taken_fixture_goes_to_a_buffer_near_it_while_more_bases_ride_behind_it():
+def assembly_sent_for(near) -> Ledger:
+    """The main job's line with an assembly on its fixture and an arm sent to ship it (the next base may come, but
+    may not go in yet)."""
     lg = Ledger(load_scene("assembly_line"))
-    near = {"fixture_0": ("base_buffer",)}.get
     lg.arrived(0, "bases", 0, 1.0)
     lg.assign(only(lg.refresh(1.0, near=near)).task_id, "arm_0", 1.0)
     lg.at_station(0, "fixture_0", 3.0)
@@ -240,6 +241,12 @@ def test_a_base_for_a_taken_fixture_goes_to_a_buffer_near_it_while_more_bases_ri
     lg.assign(only(lg.refresh(4.0, near=near)).task_id, "arm_1", 4.0)
     lg.at_station(9, "fixture_0", 5.0)
     lg.assign(only(lg.refresh(5.0, near=near)).task_id, "arm_2", 5.0)  # the ship: the assembly is still there
+    return lg
+
+
+def test_a_base_for_a_taken_fixture_goes_to_a_buffer_near_it_while_more_bases_ride_behind_it():
+    near = {"fixture_0": ("base_buffer",)}.get
+    lg = assembly_sent_for(near)
     lg.arrived(1, "bases", 0, 6.0)
     held = only(lg.refresh(6.0, near=near))
     assert held.target == "fixture_0", "alone on the belt: picked and held at the fixture's edge, as before"
@@ -255,16 +262,8 @@ def test_a_base_for_a_taken_fixture_goes_to_a_buffer_near_it_while_more_bases_ri
 
 
 def test_a_buffered_base_keeps_its_buffer_when_the_fixture_frees_while_another_rides_behind_it():
-    lg = Ledger(load_scene("assembly_line"))
     near = {"fixture_0": ("base_buffer", "infeed_buffer")}.get
-    lg.arrived(0, "bases", 0, 1.0)
-    lg.assign(only(lg.refresh(1.0, near=near)).task_id, "arm_0", 1.0)
-    lg.at_station(0, "fixture_0", 3.0)
-    lg.arrived(9, "tops", 0, 3.0)
-    lg.at_station(9, "tops_bin", 3.5)
-    lg.assign(only(lg.refresh(4.0, near=near)).task_id, "arm_1", 4.0)
-    lg.at_station(9, "fixture_0", 5.0)
-    lg.assign(only(lg.refresh(5.0, near=near)).task_id, "arm_2", 5.0)  # the ship: the assembly is still there
+    lg = assembly_sent_for(near)
     for part, at in ((1, 6.0), (2, 7.0), (3, 7.5)):
         lg.arrived(part, "bases", 0, at)
         lg.refresh(at, near=near)
