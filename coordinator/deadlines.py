@@ -30,9 +30,9 @@ def last_reach_along_belt_m(conveyor: Conveyor, arms: list[ArmView], part_z_m: f
 @dataclass(frozen=True)
 class BeltReach:
     """How far along the belt (m from its start) a riding part can still be taken: the last point an arm reaches
-    that also reaches the part's next station, for a station on a route or a buffer (in a row of bays, only the
-    bay's own arms); for any other (a sorted part, whose station its colour picks at allocation) and where no arm
-    reaches the station, the last point any arm reaches. None: no arm reaches the belt."""
+    that also reaches the part's next station, for a station on a route, a buffer or a bin that takes a belt part's
+    colour (in a row of bays, only the bay's own arms); where no arm reaches the station, the last point any arm
+    reaches. None: no arm reaches the belt."""
 
     any_m: float | None
     by_station_m: dict[str, float] = field(default_factory=dict)
@@ -83,8 +83,12 @@ def layout_belt_reach(scene: Scene, arms: list[ArmView]) -> BeltReach:
 
 
 def _routed_stations(scene: Scene) -> list[str]:
-    """The stations a belt part may be bound for by name: its feeder's route's first, or a buffer (not a colour's)."""
-    named = [f.route[0] for f in scene.feeders if f.into == "conveyor" and f.route] + scene.buffers()
+    """The stations a belt part may be bound for: its feeder's route's first, a buffer, or a bin of its colour (a
+    sorted part's, which its colour picks at allocation)."""
+    belt = [f for f in scene.feeders if f.into == "conveyor"]
+    colours = {p.colour.lower() for f in belt if not f.route for p in f.parts}
+    sorted_into = [s.name for s in scene.stations if colours.intersection(s.colours)]
+    named = [f.route[0] for f in belt if f.route] + scene.buffers() + sorted_into
     return list(dict.fromkeys(named))
 
 
@@ -102,6 +106,13 @@ def belt_deadline_s(conveyor: Conveyor, last_reach_m: float | None, part: PartVi
     or the belt stands still)."""
     left = time_left_s(conveyor, last_reach_m, part)
     return None if left is None else now_s + left
+
+
+def task_deadline_s(conveyor: Conveyor, reach: BeltReach, task: Task, part: PartView, now_s: float) -> float | None:
+    """When a belt task's part rides out of the reach of every arm that could take it to one of its stations (a
+    sorted part: any bin of its colour), so that an arm upstream need not hurry for a part one downstream takes."""
+    dues = [belt_deadline_s(conveyor, reach.for_station(s), part, now_s) for s in task.all_targets]
+    return max((d for d in dues if d is not None), default=None)
 
 
 def rides_off_within(

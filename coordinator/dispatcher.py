@@ -21,7 +21,7 @@ from coordinator.capacity import (
     CapacityBound,
     capacity_bound,
 )
-from coordinator.deadlines import belt_deadline_s, cannot_make_it, layout_belt_reach
+from coordinator.deadlines import cannot_make_it, layout_belt_reach, task_deadline_s
 from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
 from coordinator.dispatch_report import DispatchReport
@@ -254,7 +254,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         for task in pending:
             if task.source == CONVEYOR and task.task_id not in self.deadline_known and task.part_id in self.parts:
                 self.deadline_known.add(task.task_id)
-                task.deadline_s = belt_deadline_s(belt, reach.for_station(task.target), self.parts[task.part_id], now_s)
+                task.deadline_s = task_deadline_s(belt, reach, task, self.parts[task.part_id], now_s)
         return pending
 
     def reassign_late_tasks(self) -> list[CancelOrder]:

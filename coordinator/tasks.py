@@ -75,6 +75,11 @@ class Task:
     alternatives: tuple[str, ...] = ()
     refused_by: tuple[str, ...] = ()  # arms not given it: out of their reach as it lies, or held off by a denial
 
+    @property
+    def all_targets(self) -> tuple[str, ...]:
+        """The target and the alternatives: every station the part may go to."""
+        return (self.target, *self.alternatives)
+
     def retarget(self, target: str) -> None:
         """Make `target` (the target or one of the alternatives) the station this task goes to."""
         if target != self.target:

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView
-from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m
+from coordinator.capacity import arm_views
+from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m, layout_belt_reach
 from coordinator.ledger import Ledger
 from coordinator.tasks import TaskState
 from robots.frames import yaw_transform
@@ -47,6 +48,16 @@ def test_the_deadline_is_when_the_part_rides_past_the_last_point_an_arm_reaches(
     assert belt_deadline_s(belt, None, start, 10.0) is None, "a belt no arm reaches gives no deadline"
 
 
+def test_a_sorted_parts_deadline_is_where_it_leaves_the_last_arm_with_a_bin_of_its_colour():
+    """overlap_sort: red goes only to arm_0's bin, blue to arm_0's or arm_1's. A red part is lost once past arm_0;
+    counting it due at the end of the belt (as any sorted part was) let arm_0 take a blue part first."""
+    scene = load_scene("overlap_sort")
+    reach = layout_belt_reach(scene, arm_views(scene))
+    red_bin, blue_bins = reach.by_station_m["bin_red"], [reach.by_station_m[b] for b in ("bin_blue_0", "bin_blue_1")]
+    arm_0_only = last_reach_along_belt_m(scene.conveyor, arm_views(scene)[:1], scene.conveyor.pose.xyz[2] + 0.015)
+    assert red_bin == blue_bins[0] == arm_0_only < blue_bins[1] == reach.any_m
+
+
 def test_a_task_whose_arm_fell_behind_the_part_can_be_taken_by_the_next_arm(cell):
     scene, arms = cell
     ledger = Ledger(scene)
@@ -78,4 +89,5 @@ def test_in_a_row_of_bays_a_part_bound_for_its_bay_can_be_taken_until_it_leaves_
     assert reach.for_station("base_buffer_b1") == reach.for_station("fixture_0_b1")
     assert reach.any_m == bays[2] and reach.for_station(None) == reach.any_m  # the whole row: its last bay
     sorting = load_scene("sorting_line", arms=3)
-    assert layout_belt_reach(sorting, arm_views(sorting)).by_station_m == {}  # a sorted part: any arm, as before
+    bins = layout_belt_reach(sorting, arm_views(sorting))  # a sorted part: until past the arms with a bin of its colour
+    assert bins.for_station("bin_0") < bins.for_station("bin_2") == bins.any_m

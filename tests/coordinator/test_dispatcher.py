@@ -6,7 +6,7 @@ with no bus and no clock, as either front end does.
 
 import numpy as np
 
-from coordinator.allocation import PartView
+from coordinator.allocation import PartView, make_allocator
 from coordinator.cadence import decision_period_ticks
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
@@ -223,3 +223,33 @@ def test_an_arm_on_its_way_home_from_a_bin_may_go_straight_back_to_it_and_only_i
     assert "bin_red" in d.busy_stations("arm_1") and "bin_red" not in d.busy_stations("arm_0")
     orders = [o for o in d.decide(410).orders if isinstance(o, AssignOrder)]
     assert [(o.arm, o.part_id) for o in orders] == [("arm_0", 1)]
+
+
+def overlap_sort_decision(allocator: str) -> tuple[Dispatcher, list[tuple[str, int]]]:
+    """overlap_sort: a blue part (0) in front of arm_0 and a red one (1) just behind it, both arms free. Blue goes to
+    either arm's blue bin, red only to arm_0's red bin."""
+    scene = load_scene("overlap_sort")
+    d = Dispatcher(scene, allocator=make_allocator(allocator, scene))
+    red, blue = (next(t for t, p in enumerate(scene.feeders[0].parts) if p.colour == c) for c in ("#d04030", "#3070d0"))
+
+    def on_belt(along_m: float) -> PartView:
+        x, y, z = scene.conveyor.point_at(along_m)
+        return PartView(np.array([x, y, z + 0.015]), np.array(d.belt_velocity()))
+
+    d.on_event("arrived", 0, "belt_parts", blue, 1.0)
+    d.on_event("arrived", 1, "belt_parts", red, 1.0)
+    d.on_parts({0: on_belt(0.60), 1: on_belt(0.45)}, 1.0)
+    for arm in d.arm_names:
+        d.on_arm(arm, HOME, "idle", 1.0)
+    return d, [(o.arm, o.part_id) for o in d.decide(100).orders if isinstance(o, AssignOrder)]
+
+
+def test_an_upstream_arm_takes_the_part_only_it_can_and_leaves_the_other_to_the_arm_downstream():
+    """The decision overlap_sort is made of. Optimal: arm_0 takes the red part and the blue one rides on to arm_1 (the
+    red part's deadline is where it leaves arm_0's reach, the blue one's where it leaves arm_1's). Greedy, oldest
+    first: arm_0 takes the blue part, and the red one is lost if arm_0 is not free again before it rides past."""
+    d, optimal = overlap_sort_decision("optimal")
+    blue, red = (d.ledger.tasks[t] for t in sorted(d.ledger.tasks))
+    assert red.deadline_s < blue.deadline_s
+    assert optimal == [("arm_0", 1)]
+    assert overlap_sort_decision("greedy")[1] == [("arm_0", 0)]
