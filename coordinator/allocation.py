@@ -220,16 +220,25 @@ def one_task_at_a_time(
     busy_stations: set[str],
     score: Callable[[ArmView, Task, PartView], float],
 ) -> list[tuple[int, str]]:
-    """Oldest task first, each to the free arm with the lowest score (infinite: cannot serve); one task per station."""
+    """Oldest part first, each to the free arm with the lowest score (infinite: cannot serve) over the part's
+    candidate tasks (one per station it may go to: a sorted part, any bin of its colour); one task per station."""
     free = [a for a in arms if a.free]
     busy, out = set(busy_stations), []
+    by_part: dict[int, list[Task]] = {}
     for task in open_candidates(tasks, parts, busy_stations):
+        by_part.setdefault(task.part_id, []).append(task)
+    for part_id, candidates in by_part.items():
         if not free:
             break
-        if busy.intersection(task.stations):
+        options = [
+            (score(a, t, parts[part_id]), a.name, k, a, t)
+            for k, t in enumerate(candidates)
+            if not busy.intersection(t.stations)
+            for a in free
+        ]
+        if not options:
             continue
-        part = parts[task.part_id]
-        value, _, arm = min(((score(a, task, part), a.name, a) for a in free), key=lambda b: (b[0], b[1]))
+        value, _, _, arm, task = min(options, key=lambda o: o[:3])
         if not math.isfinite(value):
             continue
         out.append((task.task_id, arm.name))
@@ -239,7 +248,7 @@ def one_task_at_a_time(
 
 
 class GreedyNearest:
-    """The baseline: oldest task first, each to the nearest free arm that can serve it."""
+    """The baseline: oldest part first, each to the nearest free arm that can serve it."""
 
     name = "greedy"
 

@@ -5,6 +5,7 @@ with no bus and no clock, as either front end does.
 """
 
 import numpy as np
+import pytest
 
 from coordinator.allocation import PartView, make_allocator
 from coordinator.cadence import decision_period_ticks
@@ -253,3 +254,44 @@ def test_an_upstream_arm_takes_the_part_only_it_can_and_leaves_the_other_to_the_
     assert red.deadline_s < blue.deadline_s
     assert optimal == [("arm_0", 1)]
     assert overlap_sort_decision("greedy")[1] == [("arm_0", 0)]
+
+
+SHARED_TRAY = """
+name: shared_tray
+description: Two arms reach one tray; each has a bin that takes the tray's parts.
+physics_hz: 200
+control_hz: 100
+feeders:
+  - name: kits
+    into: parts_tray
+    arrival: {rate_per_min: 6}
+    parts: [{kind: box, size_m: [0.04, 0.04, 0.03], mass_kg: 0.1, colour: "#e0c020"}]
+stations:
+  - {name: parts_tray, kind: tray, pose: {xyz: [0.0, 0.3, 0.0]}, size_m: [0.14, 0.14, 0.02]}
+"""
+BINS = {
+    "arm_0": '  - {name: bin_0, kind: bin, pose: {xyz: [-0.55, 0.1, 0.0]}, accepts_colour: "#e0c020"}\n',
+    "arm_1": '  - {name: bin_1, kind: bin, pose: {xyz: [0.65, 0.1, 0.0]}, accepts_colour: "#e0c020"}\n',
+}
+ARMS = """arms:
+  - {name: arm_0, base: {xyz: [-0.25, 0.0, 0.0], yaw_deg: 90}}
+  - {name: arm_1, base: {xyz: [0.35, 0.0, 0.0], yaw_deg: 90}}
+"""
+
+
+@pytest.mark.parametrize("first_bin", ["arm_0", "arm_1"])
+def test_greedy_gives_a_part_with_a_bin_for_each_arm_to_the_nearest_arm_whichever_bin_comes_first(tmp_path, first_bin):
+    """A tray part either arm can take to a bin of its own: greedy gives it to arm_0, nearer the tray, whichever
+    bin the scene lists first. It used to go to the arm whose bin came last (that candidate's id sorted first)."""
+    second_bin = "arm_1" if first_bin == "arm_0" else "arm_0"
+    path = tmp_path / "shared_tray.yaml"
+    path.write_text(SHARED_TRAY + BINS[first_bin] + BINS[second_bin] + ARMS)
+    scene = load_scene(str(path))
+    d = Dispatcher(scene, allocator=make_allocator("greedy", scene))
+    tray = scene.station("parts_tray")
+    d.on_event("arrived", 0, "kits", 0, 1.0)
+    d.on_event("at_station", 0, "parts_tray", 0, 1.2)
+    d.on_parts({0: PartView(np.array([*tray.pose.xyz[:2], tray.surface_z_m + 0.015]), np.zeros(3))}, 1.2)
+    at_home(d, 1.2)
+    orders = [o for o in d.decide(120).orders if isinstance(o, AssignOrder)]
+    assert [(o.arm, o.part_id, o.place_xyz[0] < 0) for o in orders] == [("arm_0", 0, True)]
