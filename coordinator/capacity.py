@@ -80,6 +80,7 @@ class CapacityBound:
     arm_busy: dict[str, float] = field(default_factory=dict)
     station_busy: dict[str, float] = field(default_factory=dict)
     unservable: list[str] = field(default_factory=list)  # hops no arm can do: their parts can never be completed
+    idle_arms: list[str] = field(default_factory=list)  # arms that can do no hop at all: they stand idle all run
     model: HopModel | None = field(default=None, repr=False, compare=False)  # the model's hop times, to reuse
 
     def as_dict(self) -> dict:
@@ -477,5 +478,6 @@ def capacity_bound(
         arm_busy,
         station_busy,
         unservable,
+        [v.name for i, v in enumerate(views) if not np.isfinite(seconds[i]).any()],
         model=model,
     )

@@ -35,6 +35,9 @@ def capacity_line(bound) -> str:
         text += f" (bottleneck: {bound.bottleneck}, busy all the time)"
     if bound.unservable:
         text += f"; no arm can serve {', '.join(bound.unservable)}"
+    if bound.idle_arms:
+        idle = ", ".join(bound.idle_arms)
+        text += f"; {idle} can serve no hop (no part and its next station both in its reach): it will stand idle"
     return text
 
 

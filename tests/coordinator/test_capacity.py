@@ -5,6 +5,7 @@ import pytest
 
 from coordinator.capacity import capacity_bound
 from scenes import load_scene
+from scenes.loader import resolve_scene_path
 
 
 def with_feeders(scene, **changes):
@@ -144,3 +145,13 @@ def test_a_part_type_two_arms_can_take_gets_no_window_cap():
     caps = belt_window_caps(scene, [("mixed", t, 5.0) for t in range(3)], 60.0, model)
     shared = {k for c in caps for k in c.types}
     assert ("mixed", 1) not in shared, caps  # arms 1 and 2 both take colour 1 into their own bins
+
+
+def test_an_arm_that_can_serve_no_hop_is_named(tmp_path):
+    """overlap_row with arm_1's blue bin moved into the blind spot behind its base: `fleet check` used to say only
+    "ok", and the run then left arm_1 idle all along."""
+    text = resolve_scene_path("overlap_row").read_text()
+    path = tmp_path / "row.yaml"
+    path.write_text(text.replace("xyz: [0.28, -0.2, 0.0]", "xyz: [0.0, -0.25, 0.0]"))
+    assert capacity_bound(load_scene(str(path))).idle_arms == ["arm_1"]
+    assert capacity_bound(load_scene("overlap_row")).idle_arms == []

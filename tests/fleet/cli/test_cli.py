@@ -30,6 +30,7 @@ def test_check_prints_ok_for_bundled_scenes():
         assert result.returncode == 0, (name, result.stderr)
         first, bound = result.stdout.strip().splitlines()
         assert first == "ok" and bound.startswith("capacity: at best ") and "parts/min" in bound, name
+        assert "stand idle" not in bound, name  # every bundled arm has work
 
 
 def test_check_broken_scene_is_one_line_exit_2(tmp_path):
