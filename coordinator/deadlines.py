@@ -86,8 +86,7 @@ def _routed_stations(scene: Scene) -> list[str]:
     """The stations a belt part may be bound for: its feeder's route's first, a buffer, or a bin of its colour (a
     sorted part's, which its colour picks at allocation)."""
     belt = [f for f in scene.feeders if f.into == "conveyor"]
-    colours = {p.colour.lower() for f in belt if not f.route for p in f.parts}
-    sorted_into = [s.name for s in scene.stations if colours.intersection(s.colours)]
+    sorted_into = [s for f in belt for t in range(len(f.parts)) for s in scene.stations_for_colour(f.name, t)]
     named = [f.route[0] for f in belt if f.route] + scene.buffers() + sorted_into
     return list(dict.fromkeys(named))
 
