@@ -18,6 +18,7 @@ import numpy as np
 import supersuit
 import torch
 from allocate_mode_allocators import against, run_episode
+from imitation import dagger
 from rich.progress import Progress
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
@@ -96,6 +97,13 @@ def main() -> int:
     parser.add_argument("--n-steps", type=int, default=128, help="PPO rollout length per arm")
     parser.add_argument("--episodes", type=int, default=5, help="evaluation episodes (seeds 1000...; 0: none)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--imitate",
+        metavar="ALLOCATOR",
+        help="start from this allocator's choices (DAgger, examples/imitation.py) before PPO; default: from scratch",
+    )
+    parser.add_argument("--dagger-rounds", type=int, default=4, help="with --imitate: rounds (0: the teacher plays)")
+    parser.add_argument("--dagger-episodes", type=int, default=10, help="with --imitate: episodes a round")
     parser.add_argument("--save", type=Path, default=Path("learned_allocator.pt2"), help="the policy file to write")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="clawfleet-load-") as folder:  # the scaled scene's file, removed after
@@ -110,11 +118,22 @@ def train_and_compare(args: argparse.Namespace, scene: str) -> int:
     model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=args.n_steps * venv.num_envs, verbose=0)
     model.set_logger(Logger(folder=None, output_formats=[]))
     start = time.perf_counter()
-    with Progress(transient=True) as progress:
-        model.learn(total_timesteps=args.timesteps, callback=Shown(progress, args.timesteps))
+    trained_on = f"{args.scene} at load {args.load:g}, SB3 PPO, {args.timesteps} choices, seed {args.seed}"
+    if args.imitate:  # seeds from 2000 on: apart from the evaluation's (1000...) and PPO's
+        demos = dagger(
+            Logits(model.policy),
+            lambda: cell(scene, args.max_cycles, args.decision_hz),
+            args.imitate,
+            args.dagger_rounds,
+            args.dagger_episodes,
+            first_seed=2000,
+        )
+        trained_on += f", after DAgger from {args.imitate} ({len(demos.actions)} labelled choices)"
+    if args.timesteps > 0:
+        with Progress(transient=True) as progress:
+            model.learn(total_timesteps=args.timesteps, callback=Shown(progress, args.timesteps))
     wall = time.perf_counter() - start
     venv.close()
-    trained_on = f"{args.scene} at load {args.load:g}, SB3 PPO, {args.timesteps} choices, seed {args.seed}"
     save_policy(Logits(model.policy), args.save, trained_on=trained_on)
     print(f"trained {args.timesteps} choices in {wall:.0f} s; policy file {args.save} ({trained_on})")
     if args.episodes < 1:

@@ -41,6 +41,7 @@ def commands(folder: Path, ray_head: str | None) -> dict[str, list[str]]:
     out["sb3_choice_allocator"] = example(
         "sb3_choice_allocator.py",
         *("--timesteps", "128", "--n-steps", "64", "--max-cycles", "60", "--episodes", "1"),
+        *("--imitate", "optimal", "--dagger-rounds", "2", "--dagger-episodes", "1"),
         *("--save", str(folder / "learned.pt2")),
     )
     if ray_head is not None:
@@ -107,6 +108,7 @@ def test_a_policy_trained_with_sb3_in_the_env_is_exported_and_allocates_a_real_l
     """The trained policy's file, as `fleet run --allocator policy:FILE` takes it: the coordinator process loads it and
     the line runs with the guard and the real controllers."""
     out = said(ran, "sb3_choice_allocator").stdout
+    assert "round 0: optimal played" in out and "round 1: policy played" in out  # DAgger from optimal, then PPO
     assert "trained 128 choices" in out and "learned:" in out and "optimal:" in out
     summary = tmp_path / "summary.json"
     policy = ran[0] / "learned.pt2"
