@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import torch
+from allocate_mode_allocators import run_episode
 
 from coordinator.allocation import make_allocator
 from coordinator.choice_slots import masked_choice
@@ -43,32 +44,41 @@ class Demonstrations:
         )
 
 
-def actor_player(actor: torch.nn.Module) -> Callable:
-    """The actor acting in the env as the coordinator's `policy:FILE` allocator acts: the best valid action."""
+def masked_player(logits: Callable[[np.ndarray], np.ndarray]) -> Callable:
+    """A policy acting in the env as the coordinator's `policy:FILE` allocator acts: every arm's choice features
+    scored in one batch (`logits`: float32 rows to rows of logits), each arm taking its best valid action."""
 
     def act(env, obs: dict) -> dict:
-        with torch.no_grad():
-            logits = actor(torch.from_numpy(np.stack([obs[a] for a in env.agents]).astype(np.float32))).numpy()
-        return {a: masked_choice(row, env.action_mask(a)) for a, row in zip(env.agents, logits)}
+        scores = logits(np.stack([obs[a] for a in env.agents]).astype(np.float32))
+        return {a: masked_choice(row, env.action_mask(a)) for a, row in zip(env.agents, scores)}
 
     return act
+
+
+def actor_player(actor: torch.nn.Module) -> Callable:
+    """`masked_player` of an actor being trained (no file written yet)."""
+
+    def logits(rows: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return actor(torch.from_numpy(rows)).numpy()
+
+    return masked_player(logits)
 
 
 def label_episode(env, seed: int, teacher: str, player: Callable | None, into: Demonstrations) -> int:
     """Play one episode from `seed` (`player` acts; None: the teacher itself) and label every arm that has a choice
     with the teacher's action. Returns the parts the episode completed; the env is closed after."""
     allocator = make_allocator(teacher, env.scene)
-    obs, _ = env.reset(seed=seed)
-    while env.agents:
+
+    def labelled(env, obs: dict) -> dict:
         taught = allocator_actions(env.chooser, allocator, env._options)
         for arm in env.agents:
             mask = env.action_mask(arm)
             if mask.sum() > 1:  # asked: something to choose besides waiting
                 into.add(obs[arm], mask, taught[arm])
-        obs, *_ = env.step(taught if player is None else player(env, obs))
-    completed = env.scenario.book.ledger.totals()["parts_completed"]
-    env.close()
-    return completed
+        return taught if player is None else player(env, obs)
+
+    return run_episode(env, seed, labelled)["completed"]
 
 
 def fit_actor(actor: torch.nn.Module, demos: Demonstrations, epochs: int = 60, lr: float = 1e-3) -> float:

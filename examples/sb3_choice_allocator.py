@@ -18,14 +18,13 @@ import numpy as np
 import supersuit
 import torch
 from allocate_mode_allocators import against, run_episode
-from imitation import dagger
+from imitation import dagger, masked_player
 from rich.progress import Progress
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 
 from coordinator.allocation import make_allocator
-from coordinator.choice_slots import masked_choice
 from coordinator.policy_file import load_policy, save_policy
 from fleet.common.scene_overrides import LOAD, scene_with
 from fleet.env import parallel_env
@@ -74,8 +73,7 @@ class Shown(BaseCallback):
 
 def file_policy(path: Path):
     """A policy file acting in the env as the coordinator's `policy:FILE` allocator acts (the best valid choice)."""
-    policy = load_policy(path)
-    return lambda env, obs: {a: masked_choice(policy.logits(obs[a][None])[0], env.action_mask(a)) for a in env.agents}
+    return masked_player(load_policy(path).logits)
 
 
 def play(scene: str, max_cycles: int, decision_hz: float, seed: int, player) -> dict:
