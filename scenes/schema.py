@@ -347,6 +347,10 @@ class Scene(Strict):
                 return f
         raise KeyError(f"no feeder {name!r}; feeders: {', '.join(f.name for f in self.feeders) or 'none'}")
 
+    def round_part_types(self) -> frozenset[tuple[str, int]]:
+        """The (feeder, type index) of each part round about its up axis (a cylinder): any grasp yaw closes across."""
+        return frozenset((f.name, t) for f in self.feeders for t, p in enumerate(f.parts) if p.kind == "cylinder")
+
     def route(self, feeder_name: str, type_index: int) -> list[str]:
         """The stations a part of this feeder and type visits after its source, in order."""
         feeder = self.feeder(feeder_name)

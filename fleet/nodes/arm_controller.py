@@ -71,8 +71,11 @@ CONTROLLER_LIVE = (
 )
 
 
-def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
-    """Part observations from the flattened parts message."""
+def parts_from_message(
+    msg: PartsState, round_types: frozenset[tuple[str, int]] = frozenset()
+) -> dict[int, PartObservation]:
+    """Part observations from the flattened parts message; `round_types`: the scene's round part types
+    (`Scene.round_part_types`)."""
     out = {}
     for i, pid in enumerate(msg.part_ids):
         size = tuple(msg.sizes_m[3 * i : 3 * i + 3])
@@ -84,6 +87,7 @@ def parts_from_message(msg: PartsState) -> dict[int, PartObservation]:
             float(min(size[0], size[1])),
             float(size[2]),
             size,
+            (msg.feeders[i], msg.type_indices[i]) in round_types,
         )
     return out
 
@@ -137,8 +141,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         self.arm, self.keys, self.session = arm, keys, session
         self.arm_index = [a.name for a in scene.arms].index(arm)  # its place in the coordinator's order counts
         self.spec = get_robot(decl.model)
-        self.period_ticks = max(1, round(scene.control_hz / rate_hz))
-        self.hz = scene.control_hz
+        self.period_ticks, self.hz = max(1, round(scene.control_hz / rate_hz)), scene.control_hz
         self.skill = PickPlaceSkill(
             self.spec,
             yaw_transform(decl.base.xyz, decl.base.yaw_rad),
@@ -150,6 +153,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         self.skill.goal_id = (self.incarnation & 0x7FFFFFFF) << 20  # goal ids never repeat across a respawn
         self._wire(session, keys, scene)
         self.parts: dict[int, PartObservation] = {}
+        self.round_types = scene.round_part_types()
         self.parts_tick = -1
         self.parts_seen: deque[PartsState] = deque(maxlen=64)  # the newest parts messages, oldest first
         self.delays = deque(maxlen=40)  # ticks each recent state spent on the bus on its way here
@@ -240,7 +244,7 @@ class ArmController(ControllerOrders, SnapshotNode):
                 self.parts_seen.append(msg)
             seen = [m for m in self.parts_seen if m.tick <= tick]
             if seen and seen[-1].tick != self.parts_tick:
-                self.parts, self.parts_tick = parts_from_message(seen[-1]), seen[-1].tick
+                self.parts, self.parts_tick = parts_from_message(seen[-1], self.round_types), seen[-1].tick
             if self.parts_seen and self.parts_seen[-1].tick >= tick:
                 return
             if time.monotonic() > deadline:

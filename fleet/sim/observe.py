@@ -34,6 +34,7 @@ def part_observations(world: World) -> dict[int, PartObservation]:
             info.width_m,
             info.height_m,
             info.size_m,
+            info.round,
         )
     return out
 

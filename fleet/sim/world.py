@@ -39,6 +39,7 @@ class PartInfo:
     width_m: float
     height_m: float
     size_m: tuple[float, float, float]
+    round: bool = False  # a cylinder: round about its up axis
 
 
 def feeder_streams(seed: int, n_feeders: int) -> list[np.random.Generator]:
@@ -211,6 +212,7 @@ class World(WorldFeeders):
             p.width_m,
             p.height_m,
             tuple(p.part_type.size_m),
+            p.part_type.kind == "cylinder",
         )
 
     def active_parts(self) -> list[PartInfo]:

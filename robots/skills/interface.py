@@ -30,7 +30,8 @@ class ArmObservation:
 
 @dataclass(frozen=True)
 class PartObservation:
-    """One part as the line sees it: pose, velocity and its size across and up."""
+    """One part as the line sees it: pose, velocity and its size across and up; `round`: round about its up axis (a
+    cylinder), so a grasp at any yaw closes across it."""
 
     part_id: int
     position: np.ndarray
@@ -39,6 +40,7 @@ class PartObservation:
     width_m: float
     height_m: float
     size_m: tuple[float, float, float] | None = None
+    round: bool = False
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
-"""Where the jaws come down: across the part's narrow side, nearest the arm's natural yaw; after a grasp that
-closed on nothing (a jaw on a bin's wall: a top by a bin's side failed three grasps in a row, each the same way),
-across the part's other side where it has one as narrow."""
+"""Where the jaws come down: across the part's narrow side, nearest the arm's natural yaw (a round part: at the
+natural yaw itself); after a grasp that closed on nothing (a jaw on a bin's wall: a top by a bin's side failed three
+grasps in a row, each the same way), across the part's other side where it has one as narrow."""
 
 import math
 
@@ -14,9 +14,9 @@ from robots.skills.pick_place import PickPlaceSkill
 SPEC = get_robot("openclaw")
 
 
-def part_at(xy, yaw_rad: float, size_m=(0.035, 0.035, 0.025)) -> PartObservation:
+def part_at(xy, yaw_rad: float, size_m=(0.035, 0.035, 0.025), round_part: bool = False) -> PartObservation:
     quaternion = np.array([math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)])
-    return PartObservation(12, np.array([*xy, 0.02]), quaternion, np.zeros(3), size_m[0], size_m[2], size_m)
+    return PartObservation(12, np.array([*xy, 0.02]), quaternion, np.zeros(3), size_m[0], size_m[2], size_m, round_part)
 
 
 def axis_turn(a: float, b: float) -> float:
@@ -26,7 +26,7 @@ def axis_turn(a: float, b: float) -> float:
 
 def test_a_grasp_that_closed_on_nothing_is_tried_across_the_other_side_next():
     skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
-    top = part_at((0.55, -0.65), math.radians(101))  # round: four yaws close across it
+    top = part_at((0.55, -0.65), math.radians(101))  # square: four yaws close across it
     first = skill._grasp_yaw(top)
     skill.missed_yaws[top.part_id] = [first]
     second = skill._grasp_yaw(top)
@@ -41,3 +41,18 @@ def test_a_long_part_is_still_grasped_across_its_narrow_side_after_a_miss():
     first = skill._grasp_yaw(bar)
     skill.missed_yaws[bar.part_id] = [first]
     assert axis_turn(skill._grasp_yaw(bar), first) < 1e-9, "its wide side does not fit the jaws"
+
+
+def test_a_round_part_is_grasped_at_the_natural_yaw_whichever_way_it_lies():
+    """A cylinder lying at any yaw is closed across at the arm's own yaw (least wrist roll): turned up to 45 degrees
+    with the part, a top in the assembly line's bin missed 3 grasps in 17 (seed 5, 300 s) and none at this yaw."""
+    skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
+    natural = skill._natural_yaw(np.array([0.55, -0.65, 0.02]))
+    for lying in (0.0, 0.4, math.radians(101), 2.5):
+        top = part_at((0.55, -0.65), lying, round_part=True)
+        assert abs(math.remainder(skill._grasp_yaw(top) - natural, 2 * math.pi)) < 1e-9
+        square = skill._grasp_yaw(part_at((0.55, -0.65), lying))  # a square box: square to its sides
+        assert abs(math.remainder(square - lying, math.pi / 2)) < 1e-9
+    top = part_at((0.55, -0.65), 0.4, round_part=True)
+    skill.missed_yaws[top.part_id] = [natural]
+    assert axis_turn(skill._grasp_yaw(top), natural) == math.pi / 2, "missed at its natural yaw: across the other way"
