@@ -45,10 +45,21 @@ class BeltReach:
     def buffers_near(self, station: str) -> tuple[str, ...]:
         return self.buffers_by_station.get(station, ())
 
-    def riding_off(self, conveyor: Conveyor, parts: dict[int, PartView], lead_s: float) -> Callable[[PartRecord], bool]:
-        """Whether a seen belt part passes, within `lead_s`, the last point an arm able to take it to its next
-        station reaches (then a buffer may still save it)."""
-        return lambda p: rides_off_within(conveyor, self.for_station(p.next_station), parts, p.part_id, lead_s)
+    def riding_off(
+        self, conveyor: Conveyor, parts: dict[int, PartView], lead_s: float
+    ) -> Callable[[PartRecord, str], bool]:
+        """Whether a seen belt part passes, within `lead_s`, the last point an arm able to take it to `buffer`
+        reaches, and has not passed it yet: the last chance to set it down there. Each buffer by its own arms: a
+        buffer upstream (arm_0's on the main job) is asked for while arm_0 can still take the part, not once the
+        part nears the belt's end, where only another arm reaches it (measured: three bases in a row rode off on
+        assembly_line seed 3 while arm_0 stood idle by a free buffer)."""
+
+        def last_chance(part: PartRecord, buffer: str) -> bool:
+            seen = parts.get(part.part_id)
+            left = None if seen is None else time_left_s(conveyor, self.for_station(buffer), seen)
+            return left is not None and 0.0 < left <= lead_s
+
+        return last_chance
 
 
 _BELT_REACH: dict[str, BeltReach] = {}  # layout -> its belt reach
@@ -112,15 +123,6 @@ def task_deadline_s(conveyor: Conveyor, reach: BeltReach, task: Task, part: Part
     sorted part: any bin of its colour), so that an arm upstream need not hurry for a part one downstream takes."""
     dues = [belt_deadline_s(conveyor, reach.for_station(s), part, now_s) for s in task.all_targets]
     return max((d for d in dues if d is not None), default=None)
-
-
-def rides_off_within(
-    conveyor: Conveyor, last_reach_m: float | None, parts: dict[int, PartView], part_id: int, lead_s: float
-) -> bool:
-    """Whether a seen belt part passes the last reachable point within `lead_s` (a buffer may still save it)."""
-    part = parts.get(part_id)
-    left = None if part is None else time_left_s(conveyor, last_reach_m, part)
-    return left is not None and left <= lead_s
 
 
 def cannot_make_it(rules: Eligibility, arm: ArmView, task: Task, part: PartView) -> bool:

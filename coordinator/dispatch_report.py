@@ -75,6 +75,8 @@ class DispatchReport:
         )
         return bound.as_dict() | {
             "parts_finishable": sum(counts.values()),
+            # of them, the most the run could complete (fewer where an assembly pairs them or a belt window caps them)
+            "parts_completable": math.floor(bound.throughput_bound_per_min * end_s / 60.0 + 1e-6),
             "sim_seconds": round(end_s, 3),
             "belt_windows": {c.arm: {"parts": c.arrived, "at_most": c.at_most} for c in caps},
         }

@@ -200,8 +200,9 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
     # --- tasks ----------------------------------------------------------------------
     def refresh(self, now_s: float, soon_lost: SoonLost | None = None, near: BuffersNear | None = None) -> list[Task]:
         """Create a task for every part that is ready for its next hop; returns the pending tasks. `soon_lost`: whether
-        a belt part rides out of every arm's reach soon (the dispatcher knows the belt); such a part whose next
-        station is not ready for it is set down at a free buffer instead (`Station.buffer`), and goes on from there.
+        a belt part soon rides past its last chance to be set down on a buffer (the dispatcher knows the belt); such
+        a part whose next station is not ready for it is set down there instead (`Station.buffer`), and goes on from
+        there.
         `near`: the buffers near a station, where a part for a taken fixture goes while more ride behind it."""
         behind = self._waiting_on_belt() if self.buffers else []
         for part in self._in_turn():

@@ -11,7 +11,9 @@ from coordinator.tasks import CONVEYOR, TAKEN_STATES, PartFate, PartRecord, Task
 
 # the buffers an arm able to bring a part to a station also reaches (the dispatcher knows the arms' reach)
 BuffersNear = Callable[[str], tuple[str, ...]]
-SoonLost = Callable[[PartRecord], bool]  # whether a belt part rides out of reach soon (the dispatcher knows the belt)
+# whether a belt part soon rides past the last point an arm able to set it on a buffer reaches (the dispatcher knows
+# the belt): (part, buffer) -> bool
+SoonLost = Callable[[PartRecord, str], bool]
 
 
 class LedgerBuffers:
@@ -57,12 +59,11 @@ class LedgerBuffers:
         self._open_by_part.pop(task.part_id, None)
 
     def _buffer_for(self, part: PartRecord, soon_lost: SoonLost | None) -> tuple[str, ...]:
-        """The free buffers (nothing resting there, nothing on its way) for a belt part about to be lost, in scene
-        order; none if it is not."""
+        """The free buffers (nothing resting there, nothing on its way) a belt part is about to ride past the last
+        chance to be set down on, in scene order; none if there are none."""
         if not self.buffers or part.location != CONVEYOR or soon_lost is None:
             return ()
-        free = self._free_buffers()
-        return free if free and soon_lost(part) else ()
+        return tuple(b for b in self._free_buffers() if soon_lost(part, b))
 
     def _free_buffers(self, besides: Task | None = None) -> tuple[str, ...]:
         """The buffers with nothing resting there and no part on its way there (but `besides`'s), in scene order."""

@@ -303,7 +303,8 @@ def print_run_summary(s: dict) -> None:
             "-"
             if not s.get("run_bound_per_min")
             else f"{s['run_bound_per_min']:.2f}: {_share(s['run_bound_fraction'])} of it achieved; "
-            f"{s['parts_completed']} of {s['parts_finishable']} parts that arrived in time to be finished",
+            f"{s['parts_completed']} of {s['parts_finishable']} parts that arrived in time to be finished"
+            + _completable(s),
         ),
         (
             "arms: working / waiting for a grant (+ held at a fixture) / idle",
@@ -353,6 +354,14 @@ def _router_row(refused: dict | None) -> str:
         return "0"
     top = max(refused, key=refused.get)
     return f"{sum(refused.values())} (most: {top}, {refused[top]})"
+
+
+def _completable(s: dict) -> str:
+    """How many of a run's finishable parts it could complete at most, where fewer (an assembly pairs its parts)."""
+    n, of = s.get("parts_completable"), s.get("parts_finishable")
+    if n is None or of is None or n >= of:
+        return ""
+    return f", {n} of them could be completed (limited by {(s.get('capacity_of_run') or {}).get('bottleneck', '?')})"
 
 
 def _allocator_row(s: dict) -> str:

@@ -38,6 +38,7 @@ class RunSummary:
                 "run_bound_per_min": None,
                 "run_bound_fraction": None,
                 "parts_finishable": None,
+                "parts_completable": None,
             }
         bound = capacity["throughput_bound_per_min"]
         achieved = completed / (sim_s / 60.0) if sim_s > 0 else 0.0
@@ -50,6 +51,7 @@ class RunSummary:
             "run_bound_per_min": run_bound,
             "run_bound_fraction": round(achieved / run_bound, 4) if run_bound else None,
             "parts_finishable": of_run["parts_finishable"] if of_run else None,
+            "parts_completable": of_run.get("parts_completable") if of_run else None,
             "capacity": capacity,
         }
 

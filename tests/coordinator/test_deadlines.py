@@ -8,7 +8,7 @@ from coordinator.allocation import ArmView, CachedReach, Eligibility, PartView
 from coordinator.capacity import arm_views
 from coordinator.deadlines import belt_deadline_s, cannot_make_it, last_reach_along_belt_m, layout_belt_reach
 from coordinator.ledger import Ledger
-from coordinator.tasks import TaskState
+from coordinator.tasks import PartRecord, TaskState
 from robots.frames import yaw_transform
 from robots.registry import get_robot
 from robots.top_down import TopDownIK
@@ -91,3 +91,25 @@ def test_in_a_row_of_bays_a_part_bound_for_its_bay_can_be_taken_until_it_leaves_
     sorting = load_scene("sorting_line", arms=3)
     bins = layout_belt_reach(sorting, arm_views(sorting))  # a sorted part: until past the arms with a bin of its colour
     assert bins.for_station("bin_0") < bins.for_station("bin_2") == bins.any_m
+
+
+def test_a_part_gets_its_last_chance_at_each_buffer_from_that_buffers_own_arms():
+    """The main job: infeed_buffer is arm_0's, upstream; base_buffer arm_1's, at the belt's end. A base 6 s before
+    the end of arm_0's stretch is at its last chance for infeed_buffer (8 s: an approach and a grasp), not yet for
+    base_buffer; past arm_0, never again for infeed_buffer. (Asked by the belt's end alone, a base got its task for
+    infeed_buffer 2.7 s before it left arm_0, too late: three bases in a row rode off on seed 3, arm_0 idle.)"""
+    scene = load_scene("assembly_line")
+    reach = layout_belt_reach(scene, arm_views(scene))
+    belt, z = scene.conveyor, scene.conveyor.pose.xyz[2] + 0.015
+    upstream, downstream = reach.by_station_m["infeed_buffer"], reach.by_station_m["base_buffer"]
+    assert upstream < downstream == reach.by_station_m["fixture_0"], "arm_0's stretch ends before arm_1's"
+
+    def riding_at(along_m: float) -> dict[int, PartView]:
+        return {7: PartView(np.array([*belt.point_at(along_m)[:2], z]), np.array(belt.direction) * belt.speed_m_per_s)}
+
+    base = PartRecord(7, "bases", 0, 0.03, ["fixture_0", "output_tray"], 0.0)
+    six_s_before = upstream - 6.0 * belt.speed_m_per_s
+    near_arm_0 = reach.riding_off(belt, riding_at(six_s_before), 8.0)
+    assert near_arm_0(base, "infeed_buffer") and not near_arm_0(base, "base_buffer")
+    assert not reach.riding_off(belt, riding_at(upstream + 0.02), 8.0)(base, "infeed_buffer"), "past arm_0"
+    assert reach.riding_off(belt, riding_at(downstream - 0.1), 8.0)(base, "base_buffer")

@@ -204,13 +204,15 @@ def test_a_base_about_to_ride_off_while_the_fixture_is_taken_is_set_down_at_the_
     lg.assign(first.task_id, "arm_0", 1.0)
     lg.arm_report("arm_0", first.task_id, "lift", 4.0)  # held at the fixture's edge, say
     lg.arrived(1, "bases", 0, 5.0)
-    assert lg.refresh(5.0, soon_lost=lambda part: False) == [], "the fixture's base is on its way: the next waits"
-    buffered = only(lg.refresh(6.0, soon_lost=lambda part: part.part_id == 1))
+    assert lg.refresh(5.0, soon_lost=lambda part, buffer: False) == [], (
+        "the fixture's base is on its way: the next waits"
+    )
+    buffered = only(lg.refresh(6.0, soon_lost=lambda part, buffer: part.part_id == 1))
     assert (buffered.part_id, buffered.source, buffered.target) == (1, "conveyor", "base_buffer")
     assert buffered.stations == ("base_buffer",) and buffered.alternatives == ()
     lg.assign(buffered.task_id, "arm_1", 6.0)
     lg.arrived(2, "bases", 0, 7.0)
-    assert lg.refresh(8.0, soon_lost=lambda part: True) == [], "one part at a time on a buffer"
+    assert lg.refresh(8.0, soon_lost=lambda part, buffer: True) == [], "one part at a time on a buffer"
     lg.at_station(1, "base_buffer", 11.0)
     assert buffered.state == TaskState.DONE and lg.parts[1].location == "base_buffer" and lg.parts[1].hop == 0
     assert lg.totals()["parts_buffered"] == 1
@@ -286,16 +288,16 @@ def test_a_buffer_task_offers_only_buffers_still_free():
     lg.assign(only(lg.refresh(1.0)).task_id, "arm_0", 1.0)
     lg.arrived(1, "bases", 0, 2.0)
     lg.arrived(2, "bases", 0, 2.5)
-    first, second = lg.refresh(3.0, soon_lost=lambda part: True)
+    first, second = lg.refresh(3.0, soon_lost=lambda part, buffer: True)
     assert (first.target, first.alternatives) == ("base_buffer", ("infeed_buffer",))
     assert (second.target, second.alternatives) == ("infeed_buffer", ()), "one part on its way to a buffer at a time"
     lg.assign(first.task_id, "arm_0", 3.0, "infeed_buffer")  # the allocator chose the alternative
     assert lg.parts[1].route == ["fixture_0", "output_tray"], "a buffer is a detour, not a stage of the route"
-    assert only(lg.refresh(3.1, soon_lost=lambda part: True)) is second
+    assert only(lg.refresh(3.1, soon_lost=lambda part, buffer: True)) is second
     assert (second.target, second.alternatives) == ("base_buffer", ()), "its buffer was taken: the other one"
     lg.arrived(3, "bases", 0, 3.3)
     lg.assign(second.task_id, "arm_1", 3.4)
-    assert lg.refresh(3.5, soon_lost=lambda part: True) == [], "both buffers taken: nowhere to set part 3 down"
+    assert lg.refresh(3.5, soon_lost=lambda part, buffer: True) == [], "both buffers taken: nowhere to set part 3 down"
 
 
 def test_a_buffer_task_no_arm_took_yet_goes_straight_to_the_station_once_it_is_ready():
@@ -304,7 +306,7 @@ def test_a_buffer_task_no_arm_took_yet_goes_straight_to_the_station_once_it_is_r
     first = only(lg.refresh(1.0))
     lg.assign(first.task_id, "arm_0", 1.0)
     lg.arrived(1, "bases", 0, 2.0)
-    buffered = only(lg.refresh(3.0, soon_lost=lambda part: True))
+    buffered = only(lg.refresh(3.0, soon_lost=lambda part, buffer: True))
     assert buffered.target == "base_buffer"
     lg.lost(0, "fell to the floor", 4.0)  # the fixture's base is gone: the fixture is free again
     assert only(lg.refresh(4.5)) is buffered and (buffered.target, buffered.stations) == ("fixture_0", ("fixture_0",))

@@ -93,6 +93,7 @@ def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
     assert first["parts_completed"] <= first["run_bound_per_min"] * 18.0 / 60.0 + 1e-6, (
         "no run beats the bound of its own arrivals"
     )
+    assert first["parts_completed"] <= first["parts_completable"] <= first["parts_finishable"]
     assert first["run_bound_fraction"] == pytest.approx(
         first["throughput_per_min"] / first["run_bound_per_min"], rel=1e-3
     )
