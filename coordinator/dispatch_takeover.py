@@ -34,7 +34,7 @@ class TakeOver:
             else self.ledger.adopt(task_id, part_id, station, arm, time_s)
         )
         if not why:
-            self.last_stations[arm] = self.ledger.tasks[task_id].stations
+            self.last_stations[arm], self.last_task[arm] = self.ledger.tasks[task_id].stations, task_id
         self.adopted.append(
             {
                 "arm": arm,

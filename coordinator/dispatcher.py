@@ -69,6 +69,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         self.phase = {a: Phase.IDLE for a in self.arm_names}
         self.acts_at_tick = {a: 0 for a in self.arm_names}  # when an order sent now takes effect on each arm
         self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
+        self.last_task: dict[str, int] = {}  # each arm's latest task (where it is leaving from, once it is closed)
         self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
         self.request_seq: dict[str, int] = {a: 0 for a in self.arm_names}
         self.lost: dict[str, float] = {}
@@ -283,7 +284,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         station = self.scene.station(task.target)
         velocity = self.belt_velocity() if task.source == CONVEYOR else (0.0, 0.0, 0.0)
         place = (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target, task.part_id))
-        self.last_stations[arm] = task.stations
+        self.last_stations[arm], self.last_task[arm] = task.stations, task.task_id
         return AssignOrder(arm, task.task_id, task.part_id, float(part.position[2] - rec.height_m / 2), place, velocity)
 
     def belt_velocity(self) -> tuple[float, float, float]:
