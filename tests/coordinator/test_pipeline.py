@@ -196,6 +196,27 @@ def test_an_arm_on_its_way_home_from_a_fixture_takes_no_task_until_home():
     assert {v.name: v.free for v in d.arm_views()}["arm_0"]
 
 
+def test_an_arm_that_took_a_part_off_a_fixture_to_a_bin_goes_on_from_the_bin_but_not_after_a_failed_grasp():
+    """handover: arm_1 lifts each part off the pad and sets it in the bin. On its way home from the bin it is far from
+    the pad and may take the next part on the way; had its grasp at the pad failed, it is leaving the pad itself."""
+    scene = load_scene("handover")
+    d = Dispatcher(scene, pipeline=True)
+    q = np.asarray(get_robot("openclaw").home_q, float)
+    d.on_event("arrived", 0, "parts", 0, 1.0)
+    d.on_event("at_station", 0, "handover_pad", 0, 2.0)
+    lift = only(d.ledger.refresh(2.0))
+    d.ledger.assign(lift.task_id, "arm_1", 2.0)
+    d.last_stations["arm_1"], d.last_task["arm_1"] = lift.stations, lift.task_id  # as `Dispatcher.assignment` sets
+    d.on_event("at_station", 0, "output_bin", 0, 8.0)
+    assert lift.state == TaskState.DONE
+    d.on_arm("arm_1", q, "home", 8.5)
+    assert d.leaving_from("arm_1") == ("output_bin",)
+    assert {v.name: v.free for v in d.arm_views()}["arm_1"], "from the bin: the next task on the way"
+    lift.state = TaskState.FAILED  # the same task, had it failed at the pad
+    assert d.leaving_from("arm_1") == ("handover_pad", "output_bin")
+    assert not {v.name: v.free for v in d.arm_views()}["arm_1"], "maybe at the pad: home first"
+
+
 def test_a_top_waits_until_an_arm_takes_its_base_for_one_arm_may_have_to_bring_both():
     lg = line()
     lg.at_station(0, "base_buffer", 2.0)  # the base set down on arm_1's buffer; arm_1 also fetches the tops
