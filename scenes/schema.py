@@ -111,6 +111,11 @@ class PartType(Strict):
         return self
 
     @property
+    def round(self) -> bool:
+        """Round about its up axis (a cylinder): a grasp at any yaw closes across it."""
+        return self.kind == "cylinder"
+
+    @property
     def rgb(self) -> tuple[float, float, float]:
         h = self.colour.lstrip("#")
         return tuple(int(h[i : i + 2], 16) / 255 for i in (0, 2, 4))  # type: ignore[return-value]
@@ -348,8 +353,8 @@ class Scene(Strict):
         raise KeyError(f"no feeder {name!r}; feeders: {', '.join(f.name for f in self.feeders) or 'none'}")
 
     def round_part_types(self) -> frozenset[tuple[str, int]]:
-        """The (feeder, type index) of each part round about its up axis (a cylinder): any grasp yaw closes across."""
-        return frozenset((f.name, t) for f in self.feeders for t, p in enumerate(f.parts) if p.kind == "cylinder")
+        """The (feeder, type index) of each round part type (`PartType.round`), as the parts message names them."""
+        return frozenset((f.name, t) for f in self.feeders for t, p in enumerate(f.parts) if p.round)
 
     def route(self, feeder_name: str, type_index: int) -> list[str]:
         """The stations a part of this feeder and type visits after its source, in order."""

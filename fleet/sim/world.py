@@ -39,7 +39,7 @@ class PartInfo:
     width_m: float
     height_m: float
     size_m: tuple[float, float, float]
-    round: bool = False  # a cylinder: round about its up axis
+    round: bool = False  # round about its up axis (`PartType.round`)
 
 
 def feeder_streams(seed: int, n_feeders: int) -> list[np.random.Generator]:
@@ -212,7 +212,7 @@ class World(WorldFeeders):
             p.width_m,
             p.height_m,
             tuple(p.part_type.size_m),
-            p.part_type.kind == "cylinder",
+            p.part_type.round,
         )
 
     def active_parts(self) -> list[PartInfo]:
