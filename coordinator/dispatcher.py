@@ -132,16 +132,18 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         acts_at_tick: int = 0,
         lost: bool = False,
         silent_for_s: float = 0.0,
+        gripper_q: np.ndarray | None = None,
     ) -> list[int] | None:
         """An arm's state: its joints, its skill's phase and task, and the motion request it holds still for
         (`request_seq` > 0; a request is new when its number differs from the last taken: a restarted
         controller counts from 1 again). `acts_at_tick`: when an order sent now would take effect on it.
-        `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost."""
+        `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost.
+        `gripper_q`: its claw's joints, so the cell's separations measure the claw as it is."""
         self.acts_at_tick[arm] = acts_at_tick
         self.phase[arm] = phase
         if request_seq > 0 or phase in IDLE_PHASES:  # holding still for a grant, or not working: no move of old
             self.unsettled.discard(arm)
-        self.guard.set_state(arm, np.asarray(q))
+        self.guard.set_state(arm, np.asarray(q), gripper_q)
         if request is not None and request_seq > 0 and request_seq != self.request_seq[arm]:
             self.request_seq[arm] = request_seq
             self.requests[arm] = request

@@ -22,6 +22,7 @@ import fcl
 import numpy as np
 from scipy.spatial.distance import cdist
 
+from coordinator.claw_sweep import ClawSpan, ClawSweeps
 from robots.kinematics import KinematicModel, PlacedFrames
 from robots.spec import RobotSpec
 
@@ -35,6 +36,7 @@ class LinkShape:
     transform_shape_to_link: np.ndarray
     radius_m: float  # a sphere about the shape's origin holding all of it
     cover: np.ndarray  # (k, 4): spheres (centre x, y, z in the shape frame, radius) that together hold all of it
+    vertices: np.ndarray  # (n, 3): points in the shape frame whose convex hull holds all of it
 
 
 def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
@@ -76,7 +78,7 @@ def _box_cover(size: tuple[float, float, float]) -> np.ndarray:
     return _row_cover(size[axis], math.hypot(*others), axis)
 
 
-def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeometry, float, np.ndarray]:
+def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeometry, float, np.ndarray, np.ndarray]:
     import trimesh
 
     # The mesh's convex hull: what the physics collides with (SAPIEN makes each collision mesh convex), and FCL
@@ -88,24 +90,38 @@ def _mesh_geometry(filename: str, scale: list[float]) -> tuple[fcl.CollisionGeom
     bvh = fcl.Convex(vertices, len(faces), np.hstack([np.full((len(faces), 1), 3), faces]).ravel())
     centre = (vertices.min(axis=0) + vertices.max(axis=0)) / 2  # about the mesh's box: tighter than about its origin
     cover = np.array([[*centre, np.linalg.norm(vertices - centre, axis=1).max()]])
-    return bvh, float(np.linalg.norm(vertices, axis=1).max()), cover
+    return bvh, float(np.linalg.norm(vertices, axis=1).max()), cover, vertices
 
 
-def _geometry(element: ET.Element, inflate_m: float) -> tuple[fcl.CollisionGeometry, float, np.ndarray] | None:
-    """An FCL geometry for a URDF <geometry> element (grown by `inflate_m` on every side), its radius and its
-    cover of spheres."""
+_CORNERS = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
+_OCTAGON = 8  # a cylinder's hull points: an octagon about each end, its sides touching the circle
+
+
+def _cylinder_points(r: float, length: float) -> np.ndarray:
+    angles = 2 * math.pi * np.arange(_OCTAGON) / _OCTAGON
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1) * r / math.cos(math.pi / _OCTAGON)
+    return np.concatenate([np.column_stack([ring, np.full(_OCTAGON, z)]) for z in (-length / 2, length / 2)])
+
+
+def _geometry(
+    element: ET.Element, inflate_m: float
+) -> tuple[fcl.CollisionGeometry, float, np.ndarray, np.ndarray] | None:
+    """An FCL geometry for a URDF <geometry> element (grown by `inflate_m` on every side), its radius, its cover of
+    spheres and points whose convex hull holds it."""
     shape = next(iter(element), None)
     if shape is None:
         return None
     if shape.tag == "box":
         sx, sy, sz = (float(v) + 2 * inflate_m for v in shape.get("size").split())
-        return fcl.Box(sx, sy, sz), 0.5 * math.sqrt(sx * sx + sy * sy + sz * sz), _box_cover((sx, sy, sz))
+        radius = 0.5 * math.sqrt(sx * sx + sy * sy + sz * sz)
+        return fcl.Box(sx, sy, sz), radius, _box_cover((sx, sy, sz)), _CORNERS * [sx, sy, sz]
     if shape.tag == "cylinder":
         r, length = float(shape.get("radius")) + inflate_m, float(shape.get("length")) + 2 * inflate_m
-        return fcl.Cylinder(r, length), math.hypot(r, length / 2), _row_cover(length, 2 * r, 2)
+        cylinder = fcl.Cylinder(r, length)
+        return cylinder, math.hypot(r, length / 2), _row_cover(length, 2 * r, 2), _cylinder_points(r, length)
     if shape.tag == "sphere":
         r = float(shape.get("radius")) + inflate_m
-        return fcl.Sphere(r), r, np.array([[0.0, 0.0, 0.0, r]])
+        return fcl.Sphere(r), r, np.array([[0.0, 0.0, 0.0, r]]), _CORNERS * 2 * r
     if shape.tag == "mesh":
         scale = [float(v) for v in shape.get("scale", "1 1 1").split()]
         return _mesh_geometry(shape.get("filename"), scale)
@@ -121,22 +137,24 @@ def link_shapes(spec: RobotSpec, inflate_m: float = 0.0) -> list[LinkShape]:
             found = _geometry(collision.find("geometry"), inflate_m)
             if found is not None:
                 shapes.append(
-                    LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1], found[2])
+                    LinkShape(link.get("name"), found[0], _origin(collision.find("origin")), found[1], *found[2:])
                 )
     return shapes
 
 
-_SHAPES: dict[int, tuple[RobotSpec, list[LinkShape]]] = {}  # by the id of a declaration held here
+_SHAPES: dict[int, tuple[RobotSpec, list[LinkShape], ClawSweeps]] = {}  # by the id of a declaration held here
 
 
-def _shapes_of(spec: RobotSpec) -> list[LinkShape]:
-    """The robot's collision shapes, read from its URDF once per process (FCL shapes are fixed: arms share them)."""
+def _shapes_of(spec: RobotSpec) -> tuple[list[LinkShape], ClawSweeps]:
+    """The robot's collision shapes and its claw's sweeps, read from its URDF once per process (FCL shapes are
+    fixed: arms share them)."""
     entry = _SHAPES.get(id(spec))
     if entry is None or entry[0] is not spec:
         if len(_SHAPES) >= 64:  # robot variants tried one after another (`fleet tune`): keep the newest
             _SHAPES.clear()
-        entry = _SHAPES[id(spec)] = (spec, link_shapes(spec))
-    return entry[1]
+        shapes = link_shapes(spec)
+        entry = _SHAPES[id(spec)] = (spec, shapes, ClawSweeps(spec, KinematicModel(spec), shapes))
+    return entry[1], entry[2]
 
 
 def _fcl_transform(T: np.ndarray) -> fcl.Transform:
@@ -147,7 +165,8 @@ _REACH_BOUND_M: dict[str, float] = {}  # robot model -> radius about its base ho
 
 
 class ArmGeometry:
-    """One arm's collision objects in the world; `place(q)` moves them to a configuration."""
+    """One arm's collision objects in the world; `place(q, claw)` moves them to a configuration of the arm's joints
+    with its claw anywhere in a span of openings (`coordinator.claw_sweep`; by default its whole travel)."""
 
     def __init__(
         self, name: str, spec: RobotSpec, transform_base_to_world: np.ndarray, model: KinematicModel | None = None
@@ -155,36 +174,52 @@ class ArmGeometry:
         self.name, self.spec = name, spec
         self.km = model or KinematicModel(spec)
         self.base_to_world = np.asarray(transform_base_to_world, float)
-        self.shapes = _shapes_of(spec)
-        self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
-        self._placed = PlacedFrames(
-            self.km, self.base_to_world, [(s.link, s.transform_shape_to_link) for s in self.shapes]
-        )
-        self.radii_m = np.array([s.radius_m for s in self.shapes])
-        cover = np.concatenate([s.cover for s in self.shapes])
+        self.shapes, self.claw = _shapes_of(spec)
+        claw_at = {i: k for k, i in enumerate(self.claw.indices)}  # link shape -> claw shape
+        self._claw_objects: dict[tuple[int, int], list[fcl.CollisionObject]] = {}
+        self._claw_key: tuple[int, int] | None = None
+        self._objects = [
+            None if i in claw_at else fcl.CollisionObject(s.geometry, fcl.Transform())
+            for i, s in enumerate(self.shapes)
+        ]
+        frames, radii, covers = [], [], []
+        for i, s in enumerate(self.shapes):
+            if i in claw_at:  # held by the palm: its sweep over the claw's whole travel bounds it
+                points = self.claw.full_points[claw_at[i]]
+                centre = (points.min(axis=0) + points.max(axis=0)) / 2
+                frames.append((self.claw.palm, np.eye(4)))
+                radii.append(float(np.linalg.norm(points, axis=1).max()))
+                covers.append(np.array([[*centre, np.linalg.norm(points - centre, axis=1).max()]]))
+            else:
+                frames.append((s.link, s.transform_shape_to_link))
+                radii.append(s.radius_m)
+                covers.append(s.cover)
+        self._placed = PlacedFrames(self.km, self.base_to_world, frames)
+        self.radii_m = np.array(radii)
+        cover = np.concatenate(covers)
         # each sphere's shape
-        self.cover_shape = np.repeat(np.arange(len(self.shapes)), [len(s.cover) for s in self.shapes])
+        self.cover_shape = np.repeat(np.arange(len(self.shapes)), [len(c) for c in covers])
         self._cover_local = np.concatenate([cover[:, :3], np.ones((len(cover), 1))], axis=1)
         self.cover_radii_m = cover[:, 3]
         self.transforms = np.tile(np.eye(4), (len(self.shapes), 1, 1))  # each shape in the world, as placed
         self._posed = [False] * len(self.shapes)  # whether the FCL object carries the current transform
         self._cover_centres: np.ndarray | None = None
-        self._placed_key = b""  # the joints last placed, as bytes
+        self._placed_key = b""  # the joints and claw span last placed, as bytes
+        self._q_key = b""
         if spec.uid not in _REACH_BOUND_M:  # a property of the model: drawn once per process
             _REACH_BOUND_M[spec.uid] = self._reach_bound_m()
         self.reach_bound_m = _REACH_BOUND_M[spec.uid]
         self.place(np.asarray(spec.home_q, float))
 
     def __getstate__(self) -> dict:
-        """Everything but the FCL objects (they do not pickle): a run's snapshot holds its guards."""
-        return {k: v for k, v in vars(self).items() if k not in ("shapes", "_objects")}
+        """What the arm is built from (its FCL objects do not pickle): a run's snapshot holds its guards."""
+        built = {"name": self.name, "spec": self.spec, "base_to_world": self.base_to_world, "km": self.km}
+        return built | {"placed": self._placed_as}
 
     def __setstate__(self, state: dict) -> None:
-        """The FCL objects made again from the robot's shapes; each takes its pose when next measured."""
-        vars(self).update(state)
-        self.shapes = _shapes_of(self.spec)
-        self._objects = [fcl.CollisionObject(s.geometry, fcl.Transform()) for s in self.shapes]
-        self._posed = [False] * len(self.shapes)
+        """Built again from the robot and its base, and placed as it was."""
+        self.__init__(state["name"], state["spec"], state["base_to_world"], state["km"])
+        self.place(*state["placed"])
 
     def joint_levers_m(self) -> np.ndarray:
         """For each arm joint (spec order), how far from its origin any shape it carries can be, in any
@@ -218,20 +253,35 @@ class ArmGeometry:
             far = max(far, float((np.linalg.norm(origins - base, axis=1) + self.radii_m).max()))
         return far + 0.05
 
-    def place(self, q_arm: np.ndarray) -> None:
-        """Put every link where forward kinematics says it is for these arm joints (gripper closed)."""
+    def place(self, q_arm: np.ndarray, claw: ClawSpan | None = None) -> None:
+        """Put every link where forward kinematics says it is for these arm joints, the claw's shapes swept over
+        the openings of `claw` (None: the claw's whole travel, wherever it may be)."""
         q_arm = np.asarray(q_arm, float)
-        key = q_arm.tobytes()  # comparing bytes costs a tenth of np.array_equal
-        if key == self._placed_key:
+        q_key = q_arm.tobytes()  # comparing bytes costs a tenth of np.array_equal
+        claw_key = self.claw.key(claw or self.claw.full)
+        if q_key == self._q_key and claw_key == self._claw_key:
             return
-        self.transforms = self._placed.poses(self.km.full_q(q_arm))
-        self._posed = [False] * len(self._objects)
-        self._cover_centres = None
-        self._placed_key = key
+        self._placed_as = (q_arm.copy(), claw)
+        if q_key != self._q_key:
+            self.transforms = self._placed.poses(self.km.full_q(q_arm))
+            self._posed = [False] * len(self._objects)
+            self._cover_centres = None
+            self._q_key = q_key
+        if claw_key != self._claw_key:
+            objects = self._claw_objects.get(claw_key)
+            if objects is None:
+                if len(self._claw_objects) >= 256:
+                    self._claw_objects.clear()
+                hulls = self.claw.geometries(claw or self.claw.full)[1]
+                objects = self._claw_objects[claw_key] = [fcl.CollisionObject(h, fcl.Transform()) for h in hulls]
+            for i, obj in zip(self.claw.indices, objects):
+                self._objects[i], self._posed[i] = obj, False
+            self._claw_key = claw_key
+        self._placed_key = q_key + bytes(f"|{claw_key[0]},{claw_key[1]}", "ascii")
 
     @property
     def placed_key(self) -> bytes:
-        """The arm joints last placed, as bytes: two placements with the same key are the same placement."""
+        """The arm joints and claw span last placed, as bytes: two placements with the same key are the same."""
         return self._placed_key
 
     @property

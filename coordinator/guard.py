@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coordinator.claw_sweep import ClawSpan
 from coordinator.closing import GapClosing, PathTravel
 from coordinator.geometry import ArmGeometry, CellBounds, closest_points_below, neighbours, separation_m
 from coordinator.pair_memo import PairMemo
@@ -115,8 +116,19 @@ class CollisionGuard:
         self.waits = 0
         self.last_check_samples = 0
 
-    def set_state(self, arm: str, q: np.ndarray) -> None:
+    def set_state(self, arm: str, q: np.ndarray, gripper_q: np.ndarray | None = None) -> None:
+        """An arm's measured joints, and its claw's where known: the cell's separations place the claw as measured
+        (else over its whole travel). Grants always sweep every claw over its whole travel: a skill opens and
+        closes its claw along a granted path without asking again."""
         self.state[arm] = np.asarray(q, float)
+        if gripper_q is not None and len(gripper_q):
+            self.claw_state()[arm] = ClawSpan.at(self.arms[arm].spec.opening_of(gripper_q))
+
+    def claw_state(self) -> dict[str, ClawSpan]:
+        """Each arm's claw as last measured (arms never measured: none)."""
+        if "_claws" not in vars(self):  # a guard read back from an older snapshot
+            self._claws: dict[str, ClawSpan] = {}
+        return self._claws
 
     def release(self, arm: str) -> None:
         self.grants.pop(arm, None)
@@ -136,9 +148,10 @@ class CollisionGuard:
         farther apart than the best distance so far is skipped, and within a pair only shapes that can
         still beat it are measured (python-fcl).
         """
+        claws = self.claw_state() if configurations is None else {}
         configurations = configurations or self.state
         for name, q in configurations.items():
-            self.arms[name].place(q)
+            self.arms[name].place(q, claws.get(name))
         best, pair = math.inf, None
         for gap, a, b in self._pairs_by_bound():
             if a not in configurations or b not in configurations:
@@ -185,8 +198,9 @@ class CollisionGuard:
         asked about (its first item the distance; None: not below): pairs nearest first by their bound, a pair asked
         only if it could come within `tie_m` of what one of its two arms already has (`memo`: a pair whose arms stood
         still since it was last asked is answered as then)."""
+        claws = self.claw_state()
         for name, q in self.state.items():
-            self.arms[name].place(q)
+            self.arms[name].place(q, claws.get(name))
         nearest = {name: cap_m for name in self.arms}
         measured: dict[tuple[str, str], tuple] = {}
         gaps = self._bounds.gaps_m()

@@ -7,6 +7,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class DriveGains:
@@ -78,6 +80,12 @@ class RobotSpec:
         """Joint targets of the gripper for a normalised opening (clamped to [0, 1])."""
         a = min(max(opening, 0.0), 1.0)
         return tuple(c + a * (o - c) for c, o in zip(self.gripper_closed, self.gripper_open))
+
+    def opening_of(self, gripper_q) -> float:
+        """The normalised opening of gripper joints `gripper_q`: the mean of each joint's way from closed to open."""
+        closed, opened = np.asarray(self.gripper_closed, float), np.asarray(self.gripper_open, float)
+        run = np.where(np.abs(opened - closed) > 1e-12, opened - closed, 1.0)
+        return float(np.mean((np.asarray(gripper_q, float) - closed) / run))
 
     def opening_for_width(self, width_m: float) -> float:
         """The normalised opening that spaces the fingers `width_m` apart (fully open if unknown)."""

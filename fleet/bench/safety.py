@@ -48,7 +48,7 @@ def bench_safety(arms: int, goals: int = 400, seed: int = 0, reach_rad: float = 
         t0 = time.perf_counter()
         planned = tracker.plan(goal, world.sim_time_s)
         t1 = time.perf_counter()
-        why = tracked.safety.refusal(arm, planned.spline, tracked.trackers)
+        why = tracked.safety.refusal(arm, planned.spline, tracked.trackers, tracked.claws())
         t2 = time.perf_counter()
         plans.append(t1 - t0)
         checks.append(t2 - t1)

@@ -198,7 +198,8 @@ class TaskChooser:
             skill = self.skills[agent]
             task = self.ledger.tasks[task_id] if task_id is not None else None
             was_open = task is not None and task.state in OPEN_STATES
-            q = self.world.arms[agent].qpos()[: self.world.arms[agent].spec.arm_dof]
+            joints, dof = self.world.arms[agent].qpos(), self.world.arms[agent].spec.arm_dof
+            q = joints[:dof]
             asked = skill.request if self.grants else None
             request = (
                 None
@@ -224,6 +225,7 @@ class TaskChooser:
                 request_seq=asked.seq if asked else 0,
                 request=request,
                 acts_at_tick=self.world.tick + 1,
+                gripper_q=joints[dof:],
             )
             if task is None:
                 continue

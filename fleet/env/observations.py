@@ -54,7 +54,7 @@ class EnvObservations:
         if len(self.possible_agents) < 2:
             return {a: SEPARATION_CAP_M for a in self.possible_agents}
         for a in self.possible_agents:
-            self.guard.set_state(a, joints[a][0][: self._dof[a]])
+            self.guard.set_state(a, joints[a][0][: self._dof[a]], joints[a][0][self._dof[a] :])
         return self.guard.nearest_other_m(cap_m=SEPARATION_CAP_M)
 
     def _tools(self) -> dict[str, np.ndarray]:

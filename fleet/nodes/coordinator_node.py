@@ -253,6 +253,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later
             lost=s.lost and s.arm not in self._rejoining,
             silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
+            gripper_q=np.asarray(s.gripper_q),
         )
         if returned is not None:
             self._tell_lost(s.arm, "the sim stopped hearing its controller", returned)

@@ -7,6 +7,10 @@ conservative advancement as in `coordinator.guard`) and its joint speeds against
 robot's velocity limits; a goal that breaks either is refused with a reason. While arms
 move, each pair of neighbours is measured again before it could have closed the gap, and a
 motion that brings an arm within the separation (pushed, or running late) is stopped and held.
+
+Every arm is placed with its claw as it is: swept over the openings it may take until its next claw goal (its
+measured opening, its claw goal's, a pending one's: `coordinator.claw_sweep`). A claw goal that would widen that
+span is walked too, along the arm's committed path, and refused where the wider claw would come too close.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from coordinator.claw_sweep import ClawSpan
 from coordinator.geometry import ArmGeometry, neighbours, separation_m
 from fleet.sim.safety_speeds import GRID_DT_S, Closing, PathSpeeds, grid_steps
 from robots.joint_trajectory import Spline
@@ -29,6 +34,8 @@ PUSH_SPEED_M_PER_S = (
 )
 MEASURE_CAP_M = 1.0  # farther than this, a pair's exact distance does not matter to the walk
 ROUGH_ENOUGH_M = 0.05  # beyond the floor by this much, the covering spheres' gap (a lower bound) is measure enough
+
+Claws = Callable[[str], ClawSpan]  # each arm's claw: the openings it may take until its next claw goal
 
 
 @dataclass(frozen=True)
@@ -82,9 +89,42 @@ class PlantSafety:
         }
 
     # --- goals ------------------------------------------------------------------------
-    def refusal(self, arm: str, spline: Spline, trackers: dict[str, ArmTracker]) -> Refusal | None:
-        """Why `arm` may not follow `spline` from its start (None: it may), given every arm's committed path."""
-        why = self._speed_refusal(arm, spline) or self._path_refusal(arm, spline, trackers)
+    def refusal(self, arm: str, spline: Spline, trackers: dict[str, ArmTracker], claws: Claws) -> Refusal | None:
+        """Why `arm` may not follow `spline` from its start (None: it may), given every arm's committed path and
+        claw."""
+        why = self._speed_refusal(arm, spline) or self._walk_refusal(
+            arm,
+            spline.t0_s,
+            [spline],
+            lambda k, t: spline.q_at(t) if k is None else self._q_on_grid(arm, spline, k, t),
+            claws(arm),
+            "its path",
+            trackers,
+            claws,
+        )
+        if why is not None:
+            self.counts.refused[why.kind] += 1
+        return why
+
+    def claw_refusal(
+        self, arm: str, opening: float, now_s: float, trackers: dict[str, ArmTracker], claws: Claws
+    ) -> Refusal | None:
+        """Why `arm`'s claw may not go to `opening` now (None: it may): only a claw that would reach past the
+        openings it may already take is walked, along the arm's committed path."""
+        span = claws(arm).union(opening)
+        if claws(arm).holds(span):
+            return None
+        tracker = trackers[arm]
+        why = self._walk_refusal(
+            arm,
+            now_s,
+            [a.spline for a in (tracker.active, tracker.next) if a is not None],
+            lambda k, t: tracker.path_q(t) if k is None else self._path_on_grid(arm, tracker, k, t),
+            span,
+            f"its claw opened to {opening:.2f}",
+            trackers,
+            claws,
+        )
         if why is not None:
             self.counts.refused[why.kind] += 1
         return why
@@ -116,47 +156,68 @@ class PlantSafety:
             default=0.0,
         )
 
-    def _path_refusal(self, arm: str, spline: Spline, trackers: dict[str, ArmTracker]) -> Refusal | None:
-        """Conservative advancement per neighbour: after measuring a gap d to a neighbour, the two cannot close it
-        before (d - floor) / (both speed bounds), so that neighbour is not measured again until then."""
+    def _walk_refusal(
+        self,
+        arm: str,
+        t0: float,
+        my_splines: list[Spline],
+        my_q: Callable[[int | None, float], np.ndarray],
+        my_claw: ClawSpan,
+        what: str,
+        trackers: dict[str, ArmTracker],
+        claws: Claws,
+    ) -> Refusal | None:
+        """Conservative advancement per neighbour, from `t0` along `arm`'s path (`my_q(k, t)`: its joints at grid
+        step k, or exactly at t where k is None) with its claw over `my_claw`: after measuring a gap d to a
+        neighbour, the two cannot close it before (d - floor) / (both speed bounds), so that neighbour is not
+        measured again until then."""
         others = self.neighbours[arm]
         if not others:
             return None
         me = self.geometries[arm]
-        t0 = spline.t0_s
-        t_end = max([spline.t_end_s] + [trackers[o].committed_end_s() for o in others])
+        t_end = max([t0] + [s.t_end_s for s in my_splines] + [trackers[o].committed_end_s() for o in others])
         ka, kb = grid_steps(t0, t_end)
         kb = max(kb, ka + 1)
         grid = np.arange(ka, kb + 1) * GRID_DT_S
-        mine = self.path_speeds.on(arm, [spline], ka, kb)
+        mine = self.path_speeds.on(arm, my_splines, ka, kb)
         committed = lambda o: [a.spline for a in (trackers[o].active, trackers[o].next) if a is not None]  # noqa: E731
         closing = {o: Closing(grid, mine + self.path_speeds.on(o, committed(o), ka, kb)) for o in others}
-        me.place(spline.q_at(t0))
-        gaps = {o: self._gap(me, o, trackers[o].path_q(t0), math.inf) for o in others}
-        # an arm already within the separation (pushed there) may move, but never closer than it is
+        # an arm already within the separation (pushed there) may move, but never closer than it is with its claw
+        # as it is now
+        me.place(my_q(None, t0), claws(arm))
+        gaps = {o: self._gap(me, o, trackers[o].path_q(t0), claws(o), math.inf) for o in others}
         floor_m = min(self.separation_m, min(gaps.values()) - 1e-4)
+        if my_claw != claws(arm):
+            me.place(my_q(None, t0), my_claw)
+            gaps = {o: self._gap(me, o, trackers[o].path_q(t0), claws(o), math.inf) for o in others}
         due = {o: closing[o].time_to_close(t0, max(self.step_m, d - floor_m)) for o, d in gaps.items()}
+        for o, d in gaps.items():
+            if d < floor_m:
+                return self._separation(what, o, d, t0)
         last_k = ka
         while (t := min(due.values())) <= t_end:  # past the end: every pair keeps its gap until all rest
             now = [o for o, at in due.items() if at <= t]
             k = math.floor(t / GRID_DT_S + 1e-9)
             if k > last_k and k * GRID_DT_S >= t0:  # measured at the grid step before: earlier is never late
                 t, last_k = k * GRID_DT_S, k
-                me.place(self._q_on_grid(arm, spline, k, t))
+                me.place(my_q(k, t), my_claw)
                 where = lambda o, k=k, t=t: self._path_on_grid(o, trackers[o], k, t)  # noqa: E731
             else:  # no grid step left before it is due: exactly then
-                me.place(spline.q_at(t))
+                me.place(my_q(None, t), my_claw)
                 where = lambda o, t=t: trackers[o].path_q(t)  # noqa: E731
             for o in now:
-                d = self._gap(me, o, where(o), floor_m + ROUGH_ENOUGH_M)
+                d = self._gap(me, o, where(o), claws(o), floor_m + ROUGH_ENOUGH_M)
                 if d < floor_m:
-                    return Refusal(
-                        "separation",
-                        f"its path comes within {max(d, 0.0) * 1000:.0f} mm of {o} at t={t:.2f} s "
-                        f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
-                    )
+                    return self._separation(what, o, d, t)
                 due[o] = closing[o].time_to_close(t, max(self.step_m, d - floor_m)) if t < t_end else math.inf
         return None
+
+    def _separation(self, what: str, other: str, d: float, t: float) -> Refusal:
+        return Refusal(
+            "separation",
+            f"{what} comes within {max(d, 0.0) * 1000:.0f} mm of {other} at t={t:.2f} s "
+            f"(the plant keeps {self.separation_m * 1000:.0f} mm)",
+        )
 
     def _q_on_grid(self, arm: str, spline: Spline, k: int, t_s: float) -> np.ndarray:
         q = self.path_speeds.q_at_step(arm, spline, k) if spline.t0_s <= t_s <= spline.t_end_s else None
@@ -170,27 +231,32 @@ class PlantSafety:
             return self._q_on_grid(arm, tracker.active.spline, k, t_s)
         return tracker.hold_q
 
-    def _gap(self, me: ArmGeometry, other: str, q_other: np.ndarray, rough_above_m: float) -> float:
-        """The distance from `me` (placed) to `other` at joints `q_other`; where the spheres covering both arms
-        already stand `rough_above_m` apart, their gap (a lower bound, enough to step on)."""
+    def _gap(self, me: ArmGeometry, other: str, q_other: np.ndarray, claw: ClawSpan, rough_above_m: float) -> float:
+        """The distance from `me` (placed) to `other` at joints `q_other` with its claw over `claw`; where the
+        spheres covering both arms already stand `rough_above_m` apart, their gap (a lower bound, enough to step
+        on)."""
         g = self.geometries[other]
-        g.place(q_other)
+        g.place(q_other, claw)
         return _distance_m(me, g, rough_above_m)
 
     # --- motions ----------------------------------------------------------------------
     def too_close(
-        self, now_s: float, measured_q: Callable[[str], np.ndarray], trackers: dict[str, ArmTracker]
+        self,
+        now_s: float,
+        measured_q: Callable[[str], np.ndarray],
+        trackers: dict[str, ArmTracker],
+        claws: Claws,
     ) -> list[str]:
         """Moving arms that are within the separation of a neighbour and whose path takes them closer still: the
         caller stops them. Each pair is measured again only when it could have closed its gap."""
         stop: set[str] = set()
         for a, b in self._pairs_due(now_s, trackers):
             ga, gb = self.geometries[a], self.geometries[b]
-            ga.place(measured_q(a))
-            gb.place(measured_q(b))
+            ga.place(measured_q(a), claws(a))
+            gb.place(measured_q(b), claws(b))
             d = _distance_m(ga, gb, self.separation_m + ROUGH_ENOUGH_M)
             if d < self.separation_m:
-                stop |= self._closing(a, b, d, now_s, measured_q, trackers)
+                stop |= self._closing(a, b, d, now_s, measured_q, trackers, claws)
                 self._due_s[_pair(a, b)] = now_s
             else:
                 speed = sum(self._tracker_speed_m_per_s(x, trackers[x], now_s) + PUSH_SPEED_M_PER_S for x in (a, b))
@@ -215,6 +281,7 @@ class PlantSafety:
         now_s: float,
         measured_q: Callable[[str], np.ndarray],
         trackers: dict[str, ArmTracker],
+        claws: Claws,
     ) -> set[str]:
         """Of two arms within the separation, the moving ones whose next committed pose is closer than now."""
         out = set()
@@ -223,8 +290,8 @@ class PlantSafety:
             if tracker.committed_end_s() < now_s:
                 continue
             g, go = self.geometries[me], self.geometries[other]
-            g.place(tracker.path_q(now_s + 0.05))
-            go.place(measured_q(other))
+            g.place(tracker.path_q(now_s + 0.05), claws(me))
+            go.place(measured_q(other), claws(other))
             if separation_m(g, go, below_m=MEASURE_CAP_M) <= d:
                 out.add(me)
         return out

@@ -7,13 +7,16 @@ PettingZoo env's allocate mode all drive their arms through this class.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+from collections.abc import Callable
 
 import numpy as np
 
+from coordinator.claw_sweep import ClawSpan
 from coordinator.geometry import ArmGeometry
 from fleet.sim.observe import arm_observation
-from fleet.sim.safety import PlantSafety
+from fleet.sim.safety import PlantSafety, Refusal
 from fleet.sim.world import World
 from robots.frames import yaw_transform
 from robots.joint_trajectory import OUTSIDE_REASON, ArmGoal, GoalResult, GoalStatus, GripperGoal, ResultCode
@@ -74,12 +77,16 @@ class TrackedArms:
                 return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, why, now)]
             return tracker.refuse(goal, why, now)
         if isinstance(goal, GripperGoal):
+            refusal = self._claw_refusal(arm, goal)
+            if refusal is not None:
+                why = f"safety: {refusal.reason}"
+                return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, why, now)]
             results = tracker.submit(goal, now)
         else:
             planned = tracker.plan(goal, now)
             if isinstance(planned, list):
                 return planned
-            refusal = self.safety.refusal(arm, planned.spline, self.trackers)
+            refusal = self.safety.refusal(arm, planned.spline, self.trackers, self.claws())
             if refusal is not None:
                 return tracker.refuse(goal, f"safety: {refusal.reason}", now)
             results = tracker.commit(planned, now)
@@ -88,6 +95,25 @@ class TrackedArms:
             self.taken_until[arm] = max(self.taken_until.get(arm, -math.inf), end + OUTSIDE_RELEASE_S)
             results = [dataclasses.replace(r, reason=f"{OUTSIDE_REASON}: {r.reason}") for r in results]
         return results
+
+    def _claw_refusal(self, arm: str, goal: GripperGoal) -> Refusal | None:
+        """The safety layer's refusal of a claw goal (None where it may run, or where the tracker refuses it
+        itself: an e-stop, an opening out of range)."""
+        tracker = self.trackers[arm]
+        if tracker.estop or not (math.isfinite(goal.opening) and 0.0 <= goal.opening <= 1.0):
+            return None
+        return self.safety.claw_refusal(arm, goal.opening, self.world.sim_time_s, self.trackers, self.claws())
+
+    def claw_span(self, arm: str) -> ClawSpan:
+        """The openings `arm`'s claw may take until its next claw goal: where it is, where its goal takes it and
+        where a pending goal will."""
+        tracker, a = self.trackers[arm], self.world.arms[arm]
+        span = ClawSpan.at(tracker.opening_of(a.qpos()[a.spec.arm_dof :])).union(tracker.opening)
+        return span if tracker.next_gripper is None else span.union(tracker.next_gripper.goal.opening)
+
+    def claws(self) -> Callable[[str], ClawSpan]:
+        """Each arm's `claw_span` now, read once per arm however often it is asked."""
+        return functools.cache(self.claw_span)
 
     def taken(self, arm: str) -> bool:
         """Whether an outside client drives `arm` now (its controller waits, the coordinator gives it nothing)."""
@@ -128,7 +154,7 @@ class TrackedArms:
             results = tracker.update(now, q[:n], q[n:], dq[n:])
             if results:
                 out[name] = results
-        for name in self.safety.too_close(now, self._arm_q, self.trackers):
+        for name in self.safety.too_close(now, self._arm_q, self.trackers, self.claws()):
             out.setdefault(name, []).extend(
                 self.abort(name, "safety stop: within the plant's separation of another arm")
             )
