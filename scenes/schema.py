@@ -39,6 +39,9 @@ def sizes_between(v: Vec3, low_m: float, high_m: float) -> Vec3:
     return v
 
 
+MAX_SEED = 2**63 - 1  # a seed is a signed 64-bit integer on the bus, in summaries and in CSV files
+
+
 class Strict(BaseModel):
     """Base for every scene model: unknown fields are errors, every number is finite; models are immutable."""
 
@@ -300,7 +303,7 @@ class Scene(Strict):
     """PhysX position iterations per step for every body and arm: 20 holds friction grasps; a cell with no
     grasps moves the same with fewer (PhysX's default is 4) at about half the physics time."""
     gravity_m_per_s2: Vec3 = (0.0, 0.0, -9.81)
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     conveyor: Conveyor | None = None
     feeders: list[Feeder] = []
     stations: list[Station] = []

@@ -12,6 +12,7 @@ from rich.table import Table
 from fleet.cli.errors import (
     err,
     out,
+    seed_number,
 )
 
 
@@ -509,7 +510,7 @@ def _add_lines(bench: argparse._SubParsersAction) -> None:
         "--allocators", nargs="+", default=["optimal", "auction", "greedy"], choices=("optimal", "auction", "greedy")
     )
     b.add_argument("--seconds", type=float, default=120.0, help="sim seconds per run")
-    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--seed", type=seed_number, default=0)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_lines)
 

@@ -14,6 +14,7 @@ from robots.registry import (
     MissingModelsError,
     UnknownRobotError,
 )
+from scenes.schema import MAX_SEED
 from scenes.yaml_file import DeclarationError
 
 out = Console()
@@ -79,3 +80,14 @@ def positive_numbers(text: str, what: str) -> list[float]:
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
         raise argparse.ArgumentTypeError(f"{text!r}: give {what}")
     return values
+
+
+def seed_number(text: str) -> int:
+    """An argparse type: a seed, a whole number from 0 to `MAX_SEED` (a signed 64-bit integer)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"a seed is a whole number from 0 to {MAX_SEED:,}")
+    return value

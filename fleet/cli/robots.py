@@ -19,6 +19,7 @@ from fleet.cli.errors import (
     UsageError,
     err,
     out,
+    seed_number,
 )
 from robots.measured_reach import reach_m_of
 from robots.registry import (
@@ -197,13 +198,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="a robot uid or robot YAML file: kinematics against the physics, home, gripper, pick trials",
     )
     p.add_argument("--trials", type=int, default=3, help="pick trials with --check (0: none)")
-    p.add_argument("--seed", type=int, default=0, help="first trial seed with --check")
+    p.add_argument("--seed", type=seed_number, default=0, help="first trial seed with --check")
     p.set_defaults(func=cmd_robots)
 
     p = sub.add_parser("trials", help="seeded pick-and-place trials: conveyor to bin, friction grasps")
     p.add_argument("--robot", default="openclaw", help="a robot uid or robot YAML file")
     p.add_argument("--trials", type=int, default=50)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed_number, default=0)
     p.add_argument(
         "--physics-hz", type=float, default=None, help="physics rate to try (a whole multiple of the 100 Hz servo rate)"
     )
@@ -219,7 +220,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--candidates", type=int, default=12, help="settings tried: the registered one and draws from the search space"
     )
     p.add_argument("--trials", type=int, default=20, help="seeded pick trials per setting")
-    p.add_argument("--seed", type=int, default=0, help="seed of the draws and first trial seed")
+    p.add_argument("--seed", type=seed_number, default=0, help="seed of the draws and first trial seed")
     p.add_argument(
         "--jobs", type=int, default=1, help="settings tried at once, each in a process of its own (same results)"
     )

@@ -26,6 +26,7 @@ from fleet.cli.errors import (
     err,
     out,
     output_folder,
+    seed_number,
     writable_file,
 )
 from fleet.cli.ros import checked_rate
@@ -396,7 +397,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, default=None, help="sim seconds to run (default 120)")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
-    p.add_argument("--seed", type=int, default=None, help="overrides the scene's seed")
+    p.add_argument("--seed", type=seed_number, default=None, help="overrides the scene's seed")
     p.add_argument(
         "--respawn",
         action="store_true",

@@ -21,6 +21,7 @@ from pathlib import Path
 import yaml
 
 from fleet.common.scene_overrides import scene_with
+from scenes.schema import MAX_SEED
 
 MAX_RUNS = 100_000  # runs in one sweep: at a few seconds each, more would take a machine weeks
 
@@ -115,16 +116,24 @@ def grid(
 
 
 def parse_seeds(text: str) -> range | list[int]:
-    """`0-19` (a range, never spelt out), `3`, or `1,4,9`."""
+    """`0-19` (a range, never spelt out), `3`, or `1,4,9`: seeds from 0 to `MAX_SEED`, at most `MAX_RUNS` of them
+    (counted before any is made)."""
     try:
         if "-" in text and "," not in text:
             low, high = (int(v) for v in text.split("-", 1))
             if high < low or low < 0:
                 raise ValueError
-            return range(low, high + 1)
-        seeds = [int(v) for v in text.split(",")]
-        if min(seeds) < 0:
-            raise ValueError
-        return seeds
+            seeds = range(low, high + 1)
+            count, top = high - low + 1, high  # not len(): a range past 2**63 has none
+        else:
+            seeds = [int(v) for v in text.split(",")]
+            if min(seeds) < 0:
+                raise ValueError
+            count, top = len(seeds), max(seeds)
     except ValueError:
         raise GridError(f"--seeds {text!r}: give a range like 0-19, or a list like 1,4,9 (non-negative)") from None
+    if top > MAX_SEED:
+        raise GridError(f"--seeds {text[:40]!r}: a seed is at most {MAX_SEED:,} (a signed 64-bit integer)")
+    if count > MAX_RUNS:
+        raise GridError(f"--seeds {text[:40]!r}: {count:,} seeds; a sweep takes at most {MAX_RUNS:,} runs")
+    return seeds

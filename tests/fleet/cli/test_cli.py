@@ -91,6 +91,9 @@ BAD_INPUT = [
     (["check", "/dev/null"], "/dev/null: not a regular file"),
     (["tune", "--vary", "hover_m", "hover_height"], "cannot vary hover_height; valid values: arm_stiffness_scale"),
     (["check", "/"], "/: a directory, not a scene file"),
+    (["run", "--seed", str(2**64)], "--seed: a seed is a whole number from 0 to 9,223,372,036,854,775,807"),
+    (["sweep", "pick_cell", "--out", "o", "--seeds", f"0-{2**63 - 1}"], "9,223,372,036,854,775,808 seeds"),
+    (["sweep", "pick_cell", "--out", "o", "--seeds", f"1,{2**70}"], "a seed is at most 9,223,372,036,854,775,807"),
 ]
 
 

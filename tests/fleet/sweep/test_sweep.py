@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from fleet.common.scene_overrides import scene_with
@@ -17,6 +19,7 @@ from fleet.sweep.grid import GridError, Override, grid, parse_seeds
 from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
+from scenes.schema import MAX_SEED
 from tests.ray_namespace import in_netns
 
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
@@ -42,10 +45,25 @@ def test_seeds_and_overrides_parse_and_a_bad_one_says_how():
             parse_seeds(bad)
 
 
+@settings(max_examples=300, deadline=None)
+@given(low=st.integers(-(10**30), 10**30), high=st.integers(-(10**30), 10**30), listed=st.booleans())
+def test_seeds_of_every_size_give_a_grid_or_one_line_and_nothing_else(low, high, listed):
+    text = f"{low},{high}" if listed else f"{low}-{high}"
+    try:
+        seeds = parse_seeds(text)
+    except GridError as e:
+        assert "\n" not in str(e) and str(e).startswith("--seeds")
+        return
+    assert 0 <= min(seeds) and max(seeds) <= MAX_SEED and len(seeds) <= 100_000
+
+
 def test_an_absurd_grid_is_refused_before_any_run_is_made():
-    seeds = parse_seeds("0-999999999")  # a range: never spelt out
-    with pytest.raises(GridError, match="1,000,000,000 runs.*at most 100,000"):
-        grid("sorting_line", seeds, ["greedy"], 10.0)
+    with pytest.raises(GridError, match="1,000,000,000 seeds; a sweep takes at most 100,000"):
+        parse_seeds("0-999999999")  # counted, never spelt out
+    with pytest.raises(GridError, match="9,223,372,036,854,775,808 seeds"):
+        parse_seeds("0-9223372036854775807")  # past what len() of a range can say
+    with pytest.raises(GridError, match="120,000 runs.*at most 100,000"):
+        grid("sorting_line", parse_seeds("0-59999"), ["greedy", "optimal"], 10.0)
     assert Override.parse("conveyor.speed_m_per_s=0.05,0.1") == Override("conveyor.speed_m_per_s", (0.05, 0.1))
     assert Override.parse("randomise=none").values == (None,)
     with pytest.raises(GridError, match="FIELD.PATH=VALUE"):
