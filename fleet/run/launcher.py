@@ -12,15 +12,12 @@ message, the summary's counts from what the launcher last heard.
 
 from __future__ import annotations
 
-import shutil
 import signal
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
 from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.bus.bus_config import BusConfigError, BusConfigSet, write_run_bus
@@ -34,6 +31,7 @@ from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from fleet.run.hosts import Hosts, load_hosts
 from fleet.run.node_commands import NodeCommands
 from fleet.run.node_factory import NodeFactory, adopting, kept_factory
+from fleet.run.run_folder import close_run_folder, make_run_folder
 from fleet.run.run_node import (
     HUNG_COORDINATOR_S,
     RECORDER_GRACE_S,
@@ -135,7 +133,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.seed = self.scene.seed
         self.bus, self.hosts = placement(options.bus_config, options.hosts, self.scene)
         self.on_progress = on_progress
-        self.dir = Path(tempfile.mkdtemp(prefix="clawfleet-run-"))
+        self.dir = make_run_folder()
         if self.bus is None and self.secure_by_default:
             arms = [a.name for a in self.scene.arms]
             ros = self.options.ros2_domain, self.options.ros2_arms
@@ -217,8 +215,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
             self.factory.close()
         elif self.factory is not None and not self.factory.adopt:
             adopting(-1)
-        if not self.keep_dir:
-            shutil.rmtree(self.dir, ignore_errors=True)
+        close_run_folder(self.dir, self.keep_dir)
 
     def stop_all(self) -> None:
         """SIGTERM every node (the sim first, so it writes its figures), SIGKILL what is left after a grace period."""
