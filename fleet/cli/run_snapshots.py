@@ -82,7 +82,7 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     """With `--from`: `args` made to run the snapshot's scene (written into a temporary folder, returned for the
     caller to remove), seed and allocator (unless `--allocator` branches) from its tick to its run's end or
     `--duration` more; without, the defaults of a fresh run."""
-    from fleet.run.restore import restore_options, snapshot_path
+    from fleet.run.restore import check_same_scene, restore_options, snapshot_path
 
     if args.at is not None and not args.from_snapshot:
         raise UsageError("--at picks a snapshot in the recording given with --from: give --from RECORDING")
@@ -107,9 +107,12 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
     except (SnapshotError, OSError) as exc:
         folder.cleanup()
         raise UsageError(str(exc)) from None
-    if args.scene and args.scene not in (snapshot.scene_name, snapshot.scene.file_name):
-        folder.cleanup()
-        raise UsageError(f"{args.from_snapshot} is a snapshot of {snapshot.scene_name}, not of {args.scene}")
+    if args.scene:  # compared by content: a scene given beside a snapshot must be the snapshot's own
+        try:
+            check_same_scene(args.scene, snapshot, Path(folder.name) / "compared")
+        except SnapshotError as exc:
+            folder.cleanup()
+            raise UsageError(str(exc)) from None
     args.scene, args.arms, args.seed, args.duration = options.scene, options.arms, options.seed, options.duration_s
     settings = "".join(f", {k}={v}" for k, v in args.set or ())
     args.scene_label = f"{snapshot.scene_name} from {snapshot.sim_time_s:g} s{settings}"

@@ -14,8 +14,10 @@ from pathlib import Path
 from fleet.common.scene_overrides import scene_with
 from fleet.record.mcap_file import MAGIC, Recording, RecordingError
 from fleet.run.launcher import RunOptions
-from fleet.snapshot.snapshot_file import RunSnapshot, SnapshotError, read_snapshot
-from scenes.loader import SceneError
+from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, SnapshotError, read_snapshot
+from scenes.loader import MAX_SCENE_BYTES, SceneError
+from scenes.schema import Scene
+from scenes.yaml_file import read_declaration
 
 # fields a restored run takes from its scene afresh (the belt's speed: the sim's belt is built from the scene, and the
 # coordinator reads the speed at each decision and works its bound out again)
@@ -83,3 +85,55 @@ def snapshot_path(path: str | Path, at_s: float | None, folder: Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / name).write_bytes(data)
     return folder / name
+
+
+def _declared(source: SceneSource, folder: Path) -> dict:
+    """A scene source's declaration as its schema reads it (defaults filled in), robot files apart."""
+    path = source.write(folder)
+    scene = read_declaration(path, source.file_name, "scene", MAX_SCENE_BYTES, Scene, SceneError)
+    return scene.model_dump(mode="json", exclude={"robot_files"})
+
+
+def _first_difference(a: object, b: object, path: str = "") -> tuple[str, object, object] | None:
+    """The first field (a dotted path) where two declarations differ, with both values; None where they agree."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in [*a, *(k for k in b if k not in a)]:
+            found = _first_difference(a.get(key), b.get(key), f"{path}.{key}" if path else str(key))
+            if found:
+                return found
+        return None
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            found = _first_difference(x, y, f"{path}.{i}")
+            if found:
+                return found
+        return None
+    return None if a == b else (path or "<scene>", a, b)
+
+
+def check_same_scene(given: str, snapshot: RunSnapshot, folder: Path) -> None:
+    """A `SnapshotError` (one line) naming the first field where the scene `given` with `--from` differs from the
+    one the snapshot holds: a restore runs the snapshot's own scene, so a scene given beside it must be that scene
+    (a field of `RESTORE_OVERRIDES` is set with `--set`, never by an edited file)."""
+    try:
+        source = SceneSource.of(given, snapshot.scene.arms, snapshot.scene.seed)
+        mine = _declared(source, folder / "given")
+    except (SceneError, OSError) as exc:
+        raise SnapshotError(str(exc)) from None
+    theirs = _declared(snapshot.scene, folder / "snapshot")
+    found = _first_difference(theirs, mine)
+    if found is None and source.files != snapshot.scene.files:
+        found = ("robot_files", "the snapshot's robot files", "other robot files")
+    if found is None:
+        return
+    field, was, now = found
+    how = f"; set it with --set {field}=V" if field in RESTORE_OVERRIDES else ""
+    raise SnapshotError(
+        f"{given}: {field} is {_short(now)} where the snapshot's scene has {_short(was)}: a restore runs the "
+        f"snapshot's own scene{how}"
+    )
+
+
+def _short(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import zlib
 
 import pytest
@@ -10,6 +11,7 @@ from fleet.cli import main
 from fleet.common.scene_loading import load_scene
 from fleet.record.mcap_file import RecordingWriter
 from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, write_snapshot
+from scenes.loader import resolve_scene_path
 
 
 @pytest.fixture
@@ -27,7 +29,8 @@ def snapshot(tmp_path) -> str:
 CASES = [
     (["run", "--from", "{missing}"], "no such snapshot file"),
     (["run", "--from", "{bad}"], "not a clawfleet snapshot"),
-    (["run", "sorting_line", "--from", "{snapshot}"], "is a snapshot of pick_cell, not of sorting_line"),
+    (["run", "sorting_line", "--from", "{snapshot}"], "sorting_line: name is 'sorting_line' where the snapshot's"),
+    (["run", "{slower}", "--from", "{snapshot}"], "conveyor.speed_m_per_s is 0.01 where the snapshot's scene has"),
     (["run", "--from", "{snapshot}", "--arms", "3"], "leave out --arms"),
     (["run", "--snapshot-at", "5"], "write into --out DIR"),
     (["run", "--snapshot-every", "0", "--out", "{dir}"], "--snapshot-every 0"),
@@ -50,7 +53,12 @@ def test_a_snapshot_flag_that_cannot_work_is_one_line_and_exit_2(argv, says, sna
     (tmp_path / "bad.clawsnap").write_bytes(b"PK\x03\x04" * 20)
     with RecordingWriter(tmp_path / "plain.mcap", load_scene("pick_cell").model_dump_json(), "line"):
         pass  # a recording that carries no snapshot
+    slower = tmp_path / "edited" / "pick_cell.yaml"  # the same file name, a slower belt
+    slower.parent.mkdir()
+    text = resolve_scene_path("pick_cell").read_text()
+    slower.write_text(re.sub(r"speed_m_per_s: [0-9.]+", "speed_m_per_s: 0.01", text))
     names = {
+        "slower": str(slower),
         "snapshot": snapshot,
         "missing": str(tmp_path / "none.clawsnap"),
         "bad": str(tmp_path / "bad.clawsnap"),
@@ -78,3 +86,16 @@ def test_fleet_run_from_a_snapshot_starts_each_node_in_the_incarnation_it_was_in
         assert snapshot_options(args)["incarnations"] == (("arm_0", 2),)
     finally:
         folder.cleanup()
+
+
+def test_a_scene_given_with_from_is_taken_where_its_content_is_the_snapshot_s(snapshot, tmp_path):
+    """The bundled name, or the same file by absolute path, or a copy under another name: the same scene."""
+    from fleet.cli import build_parser
+    from fleet.cli.run_snapshots import open_snapshot
+
+    copy = tmp_path / "my_cell.yaml"
+    copy.write_text(resolve_scene_path("pick_cell").read_text())
+    for given in ("pick_cell", str(resolve_scene_path("pick_cell").resolve()), str(copy)):
+        args = build_parser().parse_args(["run", given, "--from", snapshot])
+        open_snapshot(args).cleanup()
+        assert args.seed == 0, given
