@@ -208,8 +208,11 @@ def open_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
     return zenoh.open(config), ", ".join(json.loads(config.get_json("listen/endpoints")))
 
 
-def serve(server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: int) -> int:
-    """Run the line for `ticks` (once a recorder listens, when asked), then write the report; closes the server."""
+def serve(
+    server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: int, audit: RouterAudit | None = None
+) -> int:
+    """Run the line for `ticks` (once a recorder listens, when asked), then write the report (with what the router
+    refused all run long, from `audit`); closes the server."""
     if args.record_targets:
         server.target_log = []
     if args.await_recorder and not await_recorder(server.bus.session, server.keys, args.await_recorder):
@@ -227,8 +230,8 @@ def serve(server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: in
         lost = server.stats.coordinator_lost and args.mode == "lockstep"
         why = "the coordinator did not answer within the lockstep timeout" if lost else ""
         report = server.report() | {"stopped_by": stop.reason or why or "duration"}
-        if args.router_audit:
-            report["bus_refused"] = RouterAudit(args.router_audit).refused()
+        if audit is not None:
+            report["bus_refused"] = audit.refused()
         server.close()
         write_report(args.report, report)
     return 0
@@ -246,8 +249,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if network is not None:
         scene = scene.model_copy(update={"network": network})
-    if args.router_audit:
-        RouterAudit(args.router_audit).start()
+    audit = RouterAudit(args.router_audit) if args.router_audit else None
+    if audit is not None:  # the one audit of the run: it counts from here to the report
+        audit.start()
     session, endpoint = open_session(args)
     keys = Keys(args.run)
     spool = BusSpool(session, keys.recorded(), args.spool, args.run, scene.model_dump_json()) if args.spool else None
@@ -285,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
         if server.snapshots is not None:
             server.snapshots.build_spare()  # the world the line goes on in after its first snapshot
-        return serve(server, args, stop, ticks)
+        return serve(server, args, stop, ticks, audit)
 
 
 if __name__ == "__main__":

@@ -79,3 +79,39 @@ def test_no_process_without_the_runs_credentials_or_role_can_change_the_line():
     assert refused.get("connections refused at the TLS handshake", 0) >= 1, refused
     for who, key in (("monitor", "arm/arm_0/assign"), ("arm_0", "estop"), ("arm_0", "arm/arm_1/assign")):
         assert refused.get(f"{who}: put on clawfleet/line/{key}", 0) >= 1, (who, key, refused)
+
+
+def forbidden_to(arm: str, keys: Keys, arms: list[str]) -> list[str]:
+    """Every key of the run an arm's own login may not put on: the line's, the other nodes', every arm's but its own
+    four (step, goal, status, its snapshot part)."""
+    line = [keys.estop, keys.control, keys.events, keys.parts, keys.sim_status, keys.frame, keys.view, keys.history]
+    line += [keys.respawn, keys.roster, keys.snapshot_ask, keys.recorder_ready, keys.coord("progress")]
+    line += [keys.snapshot_part("sim"), keys.snapshot_part("coordinator")]
+    for other in arms:
+        line += [keys.arm_state(other), keys.arm_drive(other), keys.arm_result(other), keys.arm_assign(other)]
+        if other != arm:
+            line += [keys.arm_step(other), keys.arm_goal(other), keys.arm_status(other), keys.snapshot_part(other)]
+    return line
+
+
+def test_every_refusal_of_the_router_is_counted_however_long_the_run():
+    """arm_0's login probes every key it may not put on, three times, at 1, 6 and 11 s of a realtime run: the
+    router's audit (its log files switch every 5 s) counts each of those puts in the summary, none lost."""
+    options = RunOptions(scene=QUICK_LINE, duration_s=12.0, seed=5, mode="realtime")
+    with Launcher(options) as launcher, contextlib.ExitStack() as sessions:
+        keys, arms = Keys(options.run_id), [a.name for a in launcher.scene.arms]
+        probe = sessions.enter_context(open_session(launcher.client_endpoints("arm_0")))
+        listener = sessions.enter_context(open_session(launcher.client_endpoints("monitor")))
+        forbidden = forbidden_to("arm_0", keys, arms)
+
+        def pour() -> None:
+            for key in forbidden:
+                probe.put(key, b"\x93probe")
+
+        with SimTimeTrigger(listener, keys, [1.0, 6.0, 11.0], pour) as trigger:
+            summary = launcher.run()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert trigger.times == 3 and summary["status"] == "ok", summary.get("error")
+    counted = {key: summary["bus_refused"].get(f"arm_0: put on {key}", 0) for key in forbidden}
+    assert counted == dict.fromkeys(forbidden, 3), counted
+    assert sum(summary["bus_refused"].values()) == 3 * len(forbidden), summary["bus_refused"]
