@@ -139,3 +139,40 @@ class Incarnations:
 
     def believe(self, node: str, incarnation: int) -> None:
         self.newest[node] = max(self.newest.get(node, incarnation), incarnation)
+
+
+END_SLACK_S = 30.0  # a line may report this far past its end (it settles its last parts after the duration)
+
+
+def progress_problem(p, arms: int, end_s: float) -> str:
+    """A `Progress` that cannot be the coordinator's: a line of `arms` arms that ends at `end_s` sim seconds."""
+    counts = (p.parts_spawned, p.parts_completed, p.parts_missed, p.busy_arms, p.parts_failed, p.grants_denied)
+    if not_finite((p.sim_time_s, p.min_separation_m)):
+        return "progress with NaN or infinite values"
+    if min(counts) < 0 or p.min_separation_m < -1.0:
+        return "progress with negative counts"
+    if not 0.0 <= p.sim_time_s <= end_s + END_SLACK_S:
+        return f"progress at {p.sim_time_s:g} s of a line that ends at {end_s:g} s"
+    if p.parts_completed + p.parts_missed + p.parts_failed > p.parts_spawned or p.busy_arms > arms:
+        return "progress with more parts done than spawned, or more arms busy than the line has"
+    return ""
+
+
+def sim_status_problem(s, arms: list[str], mode: str, control_hz: float, end_s: float) -> str:
+    """A `SimStatus` that cannot be the sim's: a line of `arms` in `mode` at `control_hz`, ending at `end_s`."""
+    if not_finite((s.sim_time_s, s.speed, s.latency_p99_ms, s.last_contact_s, *s.utilisation)):
+        return "a sim status with NaN or infinite values"
+    if s.tick < 0 or s.contact_ticks < 0 or not 0.0 <= s.sim_time_s <= end_s + END_SLACK_S:
+        return f"a sim status at tick {s.tick}, {s.sim_time_s:g} s, of a line that ends at {end_s:g} s"
+    if abs(s.tick / control_hz - s.sim_time_s) > 1.5 / control_hz:
+        return f"a sim status whose tick {s.tick} is not its sim time {s.sim_time_s:g} s"
+    if s.mode != mode or len(s.utilisation) != len(arms) or not set(s.arms_lost) <= set(arms):
+        return "a sim status of another line (its mode, its arms)"
+    return ""
+
+
+def heartbeat_problem(s) -> str:
+    """An `ArmStatus` with numbers no controller sends."""
+    if not_finite((s.sim_time_s, s.progress, s.busy_s, *s.place_xyz)) or s.sim_time_s < 0 or s.seq < 0:
+        return "a heartbeat with NaN, infinite or negative values"
+    return ""

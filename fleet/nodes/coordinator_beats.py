@@ -11,6 +11,7 @@ import zenoh
 
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmStatus, Roster
+from fleet.bus.plausible import heartbeat_problem
 
 
 class CoordinatorBeats:
@@ -31,13 +32,22 @@ class CoordinatorBeats:
             self.incarnations.hear_roster(roster)
 
     def status_problem(self, key: str, s: ArmStatus) -> str:
-        """Why a decoded heartbeat cannot be its controller's ("" if it can)."""
+        """Why a decoded heartbeat cannot be its controller's ("" if it can): numbers no controller sends, another
+        arm's, a replaced controller's, or the lost controller's own while the sim still does not hear it (a
+        controller that comes back answers the sim first; its heartbeats alone are no rejoin)."""
         if s.arm not in self.last_tick:
             return f"a heartbeat of no arm of this line ({s.arm!r})"
         if Keys.arm_of(key) != s.arm:
             return f"a heartbeat of {s.arm} on another arm's key"
+        if problem := heartbeat_problem(s):
+            return problem
         if s.incarnation in self._replaced.get(s.arm, ()):
             return f"a late heartbeat of a controller of {s.arm} already replaced"
+        lost_one = self.controller_incarnation.get(s.arm) if s.arm in self.dispatcher.lost else None
+        if s.incarnation == lost_one and s.arm in getattr(self, "sim_lost", ()):
+            return (
+                f"a heartbeat of {s.arm}'s lost controller (incarnation {s.incarnation}), which the sim does not hear"
+            )
         return self.incarnations.problem(s.arm, s.incarnation) if self.incarnations.from_roster else ""
 
     def _on_status(self, key: str, s: ArmStatus) -> None:

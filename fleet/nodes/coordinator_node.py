@@ -139,6 +139,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         self.heartbeat_at: dict[str, float] = {}
         self._frame_at = time.monotonic()  # when the sim's last frame was read
         self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
+        self.sim_lost: set[str] = set()  # arms whose controller the sim says it no longer hears (their latest state)
         self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
@@ -240,6 +241,9 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             self.dispatcher.arm_let_go(s.arm)
         if not s.lost:
             self._rejoining.discard(s.arm)
+            self.sim_lost.discard(s.arm)
+        else:
+            self.sim_lost.add(s.arm)
         returned = self.dispatcher.on_arm(
             s.arm,
             np.asarray(s.q),

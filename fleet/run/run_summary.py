@@ -188,6 +188,7 @@ class RunSummary:
         """Goal results, the bus's faults, messages and round trips, and every node's dropped messages."""
         dropped = sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
         dropped += sum(c.get("dropped_messages", 0) for c in controllers) + (monitor or {}).get("dropped_messages", 0)
+        dropped += self.drops.total
         return {
             "goal_results": sim.get("goal_results", {}),
             "network_faults": self._faults(sim.get("network_faults", {}), controllers),
@@ -213,9 +214,9 @@ class RunSummary:
             "snapshot_write_ms_max": sim.get("snapshot_write_ms_max"),
         }
 
-    @staticmethod
-    def _refused(sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:
+    def _refused(self, sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:
         """Each node's refused messages by kind (`DropCounter.kinds`), only the nodes that refused any."""
         reports = {"sim": sim, "coordinator": coord, "monitor": monitor or {}}
         reports |= {c.get("arm", f"controller_{i}"): c for i, c in enumerate(controllers)}
+        reports["launcher"] = {"refused_messages": self.drops.kinds()}
         return {node: r["refused_messages"] for node, r in reports.items() if r.get("refused_messages")}

@@ -7,6 +7,7 @@ import time
 
 from fleet.bus.codec import encode
 from fleet.bus.messages import Progress, RespawnRequest, Roster, SimStatus
+from fleet.bus.plausible import progress_problem, sim_status_problem
 from fleet.bus.session import Inbox
 from fleet.run.run_node import (
     MAX_COORDINATOR_STARTS,
@@ -36,7 +37,10 @@ class Supervision:
         for key, payload in inbox.drain():
             decoder = self._decoders.get(key)
             msg = decoder.decode(key, payload) if decoder else None
-            if isinstance(msg, Progress):
+            problem = self._implausible(msg) if msg is not None else ""
+            if problem:
+                self.drops.drop(key, problem)
+            elif isinstance(msg, Progress):
                 self.last_progress, self.progress_at = msg, time.monotonic()
                 if self.on_progress is not None:
                     self.on_progress(msg)
@@ -45,6 +49,15 @@ class Supervision:
                 self.last_sim_time_s = max(self.last_sim_time_s, msg.sim_time_s)
             elif isinstance(msg, RespawnRequest):
                 self.respawn_on_request(msg)
+
+    def _implausible(self, msg: object) -> str:
+        """Why a decoded progress report or sim status cannot be true of this line ("": it can)."""
+        end_s, arms = self.options.duration_s, [a.name for a in self.scene.arms]
+        if isinstance(msg, Progress):
+            return progress_problem(msg, len(arms), end_s)
+        if isinstance(msg, SimStatus):
+            return sim_status_problem(msg, arms, self.options.mode, self.scene.control_hz, end_s)
+        return ""
 
     def respawn_on_request(self, request: RespawnRequest) -> bool:
         """Start an arm's controller again if it died or the sim lost it; refuse (with the reason) otherwise."""
@@ -86,6 +99,8 @@ class Supervision:
             self.say_roster()
             self._on_bus(inbox)
             self._check_servers()
+            if short := self.disk.short_now():  # stopped while every node can still write its report
+                return f"{short}: the line stopped at {self.last_sim_time_s:.1f} s of sim time; logs in {self.dir}"
             # every node's state read before the factory's: nodes it forked die with it, and a death seen first must
             # not be blamed on the node
             code, coordinator_code = sim.poll(), coordinator.poll()

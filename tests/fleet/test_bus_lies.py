@@ -79,3 +79,61 @@ def test_well_formed_lies_are_dropped_and_counted_and_change_nothing():
     assert lied["dropped_messages"] >= told, "each lie was dropped and counted"
     strip = lambda s: {k: v for k, v in s.items() if k not in COUNTED}  # noqa: E731
     assert strip(lied) == strip(clean), "the line ran exactly as without them"
+
+
+def test_heartbeats_of_a_dead_controller_and_reports_no_node_sends_are_refused_and_counted():
+    """arm_0's controller is killed (no respawn); a liar then beats for it with its own incarnation, beats with NaN
+    sim times for every arm, and sends progress and sim status no line could: the arm stays lost (no "rejoined"),
+    and the coordinator and the launcher count each kind of lie."""
+    import os
+    import signal
+
+    import msgspec
+
+    from fleet.bus.codec import Decoder, DropCounter
+    from fleet.bus.messages import ArmStatus, Progress, SimStatus
+
+    keys, killed, heard, told = Keys("line"), [], [], []
+    options = RunOptions(scene=QUICK_LINE, duration_s=16.0, seed=5, insecure=True)
+
+    def kill_arm_0(progress) -> None:
+        if not killed and progress.sim_time_s > 3.0:
+            node = next(n for n in launcher.nodes if n.name == "arm_0")
+            killed.append(node.proc.pid)
+            os.kill(node.proc.pid, signal.SIGKILL)
+
+    with Launcher(options, kill_arm_0) as launcher:
+        arms = [a.name for a in launcher.scene.arms]
+        with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
+            decoder = Decoder(ArmStatus, DropCounter())
+            sub = session.declare_subscriber(
+                keys.arm_status("arm_0"), lambda s: heard.append(decoder.decode(str(s.key_expr), s.payload.to_bytes()))
+            )
+
+            def lie() -> None:
+                if not killed or not heard:
+                    return
+                beat = heard[-1]
+                for k in range(5):  # its own incarnation, its next numbers: only the sim knows it is dead
+                    ghost = msgspec.structs.replace(beat, seq=beat.seq + 10 + k, sim_time_s=9.0)
+                    session.put(keys.arm_status("arm_0"), encode(ghost))
+                for arm in arms[1:]:
+                    session.put(keys.arm_status(arm), encode(ArmStatus(arm, 5, math.nan, "idle", None, 0.0)))
+                session.put(keys.coord("progress"), encode(Progress(1e9, 5, 9, 0, 1)))
+                session.put(keys.sim_status, encode(SimStatus(FAR, 3.0, "lockstep", False, False, 1.0, (), 0.0, 0)))
+                told.append(1)
+
+            with SimTimeTrigger(session, keys, [7.0, 9.0, 11.0, 13.0], lie):
+                summary = launcher.run()
+            sub.undeclare()
+    assert_nothing_left(summary, launcher.endpoint)
+    assert killed and len(told) >= 3, (killed, told)
+    events = [e["event"] for e in summary["arm_events"] if e["arm"] == "arm_0"]
+    assert events == ["lost"], summary["arm_events"]
+    refused = summary["refused_messages"]
+    coordinator = {k: n for k, n in refused.get("coordinator", {}).items() if k.startswith("status")}
+    assert sum(n for k, n in coordinator.items() if "lost controller" in k) >= 5 * len(told), refused
+    assert sum(n for k, n in coordinator.items() if "NaN" in k) >= len(told) * (len(arms) - 1), refused
+    launcher_refused = refused.get("launcher", {})
+    assert sum(n for k, n in launcher_refused.items() if k.startswith("progress")) >= len(told), refused
+    assert sum(n for k, n in launcher_refused.items() if k.startswith("status")) >= len(told), refused
