@@ -204,6 +204,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from fleet.run.disk_watch import room_problem
     from fleet.run.launcher import Launcher
 
     check_run_flags(args)
@@ -212,6 +213,8 @@ def _run(args: argparse.Namespace) -> int:
     check_ros2_flags(args, [a.name for a in scene.arms])
     check_placement_flags(args)
     options = run_options(args)
+    if short := room_problem(options.record):
+        raise UsageError(short)
     if args.insecure:
         err.print(
             "warning: --insecure: no logins and no access control on the bus; any local process can command the line",

@@ -28,6 +28,7 @@ from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, open_sess
 from fleet.common.processes import read_when_written, stop_children
 from fleet.common.scene_loading import load_scene
 from fleet.ros.names import DEFAULT_MAX_RATE_HZ
+from fleet.run.disk_watch import room_problem, run_disks
 from fleet.run.hosts import Hosts, load_hosts
 from fleet.run.node_commands import NodeCommands
 from fleet.run.node_factory import NodeFactory, adopting, kept_factory
@@ -134,6 +135,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.bus, self.hosts = placement(options.bus_config, options.hosts, self.scene)
         self.on_progress = on_progress
         self.dir = make_run_folder()
+        self.disk = run_disks(self.dir, options.record)
         if self.bus is None and self.secure_by_default:
             arms = [a.name for a in self.scene.arms]
             ros = self.options.ros2_domain, self.options.ros2_arms
@@ -145,6 +147,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.factory = (factory or kept_factory()) if options.fork_nodes else None
         self._own_factory = False
         self.respawns = 0
+        self.drops = DropCounter()  # what the launcher heard and refused (malformed, or not true of this line)
         self.interrupted = ""
         self.keep_dir = options.keep_logs
 
@@ -170,6 +173,8 @@ class Launcher(RunSummary, Supervision, NodeCommands):
 
     def __enter__(self) -> Launcher:
         try:
+            if short := room_problem(self.options.record):
+                raise RunError(short)
             if self.options.fork_nodes and self.factory is None:
                 self.factory, self._own_factory = NodeFactory(self.dir / "node_factory.log"), True
             elif self.factory is not None and not self.factory.adopt:
@@ -233,7 +238,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         try:
             mine = self.client_endpoints("launcher")
             with open_session(mine) as session:
-                keys, inbox, drops = Keys(self.options.run_id), Inbox(), DropCounter()
+                keys, inbox, drops = Keys(self.options.run_id), Inbox(), self.drops
                 subs = [
                     session.declare_subscriber(k, inbox)
                     for k in (keys.coord("progress"), keys.respawn, keys.sim_status)
