@@ -173,6 +173,7 @@ def sim_status_problem(s, arms: list[str], mode: str, control_hz: float, end_s: 
 
 def heartbeat_problem(s) -> str:
     """An `ArmStatus` with numbers no controller sends."""
-    if not_finite((s.sim_time_s, s.progress, s.busy_s, *s.place_xyz)) or s.sim_time_s < 0 or s.seq < 0:
+    # a controller that has answered no state yet beats at sim time -1
+    if not_finite((s.sim_time_s, s.progress, s.busy_s, *s.place_xyz)) or s.sim_time_s < -1.0 or s.seq < 0:
         return "a heartbeat with NaN, infinite or negative values"
     return ""
