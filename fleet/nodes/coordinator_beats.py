@@ -60,7 +60,10 @@ class CoordinatorBeats:
             self._replaced.setdefault(s.arm, set()).add(known)
             self.controller_incarnation[s.arm] = s.incarnation
             if s.arm not in self.dispatcher.lost:
-                self._arm_lost(s.arm, "its controller restarted", self.heartbeat_at[s.arm] - (previous or 0.0))
+                # silent since the old controller's last beat, where this coordinator heard one since it started
+                # or was restored (wall-clock stamps start afresh then: no figure rather than the clock's age)
+                silent = self.heartbeat_at[s.arm] - previous if previous is not None else 0.0
+                self._arm_lost(s.arm, "its controller restarted", silent)
         if s.arm in self.dispatcher.lost:  # a respawned controller rejoined; the sim says so when it has heard it,
             self._rejoining.add(s.arm)  # and its `lost` flag until then is not a second loss
         self.dispatcher.arm_rejoined(s.arm)

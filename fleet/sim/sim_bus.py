@@ -12,7 +12,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.history import serve_history
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmGoalMsg, ControllerStep, CoordTick, EStop, EventLog, SimControl
+from fleet.bus.messages import ArmGoalMsg, ControllerStep, CoordTick, EStop, EventLog, Roster, SimControl
 from fleet.bus.plausible import seq_problem
 from fleet.bus.scene_query import serve_scene
 from fleet.bus.session import Inbox
@@ -42,6 +42,8 @@ class SimBus:
         self.estop_inbox, self.coord_inbox = Inbox(wake=self.inbox.wake), Inbox(wake=self.inbox.wake)
         self.control_inbox = Inbox(wake=self.inbox.wake)
         self.snapshot_inbox = Inbox()  # the nodes' parts of a snapshot (`fleet/sim/sim_snapshot.py`)
+        self.roster = Decoder(Roster, self.drops)
+        self.roster_inbox = Inbox()  # the launcher's rosters: which start of each node runs (a snapshot's parts)
         self._subs = [
             session.declare_subscriber(keys.all_arms("step"), self.inbox),
             session.declare_subscriber(keys.all_arms("goal"), self.inbox),
@@ -50,6 +52,7 @@ class SimBus:
             session.declare_subscriber(keys.coord("tick"), self.coord_inbox),
             session.declare_subscriber(keys.control, self.control_inbox),
             session.declare_subscriber(keys.snapshot_parts(), self.snapshot_inbox),
+            session.declare_subscriber(keys.roster, self.roster_inbox),
         ]
         self._queryables = [serve_scene(session, keys, scene_json), serve_history(session, keys, history)]
         self.status_pub = session.declare_publisher(keys.sim_status)

@@ -30,6 +30,7 @@ class PartsDue:
     sim: object
     asks: list[SnapshotAsk]
     nodes: list[str]
+    alive: dict[str, int] = field(default_factory=dict)  # the start of each node running at the cut (the roster's)
     got: dict[str, SnapshotPart] = field(default_factory=dict)
     asked_at: float = field(default_factory=time.monotonic)
     deadline: float = 0.0
@@ -70,8 +71,11 @@ class PartsDue:
             self.sim.bus.snapshot_inbox.wait(0.005)
 
     def parts(self) -> dict[str, SnapshotPart]:
-        """Every part, once complete; a controller holding fewer orders than the coordinator says it sent it fails
-        the snapshot (the two would not agree on what was sent: it cannot be asked again, it has gone on)."""
+        """Every part, once complete. A part from another start of its node than the one running at the cut (a
+        replacement started since) fails the snapshot, as does a controller holding fewer orders than the
+        coordinator says it sent it (the two would not agree on what was sent: it cannot be asked again, it has gone
+        on)."""
+        check_starts(self.got, self.alive)
         coordinator, arms = self.got["coordinator"], self.nodes[1:]
         behind = [a for i, a in enumerate(arms) if self.got[a].orders[:1] < coordinator.orders[i : i + 1]]
         if behind:
@@ -120,3 +124,15 @@ class CostDue:
             return 0.0
         ran = max(1, min(tick - self.tick, self.span))
         return max(0.0, time.perf_counter() - self.resumed - self.before_s * ran / self.span)
+
+
+def check_starts(parts: dict[str, SnapshotPart], alive: dict[str, int]) -> None:
+    """`SnapshotFailed` where a node's part came from another start of it than the one running at the cut (`alive`,
+    from the launcher's roster): a replacement started since has no state of that tick boundary."""
+    other = [
+        f"{node}'s part came from its start {part.incarnation}, not start {alive[node]}, which ran at the cut"
+        for node, part in parts.items()
+        if node in alive and part.incarnation != alive[node]
+    ]
+    if other:
+        raise SnapshotFailed("; ".join(other))
