@@ -144,7 +144,7 @@ class Incarnations:
 END_SLACK_S = 30.0  # a line may report this far past its end (it settles its last parts after the duration)
 
 
-def progress_problem(p, arms: int, end_s: float) -> str:
+def progress_problem(p, arms: int, end_s: float = math.inf) -> str:
     """A `Progress` that cannot be the coordinator's: a line of `arms` arms that ends at `end_s` sim seconds."""
     counts = (p.parts_spawned, p.parts_completed, p.parts_missed, p.busy_arms, p.parts_failed, p.grants_denied)
     if not_finite((p.sim_time_s, p.min_separation_m)):
@@ -158,15 +158,18 @@ def progress_problem(p, arms: int, end_s: float) -> str:
     return ""
 
 
-def sim_status_problem(s, arms: list[str], mode: str, control_hz: float, end_s: float) -> str:
-    """A `SimStatus` that cannot be the sim's: a line of `arms` in `mode` at `control_hz`, ending at `end_s`."""
+def sim_status_problem(
+    s, arms: list[str], mode: str | None = None, control_hz: float | None = None, end_s: float = math.inf
+) -> str:
+    """A `SimStatus` that cannot be the sim's: a line of `arms` (in `mode`, at `control_hz`, ending at `end_s`:
+    each checked where the receiver knows it)."""
     if not_finite((s.sim_time_s, s.speed, s.latency_p99_ms, s.last_contact_s, *s.utilisation)):
         return "a sim status with NaN or infinite values"
     if s.tick < 0 or s.contact_ticks < 0 or not 0.0 <= s.sim_time_s <= end_s + END_SLACK_S:
         return f"a sim status at tick {s.tick}, {s.sim_time_s:g} s, of a line that ends at {end_s:g} s"
-    if abs(s.tick / control_hz - s.sim_time_s) > 1.5 / control_hz:
+    if control_hz is not None and abs(s.tick / control_hz - s.sim_time_s) > 1.5 / control_hz:
         return f"a sim status whose tick {s.tick} is not its sim time {s.sim_time_s:g} s"
-    if s.mode != mode or len(s.utilisation) != len(arms) or not set(s.arms_lost) <= set(arms):
+    if mode not in (None, s.mode) or len(s.utilisation) != len(arms) or not set(s.arms_lost) <= set(arms):
         return "a sim status of another line (its mode, its arms)"
     return ""
 

@@ -16,6 +16,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmOrder, ArmState, Assignment, LineView, PartsState, Progress, Separations, SimStatus
+from fleet.bus.plausible import progress_problem, sim_status_problem
 
 
 @dataclass
@@ -38,7 +39,7 @@ class LiveFeed:
     """Subscribes to everything the page draws; use in a `with` block so the subscribers are undeclared."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, arms: list[str]) -> None:
-        self.keys = keys
+        self.keys, self.arms = keys, list(arms)
         self.drops = DropCounter()
         self.sight = LineSight()
         self.taken = 0
@@ -66,6 +67,14 @@ class LiveFeed:
             sub.undeclare()
         self._subs = []
 
+    def _implausible(self, msg: object) -> str:
+        """Why a progress report or sim status cannot be true of the line watched ("": it can)."""
+        if isinstance(msg, Progress):
+            return progress_problem(msg, len(self.arms))
+        if isinstance(msg, SimStatus):
+            return sim_status_problem(msg, self.arms)
+        return ""
+
     def take(self) -> LineSight:
         """The sight updated with the newest sample of every key heard since the last call."""
         snap = self.sight
@@ -75,7 +84,10 @@ class LiveFeed:
                 continue
             self.taken += 1
             msg = decoder.decode(key, sample.payload.to_bytes())
-            if isinstance(msg, LineView):
+            problem = self._implausible(msg)
+            if problem:
+                self.drops.drop(key, problem)
+            elif isinstance(msg, LineView):
                 snap.arms.update((a.arm, a) for a in msg.arms)
                 snap.parts = msg.parts
             elif isinstance(msg, Assignment):

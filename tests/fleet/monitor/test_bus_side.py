@@ -9,7 +9,7 @@ import pytest
 
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import Assignment, MotionGrant, SimStatus
+from fleet.bus.messages import Assignment, MotionGrant, Progress, SimStatus
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene, serve_scene
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.monitor.app import Monitor
@@ -94,6 +94,27 @@ def test_garbage_on_the_monitor_keys_is_dropped_and_counted(realtime_sim):
         assert wait_for(lambda: feed.take() is not None and feed.drops.total >= 2)
         session.put(keys.sim_status, encode(SimStatus(1, 0.01, "lockstep", False, False, 1.0, (0.0, 0.0), 0.0, 0)))
         assert wait_for(lambda: feed.take().status is not None)
+
+
+def test_progress_and_sim_status_no_line_could_send_are_dropped_and_counted(realtime_sim):
+    """Well-formed lies on the monitor's figures (an insecure bus lets anyone put them): refused, counted, not
+    shown; the true ones after them are. (A sim status is checked alike: `sim_status_problem`; here the sim's own
+    statuses would overwrite a lie in the feed's one-deep queue.)"""
+    _, session, keys = realtime_sim
+    with LiveFeed(session, keys, ["arm_0", "arm_1"]) as feed:
+        time.sleep(0.1)
+        lies = [
+            (keys.coord("progress"), Progress(float("nan"), 5, 1, 0, 1)),
+            (keys.coord("progress"), Progress(3.0, 2, 5, 0, 1)),  # more done than spawned
+            (keys.coord("progress"), Progress(3.0, 5, 2, 0, 3)),  # three arms busy on a line of two
+        ]
+        for key, lie in lies:
+            session.put(key, encode(lie))
+            assert wait_for(lambda: feed.take() is not None and feed.taken >= 1)
+        assert wait_for(lambda: feed.take() is not None and feed.drops.total == len(lies)), feed.drops.kinds()
+        assert feed.sight.progress is None
+        session.put(keys.coord("progress"), encode(Progress(3.0, 5, 2, 0, 1)))
+        assert wait_for(lambda: feed.take().progress is not None)
 
 
 def test_motion_grants_on_an_arms_order_key_are_orders_not_garbage(realtime_sim):
