@@ -22,7 +22,7 @@ from pathlib import Path
 
 from fleet.bus.messages import SnapshotPart
 from fleet.sim.snapshot_asks import SnapshotFailed, asks_at_boundary, lockstep_asks, node_states, publish_asks
-from fleet.sim.snapshot_parts import BASELINE_WINDOWS, CostDue, NextTicks, PartsDue, check_starts
+from fleet.sim.snapshot_parts import BASELINE_WINDOWS, CostDue, NextTicks, NodeStarts, PartsDue, check_starts
 from fleet.sim.world import World
 from fleet.snapshot.process_state import StateError, capture, restore
 from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
@@ -86,7 +86,7 @@ class SimSnapshots:
     _costs: list[CostDue] = field(default_factory=list)  # snapshots whose ticks after are still being measured
     _next_ticks: NextTicks = field(init=False)  # the wall time at the last tick boundaries
     last_tick: int = 0  # the tick of the last snapshot taken (or restored from): never twice at one tick
-    started: dict[str, int] = field(default_factory=dict)  # the start of each node running (the launcher's roster)
+    starts: NodeStarts = field(default_factory=NodeStarts)  # the start of each node running (the launcher's roster)
 
     def __post_init__(self) -> None:
         # enough boundaries for the runs of ticks a cost is measured against: a few of the longest a node may wait
@@ -119,7 +119,7 @@ class SimSnapshots:
             if sim.mode == "lockstep":
                 own, due, parts = self._take_lockstep()
             else:
-                alive = self.hear_rosters()
+                alive = self.starts.now(self.sim.bus)
                 due, parts = None, node_states(sim, self._stage)
                 check_starts(parts, alive)
                 own = self._own_state()
@@ -149,7 +149,7 @@ class SimSnapshots:
         try:
             own = self._own_state()  # before the nodes are asked: they write theirs while the line goes on
         finally:
-            due = PartsDue(sim, asks, nodes, self.hear_rosters())
+            due = PartsDue(sim, asks, nodes, self.starts.now(sim.bus))
             self._stage("ask")
         if lost:
             raise SnapshotFailed(f"the controllers of {', '.join(lost)} are lost")
@@ -158,15 +158,6 @@ class SimSnapshots:
         due.wait()
         self._stage("nodes")
         return own, None, due.parts()
-
-    def hear_rosters(self) -> dict[str, int]:
-        """The start of each node running now, as the launcher's rosters heard so far say (none without one)."""
-        bus = self.sim.bus
-        for key, payload in bus.roster_inbox.drain():
-            roster = bus.roster.decode(key, payload)
-            if roster is not None and len(roster.nodes) == len(roster.incarnations):
-                self.started.update(zip(roster.nodes, roster.incarnations))
-        return dict(self.started)
 
     def pump(self) -> None:
         """At each tick boundary: the parts of the snapshot being gathered taken in (the file written once all are),

@@ -136,3 +136,18 @@ def check_starts(parts: dict[str, SnapshotPart], alive: dict[str, int]) -> None:
     ]
     if other:
         raise SnapshotFailed("; ".join(other))
+
+
+@dataclass
+class NodeStarts:
+    """Which start of each node runs, as the launcher's rosters heard so far say (none on a line without one)."""
+
+    started: dict[str, int] = field(default_factory=dict)
+
+    def now(self, bus) -> dict[str, int]:
+        """The starts, with the rosters queued on `bus` (`SimBus.roster_inbox`) heard first."""
+        for key, payload in bus.roster_inbox.drain():
+            roster = bus.roster.decode(key, payload)
+            if roster is not None and len(roster.nodes) == len(roster.incarnations):
+                self.started.update(zip(roster.nodes, roster.incarnations))
+        return dict(self.started)
