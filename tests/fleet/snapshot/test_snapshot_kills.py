@@ -43,9 +43,18 @@ def run_with_a_kill(node: str, at_s: float, respawn: bool, out) -> dict:
         ("coordinator", SNAPSHOT_S - 0.02, True),
         ("coordinator", SNAPSHOT_S, True),
         ("arm_0", SNAPSHOT_S - 0.02, True),
+        ("arm_0", SNAPSHOT_S, True),
         ("arm_0", SNAPSHOT_S + 0.02, False),
+        ("coordinator", SNAPSHOT_S + 0.02, True),
     ],
-    ids=["coordinator-before-respawn", "coordinator-at-respawn", "controller-before-respawn", "controller-after"],
+    ids=[
+        "coordinator-before-respawn",
+        "coordinator-at-respawn",
+        "controller-before-respawn",
+        "controller-at-respawn",
+        "controller-after",
+        "coordinator-after-respawn",
+    ],
 )
 def test_a_snapshot_taken_as_a_node_dies_restores_or_says_why_it_failed(node, at_s, respawn, tmp_path):
     summary = run_with_a_kill(node, at_s, respawn, tmp_path / "snapshots")
