@@ -100,20 +100,20 @@ class NodeCommands:
                 "coordinator",
                 "coordinator",
                 "fleet.nodes.coordinator_node",
-                ["--mode", o.mode, "--allocator", o.allocator, "--roster", *([] if o.pipeline else ["--no-pipeline"])]
-                + self._from(),
+                ["--mode", o.mode, "--allocator", o.allocator, "--roster", *([] if o.pipeline else ["--no-pipeline"])],
             )
         ]
-        nodes[0].counts_starts = True  # `--incarnation N`: from the 2nd start on, it takes over the running line
         for arm in self.scene.arms:
             grants = ["--grants"] if moves_need_grants(self.scene) else []  # a lone arm has nobody to ask about
-            extra = ["--arm", arm.name, "--roster", *grants] + (["--rt"] if o.realtime_priority else []) + self._from()
-            node = self._node("controller", arm.name, "fleet.nodes.arm_controller", extra)
+            extra = ["--arm", arm.name, "--roster", *grants] + (["--rt"] if o.realtime_priority else [])
+            nodes.append(self._node("controller", arm.name, "fleet.nodes.arm_controller", extra))
+        for node in nodes:
             node.counts_starts = True
-            nodes.append(node)
+            node.restore_args = self._from()
         return nodes
 
     def _from(self) -> list[str]:
+        """Where a restored run's node starts from (until the line runs: `Node.restore_args`)."""
         return ["--from", self.options.restore_from] if self.options.restore_from else []
 
     def _attached_node(self, role: str, module: str, login: str, extra: list[str], url: bool = False) -> Node:

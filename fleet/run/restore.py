@@ -11,10 +11,11 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from fleet.common.scene_loading import load_scene
 from fleet.common.scene_overrides import scene_with
 from fleet.record.mcap_file import MAGIC, Recording, RecordingError
 from fleet.run.launcher import RunOptions
-from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, SnapshotError, read_snapshot
+from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, SnapshotError, check_holds, read_snapshot
 from scenes.loader import MAX_SCENE_BYTES, SceneError
 from scenes.schema import Scene
 from scenes.yaml_file import read_declaration
@@ -45,6 +46,11 @@ def restore_options(
     check_restore_overrides(overrides or {})
     snapshot = read_snapshot(path)
     scene = snapshot.scene.write(Path(folder))
+    try:
+        arms = [a.name for a in load_scene(str(scene), arms=snapshot.scene.arms, seed=snapshot.scene.seed).arms]
+    except SceneError as exc:
+        raise SnapshotError(f"{path}: its scene cannot be read: {exc}") from None
+    check_holds(snapshot, ["sim", "coordinator", *arms], path)  # said now, not after the line waits for a node
     if overrides:
         try:
             scene = Path(scene_with(str(scene), overrides, Path(folder) / "set"))

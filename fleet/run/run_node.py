@@ -42,6 +42,9 @@ class Node:
     counts_starts: bool = False
     idle: bool = False  # on idle CPU time only (the recorder: the line's own processes come first)
     starts: int = 0
+    # given to each start until the line runs (`--from SNAPSHOT`: one restarted while the line is restored restores
+    # too); the supervisor drops them then, for a node restarted later takes over the running line
+    restore_args: list[str] = field(default_factory=list)
     child: ChildProcess = field(init=False)
 
     def __post_init__(self) -> None:
@@ -49,8 +52,8 @@ class Node:
 
     def start(self) -> None:
         self.starts += 1
-        if self.counts_starts:
-            self.child.argv = [*self.argv, "--incarnation", str(self.starts)]
+        counted = ["--incarnation", str(self.starts)] if self.counts_starts else []
+        self.child.argv = [*self.argv, *self.restore_args, *counted]
         self.child.start()
         self.exit_code = None
 

@@ -15,6 +15,7 @@ from fleet.run.run_node import (
 )
 
 SERVERS = {"monitor": "the monitor", "rosbridge": "the rosbridge server", "ros2": "the ROS 2 publisher"}
+CANNOT_START = 2  # a node's exit code for input it cannot start from (arguments, scene, snapshot): no respawn helps
 ROSTER_PERIOD_S = 1.0  # the roster is said again this often (wall), for whoever joined since
 
 
@@ -45,6 +46,8 @@ class Supervision:
                 if self.on_progress is not None:
                     self.on_progress(msg)
             elif isinstance(msg, SimStatus):
+                for node in self.nodes:  # the line runs: a node restarted from now on takes it over
+                    node.restore_args = []
                 self.arms_lost = msg.arms_lost
                 self.last_sim_time_s = max(self.last_sim_time_s, msg.sim_time_s)
             elif isinstance(msg, RespawnRequest):
@@ -109,6 +112,9 @@ class Supervision:
                 return f"{died}; logs in {self.dir}"
             if code is not None:
                 return self._sim_ended(sim, code)
+            if unstarted := next((n for n in [coordinator, *gone] if n.exit_code == CANNOT_START), None):
+                tail = unstarted.log_tail() or "no output"
+                return f"{unstarted.name} could not start (exit {CANNOT_START}): {tail}; logs in {self.dir}"
             if coordinator_code is None and self._hung(coordinator):
                 self.on_message(f"the coordinator said nothing for {self.options.hung_after_s:g} s; replacing it")
                 coordinator.child.kill()

@@ -160,6 +160,13 @@ def node_state(path: str | Path, node: str) -> tuple[RunSnapshot, bytes]:
     return snapshot, state_of(snapshot, node, path)
 
 
+def check_holds(snapshot: RunSnapshot, nodes: list[str], label: str | Path) -> None:
+    """A `SnapshotError` (one line) unless `snapshot` holds a readable state for each of `nodes` (the processes a
+    run restored from it starts): said before any of them starts, not after the line waits for one that cannot."""
+    for node in nodes:
+        state_of(snapshot, node, label)
+
+
 def state_of(snapshot: RunSnapshot, node: str, label: str | Path) -> bytes:
     """`node`'s state in a snapshot read already (`label` names the file in errors), as its process wrote it."""
     if node not in snapshot.states:
