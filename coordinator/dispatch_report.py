@@ -45,9 +45,7 @@ class DispatchReport:
             "tasks_reassigned": self.reassigned,
             "tasks_adopted": self.adopted,
             "grant_waits": self.guard.waits,
-            "grant_requests_open": {
-                a: round(self.sim_time_s - p.t_start_s, 3) for a, p in self.requests.items() if a not in self.held_now
-            },
+            "grant_requests_open": self.grant_requests_open(),
             "held_at_station_s": {a: round(s, 2) for a, s in self.held_at_station_s.items()},
             "min_separation_m": round(self.min_separation_m, 4) if math.isfinite(self.min_separation_m) else None,
             "closest_pair": list(self.closest_pair) if self.closest_pair else None,
@@ -55,6 +53,13 @@ class DispatchReport:
             "capacity_measured": self.measured_capacity(),
             "capacity_of_run": self.run_capacity(),
         }
+
+    def grant_requests_open(self) -> dict[str, float]:
+        """Every arm waiting for a grant, and for how long (s): a request not answered yet, or one denied and
+        asked again (`DeniedArms.waiting_s`), so an arm held by denials shows as waiting too."""
+        waiting = {a: s for a, s in self.guard.denials().waiting_s(self.sim_time_s).items() if a not in self.requests}
+        open_now = {a: self.sim_time_s - p.t_start_s for a, p in self.requests.items() if a not in self.held_now}
+        return {a: round(max(s, 0.0), 3) for a, s in sorted((open_now | waiting).items())}
 
     def run_capacity(self) -> dict | None:
         """The capacity bound with this run's own arrivals, those in time to be finished by now, in place of the mean

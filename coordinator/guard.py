@@ -29,11 +29,15 @@ import numpy as np
 
 from coordinator.claw_sweep import ClawSpan
 from coordinator.closing import GapClosing, PathTravel
+from coordinator.denied_arms import DeniedArms
 from coordinator.geometry import ArmGeometry, CellBounds, closest_points_below, neighbours, separation_m
 from coordinator.pair_memo import PairMemo
 from robots.trajectory import quintic
 
 DEFAULT_MARGIN_M = 0.02
+OUT_TOLERANCE_M = 0.001  # a way out of another arm's margin may come this much nearer than it starts (FCL's noise)
+OUT_FLOOR_M = 0.005  # no way out comes nearer than this, wherever it starts
+YIELD_M = 0.75  # of the margin: how near a path may pass an arm that waits for it in turn (`CollisionGuard._way_out`)
 TIE_M = 1e-9  # two distances this close are one (each arm's nearest pairs include every pair at its distance)
 
 
@@ -114,6 +118,7 @@ class CollisionGuard:
         self.grants: dict[str, TimedPath] = {}
         self.denied = 0
         self.waits = 0
+        self.ways_out = 0  # grants nearer than the margin, out of two arms' deadlock (`_way_out`)
         self.last_check_samples = 0
 
     def set_state(self, arm: str, q: np.ndarray, gripper_q: np.ndarray | None = None) -> None:
@@ -254,13 +259,49 @@ class CollisionGuard:
         return neighbours(self.arms, arm, self.margin_m)
 
     def check(self, path: TimedPath) -> Verdict:
-        """Would this path keep `margin_m` from every other arm? (Does not record anything.)"""
-        me = self.arms[path.arm]
+        """Would this path keep `margin_m` from every other arm? (Does not record anything.) One refused because of
+        an arm it stands too close to already, or one that waits for it in turn, is judged again by `_way_out`."""
         neighbours = self._neighbours(path.arm)
         if not neighbours:
             return Verdict("grant", None, math.inf)
-        closing = self._closing(path, neighbours)
-        closest, closest_arm, when = math.inf, None, None
+        verdict = self._walk(path, neighbours, dict.fromkeys(neighbours, self.margin_m))
+        if verdict.decision != "deny":
+            return verdict
+        return self._way_out(path, neighbours) or verdict
+
+    def _way_out(self, path: TimedPath, neighbours: list[str]) -> Verdict | None:
+        """Two arms left close together (by an outside driver) could otherwise never move again, each denied
+        because of the other. So a path may come nearer to an arm than the margin where (None: neither holds):
+        - it starts within the margin of that arm: never nearer than it starts (less `OUT_TOLERANCE_M`);
+        - that arm's own request was denied because of this one (`DeniedArms`): down to `YIELD_M` of the margin.
+        The first of the two to ask again moves; the walk's step keeps the clearance every grant keeps."""
+        me, thresholds = self.arms[path.arm], {}
+        me.place(path.at(path.t_start_s))
+        for other in neighbours:
+            self.arms[other].place(self._where(other, path.t_start_s))
+            start_m = separation_m(me, self.arms[other], below_m=self.margin_m)
+            out_m = max(OUT_FLOOR_M, start_m - OUT_TOLERANCE_M) if start_m < self.margin_m else self.margin_m
+            yield_m = self.margin_m * (YIELD_M if self.denials().blocks(other, path.arm, path.t_start_s) else 1.0)
+            thresholds[other] = min(out_m, yield_m)
+        if min(thresholds.values()) >= self.margin_m:
+            return None
+        return self._walk(path, neighbours, thresholds)
+
+    def denials(self) -> DeniedArms:
+        """The arms whose last request was denied, and because of whom."""
+        if "_denials" not in vars(self):  # a guard read back from an older snapshot
+            self._denials = DeniedArms()
+        return self._denials
+
+    def _walk(self, path: TimedPath, neighbours: list[str], thresholds: dict[str, float]) -> Verdict:
+        """Walk the path by conservative advancement: a grant if it keeps each neighbour's threshold; else wait
+        (the nearest arm moves under a grant) or deny."""
+        me, closing = self.arms[path.arm], self._closing(path, neighbours)
+        lowest, highest = min(thresholds.values()), max(thresholds.values())
+        # between two samples the arms close by at most the step: keep what the margin's step keeps (or half)
+        kept_m = self.margin_m - self.step_m
+        step_m = self.step_m if lowest >= self.margin_m else (lowest - kept_m if lowest > kept_m else lowest / 2)
+        closest, closest_arm, when, short = math.inf, None, None, False
         t = path.t_start_s
         self.last_check_samples = 0
         seen: dict[str, tuple[float, float]] = {}  # neighbour -> (when, no nearer than): its last measurement
@@ -281,10 +322,11 @@ class CollisionGuard:
                 here = min(here, d)
                 if d < closest:
                     closest, closest_arm, when = d, other, float(t)
-            if closest < self.margin_m or t >= path.t_done_s:
+                short = short or d < thresholds[other]
+            if short or t >= path.t_done_s:
                 break
-            t = closing.next_sample_s(t, max(self.step_m, here - self.margin_m), path.t_done_s)
-        if closest >= self.margin_m:
+            t = closing.next_sample_s(t, max(step_m, here - highest), path.t_done_s)
+        if not short:
             return Verdict("grant", None, closest)
         other_moves = closest_arm in self.grants and self.grants[closest_arm].t_done_s >= (when or 0.0)
         return Verdict("wait" if other_moves else "deny", closest_arm, closest, when)
@@ -294,8 +336,12 @@ class CollisionGuard:
         verdict = self.check(path)
         if verdict.granted:
             self.grants[path.arm] = path
+            self.denials().granted(path.arm)
+            if verdict.min_separation_m < self.margin_m:
+                self.ways_out = getattr(self, "ways_out", 0) + 1  # (a guard of an older snapshot has none)
         elif verdict.decision == "deny":
             self.denied += 1
+            self.denials().denied(path.arm, verdict.conflict_arm, path.t_start_s)
         else:
             self.waits += 1
         return verdict

@@ -62,6 +62,14 @@ class GripperTracking:
             self._start_gripper()
         return self._note(out)
 
+    def cancel_waiting_gripper(self, now_s: float, reason: str) -> list[GoalResult]:
+        """Cancel the claw goal still waiting for its start time (ended ABORTED with `reason`); one already
+        started runs on: its opening is commanded, and holding the claw short of it could drop a part."""
+        g, self.next_gripper = self.next_gripper, None
+        if g is None:
+            return []
+        return [GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)]
+
     def _start_gripper(self) -> None:
         self.gripper, self.next_gripper = self.next_gripper, None
         g = self.gripper.goal

@@ -247,6 +247,18 @@ class ArmTracker(GripperTracking):
         self.watchdog_deadline_s = math.inf
         return self._note(out)
 
+    def stop_path(self, now_s: float, q: np.ndarray, reason: str) -> list[GoalResult]:
+        """End the trajectory goals (running and waiting) with `reason` and hold the arm where it is; the claw's
+        goals go on (an outside client took the arm with a claw goal)."""
+        out = [
+            self._end(x, "trajectory", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
+            for x in (self.active, self.next)
+            if x is not None and not x.ended
+        ]
+        self.active = self.next = None
+        self.hold_q = np.clip(np.asarray(q, float), self.lower, self.upper)
+        return self._note(out)
+
     def set_estop(self, engaged: bool, now_s: float, q: np.ndarray) -> list[GoalResult]:
         """Engage (abort everything, hold, refuse goals) or release (hold still until a new goal)."""
         self.estop = engaged

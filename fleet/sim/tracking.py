@@ -16,6 +16,7 @@ import numpy as np
 from coordinator.claw_sweep import ClawSpan
 from coordinator.geometry import ArmGeometry
 from fleet.sim.observe import arm_observation
+from fleet.sim.outside_hold import OutsideHold
 from fleet.sim.safety import PlantSafety, Refusal
 from fleet.sim.world import World
 from robots.frames import yaw_transform
@@ -23,8 +24,6 @@ from robots.joint_trajectory import OUTSIDE_REASON, ArmGoal, GoalResult, GoalSta
 from robots.skills.interface import PartObservation
 from robots.skills.pick_place import PickPlaceSkill
 from robots.tracker import ArmTracker
-
-OUTSIDE_RELEASE_S = 2.0  # an outside driver lets go of an arm this long (sim s) after its last path ends
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,37 +63,55 @@ class TrackedArms:
         self._held: dict[str, np.ndarray | None] = {}  # the hold point last written, per arm holding still
         self._gripper_q: dict[str, tuple[float, ...]] = {}
         self.safety = plant_safety(world)
-        self.taken_until: dict[str, float] = {}  # arm -> sim time its outside driver lets go (see `submit`)
+        self.outside = OutsideHold()  # the arms outside clients drive (see `submit`)
 
     def submit(self, arm: str, goal: ArmGoal, outside: bool = False) -> list[GoalResult]:
         """Hand `arm`'s tracker a goal now, through the plant's safety layer; the refusal or the preempted goals'
-        results come back. An `outside` goal (a client that is not the arm's controller: ROS) takes the arm: its
-        controller's goals are refused until the outside path ends and `OUTSIDE_RELEASE_S` more pass."""
+        results come back. An accepted `outside` goal (a client that is not the arm's controller: ROS) takes the
+        arm (`OutsideHold`): its controller's goals are refused until the client lets go, and those it sent
+        before are cancelled at the take."""
         tracker, now = self.trackers[arm], self.world.sim_time_s
         if not outside and self.taken(arm):
-            why = f"{OUTSIDE_REASON} until {self.taken_until[arm]:.2f} s"
+            until = self.outside_hold().let_go_at(arm)
+            why = OUTSIDE_REASON + (f" until {until:.2f} s" if math.isfinite(until) else "")
             if isinstance(goal, GripperGoal):
                 return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, why, now)]
             return tracker.refuse(goal, why, now)
+        results = self._submit_checked(arm, goal)
+        refused = any(r.goal_id == goal.goal_id and r.status == GoalStatus.REJECTED for r in results)
+        if not outside or refused:
+            return results
+        if self.outside_hold().take(arm, goal.goal_id):
+            results += self._cancel_for_outside(arm, goal)
+        return [dataclasses.replace(r, reason=f"{OUTSIDE_REASON}: {r.reason}") for r in results]
+
+    def _submit_checked(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
+        """A goal through the plant's safety layer to the tracker: the refusal or the preempted goals' results."""
+        tracker, now = self.trackers[arm], self.world.sim_time_s
         if isinstance(goal, GripperGoal):
             refusal = self._claw_refusal(arm, goal)
             if refusal is not None:
                 why = f"safety: {refusal.reason}"
                 return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, why, now)]
-            results = tracker.submit(goal, now)
-        else:
-            planned = tracker.plan(goal, now)
-            if isinstance(planned, list):
-                return planned
-            refusal = self.safety.refusal(arm, planned.spline, self.trackers, self.claws())
-            if refusal is not None:
-                return tracker.refuse(goal, f"safety: {refusal.reason}", now)
-            results = tracker.commit(planned, now)
-        if outside:
-            end = max(now, tracker.committed_end_s())
-            self.taken_until[arm] = max(self.taken_until.get(arm, -math.inf), end + OUTSIDE_RELEASE_S)
-            results = [dataclasses.replace(r, reason=f"{OUTSIDE_REASON}: {r.reason}") for r in results]
-        return results
+            return tracker.submit(goal, now)
+        planned = tracker.plan(goal, now)
+        if isinstance(planned, list):
+            return planned
+        refusal = self.safety.refusal(arm, planned.spline, self.trackers, self.claws())
+        if refusal is not None:
+            return tracker.refuse(goal, f"safety: {refusal.reason}", now)
+        return tracker.commit(planned, now)
+
+    def _cancel_for_outside(self, arm: str, goal: ArmGoal) -> list[GoalResult]:
+        """At the take: the controller's goals that would still move the arm end (its claw goal waiting to start;
+        with a claw goal, its path too: the arm holds where it is)."""
+        tracker, now, why = self.trackers[arm], self.world.sim_time_s, "cancelled: an outside client took the arm"
+        out = []
+        if not (tracker.next_gripper is not None and tracker.next_gripper.goal.goal_id == goal.goal_id):
+            out += tracker.cancel_waiting_gripper(now, why)
+        if isinstance(goal, GripperGoal):
+            out += tracker.stop_path(now, self._arm_q(arm), why)
+        return out
 
     def _claw_refusal(self, arm: str, goal: GripperGoal) -> Refusal | None:
         """The safety layer's refusal of a claw goal (None where it may run, or where the tracker refuses it
@@ -117,7 +134,12 @@ class TrackedArms:
 
     def taken(self, arm: str) -> bool:
         """Whether an outside client drives `arm` now (its controller waits, the coordinator gives it nothing)."""
-        return self.world.sim_time_s < self.taken_until.get(arm, -math.inf)
+        return self.outside_hold().taken(arm, self.trackers[arm], self.world.sim_time_s)
+
+    def outside_hold(self) -> OutsideHold:
+        if "outside" not in vars(self):  # a line read back from an older snapshot
+            self.outside = OutsideHold()
+        return self.outside
 
     def decide(self, arm: str, skill: PickPlaceSkill, parts: dict[int, PartObservation]) -> None:
         """One decision of `arm`'s skill in process, as a controller makes it over the bus: it sees the arm (with its

@@ -34,10 +34,30 @@ def test_the_margin_is_respected():
     guard = CollisionGuard(two_arms(), margin_m=0.02)
     d, pair = guard.min_separation({"arm_0": HOME, "arm_1": HOME})
     assert pair == ("arm_0", "arm_1")
-    wide = CollisionGuard(two_arms(), margin_m=d + 0.01)  # a margin wider than the gap: even a still pose is too close
-    verdict = wide.check(TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0))
+    wide = CollisionGuard(two_arms(), margin_m=d + 0.01)  # a margin wider than the gap: home is within it
+    verdict = wide.check(TimedPath("arm_0", tuple(HOME), tuple(REACH_OUT), 0.0, 1.0))
     assert verdict.decision == "deny" and verdict.conflict_arm == "arm_1"
     assert guard.check(TimedPath("arm_0", tuple(HOME), tuple(HOME), 0.0, 1.0)).granted
+
+
+def test_two_arms_left_within_the_margin_may_move_apart_but_not_nearer():
+    """An outside driver left arm_0 reaching towards arm_1, inside the guard's margin but clear of the plant's
+    separation: arm_1 standing still, arm_0 may go home (farther), never reach farther in (nearer)."""
+    guard = CollisionGuard(two_arms(gap_m=0.75), margin_m=0.02)
+    there = 0.4 * REACH_OUT + 0.6 * HOME  # arm_1 reaching a little
+    inside = next(
+        q
+        for q in (f * REACH_OUT + (1 - f) * HOME for f in np.linspace(1.0, 0.0, 201))
+        if 0.008 < guard.min_separation({"arm_0": q, "arm_1": there})[0] < 0.015
+    )
+    guard.set_state("arm_1", there)
+    home = guard.request(TimedPath("arm_0", tuple(inside), tuple(HOME), 0.0, 1.0))
+    assert home.granted and home.min_separation_m < guard.margin_m and guard.ways_out == 1
+    guard.release("arm_0")
+    deeper = guard.request(TimedPath("arm_0", tuple(inside), tuple(REACH_OUT), 0.0, 1.0))
+    assert deeper.decision == "deny" and deeper.conflict_arm == "arm_1"
+    guard.set_state("arm_0", inside)
+    assert guard.request(TimedPath("arm_1", tuple(there), tuple(HOME), 0.0, 1.0)).granted, "arm_1 backs off too"
 
 
 def test_a_thin_link_passing_through_between_two_coarse_samples_is_caught():
