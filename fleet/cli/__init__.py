@@ -11,14 +11,22 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from fleet.run.node_factory import close_kept_factory, keep_factory, kept_factory
 
 GROUPS = ("run", "record", "sweep", "allocators", "monitor", "ros", "scenes", "robots", "bench")
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (what is wrong, and where the help is), not the whole usage."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
+    parser = OneLineParser(prog="fleet", description="clawfleet: several claw arms sharing one assembly line")
     sub = parser.add_subparsers(dest="command", required=True)
     for group in GROUPS:
         importlib.import_module(f"fleet.cli.{group}").add_parsers(sub)

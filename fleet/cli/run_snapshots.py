@@ -78,6 +78,21 @@ def check_snapshot_flags(args: argparse.Namespace) -> None:
         raise UsageError("--snapshot-at/--snapshot-every write into --out DIR: give it")
 
 
+def restore_refused_flags(args: argparse.Namespace) -> list[tuple[str, bool]]:
+    """The flags of `fleet run` a restored run cannot take, and whether each was given: what its processes hold
+    from the snapshot's start (the arms and seed, the bus's faults in flight, the coordinator's pipeline) would
+    take them in some processes and not others. A branch changes the allocator, the mode or the belt's speed
+    (`--set`)."""
+    return [
+        ("--arms", args.arms is not None),
+        ("--seed", args.seed is not None),
+        ("--latency-ms", getattr(args, "latency_ms", None) is not None),
+        ("--jitter-ms", getattr(args, "jitter_ms", None) is not None),
+        ("--loss", getattr(args, "loss", None) is not None),
+        ("--no-pipeline", not getattr(args, "pipeline", True)),
+    ]
+
+
 def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | None:
     """With `--from`: `args` made to run the snapshot's scene (written into a temporary folder, returned for the
     caller to remove), seed and allocator (unless `--allocator` branches) from its tick to its run's end or
@@ -97,8 +112,8 @@ def open_snapshot(args: argparse.Namespace) -> tempfile.TemporaryDirectory | Non
         args.duration = DEFAULT_DURATION_S if args.duration is None else args.duration
         args.allocator = args.allocator or "optimal"
         return None
-    for flag, given in (("--arms", args.arms), ("--seed", args.seed)):
-        if given is not None:
+    for flag, given in restore_refused_flags(args):
+        if given:
             raise UsageError(f"--from starts the snapshot's own line: leave out {flag}")
     folder = tempfile.TemporaryDirectory(prefix="clawfleet-snapshot-")
     try:

@@ -109,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                 {
                     "goals_sent": server.actions.sent,
                     "requests_refused": server.requests_refused,
+                    "requests_failed": server.requests_failed,
                     "dropped_messages": server.drops.total,
                     "refused_messages": server.drops.kinds(),
                     "clients_dropped_messages": sum(c.dropped for c in server.clients),

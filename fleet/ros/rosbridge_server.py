@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import sys
 from collections.abc import Callable
 
 import websockets
@@ -43,6 +44,21 @@ def _field(message: dict, name: str, kind: type | tuple[type, ...], default: obj
     return value
 
 
+MAX_DEPTH = 64  # JSON levels a request may nest (ROS messages nest a few; Python's recursion ends near 1000)
+
+
+def nested_deeper(value: object, depth: int) -> bool:
+    """Whether a decoded JSON value nests lists or objects deeper than `depth` (walked without recursion)."""
+    stack = [(value, 1)]
+    while stack:
+        v, level = stack.pop()
+        if isinstance(v, dict | list):
+            if level > depth:
+                return True
+            stack.extend((x, level + 1) for x in (v.values() if isinstance(v, dict) else v))
+    return False
+
+
 class RosbridgeServer:
     """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
 
@@ -64,6 +80,7 @@ class RosbridgeServer:
         }
         self._numbers = 0
         self.requests_refused = 0
+        self.requests_failed = 0  # requests that raised where no check refused them: each a bug to report
 
     # --- the line -----------------------------------------------------------------
     def on_bus(self, key: str, payload: bytes) -> None:
@@ -128,6 +145,10 @@ class RosbridgeServer:
                 message = json.loads(raw)
             except (ValueError, UnicodeDecodeError) as exc:
                 raise RequestError(f"not JSON: {str(exc)[:80]}") from None
+            except RecursionError:
+                raise RequestError(f"JSON nested too deeply (this server reads {MAX_DEPTH} levels)") from None
+            if nested_deeper(message, MAX_DEPTH):
+                raise RequestError(f"JSON nested too deeply (this server reads {MAX_DEPTH} levels)")
             if not isinstance(message, dict):
                 raise RequestError("a request is a JSON object with an 'op'")
             op_id = message.get("id")
@@ -140,6 +161,10 @@ class RosbridgeServer:
         except RequestError as exc:
             self.requests_refused += 1
             client.status("error", str(exc), op_id)
+        except Exception as exc:  # noqa: BLE001 - a request no check foresaw: its client is told, the server goes on
+            self.requests_failed += 1
+            print(f"fleet rosbridge: a request failed: {type(exc).__name__}: {str(exc)[:200]}", file=sys.stderr)
+            client.status("error", f"the server could not handle this request ({type(exc).__name__})", op_id)
         return True
 
     def _authenticate(self, client: Client, message: dict) -> bool:

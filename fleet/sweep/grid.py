@@ -42,10 +42,16 @@ class Override:
         path, sep, values = text.partition("=")
         if not sep or not path or not values:
             raise GridError(f"--set {text!r}: write FIELD.PATH=VALUE[,VALUE...], e.g. conveyor.speed_m_per_s=0.05,0.1")
-        parsed = []
-        for v in values.split(","):
-            value = yaml.safe_load(v)
-            parsed.append(None if isinstance(value, str) and value.lower() == "none" else value)
+        try:  # one YAML flow sequence: `0.05,0.1` is two values, `[0,0,0]` one list
+            loaded = yaml.safe_load(f"[{values}]")
+        except yaml.YAMLError as exc:
+            problem = str(getattr(exc, "problem", "") or exc).splitlines()[0]
+            raise GridError(
+                f"--set {text!r}: {values!r} is not a YAML value or a comma-separated list of them ({problem})"
+            ) from None
+        if not isinstance(loaded, list) or not loaded:
+            raise GridError(f"--set {text!r}: give at least one value after '='")
+        parsed = [None if isinstance(v, str) and v.lower() == "none" else v for v in loaded]
         return cls(path.strip(), tuple(parsed))
 
 

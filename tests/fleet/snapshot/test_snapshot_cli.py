@@ -38,6 +38,11 @@ CASES = [
     (["sweep", "--from", "{snapshot}", "--load", "1.0", "--out", "{dir}"], "leave out --load"),
     (["run", "--from", "{snapshot}", "--set", "stations.0.pose.xyz=1"], "can set only conveyor.speed_m_per_s"),
     (["run", "--set", "conveyor.speed_m_per_s=0.1"], "give --from SNAPSHOT"),
+    (["run", "--from", "{snapshot}", "--set", "arms.0.base.xyz=[0,0,0]"], "can set only conveyor.speed_m_per_s"),
+    (["run", "--from", "{snapshot}", "--set", "arms.0.base.xyz=[0,0"], "is not a YAML value"),
+    (["run", "--from", "{snapshot}", "--latency-ms", "20"], "leave out --latency-ms"),
+    (["run", "--from", "{snapshot}", "--loss", "0.1"], "leave out --loss"),
+    (["run", "--from", "{snapshot}", "--no-pipeline"], "leave out --no-pipeline"),
     (["run", "--from", "{snapshot}", "--set", "conveyor.speed_m_per_s=-1"], "conveyor.speed_m_per_s"),
     (["sweep", "--from", "{missing}", "--out", "{dir}"], "no such snapshot file"),
     (["sweep", "--out", "{dir}"], "give a scene"),
@@ -64,7 +69,10 @@ def test_a_snapshot_flag_that_cannot_work_is_one_line_and_exit_2(argv, says, sna
         "bad": str(tmp_path / "bad.clawsnap"),
         "recording": str(tmp_path / "plain.mcap"),
     }
-    code = main([a.format(dir=str(tmp_path / "out"), **names) for a in argv])
+    try:
+        code = main([a.format(dir=str(tmp_path / "out"), **names) for a in argv])
+    except SystemExit as exc:  # refused by the argument parser itself
+        code = exc.code
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and says in err[-1] and len(err) == 1, err
 

@@ -70,6 +70,26 @@ def test_an_absurd_grid_is_refused_before_any_run_is_made():
         Override.parse("conveyor.speed_m_per_s")
 
 
+@settings(max_examples=300, deadline=None)
+@given(value=st.text(max_size=30))
+def test_every_set_value_is_read_as_yaml_or_refused_in_one_line(value):
+    """`--set FIELD=V`: V is one YAML flow sequence (`0.05,0.1` two values, `[0,0,0]` one list) or a `GridError`
+    naming it; never another exception (a YAML parser's traceback)."""
+    try:
+        setting = Override.parse(f"arms.0.base.xyz={value}")
+    except GridError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith("--set")
+        return
+    assert setting.values
+
+
+def test_a_list_value_is_one_value():
+    assert Override.parse("arms.0.base.xyz=[0,0,0]").values == ([0, 0, 0],)
+    assert Override.parse("a.b=[0, 1],[2, 3]").values == ([0, 1], [2, 3])
+    with pytest.raises(GridError, match="is not a YAML value"):
+        Override.parse("arms.0.base.xyz=[0,0")
+
+
 def test_the_grid_covers_every_combination_seeds_innermost():
     cells = grid(
         "assembly_line",
