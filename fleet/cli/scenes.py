@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import argparse
 
+from rich.markup import escape
 from rich.table import Table
 
 from fleet.cli.errors import (
+    MissingModelsError,
+    UnknownRobotError,
     UsageError,
     err,
     out,
@@ -42,9 +45,15 @@ def capacity_line(bound) -> str:
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
+    """Every bundled scene; one this install cannot run (a robot whose extra is missing) is listed, marked with
+    what it needs."""
     table = Table("scene", "arms", "description")
     for name in bundled_scene_names():
-        scene = load_scene(name)
+        try:
+            scene = load_scene(name)
+        except (MissingModelsError, UnknownRobotError) as exc:
+            table.add_row(name, "-", f"[yellow]cannot run here: {escape(str(exc))}[/yellow]")
+            continue
         table.add_row(name, str(len(scene.arms)), scene.description)
     out.print(table)
     return 0

@@ -172,6 +172,7 @@ class RunSummary:
             "contact_pairs": sim.get("contact_pairs", []),
             "safety_refused_goals": sim.get("safety_refused_goals", {}),
             "safety_stops": sim.get("safety_stops", 0),
+            "safety_separation_m": sim.get("safety_separation_m"),
             "min_separation_m": coord.get("min_separation_m"),
             "closest_pair": coord.get("closest_pair"),
             "grants_denied": coord.get("grants_denied", 0),

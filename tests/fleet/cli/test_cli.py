@@ -57,6 +57,21 @@ def test_robots_and_scenes_list():
     assert scenes.returncode == 0 and "sorting_line" in scenes.stdout
 
 
+def test_scenes_without_the_models_extra_lists_every_scene_and_marks_what_it_cannot_run():
+    result = subprocess.run(
+        [sys.executable, str(Path(__file__).with_name("without_models.py")), "scenes"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "COLUMNS": "300"},
+    )
+    assert result.returncode == 0, result.stderr
+    rows = {line.split("│")[1].strip(): line for line in result.stdout.splitlines() if line.count("│") >= 3}
+    assert set(bundled_scene_names()) <= set(rows), rows
+    assert "cannot run here" in rows["mixed_fleet"] and "clawfleet[models]" in rows["mixed_fleet"]
+    assert "cannot run here" not in rows["sorting_line"]
+
+
 def test_trials_json_last_line():
     result = fleet("trials", "--robot", "openclaw", "--trials", "2", "--seed", "7", "--json")
     assert result.returncode == 0, result.stderr
