@@ -9,6 +9,7 @@ from fleet.bus.codec import encode
 from fleet.bus.messages import Progress, RespawnRequest, Roster, SimStatus
 from fleet.bus.plausible import progress_problem, sim_status_problem
 from fleet.bus.session import Inbox
+from fleet.run.log_relay import LogRelay
 from fleet.run.run_node import (
     MAX_COORDINATOR_STARTS,
     Node,
@@ -98,10 +99,13 @@ class Supervision:
 
     def _supervise(self, inbox: Inbox) -> str:
         sim, coordinator = self.nodes[0], self.nodes[1]
+        said = LogRelay(coordinator.log, ("allocator ",))  # a plug-in's faults, said on the user's terminal
         while not self.interrupted:
             self.say_roster()
             self._on_bus(inbox)
             self._check_servers()
+            for line in said.new_lines():
+                self.on_message(line)
             if short := self.disk.short_now():  # stopped while every node can still write its report
                 return f"{short}: the line stopped at {self.last_sim_time_s:.1f} s of sim time; logs in {self.dir}"
             # every node's state read before the factory's: nodes it forked die with it, and a death seen first must

@@ -56,9 +56,12 @@ def test_a_plug_in_that_raises_on_some_decisions_costs_only_those():
     options = RunOptions(
         "sorting_line", arms=2, duration_s=30.0, allocator="tests.coordinator.faulty_allocators:RaisesEveryThird"
     )
-    with Launcher(options) as launcher:
+    said: list[str] = []
+    with Launcher(options, on_message=said.append) as launcher:
         summary = launcher.run()
     assert summary["status"] == "ok" and summary["allocator"] == "raises_every_third"
+    faults = [line for line in said if line.startswith("allocator raises_every_third: raised")]
+    assert len(faults) == 1 and "greedy decides instead" in faults[0], said  # on the terminal, once
     assert summary["allocator_faults"]["raised"] > 0, "every faulty decision counted"
     assert summary["parts_completed"] > 0, "greedy decided those, the line went on"
     assert_nothing_left(summary, launcher.endpoint)
