@@ -91,7 +91,9 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     c.set_defaults(func=cmd_ros2_controllers)
     p = group.add_parser("serve", help="publish a running line's ROS 2 topics natively on its router (rmw_zenoh)")
     p.add_argument("--run-id", default="line", help="run id of the line (default line)")
-    p.add_argument("--domain-id", type=int, default=0, help="ROS_DOMAIN_ID (default 0)")
+    p.add_argument(
+        "--ros-domain-id", "--domain-id", dest="domain_id", type=int, default=0, help="ROS_DOMAIN_ID (default 0)"
+    )
     p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_rate_argument(p)
     add_bus_arguments(p)

@@ -183,15 +183,27 @@ def run_options(args: argparse.Namespace) -> RunOptions:
     )
 
 
+# the logins a user hands to a client of their own, and what each may do (`docs/running.md`, access control)
+CLIENT_LOGINS = {
+    "monitor": "watch, e-stop, pause, respawn",
+    "recorder": "listen only",
+    "ros_client": "an outside ROS 2 stack on rmw_zenoh, with --ros2",
+}
+
+
 def bus_line(launcher, run_id: str) -> str:
-    """Where the run's bus is and how to watch it: with the monitor's login on a secure bus, else by its endpoint."""
-    if launcher.bus is not None:
-        how = "TLS, a login per node, access control" if launcher.bus.secure else "no logins"
-        return (
-            f"bus: {launcher.endpoint} ({how}; watch it: fleet monitor --zenoh-config "
-            f"{launcher.bus.config_for('monitor')} --run {run_id})"
-        )
-    return f"bus: {launcher.endpoint} (watch it: fleet monitor --connect {launcher.endpoint} --run {run_id})"
+    """Where the run's bus is and how to watch it: with the monitor's login on a secure bus, else by its endpoint;
+    on a secure bus, every client login's config file and what it may do (the line's own processes have theirs)."""
+    if launcher.bus is None:
+        return f"bus: {launcher.endpoint} (watch it: fleet monitor --connect {launcher.endpoint} --run {run_id})"
+    how = "TLS, a login per node, access control" if launcher.bus.secure else "no logins"
+    folder = launcher.bus.directory
+    logins = [f"{n}.json5 ({what})" for n, what in CLIENT_LOGINS.items() if (folder / f"{n}.json5").exists()]
+    return (
+        f"bus: {launcher.endpoint} ({how}; watch it: fleet monitor --zenoh-config "
+        f"{launcher.bus.config_for('monitor')} --run {run_id})\n"
+        f"logins in {folder}: {', '.join(logins)}; the line's own processes have one each"
+    )
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -1,5 +1,6 @@
 """Every message type survives a round trip; malformed, truncated and wrong-version payloads are dropped and counted."""
 
+import re
 from pathlib import Path
 
 import msgspec
@@ -8,6 +9,7 @@ import pytest
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.messages import (
     MESSAGE_TYPES,
+    PROTOCOL_VERSION,
     ArmState,
     ArmStatus,
     Assignment,
@@ -129,6 +131,12 @@ def test_the_protocol_doc_gives_every_messages_wire_layout():
     doc = (Path(__file__).parents[3] / "docs" / "protocol.md").read_text()
     missing = [wire_layout(t) for t in MESSAGE_TYPES if f"- {wire_layout(t)}" not in doc]
     assert not missing, "docs/protocol.md's wire layout is out of date:\n" + "\n".join(missing)
+
+
+def test_the_protocol_doc_names_one_version_the_code_s():
+    doc = (Path(__file__).parents[3] / "docs" / "protocol.md").read_text()
+    named = set(re.findall(r"\(now (\d+)", doc))
+    assert named == {str(PROTOCOL_VERSION)}, named
 
 
 def test_every_message_type_has_an_example():

@@ -72,6 +72,22 @@ def test_scenes_without_the_models_extra_lists_every_scene_and_marks_what_it_can
     assert "cannot run here" not in rows["sorting_line"]
 
 
+def test_fleet_run_names_every_client_login_it_wrote():
+    """A user hands one of these to a client of their own: each config file named, with what it may do."""
+    result = subprocess.run(
+        [sys.executable, "-m", "fleet", "run", "pick_cell", "--duration", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "COLUMNS": "400"},
+    )
+    assert result.returncode == 0, result.stderr
+    said = result.stdout + result.stderr
+    logins = next(line for line in said.splitlines() if line.startswith("logins in "))
+    for name in ("monitor.json5", "recorder.json5", "ros_client.json5"):
+        assert name in logins, logins
+
+
 def test_trials_json_last_line():
     result = fleet("trials", "--robot", "openclaw", "--trials", "2", "--seed", "7", "--json")
     assert result.returncode == 0, result.stderr

@@ -16,7 +16,7 @@ from scipy import stats
 from fleet.common.scene_overrides import scene_with
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.sweep.grid import GridError, Override, grid, parse_seeds
-from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows
+from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows, write_results
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
 from scenes.schema import MAX_SEED
@@ -173,6 +173,10 @@ def test_a_sweep_of_four_runs_on_two_jobs_gives_what_four_fleet_runs_give(tmp_pa
     rows = run_rows(load_results(tmp_path))
     cells_out = cell_rows(rows)
     assert {c["allocator"]: c["runs"] for c in cells_out} == {"optimal": 2, "greedy": 2}
+    _, written = write_results(load_results(tmp_path), tmp_path)
+    documented = (Path(__file__).parents[3] / "docs" / "running.md").read_text()
+    assert "pairs.csv" in {p.name for p in written}
+    assert [p.name for p in written if f"`{p.name}`" not in documented] == [], "every file a sweep writes is documented"
 
 
 MARK = f"CLAWFLEET_TEST_SWEEP={os.getpid()}"  # in the environment of this test's sweeps, inherited by all they start
