@@ -3,7 +3,8 @@
 `pairs.csv` (each pair of allocators over the same seeds and arguments: the paired difference in throughput
 with its 95% interval and Student's paired t-test), `throughput.png` (per allocator and override),
 `throughput_vs_<field>.png` for a numeric override; with offered loads (`--load`), the saturation curve
-`throughput_vs_load.png` (and the line's capacity) with `parts_missed_vs_load.png` and `utilisation_mean_vs_load.png`."""
+`throughput_vs_load.png` (and the line's capacity) with `parts_missed_vs_load.png` and
+`utilisation_mean_vs_load.png`."""
 
 from __future__ import annotations
 
