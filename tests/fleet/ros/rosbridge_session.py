@@ -74,14 +74,19 @@ class Driver:
         return answers
 
 
+def rosbridge_port(launcher: Launcher, timeout_s: float = 60.0) -> int:
+    """The port the line's rosbridge serves on, once it says (`rosbridge_url` in the run's folder)."""
+    url = launcher.dir / "rosbridge_url"
+    deadline = time.monotonic() + timeout_s
+    while not url.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return int(url.read_text().rsplit(":", 1)[1])
+
+
 def drive(launcher: Launcher, seen: dict) -> None:
     """What a ROS user does to the line; every observation goes into `seen`."""
     try:
-        url = launcher.dir / "rosbridge_url"
-        deadline = time.monotonic() + 60
-        while not url.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        seen["ws_port"] = int(url.read_text().rsplit(":", 1)[1])
+        seen["ws_port"] = rosbridge_port(launcher)
         d = Driver(seen["ws_port"])
         spec = get_robot("openclaw")
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
@@ -228,11 +233,7 @@ def take_arm(launcher: Launcher, seen: dict) -> None:
     """A ROS user takes arm_0 of a working line for a few seconds (a trajectory holding it near home), then lets
     go."""
     try:
-        url = launcher.dir / "rosbridge_url"
-        deadline = time.monotonic() + 60
-        while not url.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        d = Driver(int(url.read_text().rsplit(":", 1)[1]))
+        d = Driver(rosbridge_port(launcher))
         spec = get_robot("openclaw")
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
         seen["held"] = d.goal(trajectory(joints, (home, 1.0), (home + 0.1, 3.0), (home, 5.0)))

@@ -16,7 +16,7 @@ from fleet.common.scene_loading import load_scene
 from fleet.run.launcher import Launcher, RunOptions
 from robots.frames import yaw_transform
 from robots.registry import get_robot
-from tests.fleet.ros.rosbridge_session import Driver, trajectory
+from tests.fleet.ros.rosbridge_session import Driver, rosbridge_port, trajectory
 from tests.fleet.test_run import assert_nothing_left
 
 pytestmark = pytest.mark.slow
@@ -50,11 +50,7 @@ def poses_beside_arm_1(arms: int, count: int = 8) -> list[np.ndarray]:
 def drive_then_let_go(launcher: Launcher, targets: list[np.ndarray], seen: dict) -> None:
     """At `GOAL_AT_S` of sim time, the first of `targets` the plant accepts, in 2.5 s; then the client leaves."""
     try:
-        url = launcher.dir / "rosbridge_url"
-        deadline = time.monotonic() + 60
-        while not url.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
-        d = Driver(int(url.read_text().rsplit(":", 1)[1]))
+        d = Driver(rosbridge_port(launcher))
         clock: list[dict] = []
         roslibpy.Topic(d.ros, "/clock", "rosgraph_msgs/msg/Clock").subscribe(clock.append)
         while not clock or clock[-1]["clock"]["sec"] < GOAL_AT_S:
