@@ -230,28 +230,24 @@ class ArmTracker(GripperTracking):
         self, now_s: float, q: np.ndarray, reason: str, code: ResultCode = ResultCode.ABORTED
     ) -> list[GoalResult]:
         """Abort every active or pending goal (arm and gripper) and hold the arm where it is now."""
+        out = self.stop_path(now_s, q, reason, code)
+        if code == ResultCode.ABORTED:
+            out += [
+                GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
+                for g in (self.gripper, self.next_gripper)
+                if g is not None
+            ]
+            self.gripper = self.next_gripper = None
+        self.watchdog_deadline_s = math.inf
+        return out
+
+    def stop_path(
+        self, now_s: float, q: np.ndarray, reason: str, code: ResultCode = ResultCode.ABORTED
+    ) -> list[GoalResult]:
+        """End the trajectory goals (running and waiting) with `reason` and hold the arm where it is; the claw's
+        goals go on (an outside client took the arm with a claw goal; `abort` ends them too)."""
         out = [
             self._end(x, "trajectory", GoalStatus.ABORTED, code, reason, now_s)
-            for x in (self.active, self.next)
-            if x is not None and not x.ended
-        ]
-        out += [
-            GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
-            for g in (self.gripper, self.next_gripper)
-            if g is not None and code == ResultCode.ABORTED
-        ]
-        if code == ResultCode.ABORTED:
-            self.gripper = self.next_gripper = None
-        self.active = self.next = None
-        self.hold_q = np.clip(np.asarray(q, float), self.lower, self.upper)
-        self.watchdog_deadline_s = math.inf
-        return self._note(out)
-
-    def stop_path(self, now_s: float, q: np.ndarray, reason: str) -> list[GoalResult]:
-        """End the trajectory goals (running and waiting) with `reason` and hold the arm where it is; the claw's
-        goals go on (an outside client took the arm with a claw goal)."""
-        out = [
-            self._end(x, "trajectory", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
             for x in (self.active, self.next)
             if x is not None and not x.ended
         ]

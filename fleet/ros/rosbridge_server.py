@@ -45,6 +45,7 @@ def _field(message: dict, name: str, kind: type | tuple[type, ...], default: obj
 
 
 MAX_DEPTH = 64  # JSON levels a request may nest (ROS messages nest a few; Python's recursion ends near 1000)
+TOO_DEEP = f"JSON nested too deeply (this server reads {MAX_DEPTH} levels)"
 
 
 def nested_deeper(value: object, depth: int) -> bool:
@@ -146,9 +147,9 @@ class RosbridgeServer:
             except (ValueError, UnicodeDecodeError) as exc:
                 raise RequestError(f"not JSON: {str(exc)[:80]}") from None
             except RecursionError:
-                raise RequestError(f"JSON nested too deeply (this server reads {MAX_DEPTH} levels)") from None
+                raise RequestError(TOO_DEEP) from None
             if nested_deeper(message, MAX_DEPTH):
-                raise RequestError(f"JSON nested too deeply (this server reads {MAX_DEPTH} levels)")
+                raise RequestError(TOO_DEEP)
             if not isinstance(message, dict):
                 raise RequestError("a request is a JSON object with an 'op'")
             op_id = message.get("id")
