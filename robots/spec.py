@@ -102,6 +102,10 @@ class RobotSpec:
             float(c * k - a * self.grip_depth_m) for c, a in zip(self.closing_axis_tool, self.approach_axis_tool)
         )
 
+    def link_names(self) -> tuple[str, ...]:
+        """Every link the URDF declares, in file order (what a camera may be mounted on)."""
+        return tuple(re.findall(r"<link\s+name\s*=\s*[\"']([^\"']+)[\"']", self.urdf_text()))
+
     def urdf_text(self) -> str:
         """The URDF with package URIs resolved and <mimic> removed: every joint is driven on its own."""
         path = self.urdf_path()

@@ -27,9 +27,11 @@ BUNDLED_DIR = Path(str(resources.files("scenes") / "bundled"))
 
 @dataclass(frozen=True)
 class RobotFacts:
-    """What scene validation needs of a robot model: its horizontal reach from the base, in metres."""
+    """What scene validation needs of a robot model: its horizontal reach from the base, in metres, and its links
+    (empty: not known, so a camera's mount link is checked when the cell is built)."""
 
     reach_m: float
+    links: tuple[str, ...] = ()
 
 
 RobotFileReader = Callable[[Path], tuple[str, RobotFacts]]
@@ -202,6 +204,7 @@ def check_scene(scene: Scene, label: str = "<scene>", robots: Mapping[str, Robot
     _unique(label, "stations", [s.name for s in scene.stations])
     _unique(label, "feeders", [f.name for f in scene.feeders])
     _check_links(scene, label)
+    _check_cameras(scene, label, robots)
     _check_feeders(scene, label)
     _check_assemblies(scene, label)
     _check_bases(scene, label)
@@ -216,6 +219,21 @@ def _check_links(scene: Scene, label: str) -> None:
         for name in scene.network.links:
             if name not in linked:
                 raise SceneError(label, f"network.links.{name}", f"no such link; links: {', '.join(sorted(linked))}")
+
+
+def _check_cameras(scene: Scene, label: str, robots: Mapping[str, RobotFacts] | None) -> None:
+    """Each mounted camera rides on an arm of the scene, on a link its robot has (where the robot is known)."""
+    arms = {a.name: a for a in scene.arms}
+    for i, camera in enumerate(scene.cameras):
+        if camera.arm is None:
+            continue
+        if camera.arm not in arms:
+            raise SceneError(label, f"cameras.{i}.mount", f"no arm {camera.arm!r}; arms: {', '.join(sorted(arms))}")
+        model = arms[camera.arm].model
+        links = robots[model].links if robots is not None and model in robots else ()
+        if links and camera.link not in links:
+            why = f"{model} has no link {camera.link!r}; links: {', '.join(links)}"
+            raise SceneError(label, f"cameras.{i}.mount", why)
 
 
 def _check_feeders(scene: Scene, label: str) -> None:

@@ -290,6 +290,80 @@ class Network(LinkFaults):
         return self.links.get(name, LinkFaults(latency_ms=self.latency_ms, jitter_ms=self.jitter_ms, loss=self.loss))
 
 
+ImageKind = Literal["rgb", "depth", "segmentation"]
+MAX_CAMERAS = 16
+MAX_CAMERA_PIXELS_PER_S = 3_000_000
+"""The pixel budget: width x height x rate, summed over a scene's cameras. On a 2-core machine rendering on the CPU
+(docs/cameras.md) this is about 13 s of rendering per sim second; past it a line is a render farm, not a line."""
+MOUNT_PATTERN = r"^(world|[a-z][a-z0-9_]*/[A-Za-z0-9_.\-]+)$"
+
+
+class CameraPlacement(Strict):
+    """Where a camera stands and what it looks at, in its mount's frame (the world, or an arm link's), in metres;
+    `up` says which way is up in its image."""
+
+    xyz: Vec3
+    look_at: Vec3
+    up: Vec3 = (0.0, 0.0, 1.0)
+
+    @model_validator(mode="after")
+    def _a_view(self) -> CameraPlacement:
+        if any(abs(c) > WORLD_M for c in (*self.xyz, *self.look_at)):
+            raise ValueError(f"every coordinate must lie within {WORLD_M:g} m of the origin")
+        forward = [b - a for a, b in zip(self.xyz, self.look_at)]
+        if math.hypot(*forward) < 1e-3:
+            raise ValueError("look_at must lie at least 1 mm from xyz")
+        if math.hypot(*self.up) < 1e-6:
+            raise ValueError("up must not be zero")
+        cross = (
+            forward[1] * self.up[2] - forward[2] * self.up[1],
+            forward[2] * self.up[0] - forward[0] * self.up[2],
+            forward[0] * self.up[1] - forward[1] * self.up[0],
+        )
+        if math.hypot(*cross) < 1e-6 * math.hypot(*forward) * math.hypot(*self.up):
+            raise ValueError("up lies along the view (xyz to look_at): give an up across it, e.g. [1, 0, 0]")
+        return self
+
+
+class Camera(Strict):
+    """A camera on the line: fixed in the world or mounted on an arm's link, the images it makes and how often (in
+    sim time). `fov_deg` is the vertical field of view; depth is in metres between `near_m` and `far_m`."""
+
+    name: Name
+    mount: Annotated[str, Field(pattern=MOUNT_PATTERN, max_length=120)] = "world"
+    """`world`, or `<arm>/<link>`: the camera rides on that link of that arm (`pose` in the link's frame)."""
+    pose: CameraPlacement
+    width_px: int = Field(ge=8, le=1920)
+    height_px: int = Field(ge=8, le=1080)
+    fov_deg: float = Field(60.0, ge=5.0, le=150.0)
+    near_m: float = Field(0.02, ge=0.001, le=10.0)
+    far_m: float = Field(10.0, ge=0.01, le=200.0)
+    rate_hz: float = Field(5.0, gt=0.0, le=60.0)
+    images: list[ImageKind] = Field(["rgb"], min_length=1, max_length=3)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Camera:
+        if self.near_m >= self.far_m:
+            raise ValueError(f"near_m {self.near_m:g} must be below far_m {self.far_m:g}")
+        if len(set(self.images)) != len(self.images):
+            raise ValueError("images names each of rgb, depth, segmentation at most once")
+        return self
+
+    @property
+    def arm(self) -> str | None:
+        """The arm it rides on, None for a fixed camera."""
+        return None if self.mount == "world" else self.mount.split("/", 1)[0]
+
+    @property
+    def link(self) -> str | None:
+        """The link of its arm it rides on, None for a fixed camera."""
+        return None if self.mount == "world" else self.mount.split("/", 1)[1]
+
+    @property
+    def pixels_per_s(self) -> float:
+        return self.width_px * self.height_px * self.rate_hz
+
+
 class Scene(Strict):
     """A whole cell."""
 
@@ -323,6 +397,9 @@ class Scene(Strict):
     """Standard deviation of the noise added to the part positions controllers see (metres)."""
     network: Network | None = None
     """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
+    cameras: list[Camera] = Field([], max_length=MAX_CAMERAS)
+    """Cameras (docs/cameras.md). Rendered only where something asks for images (`fleet run --cameras`, the env's
+    `cameras=True`): a run that asks for none builds no renderer and pays nothing."""
     robot_files: list[Annotated[FileName, Field(max_length=4096)]] = Field([], max_length=16)
     """Robot declaration files (YAML, docs/robots.md) whose uids this scene's arms may name; relative to the scene
     file."""
@@ -339,6 +416,26 @@ class Scene(Strict):
         if self.bay_row is not None and (self.arm_row is not None or self.conveyor is None):
             raise ValueError("a bay_row repeats a bay of declared arms along the conveyor: no arm_row, a conveyor")
         return self
+
+    @field_validator("cameras")
+    @classmethod
+    def _within_the_pixel_budget(cls, cameras: list[Camera]) -> list[Camera]:
+        names = [c.name for c in cameras]
+        if len(set(names)) != len(names):
+            raise ValueError(f"camera names must differ: {', '.join(names)}")
+        total = sum(c.pixels_per_s for c in cameras)
+        if total > MAX_CAMERA_PIXELS_PER_S:
+            raise ValueError(
+                f"{total:,.0f} pixels/s over all cameras (width_px x height_px x rate_hz); the budget is "
+                f"{MAX_CAMERA_PIXELS_PER_S:,} (docs/cameras.md)"
+            )
+        return cameras
+
+    def camera(self, name: str) -> Camera:
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise KeyError(f"no camera {name!r}; cameras: {', '.join(c.name for c in self.cameras) or 'none'}")
 
     def drop_along_m(self, feeder: Feeder) -> float:
         """How far along the belt a conveyor feeder sets its parts down."""

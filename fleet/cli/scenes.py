@@ -17,6 +17,7 @@ from fleet.cli.errors import (
 )
 from fleet.common.scene_loading import load_scene
 from scenes.loader import bundled_scene_names
+from scenes.schema import Camera
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -25,7 +26,18 @@ def cmd_check(args: argparse.Namespace) -> int:
     scene = load_scene(args.file, arms=args.arms)
     print("ok")
     print(capacity_line(capacity_bound(scene)))
+    for camera in scene.cameras:
+        print(camera_line(camera))
     return 0
+
+
+def camera_line(camera: Camera) -> str:
+    """One camera in one line: where it stands, its images and what they cost in pixels per second."""
+    images = "+".join(camera.images)
+    return (
+        f"camera {camera.name}: {camera.mount}, {camera.width_px}x{camera.height_px} px, {camera.fov_deg:g} deg, "
+        f"{camera.rate_hz:g} Hz, {images} ({camera.pixels_per_s:,.0f} px/s)"
+    )
 
 
 def capacity_line(bound) -> str:

@@ -24,7 +24,8 @@ class RegisteredRobots(Mapping[str, RobotFacts]):
     def __getitem__(self, uid: str) -> RobotFacts:
         if uid not in self:
             raise KeyError(uid)
-        return RobotFacts(reach_m_of(get_robot(uid)))
+        spec = get_robot(uid)
+        return RobotFacts(reach_m_of(spec), spec.link_names())
 
     def __contains__(self, uid: object) -> bool:
         return uid in {spec.uid for spec in declared_robots()}
@@ -44,7 +45,7 @@ def robot_facts() -> Mapping[str, RobotFacts]:
 def read_robot_file(path: Path) -> tuple[str, RobotFacts]:
     """Register the robot a scene's robot file declares; its uid and facts."""
     spec = register_file(path)
-    return spec.uid, RobotFacts(reach_m_of(spec))
+    return spec.uid, RobotFacts(reach_m_of(spec), spec.link_names())
 
 
 def load_scene(name_or_path: str | Path, *, arms: int | None = None, seed: int | None = None) -> Scene:

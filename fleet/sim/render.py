@@ -1,4 +1,9 @@
-"""Optional rendering: detected, never required. Physics runs without any render device."""
+"""Rendering, only where asked: a render system for cameras, or one line saying what to install.
+
+Physics never needs a render device. Cameras need Vulkan: a GPU's driver, or
+Mesa 25's software renderer (lavapipe) on the CPU; Debian 12's own Mesa 22.3
+is refused by SAPIEN.
+"""
 
 from __future__ import annotations
 
@@ -6,18 +11,27 @@ import functools
 
 import sapien
 
+INSTALL_HINT = (
+    "install Mesa's Vulkan drivers, version 25 or newer (Debian 12: mesa-vulkan-drivers from bookworm-backports; "
+    "Debian 13, Ubuntu 24.04: mesa-vulkan-drivers), or a GPU's Vulkan driver (docs/cameras.md)"
+)
+
 
 class RenderUnavailable(RuntimeError):
     """Asked for images on a machine where SAPIEN finds no render device."""
+
+
+_KEPT: list[sapien.render.RenderSystem] = []  # one held for the process: the renderer's set-up (seconds) is paid once
 
 
 @functools.cache
 def render_device() -> tuple[bool, str]:
     """Whether SAPIEN can render here, and why not if it cannot (checked once per process)."""
     try:
-        sapien.render.RenderSystem()
+        _KEPT.append(sapien.render.RenderSystem())
     except RuntimeError as exc:
-        return False, f"SAPIEN found no render device ({exc}); physics works without one, images do not"
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        return False, f"no Vulkan device to render cameras on ({first}): {INSTALL_HINT}"
     return True, "ok"
 
 
@@ -26,3 +40,9 @@ def require_render() -> None:
     ok, reason = render_device()
     if not ok:
         raise RenderUnavailable(reason)
+
+
+def render_system() -> sapien.render.RenderSystem:
+    """A new render system (for one camera scene); `RenderUnavailable`, in one line, where none can be made."""
+    require_render()
+    return sapien.render.RenderSystem()

@@ -138,6 +138,7 @@ class World(WorldFeeders):
             builder.add_box_collision(pose=sapien.Pose(centre), half_size=half, material=material)
         builder.set_name(name)
         entity = builder.build_static()
+        entity.name = name  # SAPIEN's static and kinematic builders leave the entity unnamed; cameras label by name
         entity.set_pose(pose)
         return entity
 
@@ -156,6 +157,7 @@ class World(WorldFeeders):
         builder.add_box_collision(pose=sapien.Pose(centre), half_size=half, material=material)
         builder.set_name("conveyor_belt")
         entity = builder.build_kinematic()
+        entity.name = "conveyor_belt"
         entity.set_pose(self._belt_home)
         self._belt_entity = entity
         self._belt_step = np.array(c.direction) * c.speed_m_per_s * self.scene.get_timestep()

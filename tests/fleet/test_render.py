@@ -11,5 +11,5 @@ def test_detection_answers_with_a_reason():
     if ok:
         require_render()
     else:
-        with pytest.raises(RenderUnavailable, match="no render device"):
+        with pytest.raises(RenderUnavailable, match="no Vulkan device to render cameras on"):
             require_render()

@@ -43,7 +43,7 @@ def test_any_field_set_to_anything_gives_ok_or_one_line_naming_the_file(data, va
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.sampled_from(sorted(SCENES)), st.sampled_from(["arms", "stations", "feeders", "conveyor"]), WRONG)
+@given(st.sampled_from(sorted(SCENES)), st.sampled_from(["arms", "stations", "feeders", "conveyor", "cameras"]), WRONG)
 def test_whole_sections_replaced_by_anything_give_one_line(name, section, value):
     code, _, err = check(with_value(SCENES[name], (section,), value))
     assert code in (0, 2) and (code == 0 or err.count("\n") == 1), (section, value, err)

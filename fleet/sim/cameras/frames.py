@@ -1,0 +1,43 @@
+"""A camera's frame: the images it made at one sim time, its intrinsics and where its optical frame stood."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    """One camera's images at `sim_time_s`: RGB (uint8 HxWx3), depth (float32 HxW, metres along the optical axis,
+    0 where nothing lies within far_m), segmentation (int32 HxW, ids of `fleet.sim.cameras.labels`), each None when
+    the camera does not make it. `intrinsics` is the 3x3 pinhole matrix K; the optical frame (+z forward, +x right,
+    +y down) stands at `position_m` with `quaternion_wxyz` in the world."""
+
+    camera: str
+    sim_time_s: float
+    intrinsics: np.ndarray
+    position_m: np.ndarray
+    quaternion_wxyz: np.ndarray
+    rgb: np.ndarray | None = None
+    depth_m: np.ndarray | None = None
+    segmentation: np.ndarray | None = None
+
+    @property
+    def size_px(self) -> tuple[int, int]:
+        """(width, height)."""
+        image = next(i for i in (self.rgb, self.depth_m, self.segmentation) if i is not None)
+        return image.shape[1], image.shape[0]
+
+    def points_in_world(self, mask: np.ndarray | None = None) -> np.ndarray:
+        """The depth image back-projected through the intrinsics into world points (N x 3), for the pixels of `mask`
+        (default: every pixel with depth)."""
+        if self.depth_m is None:
+            raise ValueError(f"camera {self.camera!r} makes no depth image")
+        rows, cols = np.nonzero((self.depth_m > 0) if mask is None else (mask & (self.depth_m > 0)))
+        z = self.depth_m[rows, cols].astype(float)
+        k = self.intrinsics
+        optical = np.column_stack([(cols + 0.5 - k[0, 2]) / k[0, 0] * z, (rows + 0.5 - k[1, 2]) / k[1, 1] * z, z])
+        w, x, y, q = self.quaternion_wxyz
+        return Rotation.from_quat([x, y, q, w]).apply(optical) + self.position_m

@@ -1,0 +1,38 @@
+"""A camera's pose from its scene placement (`xyz`, `look_at`, `up`), in SAPIEN's and in ROS's optical convention.
+
+SAPIEN's camera looks along its body's +x, with +y left and +z up. ROS names a
+camera's optical frame `<camera>_optical_frame`: +z forward, +x right, +y down.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sapien
+from scipy.spatial.transform import Rotation
+
+from scenes.schema import CameraPlacement
+
+# rotation taking optical axes (x right, y down, z forward) to SAPIEN camera axes (x forward, y left, z up)
+OPTICAL_IN_BODY = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+def _wxyz(matrix: np.ndarray) -> np.ndarray:
+    x, y, z, w = Rotation.from_matrix(matrix).as_quat()
+    return np.array([w, x, y, z])
+
+
+def body_pose(placement: CameraPlacement) -> sapien.Pose:
+    """The SAPIEN camera body's pose in its mount's frame: at `xyz`, looking at `look_at`, `up` up in the image."""
+    eye = np.asarray(placement.xyz, float)
+    forward = np.asarray(placement.look_at, float) - eye
+    forward /= np.linalg.norm(forward)
+    left = np.cross(np.asarray(placement.up, float), forward)
+    left /= np.linalg.norm(left)
+    up = np.cross(forward, left)
+    return sapien.Pose(eye, _wxyz(np.column_stack([forward, left, up])))
+
+
+def optical_pose(body_in_world: sapien.Pose) -> tuple[np.ndarray, np.ndarray]:
+    """The optical frame in the world, from the camera body's pose there: position and quaternion (wxyz)."""
+    rotation = body_in_world.to_transformation_matrix()[:3, :3] @ OPTICAL_IN_BODY
+    return np.asarray(body_in_world.p, float), _wxyz(rotation)
