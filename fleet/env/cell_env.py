@@ -22,6 +22,7 @@ from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
 from fleet.common.scene_loading import load_scene
 from fleet.env.actions import EnvActions
 from fleet.env.allocate_mode import TaskChooser
+from fleet.env.camera_views import EnvCameras, chosen_cameras
 from fleet.env.choice_steps import ChoiceSteps
 from fleet.env.limits import (
     CONTACT_PENALTY,
@@ -67,6 +68,7 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
         task: str | None = None,
         choice_steps: bool = False,
         observe: str = "cell",
+        cameras: bool | list = False,
     ) -> None:
         scenario, action_mode = renamed_options(scenario, action_mode, task)
         self._init_kwargs = dict(
@@ -82,12 +84,13 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
             mask_in_observation=mask_in_observation,
             choice_steps=choice_steps,
             observe=observe,
+            cameras=cameras,
         )
         check_options(scenario, action_mode, render_mode, max_cycles, control_hz, distributed)
         check_allocate_options(action_mode, mask_in_observation, choice_steps, observe)
         self.mask_in_observation, self.choice_steps, self.observe = mask_in_observation, choice_steps, observe
-        if render_mode == "rgb_array":
-            require_render()  # a clear RenderUnavailable where no rendering device exists
+        if render_mode == "rgb_array" or cameras:
+            require_render()  # a clear RenderUnavailable, naming what to install, where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(scenario, "sorting_line")
         base = load_scene(scene, arms=n_arms)  # None: the scene's own count; a fixed-arm scene refuses another
         self.possible_agents = [a.name for a in base.arms]
@@ -104,6 +107,10 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
             self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
             self.ticks_per_step = 1
         self._build_cell(action_mode, distributed, scene, n_arms, monitor_port)
+        chosen = chosen_cameras(self.scene.cameras, cameras)
+        self.camera_obs = bool(chosen)  # images in the observations; rgb_array alone renders the scene's cameras
+        shown = chosen or (self.scene.cameras if render_mode == "rgb_array" else [])
+        self.cameras = EnvCameras(self.world, shown, self.possible_agents) if shown else None
 
     def _build_cell(
         self, action_mode: str, distributed: bool, scene: str, n_arms: int | None, monitor_port: int
@@ -256,8 +263,9 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
         if self.render_mode is None:
             return None
         if self.render_mode == "rgb_array":
-            require_render()
-            return None
+            if self.cameras is None:
+                raise ValueError('render_mode="rgb_array" needs a scene with a fixed camera (docs/cameras.md)')
+            return self.cameras.picture()
         if self.monitor is None:
             from fleet.env.watch import EnvMonitor  # viser only when someone watches
 

@@ -20,6 +20,10 @@ class EnvObservations:
 
     @functools.cache
     def observation_space(self, agent: str) -> gymnasium.spaces.Space:
+        state = self._state_space(agent)
+        return self.cameras.space(agent, state) if self.camera_obs else state
+
+    def _state_space(self, agent: str) -> gymnasium.spaces.Space:
         n, others = self._dof[agent], len(self.possible_agents) - 1
         if self.observe == "choices":
             size = CHOICE_FEATURES
@@ -61,7 +65,15 @@ class EnvObservations:
         """Every arm's claw position now (world frame)."""
         return {a: np.asarray(self.world.arms[a].tool_pose_world().p, float) for a in self.possible_agents}
 
-    def _observe(
+    def _observe(self, *seen) -> dict:
+        """Every agent's observation; with cameras, its state beside the images of the cameras it sees."""
+        states = self._states(*seen)
+        if not self.camera_obs:
+            return states
+        self.cameras.render()
+        return {a: self.cameras.observation(a, state) for a, state in states.items()}
+
+    def _states(
         self,
         separation: dict[str, float] | None = None,
         tools: dict[str, np.ndarray] | None = None,
