@@ -131,6 +131,10 @@ class Keys:
     def snapshot_parts(self) -> str:
         return f"{ROOT}/{self.run}/snapshot/*"
 
+    def camera(self, camera: str, kind: str) -> str:
+        """One camera's images of one kind (`CameraImage`): `clawfleet/<run>/camera/<camera>/<kind>`."""
+        return f"{ROOT}/{self.run}/camera/{camera}/{kind}"
+
     @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"
@@ -153,6 +157,7 @@ class Keys:
             self.estop,
             f"{root}/coord/**",
             f"{root}/launcher/**",
+            f"{root}/camera/**",
         ]
 
     @staticmethod

@@ -14,7 +14,7 @@ import msgspec
 
 from robots.phase import Phase
 
-PROTOCOL_VERSION = 9  # 9: states and frames name the next snapshot tick; frames their delivery tick
+PROTOCOL_VERSION = 10  # 10: camera images (`CameraImage`)
 Floats = tuple[float, ...]
 
 
@@ -437,6 +437,26 @@ class EnvTargets(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
+class CameraImage(Message, frozen=True, array_like=True):
+    """Sim -> anyone, at the camera's rate in sim time: one image one camera made (`kind`: rgb, depth or
+    segmentation), `encoding` as `fleet.bus.images` says (png, jpeg or raw for RGB; raw float32 metres or
+    png16 millimetres for depth; raw or zlib int32 for segmentation). `intrinsics` is K row by row; the camera's
+    optical frame (+z forward, +x right, +y down) stands at `position_m` with `quaternion_wxyz` in the world."""
+
+    camera: str
+    kind: str
+    tick: int
+    sim_time_s: float
+    width_px: int
+    height_px: int
+    encoding: str
+    data: bytes
+    intrinsics: Floats
+    position_m: Floats
+    quaternion_wxyz: Floats
+    version: int = PROTOCOL_VERSION
+
+
 MESSAGE_TYPES = (
     ArmState,
     ControllerStep,
@@ -461,4 +481,5 @@ MESSAGE_TYPES = (
     EnvTargets,
     SnapshotAsk,
     SnapshotPart,
+    CameraImage,
 )

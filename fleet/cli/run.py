@@ -173,6 +173,8 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         ros2_arms=args.ros_arms,
         ros_max_rate_hz=checked_rate(args.ros_max_rate_hz, "--ros-max-rate-hz"),
         record=run_recording(args),
+        cameras=args.cameras,
+        camera_encoding=args.camera_encoding,
         latency_ms=args.latency_ms,
         jitter_ms=args.jitter_ms,
         loss=args.loss,
@@ -206,6 +208,21 @@ def bus_line(launcher, run_id: str) -> str:
     )
 
 
+def check_camera_flags(args: argparse.Namespace, scene) -> None:
+    """`--cameras` names cameras the scene has, on a machine that can render them: else one line, before anything
+    starts."""
+    if not args.cameras:
+        return
+    from fleet.sim.cameras.line_cameras import cameras_named  # the renderer only when asked
+    from fleet.sim.render import RenderUnavailable, require_render
+
+    try:
+        cameras_named(scene.cameras, args.cameras)
+        require_render()
+    except (ValueError, RenderUnavailable) as exc:
+        raise UsageError(str(exc)) from None
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     folder = open_snapshot(args)
     try:
@@ -223,6 +240,7 @@ def _run(args: argparse.Namespace) -> int:
     check_snapshot_flags(args)
     scene = load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
     check_ros2_flags(args, [a.name for a in scene.arms])
+    check_camera_flags(args, scene)
     check_placement_flags(args)
     options = run_options(args)
     if short := room_problem(options.record):
@@ -294,6 +312,14 @@ def write_run_artefacts(summary: dict, out_dir: Path) -> None:
         err.print(f"the recorder wrote nothing: only summary.json in {out_dir}", markup=False, highlight=False)
 
 
+def _camera_row(c: dict) -> str:
+    frames = ", ".join(f"{name} {n}" for name, n in c["frames_by_camera"].items())
+    return (
+        f"{frames} / {c['images']} images, {c['bytes_out'] / 1e6:.1f} MB / {c['render_s']:.1f} s "
+        f"(the first frame {c['first_frame_s']:.1f} s), encoding {c['encode_s']:.1f} s"
+    )
+
+
 def print_run_summary(s: dict) -> None:
     table = Table(
         "figure", "value", title=f"{s['scene']}: {s['arms']} arms, {s['mode']}, seed {s['seed']} ({s['status']})"
@@ -346,6 +372,8 @@ def print_run_summary(s: dict) -> None:
         rows.append(("restored from a snapshot", f"tick {r['tick']}, every process back in {r['wall_s']:.2f} s"))
     if s.get("snapshots") or s.get("snapshots_failed") or s.get("snapshots_refused"):
         rows.append(("snapshots (written / failed / refused)", _snapshot_row(s)))
+    if s.get("cameras"):
+        rows.append(("cameras: frames / on the bus / rendering", _camera_row(s["cameras"])))
     for row in rows:
         table.add_row(*row)
     out.print(table)
@@ -450,6 +478,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="write the run's artefacts here: summary.json, recording.mcap, time series CSV, plots",
     )
+    _add_camera_arguments(p)
     add_snapshot_arguments(p)
     _add_placement_arguments(p)
     _add_rosbridge_arguments(p)
@@ -457,6 +486,21 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     add_fault_arguments(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_run)
+
+
+def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
+    """Rendering the scene's cameras into the line: `--cameras`, `--camera-encoding`."""
+    p.add_argument(
+        "--cameras",
+        nargs="?",
+        const="all",
+        metavar="NAMES",
+        help="render the scene's cameras (all, or names joined by commas) at their rates; images go on the bus, into "
+        "the recording and to ROS (docs/cameras.md)",
+    )
+    p.add_argument(
+        "--camera-encoding", choices=("png", "jpeg", "raw"), default="png", help="how RGB images travel (default png)"
+    )
 
 
 def _add_rosbridge_arguments(p: argparse.ArgumentParser) -> None:

@@ -37,6 +37,7 @@ import numpy as np
 import zenoh
 
 from fleet.bus.faults import add_fault_arguments, network_from_args
+from fleet.bus.images import RGB_ENCODINGS
 from fleet.bus.keys import Keys
 from fleet.bus.router_audit import RouterAudit
 from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open_listening_session
@@ -84,6 +85,12 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
             "into MCAP)"
         ),
     )
+    parser.add_argument(
+        "--cameras",
+        metavar="NAMES",
+        help="render the scene's cameras (all, or names joined by commas) and put their images on the bus",
+    )
+    parser.add_argument("--camera-encoding", choices=RGB_ENCODINGS, default="png", help="how RGB images travel")
     parser.add_argument(
         "--router-audit",
         metavar="FILE",
@@ -199,6 +206,23 @@ def restore_from(server: SimServer, snapshot: RunSnapshot, path: str, reseed: in
     return f"{', '.join(missing)} did not start from the snapshot" if missing else ""
 
 
+def attach_cameras(server: SimServer, args: argparse.Namespace, session: zenoh.Session, keys: Keys) -> str:
+    """The cameras `--cameras` names, rendering into the line; why they cannot ("" when they can, or none asked)."""
+    if not args.cameras:
+        return ""
+    from fleet.sim.cameras.line_cameras import LineCameras, cameras_named  # the renderer only when asked
+    from fleet.sim.cameras.rig import CameraMountError, CameraRig
+    from fleet.sim.render import RenderUnavailable
+
+    try:
+        rig = CameraRig(server.world, cameras_named(server.world.scene_model.cameras, args.cameras))
+    except (ValueError, CameraMountError, RenderUnavailable) as exc:
+        return str(exc)
+    server.cameras = LineCameras(rig, session, keys, args.camera_encoding)
+    server.cameras.warm_up()  # the renderer's set-up (seconds on a CPU) before the line's first tick, not in it
+    return ""
+
+
 def open_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
     """The sim's session, listening (on a free loopback port when asked to say where), and where it listens."""
     endpoints = BusEndpoints.from_args(args)
@@ -273,6 +297,11 @@ def main(argv: list[str] | None = None) -> int:
             speed=args.speed,
         )
         server.spool = spool
+        why = attach_cameras(server, args, session, keys)
+        if why:
+            server.close()
+            print(f"sim_server: {why}", file=sys.stderr)
+            return 2
         ticks = math.ceil(args.duration * scene.control_hz - 1e-9)
         try:
             original = read_snapshot(args.from_snapshot) if args.from_snapshot else None

@@ -25,6 +25,7 @@ from fleet.bus.messages import (
     ArmState,
     ArmStatus,
     Assignment,
+    CameraImage,
     ControllerStep,
     CoordTick,
     EnvAction,
@@ -44,6 +45,7 @@ from fleet.bus.messages import (
     SimStatus,
     TrajectoryGoalMsg,
 )
+from fleet.record.camera_to_ros import camera_topics
 from fleet.record.forked_build import LaterInChild, serialized
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.mcap_file import SNAPSHOT_MEDIA_TYPE, RecordingWriter
@@ -119,6 +121,7 @@ class Recorder:
     def __init__(self, writer: RecordingWriter, scene: Scene, keys: Keys) -> None:
         self.writer = writer
         self.ros = LineToRos(scene)
+        self.cameras = {c.name for c in scene.cameras}
         self.control_hz = scene.control_hz
         self.drops = DropCounter()
         self.stats = RecorderStats()
@@ -142,6 +145,8 @@ class Recorder:
         rest = key[len(self._prefix) :]
         if rest.startswith("arm/"):
             return ARM_LEAVES.get(rest.rsplit("/", 1)[-1])
+        if rest.startswith("camera/") and rest.count("/") == 2:
+            return CameraImage
         return LINE_LEAVES.get(rest)
 
     def _decode(self, key: str, message_type: type | None, payload: bytes):
@@ -154,7 +159,8 @@ class Recorder:
     def _stamp_s(self, message: object) -> float:
         """The message's own sim time where it has one, else the newest heard."""
         if isinstance(
-            message, (ArmState, LineView, PartsState, GoalResultMsg, ArmStatus, Progress, SimStatus, Separations)
+            message,
+            (ArmState, LineView, PartsState, GoalResultMsg, ArmStatus, Progress, SimStatus, Separations, CameraImage),
         ):
             return message.sim_time_s
         if isinstance(message, (LineEvent, ControllerStep, CoordTick)):
@@ -217,6 +223,8 @@ class Recorder:
         elif isinstance(message, LineView) and self._is_new("", message.tick):
             out.append(("/tf", partial(self.ros.tf, [a for a in message.arms if a.arm in self.ros.arms])))
             out.append(("/parts", partial(self.ros.parts_markers, message.parts)))
+        elif isinstance(message, CameraImage) and message.camera in self.cameras:
+            out += camera_topics(message, self._is_new(f"camera/{message.camera}", message.tick))
         topic = SEMANTIC_TOPICS.get(type(message))
         if topic is not None:
             out.append((topic if topic.startswith("/") else f"/{message.arm}/{topic}", partial(to_ros, message)))

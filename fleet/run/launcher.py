@@ -19,6 +19,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import zenoh
+
 from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.bus.bus_config import BusConfigError, BusConfigSet, write_run_bus
 from fleet.bus.codec import Decoder, DropCounter
@@ -72,6 +74,8 @@ class RunOptions:
     ros2_arms: tuple[str, ...] | None = None  # the arms an outside ROS 2 stack (login `ros_client`) may drive; all
     ros_max_rate_hz: float = DEFAULT_MAX_RATE_HZ  # the ROS front ends' topics at most this often (wall); 0: no cap
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
+    cameras: str | None = None  # the scene's cameras to render: all, or names joined by commas (None: no rendering)
+    camera_encoding: str = "png"  # how RGB images travel (`fleet.bus.images`)
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
     # without a bus config, listen or connect endpoints or a Zenoh config, a run makes its own secure bus on loopback
@@ -236,26 +240,10 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         previous = {sig: signal.signal(sig, self._on_signal) for sig in signals}
         error = ""
         try:
-            mine = self.client_endpoints("launcher")
-            with open_session(mine) as session:
-                keys, inbox, drops = Keys(self.options.run_id), Inbox(), self.drops
-                subs = [
-                    session.declare_subscriber(k, inbox)
-                    for k in (keys.coord("progress"), keys.respawn, keys.sim_status)
-                ]
-                self._decoders = {
-                    keys.coord("progress"): Decoder(Progress, drops),
-                    keys.respawn: Decoder(RespawnRequest, drops),
-                    keys.sim_status: Decoder(SimStatus, drops),
-                }
-                self._roster_pub = session.declare_publisher(keys.roster)
-                try:
-                    error = self._supervise(inbox)
-                finally:
-                    for sub in subs:
-                        sub.undeclare()
-                    self._roster_pub.undeclare()
-                    self._roster_pub = None
+            try:
+                error = self._run_on_bus(self.client_endpoints("launcher"))
+            except zenoh.ZError as exc:  # the sim went before the launcher reached its bus
+                error = self.unreachable(str(exc))
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
@@ -272,6 +260,27 @@ class Launcher(RunSummary, Supervision, NodeCommands):
             summary["processes"].append(self.recorder.record())
             summary["wall_seconds"] = round(time.monotonic() - started, 3)  # until the file is whole
         return summary
+
+    def _run_on_bus(self, mine: BusEndpoints) -> str:
+        """Supervise the line from the launcher's own session until it ends; why it ended ("" for a clean end)."""
+        with open_session(mine) as session:
+            keys, inbox, drops = Keys(self.options.run_id), Inbox(), self.drops
+            subs = [
+                session.declare_subscriber(k, inbox) for k in (keys.coord("progress"), keys.respawn, keys.sim_status)
+            ]
+            self._decoders = {
+                keys.coord("progress"): Decoder(Progress, drops),
+                keys.respawn: Decoder(RespawnRequest, drops),
+                keys.sim_status: Decoder(SimStatus, drops),
+            }
+            self._roster_pub = session.declare_publisher(keys.roster)
+            try:
+                return self._supervise(inbox)
+            finally:
+                for sub in subs:
+                    sub.undeclare()
+                self._roster_pub.undeclare()
+                self._roster_pub = None
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.interrupted = signal.Signals(signum).name

@@ -213,6 +213,7 @@ class RunSummary:
             "snapshot_next_ticks_ms_max": sim.get("snapshot_next_ticks_ms_max"),
             "snapshot_bytes_max": sim.get("snapshot_bytes_max"),
             "snapshot_write_ms_max": sim.get("snapshot_write_ms_max"),
+            "cameras": sim.get("cameras"),
         }
 
     def _refused(self, sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:

@@ -137,12 +137,25 @@ class Supervision:
             time.sleep(0.02)
         return ""
 
+    def unreachable(self, why: str) -> str:
+        """Why the launcher could not reach the line's bus: the sim's own line where it ended (waited for briefly)."""
+        sim = self.nodes[0]
+        deadline = time.monotonic() + 3.0
+        while sim.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        code = sim.poll()
+        if code is not None:
+            return self._sim_ended(sim, code) or f"the sim server ended before the run began; logs in {self.dir}"
+        return f"the launcher could not reach the line's bus: {why.split(' at ')[0]}; logs in {self.dir}"
+
     def _sim_ended(self, sim: Node, code: int) -> str:
         """Why the run ends with the sim ("" for a clean end)."""
         if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
             return f"the sim stopped: the coordinator did not answer in the lockstep timeout; logs in {self.dir}"
         if code == 0:
             return ""
+        if code == CANNOT_START:
+            return f"the sim server could not start (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
         return f"the sim server crashed (exit {code}): {sim.log_tail() or 'no output'}; logs in {self.dir}"
 
     def _hung(self, coordinator: Node) -> bool:

@@ -109,9 +109,12 @@ class SimServer(SimLockstep):
         self.restored_from: dict | None = None  # from a snapshot: its tick, wall s until every node was back
         self.snapshot_asked_by = ""  # who asked for a snapshot now (`SimControl.snapshot`): taken at the next tick
         self.snapshots_refused: list[str] = []  # snapshots asked for that this run cannot take, and why
+        self.cameras = None  # with `--cameras`: a `fleet.sim.cameras.line_cameras.LineCameras`
         self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
 
     def close(self) -> None:
+        if self.cameras is not None:
+            self.cameras.close()
         self.bus.close()
 
     # --- inputs ---------------------------------------------------------------------
@@ -154,6 +157,10 @@ class SimServer(SimLockstep):
         self._take_answers_due()
         t2 = time.perf_counter()
         self.outputs.states(due, parts)
+        if self.cameras is not None:  # the world as the states just sent show it
+            self.cameras.tick(self.world.tick)
+            clock["cameras"] += time.perf_counter() - t2
+            t2 = time.perf_counter()
         t3 = time.perf_counter()
         self._step_physics()
         t4 = time.perf_counter()
@@ -281,6 +288,7 @@ class SimServer(SimLockstep):
             | self.stats.wall_clock()
             | (self.snapshots.report() if self.snapshots is not None else {})
             | {"restored_from": self.restored_from, "snapshots_refused": list(self.snapshots_refused)}
+            | ({"cameras": self.cameras.counts.report()} if self.cameras is not None else {})
         )
 
 

@@ -13,6 +13,7 @@ from fleet.bus.messages import (
     ArmState,
     ArmStatus,
     Assignment,
+    CameraImage,
     ControllerStep,
     CoordTick,
     EnvAction,
@@ -118,6 +119,9 @@ EXAMPLES = [
     SnapshotPart("arm_0", 900, error="cannot snapshot ArmController (attributes x): no"),
     SnapshotPart("arm_0", 900, restored=True),
     MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
+    CameraImage(
+        "overhead", "rgb", 20, 0.2, 2, 1, "raw", b"\x01\x02\x03\x04\x05\x06", (1.0,) * 9, (0.0, 0.0, 1.0), (0.5,) * 4
+    ),
     LineView(
         3,
         0.03,

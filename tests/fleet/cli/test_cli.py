@@ -28,9 +28,10 @@ def test_check_prints_ok_for_bundled_scenes():
     names = bundled_scene_names()
     for name, result in zip(names, fleets(*(["check", name] for name in names))):
         assert result.returncode == 0, (name, result.stderr)
-        first, bound = result.stdout.strip().splitlines()
+        first, bound, *cameras = result.stdout.strip().splitlines()
         assert first == "ok" and bound.startswith("capacity: at best ") and "parts/min" in bound, name
         assert "stand idle" not in bound, name  # every bundled arm has work
+        assert cameras[0].startswith("camera overhead: world, 160x120 px, 60 deg, 5 Hz, rgb+depth+segmentation"), name
 
 
 def test_check_broken_scene_is_one_line_exit_2(tmp_path):

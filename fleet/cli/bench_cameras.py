@@ -1,0 +1,57 @@
+"""`fleet bench cameras`: frames per second by image size and number of cameras (docs/benchmarks.md)."""
+
+from __future__ import annotations
+
+import argparse
+
+from rich.table import Table
+
+from fleet.cli.errors import UsageError
+
+
+def size_px(text: str) -> tuple[int, int]:
+    """`WxH` in pixels, e.g. 320x240."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a size as WIDTHxHEIGHT, e.g. 320x240") from None
+    if not (8 <= width <= 1920 and 8 <= height <= 1080):
+        raise argparse.ArgumentTypeError(f"{text!r}: 8x8 to 1920x1080")
+    return width, height
+
+
+def cmd_bench_cameras(args: argparse.Namespace) -> int:
+    from fleet.bench.cameras import bench_cameras
+    from fleet.cli.bench import print_bench
+    from fleet.sim.render import RenderUnavailable
+
+    table = Table("size", "cameras", "images", "ms per pass", "frames/s", "first frame s")
+    rows = []
+    try:
+        for count in args.cameras:
+            for size in args.sizes:
+                row = bench_cameras(size, count, args.images, args.frames)
+                rows.append(row)
+                table.add_row(
+                    f"{row.width_px}x{row.height_px}",
+                    str(count),
+                    row.images,
+                    f"{row.ms_per_pass:.1f}",
+                    f"{row.frames_per_s:.1f}",
+                    f"{row.first_frame_s:.1f}",
+                )
+    except RenderUnavailable as exc:
+        raise UsageError(str(exc)) from None
+    return print_bench(table, rows, args.json)
+
+
+def add_parser(bench: argparse._SubParsersAction) -> None:
+    from fleet.bench.cameras import IMAGES, SIZES
+
+    b = bench.add_parser("cameras", help="camera frames/s by size and number of cameras (rendering on CPU or GPU)")
+    b.add_argument("--sizes", type=size_px, nargs="+", default=list(SIZES), help="WIDTHxHEIGHT each")
+    b.add_argument("--cameras", type=int, nargs="+", default=[1, 4], choices=range(1, 17), metavar="N")
+    b.add_argument("--images", choices=sorted(IMAGES), default="rgbd", help="rgb, rgbd (rgb + depth) or all")
+    b.add_argument("--frames", type=int, default=20, help="renders timed per row")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_cameras)

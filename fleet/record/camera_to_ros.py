@@ -1,0 +1,103 @@
+"""A camera's images as ROS 2 messages, named as ROS camera drivers name them.
+
+For a camera `<camera>`: colour on `/<camera>/image_raw/compressed` (`sensor_msgs/CompressedImage`, png or jpeg)
+or `/<camera>/image_raw` (`sensor_msgs/Image` rgb8, with raw encoding); depth on `/<camera>/depth/image_raw`
+(`sensor_msgs/Image`, 16UC1 millimetres or 32FC1 metres); segmentation on `/<camera>/segmentation/image_raw`
+(32SC1 ids, `fleet.sim.cameras.labels`); `/<camera>/camera_info` with each frame; and the optical frame
+`<camera>_optical_frame` (+z forward, +x right, +y down) in `/tf` under `world`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from fleet.bus.images import decode_image
+from fleet.bus.messages import CameraImage
+from fleet.record.ros_types import ros_type, time_msg
+
+WORLD = "world"
+IMAGE_ENCODINGS = {("rgb", "raw"): "rgb8", ("depth", "raw"): "32FC1", ("depth", "png16"): "16UC1"}
+IMAGE_ENCODINGS[("segmentation", "raw")] = IMAGE_ENCODINGS[("segmentation", "zlib")] = "32SC1"
+
+
+def optical_frame(camera: str) -> str:
+    return f"{camera}_optical_frame"
+
+
+def image_topic(message: CameraImage) -> str:
+    """The ROS topic a camera image goes out on."""
+    if message.kind == "rgb":
+        return f"/{message.camera}/image_raw" + ("" if message.encoding == "raw" else "/compressed")
+    return f"/{message.camera}/{message.kind}/image_raw"
+
+
+def _header(message: CameraImage):
+    return ros_type("std_msgs/msg/Header")(stamp=time_msg(message.sim_time_s), frame_id=optical_frame(message.camera))
+
+
+def image_msg(message: CameraImage):
+    """`sensor_msgs/CompressedImage` for png or jpeg colour, else `sensor_msgs/Image` (decoded where packed)."""
+    if message.kind == "rgb" and message.encoding in ("png", "jpeg"):
+        data = np.frombuffer(message.data, np.uint8)
+        return ros_type("sensor_msgs/msg/CompressedImage")(header=_header(message), format=message.encoding, data=data)
+    array = decode_image(message.kind, message.data, message.encoding, message.width_px, message.height_px)
+    if message.encoding == "png16":
+        array = np.rint(array * 1000.0).astype("<u2")  # the millimetres the PNG held
+    row = array.strides[0]
+    return ros_type("sensor_msgs/msg/Image")(
+        header=_header(message),
+        height=message.height_px,
+        width=message.width_px,
+        encoding=IMAGE_ENCODINGS[(message.kind, message.encoding)],
+        is_bigendian=0,
+        step=row,
+        data=np.frombuffer(np.ascontiguousarray(array).tobytes(), np.uint8),
+    )
+
+
+def camera_info_msg(message: CameraImage):
+    """`sensor_msgs/CameraInfo`: an ideal pinhole (no distortion), K from the frame, P = [K | 0]."""
+    k = np.asarray(message.intrinsics, float)
+    p = np.zeros((3, 4))
+    p[:, :3] = k.reshape(3, 3)
+    return ros_type("sensor_msgs/msg/CameraInfo")(
+        header=_header(message),
+        height=message.height_px,
+        width=message.width_px,
+        distortion_model="plumb_bob",
+        d=np.zeros(5),
+        k=k,
+        r=np.eye(3).ravel(),
+        p=p.ravel(),
+        binning_x=0,
+        binning_y=0,
+        roi=ros_type("sensor_msgs/msg/RegionOfInterest")(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+    )
+
+
+def optical_tf_msg(message: CameraImage):
+    """`/tf`: the camera's optical frame under `world` at the frame's sim time."""
+    x, y, z = message.position_m
+    qw, qx, qy, qz = message.quaternion_wxyz
+    transform = ros_type("geometry_msgs/msg/Transform")(
+        translation=ros_type("geometry_msgs/msg/Vector3")(x=x, y=y, z=z),
+        rotation=ros_type("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
+    )
+    stamped = ros_type("geometry_msgs/msg/TransformStamped")(
+        header=ros_type("std_msgs/msg/Header")(stamp=time_msg(message.sim_time_s), frame_id=WORLD),
+        child_frame_id=optical_frame(message.camera),
+        transform=transform,
+    )
+    return ros_type("tf2_msgs/msg/TFMessage")(transforms=[stamped])
+
+
+def camera_topics(message: CameraImage, first_of_frame: bool) -> list[tuple[str, Callable[[], object]]]:
+    """(topic, maker) for each ROS message one camera image makes; the frame's first image also its camera info
+    and optical frame."""
+    out: list[tuple[str, Callable[[], object]]] = [(image_topic(message), lambda: image_msg(message))]
+    if first_of_frame:
+        out.append((f"/{message.camera}/camera_info", lambda: camera_info_msg(message)))
+        out.append(("/tf", lambda: optical_tf_msg(message)))
+    return out

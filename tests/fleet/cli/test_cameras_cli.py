@@ -1,0 +1,41 @@
+"""`fleet bench cameras` and `fleet run --cameras` from the command line: real frames timed, and every mistake (a
+camera the scene lacks, no Vulkan device) one line naming what to do, before anything starts."""
+
+import json
+import os
+
+from tests.fleet.cli.test_cli import fleet
+
+
+def test_the_camera_benchmark_times_real_frames():
+    result = fleet("bench", "cameras", "--sizes", "16x16", "32x24", "--cameras", "1", "--frames", "2", "--json")
+    assert result.returncode == 0, result.stderr
+    rows = json.loads(result.stdout.strip().splitlines()[-1])
+    assert [(r["width_px"], r["height_px"], r["cameras"]) for r in rows] == [(16, 16, 1), (32, 24, 1)]
+    assert all(r["render_s"] > 0 and r["frames"] == 2 for r in rows)
+
+
+def test_no_vulkan_device_is_one_line_naming_what_to_install():
+    nowhere = os.environ | {"VK_ICD_FILENAMES": "/nonexistent.json", "VK_DRIVER_FILES": "/nonexistent.json"}
+    result = fleet("bench", "cameras", "--sizes", "16x16", "--cameras", "1", "--frames", "1", env=nowhere)
+    assert result.returncode == 2
+    assert result.stderr.startswith("fleet: error: no Vulkan device to render cameras on")
+    assert "mesa-vulkan-drivers" in result.stderr and result.stderr.count("\n") <= 1, result.stderr
+
+
+def test_a_wrong_size_is_one_line():
+    result = fleet("bench", "cameras", "--sizes", "big")
+    assert result.returncode == 2 and "give a size as WIDTHxHEIGHT" in result.stderr
+
+
+def test_run_with_a_camera_the_scene_lacks_is_one_line_before_anything_starts():
+    result = fleet("run", "sorting_line", "--duration", "1", "--cameras", "wrist")
+    assert result.returncode == 2
+    assert result.stderr == "fleet: error: --cameras 'wrist': the scene's cameras are overhead (or all)\n"
+
+
+def test_run_with_cameras_and_no_vulkan_device_is_one_line_before_anything_starts():
+    nowhere = os.environ | {"VK_ICD_FILENAMES": "/nonexistent.json", "VK_DRIVER_FILES": "/nonexistent.json"}
+    result = fleet("run", "pick_cell", "--duration", "1", "--cameras", env=nowhere)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert result.stderr.startswith("fleet: error: no Vulkan device to render cameras on"), result.stderr
