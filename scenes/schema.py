@@ -364,6 +364,24 @@ class Camera(Strict):
         return self.width_px * self.height_px * self.rate_hz
 
 
+class Lighting(Strict):
+    """How the cameras' scene is lit: one directional light (`direction_xyz`, pointing from the light; `intensity`)
+    over an even ambient light, and whether the directional light casts shadows (about twice a small frame's render
+    time on a CPU, docs/cameras.md)."""
+
+    direction_xyz: Vec3 = (0.3, 0.4, -1.0)
+    intensity: float = Field(0.75, ge=0.0, le=5.0)
+    ambient: float = Field(0.45, ge=0.0, le=2.0)
+    shadows: bool = True
+
+    @field_validator("direction_xyz")
+    @classmethod
+    def _points_somewhere(cls, v: Vec3) -> Vec3:
+        if math.hypot(*v) < 1e-6:
+            raise ValueError("the light's direction must not be zero")
+        return v
+
+
 class Scene(Strict):
     """A whole cell."""
 
@@ -397,6 +415,8 @@ class Scene(Strict):
     """Standard deviation of the noise added to the part positions controllers see (metres)."""
     network: Network | None = None
     """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
+    lighting: Lighting = Lighting()
+    """How the cameras' scene is lit (no effect on physics)."""
     cameras: list[Camera] = Field([], max_length=MAX_CAMERAS)
     """Cameras (docs/cameras.md). Rendered only where something asks for images (`fleet run --cameras`, the env's
     `cameras=True`): a run that asks for none builds no renderer and pays nothing."""

@@ -81,3 +81,59 @@ def bench_cameras(size: tuple[int, int], count: int, images: str = "rgbd", frame
         spent += time.perf_counter() - start
     assert all(np.any(f.rgb) for f in made.values()), "every camera shows something"
     return CameraBenchRow(size[0], size[1], count, images, frames, spent, first)
+
+
+@dataclass(frozen=True)
+class EnvCameraRow:
+    arms: int
+    size_px: int
+    steps: int
+    without_s: float
+    with_s: float
+
+    @property
+    def agent_steps_per_s_without(self) -> float:
+        return self.arms * self.steps / self.without_s
+
+    @property
+    def agent_steps_per_s(self) -> float:
+        return self.arms * self.steps / self.with_s
+
+
+def wrist_cameras(arms: int, size_px: int) -> list[dict]:
+    """An RGB-D camera of `size_px` square on every arm's claw (`arm_<i>/tool_link`), as pick_cell's wrist camera."""
+    return [
+        {
+            "name": f"wrist_{i}",
+            "mount": f"arm_{i}/tool_link",
+            "pose": {"xyz": [0.05, 0.0, -0.06], "look_at": [0.0, 0.0, 0.12], "up": [1.0, 0.0, 0.0]},
+            "width_px": size_px,
+            "height_px": size_px,
+            "fov_deg": 75,
+            "near_m": 0.01,
+            "far_m": 3.0,
+            "images": ["rgb", "depth"],
+        }
+        for i in range(arms)
+    ]
+
+
+def bench_env_cameras(arms: int = 4, size_px: int = 64, steps: int = 200, seed: int = 0) -> EnvCameraRow:
+    """The env's `reach` with random actions, without cameras and with an RGB-D wrist camera on every arm."""
+    from fleet.env.cell_env import CellParallelEnv  # the env only for this row
+
+    timings = []
+    for cameras in (False, wrist_cameras(arms, size_px)):
+        env = CellParallelEnv(n_arms=arms, scenario="reach", max_cycles=steps, cameras=cameras)
+        rng = np.random.default_rng(seed)
+        env.reset(seed=seed)
+        actions = [
+            {a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents}
+            for _ in range(steps)
+        ]
+        start = time.perf_counter()
+        for act in actions:
+            env.step(act)
+        timings.append(time.perf_counter() - start)
+        env.close()
+    return EnvCameraRow(arms, size_px, steps, *timings)

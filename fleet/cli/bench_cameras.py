@@ -21,28 +21,53 @@ def size_px(text: str) -> tuple[int, int]:
 
 
 def cmd_bench_cameras(args: argparse.Namespace) -> int:
+    from fleet.bench.cameras import bench_env_cameras
+    from fleet.sim.render import RenderUnavailable
+
+    try:
+        if args.env:
+            return print_env_row(bench_env_cameras(args.env_arms, args.env_size, args.env_steps), args.json)
+        return print_frame_rows(args)
+    except RenderUnavailable as exc:
+        raise UsageError(str(exc)) from None
+
+
+def print_frame_rows(args: argparse.Namespace) -> int:
+    """Frames per second for every count of cameras and size asked for."""
     from fleet.bench.cameras import bench_cameras
     from fleet.cli.bench import print_bench
-    from fleet.sim.render import RenderUnavailable
 
     table = Table("size", "cameras", "images", "ms per pass", "frames/s", "first frame s")
     rows = []
-    try:
-        for count in args.cameras:
-            for size in args.sizes:
-                row = bench_cameras(size, count, args.images, args.frames)
-                rows.append(row)
-                table.add_row(
-                    f"{row.width_px}x{row.height_px}",
-                    str(count),
-                    row.images,
-                    f"{row.ms_per_pass:.1f}",
-                    f"{row.frames_per_s:.1f}",
-                    f"{row.first_frame_s:.1f}",
-                )
-    except RenderUnavailable as exc:
-        raise UsageError(str(exc)) from None
+    for count in args.cameras:
+        for size in args.sizes:
+            row = bench_cameras(size, count, args.images, args.frames)
+            rows.append(row)
+            table.add_row(
+                f"{row.width_px}x{row.height_px}",
+                str(count),
+                row.images,
+                f"{row.ms_per_pass:.1f}",
+                f"{row.frames_per_s:.1f}",
+                f"{row.first_frame_s:.1f}",
+            )
     return print_bench(table, rows, args.json)
+
+
+def print_env_row(row, as_json: bool) -> int:
+    """The env's agent-steps/s without and with a wrist camera on every arm."""
+    from fleet.cli.bench import print_bench
+
+    table = Table("env", "arms", "wrist camera", "agent-steps/s without", "agent-steps/s with", "with / without")
+    table.add_row(
+        "reach",
+        str(row.arms),
+        f"{row.size_px}x{row.size_px} rgbd",
+        f"{row.agent_steps_per_s_without:.0f}",
+        f"{row.agent_steps_per_s:.0f}",
+        f"{row.agent_steps_per_s / row.agent_steps_per_s_without:.2f}",
+    )
+    return print_bench(table, [row], as_json)
 
 
 def add_parser(bench: argparse._SubParsersAction) -> None:
@@ -53,5 +78,11 @@ def add_parser(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--cameras", type=int, nargs="+", default=[1, 4], choices=range(1, 17), metavar="N")
     b.add_argument("--images", choices=sorted(IMAGES), default="rgbd", help="rgb, rgbd (rgb + depth) or all")
     b.add_argument("--frames", type=int, default=20, help="renders timed per row")
+    b.add_argument(
+        "--env", action="store_true", help="instead: the env's agent-steps/s on reach, with and without wrist cameras"
+    )
+    b.add_argument("--env-arms", type=int, default=4, choices=range(1, 13), metavar="N")
+    b.add_argument("--env-size", type=int, default=64, help="the wrist cameras' width and height (px)")
+    b.add_argument("--env-steps", type=int, default=200)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_cameras)

@@ -32,7 +32,10 @@ def body_pose(placement: CameraPlacement) -> sapien.Pose:
     return sapien.Pose(eye, _wxyz(np.column_stack([forward, left, up])))
 
 
+OPTICAL_IN_BODY_POSE = sapien.Pose(q=_wxyz(OPTICAL_IN_BODY))
+
+
 def optical_pose(body_in_world: sapien.Pose) -> tuple[np.ndarray, np.ndarray]:
     """The optical frame in the world, from the camera body's pose there: position and quaternion (wxyz)."""
-    rotation = body_in_world.to_transformation_matrix()[:3, :3] @ OPTICAL_IN_BODY
-    return np.asarray(body_in_world.p, float), _wxyz(rotation)
+    optical = body_in_world * OPTICAL_IN_BODY_POSE
+    return np.asarray(optical.p, float), np.asarray(optical.q, float)

@@ -85,12 +85,15 @@ class CameraRig:
         if "rgb" in made:
             colour = sensor.get_picture("Color")[..., :3]
             rgb = (np.clip(colour, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-        if "depth" in made:
-            position = sensor.get_picture("Position")
-            depth = np.where(position[..., 3] < 1.0, -position[..., 2], 0.0).astype(np.float32)
-        if "segmentation" in made:
-            ids = sensor.get_picture("Segmentation")[..., 1]
-            segmentation = np.where(ids < len(table), table[np.minimum(ids, len(table) - 1)], 0).astype(np.int32)
+        if "depth" in made or "segmentation" in made:
+            # camera-space position in millimetres (OpenGL axes: -z forward; 0 where nothing was drawn) and the
+            # visual body's id, from the one image SAPIEN's minimal shader writes both to
+            position_ids = sensor.get_picture("PositionSegmentation")
+            if "depth" in made:
+                depth = (position_ids[..., 2].astype(np.float32) * np.float32(-0.001)).clip(min=0.0)
+            if "segmentation" in made:
+                ids = position_ids[..., 3]
+                segmentation = np.where(ids < len(table), table[np.minimum(ids, len(table) - 1)], 0).astype(np.int32)
         position_m, quaternion = optical_pose(pose)
         return CameraFrame(
             camera=camera.model.name,
