@@ -2,12 +2,15 @@
 
 A scene's `randomise` section gives a draw (uniform [low, high], or normal (mean, std) clipped
 to the field's limits) for part friction, mass and size, belt speed, arrival rates, arm drive
-gains and the noise on the part poses controllers see. `draw(scene)` returns the same scene with
+gains and the noise on the part poses controllers see; and, for the cameras only, the light's direction and
+intensity, the belt's grey, the parts' shade and a shift of each camera. `draw(scene)` returns the same scene with
 the values applied and listed in `randomised`, so one seed is still one exact run, and every
 process (sim, coordinator, controllers) that loads the scene with that seed sees the same line.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -73,4 +76,29 @@ def draw(scene: Scene) -> Scene:
         update["conveyor"] = scene.conveyor.model_copy(
             update={"speed_m_per_s": min(scene.conveyor.speed_m_per_s * belt, 0.5)}
         )
+    update |= _looks(scene, take, rng)
     return scene.revalidated(**update)
+
+
+def _looks(scene: Scene, take, rng: np.random.Generator) -> dict:
+    """The visual draws: the light turned and scaled, the belt's grey, the parts' shade, each camera shifted."""
+    looks = scene.appearance
+    yaw = math.radians(take("light_yaw_deg", -180.0, 180.0, default=0.0))
+    x, y, z = looks.light_direction_xyz
+    turned = (x * math.cos(yaw) - y * math.sin(yaw), x * math.sin(yaw) + y * math.cos(yaw), z)
+    appearance = looks.model_copy(
+        update={
+            "light_direction_xyz": turned,
+            "light_intensity": min(looks.light_intensity * take("light_intensity_scale", 0.0, 5.0), 5.0),
+            "belt_grey": take("belt_grey", 0.0, 1.0, default=looks.belt_grey),
+            "part_shade": take("part_shade", 0.0, 2.0, default=looks.part_shade),
+        }
+    )
+    jitter_m = take("camera_jitter_m", 0.0, 0.5, default=0.0)
+    cameras = []
+    for camera in scene.cameras:
+        pose = camera.pose
+        shift = rng.normal(0.0, jitter_m, size=(2, 3)) if jitter_m > 0 else np.zeros((2, 3))
+        moved = {"xyz": tuple(np.add(pose.xyz, shift[0])), "look_at": tuple(np.add(pose.look_at, shift[1]))}
+        cameras.append(camera.model_copy(update={"pose": pose.model_copy(update=moved)}))
+    return {"appearance": appearance, "cameras": cameras}

@@ -253,7 +253,8 @@ class Draw(Strict):
 class Randomisation(Strict):
     """Domain randomisation, drawn once per run from the run's seed (`scenes/randomise.py`). Scales are factors on
     the scene's own values; `part_friction` replaces every part's friction; `part_pose_noise_m` is the standard
-    deviation of the noise on the part positions controllers see."""
+    deviation of the noise on the part positions controllers see. The visual draws (light, belt and part shades,
+    camera jitter) change what cameras see, never the physics."""
 
     part_friction: Draw | None = None
     part_mass_scale: Draw | None = None
@@ -262,6 +263,13 @@ class Randomisation(Strict):
     arrival_rate_scale: Draw | None = None
     arm_gain_scale: Draw | None = None
     part_pose_noise_m: Draw | None = None
+    light_yaw_deg: Draw | None = None
+    """Visual (cameras only): the light's direction turned about +z by this many degrees."""
+    light_intensity_scale: Draw | None = None
+    belt_grey: Draw | None = None
+    part_shade: Draw | None = None
+    camera_jitter_m: Draw | None = None
+    """Visual: the standard deviation of a shift drawn for each camera's position and aim (metres)."""
 
 
 class LinkFaults(Strict):
@@ -364,17 +372,20 @@ class Camera(Strict):
         return self.width_px * self.height_px * self.rate_hz
 
 
-class Lighting(Strict):
-    """How the cameras' scene is lit: one directional light (`direction_xyz`, pointing from the light; `intensity`)
-    over an even ambient light, and whether the directional light casts shadows (about twice a small frame's render
-    time on a CPU, docs/cameras.md)."""
+class Appearance(Strict):
+    """How the cameras' scene looks (never the physics, nor a part's colour as stations sort by it): one directional
+    light (`light_direction_xyz`, pointing from the light; `light_intensity`) over an even `ambient` light, whether
+    it casts shadows (about twice a small frame's render time on a CPU, docs/cameras.md), the belt's grey and a
+    factor on every part's colour in images."""
 
-    direction_xyz: Vec3 = (0.3, 0.4, -1.0)
-    intensity: float = Field(0.75, ge=0.0, le=5.0)
+    light_direction_xyz: Vec3 = (0.3, 0.4, -1.0)
+    light_intensity: float = Field(0.75, ge=0.0, le=5.0)
     ambient: float = Field(0.45, ge=0.0, le=2.0)
     shadows: bool = True
+    belt_grey: float = Field(0.12, ge=0.0, le=1.0)
+    part_shade: float = Field(1.0, ge=0.0, le=2.0)
 
-    @field_validator("direction_xyz")
+    @field_validator("light_direction_xyz")
     @classmethod
     def _points_somewhere(cls, v: Vec3) -> Vec3:
         if math.hypot(*v) < 1e-6:
@@ -415,8 +426,8 @@ class Scene(Strict):
     """Standard deviation of the noise added to the part positions controllers see (metres)."""
     network: Network | None = None
     """Latency, jitter and loss on the bus between the sim and each controller and the coordinator (none by default)."""
-    lighting: Lighting = Lighting()
-    """How the cameras' scene is lit (no effect on physics)."""
+    appearance: Appearance = Appearance()
+    """How the cameras' scene looks: light, shadows, belt and part shades (no effect on physics)."""
     cameras: list[Camera] = Field([], max_length=MAX_CAMERAS)
     """Cameras (docs/cameras.md). Rendered only where something asks for images (`fleet run --cameras`, the env's
     `cameras=True`): a run that asks for none builds no renderer and pays nothing."""

@@ -59,6 +59,7 @@ def commands(folder: Path, ray_head: str | None) -> dict[str, list[str]]:
         "sb3_ppo_reach.py",
         *("--cells", "2", "--cpus", "2", "--timesteps", "1024", "--n-steps", "64", "--max-cycles", "20"),
     )
+    out["sb3_pixels"] = example("sb3_pixels_pick.py", "--timesteps", "128", "--n-steps", "64", "--episodes", "2")
     out["allocate_mode"] = example(
         "allocate_mode_allocators.py", "--arms", "2", "--max-cycles", "20", "--episodes", "1"
     )
@@ -102,6 +103,11 @@ def test_allocate_mode_comparison_runs(ran):
 def test_stable_baselines3_ppo_through_supersuit_trains_a_few_iterations(ran):
     out = said(ran, "sb3_reach").stdout
     assert "trained 1024 agent-steps on 2 cell(s) x 2 arms" in out and "mean return per arm" in out
+
+
+def test_stable_baselines3_trains_from_pixels_and_is_compared_with_random_on_paired_seeds(ran):
+    out = said(ran, "sb3_pixels").stdout
+    assert "trained 128 steps from 64x64 pixels" in out and "paired difference" in out and "95% interval" in out
 
 
 def test_a_policy_trained_with_sb3_in_the_env_is_exported_and_allocates_a_real_line(ran, tmp_path):

@@ -137,3 +137,63 @@ def bench_env_cameras(arms: int = 4, size_px: int = 64, steps: int = 200, seed: 
         timings.append(time.perf_counter() - start)
         env.close()
     return EnvCameraRow(arms, size_px, steps, *timings)
+
+
+@dataclass(frozen=True)
+class LineCameraRow:
+    arms: int
+    width_px: int
+    height_px: int
+    images: str
+    rate_hz: float
+    sim_seconds: float
+    loop_without_s: float
+    loop_with_s: float
+    render_s: float
+    encode_s: float
+    frames: int
+
+    @property
+    def ratio(self) -> float:
+        """The line's loop wall time with the camera over without it."""
+        return self.loop_with_s / self.loop_without_s
+
+    @property
+    def added_over_render(self) -> float:
+        """Wall time the camera added to the loop, over the wall time its frames took to render."""
+        return (self.loop_with_s - self.loop_without_s) / self.render_s
+
+
+def bench_line_cameras(
+    size: tuple[int, int], images: str = "rgbd", rate_hz: float = 5.0, arms: int = 4, sim_seconds: float = 30.0
+) -> LineCameraRow:
+    """The sorting line in lockstep (all its processes), without a camera and with one over its arms (the
+    `views` overhead, `size`, `images`, `rate_hz`), one after the other with the same seed: the sim's loop wall time
+    of each and what the camera's frames cost."""
+    import tempfile
+    from pathlib import Path
+
+    import yaml
+
+    from fleet.common.scene_loading import load_scene
+    from fleet.run.launcher import Launcher, RunOptions
+
+    scene = load_scene("sorting_line", arms=arms)
+    camera = views(1, size, IMAGES[images])[0].model_copy(update={"name": "bench", "rate_hz": rate_hz})
+    loops, report = [], {}
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "sorting_line_camera.yaml"
+        data = scene.model_copy(update={"cameras": [camera]}).model_dump(mode="json", exclude={"randomised"})
+        path.write_text(yaml.safe_dump(data))
+        for cameras in (None, "bench"):
+            options = RunOptions(scene=str(path), duration_s=sim_seconds, run_id="benchcam", cameras=cameras)
+            with Launcher(options) as launcher:
+                summary = launcher.run()
+            if summary["status"] != "ok":
+                raise RuntimeError(f"the benchmark's line failed: {summary.get('error')}")
+            loops.append(summary["loop_wall_seconds"])
+            report = summary.get("cameras") or report
+    return LineCameraRow(
+        arms, size[0], size[1], images, rate_hz, sim_seconds, loops[0], loops[1],
+        report["render_s"], report["encode_s"], report["frames"],
+    )  # fmt: skip

@@ -27,6 +27,8 @@ def cmd_bench_cameras(args: argparse.Namespace) -> int:
     try:
         if args.env:
             return print_env_row(bench_env_cameras(args.env_arms, args.env_size, args.env_steps), args.json)
+        if args.line:
+            return print_line_rows(args)
         return print_frame_rows(args)
     except RenderUnavailable as exc:
         raise UsageError(str(exc)) from None
@@ -51,6 +53,28 @@ def print_frame_rows(args: argparse.Namespace) -> int:
                 f"{row.frames_per_s:.1f}",
                 f"{row.first_frame_s:.1f}",
             )
+    return print_bench(table, rows, args.json)
+
+
+def print_line_rows(args: argparse.Namespace) -> int:
+    """The lockstep line's loop wall time without and with one camera of each size asked for."""
+    from fleet.bench.cameras import bench_line_cameras
+    from fleet.cli.bench import print_bench
+
+    table = Table("camera", "frames", "loop s without", "loop s with", "with / without", "render s", "added / render")
+    rows = []
+    for size in args.sizes:
+        row = bench_line_cameras(size, args.images, args.line_rate, args.line_arms, args.line_seconds)
+        rows.append(row)
+        table.add_row(
+            f"{row.width_px}x{row.height_px} {row.images} {row.rate_hz:g} Hz",
+            str(row.frames),
+            f"{row.loop_without_s:.1f}",
+            f"{row.loop_with_s:.1f}",
+            f"{row.ratio:.2f}",
+            f"{row.render_s:.1f}",
+            f"{row.added_over_render:.2f}",
+        )
     return print_bench(table, rows, args.json)
 
 
@@ -81,6 +105,14 @@ def add_parser(bench: argparse._SubParsersAction) -> None:
     b.add_argument(
         "--env", action="store_true", help="instead: the env's agent-steps/s on reach, with and without wrist cameras"
     )
+    b.add_argument(
+        "--line",
+        action="store_true",
+        help="instead: a lockstep sorting line's loop wall time without and with one camera of each --sizes",
+    )
+    b.add_argument("--line-arms", type=int, default=4, choices=range(1, 13), metavar="N")
+    b.add_argument("--line-rate", type=float, default=5.0, help="the line camera's rate (sim Hz)")
+    b.add_argument("--line-seconds", type=float, default=30.0, help="sim seconds of each line")
     b.add_argument("--env-arms", type=int, default=4, choices=range(1, 13), metavar="N")
     b.add_argument("--env-size", type=int, default=64, help="the wrist cameras' width and height (px)")
     b.add_argument("--env-steps", type=int, default=200)

@@ -19,13 +19,14 @@ from fleet.monitor.options import add_monitor_arguments, exposure_warning
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from fleet.record.camera_sheets import write_camera_sheets
     from fleet.record.mcap_file import Recording
     from fleet.record.report import series_from_recording, write_report
 
     recording = Recording(args.file)
     out_dir = output_folder("--out", args.out)
     series = series_from_recording(recording)
-    written = write_report(series, out_dir)
+    written = write_report(series, out_dir) + write_camera_sheets(recording, out_dir)
     if series.summary is not None:
         (out_dir / "summary.json").write_text(json.dumps(series.summary, indent=1) + "\n")
     out.print(

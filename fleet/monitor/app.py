@@ -10,6 +10,7 @@ import zenoh
 
 from fleet.bus.keys import Keys
 from fleet.common.processes import StopFlag
+from fleet.monitor.camera_panels import CameraPanels
 from fleet.monitor.cell_view import CellView
 from fleet.monitor.controls import LineControls
 from fleet.monitor.feed import LiveFeed
@@ -31,11 +32,12 @@ class Monitor:
             self.controls = LineControls(session, keys)
             self.view = CellView(self.server, scene)
             self.panel = Panel(self.server, scene, self.controls)
+            self.cameras = CameraPanels(self.server, session, keys, scene)
         except BaseException:
             self.server.stop()
             raise
         self.frames = 0
-        self.extras: list = []  # more panels to refresh each frame (objects with `show()`): the replay controls
+        self.extras: list = [self.cameras]  # panels to refresh each frame (with `show()`): cameras, replay controls
         self.most_pages_open = 0
         self.started_at: float | None = None
 
@@ -61,6 +63,7 @@ class Monitor:
         self.close()
 
     def close(self) -> None:
+        self.cameras.close()
         self.feed.close()
         self.controls.close()
         self.server.stop()

@@ -14,7 +14,7 @@ import sys
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, GoalResultMsg, LineView
+from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView
 from fleet.bus.session import BusEndpoints, Inbox, open_session
 from fleet.common.processes import StopFlag, write_report
 from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
@@ -72,7 +72,7 @@ class NativeLine:
             "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
             "view": Decoder(LineView, self.drops),
-        }
+        } | {kind: Decoder(CameraImage, self.drops) for kind in ("rgb", "depth", "segmentation")}
         self.keys = keys
         self.results = session.declare_subscriber(keys.all_arms("result"), self.inbox)  # few: one per goal
         self.listened = OnDemandSubscriptions(session, self.inbox)
@@ -103,6 +103,8 @@ class NativeLine:
                 continue
             elif isinstance(msg, LineView):
                 out = self.topics.from_view(msg, wanted)
+            elif isinstance(msg, CameraImage):
+                out = self.topics.from_camera(msg, wanted)
             else:
                 continue
             for topic, ros_msg in out:

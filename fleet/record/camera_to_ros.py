@@ -13,12 +13,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from fleet.bus.images import decode_image
+from fleet.bus.images import decode_image, encode_image
 from fleet.bus.messages import CameraImage
 from fleet.record.ros_types import ros_type, time_msg
 
 WORLD = "world"
-IMAGE_ENCODINGS = {("rgb", "raw"): "rgb8", ("depth", "raw"): "32FC1", ("depth", "png16"): "16UC1"}
+IMAGE_ENCODINGS = {("rgb", "raw"): "rgb8", ("rgb", "png"): "rgb8", ("rgb", "jpeg"): "rgb8"}
+IMAGE_ENCODINGS |= {("depth", "raw"): "32FC1", ("depth", "png16"): "16UC1"}
 IMAGE_ENCODINGS[("segmentation", "raw")] = IMAGE_ENCODINGS[("segmentation", "zlib")] = "32SC1"
 
 
@@ -33,6 +34,32 @@ def image_topic(message: CameraImage) -> str:
     return f"/{message.camera}/{message.kind}/image_raw"
 
 
+def camera_topic_types(camera: str, kinds: list[str]) -> dict[str, str]:
+    """Every live ROS topic of a camera making `kinds`, and its type: colour both raw and compressed, as
+    image_transport offers it."""
+    image, compressed = "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"
+    out = {f"/{camera}/camera_info": "sensor_msgs/msg/CameraInfo"}
+    if "rgb" in kinds:
+        out |= {f"/{camera}/image_raw": image, f"/{camera}/image_raw/compressed": compressed}
+    out |= {f"/{camera}/{kind}/image_raw": image for kind in kinds if kind != "rgb"}
+    return out
+
+
+def live_messages(message: CameraImage, wanted: set[str], first_of_frame: bool) -> list[tuple[str, object]]:
+    """The live topics (of `camera_topic_types`) one camera image feeds, among those `wanted`."""
+    camera, out = message.camera, []
+    if message.kind == "rgb":
+        if f"/{camera}/image_raw" in wanted:
+            out.append((f"/{camera}/image_raw", raw_image_msg(message)))
+        if f"/{camera}/image_raw/compressed" in wanted:
+            out.append((f"/{camera}/image_raw/compressed", compressed_image_msg(message)))
+    elif (topic := f"/{camera}/{message.kind}/image_raw") in wanted:
+        out.append((topic, raw_image_msg(message)))
+    if first_of_frame and f"/{camera}/camera_info" in wanted:
+        out.append((f"/{camera}/camera_info", camera_info_msg(message)))
+    return out
+
+
 def _header(message: CameraImage):
     return ros_type("std_msgs/msg/Header")(stamp=time_msg(message.sim_time_s), frame_id=optical_frame(message.camera))
 
@@ -40,8 +67,25 @@ def _header(message: CameraImage):
 def image_msg(message: CameraImage):
     """`sensor_msgs/CompressedImage` for png or jpeg colour, else `sensor_msgs/Image` (decoded where packed)."""
     if message.kind == "rgb" and message.encoding in ("png", "jpeg"):
-        data = np.frombuffer(message.data, np.uint8)
-        return ros_type("sensor_msgs/msg/CompressedImage")(header=_header(message), format=message.encoding, data=data)
+        return compressed_image_msg(message)
+    return raw_image_msg(message)
+
+
+def compressed_image_msg(message: CameraImage):
+    """`sensor_msgs/CompressedImage` of a colour image: its png or jpeg file as it travelled, or raw packed as png."""
+    data = message.data
+    if message.encoding == "raw":
+        array = decode_image("rgb", data, "raw", message.width_px, message.height_px)
+        data, fmt = encode_image("rgb", array, "png"), "png"
+    else:
+        fmt = message.encoding
+    return ros_type("sensor_msgs/msg/CompressedImage")(
+        header=_header(message), format=fmt, data=np.frombuffer(data, np.uint8)
+    )
+
+
+def raw_image_msg(message: CameraImage):
+    """`sensor_msgs/Image` of any image: rgb8, 16UC1 (png16 depth, millimetres), 32FC1 (raw depth), 32SC1 (ids)."""
     array = decode_image(message.kind, message.data, message.encoding, message.width_px, message.height_px)
     if message.encoding == "png16":
         array = np.rint(array * 1000.0).astype("<u2")  # the millimetres the PNG held

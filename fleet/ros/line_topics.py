@@ -15,7 +15,8 @@ import time
 import numpy as np
 
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, LineView
+from fleet.bus.messages import ArmState, CameraImage, LineView
+from fleet.record.camera_to_ros import camera_topic_types, live_messages
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.ros_types import ros_type, time_msg
 from fleet.ros import names
@@ -48,6 +49,10 @@ class LineTopics:
         self.ros = LineToRos(scene)
         self.arms = [a.name for a in scene.arms]
         self.types = names.line_topics(self.arms)
+        self.cameras = {c.name: list(c.images) for c in scene.cameras}
+        for camera, kinds in self.cameras.items():
+            self.types |= camera_topic_types(camera, kinds)
+        self._camera_ticks: dict[str, int] = {}
         self.clock_s = -1.0
         self.latched = {names.TF_STATIC: self.ros.tf_static(), names.CELL: self.ros.cell_markers()}
         self.cap = RateCap(max_rate_hz)
@@ -61,9 +66,29 @@ class LineTopics:
 
     def keys_needed(self, keys: Keys, wanted: set[str], driven: set[str]) -> set[str]:
         """The bus keys a front end needs now (`OnDemandSubscriptions`): the states of the arms its clients' goals
-        drive (`driven`) or whose own joint states are `wanted`, the line's view while a topic it feeds is."""
+        drive (`driven`) or whose own joint states are `wanted`, the line's view while a topic it feeds is, a
+        camera's images while one of its topics is."""
         arms = driven | {a for a in self.arms if names.arm_joint_states(a) in wanted}
-        return {keys.arm_state(a) for a in arms} | ({keys.view} if wanted & VIEW_TOPICS else set())
+        needed = {keys.arm_state(a) for a in arms} | ({keys.view} if wanted & VIEW_TOPICS else set())
+        for camera, kinds in self.cameras.items():
+            if wanted & set(camera_topic_types(camera, kinds)):
+                needed |= {keys.camera(camera, kind) for kind in kinds}
+        return needed
+
+    def from_camera(self, image: CameraImage, wanted: set[str]) -> list[tuple[str, object]]:
+        """The topics one camera image feeds, among those `wanted` (each camera at most `max_rate_hz` frames a wall
+        second)."""
+        if image.camera not in self.cameras or image.kind not in self.cameras[image.camera]:
+            return []
+        first = image.tick != self._camera_ticks.get(image.camera)
+        if first:
+            if not self.cap.admits(f"camera/{image.camera}"):
+                return []
+            self._camera_ticks[image.camera] = image.tick
+        try:
+            return live_messages(image, wanted, first)
+        except ValueError:  # an image that is not what it says: nothing to show
+            return []
 
     def from_view(self, view: LineView, wanted: set[str]) -> list[tuple[str, object]]:
         """The topics the line's view feeds (every arm's joints and links, the parts, the clock), among those

@@ -1,8 +1,10 @@
 """ROS messages as rosbridge's JSON carries them: a typestore message (rosbags) as nested dicts of its fields,
-arrays as lists, NaN and infinities as null (JSON has none of them; browsers' parsers refuse them)."""
+arrays as lists, but byte sequences (`uint8[]`, as an image's data) as base64 strings, as rosbridge_suite sends them;
+NaN and infinities as null (JSON has none of them; browsers' parsers refuse them)."""
 
 from __future__ import annotations
 
+import base64
 import dataclasses
 import math
 
@@ -13,6 +15,7 @@ from fleet.record.ros_types import TYPESTORE
 
 _FIELDS: dict[type, tuple[str, ...] | None] = {}  # a message type's field names (None: not a message)
 _PLAIN = (str, int, bool, type(None))
+BYTE_TYPES = ("uint8", "byte", "char")
 
 
 def _fields(kind: type) -> tuple[str, ...] | None:
@@ -26,6 +29,25 @@ def _fields(kind: type) -> tuple[str, ...] | None:
     return _FIELDS[kind]
 
 
+_BYTES: dict[type, frozenset[str]] = {}
+
+
+def _byte_sequences(kind: type) -> frozenset[str]:
+    """A message type's `uint8[]` (and `byte[]`, `char[]`) sequence fields, which rosbridge sends as base64 (an
+    image's data); fixed byte arrays (a goal's uuid) stay lists."""
+    if kind not in _BYTES:
+        typename = getattr(kind, "__msgtype__", None)
+        fields = (
+            TYPESTORE.fielddefs[typename][1] if isinstance(typename, str) and typename in TYPESTORE.fielddefs else []
+        )
+        _BYTES[kind] = frozenset(
+            name
+            for name, (node, detail) in fields
+            if node == Nodetype.SEQUENCE and detail[0][0] == Nodetype.BASE and detail[0][1][0] in BYTE_TYPES
+        )
+    return _BYTES[kind]
+
+
 def to_json(message: object) -> object:
     """A rosbags typestore message (or any value inside one) as JSON-able Python values."""
     kind = type(message)
@@ -35,7 +57,13 @@ def to_json(message: object) -> object:
         return message if math.isfinite(message) else None
     names = _fields(kind)
     if names is not None:
-        return {name: to_json(getattr(message, name)) for name in names}
+        packed = _byte_sequences(kind)
+        return {
+            name: base64.b64encode(getattr(message, name).tobytes()).decode("ascii")
+            if name in packed
+            else to_json(getattr(message, name))
+            for name in names
+        }
     if kind is np.ndarray:
         values = message.tolist()
         if message.dtype.kind == "f" and not np.isfinite(message).all():
@@ -86,6 +114,8 @@ def _field_value(desc: tuple, value: object) -> object:
     if node == Nodetype.BASE:
         return _zero(detail[0]) if value is None else value
     (item_node, item), count = detail
+    if isinstance(value, str) and item_node == Nodetype.BASE and item[0] in BYTE_TYPES:
+        value = base64.b64decode(value, validate=True)  # rosbridge's byte arrays
     items = list(value or ())
     if node == Nodetype.ARRAY:
         items = (items + [None] * count)[:count]

@@ -16,9 +16,9 @@ NODE = "/clawfleet_rosbridge"
 class Rosapi:
     """Answers `/rosapi/*` calls for one line's names; `now_s` gives the line's sim time."""
 
-    def __init__(self, arms: list[str], now_s: Callable[[], float]) -> None:
-        self.topics = names.line_topics(arms) | {f"/{a}/joint_trajectory": "trajectory_msgs/msg/JointTrajectory"
-                                                 for a in arms}  # fmt: skip
+    def __init__(self, arms: list[str], now_s: Callable[[], float], topics: dict[str, str] | None = None) -> None:
+        served = names.line_topics(arms) if topics is None else topics  # the line's topics (its cameras' too)
+        self.topics = served | {f"/{a}/joint_trajectory": "trajectory_msgs/msg/JointTrajectory" for a in arms}
         self.actions = names.line_actions(arms)
         self.services = {**names.SERVICE_TYPES, **{s: f"rosapi_msgs/srv/{t}" for s, t in SERVICES.items()}}
         self.now_s = now_s

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import sys
 from collections.abc import Callable
 
@@ -18,7 +19,7 @@ import websockets
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, GoalResultMsg, LineView
+from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView
 from fleet.ros import names
 from fleet.ros.line_actions import GoalReplies, LineActions
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
@@ -60,6 +61,14 @@ def nested_deeper(value: object, depth: int) -> bool:
     return False
 
 
+def echoable_id(value: object) -> object:
+    """A request's `id` as its answers echo it: a string, whole number, bool or finite number as sent, anything else
+    (an infinity, a list, an object) as its text (answers are strict JSON)."""
+    if value is None or isinstance(value, str | bool | int) or (isinstance(value, float) and math.isfinite(value)):
+        return value
+    return str(value)
+
+
 class RosbridgeServer:
     """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
 
@@ -71,14 +80,14 @@ class RosbridgeServer:
         self.topics = LineTopics(scene, max_rate_hz)
         arms = self.topics.arms
         self.actions = LineActions({a.name: get_robot(a.model) for a in scene.arms}, bus.send_goal)
-        self.rosapi = Rosapi(arms, lambda: max(self.topics.clock_s, 0.0))
+        self.rosapi = Rosapi(arms, lambda: max(self.topics.clock_s, 0.0), self.topics.types)
         self.clients: list[Client] = []
         self.drops = DropCounter()
         self._decoders = {
             "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
             "view": Decoder(LineView, self.drops),
-        }
+        } | {kind: Decoder(CameraImage, self.drops) for kind in ("rgb", "depth", "segmentation")}
         self._numbers = 0
         self.requests_refused = 0
         self.requests_failed = 0  # requests that raised where no check refused them: each a bug to report
@@ -97,6 +106,8 @@ class RosbridgeServer:
             self._publish(self.topics.from_state(msg, wanted))
         elif isinstance(msg, GoalResultMsg):
             self.actions.on_result(msg)
+        elif isinstance(msg, CameraImage):
+            self._publish(self.topics.from_camera(msg, wanted))
         else:
             self._publish(self.topics.from_view(msg, wanted))
 
@@ -152,6 +163,8 @@ class RosbridgeServer:
                 raise RequestError(TOO_DEEP)
             if not isinstance(message, dict):
                 raise RequestError("a request is a JSON object with an 'op'")
+            if "id" in message:  # echoed in every answer: kept to what JSON can carry back
+                message["id"] = echoable_id(message["id"])
             op_id = message.get("id")
             if self.secret is not None and not client.authenticated:
                 return self._authenticate(client, message)

@@ -84,3 +84,15 @@ def test_a_lockstep_run_and_its_seed_repeat_their_images_to_the_byte(two_runs):
     a, b = ros_images(first), ros_images(second)
     for topic in ("/overhead/image_raw/compressed", "/wrist/depth/image_raw", "/overhead/segmentation/image_raw"):
         assert [bytes(m.data) for m in a[topic]] == [bytes(m.data) for m in b[topic]], topic
+
+
+def test_the_report_makes_a_contact_sheet_and_an_animation_of_each_camera(two_runs, tmp_path):
+    from fleet.cli import main
+
+    _, path = two_runs[0]
+    assert main(["report", str(path), "--out", str(tmp_path / "report")]) == 0
+    for camera, size in (("overhead", (160, 120)), ("wrist", (128, 96))):
+        sheet = Image.open(tmp_path / "report" / f"{camera}_sheet.png")
+        assert sheet.width == 4 * size[0] and np.asarray(sheet).std() > 10
+        animation = Image.open(tmp_path / "report" / f"{camera}.gif")
+        assert animation.size == size and animation.n_frames >= 2  # (identical frames in a row are merged)

@@ -18,7 +18,6 @@ from fleet.sim.world import World
 
 SHADOW_MAP_PX = 512  # the shadow map's size: 2048 (SAPIEN's default) costs a small frame 5x its render on a CPU
 FLOOR_RGB = (0.78, 0.78, 0.76)
-BELT_RGB = (0.12, 0.12, 0.13)
 STATION_RGB = {"bin": (0.55, 0.42, 0.28), "fixture": (0.45, 0.5, 0.58), "tray": (0.4, 0.52, 0.4)}
 MESH_SHAPES = (sapien.physx.PhysxCollisionShapeConvexMesh, sapien.physx.PhysxCollisionShapeTriangleMesh)
 ARM_RGB = [(0.93, 0.55, 0.18), (0.85, 0.85, 0.88), (0.95, 0.8, 0.25), (0.6, 0.75, 0.9)]  # taken in turn by arm index
@@ -95,14 +94,14 @@ class RenderMirror:
 
     def _light(self) -> None:
         """The scene's lighting; a shadow map just wide enough for the cell's bodies."""
-        light = self.world.scene_model.lighting
+        light = self.world.scene_model.appearance
         self.scene.set_ambient_light([light.ambient] * 3)
         reach_m = max(
             (float(np.abs(e.pose.p[:2]).max()) for e in self.world.scene.entities if e.pose.p[2] > -1), default=1
         )
         self.scene.add_directional_light(
-            list(light.direction_xyz),
-            [light.intensity] * 3,
+            list(light.light_direction_xyz),
+            [light.light_intensity] * 3,
             shadow=light.shadows,
             shadow_scale=min(reach_m + 1.5, 30.0),
             shadow_map_size=SHADOW_MAP_PX,
@@ -110,6 +109,7 @@ class RenderMirror:
 
     def _build(self) -> None:
         model = self.world.scene_model
+        looks = model.appearance
         stations = {s.name: i for i, s in enumerate(model.stations)}
         slots = {p.entity.per_scene_id: p for p in self.world.parts}  # wrappers differ per access; ids do not
         links = {}
@@ -120,7 +120,8 @@ class RenderMirror:
             key = body.per_scene_id
             if key in slots:
                 part = slots[key]
-                twin = self._add(body, part.part_type.rgb, labels.NOTHING, moves=True)
+                shade = tuple(min(1.0, c * looks.part_shade) for c in part.part_type.rgb)
+                twin = self._add(body, shade, labels.NOTHING, moves=True)
                 self._part_twins.append((twin, part.slot))
             elif key in links:
                 self._add(body, links[key][1], links[key][0], moves=True)
@@ -128,7 +129,9 @@ class RenderMirror:
                 station = model.stations[stations[body.name]]
                 self._add(body, STATION_RGB[station.kind], labels.station_label(stations[body.name]), moves=False)
             elif body.name == "conveyor_belt":
-                self._add(body, BELT_RGB, labels.BELT, moves=False)  # a box whose surface moves, not its pose
+                self._add(
+                    body, (looks.belt_grey,) * 3, labels.BELT, moves=False
+                )  # a box whose surface moves, not its pose
             elif body.name == "floor":
                 self._add(body, FLOOR_RGB, labels.FLOOR, moves=False)
 
