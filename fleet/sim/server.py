@@ -156,11 +156,11 @@ class SimServer(SimLockstep):
         started = self.started
         self._take_answers_due()
         t2 = time.perf_counter()
-        self.outputs.states(due, parts)
-        if self.cameras is not None:  # the world as the states just sent show it
-            self.cameras.tick(self.world.tick)
+        if self.cameras is not None:  # the world as this tick's states show it, rendered while the controllers wait
+            self.cameras.tick(self.world.tick)  # for them (not while they compute their answers to them)
             clock["cameras"] += time.perf_counter() - t2
             t2 = time.perf_counter()
+        self.outputs.states(due, parts)
         t3 = time.perf_counter()
         self._step_physics()
         t4 = time.perf_counter()
