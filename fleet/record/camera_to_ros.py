@@ -4,7 +4,8 @@ For a camera `<camera>`: colour on `/<camera>/image_raw/compressed` (`sensor_msg
 or `/<camera>/image_raw` (`sensor_msgs/Image` rgb8, with raw encoding); depth on `/<camera>/depth/image_raw`
 (`sensor_msgs/Image`, 16UC1 millimetres or 32FC1 metres); segmentation on `/<camera>/segmentation/image_raw`
 (32SC1 ids, `fleet.sim.cameras.labels`); `/<camera>/camera_info` with each frame; and the optical frame
-`<camera>_optical_frame` (+z forward, +x right, +y down) in `/tf` under `world`.
+`<camera>_optical_frame` (+z forward, +x right, +y down) on `/tf_static` under its mount (`world`, or the arm's
+link `<arm>/<link>` it rides on).
 """
 
 from __future__ import annotations
@@ -12,10 +13,12 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from fleet.bus.images import decode_image, encode_image
 from fleet.bus.messages import CameraImage
 from fleet.record.ros_types import ros_type, time_msg
+from scenes.schema import CameraPlacement, Scene
 
 WORLD = "world"
 IMAGE_ENCODINGS = {("rgb", "raw"): "rgb8", ("rgb", "png"): "rgb8", ("rgb", "jpeg"): "rgb8"}
@@ -121,27 +124,42 @@ def camera_info_msg(message: CameraImage):
     )
 
 
-def optical_tf_msg(message: CameraImage):
-    """`/tf`: the camera's optical frame under `world` at the frame's sim time."""
-    x, y, z = message.position_m
-    qw, qx, qy, qz = message.quaternion_wxyz
-    transform = ros_type("geometry_msgs/msg/Transform")(
-        translation=ros_type("geometry_msgs/msg/Vector3")(x=x, y=y, z=z),
-        rotation=ros_type("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
-    )
-    stamped = ros_type("geometry_msgs/msg/TransformStamped")(
-        header=ros_type("std_msgs/msg/Header")(stamp=time_msg(message.sim_time_s), frame_id=WORLD),
-        child_frame_id=optical_frame(message.camera),
-        transform=transform,
-    )
-    return ros_type("tf2_msgs/msg/TFMessage")(transforms=[stamped])
+def optical_in_mount(placement: CameraPlacement) -> tuple[np.ndarray, np.ndarray]:
+    """A camera's optical frame (+z forward, +x right, +y down) in its mount's frame: position and quaternion
+    (x, y, z, w), from its placement (at `xyz`, looking at `look_at`, `up` up in the image)."""
+    eye = np.asarray(placement.xyz, float)
+    forward = np.asarray(placement.look_at, float) - eye
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, np.asarray(placement.up, float))
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    return eye, Rotation.from_matrix(np.column_stack([right, down, forward])).as_quat()
+
+
+def camera_static_transforms(scene: Scene) -> list:
+    """`/tf_static`: each camera's optical frame under its mount, `world` or its arm's link (`<arm>/<link>`): fixed
+    to it, as robot_state_publisher publishes a fixed joint."""
+    out = []
+    for camera in scene.cameras:
+        (x, y, z), (qx, qy, qz, qw) = optical_in_mount(camera.pose)
+        transform = ros_type("geometry_msgs/msg/Transform")(
+            translation=ros_type("geometry_msgs/msg/Vector3")(x=x, y=y, z=z),
+            rotation=ros_type("geometry_msgs/msg/Quaternion")(x=qx, y=qy, z=qz, w=qw),
+        )
+        parent = WORLD if camera.arm is None else f"{camera.arm}/{camera.link}"
+        header = ros_type("std_msgs/msg/Header")(stamp=time_msg(0.0), frame_id=parent)
+        out.append(
+            ros_type("geometry_msgs/msg/TransformStamped")(
+                header=header, child_frame_id=optical_frame(camera.name), transform=transform
+            )
+        )
+    return out
 
 
 def camera_topics(message: CameraImage, first_of_frame: bool) -> list[tuple[str, Callable[[], object]]]:
     """(topic, maker) for each ROS message one camera image makes; the frame's first image also its camera info
-    and optical frame."""
+    (its optical frame is on `/tf_static`: `camera_static_transforms`)."""
     out: list[tuple[str, Callable[[], object]]] = [(image_topic(message), lambda: image_msg(message))]
     if first_of_frame:
         out.append((f"/{message.camera}/camera_info", lambda: camera_info_msg(message)))
-        out.append(("/tf", lambda: optical_tf_msg(message)))
     return out

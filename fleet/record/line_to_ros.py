@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from fleet.bus.messages import ArmState, PartsState
+from fleet.record.camera_to_ros import camera_static_transforms
 from fleet.record.ros_types import ros_type, time_msg
 from robots.frames import yaw_transform
 from robots.kinematics import KinematicModel
@@ -203,8 +204,10 @@ class LineToRos:
         self.CUBE, self.CYLINDER, self.DELETEALL = marker.CUBE, marker.CYLINDER, marker.DELETEALL
 
     def tf_static(self):
+        """Each arm's root on `world` and each camera's optical frame on its mount."""
         return ros_type("tf2_msgs/msg/TFMessage")(
             transforms=[t for arm in self.arms.values() for t in arm.static_transforms()]
+            + camera_static_transforms(self.scene)
         )
 
     def tf(self, states: list[ArmState]):

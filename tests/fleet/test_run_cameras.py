@@ -70,6 +70,16 @@ def test_the_recording_holds_every_cameras_images_as_ros_messages_that_decode(tw
     assert depth.encoding == "16UC1" and np.frombuffer(bytes(depth.data), "<u2").max() > 0
 
 
+def test_each_cameras_optical_frame_hangs_on_its_mount_in_tf_static(two_runs):
+    _, path = two_runs[0]
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        static = [d for _, _, _, d in reader.iter_decoded_messages(topics=["/tf_static"])]
+    parents = {t.child_frame_id: t.header.frame_id for message in static for t in message.transforms}
+    assert parents["overhead_optical_frame"] == "world"
+    assert parents["wrist_optical_frame"] == "arm_0/tool_link" and "arm_0/tool_link" in parents
+
+
 def test_rosbags_reads_the_same_images(two_runs):
     _, path = two_runs[0]
     with AnyReader([path]) as reader:

@@ -130,3 +130,16 @@ def test_visual_randomisation_changes_what_cameras_see_and_nothing_else(tmp_path
         world.step(500)
         frames.append(CameraRig(world, [scene.camera("overhead")]).frames()["overhead"])
     assert frames[0].rgb.tobytes() != frames[1].rgb.tobytes()
+
+
+def test_the_optical_frame_ros_tools_get_is_the_one_the_images_were_made_in():
+    """`/tf_static`'s optical frame of a fixed camera (worked out from the scene alone) is where the frames' own
+    optical pose says the camera stood."""
+    from fleet.record.camera_to_ros import optical_in_mount
+
+    world = world_with_parts()
+    frame = CameraRig(world).frames(["overhead"])["overhead"]
+    position, (qx, qy, qz, qw) = optical_in_mount(world.scene_model.camera("overhead").pose)
+    assert np.allclose(position, frame.position_m, atol=1e-6)
+    w, x, y, z = frame.quaternion_wxyz
+    assert abs(abs(np.dot([qx, qy, qz, qw], [x, y, z, w])) - 1.0) < 1e-6, "the same rotation"
