@@ -74,3 +74,17 @@ def test_cameras_on_a_scene_without_any_are_refused_with_what_to_do(tmp_path):
     (tmp_path / "blind.yaml").write_text(text)
     with pytest.raises(ValueError, match="the scene declares no cameras: give cameras="):
         parallel_env(scene=str(tmp_path / "blind.yaml"), scenario="reach", cameras=True)
+
+
+def test_a_vector_of_cells_carries_the_images():
+    pytest.importorskip("supersuit", reason="the rl extra (supersuit) is not installed")
+    from fleet.env.vector import vector_env
+
+    venv = vector_env(2, num_cpus=0, n_arms=2, scenario="reach", max_cycles=10, cameras=[SMALL])
+    try:
+        observations, _ = venv.reset(seed=1)
+        assert observations["top_rgb"].shape == (4, 24, 32, 3) and observations["state"].shape[0] == 4
+        observations, *_ = venv.step(np.zeros((4, *venv.action_space.shape), np.float32))
+        assert observations["top_depth"].shape == (4, 24, 32) and observations["top_rgb"].std() > 5
+    finally:
+        venv.close()

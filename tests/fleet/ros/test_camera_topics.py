@@ -4,9 +4,11 @@ keys and hashes from the definitions itself)."""
 
 import base64
 import io
+import multiprocessing
 import os
 import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
@@ -51,30 +53,35 @@ def with_roslibpy(launcher: Launcher, heard: dict) -> None:
         ros.close()  # not terminate(): that stops the process's one Twisted reactor, which other tests reuse
 
 
-def with_zenoh_ros2_sdk(launcher: Launcher, heard: dict, definitions) -> None:
+def native_sight(endpoint: str, config: str, definitions: str) -> dict:
+    """What a zenoh-ros2-sdk subscriber hears of the camera's image and camera info, as plain values. Runs in a fresh
+    process: the SDK keeps one session and one registry a process, which other tests' lines have used."""
     from zenoh_ros2_sdk import ROS2Subscriber
     from zenoh_ros2_sdk.message_registry import get_registry
 
-    write_definitions(definitions, list(NATIVE_TOPICS.values()))
-    host, port = launcher.endpoint.split("/", 1)[1].rsplit(":", 1)
-    os.environ["ZENOH_SESSION_CONFIG_URI"] = launcher.bus.config_for("ros_client")
-    os.environ["ZENOH_CONFIG_OVERRIDE"] = f'connect/endpoints=["{launcher.endpoint}"];listen/endpoints=[]'
-    try:
-        get_registry(str(definitions))
-        subs = []
-        for topic, kind in NATIVE_TOPICS.items():
-            heard[topic] = []
-            subs.append(
-                ROS2Subscriber(
-                    topic, kind, heard[topic].append, domain_id=DOMAIN, router_ip=host, router_port=int(port)
-                )
-            )
-        until(lambda: all(heard[t] for t in NATIVE_TOPICS))
-        for sub in subs:
-            sub.close()
-    finally:
-        for name in ("ZENOH_SESSION_CONFIG_URI", "ZENOH_CONFIG_OVERRIDE"):
-            os.environ.pop(name, None)
+    write_definitions(get_registry(definitions).messages_dir, list(NATIVE_TOPICS.values()))
+    host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
+    os.environ["ZENOH_SESSION_CONFIG_URI"] = config
+    os.environ["ZENOH_CONFIG_OVERRIDE"] = f'connect/endpoints=["{endpoint}"];listen/endpoints=[]'
+    heard: dict = {topic: [] for topic in NATIVE_TOPICS}
+    subs = [
+        ROS2Subscriber(topic, kind, heard[topic].append, domain_id=DOMAIN, router_ip=host, router_port=int(port))
+        for topic, kind in NATIVE_TOPICS.items()
+    ]
+    until(lambda: all(heard[t] for t in NATIVE_TOPICS))
+    for sub in subs:
+        sub.close()
+    image, info = heard["/overhead/image_raw"][-1], heard["/overhead/camera_info"][-1]
+    return {
+        "image": (image.encoding, image.width, image.height, bytes(np.asarray(image.data, np.uint8))),
+        "info": (info.header.frame_id, list(info.k)),
+    }
+
+
+def with_zenoh_ros2_sdk(launcher: Launcher, heard: dict, definitions) -> None:
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        config = launcher.bus.config_for("ros_client")
+        heard |= pool.submit(native_sight, launcher.endpoint, str(config), str(definitions)).result(timeout=120)
 
 
 @pytest.fixture(scope="module")
@@ -124,8 +131,8 @@ def test_roslibpy_reads_the_overhead_camera_as_png_raw_and_depth(heard):
 
 
 def test_a_native_ros2_client_reads_the_image_and_camera_info(heard):
-    seen = heard["sdk"]
-    image, info = seen["/overhead/image_raw"][-1], seen["/overhead/camera_info"][-1]
-    assert (image.encoding, image.width, image.height) == ("rgb8", 160, 120)
-    assert np.asarray(image.data, np.uint8).reshape(120, 160, 3).std() > 10
-    assert info.header.frame_id == "overhead_optical_frame" and info.k[0] > 0
+    encoding, width, height, data = heard["sdk"]["image"]
+    assert (encoding, width, height) == ("rgb8", 160, 120)
+    assert np.frombuffer(data, np.uint8).reshape(120, 160, 3).std() > 10
+    frame_id, k = heard["sdk"]["info"]
+    assert frame_id == "overhead_optical_frame" and k[0] > 0
