@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Literal
+from typing import Annotated, Literal, get_args
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -299,6 +299,7 @@ class Network(LinkFaults):
 
 
 ImageKind = Literal["rgb", "depth", "segmentation"]
+IMAGE_KINDS: tuple[str, ...] = get_args(ImageKind)
 MAX_CAMERAS = 16
 MAX_CAMERA_PIXELS_PER_S = 3_000_000
 """The pixel budget: width x height x rate, summed over a scene's cameras. On a 2-core machine rendering on the CPU

@@ -46,8 +46,7 @@ def image_spaces(camera: Camera) -> dict[str, gymnasium.spaces.Box]:
 
 def frame_images(frame: CameraFrame) -> dict[str, np.ndarray]:
     """A frame's images under their observation keys."""
-    images = {"rgb": frame.rgb, "depth": frame.depth_m, "segmentation": frame.segmentation}
-    return {f"{frame.camera}_{kind}": image for kind, image in images.items() if image is not None}
+    return {f"{frame.camera}_{kind}": image for kind, image in frame.images().items()}
 
 
 class EnvCameras:

@@ -26,7 +26,7 @@ from fleet.ros.rmw_zenoh import Ros2Node
 from fleet.ros.ros2_actions import NativeAction
 from fleet.ros.ros_json import from_json, to_json
 from robots.registry import get_robot
-from scenes.schema import Scene
+from scenes.schema import IMAGE_KINDS, Scene
 
 NODE_NAME = "clawfleet"
 SOURCE = "ros2"
@@ -72,7 +72,7 @@ class NativeLine:
             "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
             "view": Decoder(LineView, self.drops),
-        } | {kind: Decoder(CameraImage, self.drops) for kind in ("rgb", "depth", "segmentation")}
+        } | {kind: Decoder(CameraImage, self.drops) for kind in IMAGE_KINDS}
         self.keys = keys
         self.results = session.declare_subscriber(keys.all_arms("result"), self.inbox)  # few: one per goal
         self.listened = OnDemandSubscriptions(session, self.inbox)

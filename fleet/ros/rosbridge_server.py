@@ -29,7 +29,7 @@ from fleet.ros.rosapi import Rosapi
 from fleet.ros.rosauth import auth_problem, auth_request
 from fleet.ros.rosbridge_client import Client, Subscription
 from robots.registry import get_robot
-from scenes.schema import Scene
+from scenes.schema import IMAGE_KINDS, Scene
 
 MAX_MESSAGE_BYTES = 1 << 20
 
@@ -87,7 +87,7 @@ class RosbridgeServer:
             "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
             "view": Decoder(LineView, self.drops),
-        } | {kind: Decoder(CameraImage, self.drops) for kind in ("rgb", "depth", "segmentation")}
+        } | {kind: Decoder(CameraImage, self.drops) for kind in IMAGE_KINDS}
         self._numbers = 0
         self.requests_refused = 0
         self.requests_failed = 0  # requests that raised where no check refused them: each a bug to report

@@ -24,10 +24,15 @@ class CameraFrame:
     depth_m: np.ndarray | None = None
     segmentation: np.ndarray | None = None
 
+    def images(self) -> dict[str, np.ndarray]:
+        """The images this frame holds, by kind (`rgb`, `depth`, `segmentation`), in that order."""
+        kinds = {"rgb": self.rgb, "depth": self.depth_m, "segmentation": self.segmentation}
+        return {kind: image for kind, image in kinds.items() if image is not None}
+
     @property
     def size_px(self) -> tuple[int, int]:
         """(width, height)."""
-        image = next(i for i in (self.rgb, self.depth_m, self.segmentation) if i is not None)
+        image = next(iter(self.images().values()))
         return image.shape[1], image.shape[0]
 
     def points_in_world(self, mask: np.ndarray | None = None) -> np.ndarray:

@@ -16,8 +16,6 @@ from fleet.sim.cameras.frames import CameraFrame
 from fleet.sim.cameras.rig import CameraRig
 from scenes.schema import Camera
 
-KINDS = {"rgb": "rgb", "depth": "depth_m", "segmentation": "segmentation"}  # image kind -> CameraFrame field
-
 
 @dataclass
 class CameraCounts:
@@ -61,27 +59,25 @@ def cameras_named(cameras: list[Camera], names: str) -> list[Camera]:
 def image_messages(frame: CameraFrame, tick: int, encodings: dict[str, str]) -> list[CameraImage]:
     """A frame's images as bus messages, each packed as `encodings` says for its kind."""
     width, height = frame.size_px
-    out = []
-    for kind, field_name in KINDS.items():
-        image = getattr(frame, field_name)
-        if image is None:
-            continue
-        out.append(
-            CameraImage(
-                camera=frame.camera,
-                kind=kind,
-                tick=tick,
-                sim_time_s=frame.sim_time_s,
-                width_px=width,
-                height_px=height,
-                encoding=encodings[kind],
-                data=encode_image(kind, image, encodings[kind]),
-                intrinsics=tuple(float(v) for v in frame.intrinsics.ravel()),
-                position_m=tuple(float(v) for v in frame.position_m),
-                quaternion_wxyz=tuple(float(v) for v in frame.quaternion_wxyz),
-            )
+    intrinsics = tuple(float(v) for v in frame.intrinsics.ravel())
+    position_m = tuple(float(v) for v in frame.position_m)
+    quaternion_wxyz = tuple(float(v) for v in frame.quaternion_wxyz)
+    return [
+        CameraImage(
+            camera=frame.camera,
+            kind=kind,
+            tick=tick,
+            sim_time_s=frame.sim_time_s,
+            width_px=width,
+            height_px=height,
+            encoding=encodings[kind],
+            data=encode_image(kind, image, encodings[kind]),
+            intrinsics=intrinsics,
+            position_m=position_m,
+            quaternion_wxyz=quaternion_wxyz,
         )
-    return out
+        for kind, image in frame.images().items()
+    ]
 
 
 class LineCameras:

@@ -128,10 +128,8 @@ class RenderMirror:
             elif body.name in stations:
                 station = model.stations[stations[body.name]]
                 self._add(body, STATION_RGB[station.kind], labels.station_label(stations[body.name]), moves=False)
-            elif body.name == "conveyor_belt":
-                self._add(
-                    body, (looks.belt_grey,) * 3, labels.BELT, moves=False
-                )  # a box whose surface moves, not its pose
+            elif body.name == "conveyor_belt":  # a box whose surface moves, not its pose
+                self._add(body, (looks.belt_grey,) * 3, labels.BELT, moves=False)
             elif body.name == "floor":
                 self._add(body, FLOOR_RGB, labels.FLOOR, moves=False)
 

@@ -10,6 +10,7 @@ import numpy as np
 import sapien
 from scipy.spatial.transform import Rotation
 
+from fleet.record.camera_to_ros import optical_in_mount
 from scenes.schema import CameraPlacement
 
 # rotation taking optical axes (x right, y down, z forward) to SAPIEN camera axes (x forward, y left, z up)
@@ -21,18 +22,14 @@ def _wxyz(matrix: np.ndarray) -> np.ndarray:
     return np.array([w, x, y, z])
 
 
-def body_pose(placement: CameraPlacement) -> sapien.Pose:
-    """The SAPIEN camera body's pose in its mount's frame: at `xyz`, looking at `look_at`, `up` up in the image."""
-    eye = np.asarray(placement.xyz, float)
-    forward = np.asarray(placement.look_at, float) - eye
-    forward /= np.linalg.norm(forward)
-    left = np.cross(np.asarray(placement.up, float), forward)
-    left /= np.linalg.norm(left)
-    up = np.cross(forward, left)
-    return sapien.Pose(eye, _wxyz(np.column_stack([forward, left, up])))
-
-
 OPTICAL_IN_BODY_POSE = sapien.Pose(q=_wxyz(OPTICAL_IN_BODY))
+
+
+def body_pose(placement: CameraPlacement) -> sapien.Pose:
+    """The SAPIEN camera body's pose in its mount's frame: at `xyz`, looking at `look_at`, `up` up in the image (the
+    optical frame `/tf_static` gives, `optical_in_mount`, turned into SAPIEN's camera axes)."""
+    position, (x, y, z, w) = optical_in_mount(placement)
+    return sapien.Pose(position, [w, x, y, z]) * OPTICAL_IN_BODY_POSE.inv()
 
 
 def optical_pose(body_in_world: sapien.Pose) -> tuple[np.ndarray, np.ndarray]:
