@@ -17,9 +17,10 @@ FLOOR_M = 0.008
 """Thickness of bin and tray floors and walls (metres)."""
 BELT_DROP_ALONG_M = 0.06  # a conveyor feeder sets its parts down this far along the belt, unless it says
 NAME_PATTERN = r"^[a-z][a-z0-9_]*$"
+MAX_NAME_CHARS = 40  # an id is a bus key's segment, a folder's name and a ROS name: short enough for every one
 WORLD_M = 100.0  # every position in a scene lies within this of the origin (a line is metres, not kilometres)
 MAX_ARMS = 64  # arms in one scene: each is an OS process of its own (`fleet run` forks one per arm)
-Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=40)]
+Name = Annotated[str, Field(pattern=NAME_PATTERN, max_length=MAX_NAME_CHARS)]
 
 
 def _no_nul(name: str) -> str:
@@ -526,4 +527,5 @@ class Scene(Strict):
 
 
 def is_valid_name(name: str) -> bool:
-    return re.match(NAME_PATTERN, name) is not None
+    """Whether `name` is an id: lower-case letters, digits and _, starting with a letter, at most `MAX_NAME_CHARS`."""
+    return len(name) <= MAX_NAME_CHARS and re.match(NAME_PATTERN, name) is not None

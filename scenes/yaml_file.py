@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
@@ -10,6 +11,8 @@ from pydantic import BaseModel, ValidationError
 
 Model = TypeVar("Model", bound=BaseModel)
 MAX_DEPTH = 16  # lists and mappings within each other: a scene needs 5
+MAX_VALUES = 20_000  # scalars, lists and mappings, aliases expanded: a bundled scene holds under 300
+LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml's parser where PyYAML was built with it
 
 
 class DeclarationError(ValueError):
@@ -55,34 +58,81 @@ def yaml_text(
 def yaml_mapping(
     path: Path, label: str, what: str, max_bytes: int, error: type[DeclarationError] = DeclarationError
 ) -> dict:
-    """The file's top-level mapping of fields; one-line errors for size, encoding, YAML syntax and shape."""
-    text = yaml_text(path, label, what, max_bytes, error)
-    try:
-        data = yaml.safe_load(text)
-    except RecursionError:
-        raise error(label, "", f"nested too deep: a {what} needs at most {MAX_DEPTH} levels") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else ""
-        raise error(label, where, f"not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    """The file's top-level mapping of fields; one-line errors for size, encoding, YAML syntax, bounds and shape."""
+    data = parse_yaml(yaml_text(path, label, what, max_bytes, error), label, what, error)
     if not isinstance(data, dict):
         raise error(label, "", f"a {what} file must hold a mapping of fields at its top level")
-    deepest = _depth(data)
-    if deepest > MAX_DEPTH:
-        raise error(label, "", f"nested {deepest} levels deep: a {what} needs at most {MAX_DEPTH}")
     return data
 
 
-def _depth(value: object, limit: int = 10 * 32) -> int:
-    """How deeply lists and mappings nest in `value` (counted up to `limit`, without recursion)."""
-    deepest, stack = 0, [(value, 1)]
-    while stack:
-        item, depth = stack.pop()
-        if isinstance(item, dict | list):
-            deepest = max(deepest, depth)
-            if depth < limit:
-                stack.extend((v, depth + 1) for v in (item.values() if isinstance(item, dict) else item))
-    return deepest
+def parse_yaml(text: str, label: str, what: str, error: type[DeclarationError] = DeclarationError) -> object:
+    """The YAML document in `text`, built only once its size with every alias expanded (`MAX_VALUES`) and its depth
+    (`MAX_DEPTH`) are known to be within bounds: an alias bomb or a deep nest is refused after reading at most about
+    `MAX_VALUES` events, never built."""
+    try:
+        _check_bounds(text, label, what, error)
+        return yaml.load(text, Loader=LOADER)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark is not None else ""
+        raise error(label, where, f"not valid YAML: {getattr(exc, 'problem', None) or exc}") from None
+
+
+@dataclass
+class _Open:
+    """A mapping or list being read: its anchor, the values in it so far, its deepest child."""
+
+    anchor: str | None
+    values: int = 0
+    child_depth: int = 0
+
+
+def _check_bounds(text: str, label: str, what: str, error: type[DeclarationError]) -> None:
+    """Reads `text`'s events (libyaml's parser, no document built) and refuses it at the first bound it passes."""
+    anchors: dict[str, tuple[int, int]] = {}  # anchor -> (values, depth) of the node it names
+    stack: list[_Open] = []
+    seen = 0
+    for event in yaml.parse(text, Loader=LOADER):
+        if isinstance(event, yaml.CollectionStartEvent):
+            if len(stack) + 1 > MAX_DEPTH:
+                raise error(label, _line(event), f"nested more than {MAX_DEPTH} levels deep: a {what} needs fewer")
+            stack.append(_Open(event.anchor))
+            seen += 1
+        elif isinstance(event, yaml.CollectionEndEvent):
+            done = stack.pop()
+            size, depth = done.values + 1, done.child_depth + 1
+            if done.anchor is not None:
+                anchors[done.anchor] = (size, depth)
+            _add(stack, size, depth)
+        elif isinstance(event, yaml.ScalarEvent):
+            if event.anchor is not None:
+                anchors[event.anchor] = (1, 0)
+            _add(stack, 1, 0)
+            seen += 1
+        elif isinstance(event, yaml.AliasEvent):
+            if event.anchor not in anchors:
+                inside = any(o.anchor == event.anchor for o in stack)
+                reason = "refers to a value that holds it" if inside else "names no anchor before it"
+                raise error(label, _line(event), f"alias *{event.anchor} {reason}")
+            size, depth = anchors[event.anchor]
+            if len(stack) + depth > MAX_DEPTH:
+                raise error(label, _line(event), f"alias *{event.anchor} nests more than {MAX_DEPTH} levels deep")
+            _add(stack, size, depth)
+            seen += size
+        if seen > MAX_VALUES:
+            raise error(
+                label, _line(event), f"more than {MAX_VALUES:,} values with aliases expanded: a {what} needs far fewer"
+            )
+
+
+def _add(stack: list[_Open], values: int, depth: int) -> None:
+    if stack:
+        stack[-1].values += values
+        stack[-1].child_depth = max(stack[-1].child_depth, depth)
+
+
+def _line(event: yaml.Event) -> str:
+    return f"line {event.start_mark.line + 1}" if event.start_mark is not None else ""
 
 
 def first_error(exc: ValidationError, top: str = "(top level)") -> tuple[str, str]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from scenes.schema import is_valid_name
+from scenes.schema import MAX_NAME_CHARS, is_valid_name
 
 ROOT = "clawfleet"
 
@@ -17,7 +17,9 @@ class Keys:
 
     def __post_init__(self) -> None:
         if not is_valid_name(self.run):
-            raise ValueError(f"run id {self.run!r} must be lower-case letters, digits and _ (starting with a letter)")
+            shown = repr(self.run) if len(self.run) <= 60 else f"{self.run[:40]!r}... ({len(self.run):,} characters)"
+            rule = f"1 to {MAX_NAME_CHARS} lower-case letters, digits and _ (starting with a letter)"
+            raise ValueError(f"run id {shown} must be {rule}")
 
     @property
     def prefix(self) -> str:

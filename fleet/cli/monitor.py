@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from fleet.bus.session import BusEndpoints, add_bus_arguments
+from fleet.cli.bus_flags import check_bus_flags
 from fleet.monitor.options import add_monitor_arguments
 
 
@@ -17,6 +18,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
             "with --listen) "
             "or --zenoh-config FILE"
         )
+    check_bus_flags(args, wait_s=args.wait)
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
     argv += BusEndpoints.from_args(args).client_argv()
     return monitor_node.main(argv)

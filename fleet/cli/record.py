@@ -8,6 +8,7 @@ import json
 import math
 
 from fleet.bus.session import BusEndpoints, add_bus_arguments
+from fleet.cli.bus_flags import check_bus_flags
 from fleet.cli.errors import (
     UsageError,
     err,
@@ -49,10 +50,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
     recording = Recording(args.file)
     if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
-    try:
-        keys = Keys(args.run_id or recording.run_id)
-    except ValueError as exc:
-        raise UsageError(f"--run-id: {exc}") from None
+    check_bus_flags(args, run_id=args.run_id or recording.run_id)
+    keys = Keys(args.run_id or recording.run_id)
     stop = StopFlag(watch_parent=False)
     endpoints = BusEndpoints.from_args(args)
     if endpoints.listen or endpoints.config_file:
@@ -99,6 +98,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UsageError(
             "fleet record needs --connect ENDPOINT (fleet run prints its bus endpoint) or --zenoh-config FILE"
         )
+    check_bus_flags(args, wait_s=args.wait)
     writable_file("file", args.file)
     argv = ["--run", args.run_id, "--out", args.file, "--scene-timeout", str(args.wait), "--nice", "0"]
     argv += BusEndpoints.from_args(args).client_argv()

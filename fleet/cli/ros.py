@@ -6,6 +6,7 @@ import argparse
 import math
 
 from fleet.bus.session import BusEndpoints, add_bus_arguments
+from fleet.cli.bus_flags import check_bus_flags
 from fleet.cli.errors import UsageError
 from fleet.nodes.attached import add_rate_argument
 
@@ -27,6 +28,9 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
         )
     if not 0 <= args.port <= 65535:
         raise SystemExit(f"fleet: error: --port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
+    if refusal := rosbridge_node.exposure_refusal(args.host, args.secret_file):
+        raise UsageError(refusal)
+    check_bus_flags(args, wait_s=args.wait)
     argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
     argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
     if args.secret_file:
@@ -42,6 +46,7 @@ def cmd_ros2(args: argparse.Namespace) -> int:
             "fleet: error: fleet ros2 serve needs --connect ENDPOINT or --zenoh-config FILE (on a run's secure bus, "
             "its bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
         )
+    check_bus_flags(args, wait_s=args.wait)
     argv = ["--run", args.run_id, "--domain-id", str(args.domain_id), "--scene-timeout", str(args.wait)]
     argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
     return ros2_node.main(argv)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -44,8 +43,7 @@ def check_run_flags(args: argparse.Namespace) -> None:
     """Every `fleet run` flag that cannot work, refused in one line before any process starts."""
     args.allocator = allocator_spec(args.allocator)
     from fleet.bus.faults import network_from_args
-    from fleet.bus.keys import Keys
-    from fleet.bus.session import BusEndpoints, make_config
+    from fleet.cli.bus_flags import check_bus_flags
 
     if not (math.isfinite(args.duration) and 0 < args.duration <= 7 * 24 * 3600):
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
@@ -58,18 +56,7 @@ def check_run_flags(args: argparse.Namespace) -> None:
         network_from_args(args)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    try:
-        Keys(args.run_id)
-    except ValueError as exc:
-        raise UsageError(f"--run-id: {exc}") from None
-    if args.zenoh_config and not Path(args.zenoh_config).is_file():
-        raise UsageError(f"--zenoh-config {args.zenoh_config}: not a readable file")
-    try:
-        make_config(BusEndpoints(tuple(args.listen or ()), tuple(args.connect or ()), args.zenoh_config))
-    except Exception as exc:  # zenoh's own parser: keep its message, not its source locations
-        said = re.search(r'msg: "([^"]*)"', str(exc))
-        text = re.sub(r"\s+at /\S+", "", said.group(1) if said else (str(exc).splitlines() or [type(exc).__name__])[0])
-        raise UsageError(f"bus flags: {text}") from None
+    check_bus_flags(args)
 
 
 def arm_list(text: str) -> tuple[str, ...]:

@@ -69,19 +69,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def exposure_refusal(host: str, secret_file: str | None) -> str | None:
+    """Why the server may not listen on `host` with `secret_file` (a secret is needed beyond loopback), or None."""
+    if secret_file and not read_secret(secret_file):
+        return f"--secret-file {secret_file}: not a readable file with a secret"
+    if not is_loopback_host(host) and not secret_file:
+        return f"--host {host} is beyond loopback: give --secret-file (clients then authenticate)"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    loopback = is_loopback_host(args.host)
+    refusal = exposure_refusal(args.host, args.secret_file)
+    if refusal:
+        print(f"fleet rosbridge: {refusal}", file=sys.stderr)
+        return 2
     secret = read_secret(args.secret_file) if args.secret_file else None
-    if args.secret_file and not secret:
-        print(f"fleet rosbridge: --secret-file {args.secret_file}: not a readable file with a secret", file=sys.stderr)
-        return 2
-    if not loopback and secret is None:
-        print(
-            f"fleet rosbridge: --host {args.host} is beyond loopback: give --secret-file (clients then authenticate)",
-            file=sys.stderr,
-        )
-        return 2
     stop = StopFlag()
     if args.nice:
         os.nice(args.nice)

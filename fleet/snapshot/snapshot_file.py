@@ -20,7 +20,7 @@ import yaml
 
 from fleet.bus.messages import PROTOCOL_VERSION
 from scenes.loader import resolve_scene_path
-from scenes.yaml_file import named_in
+from scenes.yaml_file import named_in, parse_yaml
 
 MAGIC = b"CLAWSNAP"
 FORMAT_VERSION = 3  # 2: fixed models (robots.built_once) written as built from; 3: the belt reach per station
@@ -48,7 +48,7 @@ class SceneSource(msgspec.Struct, frozen=True):
         """The source of a scene given by bundled name or path (as `fleet run` takes it)."""
         path = resolve_scene_path(name_or_path)
         text = path.read_text(encoding="utf-8")
-        declared = yaml.safe_load(text) or {}
+        declared = parse_yaml(text, str(path), "scene") or {}
         named = declared.get("robot_files") or []
         if not named:
             return cls(path.name, text, {}, arms, seed)
@@ -56,7 +56,7 @@ class SceneSource(msgspec.Struct, frozen=True):
         renamed = []
         for i, name in enumerate(named):
             robot_path = named_in(path, name)
-            robot = yaml.safe_load(robot_path.read_text(encoding="utf-8")) or {}
+            robot = parse_yaml(robot_path.read_text(encoding="utf-8"), str(robot_path), "robot") or {}
             urdf = robot.get("urdf")
             if isinstance(urdf, str) and not Path(urdf).expanduser().is_absolute():
                 urdf_name = f"robot_{i}_{Path(urdf).name}"

@@ -111,7 +111,15 @@ BAD_INPUT = [
     (["run", "--allocator", "fastest"], "unknown allocator 'fastest'; valid allocators: optimal, auction, greedy"),
     (["run", "--allocator", "policy:/no/such.pt2"], "policy file /no/such.pt2: no such file"),
     (["sweep", "pick_cell", "--out", "o", "--allocator", "greedy", "policy:/no/such.pt2"], "/no/such.pt2: no such"),
-    (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be lower-case"),
+    (["run", "--run-id", "BAD/ID"], "--run-id: run id 'BAD/ID' must be 1 to 40 lower-case"),
+    (["run", "--run-id", "a" * 5000], "'... (5,000 characters) must be 1 to 40"),
+    (["run", "--listen", "tcp/192.0.2.1:7447"], "--listen tcp/192.0.2.1:7447: this machine has no address 192.0.2.1"),
+    (["run", "--connect", "tcp/127.0.0.1:1"], "--connect tcp/127.0.0.1:1: nothing answers there (connection refused)"),
+    (["monitor", "--connect", "tcp/127.0.0.1:1", "--wait", "0.5"], "nothing answers there (connection refused)"),
+    (["record", "--connect", "tcp/127.0.0.1:1", "--wait", "0", "x.mcap"], "--connect tcp/127.0.0.1:1: nothing answers"),
+    (["ros2", "serve", "--connect", "tcp/127.0.0.1:1", "--wait", "0"], "--connect tcp/127.0.0.1:1: nothing answers"),
+    (["rosbridge", "--connect", "tcp/127.0.0.1:1", "--wait", "nan"], "--wait nan: give seconds from 0 to 86,400"),
+    (["monitor", "--run-id", "x" * 41, "--connect", "tcp/127.0.0.1:1"], "must be 1 to 40 lower-case letters"),
     (["run", "--listen", "garbage"], "argument --listen: 'garbage' is not an endpoint"),
     (["run", "--duration", "nan"], "--duration nan: give a positive number"),
     (["run", "--duration", "inf"], "--duration inf: give a positive number"),
@@ -194,12 +202,18 @@ def test_monitor_needs_an_endpoint_and_says_so_in_one_line():
     assert result.stderr.strip().count("\n") == 0 and "--connect" in result.stderr
 
 
-def test_monitor_with_nobody_to_watch_fails_cleanly():
-    from fleet.bus.session import free_loopback_port, loopback_endpoint
+@pytest.fixture
+def empty_bus():
+    """The endpoint of a Zenoh session listening on loopback, with no line on it."""
+    from fleet.bus.session import BusEndpoints, free_loopback_port, loopback_endpoint, open_session
 
-    result = fleet(
-        "monitor", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2", timeout=120
-    )
+    endpoint = loopback_endpoint(free_loopback_port())
+    with open_session(BusEndpoints(listen=(endpoint,))):
+        yield endpoint
+
+
+def test_monitor_with_nobody_to_watch_fails_cleanly(empty_bus):
+    result = fleet("monitor", "--connect", empty_bus, "--port", "0", "--wait", "2", timeout=120)
     assert result.returncode == 1
     assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
 
@@ -218,10 +232,8 @@ def test_rosbridge_refuses_what_it_cannot_do_with_one_line(args, says, code):
     assert result.stderr.strip().count("\n") == 0 and "Traceback" not in result.stderr
 
 
-def test_rosbridge_with_no_line_to_serve_fails_cleanly():
-    from fleet.bus.session import free_loopback_port, loopback_endpoint
-
-    result = fleet("rosbridge", "--connect", loopback_endpoint(free_loopback_port()), "--port", "0", "--wait", "2")
+def test_rosbridge_with_no_line_to_serve_fails_cleanly(empty_bus):
+    result = fleet("rosbridge", "--connect", empty_bus, "--port", "0", "--wait", "2")
     assert result.returncode == 1
     assert "no sim of run 'line' answered" in result.stderr and "Traceback" not in result.stderr
 
