@@ -5,6 +5,7 @@ no loose module at `fleet/`'s top, no import from a lower layer of `fleet/` to a
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -212,6 +213,14 @@ def test_every_name_the_glossary_points_to_exists():
 
 
 MAX_CLASS_LINES, MAX_FUNCTION_LINES = 250, 60
+
+
+def test_the_benchmarks_page_holds_only_what_stands():
+    """`docs/benchmarks.md` gives today's figures; a working session's number ("stop 57") marks history, which
+    belongs in `docs/history.md`."""
+    text = (ROOT / "docs" / "benchmarks.md").read_text()
+    dated = [line for line in text.splitlines() if re.search(r"\bstop \d+", line, re.IGNORECASE)]
+    assert not dated, f"docs/benchmarks.md dates figures by session (move them to docs/history.md): {dated}"
 
 
 def test_no_class_over_250_lines_and_no_function_over_60():
