@@ -11,6 +11,7 @@ link `<arm>/<link>` it rides on).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -30,36 +31,59 @@ def optical_frame(camera: str) -> str:
     return f"{camera}_optical_frame"
 
 
+@dataclass(frozen=True)
+class CameraTopics:
+    """The one spelling of a camera's ROS topic names, as image_transport lays them out."""
+
+    camera: str
+
+    @property
+    def info(self) -> str:
+        return f"/{self.camera}/camera_info"
+
+    @property
+    def colour_raw(self) -> str:
+        return f"/{self.camera}/image_raw"
+
+    @property
+    def colour_compressed(self) -> str:
+        return f"/{self.camera}/image_raw/compressed"
+
+    def image(self, kind: str, encoding: str = "raw") -> str:
+        """The topic an image of `kind` goes out on (colour: raw or compressed by its encoding)."""
+        if kind == "rgb":
+            return self.colour_raw if encoding == "raw" else self.colour_compressed
+        return f"/{self.camera}/{kind}/image_raw"
+
+
 def image_topic(message: CameraImage) -> str:
-    """The ROS topic a camera image goes out on."""
-    if message.kind == "rgb":
-        return f"/{message.camera}/image_raw" + ("" if message.encoding == "raw" else "/compressed")
-    return f"/{message.camera}/{message.kind}/image_raw"
+    """The ROS topic a camera image goes out on in a recording."""
+    return CameraTopics(message.camera).image(message.kind, message.encoding)
 
 
 def camera_topic_types(camera: str, kinds: list[str]) -> dict[str, str]:
     """Every live ROS topic of a camera making `kinds`, and its type: colour both raw and compressed, as
     image_transport offers it."""
-    image, compressed = "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"
-    out = {f"/{camera}/camera_info": "sensor_msgs/msg/CameraInfo"}
+    topics, image = CameraTopics(camera), "sensor_msgs/msg/Image"
+    out = {topics.info: "sensor_msgs/msg/CameraInfo"}
     if "rgb" in kinds:
-        out |= {f"/{camera}/image_raw": image, f"/{camera}/image_raw/compressed": compressed}
-    out |= {f"/{camera}/{kind}/image_raw": image for kind in kinds if kind != "rgb"}
+        out |= {topics.colour_raw: image, topics.colour_compressed: "sensor_msgs/msg/CompressedImage"}
+    out |= {topics.image(kind): image for kind in kinds if kind != "rgb"}
     return out
 
 
 def live_messages(message: CameraImage, wanted: set[str], first_of_frame: bool) -> list[tuple[str, object]]:
     """The live topics (of `camera_topic_types`) one camera image feeds, among those `wanted`."""
-    camera, out = message.camera, []
+    topics, out = CameraTopics(message.camera), []
     if message.kind == "rgb":
-        if f"/{camera}/image_raw" in wanted:
-            out.append((f"/{camera}/image_raw", raw_image_msg(message)))
-        if f"/{camera}/image_raw/compressed" in wanted:
-            out.append((f"/{camera}/image_raw/compressed", compressed_image_msg(message)))
-    elif (topic := f"/{camera}/{message.kind}/image_raw") in wanted:
+        if topics.colour_raw in wanted:
+            out.append((topics.colour_raw, raw_image_msg(message)))
+        if topics.colour_compressed in wanted:
+            out.append((topics.colour_compressed, compressed_image_msg(message)))
+    elif (topic := topics.image(message.kind)) in wanted:
         out.append((topic, raw_image_msg(message)))
-    if first_of_frame and f"/{camera}/camera_info" in wanted:
-        out.append((f"/{camera}/camera_info", camera_info_msg(message)))
+    if first_of_frame and topics.info in wanted:
+        out.append((topics.info, camera_info_msg(message)))
     return out
 
 
@@ -161,5 +185,5 @@ def camera_topics(message: CameraImage, first_of_frame: bool) -> list[tuple[str,
     (its optical frame is on `/tf_static`: `camera_static_transforms`)."""
     out: list[tuple[str, Callable[[], object]]] = [(image_topic(message), lambda: image_msg(message))]
     if first_of_frame:
-        out.append((f"/{message.camera}/camera_info", lambda: camera_info_msg(message)))
+        out.append((CameraTopics(message.camera).info, lambda: camera_info_msg(message)))
     return out
