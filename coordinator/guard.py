@@ -6,7 +6,7 @@ dq moves no point of the arm more than lever * |dq| (its lever: how far its
 shapes can be from it, `ArmGeometry.joint_levers_m`), so after measuring a
 clearance d (with FCL, every other arm placed where its own granted path or its
 current state puts it at that time) it may skip ahead until the arms could have
-closed d - margin (`coordinator.closing`: their travel along their timed paths),
+closed d - margin (`coordinator.gap_closing`: their travel along their timed paths),
 never less than `step_m`. No link can pass through another
 between two samples. The answer:
 
@@ -28,10 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.claw_sweep import ClawSpan
-from coordinator.closing import GapClosing, PathTravel
 from coordinator.denied_arms import DeniedArms
+from coordinator.gap_closing import GapClosing, PathTravel
 from coordinator.geometry import ArmGeometry, CellBounds, closest_points_below, neighbours, separation_m
-from coordinator.pair_memo import PairMemo
+from coordinator.pair_measurements import PairMeasurements
 from robots.trajectory import quintic
 
 DEFAULT_MARGIN_M = 0.02
@@ -183,7 +183,7 @@ class CollisionGuard:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among
         them. The pass of `nearest_other_m`, with the nearest points of each pair it measures."""
         if "_watch_memo" not in vars(self):  # a guard read back from an older snapshot
-            self._watch_memo = PairMemo()
+            self._watch_memo = PairMeasurements()
         nearest, measured = self._nearest_pass(closest_points_below, math.inf, TIE_M, self._watch_memo)
         out = [
             NearestPair(a, b, d, p_a, p_b)
@@ -197,7 +197,7 @@ class CollisionGuard:
         measure: Callable[[ArmGeometry, ArmGeometry, float], tuple | None],
         cap_m: float,
         tie_m: float = 0.0,
-        memo: PairMemo | None = None,
+        memo: PairMeasurements | None = None,
     ) -> tuple[dict[str, float], dict[tuple[str, str], tuple]]:
         """Each arm's nearest distance (at most `cap_m`) and what `measure(a, b, below_m)` said of each pair it was
         asked about (its first item the distance; None: not below): pairs nearest first by their bound, a pair asked

@@ -175,10 +175,10 @@ def bench_line_cameras(
 
     import yaml
 
-    from fleet.common.scene_loading import load_scene
+    from fleet.common.scene_loading import load_checked_scene
     from fleet.run.launcher import Launcher, RunOptions
 
-    scene = load_scene("sorting_line", arms=arms)
+    scene = load_checked_scene("sorting_line", arms=arms)
     camera = views(1, size, IMAGES[images])[0].model_copy(update={"name": "bench", "rate_hz": rate_hz})
     loops, report = [], {}
     with tempfile.TemporaryDirectory() as folder:

@@ -93,9 +93,9 @@ def bench_decisions(arms: int = 12, pending: int = 50, decisions: int = 200, see
     coordinator spends them. The first `decisions // 5` fill the reach caches and are not counted."""
     from coordinator.allocation import ALLOCATORS, ArmView, CachedReach, PartView, make_allocator
     from coordinator.ledger import Ledger
-    from fleet.common.scene_loading import load_scene
+    from fleet.common.scene_loading import load_checked_scene
 
-    scene = load_scene("sorting_line", arms=arms)
+    scene = load_checked_scene("sorting_line", arms=arms)
     rng = np.random.default_rng(seed)
     xs = [a.base.xyz[0] for a in scene.arms]
     views = [ArmView(a.name, a.base.xyz, True, CachedReach.of(a), tuple(get_robot(a.model).home_q)) for a in scene.arms]

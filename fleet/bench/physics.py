@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.sim.world import World
 
 
@@ -32,7 +32,7 @@ class PhysicsBenchRow:
 
 def populated_sorting_world(arms: int, warmup_s: float = 2.0) -> World:
     """The sorting line with `arms` arms and parts already on the belt."""
-    world = World(load_scene("sorting_line", arms=arms))
+    world = World(load_checked_scene("sorting_line", arms=arms))
     for _ in range(4):
         world.spawn_now("mixed")
         world.step(int(0.5 / world.control_dt_s))

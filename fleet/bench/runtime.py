@@ -23,7 +23,7 @@ import numpy as np
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, open_listening_session
 from fleet.common.processes import ChildProcess, stop_children
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.nodes.sim_server import SimServer
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.sim.world import World
@@ -46,7 +46,7 @@ class BusRow:
 
 def bench_bus(arms: int, ticks: int = 1500) -> BusRow:
     """Round trips state -> answer for `arms` idle controller processes in lockstep, and the bus messages they cost."""
-    world = World(load_scene(SCENE, arms=arms))
+    world = World(load_checked_scene(SCENE, arms=arms))
     keys = Keys("benchbus")
     session, endpoint = open_listening_session(BusEndpoints())
     logs = Path(tempfile.mkdtemp(prefix="clawfleet-benchbus-"))
@@ -128,7 +128,7 @@ class RunRow:
 
 def raw_physics_seconds(arms: int, sim_seconds: float) -> float:
     """Wall time to step the scene for `sim_seconds` in process, feeders running, nobody moving."""
-    world = World(load_scene(SCENE, arms=arms))
+    world = World(load_checked_scene(SCENE, arms=arms))
     ticks = round(sim_seconds * world.scene_model.control_hz)
     start = time.perf_counter()
     world.step(ticks)
@@ -138,7 +138,7 @@ def raw_physics_seconds(arms: int, sim_seconds: float) -> float:
 def replay_physics_seconds(arms: int, targets_file: str) -> float:
     """Wall time to step the scene in process with a run's recorded drive targets: its physics and motion, no
     processes."""
-    world = World(load_scene(SCENE, arms=arms))
+    world = World(load_checked_scene(SCENE, arms=arms))
     log = np.load(targets_file)
     position, velocity, gripper = log["position"].tolist(), log["velocity"].tolist(), log["gripper"].tolist()
     sim_arms = list(world.arms.values())

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
 from robots.joint_trajectory import rest_to_rest
@@ -34,7 +34,7 @@ class SafetyBenchRow:
 
 def bench_safety(arms: int, goals: int = 400, seed: int = 0, reach_rad: float = 0.6) -> SafetyBenchRow:
     """`goals` goals over the arms of a sorting line of `arms`, a few ticks apart."""
-    world = World(load_scene("sorting_line", arms=arms))
+    world = World(load_checked_scene("sorting_line", arms=arms))
     tracked = TrackedArms(world)
     rng = np.random.default_rng(seed)
     names = list(tracked.trackers)

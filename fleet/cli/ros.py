@@ -54,10 +54,10 @@ def cmd_ros2(args: argparse.Namespace) -> int:
 
 def cmd_ros2_controllers(args: argparse.Namespace) -> int:
     from fleet.cli.errors import writable_file
-    from fleet.common.scene_loading import load_scene
+    from fleet.common.scene_loading import load_checked_scene
     from fleet.ros.moveit import moveit_controllers_yaml
 
-    text = moveit_controllers_yaml(load_scene(args.scene, arms=args.arms))
+    text = moveit_controllers_yaml(load_checked_scene(args.scene, arms=args.arms))
     if args.out:
         writable_file("--out", args.out)
         with open(args.out, "w") as f:

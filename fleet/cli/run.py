@@ -30,7 +30,7 @@ from fleet.cli.errors import (
 )
 from fleet.cli.ros import checked_rate
 from fleet.cli.run_snapshots import add_snapshot_arguments, check_snapshot_flags, open_snapshot, snapshot_options
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from fleet.nodes.attached import add_rate_argument
 from scenes.yaml_file import DeclarationError
@@ -94,7 +94,7 @@ def check_placement_flags(args: argparse.Namespace) -> None:
             "--bus-config says where every node listens or connects: leave out --listen, --connect and --zenoh-config"
         )
     try:
-        placement(args.bus_config, args.hosts, load_scene(args.scene, arms=args.arms))
+        placement(args.bus_config, args.hosts, load_checked_scene(args.scene, arms=args.arms))
     except (BusConfigError, DeclarationError) as exc:
         raise UsageError(str(exc)) from None
 
@@ -102,7 +102,7 @@ def check_placement_flags(args: argparse.Namespace) -> None:
 def cmd_bus_config(args: argparse.Namespace) -> int:
     from fleet.bus.bus_config import BusConfigError, write_bus_configs
 
-    arms = [a.name for a in load_scene(args.scene, arms=args.arms).arms]
+    arms = [a.name for a in load_checked_scene(args.scene, arms=args.arms).arms]
     check_ros2_flags(args, arms)
     output_folder("--out", args.out, parents=True)
     try:
@@ -225,7 +225,7 @@ def _run(args: argparse.Namespace) -> int:
 
     check_run_flags(args)
     check_snapshot_flags(args)
-    scene = load_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
+    scene = load_checked_scene(args.scene, arms=args.arms)  # a bad scene: one line, before anything starts
     check_ros2_flags(args, [a.name for a in scene.arms])
     check_camera_flags(args, scene)
     check_placement_flags(args)

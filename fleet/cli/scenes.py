@@ -15,7 +15,7 @@ from fleet.cli.errors import (
     err,
     out,
 )
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from scenes.loader import bundled_scene_names
 from scenes.schema import Camera
 
@@ -23,7 +23,7 @@ from scenes.schema import Camera
 def cmd_check(args: argparse.Namespace) -> int:
     from coordinator.capacity import capacity_bound
 
-    scene = load_scene(args.file, arms=args.arms)
+    scene = load_checked_scene(args.file, arms=args.arms)
     print("ok")
     print(capacity_line(capacity_bound(scene)))
     for camera in scene.cameras:
@@ -62,7 +62,7 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     table = Table("scene", "arms", "description")
     for name in bundled_scene_names():
         try:
-            scene = load_scene(name)
+            scene = load_checked_scene(name)
         except (MissingModelsError, UnknownRobotError) as exc:
             table.add_row(name, "-", f"[yellow]cannot run here: {escape(str(exc))}[/yellow]")
             continue
@@ -82,7 +82,7 @@ def cmd_reach(args: argparse.Namespace) -> int:
 
     if tables_dir() is None:
         raise UsageError("reach tables are off (CLAWFLEET_CACHE_DIR=off): nothing to fill")
-    scene = load_scene(args.file, arms=args.arms)
+    scene = load_checked_scene(args.file, arms=args.arms)
     jobs = args.jobs or os.cpu_count() or 1
     started = time.perf_counter()
     total = sum(len(cells) for _, cells, _ in missing_cells(scene).values())

@@ -25,7 +25,7 @@ from fleet.cli.errors import (
     output_folder,
     positive_numbers,
 )
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 
 
 def sweep_jobs(args: argparse.Namespace) -> int:
@@ -117,7 +117,7 @@ def sweep_cells(args: argparse.Namespace) -> tuple[list, dict[str, str], Path]:
         raise UsageError(str(exc)) from None
     if args.from_snapshot:  # a branch runs the snapshot's scene
         return cells, {c.run_id: args.from_snapshot for c in cells}, output_folder("--out", args.out)
-    load_scene(scene, arms=args.arms)
+    load_checked_scene(scene, arms=args.arms)
     out_dir = output_folder("--out", args.out)
     return cells, scenes_for(cells, out_dir / "scenes"), out_dir
 

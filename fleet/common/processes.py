@@ -95,11 +95,13 @@ def add_scene_arguments(parser: argparse.ArgumentParser, run_required: bool = Tr
 
 def load_node_scene(args: argparse.Namespace, prog: str) -> Scene | None:
     """The node's scene, or None after printing one line naming the file, field and reason."""
-    from fleet.common.scene_loading import load_scene  # here: the launcher starts its node factory before scenes
+    from fleet.common.scene_loading import (
+        load_checked_scene,  # here: the launcher starts its node factory before scenes
+    )
     from scenes.loader import SceneError
 
     try:
-        return load_scene(args.scene, arms=args.arms, seed=getattr(args, "seed", None))
+        return load_checked_scene(args.scene, arms=args.arms, seed=getattr(args, "seed", None))
     except SceneError as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return None
@@ -229,7 +231,7 @@ def read_when_written(path: str | Path, timeout_s: float, give_up: Callable[[], 
     return None
 
 
-def write_report(path: str | None, report: dict) -> None:
+def write_node_report(path: str | None, report: dict) -> None:
     """Write a node's end-of-run figures as JSON."""
     if path:
         write_text_atomically(path, json.dumps(report, indent=1, sort_keys=True))

@@ -48,7 +48,7 @@ def read_robot_file(path: Path) -> tuple[str, RobotFacts]:
     return spec.uid, RobotFacts(reach_m_of(spec), spec.link_names())
 
 
-def load_scene(name_or_path: str | Path, *, arms: int | None = None, seed: int | None = None) -> Scene:
+def load_checked_scene(name_or_path: str | Path, *, arms: int | None = None, seed: int | None = None) -> Scene:
     """A scene by bundled name or path, checked against the known robots, its own robot files registered."""
     return loader.load_scene(name_or_path, arms=arms, seed=seed, robots=robot_facts(), read_robot_file=read_robot_file)
 

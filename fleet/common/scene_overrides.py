@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from scenes.loader import SceneError, resolve_scene_path, yaml_text
 from scenes.schema import Scene
 from scenes.yaml_file import named_in
@@ -87,7 +87,7 @@ def _write_checked(data: dict, source: Path, folder: Path, label: str) -> tuple[
     target = folder / f"{source.stem}-{digest}.yaml"
     target.write_text(yaml.safe_dump(data, sort_keys=False))
     try:
-        return str(target), load_scene(target)
+        return str(target), load_checked_scene(target)
     except SceneError as exc:
         raise SceneError(label, exc.field, exc.reason) from None
 

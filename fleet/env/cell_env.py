@@ -19,7 +19,7 @@ from pettingzoo import ParallelEnv
 
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.env.actions import EnvActions
 from fleet.env.allocate_mode import TaskChooser
 from fleet.env.camera_views import EnvCameras, chosen_cameras
@@ -92,7 +92,7 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
         if render_mode == "rgb_array" or cameras:
             require_render()  # a clear RenderUnavailable, naming what to install, where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(scenario, "sorting_line")
-        base = load_scene(scene, arms=n_arms)  # None: the scene's own count; a fixed-arm scene refuses another
+        base = load_checked_scene(scene, arms=n_arms)  # None: the scene's own count; a fixed-arm scene refuses another
         self.possible_agents = [a.name for a in base.arms]
         self.scenario: Scenario = make_scenario(scenario, self.possible_agents)
         self.scenario.check(base)

@@ -13,7 +13,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from fleet.env.line_book import LineBook
+from fleet.env.line_bookkeeping import LineBookkeeping
 from fleet.robot_tools.trials import part_in_bin
 from fleet.sim.world import World
 from scenes.schema import Arrival, Scene, Station
@@ -206,7 +206,7 @@ class Handover(Scenario):
         )
         self.part = world.place_part(feeder.name, 0, spot, float(rng.uniform(-math.pi, math.pi)))
         self.start_z = spot[2]
-        self.book = LineBook(scene)
+        self.book = LineBookkeeping(scene)
 
     @staticmethod
     def _belt_gap(scene: Scene, base: tuple[float, float, float]) -> float:
@@ -269,7 +269,7 @@ class Line(Scenario):
             raise ValueError(f"task line needs a scene with feeders; {scene.name} has none")
 
     def reset(self, world: World, rng: np.random.Generator) -> None:
-        self.book = LineBook(world.scene_model)
+        self.book = LineBookkeeping(world.scene_model)
 
     def on_tick(self, world: World) -> None:
         self.book.update(world)

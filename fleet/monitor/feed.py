@@ -15,8 +15,8 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
+from fleet.bus.message_checks import progress_problem, sim_status_problem
 from fleet.bus.messages import ArmOrder, ArmState, Assignment, LineView, PartsState, Progress, Separations, SimStatus
-from fleet.bus.plausible import progress_problem, sim_status_problem
 
 
 @dataclass

@@ -28,6 +28,7 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
+from fleet.bus.message_checks import Incarnations, TickClock
 from fleet.bus.messages import (
     ArmOrder,
     ArmState,
@@ -38,15 +39,14 @@ from fleet.bus.messages import (
     PartsState,
     Roster,
 )
-from fleet.bus.plausible import Incarnations, TickClock
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
-from fleet.common.processes import add_scene_arguments, node_arguments, write_report
+from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
 from fleet.nodes.node_snapshots import SnapshotNode
-from fleet.snapshot.after_cut import controller_after_cut
-from fleet.snapshot.node_desk import SnapshotDesk
+from fleet.snapshot.cut import controller_after_cut
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
+from fleet.snapshot.snapshot_link import SnapshotLink
 from robots.frames import yaw_transform
 from robots.phase import Phase
 from robots.registry import get_robot
@@ -67,7 +67,7 @@ CONTROLLER_LIVE = (
     "_step_pub",
     "_goal_pub",
     "_status_pub",
-    "snapshot_desk",
+    "snapshot_link",
 )
 
 
@@ -193,7 +193,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
         self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
         self._status_pub = session.declare_publisher(keys.arm_status(self.arm))
-        self.snapshot_desk = SnapshotDesk.of(self, session, keys, self.arm, "controllers", self.wake)
+        self.snapshot_link = SnapshotLink.of(self, session, keys, self.arm, "controllers", self.wake)
 
     def report(self) -> dict:
         """The controller's figures at the end of a run."""
@@ -215,7 +215,7 @@ class ArmController(ControllerOrders, SnapshotNode):
             sub.undeclare()
         for pub in (self._step_pub, self._goal_pub, self._status_pub):
             pub.undeclare()
-        self.snapshot_desk.close()
+        self.snapshot_link.close()
 
     SNAPSHOT_LIVE = CONTROLLER_LIVE
 
@@ -254,13 +254,13 @@ class ArmController(ControllerOrders, SnapshotNode):
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
-        if self.snapshot_desk.serve(self.snapshot_ready, self.snapshot_part, self.restore_state):
+        if self.snapshot_link.serve(self.snapshot_ready, self.snapshot_part, self.restore_state):
             return True
         state = self._latest("state")
         self._take_assignments()
         if state is None or state.tick in self.answered:
             return False  # nothing new (the sim re-sends a state it is still waiting for: answered already)
-        self.snapshot_desk.expect(state.snapshot_tick)  # from that tick on, held until this node's part is sent
+        self.snapshot_link.expect(state.snapshot_tick)  # from that tick on, held until this node's part is sent
         self._catch_up(state)
         obs = observation_of(state)
         self._hand_to_skill(obs)
@@ -432,7 +432,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"arm_controller: {exc}", file=sys.stderr)
                 controller.close()
                 return 2
-            controller.snapshot_desk.back(snapshot.tick)
+            controller.snapshot_link.back(snapshot.tick)
         beats = Heartbeat(controller)  # liveness on its own thread and clock, however long a decision takes
         try:
             while not stop.should_stop():
@@ -442,7 +442,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             beats.stop()
             controller.close()
-            write_report(args.report, controller.report() | {"stopped_by": stop.reason})
+            write_node_report(args.report, controller.report() | {"stopped_by": stop.reason})
     return 0
 
 

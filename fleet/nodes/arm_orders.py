@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import time
 
+from fleet.bus.message_checks import arm_state_problem, not_finite, parts_problem, seq_problem
 from fleet.bus.messages import Assignment, MotionGrant, PartsState
-from fleet.bus.plausible import arm_state_problem, not_finite, parts_problem, seq_problem
 
 ASSIGNMENT_WAIT_S = 0.5
 

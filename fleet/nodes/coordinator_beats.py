@@ -10,8 +10,8 @@ import time
 import zenoh
 
 from fleet.bus.keys import Keys
+from fleet.bus.message_checks import heartbeat_problem
 from fleet.bus.messages import ArmStatus, Roster
-from fleet.bus.plausible import heartbeat_problem
 
 
 class CoordinatorBeats:

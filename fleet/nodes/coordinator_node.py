@@ -36,6 +36,7 @@ from coordinator.reach_cache import save_shared
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.history import HistoryUnavailable
 from fleet.bus.keys import Keys
+from fleet.bus.message_checks import Incarnations, TickClock, arm_state_problem, parts_problem
 from fleet.bus.messages import (
     ArmState,
     ArmStatus,
@@ -46,18 +47,17 @@ from fleet.bus.messages import (
     Roster,
     separations_from_pairs,
 )
-from fleet.bus.plausible import Incarnations, TickClock, arm_state_problem, parts_problem
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
-from fleet.common.processes import add_scene_arguments, node_arguments, write_report
+from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
 from fleet.nodes.coordinator_beats import CoordinatorBeats
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
 from fleet.nodes.node_snapshots import SnapshotNode
-from fleet.snapshot.after_cut import coordinator_after_cut
-from fleet.snapshot.node_desk import SnapshotDesk
+from fleet.snapshot.cut import coordinator_after_cut
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
+from fleet.snapshot.snapshot_link import SnapshotLink
 from robots.registry import get_robot
 from scenes.schema import Scene
 
@@ -78,7 +78,7 @@ COORDINATOR_LIVE = (
     "_tick_pub",
     "_progress_pub",
     "_separation_pub",
-    "snapshot_desk",
+    "snapshot_link",
 )
 
 
@@ -144,7 +144,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
-        self.snapshot_desk = SnapshotDesk.of(self, session, keys, "coordinator", "coordinator", self.inbox.wake)
+        self.snapshot_link = SnapshotLink.of(self, session, keys, "coordinator", "coordinator", self.inbox.wake)
 
     @property
     def events_seen(self) -> int:
@@ -155,7 +155,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             sub.undeclare()
         for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub, self._separation_pub]:
             pub.undeclare()
-        self.snapshot_desk.close()
+        self.snapshot_link.close()
 
     # --- snapshots ------------------------------------------------------------------
     SNAPSHOT_LIVE = COORDINATOR_LIVE
@@ -205,7 +205,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
                 self._on_status(key, msg)
         self._check_heartbeats()
         self._decide_when_complete()
-        self.snapshot_desk.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_part, self.restore_state)
+        self.snapshot_link.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_part, self.restore_state)
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
             self.publish_progress()
         return bool(items)
@@ -225,7 +225,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
 
     def _on_frame(self, f: LineView) -> None:
         self._frame_at = time.monotonic()
-        self.snapshot_desk.expect(f.snapshot_tick)  # from that tick on, held until this node's part is sent
+        self.snapshot_link.expect(f.snapshot_tick)  # from that tick on, held until this node's part is sent
         for s in f.arms:
             self._on_state(s)
         self._on_parts(f.parts)
@@ -429,7 +429,7 @@ def main(argv: list[str] | None = None) -> int:
                 except (SnapshotError, StateError) as exc:
                     print(f"coordinator: {exc}", file=sys.stderr, flush=True)
                     return 2
-                node.snapshot_desk.back(snapshot.tick)
+                node.snapshot_link.back(snapshot.tick)
             elif args.incarnation > 1:
                 try:
                     node.take_over(session)
@@ -442,7 +442,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             node.publish_progress()
             node.close()
-            write_report(args.report, node.report() | {"stopped_by": stop.reason})
+            write_node_report(args.report, node.report() | {"stopped_by": stop.reason})
             save_shared()  # the reach this run worked out, for the next (a forked node runs no exit handlers)
     return 0
 

@@ -11,8 +11,8 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.history import fetch_history
+from fleet.bus.message_checks import MAX_SEQ_JUMP, not_finite
 from fleet.bus.messages import ArmStatus, LineView
-from fleet.bus.plausible import MAX_SEQ_JUMP, not_finite
 
 if TYPE_CHECKING:
     from fleet.nodes.coordinator_node import CoordinatorNode

@@ -18,7 +18,7 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import EnvAction, EnvTargets
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
-from fleet.common.processes import add_scene_arguments, node_arguments, write_report
+from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
 from robots.frames import yaw_transform
 from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
 from robots.registry import get_robot
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             sub.undeclare()
             pub.undeclare()
-            write_report(
+            write_node_report(
                 args.report,
                 {"arm": args.arm, "answered": answered, "dropped_messages": drops.total, "stopped_by": stop.reason},
             )

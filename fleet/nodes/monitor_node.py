@@ -14,7 +14,7 @@ import sys
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
-from fleet.common.processes import StopFlag, write_report, write_text_atomically
+from fleet.common.processes import StopFlag, write_node_report, write_text_atomically
 from fleet.monitor.app import Monitor, print_url
 from fleet.monitor.options import DEFAULT_RATE_HZ, add_monitor_arguments, exposure_warning
 from fleet.nodes.attached import line_scene
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 monitor.run(stop, args.rate)
             finally:
-                write_report(
+                write_node_report(
                     args.report,
                     {
                         "url": monitor.url,

@@ -7,7 +7,7 @@ from fleet.snapshot.process_state import capture, restore
 
 
 class SnapshotNode:
-    """Mixed into a node with `_decoders`, `drops` and a `snapshot_desk`; `SNAPSHOT_LIVE` names its live handles."""
+    """Mixed into a node with `_decoders`, `drops` and a `snapshot_link`; `SNAPSHOT_LIVE` names its live handles."""
 
     SNAPSHOT_LIVE: tuple[str, ...] = ()
 
@@ -22,7 +22,7 @@ class SnapshotNode:
         restore(self, state, self._live())
         for decoder in self._decoders.values():
             decoder.drops = self.drops
-        self.snapshot_desk.use_drops(self.drops)
+        self.snapshot_link.use_drops(self.drops)
         self.after_restore()
 
     def _live(self) -> dict:

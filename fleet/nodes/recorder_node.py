@@ -29,7 +29,7 @@ from typing import Protocol
 from fleet.bus.keys import Keys
 from fleet.bus.scene_query import SceneUnavailable, fetch_scene, run_scene
 from fleet.bus.session import BusEndpoints, Tap, add_bus_arguments, open_session
-from fleet.common.processes import StopFlag, run_on_idle_cpu, write_report
+from fleet.common.processes import StopFlag, run_on_idle_cpu, write_node_report
 from fleet.record.spool import SpoolError, SpoolReader
 from scenes.schema import Scene
 
@@ -271,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneUnavailable, SpoolError) as exc:
         print(f"fleet record: {exc}", file=sys.stderr)
         return 1
-    write_report(args.report, report)
+    write_node_report(args.report, report)
     return 0
 
 

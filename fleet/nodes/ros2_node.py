@@ -16,7 +16,7 @@ from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView
 from fleet.bus.session import BusEndpoints, Inbox, open_session
-from fleet.common.processes import StopFlag, write_report
+from fleet.common.processes import StopFlag, write_node_report
 from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
 from fleet.ros import names
 from fleet.ros.line_actions import LineActions
@@ -169,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
             line.serve(stop)
         finally:
             line.close()
-            write_report(args.report, line.figures() | {"stopped_by": stop.reason})
+            write_node_report(args.report, line.figures() | {"stopped_by": stop.reason})
     return 0
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, Inbox, is_loopback_host, open_session
-from fleet.common.processes import StopFlag, write_report, write_text_atomically
+from fleet.common.processes import StopFlag, write_node_report, write_text_atomically
 from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
 from fleet.ros.rosbridge_server import RosbridgeServer
 
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             results.undeclare()
             listened.close()
-            write_report(
+            write_node_report(
                 args.report,
                 {
                     "goals_sent": server.actions.sent,

@@ -41,7 +41,13 @@ from fleet.bus.images import RGB_ENCODINGS
 from fleet.bus.keys import Keys
 from fleet.bus.router_audit import RouterAudit
 from fleet.bus.session import BusEndpoints, add_bus_arguments, make_config, open_listening_session
-from fleet.common.processes import StopFlag, add_scene_arguments, node_arguments, write_report, write_text_atomically
+from fleet.common.processes import (
+    StopFlag,
+    add_scene_arguments,
+    node_arguments,
+    write_node_report,
+    write_text_atomically,
+)
 from fleet.record.spool import BusSpool
 from fleet.sim.server import COORDINATOR_TIMEOUT_S, LOCKSTEP_TIMEOUT_S, SimServer
 from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, forget_wall_clock_flights, restore_sim
@@ -141,13 +147,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the endpoint it listens on to this file once it does (without --listen or "
         "--zenoh-config: a free loopback port)",
     )
-    add_snapshot_arguments(parser)
+    add_sim_snapshot_arguments(parser)
     add_fault_arguments(parser)
     add_bus_arguments(parser)
     return parser
 
 
-def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
+def add_sim_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
     """Snapshots of the run (lockstep): when to take them, where to write them; and a run started from one."""
     parser.add_argument(
         "--snapshot-at", metavar="S,S,...", default="", help="take a snapshot of the run at these sim seconds"
@@ -223,7 +229,7 @@ def attach_cameras(server: SimServer, args: argparse.Namespace, session: zenoh.S
     return ""
 
 
-def open_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
+def open_sim_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
     """The sim's session, listening (on a free loopback port when asked to say where), and where it listens."""
     endpoints = BusEndpoints.from_args(args)
     if args.endpoint_file and not (endpoints.listen or endpoints.config_file):
@@ -257,7 +263,7 @@ def serve(
         if audit is not None:
             report["bus_refused"] = audit.refused()
         server.close()
-        write_report(args.report, report)
+        write_node_report(args.report, report)
     return 0
 
 
@@ -276,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     audit = RouterAudit(args.router_audit) if args.router_audit else None
     if audit is not None:  # the one audit of the run: it counts from here to the report
         audit.start()
-    session, endpoint = open_session(args)
+    session, endpoint = open_sim_session(args)
     keys = Keys(args.run)
     spool = BusSpool(session, keys.recorded(), args.spool, args.run, scene.model_dump_json()) if args.spool else None
     # it listens: whoever waits for the file may connect now (the spool hears them from the first)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.sim.observe import arm_observation, base_transform, part_observations
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
@@ -47,7 +47,7 @@ class TrialResult:
 def trial_scene(robot: str, seed: int, physics_hz: float | None = None, solver_iterations: int | None = None) -> Scene:
     """The pick cell for `robot`, scaled in to a shorter arm's reach, with the trial's seed (and physics settings)."""
     spec = get_robot(robot)
-    scene = load_scene(TRIAL_SCENE)
+    scene = load_checked_scene(TRIAL_SCENE)
     k = min(1.0, reach_m_of(spec) / reach_m_of(get_robot(REFERENCE_ROBOT)))
 
     def scaled(pose):  # move a placement towards the arm base at the origin

@@ -65,7 +65,7 @@ class LineActions:
             if action == names.arm_gripper_action(arm):
                 msg = gripper_goal_message(arm, goal_id, goal, self.specs[arm])
             else:
-                msg = fjt.goal_message(arm, goal_id, goal)
+                msg = fjt.trajectory_goal_from_ros(arm, goal_id, goal)
         except ValueError as exc:
             replies.result(fjt.refused(str(exc)))
             return
@@ -76,7 +76,7 @@ class LineActions:
     def send_trajectory(self, arm: str, trajectory: object) -> None:
         """A fire-and-forget `trajectory_msgs/JointTrajectory` (JSON-like values) to the arm: a goal whose result goes
         to nobody; `GoalError` for one that cannot be read."""
-        self.send_goal(fjt.goal_message(arm, self.new_goal_id(), {"trajectory": trajectory}))
+        self.send_goal(fjt.trajectory_goal_from_ros(arm, self.new_goal_id(), {"trajectory": trajectory}))
 
     def cancel(self, owner: object, op_id: object) -> bool:
         """Cancel the owner's goal `op_id`: the arm holds where it is commanded now (the goal ends CANCELED)."""

@@ -62,7 +62,7 @@ def _tolerances(items: object, joints: list[str], field: str) -> tuple[float, ..
     return values if any(values) else ()
 
 
-def goal_message(arm: str, goal_id: int, goal: object) -> TrajectoryGoalMsg:
+def trajectory_goal_from_ros(arm: str, goal_id: int, goal: object) -> TrajectoryGoalMsg:
     """A `FollowJointTrajectory` goal as the sim's trajectory goal; `GoalError` for one that cannot be read (the
     sim itself refuses what is readable but wrong: unknown joints, times that do not increase, unsafe paths)."""
     if not isinstance(goal, dict) or not isinstance(goal.get("trajectory"), dict):

@@ -28,7 +28,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, open_session
 from fleet.common.processes import read_when_written, stop_children
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from fleet.run.disk_watch import room_problem, run_disks
 from fleet.run.hosts import Hosts, load_hosts
@@ -134,7 +134,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
         self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died
         self.progress_at: float | None = None  # when the running coordinator last said its progress (None: not yet)
         self.last_sim_time_s = 0.0
-        self.scene = load_scene(options.scene, arms=options.arms, seed=options.seed)
+        self.scene = load_checked_scene(options.scene, arms=options.arms, seed=options.seed)
         self.seed = self.scene.seed
         self.bus, self.hosts = placement(options.bus_config, options.hosts, self.scene)
         self.on_progress = on_progress

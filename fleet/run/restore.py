@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.common.scene_overrides import scene_with
 from fleet.record.mcap_file import MAGIC, Recording, RecordingError
 from fleet.run.launcher import RunOptions
@@ -47,7 +47,7 @@ def restore_options(
     snapshot = read_snapshot(path)
     scene = snapshot.scene.write(Path(folder))
     try:
-        arms = [a.name for a in load_scene(str(scene), arms=snapshot.scene.arms, seed=snapshot.scene.seed).arms]
+        arms = [a.name for a in load_checked_scene(str(scene), arms=snapshot.scene.arms, seed=snapshot.scene.seed).arms]
     except SceneError as exc:
         raise SnapshotError(f"{path}: its scene cannot be read: {exc}") from None
     check_holds(snapshot, ["sim", "coordinator", *arms], path)  # said now, not after the line waits for a node

@@ -6,8 +6,8 @@ from __future__ import annotations
 import time
 
 from fleet.bus.codec import encode
+from fleet.bus.message_checks import progress_problem, sim_status_problem
 from fleet.bus.messages import Progress, RespawnRequest, Roster, SimStatus
-from fleet.bus.plausible import progress_problem, sim_status_problem
 from fleet.bus.session import Inbox
 from fleet.run.log_relay import LogRelay
 from fleet.run.run_node import (

@@ -12,8 +12,8 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.history import serve_history
 from fleet.bus.keys import Keys
+from fleet.bus.message_checks import seq_problem
 from fleet.bus.messages import ArmGoalMsg, ControllerStep, CoordTick, EStop, EventLog, Roster, SimControl
-from fleet.bus.plausible import seq_problem
 from fleet.bus.scene_query import serve_scene
 from fleet.bus.session import Inbox
 from fleet.sim.sim_stats import SimStats

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING
 from fleet.bus.goals import goal_from_message
 from fleet.bus.keys import Keys
 from fleet.bus.lockstep import ArmLink
+from fleet.bus.message_checks import request_problem
 from fleet.bus.messages import ArmGoalMsg, CoordTick
-from fleet.bus.plausible import request_problem
 from fleet.sim.sim_bus import control_problem, coord_tick_problem
 from robots.joint_trajectory import GoalResult
 

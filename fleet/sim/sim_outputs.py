@@ -92,7 +92,7 @@ class SimOutputs:
 
     def next_snapshot_tick(self) -> int:
         """The tick of the run's next snapshot after this one, told to every node with its states and frames so it
-        holds what comes from then on (`fleet.snapshot.node_desk`); -1: none due, or not lockstep (a realtime line
+        holds what comes from then on (`fleet.snapshot.snapshot_link`); -1: none due, or not lockstep (a realtime line
         is paused for a snapshot)."""
         snapshots = self.sim.snapshots
         if snapshots is None or self.sim.mode != "lockstep":

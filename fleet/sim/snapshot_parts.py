@@ -2,7 +2,7 @@
 what taking it cost the ticks after it.
 
 The sim asks at the tick boundary and goes on: each node, told of the boundary ahead, writes its state as of it,
-holding back whatever the line sends it from then on (`fleet.snapshot.node_desk`), and its part arrives while the
+holding back whatever the line sends it from then on (`fleet.snapshot.snapshot_link`), and its part arrives while the
 next ticks run. So the line stands still only for the sim's own state; the nodes' writing shows up as later answers
 in the ticks after the cut, which `CostDue` measures against the same number of ticks before it (the median of a
 few such runs of ticks: one alone may hold a long decision).

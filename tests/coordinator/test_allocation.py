@@ -228,7 +228,7 @@ def test_the_one_pass_filter_leaves_few_arms_of_a_long_line():
 def test_belt_ownership_asked_of_each_arm_at_its_own_point_is_the_diagonal_of_asking_every_arm_every_point():
     """The optimal allocator asks each arm about its own wait's pick point only (`paired`): the same answers as the
     full (points x arms) pass, for a fraction of its work on a 24-arm row; lost arms included."""
-    from fleet.common.scene_loading import load_scene as load_with_arms
+    from fleet.common.scene_loading import load_checked_scene as load_with_arms
 
     scene = load_with_arms("sorting_line", arms=24)
     rng = np.random.default_rng(0)

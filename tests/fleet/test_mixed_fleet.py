@@ -45,13 +45,13 @@ def test_the_monitor_draws_arms_of_different_models_from_their_own_urdfs():
     import numpy as np
     import viser
 
-    from fleet.common.scene_loading import load_scene
+    from fleet.common.scene_loading import load_checked_scene
     from fleet.monitor.cell_view import CellView
     from robots.registry import get_robot
 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
-        view = CellView(server, load_scene("mixed_fleet"))
+        view = CellView(server, load_checked_scene("mixed_fleet"))
         for name, model in (("arm_0", "openclaw"), ("arm_1", "so101"), ("arm_2", "panda")):
             arm, spec = view.arms[name], get_robot(model)
             assert sorted(arm.urdf.get_actuated_joint_names()) == sorted((*spec.arm_joints, *spec.gripper_joints))

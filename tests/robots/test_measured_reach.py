@@ -71,9 +71,9 @@ def test_a_broken_or_unwritable_kept_reach_is_measured_again(monkeypatch, tmp_pa
 
 def test_loading_a_scene_measures_only_the_robots_its_arms_are(tmp_path):
     code = (
-        "from fleet.common.scene_loading import load_scene\n"
+        "from fleet.common.scene_loading import load_checked_scene\n"
         "from robots import measured_reach\n"
-        "load_scene('sorting_line')\n"
+        "load_checked_scene('sorting_line')\n"
         "print(sorted({spec.uid for spec, _ in measured_reach._MEASURED.values()}))\n"
     )
     env = {"CLAWFLEET_CACHE_DIR": str(tmp_path), "PATH": "/usr/bin:/bin"}

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from scenes.loader import BUNDLED_DIR, SceneError, bundled_scene_names
 from scenes.schema import MAX_CAMERA_PIXELS_PER_S
 
@@ -29,18 +29,18 @@ def pick_cell_with(tmp_path: Path, *cameras: dict) -> Path:
 
 @pytest.mark.parametrize("name", bundled_scene_names())
 def test_every_bundled_scene_has_an_overhead_camera(name):
-    cameras = {c.name: c for c in load_scene(name).cameras}
+    cameras = {c.name: c for c in load_checked_scene(name).cameras}
     assert cameras["overhead"].mount == "world"
     assert {"rgb", "depth", "segmentation"} <= set(cameras["overhead"].images)
 
 
 def test_a_bundled_scene_has_a_wrist_camera_on_its_arm():
-    wrist = load_scene("pick_cell").camera("wrist")
+    wrist = load_checked_scene("pick_cell").camera("wrist")
     assert (wrist.arm, wrist.link) == ("arm_0", "tool_link")
 
 
 def test_a_well_formed_camera_loads(tmp_path):
-    scene = load_scene(pick_cell_with(tmp_path, OVERHEAD))
+    scene = load_checked_scene(pick_cell_with(tmp_path, OVERHEAD))
     assert scene.camera("top").pixels_per_s == 64 * 48 * 5
 
 
@@ -64,7 +64,7 @@ def test_a_well_formed_camera_loads(tmp_path):
 def test_a_wrong_camera_is_one_line_naming_the_field(tmp_path, change, field, says):
     path = pick_cell_with(tmp_path, OVERHEAD | change)
     with pytest.raises(SceneError) as err:
-        load_scene(path)
+        load_checked_scene(path)
     line = str(err.value)
     assert line.startswith(f"{path}: {field}: ") and says in line and "\n" not in line, line
 
@@ -73,9 +73,9 @@ def test_the_pixel_budget_is_refused_with_the_total_and_the_limit(tmp_path):
     big = OVERHEAD | {"width_px": 1920, "height_px": 1080, "rate_hz": 2}
     path = pick_cell_with(tmp_path, big, big | {"name": "other"})
     with pytest.raises(SceneError, match=f"cameras: 8,294,400 pixels/s .* budget is {MAX_CAMERA_PIXELS_PER_S:,}"):
-        load_scene(path)
+        load_checked_scene(path)
 
 
 def test_camera_names_differ(tmp_path):
     with pytest.raises(SceneError, match="cameras: camera names must differ: top, top"):
-        load_scene(pick_cell_with(tmp_path, OVERHEAD, OVERHEAD))
+        load_checked_scene(pick_cell_with(tmp_path, OVERHEAD, OVERHEAD))

@@ -4,7 +4,7 @@
 import numpy as np
 
 from fleet.bus.messages import ArmState
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.record.line_to_ros import LineToRos
 from tests.fleet.record.tf_tree import up_to_root
 
@@ -23,7 +23,7 @@ def an_arm_state(arm: str, q: list[float], sim_time_s: float) -> ArmState:
 
 
 def test_fixed_links_are_static_and_moving_links_compose_to_the_tool_pose():
-    ros = LineToRos(load_scene("assembly_line"))
+    ros = LineToRos(load_checked_scene("assembly_line"))
     arm = ros.arms["arm_0"]
     static = {t.child_frame_id: t for t in ros.tf_static().transforms}
     assert "arm_0/tool_link" in static and static["arm_0/tool_link"].header.frame_id == "arm_0/palm_link"

@@ -10,7 +10,7 @@ import pytest
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, Inbox, open_listening_session, open_session
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.record.spool import BusSpool, SpoolError, SpoolReader, SpoolWriter
 
 KEYS = Keys("spooltest")
@@ -111,7 +111,7 @@ def test_the_recorder_gives_one_line_when_the_sim_wrote_no_spool(tmp_path):
 
 
 def test_a_spooled_scene_whose_robot_file_is_not_here_is_one_line(tmp_path):
-    scene = load_scene("assembly_line").model_copy(update={"robot_files": [str(tmp_path / "elsewhere.yaml")]})
+    scene = load_checked_scene("assembly_line").model_copy(update={"robot_files": [str(tmp_path / "elsewhere.yaml")]})
     SpoolWriter(tmp_path / "bus.spool", "far", scene.model_dump_json()).close()
     result = subprocess.run(
         [

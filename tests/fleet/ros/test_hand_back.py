@@ -12,7 +12,7 @@ import pytest
 import roslibpy
 
 from coordinator.geometry import ArmGeometry, separation_m
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.run.launcher import Launcher, RunOptions
 from robots.frames import yaw_transform
 from robots.registry import get_robot
@@ -27,7 +27,7 @@ GOAL_AT_S = 20.0  # sim s: arm_1 at work beside arm_0
 def poses_beside_arm_1(arms: int, count: int = 8) -> list[np.ndarray]:
     """arm_0 poses 11-30 mm from arm_1 standing at home (the plant keeps 10 mm), each reached from home on a
     straight joint path that closes in only at its end."""
-    scene = load_scene("sorting_line", arms=arms)
+    scene = load_checked_scene("sorting_line", arms=arms)
     g = {a.name: ArmGeometry(a.name, get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad)) for a in scene.arms}
     me, them = g["arm_0"], g["arm_1"]
     lower, upper = me.km.lower[me.km.arm_q_index], me.km.upper[me.km.arm_q_index]

@@ -6,7 +6,7 @@ import sys
 
 import yaml
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.ros import names
 from robots.registry import get_robot
 
@@ -21,7 +21,7 @@ def test_the_controllers_file_names_every_arms_action_and_joints(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     manager = yaml.safe_load(out.read_text())["moveit_simple_controller_manager"]
-    scene = load_scene("sorting_line", arms=3)
+    scene = load_checked_scene("sorting_line", arms=3)
     served = names.line_actions([a.name for a in scene.arms])
     assert manager["controller_names"] == [a.name for a in scene.arms]
     for arm in scene.arms:

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from websockets.sync.client import connect
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.ros import names
 from fleet.ros.line_services import LineBus
 from fleet.ros.rosbridge_server import RosbridgeServer
@@ -45,7 +45,7 @@ requests = st.fixed_dictionaries(
 def port():
     """A rosbridge server of a two-arm sorting line on a free loopback port, served from a thread."""
     sent: list = []
-    server = RosbridgeServer(load_scene("sorting_line", arms=2), LineBus(sent.append, sent.append, sent.append))
+    server = RosbridgeServer(load_checked_scene("sorting_line", arms=2), LineBus(sent.append, sent.append, sent.append))
     listening, stopping = threading.Event(), threading.Event()
     where: list[int] = []
 

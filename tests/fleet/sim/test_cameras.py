@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.sim.cameras import labels
 from fleet.sim.cameras.rig import CameraMountError, CameraRig
 from fleet.sim.world import World
@@ -13,7 +13,7 @@ from scenes.schema import Camera
 
 
 def world_with_parts(scene_name: str = "pick_cell", ticks: int = 500) -> World:
-    world = World(load_scene(scene_name))
+    world = World(load_checked_scene(scene_name))
     world.step(ticks)
     assert world.active_parts(), "parts have arrived"
     return world
@@ -32,7 +32,7 @@ def camera_above(xyz, height_m: float = 0.4, size_px: int = 128) -> Camera:
 
 
 def test_a_world_without_cameras_has_no_renderer():
-    world = World(load_scene("pick_cell"))
+    world = World(load_checked_scene("pick_cell"))
     with pytest.raises(RuntimeError, match="no system with name \\[render\\]"):
         world.scene.get_render_system()
 
@@ -91,16 +91,16 @@ def test_a_wrist_camera_rides_on_its_link():
 
 
 def test_a_mount_on_a_missing_link_is_refused_by_name():
-    world = World(load_scene("pick_cell"))
-    wrong = load_scene("pick_cell").camera("wrist").model_copy(update={"mount": "arm_0/elbow"})
+    world = World(load_checked_scene("pick_cell"))
+    wrong = load_checked_scene("pick_cell").camera("wrist").model_copy(update={"mount": "arm_0/elbow"})
     with pytest.raises(CameraMountError, match="camera 'wrist': arm_0 has no link 'elbow'; links: base_link"):
         CameraRig(world, [wrong])
 
 
 @pytest.mark.parametrize("rate_hz, frames_in_one_s", [(5, 5), (10, 10), (30, 30), (7, 7)])
 def test_a_camera_is_due_at_its_rate_in_sim_time(rate_hz, frames_in_one_s):
-    world = World(load_scene("pick_cell"))
-    rig = CameraRig(world, [load_scene("pick_cell").camera("overhead").model_copy(update={"rate_hz": rate_hz})])
+    world = World(load_checked_scene("pick_cell"))
+    rig = CameraRig(world, [load_checked_scene("pick_cell").camera("overhead").model_copy(update={"rate_hz": rate_hz})])
     hz = int(world.scene_model.control_hz)
     assert sum(bool(rig.due(tick)) for tick in range(hz)) == frames_in_one_s
 
@@ -119,8 +119,8 @@ def test_visual_randomisation_changes_what_cameras_see_and_nothing_else(tmp_path
         "camera_jitter_m": {"uniform": [0.01, 0.03]},
     }
     (tmp_path / "looks.yaml").write_text(yaml.safe_dump(data))
-    plain = load_scene("pick_cell")
-    one, two = (load_scene(tmp_path / "looks.yaml", seed=s) for s in (1, 2))
+    plain = load_checked_scene("pick_cell")
+    one, two = (load_checked_scene(tmp_path / "looks.yaml", seed=s) for s in (1, 2))
     assert one.appearance != two.appearance and one.camera("overhead").pose != plain.camera("overhead").pose
     assert set(one.randomised) == set(data["randomise"])
     assert one.feeders == plain.feeders and one.conveyor == plain.conveyor, "the physics is the scene's own"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.run.restore import restore_options
 from fleet.snapshot.snapshot_file import read_snapshot
@@ -43,7 +43,7 @@ def test_a_run_restored_at_30_and_70_percent_ends_as_the_uninterrupted_run(scene
     at = (0.3 * DURATION_S, 0.7 * DURATION_S)
     whole = run(RunOptions(scene=scene, duration_s=DURATION_S, snapshot_at=at, snapshot_dir=str(tmp_path)))
     assert whole["status"] == "ok" and not whole["snapshots_failed"]
-    hz = load_scene(scene).control_hz
+    hz = load_checked_scene(scene).control_hz
     assert [Path(p).name for p in whole["snapshots"]] == [f"snapshot-{round(t * hz):09d}.clawsnap" for t in at]
     assert all(read_snapshot(p).arms == whole["arm_ids"] for p in whole["snapshots"]), "in the scene's order"
     restored = [restore_options(path, tmp_path / f"scene_{i}")[0] for i, path in enumerate(whole["snapshots"])]

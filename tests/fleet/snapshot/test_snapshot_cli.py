@@ -8,7 +8,7 @@ import zlib
 import pytest
 
 from fleet.cli import main
-from fleet.common.scene_loading import load_scene
+from fleet.common.scene_loading import load_checked_scene
 from fleet.record.mcap_file import RecordingWriter
 from fleet.snapshot.snapshot_file import RunSnapshot, SceneSource, write_snapshot
 from scenes.loader import resolve_scene_path
@@ -56,7 +56,7 @@ CASES = [
 @pytest.mark.parametrize(("argv", "says"), CASES, ids=lambda v: " ".join(v) if isinstance(v, list) else None)
 def test_a_snapshot_flag_that_cannot_work_is_one_line_and_exit_2(argv, says, snapshot, tmp_path, capsys):
     (tmp_path / "bad.clawsnap").write_bytes(b"PK\x03\x04" * 20)
-    with RecordingWriter(tmp_path / "plain.mcap", load_scene("pick_cell").model_dump_json(), "line"):
+    with RecordingWriter(tmp_path / "plain.mcap", load_checked_scene("pick_cell").model_dump_json(), "line"):
         pass  # a recording that carries no snapshot
     slower = tmp_path / "edited" / "pick_cell.yaml"  # the same file name, a slower belt
     slower.parent.mkdir()

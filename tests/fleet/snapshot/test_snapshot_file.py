@@ -133,8 +133,8 @@ def test_a_scene_source_stands_alone_with_its_robot_files_and_their_urdfs(tmp_pa
     assert sorted(source.files) == ["robot_0_my_claw.yaml", "robot_0_openclaw.urdf"]
     scene_file = source.write(tmp_path / "out")
     dump = (
-        "import sys; from fleet.common.scene_loading import load_scene; "
-        "print(load_scene(sys.argv[1], seed=4).model_dump_json(exclude={'robot_files'}))"
+        "import sys; from fleet.common.scene_loading import load_checked_scene; "
+        "print(load_checked_scene(sys.argv[1], seed=4).model_dump_json(exclude={'robot_files'}))"
     )
     loaded = [
         subprocess.run([sys.executable, "-c", dump, str(f)], capture_output=True, text=True, check=True).stdout

@@ -5,8 +5,8 @@ import math
 
 import msgspec
 
+from fleet.bus.message_checks import heartbeat_problem, progress_problem, request_problem, sim_status_problem
 from fleet.bus.messages import ArmStatus, ControllerStep, Progress, SimStatus
-from fleet.bus.plausible import heartbeat_problem, progress_problem, request_problem, sim_status_problem
 
 Q = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)
 

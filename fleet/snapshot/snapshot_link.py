@@ -4,9 +4,9 @@ names, and "I am back" answered by a node started from a snapshot.
 In lockstep the sim names the tick of the run's next snapshot in every state and frame it sends (`snapshot_tick`),
 asks at that tick boundary and goes on without waiting for the parts: a node's state is its state as of the
 boundary. So a node told of one (`expect`) holds back what the line sends it from that tick on
-(`fleet.bus.session.Hold`: `fleet.snapshot.after_cut` says which messages those are) until its part is sent.
+(`fleet.bus.session.Hold`: `fleet.snapshot.cut` says which messages those are) until its part is sent.
 
-The node owns the decision of when it is ready (`ready`) and what its state is (`capture`); the desk owns the bus.
+The node owns the decision of when it is ready (`ready`) and what its state is (`capture`); the link owns the bus.
 """
 
 from __future__ import annotations
@@ -22,13 +22,13 @@ from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
 from fleet.bus.messages import SnapshotAsk, SnapshotPart
 from fleet.bus.session import Hold, Inbox
-from fleet.snapshot.after_cut import Cut
+from fleet.snapshot.cut import Cut
 from fleet.snapshot.process_state import StateError
 
 READY_TIMEOUT_S = 10.0  # wall seconds a node waits for what an ask names before it answers that it cannot
 
 
-class SnapshotDesk:
+class SnapshotLink:
     """Snapshot asks for one node (`coordinator` or an arm id; `role` the ask's `node` it answers)."""
 
     def __init__(
@@ -56,8 +56,8 @@ class SnapshotDesk:
         self._expected = -1  # the tick of the snapshot this node holds for (-1: none)
 
     @classmethod
-    def of(cls, node, session: zenoh.Session, keys: Keys, name: str, role: str, wake: threading.Event) -> SnapshotDesk:
-        """The desk of a node object with `drops`, `hold` and `incarnation` (its current start)."""
+    def of(cls, node, session: zenoh.Session, keys: Keys, name: str, role: str, wake: threading.Event) -> SnapshotLink:
+        """The link of a node object with `drops`, `hold` and `incarnation` (its current start)."""
         return cls(session, keys, name, role, node.drops, wake, lambda: node.incarnation, node.hold)
 
     def expect(self, snapshot_tick: int) -> None:

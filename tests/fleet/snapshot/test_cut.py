@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from fleet.bus.codec import encode
 from fleet.bus.messages import ArmState, ArmStatus, Assignment, LineEvent, LineView, MotionGrant, PartsState, Roster
-from fleet.snapshot.after_cut import Cut, controller_after_cut, coordinator_after_cut
+from fleet.snapshot.cut import Cut, controller_after_cut, coordinator_after_cut
 
 HZ = 100.0
 CUT = Cut(600)

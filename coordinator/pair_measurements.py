@@ -11,7 +11,7 @@ from coordinator.geometry import ArmGeometry
 Measure = Callable[[ArmGeometry, ArmGeometry, float], tuple | None]
 
 
-class PairMemo:
+class PairMeasurements:
     """What `measure(a, b, below_m)` said of each pair (its first item the distance, exact; None: not below
     `below_m`), kept with the joints both arms were placed at; an answer is reused only where it is the answer a
     new measurement would give (the same placements, and the distance known to be below or not below the bound)."""

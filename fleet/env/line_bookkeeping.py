@@ -10,7 +10,7 @@ from fleet.sim.world import World
 from scenes.schema import Scene
 
 
-class LineBook:
+class LineBookkeeping:
     """Call `update(world)` after every control tick; `completed` and `missed` count parts so far."""
 
     def __init__(self, scene: Scene) -> None:

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from coordinator.closing import GapClosing, PathTravel
+from coordinator.gap_closing import GapClosing, PathTravel
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import TimedPath
 from robots.frames import yaw_transform
