@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,16 +28,26 @@ class _Gripper:
     still_since_s: float | None = None
 
 
-class GripperTracking:
-    """Following claw goals: one concern of `ArmTracker`, kept apart (it shares the tracker's clock and results)."""
+class GripperTracker:
+    """One claw's goals: the one running, the one waiting for its start time, the opening and effort commanded.
+    An arm's `ArmTracker` holds one and gives it the arm's clock; its results are the claw's own."""
 
-    def _submit_gripper(self, goal: GripperGoal, now_s: float) -> list[GoalResult]:
+    def __init__(self, opening_of: Callable[[np.ndarray], float], default_effort_n: float = 0.0) -> None:
+        self.opening_of = opening_of
+        self.default_effort_n = default_effort_n
+        self.running: _Gripper | None = None
+        self.waiting: _Gripper | None = None  # accepted with a start time still ahead
+        self.opening = 1.0
+        self.effort_n = default_effort_n
+
+    def submit(self, goal: GripperGoal, now_s: float, estop: bool) -> list[GoalResult]:
+        """Accept a claw goal (preempting the claw's others), or refuse it: e-stop, an opening or effort out of
+        range, a start time that is not finite."""
+
         def reject(reason: str) -> list[GoalResult]:
-            return self._note(
-                [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, reason, now_s)]
-            )
+            return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, reason, now_s)]
 
-        if self.estop:
+        if estop:
             return reject(ESTOP_REASON)
         if not (math.isfinite(goal.opening) and 0.0 <= goal.opening <= 1.0):
             return reject(f"opening {goal.opening!r} must be within [0, 1]")
@@ -45,34 +56,33 @@ class GripperTracking:
         if goal.start_time_s is not None and not math.isfinite(goal.start_time_s):
             return reject("start time is not finite")
         start = now_s if goal.start_time_s is None else max(goal.start_time_s, now_s)
+        reason = f"preempted by goal {goal.goal_id}"
         out = [
-            GoalResult(
-                g.goal.goal_id,
-                "gripper",
-                GoalStatus.PREEMPTED,
-                ResultCode.SUCCESSFUL,
-                f"preempted by goal {goal.goal_id}",
-                now_s,
-            )
-            for g in (self.gripper, self.next_gripper)
+            GoalResult(g.goal.goal_id, "gripper", GoalStatus.PREEMPTED, ResultCode.SUCCESSFUL, reason, now_s)
+            for g in (self.running, self.waiting)
             if g is not None
         ]
-        self.gripper, self.next_gripper = None, _Gripper(goal, start)  # the claw keeps its opening until the start
+        self.running, self.waiting = None, _Gripper(goal, start)  # the claw keeps its opening until the start
         if start <= now_s:
-            self._start_gripper()
-        return self._note(out)
+            self._start()
+        return out
 
-    def cancel_waiting_gripper(self, now_s: float, reason: str) -> list[GoalResult]:
+    def cancel_waiting(self, now_s: float, reason: str) -> list[GoalResult]:
         """Cancel the claw goal still waiting for its start time (ended ABORTED with `reason`); one already
         started runs on: its opening is commanded, and holding the claw short of it could drop a part."""
-        g, self.next_gripper = self.next_gripper, None
+        g, self.waiting = self.waiting, None
         if g is None:
             return []
         return [GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)]
 
-    def _start_gripper(self) -> None:
-        self.gripper, self.next_gripper = self.next_gripper, None
-        g = self.gripper.goal
+    def start_if_due(self, now_s: float) -> None:
+        """The waiting goal started once its start time has come."""
+        if self.waiting is not None and now_s >= self.waiting.start_s - 1e-9:
+            self._start()
+
+    def _start(self) -> None:
+        self.running, self.waiting = self.waiting, None
+        g = self.running.goal
         self.opening = g.opening
         self.effort_n = (
             min(g.max_effort_n, self.default_effort_n)
@@ -80,12 +90,11 @@ class GripperTracking:
             else (g.max_effort_n or self.default_effort_n)
         )
 
-    def gripper_opening(self) -> float:
-        return self.opening
-
-    def _check_gripper(
-        self, g: _Gripper, now_s: float, gripper_q: np.ndarray, gripper_dq: np.ndarray
-    ) -> list[GoalResult]:
+    def check(self, now_s: float, gripper_q: np.ndarray, gripper_dq: np.ndarray) -> list[GoalResult]:
+        """After the physics stepped: the running goal's result once the claw reached its opening or stalled."""
+        g = self.running
+        if g is None or now_s < g.start_s:
+            return []
         opening = self.opening_of(np.asarray(gripper_q, float))
         speed = abs(self.opening_of(np.asarray(gripper_q, float) + np.asarray(gripper_dq, float)) - opening)
         reached = abs(opening - g.goal.opening) <= GRIPPER_REACHED
@@ -94,7 +103,7 @@ class GripperTracking:
         settled = g.still_since_s is not None and now_s - g.still_since_s >= GRIPPER_SETTLE_S
         if not (reached and still) and not settled:
             return []
-        self.gripper = None
+        self.running = None
         return [
             GoalResult(
                 g.goal.goal_id,
@@ -107,3 +116,21 @@ class GripperTracking:
                 stalled=not reached,
             )
         ]
+
+    def abort(self, now_s: float, reason: str) -> list[GoalResult]:
+        """End the running and waiting claw goals ABORTED with `reason`; the claw keeps its opening."""
+        out = [
+            GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
+            for g in (self.running, self.waiting)
+            if g is not None
+        ]
+        self.running = self.waiting = None
+        return out
+
+    def goal_ids(self) -> list[int]:
+        """The claw goals running or waiting."""
+        return [g.goal.goal_id for g in (self.running, self.waiting) if g is not None]
+
+    @property
+    def idle(self) -> bool:
+        return self.running is None and self.waiting is None

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robots.gripper_tracking import GripperTracking, _Gripper
+from robots.gripper_tracking import GripperTracker
 from robots.joint_trajectory import (
     ESTOP_ABORT_REASON,
     ESTOP_REASON,
@@ -59,8 +59,9 @@ def mean_opening(gripper_q: np.ndarray) -> float:
     return float(np.mean(gripper_q))
 
 
-class ArmTracker(GripperTracking):
-    """One arm: joint names and limits in the arm's order, the gripper's opening read through `opening_of`."""
+class ArmTracker:
+    """One arm: joint names and limits in the arm's order; its claw's goals in `claw`, the opening read through
+    `opening_of`."""
 
     def __init__(
         self,
@@ -77,14 +78,9 @@ class ArmTracker(GripperTracking):
         self.servo_period_s = servo_period_s  # ticks at multiples of it read the trajectory from a grid built once
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         self.hold_q = np.asarray(hold_q, float).copy()
-        self.opening_of = opening_of or mean_opening
-        self.default_effort_n = default_effort_n
+        self.claw = GripperTracker(opening_of or mean_opening, default_effort_n)
         self.active: _Active | None = None
         self.next: _Active | None = None  # accepted with a start time still ahead: the current path runs until then
-        self.gripper: _Gripper | None = None
-        self.next_gripper: _Gripper | None = None
-        self.opening = 1.0
-        self.effort_n = default_effort_n
         self.estop = False
         self.watchdog_deadline_s = math.inf
         self.clamped = 0
@@ -96,7 +92,7 @@ class ArmTracker(GripperTracking):
     def submit(self, goal: ArmGoal, now_s: float) -> list[GoalResult]:
         """Accept or refuse a goal at `now_s`; returns the refusal, or the results of the goals it preempts."""
         if isinstance(goal, GripperGoal):
-            return self._submit_gripper(goal, now_s)
+            return self.claw.submit(goal, now_s, self.estop)
         planned = self.plan(goal, now_s)
         return planned if isinstance(planned, list) else self.commit(planned, now_s)
 
@@ -164,8 +160,7 @@ class ArmTracker(GripperTracking):
         """The joint position and velocity targets for now (clamped to the limits; clamps are counted)."""
         if self.next is not None and now_s >= self.next.spline.t0_s - 1e-9:
             self.active, self.next = self.next, None
-        if self.next_gripper is not None and now_s >= self.next_gripper.start_s - 1e-9:
-            self._start_gripper()
+        self.claw.start_if_due(now_s)
         if self.active is None and self.next is None:  # holding: the same targets as last time
             if self.desired_now[0] is not self.hold_q:
                 self.desired_now = (self.hold_q, np.zeros_like(self.hold_q))
@@ -186,10 +181,7 @@ class ArmTracker(GripperTracking):
         a = self.active
         if a is not None and not a.ended:
             out += self._check(a, now_s, np.asarray(q, float))
-        g = self.gripper
-        if g is not None and now_s >= g.start_s:
-            out += self._check_gripper(g, now_s, gripper_q, gripper_dq)
-        return self._note(out)
+        return self._note(out) + self.claw.check(now_s, gripper_q, gripper_dq)
 
     def _check(self, a: _Active, now_s: float, q: np.ndarray) -> list[GoalResult]:
         goal, spline = a.checked.goal, a.spline
@@ -232,12 +224,7 @@ class ArmTracker(GripperTracking):
         """Abort every active or pending goal (arm and gripper) and hold the arm where it is now."""
         out = self.stop_path(now_s, q, reason, code)
         if code == ResultCode.ABORTED:
-            out += [
-                GoalResult(g.goal.goal_id, "gripper", GoalStatus.ABORTED, ResultCode.ABORTED, reason, now_s)
-                for g in (self.gripper, self.next_gripper)
-                if g is not None
-            ]
-            self.gripper = self.next_gripper = None
+            out += self.claw.abort(now_s, reason)
         self.watchdog_deadline_s = math.inf
         return out
 
@@ -270,7 +257,11 @@ class ArmTracker(GripperTracking):
     @property
     def idle(self) -> bool:
         """No goal running or waiting to start: the arm holds and nothing needs checking but the watchdog."""
-        return self.active is None and self.next is None and self.gripper is None and self.next_gripper is None
+        return self.active is None and self.next is None and self.claw.idle
+
+    def gripper_opening(self) -> float:
+        """The claw's commanded opening now."""
+        return self.claw.opening
 
     @property
     def goal_id(self) -> int:

@@ -59,5 +59,4 @@ class OutsideHold:
 
     def _driving(self, arm: str, tracker: ArmTracker) -> bool:
         ids = self.goal_ids.get(arm, set())
-        claws = [g.goal.goal_id for g in (tracker.gripper, tracker.next_gripper) if g is not None]
-        return tracker.goal_id in ids or any(g in ids for g in claws)
+        return tracker.goal_id in ids or any(g in ids for g in tracker.claw.goal_ids())

@@ -58,7 +58,7 @@ class TrackedArms:
                 default_effort_n=spec.gripper_gains.force_limit,
                 servo_period_s=world.control_dt_s,
             )
-        self._effort = {name: t.effort_n for name, t in self.trackers.items()}
+        self._effort = {name: t.claw.effort_n for name, t in self.trackers.items()}
         self._opening: dict[str, float] = {}
         self._held: dict[str, np.ndarray | None] = {}  # the hold point last written, per arm holding still
         self._gripper_q: dict[str, tuple[float, ...]] = {}
@@ -107,8 +107,9 @@ class TrackedArms:
         with a claw goal, its path too: the arm holds where it is)."""
         tracker, now, why = self.trackers[arm], self.world.sim_time_s, "cancelled: an outside client took the arm"
         out = []
-        if not (tracker.next_gripper is not None and tracker.next_gripper.goal.goal_id == goal.goal_id):
-            out += tracker.cancel_waiting_gripper(now, why)
+        waiting = tracker.claw.waiting
+        if not (waiting is not None and waiting.goal.goal_id == goal.goal_id):
+            out += tracker.claw.cancel_waiting(now, why)
         if isinstance(goal, GripperGoal):
             out += tracker.stop_path(now, self._arm_q(arm), why)
         return out
@@ -125,8 +126,9 @@ class TrackedArms:
         """The openings `arm`'s claw may take until its next claw goal: where it is, where its goal takes it and
         where a pending goal will."""
         tracker, a = self.trackers[arm], self.world.arms[arm]
-        span = ClawSpan.at(tracker.opening_of(a.qpos()[a.spec.arm_dof :])).union(tracker.opening)
-        return span if tracker.next_gripper is None else span.union(tracker.next_gripper.goal.opening)
+        claw = tracker.claw
+        span = ClawSpan.at(claw.opening_of(a.qpos()[a.spec.arm_dof :])).union(claw.opening)
+        return span if claw.waiting is None else span.union(claw.waiting.goal.opening)
 
     def claws(self) -> Callable[[str], ClawSpan]:
         """Each arm's `claw_span` now, read once per arm however often it is asked."""
@@ -157,9 +159,9 @@ class TrackedArms:
                 continue  # holding where it held last tick: the drives already have these targets
             self._held[name] = tracker.hold_q if holding else None
             q, dq = tracker.desired(now)
-            if tracker.effort_n != self._effort[name]:
-                arm.set_gripper_effort(tracker.effort_n)
-                self._effort[name] = tracker.effort_n
+            if tracker.claw.effort_n != self._effort[name]:
+                arm.set_gripper_effort(tracker.claw.effort_n)
+                self._effort[name] = tracker.claw.effort_n
             opening = tracker.gripper_opening()
             if opening != self._opening.get(name):
                 self._gripper_q[name], self._opening[name] = arm.spec.gripper_targets(opening), opening

@@ -7,22 +7,19 @@ ticks of `scene.substeps` physics steps; drive targets are set once per tick.
 
 from __future__ import annotations
 
-import copy
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import sapien
 
 from fleet.sim.arm import SimArm, yaw_pose
-from fleet.sim.parts import FeederClock, SimPart, build_part
+from fleet.sim.part_feeders import PartFeeders
+from fleet.sim.parts import FeederClock, SimPart
 from fleet.sim.world_events import WorldEvent
-from fleet.sim.world_feeders import WorldFeeders
 from robots.registry import get_robot
 from scenes.schema import Scene, Station
-from scenes.shapes import belt_box, station_boxes, station_spots
+from scenes.shapes import belt_box, station_boxes
 
-DROP_GAP_M = 0.01  # a feeder drops a part only this far clear of the parts already there (beyond their sizes)
 FLOOR_TOP_M = 0.0
 
 
@@ -40,11 +37,6 @@ class PartInfo:
     height_m: float
     size_m: tuple[float, float, float]
     round: bool = False  # round about its up axis (`PartType.round`)
-
-
-def feeder_streams(seed: int, n_feeders: int) -> list[np.random.Generator]:
-    """One independent random stream per feeder, all from one seed (the scene's)."""
-    return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(max(1, n_feeders))][:n_feeders]
 
 
 @dataclass
@@ -78,8 +70,8 @@ def configure_physx(scene: Scene) -> None:
     sapien.physx.set_shape_config(contact_offset=0.004, rest_offset=0.0)
 
 
-class World(WorldFeeders):
-    """A cell in SAPIEN: arms by id, the conveyor, stations and a pool of parts per feeder."""
+class World:
+    """A cell in SAPIEN: arms by id, the conveyor, stations, and its parts and their feeders (`PartFeeders`)."""
 
     def __init__(self, scene: Scene) -> None:
         self.scene_model = scene
@@ -103,30 +95,20 @@ class World(WorldFeeders):
                 self.scene, spec, arm.name, yaw_pose(arm.base.xyz, arm.base.yaw_rad), i, scene.drive_gain_scale
             )
         self._arm_of_body = {link: name for name, a in self.arms.items() for link in a.articulation.get_links()}
-        self.parts: list[SimPart] = []
-        self.feeders: list[FeederClock] = []
-        self.next_part_id = 0
-        for feeder, stream in zip(scene.feeders, feeder_streams(scene.seed, len(scene.feeders))):
-            clock = FeederClock(feeder, stream)
-            for _ in range(feeder.capacity):
-                for t_index, part_type in enumerate(feeder.parts):
-                    slot = len(self.parts)
-                    entity, body = build_part(self.scene, part_type, slot, f"{feeder.name}_{slot}")
-                    self.parts.append(SimPart(slot, feeder.name, t_index, part_type, entity, body))
-                    clock.slots.append(slot)
-            clock.start()
-            self.feeders.append(clock)
-        # where each feeder sets parts down, worked out once: how far apart, and a station feeder's spots
-        self._drop_spacing_m = {
-            f.name: max(math.hypot(p.size_m[0], p.size_m[1]) for p in f.parts) + DROP_GAP_M for f in scene.feeders
-        }
-        self._station_spots = {
-            f.name: station_spots(
-                scene.station(f.into), self._drop_spacing_m[f.name], max(max(p.size_m[0], p.size_m[1]) for p in f.parts)
-            )
-            for f in scene.feeders
-            if f.into != "conveyor"
-        }
+        self.part_feeders = PartFeeders(self.scene, scene)
+
+    @property
+    def parts(self) -> list[SimPart]:
+        """Every pooled part, in play (`active`) or parked."""
+        return self.part_feeders.parts
+
+    @property
+    def feeders(self) -> list[FeederClock]:
+        return self.part_feeders.clocks
+
+    @property
+    def next_part_id(self) -> int:
+        return self.part_feeders.next_part_id
 
     # --- building -----------------------------------------------------------------
     def _static_boxes(
@@ -179,7 +161,7 @@ class World(WorldFeeders):
     def step(self, ticks: int = 1) -> None:
         """Advance `ticks` control ticks: release due parts, then the physics steps with the belt running."""
         for _ in range(ticks):
-            self._release_due_parts()
+            self.events += self.part_feeders.release_due(self.tick, self.sim_time_s, self.control_dt_s)
             if self.belt is not None and self.belt_running and self._belt_step.any():  # else a plain kinematic box
                 self._belt_entity.set_pose(self._belt_home)
                 for target in self._belt_targets:
@@ -192,14 +174,26 @@ class World(WorldFeeders):
 
     # --- parts --------------------------------------------------------------------
 
-    def _part(self, part_id: int) -> SimPart:
-        for p in self.parts:
-            if p.part_id == part_id:
-                return p
-        raise KeyError(f"no active part {part_id}")
+    def place_part(
+        self, feeder_name: str, type_index: int, surface_xyz: tuple[float, float, float], yaw_rad: float = 0.0
+    ) -> int:
+        """Set a free part of a feeder's pool down at a chosen spot (the env's scenarios); returns its id."""
+        part_id, spawned = self.part_feeders.place(feeder_name, type_index, surface_xyz, yaw_rad, self.tick)
+        self.events.append(spawned)
+        return part_id
+
+    def spawn_now(self, feeder_name: str) -> int:
+        """Release one part from a feeder at once (trials and tests); returns its id."""
+        part_id, events = self.part_feeders.spawn_now(feeder_name, self.tick)
+        self.events += events
+        return part_id
+
+    def retire_part(self, part_id: int) -> None:
+        """Take a finished or lost part off the stage, back into its pool."""
+        self.events.append(self.part_feeders.retire(part_id, self.tick))
 
     def part_info(self, part_id: int) -> PartInfo:
-        return self._info(self._part(part_id))
+        return self._info(self.part_feeders.part(part_id))
 
     @staticmethod
     def _info(p: SimPart) -> PartInfo:
@@ -246,17 +240,7 @@ class World(WorldFeeders):
             drive_targets={n: a.drive_targets() for n, a in self.arms.items()},
             drive_velocity_targets={n: a.drive_velocity_targets() for n, a in self.arms.items()},
             part_ids=[p.part_id for p in self.parts],
-            feeders=[
-                {
-                    "rng": copy.deepcopy(c.rng.bit_generator.state),
-                    "next_time_s": c.next_time_s,
-                    "schedule_index": c.schedule_index,
-                    "spawned": c.spawned,
-                    "skipped_full": c.skipped_full,
-                    "held_s": c.held_s,
-                }
-                for c in self.feeders
-            ],
+            feeders=self.part_feeders.clock_states(),
             next_part_id=self.next_part_id,
             events=list(self.events),
             belt_running=self.belt_running,
@@ -284,27 +268,16 @@ class World(WorldFeeders):
     def reseed_feeders(self, seed: int) -> None:
         """The feeders' random streams (arrival gaps, part types, drop offsets) from `seed`, as a world built with
         that scene seed has them: on a world restored to its start, the arrivals of `fleet run --seed SEED`."""
-        for clock, stream in zip(self.feeders, feeder_streams(seed, len(self.feeders))):
-            clock.rng = stream
+        self.part_feeders.reseed(seed)
 
     def restore_state(self, state: WorldState) -> None:
         """Put back a snapshot from `pack_state` (of this world or another built from the same scene)."""
-        for part, part_id in zip(self.parts, state.part_ids):
-            part.part_id = part_id
-            part.body.set_kinematic(part_id is None)
+        self.part_feeders.restore(state.part_ids, state.feeders, state.next_part_id)
         self.physx.unpack(state.physx)
         for name, arm in self.arms.items():
             arm.restore_targets(state.drive_targets[name], state.drive_velocity_targets[name])
             if name in state.gripper_force_limits:  # a grasp's effort is the drive's, not in PhysX's pack
                 arm.set_gripper_effort(state.gripper_force_limits[name])
-        for clock, saved in zip(self.feeders, state.feeders):
-            clock.rng.bit_generator.state = copy.deepcopy(saved["rng"])
-            clock.next_time_s = saved["next_time_s"]
-            clock.schedule_index = saved["schedule_index"]
-            clock.spawned = saved["spawned"]
-            clock.skipped_full = saved["skipped_full"]
-            clock.held_s = saved.get("held_s", 0.0)
         self.tick = state.tick
-        self.next_part_id = state.next_part_id
         self.events = list(state.events)
         self.belt_running = state.belt_running
