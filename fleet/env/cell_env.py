@@ -23,7 +23,7 @@ from fleet.common.scene_loading import load_checked_scene
 from fleet.env.actions import EnvActions
 from fleet.env.allocate_mode import TaskChooser
 from fleet.env.camera_views import EnvCameras, chosen_cameras
-from fleet.env.choice_steps import ChoiceSteps
+from fleet.env.choice_steps import run_on_to_a_choice
 from fleet.env.limits import (
     CONTACT_PENALTY,
     LIMIT_PENALTY,
@@ -48,7 +48,7 @@ OBSERVE = ("cell", "choices")
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
-class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
+class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
     """Arms `arm_0 ... arm_{n-1}` of a scene, each an agent."""
 
     metadata = {"name": "clawfleet_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
@@ -199,7 +199,12 @@ class CellParallelEnv(EnvActions, EnvObservations, ChoiceSteps, ParallelEnv):
     def step(self, actions: dict[str, np.ndarray]):
         rewards, infos, seen = self._step_once(actions)
         if self.choice_steps:
-            rewards, infos, seen = self._on_to_a_choice(rewards, infos, seen)
+            rewards, infos, seen = run_on_to_a_choice(
+                lambda: self._step_once({}),
+                lambda: any(self._options.get(a) for a in self.agents),
+                lambda: self.cycles < self.max_cycles,
+                (rewards, infos, seen),
+            )
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}
         truncations = {a: done for a in self.agents}

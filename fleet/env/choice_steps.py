@@ -9,23 +9,28 @@ period, the choice's outcome (`choice`) from the first, and `periods`, how many 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 ANY_PERIOD = ("success", "collision")  # info flags true for a step if true in any period it covered
 
 
-class ChoiceSteps:
-    """Running a step on to the next choice: one concern of `CellParallelEnv`, kept apart."""
+Outcome = tuple[dict, dict, tuple]  # one period's (or step's) rewards, infos and observation inputs
 
-    def _on_to_a_choice(self, rewards: dict, infos: dict, seen: tuple) -> tuple[dict, dict, tuple]:
-        """Step on with every arm waiting while no arm has a choice and time is left; the summed rewards, the merged
-        infos and the last period's observation inputs."""
-        periods = 1
-        while self.cycles < self.max_cycles and not any(self._options.get(a) for a in self.agents):
-            more, later, seen = self._step_once({})
-            periods += 1
-            for a in rewards:
-                rewards[a] += more[a]
-                merged = later[a] | {k: infos[a][k] or later[a][k] for k in ANY_PERIOD}
-                infos[a] = merged | ({"choice": infos[a]["choice"]} if "choice" in infos[a] else {})
-        for a in infos:
-            infos[a]["periods"] = periods
-        return rewards, infos, seen
+
+def run_on_to_a_choice(
+    step_once: Callable[[], Outcome], any_choice: Callable[[], bool], time_left: Callable[[], bool], first: Outcome
+) -> Outcome:
+    """After a step's `first` period: further periods (`step_once`, every arm waiting) while no arm has a choice and
+    time is left; the summed rewards, the merged infos and the last period's observation inputs."""
+    rewards, infos, seen = first
+    periods = 1
+    while time_left() and not any_choice():
+        more, later, seen = step_once()
+        periods += 1
+        for a in rewards:
+            rewards[a] += more[a]
+            merged = later[a] | {k: infos[a][k] or later[a][k] for k in ANY_PERIOD}
+            infos[a] = merged | ({"choice": infos[a]["choice"]} if "choice" in infos[a] else {})
+    for a in infos:
+        infos[a]["periods"] = periods
+    return rewards, infos, seen
