@@ -4,7 +4,7 @@ The world is the same SAPIEN world `fleet run` uses (`fleet.sim.world.World`),
 stepped in process (or, with `distributed=True`, with each arm's action turned into
 joint targets by its own process over Zenoh); minimum separations come from the
 coordinator's collision guard (python-fcl), contacts from the physics, tasks in
-`task` mode from the coordinator's ledger and eligibility rules. Episodes end by
+`allocate` mode from the coordinator's ledger and eligibility rules. Episodes end by
 truncation at `max_cycles`; arms never leave mid-episode. `reset(seed)` puts back
 the world's packed start and draws the episode from the seed, so a seed repeats it.
 """
@@ -12,7 +12,6 @@ the world's packed start and draws the episode from the seed, so a seed repeats 
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 from pettingzoo import ParallelEnv
@@ -65,12 +64,10 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
         distributed: bool = False,
         monitor_port: int = 8080,
         mask_in_observation: bool = False,
-        task: str | None = None,
         choice_steps: bool = False,
         observe: str = "cell",
         cameras: bool | list = False,
     ) -> None:
-        scenario, action_mode = renamed_options(scenario, action_mode, task)
         self._init_kwargs = dict(
             scene=scene,
             n_arms=n_arms,
@@ -290,18 +287,6 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
 
 def _rebuild(kwargs: dict) -> CellParallelEnv:
     return CellParallelEnv(**kwargs)
-
-
-def renamed_options(scenario: str, action_mode: str, task: str | None) -> tuple[str, str]:
-    """The old names, kept one release: `task=` is now `scenario=`, and `action_mode="task"` is `"allocate"`
-    (a "task" is the ledger's: one part's hop to a station). Each warns once where it is used."""
-    if task is not None:
-        warnings.warn("the env's `task=` is now `scenario=`", DeprecationWarning, stacklevel=3)
-        scenario = task
-    if action_mode == "task":
-        warnings.warn('action_mode="task" is now action_mode="allocate"', DeprecationWarning, stacklevel=3)
-        action_mode = "allocate"
-    return scenario, action_mode
 
 
 def check_allocate_options(action_mode: str, mask_in_observation: bool, choice_steps: bool, observe: str) -> None:

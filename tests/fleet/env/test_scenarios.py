@@ -272,11 +272,10 @@ def test_allocate_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_
     assert not any("aborted" in r or "closed on nothing" in r for r in failed), failed
 
 
-def test_the_old_names_still_work_for_one_release_and_say_the_new_ones():
-    """`task=` was the scenario and `action_mode="task"` the decision-level mode: both still build the same env, with
-    a DeprecationWarning that names the new word."""
-    with pytest.warns(DeprecationWarning, match="scenario="):
-        old = parallel_env(task="line", n_arms=2, max_cycles=2, control_hz=5, action_mode="allocate")
-    with pytest.warns(DeprecationWarning, match='action_mode="allocate"'):
-        mode = parallel_env(scenario="line", n_arms=2, max_cycles=2, control_hz=5, action_mode="task")
-    assert old.scenario_name == mode.scenario_name == "line" and old.action_mode == mode.action_mode == "allocate"
+def test_the_old_names_are_gone_and_a_task_is_only_the_ledger_s():
+    """`task=` (the scenario) and `action_mode="task"` were kept one release with a warning; now "task" means only the
+    ledger's unit of work, and the old names are refused saying what is valid."""
+    with pytest.raises(TypeError, match="task"):
+        parallel_env(task="line", n_arms=2)
+    with pytest.raises(ValueError, match="action_mode 'task' is not available; valid: .*allocate"):
+        parallel_env(scenario="line", n_arms=2, action_mode="task")
