@@ -69,7 +69,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         path = item.path.relative_to(ROOT).as_posix()
         for marker, paths in (("wall_time", WALL_TIME), ("heavy", HEAVY), ("alone", ALONE)):
             if path.startswith(paths):
-                item.add_marker(marker)
+                # a lockstep case in a wall-time file runs lines but no clock against the wall: heavy, not alone
+                item.add_marker("heavy" if marker == "wall_time" and item.get_closest_marker("lockstep") else marker)
 
 
 LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the xdist controller for its workers

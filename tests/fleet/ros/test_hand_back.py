@@ -65,8 +65,12 @@ def drive_then_let_go(launcher: Launcher, targets: list[np.ndarray], seen: dict)
         seen["error"] = repr(exc)
 
 
-def line_with_an_outside_goal(arms: int, mode: str, seconds: float, targets: list[np.ndarray]) -> dict:
-    options = RunOptions(scene="sorting_line", arms=arms, seed=0, duration_s=seconds, mode=mode, rosbridge_port=0)
+def line_with_an_outside_goal(
+    arms: int, mode: str, seconds: float, targets: list[np.ndarray], speed: float = 1.0
+) -> dict:
+    options = RunOptions(
+        scene="sorting_line", arms=arms, seed=0, duration_s=seconds, mode=mode, speed=speed, rosbridge_port=0
+    )
     seen: dict = {}
     with Launcher(options) as launcher:
         user = threading.Thread(target=drive_then_let_go, args=(launcher, targets, seen), daemon=True)
@@ -83,14 +87,20 @@ def line_with_an_outside_goal(arms: int, mode: str, seconds: float, targets: lis
 
 @pytest.mark.parametrize(
     ("arms", "mode", "seconds", "parts_lost"),
-    [(2, "lockstep", 90.0, 0.1), (4, "lockstep", 90.0, 0.1), (2, "realtime", 60.0, 0.2), (4, "realtime", 60.0, 0.2)],
+    [
+        pytest.param(2, "lockstep", 90.0, 0.1, marks=pytest.mark.lockstep),
+        pytest.param(4, "lockstep", 90.0, 0.1, marks=pytest.mark.lockstep),
+        (4, "realtime", 60.0, 0.2),
+    ],
 )
 def test_an_arm_driven_into_its_neighbour_s_space_and_let_go_leaves_the_line_working(arms, mode, seconds, parts_lost):
-    """`parts_lost`: the share of the parts done that the outside goal may cost (realtime runs are kept short
-    for the suite: 60 s do about 8 parts, so 10% would be no part at all; 90 s runs are in the note)."""
+    """`parts_lost`: the share of the parts done that the outside goal may cost (the realtime run is kept short
+    for the suite, at twice real time: 60 s do about 8 parts, so 10% would be no part at all). Two arms in
+    realtime gave nothing the four do not (120 wall s of the suite); lockstep covers both counts."""
     home = np.asarray(get_robot("openclaw").home_q, float)
-    away = line_with_an_outside_goal(arms, mode, seconds, [home + np.r_[0.0, -0.2, 0.0, 0.0, 0.0, 0.0]])
-    into = line_with_an_outside_goal(arms, mode, seconds, poses_beside_arm_1(arms))
+    speed = 2.0 if mode == "realtime" else 1.0
+    away = line_with_an_outside_goal(arms, mode, seconds, [home + np.r_[0.0, -0.2, 0.0, 0.0, 0.0, 0.0]], speed)
+    into = line_with_an_outside_goal(arms, mode, seconds, poses_beside_arm_1(arms), speed)
     for run in (away, into):
         assert run["status"] == "ok", run["error"]
         assert run["inter_arm_contacts"] == 0 and run["safety_stops"] == 0, run["contact_pairs"]
