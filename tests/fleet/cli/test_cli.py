@@ -1,5 +1,7 @@
 """The `fleet` command as a user runs it: real subprocesses, exit codes and one-line errors."""
 
+import contextlib
+import io
 import json
 import os
 import subprocess
@@ -137,12 +139,36 @@ BAD_INPUT = [
 ]
 
 
+def fleet_in_process(argv: list[str]) -> tuple[int, str]:
+    """`fleet ARGV` run by its `main` in this process (no interpreter to start: a refusal takes milliseconds, not the
+    seconds of a process's imports): its exit status and what it wrote to stderr."""
+    from fleet.cli import main
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's own refusals
+            code = exc.code
+    return code, err.getvalue()
+
+
 def test_run_refuses_bad_input_with_one_line_and_starts_nothing():
-    for (args, says), result in zip(BAD_INPUT, fleets(*(args for args, _ in BAD_INPUT))):
-        assert result.returncode == 2, (args, result.stderr)
-        lines = result.stderr.strip().splitlines()
-        assert says in lines[-1] and "Traceback" not in result.stderr, (args, result.stderr)
-        assert "sim" not in result.stderr.split("error")[0], args  # no progress bar: nothing was started
+    for args, says in BAD_INPUT:
+        code, stderr = fleet_in_process(args)
+        assert code == 2, (args, stderr)
+        lines = stderr.strip().splitlines()
+        assert says in lines[-1] and "Traceback" not in stderr, (args, stderr)
+        assert "sim" not in stderr.split("error")[0], args  # no progress bar: nothing was started
+
+
+def test_a_refusal_is_the_same_from_the_command_line():
+    """The in-process checks above are the command's: the same refusal from a process of its own."""
+    result = fleet("run", "--run-id", "BAD/ID")
+    assert result.returncode == 2 and result.stderr.strip().splitlines() == [
+        "fleet: error: --run-id: run id 'BAD/ID' must be 1 to 40 lower-case letters, digits and _ (starting with a "
+        "letter)"
+    ]
 
 
 def started_by(pid: int) -> list[int]:
