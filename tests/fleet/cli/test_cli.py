@@ -1,7 +1,5 @@
 """The `fleet` command as a user runs it: real subprocesses, exit codes and one-line errors."""
 
-import contextlib
-import io
 import json
 import os
 import subprocess
@@ -12,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from scenes import bundled_scene_names
+from tests.fleet.in_process import fleet_in_process
 
 
 def fleet(*args, timeout=300, env=None):
@@ -27,10 +26,10 @@ def fleets(*argvs: list[str], timeout=300) -> list[subprocess.CompletedProcess]:
 
 
 def test_check_prints_ok_for_bundled_scenes():
-    names = bundled_scene_names()
-    for name, result in zip(names, fleets(*(["check", name] for name in names))):
-        assert result.returncode == 0, (name, result.stderr)
-        first, bound, *cameras = result.stdout.strip().splitlines()
+    for name in bundled_scene_names():
+        code, stdout, stderr = fleet_in_process(["check", name])
+        assert code == 0, (name, stderr)
+        first, bound, *cameras = stdout.strip().splitlines()
         assert first == "ok" and bound.startswith("capacity: at best ") and "parts/min" in bound, name
         assert "stand idle" not in bound, name  # every bundled arm has work
         assert cameras[0].startswith("camera overhead: world, 160x120 px, 60 deg, 5 Hz, rgb+depth+segmentation"), name
@@ -139,23 +138,9 @@ BAD_INPUT = [
 ]
 
 
-def fleet_in_process(argv: list[str]) -> tuple[int, str]:
-    """`fleet ARGV` run by its `main` in this process (no interpreter to start: a refusal takes milliseconds, not the
-    seconds of a process's imports): its exit status and what it wrote to stderr."""
-    from fleet.cli import main
-
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        try:
-            code = main(argv)
-        except SystemExit as exc:  # argparse's own refusals
-            code = exc.code
-    return code, err.getvalue()
-
-
 def test_run_refuses_bad_input_with_one_line_and_starts_nothing():
     for args, says in BAD_INPUT:
-        code, stderr = fleet_in_process(args)
+        code, _, stderr = fleet_in_process(args)
         assert code == 2, (args, stderr)
         lines = stderr.strip().splitlines()
         assert says in lines[-1] and "Traceback" not in stderr, (args, stderr)

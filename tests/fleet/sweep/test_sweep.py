@@ -20,6 +20,7 @@ from fleet.sweep.results import cell_rows, mean_ci, pair_rows, run_rows, write_r
 from fleet.sweep.runner import load_results, run_local
 from scenes.loader import SceneError, load_scene
 from scenes.schema import MAX_SEED
+from tests.fleet.in_process import fleet_in_process
 from tests.ray_namespace import in_netns
 
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
@@ -318,11 +319,6 @@ def test_a_bad_sweep_flag_is_one_line_and_runs_nothing(tmp_path):
         (["--set", "conveyor"], "FIELD.PATH=VALUE"),
         (["--jobs", "0", "--duration", "nan"], "--duration nan"),
     ):
-        done = subprocess.run(
-            [sys.executable, "-m", "fleet", "sweep", "assembly_line", *extra, "--out", str(tmp_path / "out")],
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+        code, _, stderr = fleet_in_process(["sweep", "assembly_line", *extra, "--out", str(tmp_path / "out")])
+        assert code == 2 and says in stderr and len(stderr.strip().splitlines()) == 1, stderr
     assert not (tmp_path / "out" / "runs").exists()
