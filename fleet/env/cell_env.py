@@ -19,7 +19,7 @@ from pettingzoo import ParallelEnv
 from coordinator.geometry import ArmGeometry
 from coordinator.guard import DEFAULT_MARGIN_M, CollisionGuard
 from fleet.common.scene_loading import load_checked_scene
-from fleet.env.actions import EnvActions
+from fleet.env.actions import JointActions, choice_rewards
 from fleet.env.allocate_mode import TaskChooser
 from fleet.env.camera_views import EnvCameras, chosen_cameras
 from fleet.env.choice_steps import run_on_to_a_choice
@@ -47,7 +47,7 @@ OBSERVE = ("cell", "choices")
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
-class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
+class CellParallelEnv(EnvObservations, ParallelEnv):
     """Arms `arm_0 ... arm_{n-1}` of a scene, each an agent."""
 
     metadata = {"name": "clawfleet_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
@@ -121,24 +121,17 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
             {a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents}
         )
         self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
-        self._still = {a: np.zeros(n) for a, n in self._dof.items()}  # the joint velocity target of every action
-        self._arms_of_model: dict[str, list[str]] = {}  # the agents of each robot model, in agent order
-        for a in self.possible_agents:
-            self._arms_of_model.setdefault(self.world.arms[a].spec.uid, []).append(a)
-        self.translators = (
-            {}
-            if action_mode == "allocate"
-            else {  # by model: all its arms' actions in one pass
-                uid: ActionTranslator(self.world.arms[arms[0]].spec, [placements[a] for a in arms], action_mode)
-                for uid, arms in self._arms_of_model.items()
-            }
-        )
         self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "allocate" else None
         self.actuator = None
         if distributed:
             from fleet.env.distributed import RemoteActuators  # the bus only when asked for
 
             self.actuator = RemoteActuators(scene, n_arms, self.possible_agents, action_mode)
+        self.joint_actions = (
+            None
+            if action_mode == "allocate"
+            else JointActions(self.world, self.possible_agents, placements, action_mode, self.actuator)
+        )
         self.monitor = None
         self.monitor_port = monitor_port
         self.np_random = np.random.default_rng()
@@ -151,12 +144,14 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
 
     # --- spaces -----------------------------------------------------------------------
 
-    def _translator(self, agent: str) -> ActionTranslator:
-        return self.translators[self.world.arms[agent].spec.uid]
+    @property
+    def translators(self) -> dict[str, ActionTranslator]:
+        """The continuous action modes' translators, one per robot model (none in allocate mode)."""
+        return self.joint_actions.translators if self.joint_actions is not None else {}
 
     def joint_targets(self, agent: str) -> np.ndarray:
         """The arm joint targets an agent's actions have reached (continuous action modes)."""
-        return self._translator(agent).q_target[self._arms_of_model[self.world.arms[agent].spec.uid].index(agent)]
+        return self.joint_actions.joint_targets(agent)
 
     # --- episode ------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -174,9 +169,8 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
         snapshot = (options or {}).get("snapshot")
         moment = start_from_snapshot(self, snapshot, feeder_seed) if snapshot is not None else None
         start_q = {a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents}
-        for uid, translator in self.translators.items():
-            translator.reset(np.array([start_q[a] for a in self._arms_of_model[uid]]))
-        self._commanded_opening = {a: 1.0 for a in self.possible_agents}
+        if self.joint_actions is not None:
+            self.joint_actions.reset(start_q)
         if self.actuator is not None:
             self.actuator.reset(start_q)
         if self.chooser is not None:
@@ -212,6 +206,13 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
             self.render()
         return observations, rewards, terminations, truncations, infos
 
+    def _act(self, actions: dict) -> tuple[dict[str, bool], dict[str, float]]:
+        """This step's actions applied: the allocate mode's choices, or the joint actions."""
+        if self.chooser is not None:
+            self._choice_results = self.chooser.choose(actions, self._options)
+            return {}, {}
+        return self.joint_actions.apply(actions) if self.agents else ({}, {})
+
     def _step_once(self, actions: dict) -> tuple[dict, dict, tuple]:
         """One env period: the actions applied, the world stepped; each agent's reward and info, and what the
         observations are made of (separations, tools, joints, targets)."""
@@ -228,7 +229,10 @@ class CellParallelEnv(EnvActions, EnvObservations, ParallelEnv):
         joints = self._joints()
         separation, tools = self._separations(joints), self._tools()
         targets = {a: self.scenario.target(a, self.world) for a in self.agents} if self.chooser is None else {}
-        rewards, successes = self._task_rewards(tools, targets)
+        if self.chooser is None:
+            rewards, successes = self.scenario.progress(self.world, tools, targets)
+        else:
+            rewards, successes = choice_rewards(self.chooser, self.scenario.book.net_gain(), self.agents)
         team = sum(successes.values()) / max(1, len(self.agents))
         infos = {}
         for a in self.agents:

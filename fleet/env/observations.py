@@ -46,7 +46,9 @@ class EnvObservations:
     def action_space(self, agent: str) -> gymnasium.spaces.Space:
         if self.action_mode == "allocate":
             return gymnasium.spaces.Discrete(SLOTS + 1)  # 0: take nothing new; k: the k-th choice
-        return gymnasium.spaces.Box(-1.0, 1.0, shape=(self._translator(agent).action_size,), dtype=np.float32)
+        return gymnasium.spaces.Box(
+            -1.0, 1.0, shape=(self.joint_actions.translator(agent).action_size,), dtype=np.float32
+        )
 
     def _joints(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Every arm's joint positions and velocities now (read once a step: observations and separations share
@@ -101,7 +103,7 @@ class EnvObservations:
                 extra = [self.chooser.features(a)]
             else:
                 target = targets[a] if targets else self.scenario.target(a, self.world)
-                own = [q[:n], dq[:n], [self._commanded_opening[a]], tools[a], target]
+                own = [q[:n], dq[:n], [self.joint_actions.commanded_opening[a]], tools[a], target]
                 extra = []
             vector = np.concatenate([*own, *others, [min(separation[a], SEPARATION_CAP_M)], *extra], dtype=np.float32)
             out[a] = self._masked(a, np.minimum(np.maximum(vector, -OBS_LIMIT, out=vector), OBS_LIMIT, out=vector))
