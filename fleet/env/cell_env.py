@@ -106,8 +106,18 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
         self._build_cell(action_mode, distributed, scene, n_arms, monitor_port)
         chosen = chosen_cameras(self.scene.cameras, cameras)
         self.camera_obs = bool(chosen)  # images in the observations; rgb_array alone renders the scene's cameras
-        shown = chosen or (self.scene.cameras if render_mode == "rgb_array" else [])
+        self._shown_cameras = shown = chosen or (self.scene.cameras if render_mode == "rgb_array" else [])
         self.cameras = EnvCameras(self.world, shown, self.possible_agents) if shown else None
+
+    def use_world(self, world: World) -> None:
+        """A new world (an episode from a snapshot is built afresh) handed to everything that drives or sees it."""
+        self.world = world
+        if self.chooser is not None:
+            self.chooser.world = world
+        if self.joint_actions is not None:
+            self.joint_actions.world = world
+        if self.cameras is not None:  # its render mirror copies this world's bodies
+            self.cameras = EnvCameras(world, self._shown_cameras, self.possible_agents)
 
     def _build_cell(
         self, action_mode: str, distributed: bool, scene: str, n_arms: int | None, monitor_port: int

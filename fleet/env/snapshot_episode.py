@@ -142,9 +142,7 @@ def start_from_snapshot(env, option: object, feeder_seed: int) -> LineMoment:
     path = pick_snapshot(option, env.np_random)
     # a world built afresh: PhysX put back into a world that has run keeps contact caches a fresh one has not, and
     # one seed must give one episode
-    env.world = World(env.scene)
-    if env.chooser is not None:
-        env.chooser.world = env.world
+    env.use_world(World(env.scene))
     moment = read_moment(path, env.world, list(env.possible_agents))
     restore_world(env.world, moment)
     env.world.reseed_feeders(feeder_seed)

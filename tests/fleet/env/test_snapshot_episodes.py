@@ -100,7 +100,10 @@ def test_a_joint_level_episode_starts_where_the_line_was(line_snapshot):
     env.reset(seed=0, options={"snapshot": path})
     world_as_the_line_had_it(env, states, parts)
     for _ in range(20):
-        env.step({a: np.zeros(env.action_space(a).shape) for a in env.agents})
+        env.step({a: np.full(env.action_space(a).shape, 0.5) for a in env.agents})
+    for a in env.possible_agents:  # the actions drive the episode's own world, built afresh from the snapshot
+        n = env.world.arms[a].spec.arm_dof
+        np.testing.assert_allclose(env.world.arms[a].drive_targets()[:n], env.joint_targets(a), atol=1e-9)
 
 
 def test_a_snapshot_of_another_cell_or_for_another_scenario_is_refused(line_snapshot, tmp_path):
