@@ -11,8 +11,11 @@ the world's packed start and draws the episode from the seed, so a seed repeats 
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 
+import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv
 
@@ -30,13 +33,13 @@ from fleet.env.limits import (
     SEPARATION_CAP_M,
     TEAM_WEIGHT,
 )
-from fleet.env.observations import EnvObservations
+from fleet.env.observations import EnvObserver, ObservationSettings
 from fleet.env.scenarios import SCENARIOS, Scenario, make_scenario
 from fleet.env.snapshot_episode import resume_chooser, start_from_snapshot
 from fleet.sim.render import require_render
 from fleet.sim.world import World
 from robots.frames import yaw_transform
-from robots.policy_actions import CONTINUOUS_MODES, ActionTranslator
+from robots.policy_actions import CONTINUOUS_MODES
 
 ACTION_MODES = (*CONTINUOUS_MODES, "allocate")
 ALLOCATE_SCENARIOS = ("handover", "line")  # tasks whose parts make ledger tasks to choose from
@@ -47,7 +50,7 @@ OBSERVE = ("cell", "choices")
 DEFAULT_SCENE = {"handover": "handover"}  # other tasks: sorting_line
 
 
-class CellParallelEnv(EnvObservations, ParallelEnv):
+class CellParallelEnv(ParallelEnv):
     """Arms `arm_0 ... arm_{n-1}` of a scene, each an agent."""
 
     metadata = {"name": "clawfleet_v0", "render_modes": list(RENDER_MODES), "is_parallelizable": True}
@@ -104,20 +107,27 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
             self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
             self.ticks_per_step = 1
         self._build_cell(action_mode, distributed, scene, n_arms, monitor_port)
+        self._build_views(cameras, ObservationSettings(observe, action_mode, mask_in_observation, False))
+
+    def _build_views(self, cameras: bool | list, settings: ObservationSettings) -> None:
+        """The cameras asked for (and those rgb_array renders), and the observer of the cell's agents."""
         chosen = chosen_cameras(self.scene.cameras, cameras)
         self.camera_obs = bool(chosen)  # images in the observations; rgb_array alone renders the scene's cameras
-        self._shown_cameras = shown = chosen or (self.scene.cameras if render_mode == "rgb_array" else [])
+        self._shown_cameras = chosen or (self.scene.cameras if self.render_mode == "rgb_array" else [])
+        shown = self._shown_cameras
         self.cameras = EnvCameras(self.world, shown, self.possible_agents) if shown else None
+        settings = dataclasses.replace(settings, camera_obs=self.camera_obs)
+        parts = (self.world, self.guard, self.scenario, self.chooser, self.joint_actions, self.cameras)
+        self.observer = EnvObserver(settings, self.possible_agents, *parts)
 
     def use_world(self, world: World) -> None:
         """A new world (an episode from a snapshot is built afresh) handed to everything that drives or sees it."""
-        self.world = world
-        if self.chooser is not None:
-            self.chooser.world = world
-        if self.joint_actions is not None:
-            self.joint_actions.world = world
+        self.world = self.observer.world = world
+        for part in (self.chooser, self.joint_actions):
+            if part is not None:
+                part.world = world
         if self.cameras is not None:  # its render mirror copies this world's bodies
-            self.cameras = EnvCameras(world, self._shown_cameras, self.possible_agents)
+            self.cameras = self.observer.cameras = EnvCameras(world, self._shown_cameras, self.possible_agents)
 
     def _build_cell(
         self, action_mode: str, distributed: bool, scene: str, n_arms: int | None, monitor_port: int
@@ -154,14 +164,24 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
 
     # --- spaces -----------------------------------------------------------------------
 
-    @property
-    def translators(self) -> dict[str, ActionTranslator]:
-        """The continuous action modes' translators, one per robot model (none in allocate mode)."""
-        return self.joint_actions.translators if self.joint_actions is not None else {}
-
     def joint_targets(self, agent: str) -> np.ndarray:
         """The arm joint targets an agent's actions have reached (continuous action modes)."""
         return self.joint_actions.joint_targets(agent)
+
+    @functools.cache
+    def observation_space(self, agent: str) -> gymnasium.spaces.Space:
+        return self.observer.observation_space(agent)
+
+    @functools.cache
+    def action_space(self, agent: str) -> gymnasium.spaces.Space:
+        return self.observer.action_space(agent)
+
+    def action_mask(self, agent: str) -> np.ndarray:
+        return self.observer.action_mask(agent)  # allocate mode: 1 where an action chooses something real now
+
+    def state(self) -> np.ndarray:
+        """Everything for a centralised critic (`EnvObserver.state`)."""
+        return self.observer.state(started=bool(self.agents or self.cycles))
 
     # --- episode ------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -174,7 +194,7 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
         self.world.reseed_feeders(feeder_seed)
         self.agents = list(self.possible_agents)
         self.cycles = 0
-        self.scenario.home_tool = self._tools()
+        self.scenario.home_tool = self.observer.tools()
         self.scenario.reset(self.world, self.np_random)
         snapshot = (options or {}).get("snapshot")
         moment = start_from_snapshot(self, snapshot, feeder_seed) if snapshot is not None else None
@@ -188,7 +208,7 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
             if moment is not None:
                 resume_chooser(self.chooser, moment)
         self._options = self.chooser.choices() if self.chooser else {}
-        observations = self._observe()  # places the guard's arms, which the human render draws
+        observations = self.observer.observe(self.agents)  # places the guard's arms, which the human render draws
         if self.render_mode == "human":
             self.render()
         infos = {a: {"success": False, "collision": False} for a in self.agents}
@@ -209,7 +229,7 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
         done = self.cycles >= self.max_cycles
         terminations = {a: False for a in self.agents}
         truncations = {a: done for a in self.agents}
-        observations = self._observe(*seen)
+        observations = self.observer.observe(self.agents, *seen)
         if done:
             self.agents = []
         if self.render_mode == "human":
@@ -236,33 +256,16 @@ class CellParallelEnv(EnvObservations, ParallelEnv):
                 self.chooser.report()
         self.cycles += 1
         touching = {name for pair in self.world.inter_arm_contacts() for name in pair}
-        joints = self._joints()
-        separation, tools = self._separations(joints), self._tools()
+        joints = self.observer.joints()
+        separation, tools = self.observer.separations(joints), self.observer.tools()
         targets = {a: self.scenario.target(a, self.world) for a in self.agents} if self.chooser is None else {}
         if self.chooser is None:
             rewards, successes = self.scenario.progress(self.world, tools, targets)
         else:
             rewards, successes = choice_rewards(self.chooser, self.scenario.book.net_gain(), self.agents)
-        team = sum(successes.values()) / max(1, len(self.agents))
-        infos = {}
-        for a in self.agents:
-            near_miss, at_limit = separation[a] < DEFAULT_MARGIN_M, limit_hits.get(a, False)
-            rewards[a] = float(
-                rewards[a]
-                + TEAM_WEIGHT * team
-                - (NEAR_MISS_PENALTY if near_miss else 0.0)
-                - (CONTACT_PENALTY if a in touching else 0.0)
-                - (LIMIT_PENALTY if at_limit else 0.0)
-                - effort.get(a, 0.0)
-            )
-            infos[a] = {
-                "success": successes[a],
-                "collision": a in touching,
-                "near_miss": near_miss,
-                "separation_m": min(separation[a], SEPARATION_CAP_M),
-                "joint_limit": at_limit,
-            }
-            if self.chooser is None:
+        infos = shaped_outcomes(self.agents, rewards, successes, separation, touching, limit_hits, effort)
+        if self.chooser is None:
+            for a in self.agents:
                 infos[a]["distance_m"] = math.dist(tools[a], targets[a])
         if self.chooser is not None:
             for a, what in self._choice_results.items():
@@ -346,3 +349,36 @@ def check_options(
         raise ValueError("max_cycles must be at least 1")
     if not control_hz > 0:
         raise ValueError("control_hz must be positive")
+
+
+def shaped_outcomes(
+    agents: list[str],
+    rewards: dict[str, float],
+    successes: dict[str, bool],
+    separation: dict[str, float],
+    touching: set[str],
+    limit_hits: dict[str, bool],
+    effort: dict[str, float],
+) -> dict[str, dict]:
+    """One period's task rewards shaped in place (the team's successes shared; near misses, contacts, joint limits
+    and effort charged) and each agent's info."""
+    team = sum(successes.values()) / max(1, len(agents))
+    infos = {}
+    for a in agents:
+        near_miss, at_limit = separation[a] < DEFAULT_MARGIN_M, limit_hits.get(a, False)
+        rewards[a] = float(
+            rewards[a]
+            + TEAM_WEIGHT * team
+            - (NEAR_MISS_PENALTY if near_miss else 0.0)
+            - (CONTACT_PENALTY if a in touching else 0.0)
+            - (LIMIT_PENALTY if at_limit else 0.0)
+            - effort.get(a, 0.0)
+        )
+        infos[a] = {
+            "success": successes[a],
+            "collision": a in touching,
+            "near_miss": near_miss,
+            "separation_m": min(separation[a], SEPARATION_CAP_M),
+            "joint_limit": at_limit,
+        }
+    return infos

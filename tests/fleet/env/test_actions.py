@@ -19,7 +19,7 @@ def test_each_model_s_arms_move_by_their_own_actions_and_a_silent_arm_holds():
         actions = {a: rng.uniform(-0.5, 0.5, env.action_space(a).shape).astype(np.float32) for a in acting}
         env.step(actions)
         for a in acting:
-            translator = env.translators[env.world.arms[a].spec.uid]  # one per robot model
+            translator = env.joint_actions.translators[env.world.arms[a].spec.uid]  # one per robot model
             expected = np.clip(before[a] + MAX_DELTA_RAD * actions[a][:-1], translator.lower, translator.upper)
             np.testing.assert_allclose(env.joint_targets(a), expected, atol=1e-6)
         silent = env.possible_agents[2]

@@ -26,11 +26,11 @@ def test_choice_stepping_passes_them_too(scenario):
 def test_ee_delta_moves_the_claw_the_way_it_is_told():
     penv = parallel_env(n_arms=1, max_cycles=100, action_mode="ee_delta")
     penv.reset(seed=0)
-    start = penv._tools()["arm_0"]
+    start = penv.observer.tools()["arm_0"]
     up = np.array([0.0, 0.0, 1.0, 1.0], np.float32)  # claw up at full speed, gripper open
     for _ in range(10):
         penv.step({"arm_0": up})
-    moved = penv._tools()["arm_0"] - start
+    moved = penv.observer.tools()["arm_0"] - start
     assert moved[2] > 0.06  # about 10 steps x 1 cm, less the drives' lag
     assert np.linalg.norm(moved[:2]) < 0.02
 
