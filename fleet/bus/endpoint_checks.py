@@ -86,9 +86,10 @@ def check_connect(ep: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
                 s.settimeout(timeout_s)
                 s.connect(host)
         elif protocol in TCP_CARRIED and port is not None:
-            _addresses(ep, "--connect", host, port, socket.SOCK_STREAM)
             with socket.create_connection((host, port), timeout=timeout_s):
                 pass
+    except socket.gaierror as exc:  # before OSError, of which it is one
+        raise EndpointError(f"--connect {ep}: no such host {host!r} ({exc.strerror})") from None
     except TimeoutError:
         raise EndpointError(f"--connect {ep}: no answer within {timeout_s:g} s") from None
     except OSError as exc:

@@ -50,8 +50,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     recording = Recording(args.file)
     if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
-    check_bus_flags(args, run_id=args.run_id or recording.run_id)
-    keys = Keys(args.run_id or recording.run_id)
+    run_id = args.run_id or recording.run_id
+    check_bus_flags(args, run_id=run_id)
+    keys = Keys(run_id)
     stop = StopFlag(watch_parent=False)
     endpoints = BusEndpoints.from_args(args)
     if endpoints.listen or endpoints.config_file:

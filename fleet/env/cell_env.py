@@ -11,7 +11,6 @@ the world's packed start and draws the episode from the seed, so a seed repeats 
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 
@@ -107,16 +106,14 @@ class CellParallelEnv(ParallelEnv):
             self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
             self.ticks_per_step = 1
         self._build_cell(action_mode, distributed, scene, n_arms, monitor_port)
-        self._build_views(cameras, ObservationSettings(observe, action_mode, mask_in_observation, False))
+        self._build_views(cameras, observe, mask_in_observation)
 
-    def _build_views(self, cameras: bool | list, settings: ObservationSettings) -> None:
+    def _build_views(self, cameras: bool | list, observe: str, mask_in_observation: bool) -> None:
         """The cameras asked for (and those rgb_array renders), and the observer of the cell's agents."""
-        chosen = chosen_cameras(self.scene.cameras, cameras)
-        self.camera_obs = bool(chosen)  # images in the observations; rgb_array alone renders the scene's cameras
-        self._shown_cameras = chosen or (self.scene.cameras if self.render_mode == "rgb_array" else [])
-        shown = self._shown_cameras
+        chosen = chosen_cameras(self.scene.cameras, cameras)  # images in the observations
+        self._shown_cameras = shown = chosen or (self.scene.cameras if self.render_mode == "rgb_array" else [])
         self.cameras = EnvCameras(self.world, shown, self.possible_agents) if shown else None
-        settings = dataclasses.replace(settings, camera_obs=self.camera_obs)
+        settings = ObservationSettings(observe, self.action_mode, mask_in_observation, camera_obs=bool(chosen))
         parts = (self.world, self.guard, self.scenario, self.chooser, self.joint_actions, self.cameras)
         self.observer = EnvObserver(settings, self.possible_agents, *parts)
 
@@ -140,7 +137,6 @@ class CellParallelEnv(ParallelEnv):
         self.guard = CollisionGuard(
             {a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents}
         )
-        self._dof = {a: self.world.arms[a].spec.arm_dof for a in self.possible_agents}
         self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "allocate" else None
         self.actuator = None
         if distributed:
@@ -198,7 +194,7 @@ class CellParallelEnv(ParallelEnv):
         self.scenario.reset(self.world, self.np_random)
         snapshot = (options or {}).get("snapshot")
         moment = start_from_snapshot(self, snapshot, feeder_seed) if snapshot is not None else None
-        start_q = {a: self.world.arms[a].qpos()[: self._dof[a]] for a in self.possible_agents}
+        start_q = {a: self.world.arms[a].qpos()[: self.observer.dof[a]] for a in self.possible_agents}
         if self.joint_actions is not None:
             self.joint_actions.reset(start_q)
         if self.actuator is not None:
@@ -267,7 +263,7 @@ class CellParallelEnv(ParallelEnv):
         if self.chooser is None:
             for a in self.agents:
                 infos[a]["distance_m"] = math.dist(tools[a], targets[a])
-        if self.chooser is not None:
+        else:
             for a, what in self._choice_results.items():
                 infos[a]["choice"] = what
             self._options = self.chooser.choices()
