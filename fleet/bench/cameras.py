@@ -9,10 +9,13 @@ pipelines) is timed apart.
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import yaml
 
 from fleet.bench.physics import populated_sorting_world
 from fleet.sim.cameras.rig import CameraRig
@@ -88,6 +91,7 @@ class EnvCameraRow:
     arms: int
     size_px: int
     steps: int
+    shadows: bool
     without_s: float
     with_s: float
 
@@ -118,25 +122,47 @@ def wrist_cameras(arms: int, size_px: int) -> list[dict]:
     ]
 
 
-def bench_env_cameras(arms: int = 4, size_px: int = 64, steps: int = 200, seed: int = 0) -> EnvCameraRow:
-    """The env's `reach` with random actions, without cameras and with an RGB-D wrist camera on every arm."""
+def scene_file(folder: Path, arms: int, cameras: list[Camera], shadows: bool) -> Path:
+    """The sorting line with `arms` arms and `cameras`, its light casting shadows or not: a scene file in `folder`."""
+    from fleet.common.scene_loading import load_checked_scene
+
+    scene = load_checked_scene("sorting_line", arms=arms)
+    appearance = scene.appearance.model_copy(update={"shadows": shadows})
+    data = scene.model_copy(update={"cameras": cameras, "appearance": appearance})
+    path = folder / "sorting_line_bench.yaml"
+    path.write_text(yaml.safe_dump(data.model_dump(mode="json", exclude={"randomised"})))
+    return path
+
+
+def bench_env_cameras(
+    arms: int = 4, size_px: int = 64, steps: int = 200, seed: int = 0, shadows: bool = True
+) -> EnvCameraRow:
+    """The env's `reach` with random actions, without cameras and with an RGB-D wrist camera on every arm (its
+    light casting shadows, or not)."""
     from fleet.env.cell_env import CellParallelEnv  # the env only for this row
 
     timings = []
-    for cameras in (False, wrist_cameras(arms, size_px)):
-        env = CellParallelEnv(n_arms=arms, scenario="reach", max_cycles=steps, cameras=cameras)
-        rng = np.random.default_rng(seed)
-        env.reset(seed=seed)
-        actions = [
-            {a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents}
-            for _ in range(steps)
-        ]
-        start = time.perf_counter()
-        for act in actions:
-            env.step(act)
-        timings.append(time.perf_counter() - start)
-        env.close()
-    return EnvCameraRow(arms, size_px, steps, *timings)
+    with tempfile.TemporaryDirectory() as folder:
+        scene = str(scene_file(Path(folder), arms, [], shadows))
+        for cameras in (False, wrist_cameras(arms, size_px)):
+            timings.append(_time_env(CellParallelEnv(scene, arms, "reach", max_cycles=steps, cameras=cameras), seed))
+    return EnvCameraRow(arms, size_px, steps, shadows, *timings)
+
+
+def _time_env(env, seed: int) -> float:
+    """Seconds `env` takes for its `max_cycles` steps of seeded random actions (then closed)."""
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    actions = [
+        {a: rng.uniform(-1, 1, env.action_space(a).shape).astype(np.float32) for a in env.possible_agents}
+        for _ in range(env.max_cycles)
+    ]
+    start = time.perf_counter()
+    for act in actions:
+        env.step(act)
+    elapsed = time.perf_counter() - start
+    env.close()
+    return elapsed
 
 
 @dataclass(frozen=True)
@@ -147,6 +173,7 @@ class LineCameraRow:
     images: str
     rate_hz: float
     sim_seconds: float
+    shadows: bool
     loop_without_s: float
     loop_with_s: float
     render_s: float
@@ -165,26 +192,22 @@ class LineCameraRow:
 
 
 def bench_line_cameras(
-    size: tuple[int, int], images: str = "rgbd", rate_hz: float = 5.0, arms: int = 4, sim_seconds: float = 30.0
+    size: tuple[int, int],
+    images: str = "rgbd",
+    rate_hz: float = 5.0,
+    arms: int = 4,
+    sim_seconds: float = 30.0,
+    shadows: bool = True,
 ) -> LineCameraRow:
     """The sorting line in lockstep (all its processes), without a camera and with one over its arms (the
     `views` overhead, `size`, `images`, `rate_hz`), one after the other with the same seed: the sim's loop wall time
     of each and what the camera's frames cost."""
-    import tempfile
-    from pathlib import Path
-
-    import yaml
-
-    from fleet.common.scene_loading import load_checked_scene
     from fleet.run.launcher import Launcher, RunOptions
 
-    scene = load_checked_scene("sorting_line", arms=arms)
     camera = views(1, size, IMAGES[images])[0].model_copy(update={"name": "bench", "rate_hz": rate_hz})
     loops, report = [], {}
     with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "sorting_line_camera.yaml"
-        data = scene.model_copy(update={"cameras": [camera]}).model_dump(mode="json", exclude={"randomised"})
-        path.write_text(yaml.safe_dump(data))
+        path = scene_file(Path(folder), arms, [camera], shadows)
         for cameras in (None, "bench"):
             options = RunOptions(scene=str(path), duration_s=sim_seconds, run_id="benchcam", cameras=cameras)
             with Launcher(options) as launcher:
@@ -194,6 +217,6 @@ def bench_line_cameras(
             loops.append(summary["loop_wall_seconds"])
             report = summary.get("cameras") or report
     return LineCameraRow(
-        arms, size[0], size[1], images, rate_hz, sim_seconds, loops[0], loops[1],
+        arms, size[0], size[1], images, rate_hz, sim_seconds, shadows, loops[0], loops[1],
         report["render_s"], report["encode_s"], report["frames"],
     )  # fmt: skip

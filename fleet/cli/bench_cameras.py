@@ -26,7 +26,9 @@ def cmd_bench_cameras(args: argparse.Namespace) -> int:
 
     try:
         if args.env:
-            return print_env_row(bench_env_cameras(args.env_arms, args.env_size, args.env_steps), args.json)
+            return print_env_row(
+                bench_env_cameras(args.env_arms, args.env_size, args.env_steps, shadows=args.shadows), args.json
+            )
         if args.line:
             return print_line_rows(args)
         return print_frame_rows(args)
@@ -64,10 +66,12 @@ def print_line_rows(args: argparse.Namespace) -> int:
     table = Table("camera", "frames", "loop s without", "loop s with", "with / without", "render s", "added / render")
     rows = []
     for size in args.sizes:
-        row = bench_line_cameras(size, args.images, args.line_rate, args.line_arms, args.line_seconds)
+        row = bench_line_cameras(
+            size, args.images, args.line_rate, args.line_arms, args.line_seconds, shadows=args.shadows
+        )
         rows.append(row)
         table.add_row(
-            f"{row.width_px}x{row.height_px} {row.images} {row.rate_hz:g} Hz",
+            f"{row.width_px}x{row.height_px} {row.images} {row.rate_hz:g} Hz{'' if row.shadows else ', no shadows'}",
             str(row.frames),
             f"{row.loop_without_s:.1f}",
             f"{row.loop_with_s:.1f}",
@@ -86,7 +90,7 @@ def print_env_row(row, as_json: bool) -> int:
     table.add_row(
         "reach",
         str(row.arms),
-        f"{row.size_px}x{row.size_px} rgbd",
+        f"{row.size_px}x{row.size_px} rgbd{'' if row.shadows else ', no shadows'}",
         f"{row.agent_steps_per_s_without:.0f}",
         f"{row.agent_steps_per_s:.0f}",
         f"{row.agent_steps_per_s / row.agent_steps_per_s_without:.2f}",
@@ -116,5 +120,11 @@ def add_parser(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--env-arms", type=int, default=4, choices=range(1, 13), metavar="N")
     b.add_argument("--env-size", type=int, default=64, help="the wrist cameras' width and height (px)")
     b.add_argument("--env-steps", type=int, default=200)
+    b.add_argument(
+        "--no-shadows",
+        dest="shadows",
+        action="store_false",
+        help="--env and --line: the scene's light casts no shadows (appearance.shadows: false)",
+    )
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_cameras)

@@ -112,6 +112,12 @@ class SimServer(SimLockstep):
         self.cameras = None  # with `--cameras`: a `fleet.sim.cameras.line_cameras.LineCameras`
         self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
 
+    def use_world(self, world: World) -> None:
+        """Go on in `world`, a world of the same scene built afresh (after a snapshot); its state is put in after."""
+        self.world = world
+        if self.cameras is not None:
+            self.cameras.rig.use_world(world)
+
     def close(self) -> None:
         if self.cameras is not None:
             self.cameras.close()
@@ -155,11 +161,11 @@ class SimServer(SimLockstep):
         t1 = time.perf_counter()
         started = self.started
         self._take_answers_due()
-        t2 = time.perf_counter()
+        waited = t2 = time.perf_counter()
         if self.cameras is not None:  # the world as this tick's states show it, rendered while the controllers wait
             self.cameras.tick(self.world.tick)  # for them (not while they compute their answers to them)
-            clock["cameras"] += time.perf_counter() - t2
             t2 = time.perf_counter()
+            clock["cameras"] += t2 - waited
         self.outputs.states(due, parts)
         t3 = time.perf_counter()
         self._step_physics()
@@ -169,7 +175,7 @@ class SimServer(SimLockstep):
             self.stats.contacts(self.world.inter_arm_contacts(), self.world.sim_time_s)
         t5 = time.perf_counter()
         clock["publish"] += (t1 - t0) + (t3 - t2)
-        clock["wait" if started else "startup"] += t2 - t1  # until every process answered once: start-up
+        clock["wait" if started else "startup"] += waited - t1  # until every process answered once: start-up
         clock["physics"] += t4 - t3
         clock["contacts"] += t5 - t4
 

@@ -48,6 +48,7 @@ SIM_LIVE = (
     "controllers",
     "coordinator",
     "count_contacts",
+    "cameras",
 )
 
 
@@ -272,7 +273,7 @@ class SimSnapshots:
         self._stage("world")
         own = capture_sim(sim)
         self._stage("sim")
-        sim.world = world
+        sim.use_world(world)
         restore_sim(sim, own)
         self._stage("restore")
         return zlib.compress(own, 1)

@@ -17,6 +17,7 @@ from tests.fleet.test_run import assert_nothing_left, run_lines_together
 pytestmark = pytest.mark.slow  # whole runs
 
 SECONDS = 2.0
+SNAPSHOT_S = 1.0
 
 
 def ros_images(path: Path) -> dict[str, list]:
@@ -34,16 +35,29 @@ def ros_images(path: Path) -> dict[str, list]:
 
 @pytest.fixture(scope="module")
 def two_runs(tmp_path_factory):
-    """pick_cell (overhead and wrist cameras), twice with one seed, each recorded."""
+    """pick_cell (overhead and wrist cameras), twice with one seed, each recorded, each with a snapshot at 1 s."""
     folder = tmp_path_factory.mktemp("cameras")
     options = [
-        {"scene": "pick_cell", "duration_s": SECONDS, "seed": 3, "cameras": "all", "record": str(folder / f"{k}.mcap")}
+        {
+            "scene": "pick_cell",
+            "duration_s": SECONDS,
+            "seed": 3,
+            "cameras": "all",
+            "record": str(folder / f"{k}.mcap"),
+            "snapshot_at": (SNAPSHOT_S,),
+            "snapshot_dir": str(folder / f"snapshots_{k}"),
+        }
         for k in (0, 1)
     ]
     runs = run_lines_together(*options)
     for summary, launcher in runs:
         assert_nothing_left(summary, launcher.endpoint)
     return [(summary, Path(o["record"])) for (summary, _), o in zip(runs, options)]
+
+
+def stamped(messages: list) -> dict[float, bytes]:
+    """Image messages' bytes by their sim time stamp."""
+    return {m.header.stamp.sec + m.header.stamp.nanosec * 1e-9: bytes(m.data) for m in messages}
 
 
 def test_each_camera_makes_its_frames_at_its_rate_in_sim_time(two_runs):
@@ -106,3 +120,24 @@ def test_the_report_makes_a_contact_sheet_and_an_animation_of_each_camera(two_ru
         assert sheet.width == 4 * size[0] and np.asarray(sheet).std() > 10
         animation = Image.open(tmp_path / "report" / f"{camera}.gif")
         assert animation.size == size and animation.n_frames >= 2  # (identical frames in a row are merged)
+
+
+def test_a_line_with_cameras_snapshots_and_its_restore_sees_what_the_whole_run_saw(two_runs, tmp_path):
+    from tests.fleet.test_run import run_line
+
+    summary, path = two_runs[0]
+    assert summary["snapshots_failed"] == [] and len(summary["snapshots"]) == 1, "the renderer is no part of a state"
+    restored, launcher = run_line(
+        scene="pick_cell",
+        restore_from=summary["snapshots"][0],
+        duration_s=SECONDS,  # the sim time to end at
+        cameras="all",
+        record=str(tmp_path / "restored.mcap"),
+    )
+    assert_nothing_left(restored, launcher.endpoint)
+    assert restored["status"] == "ok", restored.get("error")
+    assert restored["cameras"]["frames_by_camera"] == {"overhead": 5, "wrist": 10}  # 1.0 s to 2.0 s
+    whole, after = ros_images(path), ros_images(tmp_path / "restored.mcap")
+    for topic in ("/overhead/image_raw/compressed", "/wrist/depth/image_raw", "/wrist/segmentation/image_raw"):
+        later = {t: data for t, data in stamped(whole[topic]).items() if t >= SNAPSHOT_S - 1e-6}
+        assert stamped(after[topic]) == later, topic

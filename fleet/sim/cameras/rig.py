@@ -38,6 +38,12 @@ class MountedCamera:
         )
         self.place()
 
+    def use_world(self, world: World) -> None:
+        """Ride on the same link of `world`'s arm (a world of the same scene built afresh)."""
+        if self.link is not None:
+            links = {link.name: link for link in world.arms[self.model.arm].articulation.get_links()}
+            self.link = links[self.model.link]
+
     def place(self) -> sapien.Pose:
         """Move the camera to where its mount is now; its body's pose in the world."""
         pose = self.local if self.link is None else self.link.entity_pose * self.local
@@ -58,9 +64,18 @@ class CameraRig:
 
     def __init__(self, world: World, cameras: list[Camera] | None = None) -> None:
         self.world = world
-        self.mirror = RenderMirror(world, render_system())
         chosen = world.scene_model.cameras if cameras is None else cameras
+        largest_px = max((max(c.width_px, c.height_px) for c in chosen), default=1)
+        self.mirror = RenderMirror(world, render_system(), largest_px)
         self.cameras = {c.name: MountedCamera(c, self.mirror, world) for c in chosen}
+
+    def use_world(self, world: World) -> None:
+        """Film `world` from now on (a world of the same scene built afresh, as a line goes on in after a snapshot):
+        the render scene and its compiled pipelines are kept."""
+        self.mirror.use_world(world)
+        for camera in self.cameras.values():
+            camera.use_world(world)
+        self.world = world
 
     def due(self, tick: int | None = None) -> list[str]:
         """The cameras with a frame due at `tick` (default: the world's tick now)."""
