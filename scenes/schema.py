@@ -273,30 +273,43 @@ class Randomisation(Strict):
     """Visual: the standard deviation of a shift drawn for each camera's position and aim (metres)."""
 
 
+LatencyMs = Annotated[float, Field(ge=0.0, le=2000.0)]
+JitterMs = Annotated[float, Field(ge=0.0, le=1000.0)]
+LossProbability = Annotated[float, Field(ge=0.0, lt=1.0)]
+
+
 class LinkFaults(Strict):
     """Faults on one bus link between the sim and a process, each way: a delay (mean and jitter, milliseconds; the
     jitter is the standard deviation of a normal draw, clipped at zero, so messages can overtake each other) and a
     loss probability per message."""
 
-    latency_ms: float = Field(0.0, ge=0.0, le=2000.0)
-    jitter_ms: float = Field(0.0, ge=0.0, le=1000.0)
-    loss: float = Field(0.0, ge=0.0, lt=1.0)
+    latency_ms: LatencyMs = 0.0
+    jitter_ms: JitterMs = 0.0
+    loss: LossProbability = 0.0
 
     @property
     def active(self) -> bool:
         return self.latency_ms > 0 or self.jitter_ms > 0 or self.loss > 0
 
 
-class Network(LinkFaults):
-    """Network faults on the bus (`fleet/bus/faults.py`): the defaults for every link, and per link (an arm's name or
-    `coordinator`) a replacement. In lockstep they act in sim time and repeat exactly for a seed; in realtime in wall
-    time."""
+class Network(Strict):
+    """Network faults on the bus (`fleet/bus/faults.py`): the faults of every link (`latency_ms`, `jitter_ms`,
+    `loss`, as `LinkFaults`), and per link (an arm's name or `coordinator`) a replacement. In lockstep they act in
+    sim time and repeat exactly for a seed; in realtime in wall time."""
 
+    latency_ms: LatencyMs = 0.0
+    jitter_ms: JitterMs = 0.0
+    loss: LossProbability = 0.0
     links: dict[str, LinkFaults] = {}
+
+    @property
+    def every_link(self) -> LinkFaults:
+        """The faults of every link that `links` does not replace."""
+        return LinkFaults(latency_ms=self.latency_ms, jitter_ms=self.jitter_ms, loss=self.loss)
 
     def link(self, name: str) -> LinkFaults:
         """The faults on the link to `name` (an arm or `coordinator`)."""
-        return self.links.get(name, LinkFaults(latency_ms=self.latency_ms, jitter_ms=self.jitter_ms, loss=self.loss))
+        return self.links.get(name, self.every_link)
 
 
 ImageKind = Literal["rgb", "depth", "segmentation"]
@@ -377,8 +390,8 @@ class Camera(Strict):
 class Appearance(Strict):
     """How the cameras' scene looks (never the physics, nor a part's colour as stations sort by it): one directional
     light (`light_direction_xyz`, pointing from the light; `light_intensity`) over an even `ambient` light, whether
-    it casts shadows (about twice a small frame's render time on a CPU, docs/cameras.md), the belt's grey and a
-    factor on every part's colour in images."""
+    it casts shadows (SAPIEN draws them for every camera's frame: about twice a small frame's render time on a CPU,
+    docs/cameras.md), the belt's grey and a factor on every part's colour in images."""
 
     light_direction_xyz: Vec3 = (0.3, 0.4, -1.0)
     light_intensity: float = Field(0.75, ge=0.0, le=5.0)

@@ -248,7 +248,6 @@ SINGLE_USE_BASES_LEFT = {
     "Launcher": {"NodeCommands", "RunSummary", "Supervision"},
     "SimServer": {"SimLockstep"},
     "PickPlaceSkill": {"EStopWait", "MotionGrants", "PickGeometry", "PickPlans", "SkillRecovery"},
-    "Network": {"LinkFaults"},
 }
 
 
