@@ -174,6 +174,7 @@ class LineCameraRow:
     rate_hz: float
     sim_seconds: float
     shadows: bool
+    encoding: str
     loop_without_s: float
     loop_with_s: float
     render_s: float
@@ -198,6 +199,7 @@ def bench_line_cameras(
     arms: int = 4,
     sim_seconds: float = 30.0,
     shadows: bool = True,
+    encoding: str = "png",
 ) -> LineCameraRow:
     """The sorting line in lockstep (all its processes), without a camera and with one over its arms (the
     `views` overhead, `size`, `images`, `rate_hz`), one after the other with the same seed: the sim's loop wall time
@@ -209,7 +211,9 @@ def bench_line_cameras(
     with tempfile.TemporaryDirectory() as folder:
         path = scene_file(Path(folder), arms, [camera], shadows)
         for cameras in (None, "bench"):
-            options = RunOptions(scene=str(path), duration_s=sim_seconds, run_id="benchcam", cameras=cameras)
+            options = RunOptions(
+                scene=str(path), duration_s=sim_seconds, run_id="benchcam", cameras=cameras, camera_encoding=encoding
+            )
             with Launcher(options) as launcher:
                 summary = launcher.run()
             if summary["status"] != "ok":
@@ -217,6 +221,6 @@ def bench_line_cameras(
             loops.append(summary["loop_wall_seconds"])
             report = summary.get("cameras") or report
     return LineCameraRow(
-        arms, size[0], size[1], images, rate_hz, sim_seconds, shadows, loops[0], loops[1],
+        arms, size[0], size[1], images, rate_hz, sim_seconds, shadows, encoding, loops[0], loops[1],
         report["render_s"], report["encode_s"], report["frames"],
     )  # fmt: skip

@@ -67,11 +67,12 @@ def print_line_rows(args: argparse.Namespace) -> int:
     rows = []
     for size in args.sizes:
         row = bench_line_cameras(
-            size, args.images, args.line_rate, args.line_arms, args.line_seconds, shadows=args.shadows
+            size, args.images, args.line_rate, args.line_arms, args.line_seconds, args.shadows, args.line_encoding
         )
         rows.append(row)
         table.add_row(
-            f"{row.width_px}x{row.height_px} {row.images} {row.rate_hz:g} Hz{'' if row.shadows else ', no shadows'}",
+            f"{row.width_px}x{row.height_px} {row.images} {row.rate_hz:g} Hz {row.encoding}"
+            f"{'' if row.shadows else ', no shadows'}",
             str(row.frames),
             f"{row.loop_without_s:.1f}",
             f"{row.loop_with_s:.1f}",
@@ -117,6 +118,9 @@ def add_parser(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--line-arms", type=int, default=4, choices=range(1, 13), metavar="N")
     b.add_argument("--line-rate", type=float, default=5.0, help="the line camera's rate (sim Hz)")
     b.add_argument("--line-seconds", type=float, default=30.0, help="sim seconds of each line")
+    b.add_argument(
+        "--line-encoding", choices=("png", "jpeg", "raw"), default="png", help="the line's --camera-encoding"
+    )
     b.add_argument("--env-arms", type=int, default=4, choices=range(1, 13), metavar="N")
     b.add_argument("--env-size", type=int, default=64, help="the wrist cameras' width and height (px)")
     b.add_argument("--env-steps", type=int, default=200)
