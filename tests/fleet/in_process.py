@@ -4,6 +4,7 @@ left running) start one."""
 
 import contextlib
 import io
+import sys
 
 from fleet.cli import main
 
@@ -14,6 +15,11 @@ def fleet_in_process(argv: list[str]) -> tuple[int, str, str]:
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
         try:
             code = main(argv)
-        except SystemExit as exc:  # argparse's own refusals
+        except SystemExit as exc:  # argparse's own refusals, and sys.exit("message") as Python's exit says it
             code = exc.code
+            if code is None:
+                code = 0
+            elif not isinstance(code, int):
+                print(code, file=sys.stderr)
+                code = 1
     return code, out.getvalue(), err.getvalue()
