@@ -40,7 +40,7 @@ def commands(folder: Path, ray_head: str | None) -> dict[str, list[str]]:
         )
     out["sb3_choice_allocator"] = example(
         "sb3_choice_allocator.py",
-        *("--timesteps", "128", "--n-steps", "64", "--max-cycles", "60", "--episodes", "1"),
+        *("--timesteps", "128", "--n-steps", "64", "--max-cycles", "30", "--episodes", "1"),
         *("--imitate", "optimal", "--dagger-rounds", "2", "--dagger-episodes", "1"),
         *("--save", str(folder / "learned.pt2")),
     )

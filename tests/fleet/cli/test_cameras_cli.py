@@ -5,12 +5,15 @@ import json
 import os
 
 from tests.fleet.cli.test_cli import fleet
+from tests.fleet.in_process import fleet_in_process
 
 
 def test_the_camera_benchmark_times_real_frames():
-    result = fleet("bench", "cameras", "--sizes", "16x16", "32x24", "--cameras", "1", "--frames", "2", "--json")
-    assert result.returncode == 0, result.stderr
-    rows = json.loads(result.stdout.strip().splitlines()[-1])
+    code, stdout, stderr = fleet_in_process(
+        ["bench", "cameras", "--sizes", "16x16", "32x24", "--cameras", "1", "--frames", "2", "--json"]
+    )
+    assert code == 0, stderr
+    rows = json.loads(stdout.strip().splitlines()[-1])
     assert [(r["width_px"], r["height_px"], r["cameras"]) for r in rows] == [(16, 16, 1), (32, 24, 1)]
     assert all(r["render_s"] > 0 and r["frames"] == 2 for r in rows)
 
@@ -24,14 +27,14 @@ def test_no_vulkan_device_is_one_line_naming_what_to_install():
 
 
 def test_a_wrong_size_is_one_line():
-    result = fleet("bench", "cameras", "--sizes", "big")
-    assert result.returncode == 2 and "give a size as WIDTHxHEIGHT" in result.stderr
+    code, _, stderr = fleet_in_process(["bench", "cameras", "--sizes", "big"])
+    assert code == 2 and "give a size as WIDTHxHEIGHT" in stderr
 
 
 def test_run_with_a_camera_the_scene_lacks_is_one_line_before_anything_starts():
-    result = fleet("run", "sorting_line", "--duration", "1", "--cameras", "wrist")
-    assert result.returncode == 2
-    assert result.stderr == "fleet: error: --cameras 'wrist': the scene's cameras are overhead (or all)\n"
+    code, _, stderr = fleet_in_process(["run", "sorting_line", "--duration", "1", "--cameras", "wrist"])
+    assert code == 2
+    assert stderr == "fleet: error: --cameras 'wrist': the scene's cameras are overhead (or all)\n"
 
 
 def test_run_with_cameras_and_no_vulkan_device_is_one_line_before_anything_starts():

@@ -27,6 +27,7 @@ from fleet.record.recorder import Recorder
 from fleet.record.replay import Player
 from fleet.record.report import series_from_recording, write_report
 from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.in_process import fleet_in_process
 from tests.fleet.record.tf_tree import up_to_root
 
 pytestmark = pytest.mark.slow  # whole runs, processes or a browser: `-m "not slow"` leaves them out
@@ -296,11 +297,9 @@ def test_a_truncated_or_foreign_file_is_one_line_and_exit_2(recorded, tmp_path, 
         (tmp_path / "none.mcap", "no such recording"),
     ):
         extra = ["--out", str(tmp_path / "out")] if command == "report" else []
-        done = subprocess.run(
-            [sys.executable, "-m", "fleet", command, str(bad), *extra], capture_output=True, text=True, timeout=60
-        )
-        assert done.returncode == 2, done.stderr
-        assert says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+        code, _, stderr = fleet_in_process([command, str(bad), *extra])
+        assert code == 2, stderr
+        assert says in stderr and len(stderr.strip().splitlines()) == 1, stderr
 
 
 def test_fleet_record_taps_a_line_already_running_and_finishes_the_file_on_ctrl_c(tmp_path):
