@@ -245,7 +245,7 @@ SINGLE_USE_BASES_LEFT = {
     "Ledger": {"LedgerAccounts", "LedgerBuffers", "LedgerHolds", "LedgerStations"},
     "ArmController": {"ControllerOrders"},
     "CoordinatorNode": {"CoordinatorBeats"},
-    "Launcher": {"NodeCommands", "RunSummary", "Supervision"},
+    "Launcher": {"Supervision"},
     "SimServer": {"SimLockstep"},
     "PickPlaceSkill": {"EStopWait", "MotionGrants", "PickGeometry", "PickPlans", "SkillRecovery"},
 }

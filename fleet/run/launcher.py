@@ -17,11 +17,9 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import zenoh
 
-from coordinator.ledger import PIPELINE_DEFAULT
 from fleet.bus.bus_config import BusConfigError, BusConfigSet, write_run_bus
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
@@ -29,70 +27,20 @@ from fleet.bus.messages import Progress, RespawnRequest, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, open_session
 from fleet.common.processes import read_when_written, stop_children
 from fleet.common.scene_loading import load_checked_scene
-from fleet.ros.names import DEFAULT_MAX_RATE_HZ
 from fleet.run.disk_watch import room_problem, run_disks
 from fleet.run.hosts import Hosts, load_hosts
 from fleet.run.node_commands import NodeCommands
 from fleet.run.node_factory import NodeFactory, adopting, kept_factory
 from fleet.run.run_folder import close_run_folder, make_run_folder
 from fleet.run.run_node import (
-    HUNG_COORDINATOR_S,
     RECORDER_GRACE_S,
     STOP_GRACE_S,
     Node,
 )
-from fleet.run.run_summary import RunSummary, count_problems
+from fleet.run.run_options import RunOptions
+from fleet.run.run_summary import RunEnd, RunSummary, count_problems
 from fleet.run.supervision import Supervision
 from scenes.schema import Scene
-
-
-@dataclass(frozen=True)
-class RunOptions:
-    """What `fleet run` was asked for."""
-
-    scene: str = "assembly_line"
-    arms: int | None = None
-    duration_s: float = 120.0
-    mode: str = "lockstep"
-    speed: float = 1.0
-    seed: int | None = None
-    respawn: bool = False
-    hung_after_s: float = HUNG_COORDINATOR_S  # with `respawn`: a live coordinator silent this long (wall) is replaced
-    realtime_priority: bool = False
-    run_id: str = "line"
-    listen: str | None = None
-    connect: tuple[str, ...] = ()
-    zenoh_config: str | None = None
-    keep_logs: bool = False
-    allocator: str = "optimal"
-    pipeline: bool = PIPELINE_DEFAULT  # fixtures take their next part's arm before they are ready (held at the edge)
-    monitor: bool = False
-    monitor_host: str = "127.0.0.1"
-    monitor_port: int = 8080
-    rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
-    ros2_domain: int | None = None  # publish the line's ROS 2 topics natively (rmw_zenoh) in this ROS domain
-    ros2_arms: tuple[str, ...] | None = None  # the arms an outside ROS 2 stack (login `ros_client`) may drive; all
-    ros_max_rate_hz: float = DEFAULT_MAX_RATE_HZ  # the ROS front ends' topics at most this often (wall); 0: no cap
-    record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
-    cameras: str | None = None  # the scene's cameras to render: all, or names joined by commas (None: no rendering)
-    camera_encoding: str = "png"  # how RGB images travel (`fleet.bus.images`)
-    record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
-    bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
-    # without a bus config, listen or connect endpoints or a Zenoh config, a run makes its own secure bus on loopback
-    # (TLS, logins, access control: `write_run_bus`); `insecure` opts out (any local process may then command it)
-    insecure: bool = False
-    hosts: str | None = None  # a hosts file: the network namespace each node starts in (`fleet/run/hosts.py`)
-    # nodes forked from one process that imported once (`fleet/run/node_factory.py`), not exec'd each
-    fork_nodes: bool = True
-    latency_ms: float | None = None  # network faults on every link (None: the scene's)
-    jitter_ms: float | None = None
-    loss: float | None = None
-    snapshot_at: tuple[float, ...] = ()  # sim seconds at which the sim takes a snapshot of the run (lockstep)
-    snapshot_every_s: float | None = None
-    snapshot_dir: str | None = None  # where snapshots are written
-    restore_from: str | None = None  # a snapshot every node starts from (`scene` is then the one it holds)
-    reseed: int | None = None  # with `restore_from`: the feeders draw their arrivals from this seed from there on
-    incarnations: tuple[tuple[str, int], ...] = ()  # with `restore_from`: each node starts in this incarnation
 
 
 class RunError(RuntimeError):
@@ -112,7 +60,7 @@ def placement(bus_config: str | None, hosts: str | None, scene: Scene) -> tuple[
     return bus, load_hosts(hosts, ["sim", "coordinator", *arms, "monitor", "recorder"]) if hosts else None
 
 
-class Launcher(RunSummary, Supervision, NodeCommands):
+class Launcher(Supervision):
     """Use as a context manager: `with Launcher(options) as run: summary = run.run()`; leaving stops every node."""
 
     def __init__(
@@ -145,6 +93,7 @@ class Launcher(RunSummary, Supervision, NodeCommands):
             ros = self.options.ros2_domain, self.options.ros2_arms
             self.bus = write_run_bus(self.dir / "bus", arms, free_loopback_port(), *ros)
         self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
+        self.commands = NodeCommands(options, self.scene, self.dir, self.bus, self.hosts, self.endpoint)
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
         # forks the nodes; its own is closed after they all stopped
@@ -183,19 +132,20 @@ class Launcher(RunSummary, Supervision, NodeCommands):
                 self.factory, self._own_factory = NodeFactory(self.dir / "node_factory.log"), True
             elif self.factory is not None and not self.factory.adopt:
                 adopting(+1)  # a kept factory's nodes come here if it dies under this run
-            sim = self.sim_node()
+            commands = self.commands
+            sim = commands.sim_node()
             self.nodes = [self._start(sim)]
             if self.options.record:  # beside the sim: it waits for the sim's spool while both import
-                self.recorder = self._start(self.recorder_node())
+                self.recorder = self._start(commands.recorder_node())
             if not self.endpoint or self.bus is not None:  # the sim listens: clients may connect (a client that
-                self.endpoint = self._await_endpoint(sim)  # finds no router gives up)
-            self.nodes += self.client_nodes()
+                self.endpoint = commands.endpoint = self._await_endpoint(sim)  # finds no router gives up)
+            self.nodes += commands.client_nodes()
             if self.options.monitor:
-                self.nodes.append(self.monitor_node())
+                self.nodes.append(commands.monitor_node())
             if self.options.rosbridge_port is not None:
-                self.nodes.append(self.rosbridge_node())
+                self.nodes.append(commands.rosbridge_node())
             if self.options.ros2_domain is not None:
-                self.nodes.append(self.ros2_node())
+                self.nodes.append(commands.ros2_node())
             for node in self.nodes[1:]:
                 self._start(node)
         except BaseException:
@@ -250,13 +200,13 @@ class Launcher(RunSummary, Supervision, NodeCommands):
             self.stop_all()
         if error:
             self.keep_dir = True
-        summary = self.summary(time.monotonic() - started, error)
+        summary = RunSummary(self.run_end()).summary(time.monotonic() - started, error)
         problems = count_problems(summary)
         if problems and summary["status"] == "ok":  # every part is counted once, or the run says so
             summary["status"] = "error"
             summary["error"] = f"the run's counts do not add up: {'; '.join(problems)}"
         if self.recorder is not None:
-            summary["recording"] = self.finish_recording(summary)
+            summary["recording"] = self.commands.finish_recording(self.recorder, summary, self.on_message)
             summary["processes"].append(self.recorder.record())
             summary["wall_seconds"] = round(time.monotonic() - started, 3)  # until the file is whole
         return summary
@@ -285,4 +235,19 @@ class Launcher(RunSummary, Supervision, NodeCommands):
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.interrupted = signal.Signals(signum).name
 
-    # --- the summary ----------------------------------------------------------------
+    def run_end(self) -> RunEnd:
+        """What this launcher knows of the run as it ends, for its summary."""
+        return RunEnd(
+            scene=self.scene,
+            seed=self.seed,
+            mode=self.options.mode,
+            secure_bus=self.bus is not None and self.bus.secure,
+            nodes=list(self.nodes),
+            drops=self.drops,
+            last_progress=self.last_progress,
+            last_sim_time_s=self.last_sim_time_s,
+            interrupted=self.interrupted,
+            respawns=self.respawns,
+            respawn_requests=list(self.respawn_requests),
+            server_urls=dict(self.server_urls),
+        )

@@ -6,10 +6,13 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from coordinator.cadence import moves_need_grants
+from fleet.bus.bus_config import BusConfigSet
 from fleet.common.processes import stop_children, write_text_atomically
+from fleet.run.hosts import Hosts
 from fleet.run.run_node import (
     COORDINATOR_RESPAWN_TIMEOUT_S,
     RECORDER_GRACE_S,
@@ -17,10 +20,25 @@ from fleet.run.run_node import (
     Node,
     read_report,
 )
+from fleet.run.run_options import RunOptions
+from scenes.schema import Scene
 
 
 class NodeCommands:
-    """The processes a run starts and their arguments: one concern of `Launcher`, kept apart."""
+    """The processes a run starts and their arguments, in the run's folder `dir`; `endpoint` is where the sim
+    listens (given, or set once the sim said where)."""
+
+    def __init__(
+        self,
+        options: RunOptions,
+        scene: Scene,
+        dir: Path,
+        bus: BusConfigSet | None,
+        hosts: Hosts | None,
+        endpoint: str = "",
+    ) -> None:
+        self.options, self.scene, self.seed, self.dir = options, scene, scene.seed, dir
+        self.bus, self.hosts, self.endpoint = bus, hosts, endpoint
 
     def _bus_args(self, listen: bool, node: str = "") -> list[str]:
         o = self.options
@@ -169,27 +187,27 @@ class NodeCommands:
         ]
         return Node("recorder", "recorder", argv, report, log, idle=True)
 
-    def finish_recording(self, summary: dict) -> dict:
-        """Hand the recorder the summary and let it finish the file; what it reports."""
+    def finish_recording(self, recorder: Node, summary: dict, on_message: Callable[[str], None]) -> dict:
+        """Hand the `recorder` the summary and let it finish the file; what it reports."""
         write_text_atomically(str(self.dir / "summary.json"), json.dumps(summary, sort_keys=True))
-        stop_children([self.recorder.child], RECORDER_GRACE_S)
-        report = self._read(self.recorder)
+        stop_children([recorder.child], RECORDER_GRACE_S)
+        report = read_report(recorder.report)
         if not report:
-            self.on_message(
-                f"the recorder did not finish {self.options.record}: {self.recorder.log_tail() or 'no output'}; "
+            on_message(
+                f"the recorder did not finish {self.options.record}: {recorder.log_tail() or 'no output'}; "
                 "writing the recording again from the run's spool"
             )
-            report = self._record_spool_once()
+            report = self._record_spool_once(recorder, on_message)
         if not report:
             summary["status"] = "error"
             summary["error"] = f"the recording {self.options.record} could not be written (see the messages above)"
         return report
 
-    def _record_spool_once(self) -> dict:
+    def _record_spool_once(self, recorder: Node, on_message: Callable[[str], None]) -> dict:
         """A new recorder writes the whole spool (the sim appended every message to it) and exits: what it reports,
         or {} if it could not."""
         report, log = self.dir / "recorder_again.json", self.dir / "recorder_again.log"
-        argv = [a for a in self.recorder.argv if a != "--hold"]
+        argv = [a for a in recorder.argv if a != "--hold"]
         argv[argv.index("--report") + 1] = str(report)
         with open(log, "wb") as out:
             try:
@@ -199,5 +217,5 @@ class NodeCommands:
         written = read_report(report)
         if not written:
             tail = log.read_text(errors="replace").strip().splitlines()[-1:] if log.exists() else []
-            self.on_message(f"the recording could not be written again: {tail[0] if tail else 'no output'}")
+            on_message(f"the recording could not be written again: {tail[0] if tail else 'no output'}")
         return written

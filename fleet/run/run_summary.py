@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+from fleet.bus.codec import DropCounter
+from fleet.bus.messages import Progress
 from fleet.run.run_node import (
     Node,
     read_report,
 )
+from scenes.schema import Scene
 
 
 def count_problems(summary: dict) -> list[str]:
@@ -20,11 +25,40 @@ def count_problems(summary: dict) -> list[str]:
     ]
 
 
-class RunSummary:
-    """The run summary from the nodes' reports: one concern of `Launcher`, kept apart."""
+@dataclass(frozen=True)
+class RunEnd:
+    """What the launcher knows of a run when it ends, beside the nodes' reports: the summary's input."""
 
-    def _read(self, node: Node) -> dict:
-        return read_report(node.report)
+    scene: Scene
+    seed: int | None
+    mode: str
+    secure_bus: bool
+    nodes: list[Node]
+    drops: DropCounter  # what the launcher itself heard and refused
+    last_progress: Progress | None  # the line's counts as last heard (the summary's where the coordinator died)
+    last_sim_time_s: float
+    interrupted: str  # the signal that stopped the run ("" if none did)
+    respawns: int
+    respawn_requests: list[dict]
+    server_urls: dict[str, str]
+
+
+def _report_of(nodes: list[Node], role: str) -> dict:
+    """The report of the node of `role` (empty where it wrote none, or there is none)."""
+    node = next((n for n in nodes if n.role == role), None)
+    return read_report(node.report) if node is not None else {}
+
+
+class RunSummary:
+    """The run summary of a run that ended: its nodes' reports (read once, each by its role) merged with what the
+    launcher knows (`RunEnd`)."""
+
+    def __init__(self, end: RunEnd) -> None:
+        self.end = end
+        self.sim, self.coord = _report_of(end.nodes, "sim"), _report_of(end.nodes, "coordinator")
+        self.controllers = [read_report(n.report) for n in end.nodes if n.role == "controller"]
+        monitors = [n for n in end.nodes if n.role == "monitor"]
+        self.monitor = read_report(monitors[0].report) if monitors else None
 
     @staticmethod
     def _capacity(capacity: dict | None, of_run: dict | None, completed: int, sim_s: float) -> dict:
@@ -90,50 +124,48 @@ class RunSummary:
 
     def summary(self, wall_s: float, error: str) -> dict:
         """The run summary: the nodes' reports merged (a dead node's figures from what was last heard of it)."""
-        sim, coord = self._read(self.nodes[0]), self._read(self.nodes[1])
-        controllers = [self._read(n) for n in self.nodes if n.role == "controller"]
-        monitor = next((self._read(n) for n in self.nodes if n.role == "monitor"), None)
-        heard = self.last_progress
-        sim_s = sim.get("sim_seconds", max(self.last_sim_time_s, heard.sim_time_s if heard else 0.0))
-        status = "error" if error else ("interrupted" if self.interrupted else "ok")
+        end, sim, coord = self.end, self.sim, self.coord
+        heard = end.last_progress
+        sim_s = sim.get("sim_seconds", max(end.last_sim_time_s, heard.sim_time_s if heard else 0.0))
+        status = "error" if error else ("interrupted" if end.interrupted else "ok")
         return (
             {
-                "scene": self.scene.name,
-                "arms": len(self.scene.arms),
-                "arm_ids": [a.name for a in self.scene.arms],
-                "mode": self.options.mode,
-                "seed": self.seed,
-                "randomised": dict(self.scene.randomised),
+                "scene": end.scene.name,
+                "arms": len(end.scene.arms),
+                "arm_ids": [a.name for a in end.scene.arms],
+                "mode": end.mode,
+                "seed": end.seed,
+                "randomised": dict(end.scene.randomised),
                 "allocator": coord.get("allocator"),
                 "allocator_faults": coord.get("allocator_faults", {}),  # a plug-in's decisions greedy took instead
                 "pipeline": coord.get("pipeline"),
-                "bus": "secure" if self.bus is not None and self.bus.secure else "insecure",
+                "bus": "secure" if end.secure_bus else "insecure",
                 "status": status,
                 "error": error,
-                "stopped_by": self.interrupted or sim.get("stopped_by", ""),
+                "stopped_by": end.interrupted or sim.get("stopped_by", ""),
                 "sim_seconds": sim_s,
                 "wall_seconds": round(wall_s, 3),
                 "loop_wall_seconds": sim.get("loop_wall_seconds"),
                 "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
             }
-            | self._parts(sim, coord, sim_s)
-            | self._coordination(sim, coord, controllers)
-            | self._bus(sim, coord, controllers, monitor)
+            | self._parts(sim_s)
+            | self._coordination()
+            | self._bus()
             | {
                 "arms_lost": sim.get("arms_lost", []),
                 "arm_events": coord.get("arm_events", []),
-                "respawns": self.respawns,
+                "respawns": end.respawns,
                 "coordinator_takeover": coord.get("takeover"),
-                "respawn_requests": self.respawn_requests,
-                "monitor": None if monitor is None else {"url": self.server_urls.get("monitor", "")} | monitor,
+                "respawn_requests": end.respawn_requests,
+                "monitor": None if self.monitor is None else {"url": end.server_urls.get("monitor", "")} | self.monitor,
                 "unfinished_parts": coord.get("unfinished_parts", []),
-                "processes": [h for n in self.nodes for h in n.history] + [n.record() for n in self.nodes],
+                "processes": [h for n in end.nodes for h in n.history] + [n.record() for n in end.nodes],
             }
         )
 
-    def _parts(self, sim: dict, coord: dict, sim_s: float) -> dict:
+    def _parts(self, sim_s: float) -> dict:
         """Every part's fate counted, throughput, each arm's time and the line's bound."""
-        heard = self.last_progress
+        sim, coord, heard = self.sim, self.coord, self.end.last_progress
         if coord:
             counts = {k: coord.get(k, 0) for k in ("parts_completed", "parts_missed", "parts_failed")}
         else:  # the coordinator died: its last progress message is what is known
@@ -165,8 +197,9 @@ class RunSummary:
             "feeder_held_s": sim.get("feeder_held_s", {}),
         }
 
-    def _coordination(self, sim: dict, coord: dict, controllers: list[dict]) -> dict:
+    def _coordination(self) -> dict:
         """Contacts, separations, grants and the coordinator's timing."""
+        sim, coord = self.sim, self.coord
         return {
             "inter_arm_contacts": sim.get("inter_arm_contacts", 0),
             "contact_pairs": sim.get("contact_pairs", []),
@@ -181,15 +214,16 @@ class RunSummary:
             "tasks_reassigned": coord.get("tasks_reassigned", 0),
             "grant_requests_open": coord.get("grant_requests_open", {}),
             "held_at_station_s": coord.get("held_at_station_s", {}),
-            "lockstep_timeouts": self._lockstep_timeouts(coord, controllers),
+            "lockstep_timeouts": self._lockstep_timeouts(coord, self.controllers),
             "decision_wall_ms": coord.get("decision_wall_ms", {}),
         }
 
-    def _bus(self, sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:
+    def _bus(self) -> dict:
         """Goal results, the bus's faults, messages and round trips, and every node's dropped messages."""
+        sim, coord, controllers, monitor = self.sim, self.coord, self.controllers, self.monitor
         dropped = sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
         dropped += sum(c.get("dropped_messages", 0) for c in controllers) + (monitor or {}).get("dropped_messages", 0)
-        dropped += self.drops.total
+        dropped += self.end.drops.total
         return {
             "goal_results": sim.get("goal_results", {}),
             "network_faults": self._faults(sim.get("network_faults", {}), controllers),
@@ -199,7 +233,7 @@ class RunSummary:
             "round_trip_histogram": sim.get("round_trip_histogram"),
             "bus_messages_out": sim.get("messages_out", {}),
             "dropped_messages": dropped,
-            "refused_messages": self._refused(sim, coord, controllers, monitor),
+            "refused_messages": self._refused(),
             "bus_refused": sim.get("bus_refused"),
             "restored_from": sim.get("restored_from"),
             "snapshots": sim.get("snapshots", []),
@@ -216,9 +250,9 @@ class RunSummary:
             "cameras": sim.get("cameras"),
         }
 
-    def _refused(self, sim: dict, coord: dict, controllers: list[dict], monitor: dict | None) -> dict:
+    def _refused(self) -> dict:
         """Each node's refused messages by kind (`DropCounter.kinds`), only the nodes that refused any."""
-        reports = {"sim": sim, "coordinator": coord, "monitor": monitor or {}}
-        reports |= {c.get("arm", f"controller_{i}"): c for i, c in enumerate(controllers)}
-        reports["launcher"] = {"refused_messages": self.drops.kinds()}
+        reports = {"sim": self.sim, "coordinator": self.coord, "monitor": self.monitor or {}}
+        reports |= {c.get("arm", f"controller_{i}"): c for i, c in enumerate(self.controllers)}
+        reports["launcher"] = {"refused_messages": self.end.drops.kinds()}
         return {node: r["refused_messages"] for node, r in reports.items() if r.get("refused_messages")}

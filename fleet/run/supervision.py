@@ -13,6 +13,7 @@ from fleet.run.log_relay import LogRelay
 from fleet.run.run_node import (
     MAX_COORDINATOR_STARTS,
     Node,
+    read_report,
 )
 
 SERVERS = {"monitor": "the monitor", "rosbridge": "the rosbridge server", "ros2": "the ROS 2 publisher"}
@@ -150,7 +151,7 @@ class Supervision:
 
     def _sim_ended(self, sim: Node, code: int) -> str:
         """Why the run ends with the sim ("" for a clean end)."""
-        if code == 0 and self._read(sim).get("stopped_by", "").startswith("the coordinator did not answer"):
+        if code == 0 and read_report(sim.report).get("stopped_by", "").startswith("the coordinator did not answer"):
             return f"the sim stopped: the coordinator did not answer in the lockstep timeout; logs in {self.dir}"
         if code == 0:
             return ""

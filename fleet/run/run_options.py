@@ -1,0 +1,59 @@
+"""What `fleet run` is asked for: one value the launcher, the node commands and the front ends that start lines
+(sweeps, benchmarks, tests) share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from coordinator.ledger import PIPELINE_DEFAULT
+from fleet.ros.names import DEFAULT_MAX_RATE_HZ
+from fleet.run.run_node import HUNG_COORDINATOR_S
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """What `fleet run` was asked for."""
+
+    scene: str = "assembly_line"
+    arms: int | None = None
+    duration_s: float = 120.0
+    mode: str = "lockstep"
+    speed: float = 1.0
+    seed: int | None = None
+    respawn: bool = False
+    hung_after_s: float = HUNG_COORDINATOR_S  # with `respawn`: a live coordinator silent this long (wall) is replaced
+    realtime_priority: bool = False
+    run_id: str = "line"
+    listen: str | None = None
+    connect: tuple[str, ...] = ()
+    zenoh_config: str | None = None
+    keep_logs: bool = False
+    allocator: str = "optimal"
+    pipeline: bool = PIPELINE_DEFAULT  # fixtures take their next part's arm before they are ready (held at the edge)
+    monitor: bool = False
+    monitor_host: str = "127.0.0.1"
+    monitor_port: int = 8080
+    rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
+    ros2_domain: int | None = None  # publish the line's ROS 2 topics natively (rmw_zenoh) in this ROS domain
+    ros2_arms: tuple[str, ...] | None = None  # the arms an outside ROS 2 stack (login `ros_client`) may drive; all
+    ros_max_rate_hz: float = DEFAULT_MAX_RATE_HZ  # the ROS front ends' topics at most this often (wall); 0: no cap
+    record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
+    cameras: str | None = None  # the scene's cameras to render: all, or names joined by commas (None: no rendering)
+    camera_encoding: str = "png"  # how RGB images travel (`fleet.bus.images`)
+    record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
+    bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
+    # without a bus config, listen or connect endpoints or a Zenoh config, a run makes its own secure bus on loopback
+    # (TLS, logins, access control: `write_run_bus`); `insecure` opts out (any local process may then command it)
+    insecure: bool = False
+    hosts: str | None = None  # a hosts file: the network namespace each node starts in (`fleet/run/hosts.py`)
+    # nodes forked from one process that imported once (`fleet/run/node_factory.py`), not exec'd each
+    fork_nodes: bool = True
+    latency_ms: float | None = None  # network faults on every link (None: the scene's)
+    jitter_ms: float | None = None
+    loss: float | None = None
+    snapshot_at: tuple[float, ...] = ()  # sim seconds at which the sim takes a snapshot of the run (lockstep)
+    snapshot_every_s: float | None = None
+    snapshot_dir: str | None = None  # where snapshots are written
+    restore_from: str | None = None  # a snapshot every node starts from (`scene` is then the one it holds)
+    reseed: int | None = None  # with `restore_from`: the feeders draw their arrivals from this seed from there on
+    incarnations: tuple[tuple[str, int], ...] = ()  # with `restore_from`: each node starts in this incarnation
