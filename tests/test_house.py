@@ -244,7 +244,6 @@ SINGLE_USE_BASES_LEFT = {
     "Dispatcher": {"OutsideDrivers", "GrantAnswers", "DispatchReport", "TakeOver", "AllocatorViews"},
     "Ledger": {"LedgerAccounts", "LedgerBuffers", "LedgerHolds", "LedgerStations"},
     "ArmController": {"ControllerOrders"},
-    "CoordinatorNode": {"CoordinatorBeats"},
     "Launcher": {"Supervision"},
     "SimServer": {"SimLockstep"},
     "PickPlaceSkill": {"EStopWait", "MotionGrants", "PickGeometry", "PickPlans", "SkillRecovery"},

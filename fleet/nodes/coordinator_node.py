@@ -36,7 +36,7 @@ from coordinator.reach_cache import save_shared
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.history import HistoryUnavailable
 from fleet.bus.keys import Keys
-from fleet.bus.message_checks import Incarnations, TickClock, arm_state_problem, parts_problem
+from fleet.bus.message_checks import TickClock, arm_state_problem, parts_problem
 from fleet.bus.messages import (
     ArmState,
     ArmStatus,
@@ -49,7 +49,7 @@ from fleet.bus.messages import (
 )
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
-from fleet.nodes.coordinator_beats import CoordinatorBeats
+from fleet.nodes.controller_lives import ControllerLives, tell_lost
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
@@ -82,7 +82,7 @@ COORDINATOR_LIVE = (
 )
 
 
-class CoordinatorNode(CoordinatorBeats, SnapshotNode):
+class CoordinatorNode(SnapshotNode):
     """Decode, dispatch, publish: feed it with `poll()` in a loop; `report()` gives the coordinator's part of the
     run summary. Every decision is the `Dispatcher`'s; this node owns the bus, the wall clock (heartbeats,
     how long to wait for a decision's events) and the order counts of the protocol."""
@@ -116,7 +116,6 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             "status": Decoder(ArmStatus, self.drops),
             "roster": Decoder(Roster, self.drops),
         }
-        self.incarnations = Incarnations(from_roster=roster)  # which start of each controller to believe
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
         self.hold = Hold(coordinator_after_cut(scene.control_hz))  # from a snapshot's tick until its part is sent
@@ -127,20 +126,15 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             session.declare_subscriber(k, self.inbox)
             for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
         ]
-        self._heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
-        self._subs.append(session.declare_subscriber(keys.all_arms("status"), self._on_heartbeat_arrival))
+        # heartbeats stamped on arrival (`self.lives` looked up then: a restore puts in another)
+        self._subs.append(session.declare_subscriber(keys.all_arms("status"), lambda s: self.lives.arrived(s)))
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
         self._tick_pub = session.declare_publisher(keys.coord("tick"))
         self._progress_pub = session.declare_publisher(keys.coord("progress"))
         self._separation_pub = session.declare_publisher(keys.coord("separation"))
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
-        self.controller_incarnation: dict[str, int] = {}
-        self.heartbeat_at: dict[str, float] = {}
-        self._frame_at = time.monotonic()  # when the sim's last frame was read
-        self._rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
-        self.sim_lost: set[str] = set()  # arms whose controller the sim says it no longer hears (their latest state)
-        self._replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
+        self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
@@ -171,8 +165,8 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
         after this coordinator's, under load, and cost its arm); the line's bound is worked out again if the scene
         has a field set otherwise."""
         self.dispatcher.scene_changed()
-        self._frame_at = self._progress_at = time.monotonic()
-        self.heartbeat_at, self._heard_at = {}, {}
+        self._progress_at = time.monotonic()
+        self.lives.restart_clocks()
 
     def wait(self, timeout_s: float) -> None:
         """Sleep until a message arrives (heartbeat checks still run every `timeout_s`)."""
@@ -200,10 +194,10 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             elif leaf == "frame":
                 self._on_frame(msg)
             elif leaf == "roster":
-                self._on_roster(key, msg)
+                self.lives.on_roster(key, msg)
             else:
-                self._on_status(key, msg)
-        self._check_heartbeats()
+                self.lives.on_status(key, msg)
+        self.lives.check(self.heartbeat_timeout_s)
         self._decide_when_complete()
         self.snapshot_link.serve(lambda ask: self.events.seen >= ask.events, self.snapshot_part, self.restore_state)
         if time.monotonic() - self._progress_at > PROGRESS_PERIOD_S:
@@ -221,10 +215,10 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             return problem
         if leaf == "roster":
             return ""  # checked against the roster believed when it is heard (`_on_roster`)
-        return self.status_problem(key, msg)
+        return self.lives.status_problem(key, msg)
 
     def _on_frame(self, f: LineView) -> None:
-        self._frame_at = time.monotonic()
+        self.lives.frame_read()
         self.snapshot_link.expect(f.snapshot_tick)  # from that tick on, held until this node's part is sent
         for s in f.arms:
             self._on_state(s)
@@ -239,11 +233,7 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             self.dispatcher.arm_taken(s.arm)
         else:
             self.dispatcher.arm_let_go(s.arm)
-        if not s.lost:
-            self._rejoining.discard(s.arm)
-            self.sim_lost.discard(s.arm)
-        else:
-            self.sim_lost.add(s.arm)
+        lost = self.lives.on_sim_state(s.arm, s.lost)
         returned = self.dispatcher.on_arm(
             s.arm,
             np.asarray(s.q),
@@ -255,12 +245,12 @@ class CoordinatorNode(CoordinatorBeats, SnapshotNode):
             request_seq=s.request_seq,
             request=motion_request(s),
             acts_at_tick=s.next_tick + s.period_ticks,  # heard with its next state, answered a period later
-            lost=s.lost and s.arm not in self._rejoining,
-            silent_for_s=time.monotonic() - self._heard_at.get(s.arm, 0.0),
+            lost=lost,
+            silent_for_s=self.lives.silent_for_s(s.arm),
             gripper_q=np.asarray(s.gripper_q),
         )
         if returned is not None:
-            self._tell_lost(s.arm, "the sim stopped hearing its controller", returned)
+            tell_lost(s.arm, "the sim stopped hearing its controller", returned)
 
     def _on_parts(self, p: PartsState) -> None:
         self.dispatcher.on_parts(

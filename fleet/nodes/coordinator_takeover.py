@@ -70,7 +70,7 @@ def await_arms(node: CoordinatorNode, wait_s: float) -> tuple[dict[str, ArmStatu
             held.append((key, payload))
             leaf = key.rsplit("/", 1)[-1]
             msg = peek[leaf].decode(key, payload) if leaf in peek else None
-            if isinstance(msg, ArmStatus) and not node.status_problem(key, msg) and not not_finite(msg.place_xyz):
+            if isinstance(msg, ArmStatus) and not node.lives.status_problem(key, msg) and not not_finite(msg.place_xyz):
                 beats[msg.arm] = msg
             elif isinstance(msg, LineView) and not node.problem("frame", msg):
                 announced = {s.arm: s.assign_seq for s in msg.arms}

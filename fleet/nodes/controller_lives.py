@@ -1,0 +1,141 @@
+"""The coordinator's view of the controllers' lives: heartbeats, which incarnation of each controller to believe
+(the launcher's roster on a line it started), arms lost and rejoined, and orders an arm took that the coordinator
+never gave."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import zenoh
+
+from coordinator.dispatcher import Dispatcher
+from fleet.bus.codec import DropCounter
+from fleet.bus.keys import Keys
+from fleet.bus.message_checks import Incarnations, heartbeat_problem
+from fleet.bus.messages import ArmStatus, Roster
+
+
+class ControllerLives:
+    """Heartbeats and incarnations of the controllers of `arms`. It is handed the dispatcher (told of arms lost and
+    rejoined), the coordinator's drop counter and its order counts by arm (`assign_seq`, moved past an order an arm
+    took that was never given). Wall-clock stamps are this process's: `restart_clocks` after a restore."""
+
+    def __init__(
+        self, arms: list[str], dispatcher: Dispatcher, drops: DropCounter, assign_seq: dict[str, int], roster: bool
+    ) -> None:
+        self.arms = frozenset(arms)
+        self.dispatcher, self.drops, self.assign_seq = dispatcher, drops, assign_seq
+        self.incarnations = Incarnations(from_roster=roster)  # which start of each controller to believe
+        self.controller_incarnation: dict[str, int] = {}
+        self.heartbeat_at: dict[str, float] = {}  # arm -> wall time of its last heartbeat handled
+        self.heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
+        self.frame_at = time.monotonic()  # when the sim's last frame was read
+        self.rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
+        self.sim_lost: set[str] = set()  # arms whose controller the sim says it no longer hears (their latest state)
+        self.replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
+
+    def arrived(self, sample: zenoh.Sample) -> None:
+        """A heartbeat's arrival, stamped (a subscriber's callback): a coordinator busy planning must not mistake
+        queued heartbeats for silence."""
+        try:
+            self.heard_at[Keys.arm_of(str(sample.key_expr))] = time.monotonic()
+        except ValueError:
+            pass
+
+    def restart_clocks(self) -> None:
+        """Wall-clock stamps start afresh (after a restore): a heartbeat heard before is no silence now, and no
+        controller is judged before it beats again."""
+        self.frame_at = time.monotonic()
+        self.heartbeat_at, self.heard_at = {}, {}
+
+    def frame_read(self) -> None:
+        """The sim's frame was read now: the line is alive, so an arm's silence is the arm's."""
+        self.frame_at = time.monotonic()
+
+    def on_roster(self, key: str, roster: Roster) -> None:
+        problem = self.incarnations.roster_problem(roster)
+        if problem:
+            self.drops.drop(key, problem)
+        else:
+            self.incarnations.hear_roster(roster)
+
+    def status_problem(self, key: str, s: ArmStatus) -> str:
+        """Why a decoded heartbeat cannot be its controller's ("" if it can): numbers no controller sends, another
+        arm's, a replaced controller's, or the lost controller's own while the sim still does not hear it (a
+        controller that comes back answers the sim first; its heartbeats alone are no rejoin)."""
+        if s.arm not in self.arms:
+            return f"a heartbeat of no arm of this line ({s.arm!r})"
+        if Keys.arm_of(key) != s.arm:
+            return f"a heartbeat of {s.arm} on another arm's key"
+        if problem := heartbeat_problem(s):
+            return problem
+        if s.incarnation in self.replaced.get(s.arm, ()):
+            return f"a late heartbeat of a controller of {s.arm} already replaced"
+        lost_one = self.controller_incarnation.get(s.arm) if s.arm in self.dispatcher.lost else None
+        if s.incarnation == lost_one and s.arm in self.sim_lost:
+            return (
+                f"a heartbeat of {s.arm}'s lost controller (incarnation {s.incarnation}), which the sim does not hear"
+            )
+        return self.incarnations.problem(s.arm, s.incarnation) if self.incarnations.from_roster else ""
+
+    def on_status(self, key: str, s: ArmStatus) -> None:
+        """A heartbeat believed: its controller alive now (a new one, if a new incarnation: the old one was lost)."""
+        known = self.controller_incarnation.setdefault(s.arm, s.incarnation)
+        if known != s.incarnation:  # the first beat of a new controller: heard now (its arrival stamp may still
+            self.heard_at[s.arm] = max(self.heard_at.get(s.arm, 0.0), time.monotonic())  # be the old one's)
+        previous = self.heartbeat_at.get(s.arm)
+        self.heartbeat_at[s.arm] = self.heard_at.get(s.arm, time.monotonic())
+        if known != s.incarnation:  # restarted faster than the heartbeat timeout: still a loss
+            self.replaced.setdefault(s.arm, set()).add(known)
+            self.controller_incarnation[s.arm] = s.incarnation
+            if s.arm not in self.dispatcher.lost:
+                # silent since the old controller's last beat, where this coordinator heard one since it started
+                # or was restored (wall-clock stamps start afresh then: no figure rather than the clock's age)
+                silent = self.heartbeat_at[s.arm] - previous if previous is not None else 0.0
+                self.arm_lost(s.arm, "its controller restarted", silent)
+        if s.arm in self.dispatcher.lost:  # a respawned controller rejoined; the sim says so when it has heard it,
+            self.rejoining.add(s.arm)  # and its `lost` flag until then is not a second loss
+        self.dispatcher.arm_rejoined(s.arm)
+        self._check_orders_taken(key, s)
+
+    def on_sim_state(self, arm: str, lost: bool) -> bool:
+        """The sim's state of `arm` says whether it hears its controller; whether that counts as the arm lost (not
+        while a new controller that already beat is rejoining)."""
+        if lost:
+            self.sim_lost.add(arm)
+        else:
+            self.rejoining.discard(arm)
+            self.sim_lost.discard(arm)
+        return lost and arm not in self.rejoining
+
+    def silent_for_s(self, arm: str) -> float:
+        """Wall seconds since `arm`'s last heartbeat arrived."""
+        return time.monotonic() - self.heard_at.get(arm, 0.0)
+
+    def _check_orders_taken(self, key: str, s: ArmStatus) -> None:
+        """An arm that took an order numbered past the coordinator's count took one it never gave (a lie on the
+        assign key): counted, and the count moves past it so the coordinator's own next order is not refused as
+        old."""
+        if s.assign_seq > self.assign_seq[s.arm]:
+            self.drops.drop(key, f"{s.arm} took order {s.assign_seq}, which this coordinator did not give")
+            self.assign_seq[s.arm] = s.assign_seq
+
+    def check(self, timeout_s: float) -> None:
+        """An arm silent for `timeout_s` (wall) while the sim is still heard is lost. When the sim is silent too
+        (its loop ended and the line is being stopped), the silence is the line's, not the arm's."""
+        now = time.monotonic()
+        if now - self.frame_at > timeout_s:
+            return
+        for arm in self.heartbeat_at:
+            at = self.heard_at.get(arm, self.heartbeat_at[arm])
+            if arm not in self.dispatcher.lost and now - at > timeout_s:
+                self.arm_lost(arm, f"no heartbeat for {timeout_s} s", silent_for_s=now - at)
+
+    def arm_lost(self, arm: str, why: str, silent_for_s: float) -> None:
+        tell_lost(arm, why, self.dispatcher.arm_lost(arm, why, silent_for_s))
+
+
+def tell_lost(arm: str, why: str, returned: list[int]) -> None:
+    """Say on stderr that `arm` was lost and how many of its tasks went back to the pool."""
+    print(f"coordinator: arm {arm} lost ({why}); {len(returned)} task(s) back in the pool", file=sys.stderr, flush=True)
