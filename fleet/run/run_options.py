@@ -16,7 +16,7 @@ class RunOptions:
 
     scene: str = "assembly_line"
     arms: int | None = None
-    duration_s: float = 120.0
+    duration_s: float = 120.0  # the sim time the run ends at (a restored run too: `restore_options` adds its start)
     mode: str = "lockstep"
     speed: float = 1.0
     seed: int | None = None
