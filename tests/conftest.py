@@ -55,6 +55,7 @@ HEAVY = (
     # rendering on the CPU: lavapipe's threads take both cores (a first frame compiles for about 6 s); beside a
     # wall-time test an arm of its lockstep line was lost twice in clean-clone CI
     "tests/fleet/sim/test_cameras.py",
+    "tests/fleet/sim/test_camera_mirror.py",
     "tests/fleet/env/test_cameras.py",
     "tests/fleet/cli/test_cameras_cli.py",
     "tests/fleet/test_render.py",
