@@ -92,8 +92,8 @@ class Launcher(Supervision):
             arms = [a.name for a in self.scene.arms]
             ros = self.options.ros2_domain, self.options.ros2_arms
             self.bus = write_run_bus(self.dir / "bus", arms, free_loopback_port(), *ros)
-        self.endpoint = options.listen or ""  # without --listen the sim picks a free loopback port and says which
-        self.commands = NodeCommands(options, self.scene, self.dir, self.bus, self.hosts, self.endpoint)
+        # without --listen the sim picks a free loopback port and says which (`endpoint`, set once it has)
+        self.commands = NodeCommands(options, self.scene, self.dir, self.bus, self.hosts, options.listen or "")
         self.nodes: list[Node] = []
         self.recorder: Node | None = None  # started before the clients, stopped after the summary
         # forks the nodes; its own is closed after they all stopped
@@ -103,6 +103,11 @@ class Launcher(Supervision):
         self.drops = DropCounter()  # what the launcher heard and refused (malformed, or not true of this line)
         self.interrupted = ""
         self.keep_dir = options.keep_logs
+
+    @property
+    def endpoint(self) -> str:
+        """Where the sim listens ("" until it says, where it picks its own port)."""
+        return self.commands.endpoint
 
     @property
     def secure_by_default(self) -> bool:
@@ -138,7 +143,7 @@ class Launcher(Supervision):
             if self.options.record:  # beside the sim: it waits for the sim's spool while both import
                 self.recorder = self._start(commands.recorder_node())
             if not self.endpoint or self.bus is not None:  # the sim listens: clients may connect (a client that
-                self.endpoint = commands.endpoint = self._await_endpoint(sim)  # finds no router gives up)
+                commands.endpoint = self._await_endpoint(sim)  # finds no router gives up)
             self.nodes += commands.client_nodes()
             if self.options.monitor:
                 self.nodes.append(commands.monitor_node())

@@ -37,7 +37,7 @@ class NodeCommands:
         hosts: Hosts | None,
         endpoint: str = "",
     ) -> None:
-        self.options, self.scene, self.seed, self.dir = options, scene, scene.seed, dir
+        self.options, self.scene, self.dir = options, scene, dir
         self.bus, self.hosts, self.endpoint = bus, hosts, endpoint
 
     def _bus_args(self, listen: bool, node: str = "") -> list[str]:
@@ -66,7 +66,7 @@ class NodeCommands:
             "--run",
             o.run_id,
             "--seed",
-            str(self.seed),
+            str(self.scene.seed),
             *self._bus_args(listen, node),
             *extra,
         ]

@@ -33,7 +33,6 @@ class Twin:
     visual: sapien.Entity
     label: int
     moves: bool
-    render_body: sapien.render.RenderBodyComponent
     shown: bool = True
 
 
@@ -192,7 +191,7 @@ class RenderMirror:
         visual.add_component(render_body)
         self.scene.add_entity(visual)
         visual.set_pose(body.pose)
-        twin = Twin(body, visual, label, moves, render_body)
+        twin = Twin(body, visual, label, moves)
         self.twins.append(twin)
         return twin
 
