@@ -44,7 +44,7 @@ def encode_image(kind: str, image: np.ndarray, encoding: str) -> bytes:
         options = {"quality": JPEG_QUALITY} if encoding == "jpeg" else {"compress_level": 1}
         return _file(Image.fromarray(image, "RGB"), encoding.upper(), **options)
     if kind == "depth" and encoding == "png16":
-        millimetres = np.clip(np.rint(image * 1000.0), 0, 65535).astype(np.uint16)
+        millimetres = np.clip(np.rint(np.asarray(image, dtype=np.float64) * 1000.0), 0, 65535).astype(np.uint16)
         return _file(Image.fromarray(millimetres), "PNG", compress_level=1)
     if kind == "segmentation" and encoding == "zlib":
         return zlib.compress(np.ascontiguousarray(image, dtype="<i4").tobytes(), 1)
