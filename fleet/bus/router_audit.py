@@ -4,8 +4,9 @@ Zenoh keeps no count of the messages its access control refuses; it logs each de
 `zenoh::net::routing::interceptor`) and each connection that fails its TLS handshake (`zenoh_link_tls`). The
 router process sends that log (Zenoh writes it to standard output), and only it, to files of its own
 (`RouterAudit.start`, before its session opens; Python's own output keeps going to its log), counted as it goes:
-a message refused is an "is unauthorized to <Action> (ingress) on <key>" decision followed, on the same thread,
-by "Msg intercepted!" (the decisions the router caches when a key is first declared are not followed by one)."""
+a message refused is an "is unauthorized to <Action> (ingress) on <key>" decision, or a "Using cached result:"
+one, followed on the same thread by "Msg intercepted!". The decisions the router works out for its cache when a
+key is first declared (after "caching permissions for `<key>`") are about no message and are never counted."""
 
 from __future__ import annotations
 
@@ -22,9 +23,14 @@ AUDIT_FILTER = "error,zenoh::net::routing::interceptor=trace,zenoh_link_tls=warn
 ROTATE_S = 5.0  # wall seconds between switches of the log file
 MAX_KINDS = 50  # distinct refusals named in the count; the rest are summed under "other"
 _ANSI = re.compile(rb"\x1b\[[0-9;]*m")
-_DECISION = re.compile(
-    rb"ThreadId\((\d+)\).*?Username\(([^)]*)\).*? is unauthorized to ([A-Za-z/ ]+) \((ingress)\) on (\S+)"
+_DECISION = re.compile(  # "<zid> on <subject> is ..." decided now, "Using cached result: <zid> is ..." from the cache
+    rb"ThreadId\((\d+)\).*?access_control: (?:Using cached result: )?(\w+)(?: on (\S+))? is (un)?authorized to"
+    rb" ([A-Za-z/ ]+) \((ingress|egress)\) on (\S+)"
 )
+_CACHING = re.compile(
+    rb"ThreadId\((\d+)\).*?access_control: ACL \((?:ingress|egress)\): caching permissions for `([^`]*)`"
+)
+_LOGIN = re.compile(rb"Username\(([^)]*)\)")
 _INTERCEPTED = re.compile(rb"ThreadId\((\d+)\) zenoh::net::routing::interceptor: Msg intercepted!")
 _TLS_REFUSED = re.compile(rb" (?:WARN|ERROR) .*zenoh_link_tls::unicast: (.*)")
 
@@ -85,22 +91,43 @@ class RouterAudit:
 
 
 class RefusalTally:
-    """Refusals in Zenoh's log lines, fed in order (see the module's docstring for what counts)."""
+    """Refusals in Zenoh's log lines, fed in order (see the module's docstring for what counts). Per thread, the
+    latest decision about a message is kept until "Msg intercepted!" says whether it stopped one; the decisions of a
+    cache being worked out (on the cached key, after its "caching permissions" line) are about no message."""
 
     def __init__(self) -> None:
         self.counts: Counter = Counter()
-        self.decided: dict[bytes, str] = {}  # thread -> its latest refusing decision
+        self.decided: dict[bytes, str | None] = {}  # thread -> its latest decision about a message: a refusal, or None
+        self.caching: dict[bytes, bytes] = {}  # thread -> the key whose cache it is working out
+        self.logins: dict[bytes, str] = {}  # a session's Zenoh id -> its login, from the decisions that name both
 
     def feed(self, lines: list[bytes]) -> None:
         for line in lines:
-            if b"unauthorized" in line and (m := _DECISION.search(line)):
-                thread, user, action, _, key = m.groups()
-                self.decided[thread] = f"{user.decode() or 'no login'}: {action.decode().lower()} on {key.decode()}"
+            if b"authorized" in line and (m := _DECISION.search(line)):
+                self._decision(*m.groups())
+            elif b"caching permissions" in line and (m := _CACHING.search(line)):
+                thread, key = m.groups()
+                self.caching[thread], self.decided[thread] = key, None
             elif b"intercepted" in line and (m := _INTERCEPTED.search(line)):
-                if (what := self.decided.pop(m.group(1), None)) is not None:
+                thread = m.group(1)
+                self.caching.pop(thread, None)
+                if (what := self.decided.pop(thread, None)) is not None:
                     self.counts[what] += 1
             elif b"zenoh_link_tls" in line and _TLS_REFUSED.search(line):
                 self.counts["connections refused at the TLS handshake"] += 1
+
+    def _decision(
+        self, thread: bytes, zid: bytes, subject: bytes | None, un: bytes | None, action: bytes, flow: bytes, key: bytes
+    ) -> None:
+        if subject is not None:
+            login = _LOGIN.search(subject)
+            self.logins[zid] = login.group(1).decode() if login and login.group(1) else "no login"
+            if self.caching.get(thread) == key:
+                return  # a decision for the cache of the key being declared: about no message
+        self.caching.pop(thread, None)
+        refused = un is not None and flow == b"ingress"
+        login = self.logins.get(zid, f"session {zid.decode()}")
+        self.decided[thread] = f"{login}: {action.decode().lower()} on {key.decode()}" if refused else None
 
     def counts_named(self) -> dict[str, int]:
         """The counts, the `MAX_KINDS` commonest by name and the rest as "other"."""

@@ -1,5 +1,6 @@
 """Run as a process of its own (Zenoh's log is set up once per process): a router with a run's access control and
-`RouterAudit`, a client logged in as arm_0 that says what it may and what it may not, and the counts as JSON."""
+`RouterAudit`, a client logged in as arm_0 that says what it may and what it may not (by key, and through declared
+publishers, which the router decides once, for its cache, and then per message from it), and the counts as JSON."""
 
 import json
 import sys
@@ -21,10 +22,14 @@ def main(folder: str) -> None:
         subs = [router.declare_subscriber(f"clawfleet/r/{k}", heard.append) for k in ("estop", "arm/*/goal")]
         with zenoh.open(zenoh.Config.from_file(bus.config_for("arm_0"))) as arm:
             time.sleep(0.5)
+            declared = [arm.declare_publisher(f"clawfleet/r/arm/{a}/goal") for a in ("arm_1", "arm_0")]
+            time.sleep(0.3)
             for _ in range(3):
                 arm.put("clawfleet/r/arm/arm_1/goal", b"not mine")
                 arm.put("clawfleet/r/estop", b"not my role")
                 arm.put("clawfleet/r/arm/arm_0/goal", b"mine")
+                for publisher in declared:
+                    publisher.put(b"by a declared publisher")
             time.sleep(0.5)
         for sub in subs:
             sub.undeclare()
