@@ -15,6 +15,8 @@ from fleet.bus.keys import Keys
 from fleet.bus.message_checks import Incarnations, heartbeat_problem
 from fleet.bus.messages import ArmStatus, Roster
 
+HEARTBEAT_GAP_S = 0.2  # wall seconds without a frame that make the line's silence, not an arm's: a heartbeat period
+
 
 class ControllerLives:
     """Heartbeats and incarnations of the controllers of `arms`. It is handed the dispatcher (told of arms lost and
@@ -31,6 +33,7 @@ class ControllerLives:
         self.heartbeat_at: dict[str, float] = {}  # arm -> wall time of its last heartbeat handled
         self.heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
         self.frame_at = time.monotonic()  # when the sim's last frame was read
+        self.resumed_at = self.frame_at  # when the line last came back from a stall
         self.rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self.sim_lost: set[str] = set()  # arms whose controller the sim says it no longer hears (their latest state)
         self.replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
@@ -46,12 +49,17 @@ class ControllerLives:
     def restart_clocks(self) -> None:
         """Wall-clock stamps start afresh (after a restore): a heartbeat heard before is no silence now, and no
         controller is judged before it beats again."""
-        self.frame_at = time.monotonic()
+        self.frame_at = self.resumed_at = time.monotonic()
         self.heartbeat_at, self.heard_at = {}, {}
 
     def frame_read(self) -> None:
-        """The sim's frame was read now: the line is alive, so an arm's silence is the arm's."""
-        self.frame_at = time.monotonic()
+        """The sim's frame was read now: the line is alive, so an arm's silence is the arm's. A frame after a gap is
+        the line coming back from a stall (a lockstep line waits for its slowest node, and any process may be held
+        off the CPU): the arms' heartbeats, held up with it, are judged from then on."""
+        now = time.monotonic()
+        if now - self.frame_at > HEARTBEAT_GAP_S:
+            self.resumed_at = now
+        self.frame_at = now
 
     def on_roster(self, key: str, roster: Roster) -> None:
         problem = self.incarnations.roster_problem(roster)
@@ -122,10 +130,11 @@ class ControllerLives:
             self.assign_seq[s.arm] = s.assign_seq
 
     def check(self, timeout_s: float) -> None:
-        """An arm silent for `timeout_s` (wall) while the sim is still heard is lost. When the sim is silent too
-        (its loop ended and the line is being stopped), the silence is the line's, not the arm's."""
+        """An arm silent for `timeout_s` (wall) while the sim is heard is lost. While the sim is silent too (its
+        loop ended and the line is being stopped, or the line is stalled), and for `timeout_s` after the line
+        comes back from a stall, the silence is the line's, not the arm's."""
         now = time.monotonic()
-        if now - self.frame_at > timeout_s:
+        if now - self.frame_at > timeout_s or now - self.resumed_at <= timeout_s:
             return
         for arm in self.heartbeat_at:
             at = self.heard_at.get(arm, self.heartbeat_at[arm])

@@ -1,0 +1,69 @@
+"""The coordinator's view of the controllers' lives, driven by hand on the wall clock: an arm that stops beating
+while the line runs is lost; a line that stalls (a lockstep line waits for its slowest node) costs no arm."""
+
+import time
+
+from coordinator.dispatcher import Dispatcher
+from fleet.bus.codec import DropCounter
+from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmStatus
+from fleet.nodes.controller_lives import ControllerLives
+from scenes import load_scene
+
+TIMEOUT_S = 0.3
+KEYS = Keys("lives")
+
+
+def lives_of_two_arms() -> tuple[ControllerLives, Dispatcher]:
+    scene = load_scene("handover")
+    dispatcher = Dispatcher(scene)
+    arms = [a.name for a in scene.arms]
+    return ControllerLives(arms, dispatcher, DropCounter(), {a: 0 for a in arms}, roster=False), dispatcher
+
+
+def beat(lives: ControllerLives, arm: str, seq: int) -> None:
+    lives.on_status(KEYS.arm_status(arm), ArmStatus(arm, seq, 0.0, "idle", None, 0.0))
+
+
+def run_for(lives: ControllerLives, seconds: float, beating: tuple[str, ...], until=lambda: False) -> None:
+    """The line runs for `seconds` (or `until` holds): frames every 10 ms, heartbeats from `beating` every 50 ms,
+    checks as it goes."""
+    end, seq = time.monotonic() + seconds, 0
+    while time.monotonic() < end and not until():
+        lives.frame_read()
+        seq += 1
+        if seq % 5 == 0:
+            for arm in beating:
+                beat(lives, arm, seq)
+        lives.check(TIMEOUT_S)
+        time.sleep(0.01)
+
+
+def test_an_arm_silent_while_the_line_runs_is_lost_and_its_silence_said():
+    lives, dispatcher = lives_of_two_arms()
+    beat(lives, "arm_0", 1), beat(lives, "arm_1", 1)
+    run_for(lives, 10.0, beating=("arm_1",), until=lambda: dispatcher.losses)  # a busy machine may stall the loop
+    assert set(dispatcher.lost) == {"arm_0"}, "lost, and no heartbeat brought it back"
+    (loss,) = dispatcher.losses
+    assert loss["why"] == f"no heartbeat for {TIMEOUT_S} s" and loss["silent_for_s"] > TIMEOUT_S
+
+
+def test_a_stalled_line_costs_no_arm_whose_heartbeats_come_back_with_it():
+    lives, dispatcher = lives_of_two_arms()
+    run_for(lives, 0.2, beating=("arm_0", "arm_1"))
+    time.sleep(2 * TIMEOUT_S)  # no frame and no heartbeat: the whole line is held up
+    run_for(lives, 0.1, beating=())  # frames come back first, the heartbeats a little after
+    run_for(lives, 2 * TIMEOUT_S, beating=("arm_0", "arm_1"))
+    assert dispatcher.losses == [], "the line's silence is no arm's"
+
+
+def test_an_arm_that_stays_silent_after_a_stall_is_lost_a_timeout_after_the_line_came_back():
+    lives, dispatcher = lives_of_two_arms()
+    run_for(lives, 0.2, beating=("arm_0", "arm_1"))
+    time.sleep(2 * TIMEOUT_S)
+    came_back = time.monotonic()
+    run_for(lives, 0.8 * TIMEOUT_S, beating=("arm_1",))
+    assert dispatcher.losses == [], "judged only a timeout after the line came back"
+    run_for(lives, 10.0, beating=("arm_1",), until=lambda: dispatcher.losses)
+    assert [loss["arm"] for loss in dispatcher.losses] == ["arm_0"]
+    assert dispatcher.losses[0]["silent_for_s"] > time.monotonic() - came_back > TIMEOUT_S
