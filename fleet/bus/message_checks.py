@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
+from robots.saved_state import SavedState
+
 MAX_AHEAD_S = 2.0  # a sender's tick may run this far (sim seconds) ahead of the newest one believed
 MAX_SEQ_JUMP = 1000  # an order count may jump this far ahead of the newest one believed
 
@@ -105,6 +107,13 @@ def parts_problem(parts) -> str:
     return ""
 
 
+class IncarnationsState(SavedState, frozen=True):
+    """What `Incarnations` saves: the starts believed of each node."""
+
+    started: dict[str, int]
+    newest: dict[str, int]
+
+
 class Incarnations:
     """Which incarnation of each node to believe. On a line the launcher started (`from_roster`), a node's
     incarnation is the one the launcher's latest `Roster` names (1 until it names another): it changes only through
@@ -115,6 +124,12 @@ class Incarnations:
         self.from_roster = from_roster
         self.started: dict[str, int] = {}
         self.newest: dict[str, int] = {}
+
+    def state(self) -> IncarnationsState:
+        return IncarnationsState(started=dict(self.started), newest=dict(self.newest))
+
+    def restore(self, state: IncarnationsState) -> None:
+        self.started, self.newest = dict(state.started), dict(state.newest)
 
     def roster_problem(self, roster) -> str:
         """A roster that takes a node back to an earlier start, or names one with a start below 1."""

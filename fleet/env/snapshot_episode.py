@@ -17,14 +17,18 @@ from pathlib import Path
 
 import numpy as np
 
+from coordinator.dispatch_state import restore_dispatcher
 from coordinator.dispatcher import Dispatcher
 from fleet.bus.goals import goal_from_message
 from fleet.sim.line_watch import LineWatcher
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World, WorldState
+from fleet.snapshot.controller_state import ControllerState, read_controller_state
+from fleet.snapshot.coordinator_state import read_coordinator_state
 from fleet.snapshot.process_state import StateError, read_state
 from fleet.snapshot.snapshot_file import SnapshotError, read_snapshot
 from robots.joint_trajectory import GoalResult
+from robots.skills.skill_state import restore_skill
 
 
 class SnapshotEpisodeError(ValueError):
@@ -42,7 +46,7 @@ class LineMoment:
     dispatcher: Dispatcher
     tracked: TrackedArms  # the sim's trackers, pointing at the env's world
     goals_not_applied: dict[str, list]  # arm -> goal messages in, due at a later tick (lockstep)
-    controllers: dict[str, dict]  # arm -> the controller's state by attribute
+    controllers: dict[str, ControllerState]
 
 
 def pick_snapshot(option: object, rng: np.random.Generator) -> str:
@@ -70,17 +74,18 @@ def read_moment(path: str, world: World, agents: list[str]) -> LineMoment:
     try:
         sim = pickle.loads(zlib.decompress(snapshot.states["sim"]))
         server = read_state(sim["server"], {"world": world, "server": None, "scene": scene}, "the sim")
-        live = {"scene": scene}
-        coordinator = read_state(zlib.decompress(snapshot.states["coordinator"]), live, "the coordinator")
-        controllers = {a: read_state(zlib.decompress(snapshot.states[a]), live, a) for a in agents}
+        coordinator = read_coordinator_state(zlib.decompress(snapshot.states["coordinator"]))
+        controllers = {a: read_controller_state(zlib.decompress(snapshot.states[a]), a) for a in agents}
     except (StateError, zlib.error, pickle.UnpicklingError, KeyError) as exc:
         raise SnapshotEpisodeError(f"{path}: {exc}") from None
+    dispatcher = Dispatcher(scene)  # the env's own bookkeeping: it allocates nothing (its policy chooses)
+    restore_dispatcher(dispatcher, coordinator.dispatcher)
     return LineMoment(
         path,
         snapshot.sim_time_s,
         sim["world"],
         server["watcher"],
-        coordinator["dispatcher"],
+        dispatcher,
         server["tracked"],
         {name: list(link.goals) for name, link in server["links"].items()},
         controllers,
@@ -110,11 +115,12 @@ def resume_chooser(chooser, moment: LineMoment) -> None:
     apply_goals(chooser.tracked, moment)
     now = chooser.world.sim_time_s
     for arm, c in moment.controllers.items():
-        skill = chooser.skills[arm] = c["skill"]
-        task = chooser.ledger.tasks.get(c["task_id"]) if c["task_id"] is not None else None
+        skill = chooser.skills[arm]
+        restore_skill(skill, c.skill)
+        task = chooser.ledger.tasks.get(c.task_id) if c.task_id is not None else None
         chooser.task_of[arm] = task.task_id if task is not None and skill.job is not None else None
-        pending, grants = c["pending"], list(c["grants"])
-        for order in c["received"]:  # as the controller would act on them once the sim announced them
+        pending, grants = c.orders.pending, list(c.orders.grants)
+        for order in c.orders.received:  # as the controller would act on them once the sim announced them
             if hasattr(order, "decision"):
                 grants.append(order)
             elif order.task_id is None:

@@ -19,8 +19,7 @@ import math
 import os
 import sys
 import threading
-import time
-from collections import deque
+from collections import Counter, deque
 
 import numpy as np
 import zenoh
@@ -28,21 +27,19 @@ import zenoh
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.goals import goal_message
 from fleet.bus.keys import Keys
-from fleet.bus.message_checks import Incarnations, TickClock
 from fleet.bus.messages import (
     ArmOrder,
     ArmState,
     ArmStatus,
-    Assignment,
     ControllerStep,
-    MotionGrant,
     PartsState,
     Roster,
 )
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
-from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders
-from fleet.nodes.node_snapshots import SnapshotNode
+from fleet.nodes.arm_orders import ControllerOrders
+from fleet.nodes.sim_feed import SimFeed
+from fleet.snapshot.controller_state import VERSION, ControllerState, read_controller_state
 from fleet.snapshot.cut import controller_after_cut
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
@@ -50,46 +47,13 @@ from fleet.snapshot.snapshot_link import SnapshotLink
 from robots.frames import yaw_transform
 from robots.phase import Phase
 from robots.registry import get_robot
-from robots.skills.interface import ArmObservation, PartObservation, PickPlaceJob
+from robots.saved_state import pack
+from robots.skills.interface import ArmObservation, PickPlaceJob
 from robots.skills.pick_place import DEFAULT_DECISION_HZ, PickPlaceSkill
+from robots.skills.skill_state import restore_skill, skill_state
 from scenes.schema import Arm, Scene
 
 HEARTBEAT_S = 0.2  # wall seconds between heartbeats, on their own timer whatever the state traffic
-# what belongs to this process alone, never in a snapshot: its bus handles and queues
-CONTROLLER_LIVE = (
-    "session",
-    "keys",
-    "_decoders",
-    "wake",
-    "_inboxes",
-    "hold",
-    "_subs",
-    "_step_pub",
-    "_goal_pub",
-    "_status_pub",
-    "snapshot_link",
-)
-
-
-def parts_from_message(
-    msg: PartsState, round_types: frozenset[tuple[str, int]] = frozenset()
-) -> dict[int, PartObservation]:
-    """Part observations from the flattened parts message; `round_types`: the scene's round part types
-    (`Scene.round_part_types`)."""
-    out = {}
-    for i, pid in enumerate(msg.part_ids):
-        size = tuple(msg.sizes_m[3 * i : 3 * i + 3])
-        out[pid] = PartObservation(
-            pid,
-            np.array(msg.positions[3 * i : 3 * i + 3]),
-            np.array(msg.quaternions_wxyz[4 * i : 4 * i + 4]),
-            np.array(msg.velocities[3 * i : 3 * i + 3]),
-            float(min(size[0], size[1])),
-            float(size[2]),
-            size,
-            (msg.feeders[i], msg.type_indices[i]) in round_types,
-        )
-    return out
 
 
 def arm_declaration(scene: Scene, arm: str, rate_hz: float) -> Arm:
@@ -121,7 +85,7 @@ def observation_of(state: ArmState) -> ArmObservation:
     )
 
 
-class ArmController(ControllerOrders, SnapshotNode):
+class ArmController:
     """One arm's bridge (the skill state machine) on the bus: states in, trajectory goals and answers out."""
 
     def __init__(
@@ -137,7 +101,6 @@ class ArmController(ControllerOrders, SnapshotNode):
         roster: bool = False,
     ) -> None:
         decl = arm_declaration(scene, arm, rate_hz)
-        self.holders = Incarnations(from_roster=roster)  # which coordinator's orders to believe
         self.arm, self.keys, self.session = arm, keys, session
         self.arm_index = [a.name for a in scene.arms].index(arm)  # its place in the coordinator's order counts
         self.spec = get_robot(decl.model)
@@ -152,24 +115,25 @@ class ArmController(ControllerOrders, SnapshotNode):
         self.incarnation = incarnation if incarnation is not None else int.from_bytes(os.urandom(4), "little")
         self.skill.goal_id = (self.incarnation & 0x7FFFFFFF) << 20  # goal ids never repeat across a respawn
         self._wire(session, keys, scene)
-        self.parts: dict[int, PartObservation] = {}
-        self.round_types = scene.round_part_types()
-        self.parts_tick = -1
-        self.parts_seen: deque[PartsState] = deque(maxlen=64)  # the newest parts messages, oldest first
+        self.orders = ControllerOrders(arm, keys.arm_assign(arm), self._inboxes, self._decoders, self.drops, roster)
+        self.feed = SimFeed(
+            arm,
+            self.spec.arm_dof,
+            scene.control_hz,
+            scene.round_part_types(),
+            self._inboxes,
+            self._decoders,
+            self.drops,
+            self.orders,
+        )
         self.delays = deque(maxlen=40)  # ticks each recent state spent on the bus on its way here
-        self.received: list[Assignment | MotionGrant] = []  # orders in, not yet acted on
-        self.pending: Assignment | None = None
-        self.grants: list[MotionGrant] = []  # answers to motion requests, handed to the skill at the next step
         self.task_id: int | None = None
         self.seq = 0
-        self.assign_seq: int | None = None  # newest assignment received; None until the first state
         self.sim_time_s = -1.0  # of the newest state answered (-1: none yet)
         self.answered: deque[int] = deque(maxlen=64)  # ticks answered lately (a future tick must not silence true ones)
         self.decisions = 0
         self.goals_sent = 0
         self.busy_s = 0.0
-        self.missed_assignments = 0
-        self.parts_late = 0
 
     def _wire(self, session: zenoh.Session, keys: Keys, scene: Scene) -> None:
         """Its decoders, queues, subscriptions (state, parts, orders) and publishers (answers, goals, heartbeats)."""
@@ -183,7 +147,6 @@ class ArmController(ControllerOrders, SnapshotNode):
         self.wake = threading.Event()
         self.hold = Hold(controller_after_cut)  # from a snapshot's tick until its part is sent
         self._inboxes = {name: Inbox(wake=self.wake, hold=self.hold) for name in ("state", "parts", "assign", "roster")}
-        self.sim_clock = TickClock(scene.control_hz)  # states and parts are the sim's: none may run far ahead of it
         self._subs = [
             session.declare_subscriber(keys.arm_state(self.arm), self._inboxes["state"]),
             session.declare_subscriber(keys.parts, self._inboxes["parts"]),
@@ -202,8 +165,8 @@ class ArmController(ControllerOrders, SnapshotNode):
             "busy_s": round(self.busy_s, 6),
             "dropped_messages": self.drops.total,
             "refused_messages": self.drops.kinds(),
-            "missed_assignments": self.missed_assignments,
-            "parts_late": self.parts_late,
+            "missed_assignments": self.orders.missed,
+            "parts_late": self.feed.parts_late,
             "grants_denied": self.skill.denials,
             "decisions": self.decisions,
             "goals_sent": self.goals_sent,
@@ -217,47 +180,28 @@ class ArmController(ControllerOrders, SnapshotNode):
             pub.undeclare()
         self.snapshot_link.close()
 
-    SNAPSHOT_LIVE = CONTROLLER_LIVE
-
     def snapshot_part(self, ask) -> tuple[bytes, tuple]:
         """This controller's state, and the newest order it holds (the sim checks it against the coordinator's)."""
-        return self.capture_state(), (self.assign_seq or 0,)
+        return pack(controller_state(self)), (self.orders.assign_seq or 0,)
+
+    def restore_state(self, data: bytes) -> None:
+        """Put back a state from `snapshot_part` (also into the node that wrote it: it goes on from it)."""
+        restore_controller(self, read_controller_state(data, self.arm))
 
     def snapshot_ready(self, ask) -> bool:
         """Whether every order the coordinator sent this arm and the newest parts message are in (the sim asks once
         it has every answer: nothing else is on its way)."""
-        self._take_assignments()
-        for msg in self._believable("parts", self._problem):
-            self.sim_clock.believe(msg.tick)
-            self.parts_seen.append(msg)
+        self.orders.take()
+        self.feed.take_parts()
         sent = ask.orders[self.arm_index] if self.arm_index < len(ask.orders) else 0
-        parts_in = ask.parts_tick < 0 or (bool(self.parts_seen) and self.parts_seen[-1].tick >= ask.parts_tick)
-        return (self.assign_seq or 0) >= sent and parts_in
-
-    def _parts_for_tick(self, tick: int) -> None:
-        """The parts as of `tick` (the newest sampled no later: a state delayed on the bus is matched with the parts
-        of its own time). They travel apart from the arm's state, so wait (briefly) for that tick's message."""
-        deadline = time.monotonic() + ASSIGNMENT_WAIT_S
-        while True:
-            for msg in self._believable("parts", self._problem):
-                self.sim_clock.believe(msg.tick)
-                self.parts_seen.append(msg)
-            seen = [m for m in self.parts_seen if m.tick <= tick]
-            if seen and seen[-1].tick != self.parts_tick:
-                self.parts, self.parts_tick = parts_from_message(seen[-1], self.round_types), seen[-1].tick
-            if self.parts_seen and self.parts_seen[-1].tick >= tick:
-                return
-            if time.monotonic() > deadline:
-                self.parts_late += 1  # planned with older parts: a lockstep run may not repeat
-                return
-            self._inboxes["parts"].wait(0.01)
+        return (self.orders.assign_seq or 0) >= sent and self.feed.parts_in(ask.parts_tick)
 
     def poll(self) -> bool:
         """Handle what arrived; answer the newest state if there is one. True when an answer was sent."""
         if self.snapshot_link.serve(self.snapshot_ready, self.snapshot_part, self.restore_state):
             return True
-        state = self._latest("state")
-        self._take_assignments()
+        state = self.feed.latest_state()
+        self.orders.take()
         if state is None or state.tick in self.answered:
             return False  # nothing new (the sim re-sends a state it is still waiting for: answered already)
         self.snapshot_link.expect(state.snapshot_tick)  # from that tick on, held until this node's part is sent
@@ -266,7 +210,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         self._hand_to_skill(obs)
         if self.skill.active:
             self.busy_s += self.skill.decision_period_s
-        goals = self.skill.step(obs, self.parts)
+        goals = self.skill.step(obs, self.feed.parts)
         if self.skill.job is None:  # clearing the way home: no task of the coordinator's
             self.task_id = None
         self._answer(state, goals)
@@ -277,35 +221,34 @@ class ArmController(ControllerOrders, SnapshotNode):
 
     def _catch_up(self, state: ArmState) -> None:
         """Before deciding on `state`: the orders it announces applied, the parts of its tick in, the latency known."""
-        if self.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
-            self.assign_seq = max(0, state.assign_seq)
-        elif state.assign_seq > self.assign_seq:
-            self._await_assignment(state.assign_seq)
-        self._apply_assignments(state.assign_seq)
-        if self.skill.active or self.pending is not None:  # only a task needs the parts: skip decoding otherwise
-            self._parts_for_tick(state.tick)
+        orders = self.orders
+        if orders.assign_seq is None:  # a fresh (or respawned) controller owes nothing issued before it
+            orders.assign_seq = max(0, state.assign_seq)
+        elif state.assign_seq > orders.assign_seq:
+            orders.await_order(state.assign_seq)
+        orders.apply(state.assign_seq, self.skill)
+        if self.skill.active or orders.pending is not None:  # only a task needs the parts: skip decoding otherwise
+            self.feed.parts_for_tick(state.tick)
         else:
-            raw = self._inboxes["parts"].drain()
-            if raw:
-                self._inboxes["parts"].items.extend(raw[-64:])  # keep the newest for when a task comes
+            self.feed.skip_parts()
         self._expect_latency(state)
 
     def _hand_to_skill(self, obs: ArmObservation) -> None:
         """A pending assignment started (or refused: its part is gone), and the grants that came in answered."""
-        if self.pending is not None and self.skill.available:
-            a, self.pending = self.pending, None
+        if self.orders.pending is not None and self.skill.available:
+            a, self.orders.pending = self.orders.pending, None
             task = PickPlaceJob(a.part_id, a.surface_z_m, tuple(a.place_xyz), tuple(a.surface_velocity))
             self.task_id = a.task_id
-            part = self.parts.get(a.part_id)
+            part = self.feed.parts.get(a.part_id)
             if part is None:
                 self.skill.reject(f"part {a.part_id} is not on the line")
             else:
                 self.skill.start(task, obs, part)
-        for g in self.grants:
+        for g in self.orders.grants:
             self.skill.on_grant(
                 g.request_seq, g.decision, g.conflict_arm, obs.time_s, g.start_time_s if g.start_time_s >= 0 else None
             )
-        self.grants.clear()
+        self.orders.grants.clear()
 
     def _answer(self, state: ArmState, goals: list) -> None:
         """The goals of this decision out, then the answer to `state` naming them (what the skill does, its request)."""
@@ -347,7 +290,7 @@ class ArmController(ControllerOrders, SnapshotNode):
         """The status the coordinator watches for liveness, with what the arm is doing: its phase, and the
         assignment it works on (or has taken and not started), which a respawned coordinator adopts."""
         self.seq += 1
-        pending, task = self.pending, self.skill.job  # read once: the heartbeat runs on its own thread
+        pending, task = self.orders.pending, self.skill.job  # read once: the heartbeat runs on its own thread
         task_id, part_id, place = self.task_id, -1, ()
         if pending is not None and pending.task_id is not None:
             task_id, part_id, place = pending.task_id, pending.part_id, tuple(pending.place_xyz)
@@ -367,10 +310,46 @@ class ArmController(ControllerOrders, SnapshotNode):
                     self.incarnation,
                     part_id,
                     place,
-                    -1 if self.assign_seq is None else self.assign_seq,
+                    -1 if self.orders.assign_seq is None else self.orders.assign_seq,
                 )
             )
         )
+
+
+def controller_state(c: ArmController) -> ControllerState:
+    """What `c` saves in a run's snapshot."""
+    return ControllerState(
+        version=VERSION,
+        incarnation=c.incarnation,
+        skill=skill_state(c.skill),
+        orders=c.orders.state(),
+        feed=c.feed.state(),
+        delays=list(c.delays),
+        answered=list(c.answered),
+        task_id=c.task_id,
+        sim_time_s=c.sim_time_s,
+        seq=c.seq,
+        decisions=c.decisions,
+        goals_sent=c.goals_sent,
+        busy_s=c.busy_s,
+        drops=[(key, reason, n) for (key, reason), n in c.drops.counts.items()],
+    )
+
+
+def restore_controller(c: ArmController, s: ControllerState) -> None:
+    """Put `s` back into `c`, a controller of the same arm (its bus handles and decoders stay; they count into
+    the same drop counter)."""
+    c.incarnation = s.incarnation
+    restore_skill(c.skill, s.skill)
+    c.orders.restore(s.orders)
+    c.feed.restore(s.feed)
+    c.delays.clear()
+    c.delays.extend(s.delays)
+    c.answered.clear()
+    c.answered.extend(s.answered)
+    c.task_id, c.sim_time_s, c.seq = s.task_id, s.sim_time_s, s.seq
+    c.decisions, c.goals_sent, c.busy_s = s.decisions, s.goals_sent, s.busy_s
+    c.drops.counts = Counter({(key, reason): n for key, reason, n in s.drops})
 
 
 def build_parser() -> argparse.ArgumentParser:

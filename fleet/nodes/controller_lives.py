@@ -14,6 +14,7 @@ from fleet.bus.codec import DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.message_checks import Incarnations, heartbeat_problem
 from fleet.bus.messages import ArmStatus, Roster
+from fleet.snapshot.coordinator_state import LivesState
 
 HEARTBEAT_GAP_S = 0.2  # wall seconds without a frame that make the line's silence, not an arm's: a heartbeat period
 
@@ -37,6 +38,23 @@ class ControllerLives:
         self.rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self.sim_lost: set[str] = set()  # arms whose controller the sim says it no longer hears (their latest state)
         self.replaced: dict[str, set[int]] = {}  # arm -> incarnations of its controllers that were replaced
+
+    def state(self) -> LivesState:
+        """What these lives save (their wall-clock stamps start afresh on `restore`)."""
+        return LivesState(
+            incarnations=self.incarnations.state(),
+            controller_incarnation=dict(self.controller_incarnation),
+            rejoining=set(self.rejoining),
+            sim_lost=set(self.sim_lost),
+            replaced={arm: set(i) for arm, i in self.replaced.items()},
+        )
+
+    def restore(self, state: LivesState) -> None:
+        self.incarnations.restore(state.incarnations)
+        self.controller_incarnation = dict(state.controller_incarnation)
+        self.rejoining, self.sim_lost = set(state.rejoining), set(state.sim_lost)
+        self.replaced = {arm: set(i) for arm, i in state.replaced.items()}
+        self.restart_clocks()
 
     def arrived(self, sample: zenoh.Sample) -> None:
         """A heartbeat's arrival, stamped (a subscriber's callback): a coordinator busy planning must not mistake

@@ -11,6 +11,7 @@ import numpy as np
 from coordinator.dispatcher import Dispatcher
 from fleet.bus.codec import DropCounter
 from fleet.bus.messages import LineEvent
+from fleet.snapshot.coordinator_state import EventGateState
 
 
 class EventGate:
@@ -22,6 +23,15 @@ class EventGate:
         self.ahead: list[tuple[str, LineEvent]] = []  # received, not yet applied (of a tick past the next decision)
         self.due: tuple[int, int, float] | None = None  # (tick, events published by then, wall deadline)
         self.decided_on_deadline = 0
+
+    def state(self) -> EventGateState:
+        return EventGateState(
+            seen=self.seen, ahead=list(self.ahead), due=self.due, decided_on_deadline=self.decided_on_deadline
+        )
+
+    def restore(self, state: EventGateState) -> None:
+        self.seen, self.ahead, self.due = state.seen, list(state.ahead), state.due
+        self.decided_on_deadline = state.decided_on_deadline
 
     def arrived(self, e: LineEvent, key: str) -> None:
         """Counted now, applied at the decision whose tick reaches it: a lockstep sim runs on to the next decision

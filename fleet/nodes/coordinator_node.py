@@ -22,12 +22,14 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections import Counter
 
 import numpy as np
 import zenoh
 
 from coordinator.allocation import Allocator, PartView, make_allocator
 from coordinator.allocator_plugins import AllocatorError, make_any_allocator
+from coordinator.dispatch_state import dispatcher_state, restore_dispatcher
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT
@@ -53,19 +55,18 @@ from fleet.nodes.controller_lives import ControllerLives, tell_lost
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
-from fleet.nodes.node_snapshots import SnapshotNode
+from fleet.snapshot.coordinator_state import VERSION, CoordinatorState, read_coordinator_state
 from fleet.snapshot.cut import coordinator_after_cut
 from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, node_state
 from fleet.snapshot.snapshot_link import SnapshotLink
 from robots.registry import get_robot
+from robots.saved_state import pack
 from scenes.schema import Scene
 
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
-# what belongs to this process alone, never in a snapshot: its bus handles and queues, and how it was started (the
-# clock it answers in, its heartbeat timeout: a restored run may be started otherwise)
 COORDINATOR_LIVE = (
     "lockstep",
     "heartbeat_timeout_s",
@@ -82,7 +83,7 @@ COORDINATOR_LIVE = (
 )
 
 
-class CoordinatorNode(SnapshotNode):
+class CoordinatorNode:
     """Decode, dispatch, publish: feed it with `poll()` in a loop; `report()` gives the coordinator's part of the
     run summary. Every decision is the `Dispatcher`'s; this node owns the bus, the wall clock (heartbeats,
     how long to wait for a decision's events) and the order counts of the protocol."""
@@ -152,21 +153,20 @@ class CoordinatorNode(SnapshotNode):
         self.snapshot_link.close()
 
     # --- snapshots ------------------------------------------------------------------
-    SNAPSHOT_LIVE = COORDINATOR_LIVE
-
     def snapshot_part(self, ask) -> tuple[bytes, tuple]:
-        """The coordinator's state (ledger, dispatcher, guard, allocator) and the newest order it sent each arm (the
-        controllers' parts wait for them)."""
-        return self.capture_state(), tuple(self.assign_seq[a] for a in self.arm_names)
+        """The coordinator's state (`CoordinatorState`) and the newest order it sent each arm (the controllers'
+        parts wait for them)."""
+        return pack(coordinator_state(self)), tuple(self.assign_seq[a] for a in self.arm_names)
 
-    def after_restore(self) -> None:
-        """Wall-clock stamps start afresh: a heartbeat heard before the snapshot is no silence now, and no controller
-        is judged before it beats again (each restores in its own time: a restored Panda's first beat came 0.77 s
-        after this coordinator's, under load, and cost its arm); the line's bound is worked out again if the scene
-        has a field set otherwise."""
+    def restore_state(self, data: bytes) -> None:
+        """Put back a state from `snapshot_part` (also into the node that wrote it: it goes on from it). Wall-clock
+        stamps start afresh: a heartbeat heard before the snapshot is no silence now, and no controller is judged
+        before it beats again (each restores in its own time: a restored Panda's first beat came 0.77 s after this
+        coordinator's, under load, and cost its arm); the line's bound is worked out again if the scene has a field
+        set otherwise."""
+        restore_coordinator(self, read_coordinator_state(data))
         self.dispatcher.scene_changed()
         self._progress_at = time.monotonic()
-        self.lives.restart_clocks()
 
     def wait(self, timeout_s: float) -> None:
         """Sleep until a message arrives (heartbeat checks still run every `timeout_s`)."""
@@ -341,6 +341,41 @@ def motion_request(s: ArmState) -> TimedPath | None:
         then_q,
         tuple(s.request_then_after_s),
     )
+
+
+def coordinator_state(node: CoordinatorNode) -> CoordinatorState:
+    """What `node` saves in a run's snapshot."""
+    return CoordinatorState(
+        version=VERSION,
+        incarnation=node.incarnation,
+        dispatcher=dispatcher_state(node.dispatcher),
+        events=node.events.state(),
+        lives=node.lives.state(),
+        decision_ms=list(node.decision_times.ms),
+        slowest_decision=node.decision_times.slowest,
+        sim_clock_newest=node.sim_clock.newest,
+        assign_seq=dict(node.assign_seq),
+        last_tick=dict(node.last_tick),
+        replayed=set(node.replayed),
+        takeover=node.takeover,
+        drops=[(key, reason, n) for (key, reason), n in node.drops.counts.items()],
+    )
+
+
+def restore_coordinator(node: CoordinatorNode, s: CoordinatorState) -> None:
+    """Put `s` back into `node`, a coordinator of the same scene (its bus handles, decoders and allocator stay; the
+    order counts are updated in place: its controller lives count on them)."""
+    node.incarnation = s.incarnation
+    restore_dispatcher(node.dispatcher, s.dispatcher)
+    node.events.restore(s.events)
+    node.lives.restore(s.lives)
+    node.decision_times = DecisionTimes(list(s.decision_ms), s.slowest_decision)
+    node.sim_clock.newest = s.sim_clock_newest
+    node.assign_seq.clear()
+    node.assign_seq.update(s.assign_seq)
+    node.last_tick = dict(s.last_tick)
+    node.replayed, node.takeover = set(s.replayed), s.takeover
+    node.drops.counts = Counter({(key, reason): n for key, reason, n in s.drops})
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -23,7 +23,7 @@ from scenes.loader import resolve_scene_path
 from scenes.yaml_file import named_in, parse_yaml
 
 MAGIC = b"CLAWSNAP"
-FORMAT_VERSION = 3  # 2: fixed models (robots.built_once) written as built from; 3: the belt reach per station
+FORMAT_VERSION = 4  # 3: the belt reach per station; 4: the controllers and coordinator as typed states
 SUFFIX = ".clawsnap"
 _HEADER = struct.Struct("<8sI32s")
 

@@ -8,9 +8,35 @@ import dataclasses
 import numpy as np
 
 from robots.joint_trajectory import ArmGoal, GripperGoal, TrajectoryGoal, rest_to_rest
+from robots.saved_state import SavedState
 from robots.trajectory import knot_velocities
 
 PATH_TOLERANCE_RAD = 0.3  # a joint this far off its path (blocked, knocked) aborts the goal and the task
+
+
+class SavedGoal(SavedState, frozen=True):
+    """One goal of a saved outbox: a trajectory goal or a gripper goal."""
+
+    trajectory: TrajectoryGoal | None = None
+    gripper: GripperGoal | None = None
+
+    @classmethod
+    def of(cls, goal: ArmGoal) -> SavedGoal:
+        return cls(trajectory=goal) if isinstance(goal, TrajectoryGoal) else cls(gripper=goal)
+
+    @property
+    def goal(self) -> ArmGoal:
+        return self.trajectory if self.trajectory is not None else self.gripper
+
+
+class OutboxState(SavedState, frozen=True):
+    """What a `GoalOutbox` saves: its count, the current task's goals, those queued and those not yet shown."""
+
+    goal_id: int
+    sent: list[int]
+    queued: list[SavedGoal]
+    unconfirmed: list[tuple[float, int, list[SavedGoal]]]
+    resent: int
 
 
 class GoalOutbox:
@@ -24,6 +50,21 @@ class GoalOutbox:
         # batches with a trajectory goal the tracker has not shown yet: (sent at, sends, goals)
         self.unconfirmed: list[tuple[float, int, list[ArmGoal]]] = []
         self.resent = 0
+
+    def state(self) -> OutboxState:
+        """What this outbox saves (`restore` puts it back)."""
+        return OutboxState(
+            goal_id=self.goal_id,
+            sent=sorted(self.sent),
+            queued=[SavedGoal.of(g) for g in self.queued],
+            unconfirmed=[(t, n, [SavedGoal.of(g) for g in goals]) for t, n, goals in self.unconfirmed],
+            resent=self.resent,
+        )
+
+    def restore(self, state: OutboxState) -> None:
+        self.goal_id, self.sent, self.resent = state.goal_id, set(state.sent), state.resent
+        self.queued = [g.goal for g in state.queued]
+        self.unconfirmed = [(t, n, [g.goal for g in goals]) for t, n, goals in state.unconfirmed]
 
     def next_id(self) -> int:
         self.goal_id += 1

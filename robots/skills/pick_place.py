@@ -136,12 +136,14 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         # the way the claw rises from the part, from the place
         self._pick_up = self._place_up = np.array([0.0, 0.0, 1.0])
         self.detours = 0
+        self.q_cmd: np.ndarray | None = None  # the joints last commanded, and the free move asked for or sent last
+        self.segment: JointSegment | None = None  # (None until the first task)
+        self.grasp_yaw = self.grasp_z = self.tool_above_bottom_m = self.pregrasp_opening = self.part_height = 0.0
+        self.velocity = np.zeros(3)  # the surface's, and the grasp on the line above: set when a task starts
 
     @property
     def joint_names(self) -> tuple[str, ...]:
         return tuple(self.spec.arm_joints)
-
-    # --- geometry -------------------------------------------------------------------
 
     # --- goals out ------------------------------------------------------------------
     @property

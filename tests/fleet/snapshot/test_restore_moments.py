@@ -21,6 +21,8 @@ from fleet.monitor.replay_panel import branch_command
 from fleet.record.mcap_file import Recording
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.run.restore import restore_options, snapshot_path
+from fleet.snapshot.controller_state import read_controller_state
+from fleet.snapshot.coordinator_state import read_coordinator_state
 from fleet.snapshot.snapshot_file import read_snapshot
 from robots.phase import GRASP_PHASES
 from tests.fleet.snapshot.test_restore_line import line_figures, run
@@ -40,25 +42,20 @@ class _Names(pickle.Unpickler):
         return None
 
 
-def states_of(path: str) -> dict[str, dict]:
-    """Every process's state in a snapshot, as attributes (read here to find what moment it holds)."""
+def moments(path: str) -> set[str]:
+    """What is going on in a snapshot (read here from its states): an arm mid-grasp, a part handed over, goals not
+    yet applied."""
     snapshot = read_snapshot(path)
     raw = {node: zlib.decompress(blob) for node, blob in snapshot.states.items()}
-    sim = pickle.loads(raw.pop("sim"))
-    out = {"sim": _Names(io.BytesIO(sim["server"])).load()}
-    return out | {node: _Names(io.BytesIO(blob)).load() for node, blob in raw.items()}
-
-
-def moments(path: str) -> set[str]:
-    """What is going on in a snapshot: an arm mid-grasp, a part handed over, goals not yet applied."""
-    states = states_of(path)
+    sim = _Names(io.BytesIO(pickle.loads(raw.pop("sim"))["server"])).load()
+    ledger = read_coordinator_state(raw.pop("coordinator")).dispatcher.ledger
+    controllers = [read_controller_state(blob, arm) for arm, blob in raw.items()]
     found = set()
-    if any(s["skill"].phase in GRASP_PHASES for node, s in states.items() if node not in ("sim", "coordinator")):
+    if any(c.skill.phase in GRASP_PHASES for c in controllers):
         found.add("mid-grasp")
-    ledger = states["coordinator"]["dispatcher"].ledger
-    if any(p.location == "handover_pad" and ledger._open_task(p.part_id) is not None for p in ledger.parts.values()):
+    if any(p.location == "handover_pad" and p.part_id in ledger.open_by_part for p in ledger.parts.values()):
         found.add("mid-handover")
-    if any(link.goals for link in states["sim"]["links"].values()):
+    if any(link.goals for link in sim["links"].values()):
         found.add("goal pending")
     return found
 

@@ -1,0 +1,171 @@
+"""What the coordinator's decisions save (`Dispatcher`, its `Ledger` and `CollisionGuard`): tasks, parts, grants,
+what each arm does and the counts; not what is worked out from the scene (reach, the line's bound, the belt's
+reach, the arms' shapes) nor caches that give the same answers afresh, which a dispatcher of the same scene has.
+The allocator keeps no state across decisions (`docs/allocators.md`): a restored dispatcher's is built anew."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from coordinator.allocation import PartView
+from coordinator.claw_sweep import ClawSpan
+from coordinator.dispatcher import Dispatcher
+from coordinator.guard import CollisionGuard, TimedPath
+from coordinator.ledger import Ledger
+from coordinator.orders import CancelOrder
+from coordinator.pair_measurements import PairMeasurements
+from coordinator.tasks import PartRecord, Task
+from robots.saved_state import SavedState
+
+
+class LedgerState(SavedState, frozen=True):
+    """What a `Ledger` saves."""
+
+    pipeline: bool
+    parts: dict[int, PartRecord]
+    tasks: dict[int, Task]
+    stacks: dict[str, list[int]]
+    next_task_id: int
+    open_by_part: dict[int, int]
+    finished_at: dict[int, float]
+
+
+class GuardState(SavedState, frozen=True):
+    """What a `CollisionGuard` saves: each arm's joints and claw as last measured, the grants out, the counts."""
+
+    joints: dict[str, np.ndarray]
+    claws: dict[str, ClawSpan]
+    grants: dict[str, TimedPath]
+    denied: int
+    waits: int
+    ways_out: int
+    last_check_samples: int
+
+
+class DispatcherState(SavedState, frozen=True):
+    """What a `Dispatcher` saves."""
+
+    ledger: LedgerState
+    guard: GuardState
+    phase: dict[str, str]
+    acts_at_tick: dict[str, int]
+    last_stations: dict[str, tuple[str, ...]]
+    last_task: dict[str, int]
+    requests: dict[str, TimedPath]
+    request_seq: dict[str, int]
+    lost: dict[str, float]
+    taken: set[str]
+    cancels: list[CancelOrder]
+    busy_until_s: dict[str, float]
+    deadline_known: set[int]
+    parts: dict[int, PartView]
+    sim_time_s: float
+    last_event_s: float
+    last_decision_tick: int
+    decisions: int
+    grants_given: int
+    reassigned: int
+    min_separation_m: float
+    closest_pair: tuple[str, str] | None
+    losses: list[dict[str, Any]]  # the summary's `arm_events`
+    unsettled: set[str]
+    settle_by_s: float
+    adopted: list[dict[str, Any]]
+    held_at_station_s: dict[str, float]
+    held_now: dict[str, str]
+    told_standby: set[int]
+    candidates: dict[int, tuple[int, str]]
+
+
+def ledger_state(ledger: Ledger) -> LedgerState:
+    return LedgerState(
+        pipeline=ledger.pipeline,
+        parts=dict(ledger.parts),
+        tasks=dict(ledger.tasks),
+        stacks={name: list(stack) for name, stack in ledger.stacks.items()},
+        next_task_id=ledger._next_task_id,
+        open_by_part=dict(ledger._open_by_part),
+        finished_at=dict(ledger._finished_at),
+    )
+
+
+def restore_ledger(ledger: Ledger, s: LedgerState) -> None:
+    ledger.pipeline, ledger.parts, ledger.tasks = s.pipeline, dict(s.parts), dict(s.tasks)
+    ledger.stacks = {name: list(stack) for name, stack in s.stacks.items()}
+    ledger._next_task_id, ledger._open_by_part, ledger._finished_at = (
+        s.next_task_id,
+        dict(s.open_by_part),
+        dict(s.finished_at),
+    )
+
+
+def guard_state(guard: CollisionGuard) -> GuardState:
+    return GuardState(
+        joints=dict(guard.state),
+        claws=dict(guard.claw_state()),
+        grants=dict(guard.grants),
+        denied=guard.denied,
+        waits=guard.waits,
+        ways_out=guard.ways_out,
+        last_check_samples=guard.last_check_samples,
+    )
+
+
+def restore_guard(guard: CollisionGuard, s: GuardState) -> None:
+    guard.state, guard._claws, guard.grants = dict(s.joints), dict(s.claws), dict(s.grants)
+    guard.denied, guard.waits, guard.ways_out = s.denied, s.waits, s.ways_out
+    guard.last_check_samples = s.last_check_samples
+    guard._watch_memo = PairMeasurements()  # measured again where asked: the same answers
+
+
+def dispatcher_state(d: Dispatcher) -> DispatcherState:
+    """What `d` saves."""
+    return DispatcherState(
+        ledger=ledger_state(d.ledger),
+        guard=guard_state(d.guard),
+        phase=dict(d.phase),  # phases as the bus says them (`robots.phase.Phase` values)
+        acts_at_tick=dict(d.acts_at_tick),
+        last_stations=dict(d.last_stations),
+        last_task=dict(d.last_task),
+        requests=dict(d.requests),
+        request_seq=dict(d.request_seq),
+        lost=dict(d.lost),
+        taken=set(d.taken),
+        cancels=list(d.cancels),
+        busy_until_s=dict(d.busy_until_s),
+        deadline_known=set(d.deadline_known),
+        parts=dict(d.parts),
+        sim_time_s=d.sim_time_s,
+        last_event_s=d.last_event_s,
+        last_decision_tick=d.last_decision_tick,
+        decisions=d.decisions,
+        grants_given=d.grants_given,
+        reassigned=d.reassigned,
+        min_separation_m=d.min_separation_m,
+        closest_pair=d.closest_pair,
+        losses=list(d.losses),
+        unsettled=set(d.unsettled),
+        settle_by_s=d.settle_by_s,
+        adopted=list(d.adopted),
+        held_at_station_s=dict(d.held_at_station_s),
+        held_now=dict(d.held_now),
+        told_standby=set(d.told_standby),
+        candidates=dict(d._candidates),
+    )
+
+
+def restore_dispatcher(d: Dispatcher, s: DispatcherState) -> None:
+    """Put `s` back into `d`, a dispatcher of the same scene's arms."""
+    restore_ledger(d.ledger, s.ledger)
+    restore_guard(d.guard, s.guard)
+    d.phase, d.acts_at_tick, d.last_stations = dict(s.phase), dict(s.acts_at_tick), dict(s.last_stations)
+    d.last_task, d.requests, d.request_seq = dict(s.last_task), dict(s.requests), dict(s.request_seq)
+    d.lost, d.taken, d.cancels, d.busy_until_s = dict(s.lost), set(s.taken), list(s.cancels), dict(s.busy_until_s)
+    d.deadline_known, d.parts, d.sim_time_s = set(s.deadline_known), dict(s.parts), s.sim_time_s
+    d.last_event_s, d.last_decision_tick, d.decisions = s.last_event_s, s.last_decision_tick, s.decisions
+    d.grants_given, d.reassigned, d.min_separation_m = s.grants_given, s.reassigned, s.min_separation_m
+    d.closest_pair, d.losses, d.unsettled = s.closest_pair, list(s.losses), set(s.unsettled)
+    d.settle_by_s, d.adopted, d.held_at_station_s = s.settle_by_s, list(s.adopted), dict(s.held_at_station_s)
+    d.held_now, d.told_standby, d._candidates = dict(s.held_now), set(s.told_standby), dict(s.candidates)
