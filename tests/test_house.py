@@ -123,19 +123,46 @@ def test_fleet_imports_run_down_the_layers_only():
     assert not upward, "\n".join(upward)
 
 
-@pytest.mark.parametrize("library", LIBRARIES)
-def test_no_import_cycle_between_modules(library):
+# Cycles through imports for type hints alone, still waiting to be composed away: the sim server's inputs and outputs
+# are handed the server itself (issue 60). The list only shrinks.
+TYPE_ONLY_CYCLES_LEFT = {
+    frozenset({"fleet.sim.server", "fleet.sim.sim_inputs"}),
+    frozenset({"fleet.sim.server", "fleet.sim.sim_outputs"}),
+}
+
+
+def _import_graph(library: str, runtime_only: bool) -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {}
     for path in _sources(library):
         graph[_module_name(path)] = set()
     for path in _sources(library):
-        imported = _imports(path, runtime_only=True)
+        imported = _imports(path, runtime_only=runtime_only)
         graph[_module_name(path)] = {m for m in imported if m in graph and m != _module_name(path)}
     # A package's __init__ importing its own modules is how a package exposes them, not a cycle of design.
     for name, targets in graph.items():
         graph[name] = {t for t in targets if not t.startswith(name + ".")}
-    cycle = _find_cycle(graph)
+    return graph
+
+
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_no_import_cycle_between_modules(library):
+    cycle = _find_cycle(_import_graph(library, runtime_only=True))
     assert cycle is None, " -> ".join(cycle or [])
+
+
+@pytest.mark.parametrize("library", LIBRARIES)
+def test_no_import_cycle_through_type_hints_but_those_left(library):
+    """A module that imports another for its type hints alone, while that one imports it, is a component that knows
+    its host (or a host reached into by a helper): hand it what it needs instead (a `Protocol` names a shape)."""
+    graph, found = _import_graph(library, runtime_only=False), set()
+    while cycle := _find_cycle(graph):
+        found.add(frozenset(cycle))
+        graph[cycle[0]].discard(cycle[1])  # broken here to look for the next
+    left = {c for c in TYPE_ONLY_CYCLES_LEFT if next(iter(c)).startswith(library + ".")}
+    assert found == left, (
+        f"new cycles: {[' -> '.join(sorted(c)) for c in found - left]}; gone (drop them from the list): "
+        f"{[' -> '.join(sorted(c)) for c in left - found]}"
+    )
 
 
 def _find_cycle(graph: dict[str, set[str]]) -> list[str] | None:

@@ -5,22 +5,44 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import zenoh
 
+from coordinator.dispatcher import Dispatcher
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.history import fetch_history
+from fleet.bus.keys import Keys
 from fleet.bus.message_checks import MAX_SEQ_JUMP, not_finite
 from fleet.bus.messages import ArmStatus, LineView
-
-if TYPE_CHECKING:
-    from fleet.nodes.coordinator_node import CoordinatorNode
+from fleet.bus.session import Inbox
+from fleet.nodes.controller_lives import ControllerLives
+from fleet.nodes.coordinator_events import EventGate
+from scenes.schema import Scene
 
 TAKEOVER_WAIT_S = 2.0  # wall seconds a take-over waits for every arm's heartbeat (a dead controller's never comes)
 
 
-def take_over(node: CoordinatorNode, session: zenoh.Session, timeout_s: float = 30.0) -> dict:
+class Coordinator(Protocol):
+    """What a take-over rebuilds (`fleet.nodes.coordinator_node.CoordinatorNode`): its decisions, the events it
+    holds, its view of the controllers and its order counts, from its queue and keys."""
+
+    scene: Scene
+    keys: Keys
+    incarnation: int
+    arm_names: list[str]
+    inbox: Inbox
+    drops: DropCounter
+    replayed: set[tuple]
+    events: EventGate
+    dispatcher: Dispatcher
+    lives: ControllerLives
+    assign_seq: dict[str, int]
+
+    def problem(self, leaf: str, msg, key: str = "") -> str: ...
+
+
+def take_over(node: Coordinator, session: zenoh.Session, timeout_s: float = 30.0) -> dict:
     """Rebuild `node` from the running line (it replaces a coordinator that crashed): the sim's event log, then each
     arm's heartbeat (the task it works on, the orders it received). Returns what was rebuilt."""
     log = fetch_history(session, node.keys, node.drops, timeout_s)
@@ -57,7 +79,7 @@ def take_over(node: CoordinatorNode, session: zenoh.Session, timeout_s: float = 
     return takeover
 
 
-def await_arms(node: CoordinatorNode, wait_s: float) -> tuple[dict[str, ArmStatus], dict[str, int]]:
+def await_arms(node: Coordinator, wait_s: float) -> tuple[dict[str, ArmStatus], dict[str, int]]:
     """Each arm's newest heartbeat and the order count the sim announced to it (a frame), waiting at most
     `wait_s` for all; what arrived meanwhile stays queued, in order, for `poll`."""
     beats: dict[str, ArmStatus] = {}
