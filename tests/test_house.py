@@ -270,7 +270,6 @@ def test_no_class_over_250_lines_and_no_function_over_60():
 SINGLE_USE_BASES_LEFT = {
     "Dispatcher": {"OutsideDrivers", "GrantAnswers", "DispatchReport", "TakeOver", "AllocatorViews"},
     "Ledger": {"LedgerAccounts", "LedgerBuffers", "LedgerHolds", "LedgerStations"},
-    "Launcher": {"Supervision"},
     "SimServer": {"SimLockstep"},
     "PickPlaceSkill": {"EStopWait", "MotionGrants", "PickGeometry", "PickPlans", "SkillRecovery"},
 }

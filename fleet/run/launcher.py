@@ -21,10 +21,10 @@ from collections.abc import Callable
 import zenoh
 
 from fleet.bus.bus_config import BusConfigError, BusConfigSet, write_run_bus
-from fleet.bus.codec import Decoder, DropCounter
+from fleet.bus.codec import DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import Progress, RespawnRequest, SimStatus
-from fleet.bus.session import BusEndpoints, Inbox, free_loopback_port, open_session
+from fleet.bus.messages import Progress
+from fleet.bus.session import BusEndpoints, free_loopback_port, open_session
 from fleet.common.processes import read_when_written, stop_children
 from fleet.common.scene_loading import load_checked_scene
 from fleet.run.disk_watch import room_problem, run_disks
@@ -60,7 +60,7 @@ def placement(bus_config: str | None, hosts: str | None, scene: Scene) -> tuple[
     return bus, load_hosts(hosts, ["sim", "coordinator", *arms, "monitor", "recorder"]) if hosts else None
 
 
-class Launcher(Supervision):
+class Launcher:
     """Use as a context manager: `with Launcher(options) as run: summary = run.run()`; leaving stops every node."""
 
     def __init__(
@@ -75,17 +75,9 @@ class Launcher(Supervision):
         run starts its own and closes it at the end."""
         self.options = options
         self.on_message = on_message or (lambda text: print(text, file=sys.stderr, flush=True))
-        self.server_urls: dict[str, str] = {}  # role -> where it serves (`Supervision._check_servers`)
-        self.servers_gone: set[str] = set()
-        self.respawn_requests: list[dict] = []
-        self.arms_lost: tuple[str, ...] = ()
-        self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died
-        self.progress_at: float | None = None  # when the running coordinator last said its progress (None: not yet)
-        self.last_sim_time_s = 0.0
         self.scene = load_checked_scene(options.scene, arms=options.arms, seed=options.seed)
         self.seed = self.scene.seed
         self.bus, self.hosts = placement(options.bus_config, options.hosts, self.scene)
-        self.on_progress = on_progress
         self.dir = make_run_folder()
         self.disk = run_disks(self.dir, options.record)
         if self.bus is None and self.secure_by_default:
@@ -99,10 +91,20 @@ class Launcher(Supervision):
         # forks the nodes; its own is closed after they all stopped
         self.factory = (factory or kept_factory()) if options.fork_nodes else None
         self._own_factory = False
-        self.respawns = 0
         self.drops = DropCounter()  # what the launcher heard and refused (malformed, or not true of this line)
-        self.interrupted = ""
+        self.interrupted = ""  # why the launcher was told to stop (a signal's name, or a caller's reason)
         self.keep_dir = options.keep_logs
+        self.supervision = Supervision(
+            options,
+            self.scene,
+            self.dir,
+            self.disk,
+            self.nodes,
+            self.drops,
+            self.on_message,
+            on_progress,
+            stopped=lambda: self.interrupted,
+        )
 
     @property
     def endpoint(self) -> str:
@@ -139,7 +141,7 @@ class Launcher(Supervision):
                 adopting(+1)  # a kept factory's nodes come here if it dies under this run
             commands = self.commands
             sim = commands.sim_node()
-            self.nodes = [self._start(sim)]
+            self.nodes[:] = [self._start(sim)]  # the list supervision watches
             if self.options.record:  # beside the sim: it waits for the sim's spool while both import
                 self.recorder = self._start(commands.recorder_node())
             if not self.endpoint or self.bus is not None:  # the sim listens: clients may connect (a client that
@@ -198,7 +200,7 @@ class Launcher(Supervision):
             try:
                 error = self._run_on_bus(self.client_endpoints("launcher"))
             except zenoh.ZError as exc:  # the sim went before the launcher reached its bus
-                error = self.unreachable(str(exc))
+                error = self.supervision.unreachable(str(exc))
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
@@ -219,23 +221,7 @@ class Launcher(Supervision):
     def _run_on_bus(self, mine: BusEndpoints) -> str:
         """Supervise the line from the launcher's own session until it ends; why it ended ("" for a clean end)."""
         with open_session(mine) as session:
-            keys, inbox, drops = Keys(self.options.run_id), Inbox(), self.drops
-            subs = [
-                session.declare_subscriber(k, inbox) for k in (keys.coord("progress"), keys.respawn, keys.sim_status)
-            ]
-            self._decoders = {
-                keys.coord("progress"): Decoder(Progress, drops),
-                keys.respawn: Decoder(RespawnRequest, drops),
-                keys.sim_status: Decoder(SimStatus, drops),
-            }
-            self._roster_pub = session.declare_publisher(keys.roster)
-            try:
-                return self._supervise(inbox)
-            finally:
-                for sub in subs:
-                    sub.undeclare()
-                self._roster_pub.undeclare()
-                self._roster_pub = None
+            return self.supervision.watch(session, Keys(self.options.run_id), self.factory)
 
     def _on_signal(self, signum: int, _frame: object) -> None:
         self.interrupted = signal.Signals(signum).name
@@ -249,10 +235,10 @@ class Launcher(Supervision):
             secure_bus=self.bus is not None and self.bus.secure,
             nodes=list(self.nodes),
             drops=self.drops,
-            last_progress=self.last_progress,
-            last_sim_time_s=self.last_sim_time_s,
+            last_progress=self.supervision.last_progress,
+            last_sim_time_s=self.supervision.last_sim_time_s,
             interrupted=self.interrupted,
-            respawns=self.respawns,
-            respawn_requests=list(self.respawn_requests),
-            server_urls=dict(self.server_urls),
+            respawns=self.supervision.respawns,
+            respawn_requests=list(self.supervision.respawn_requests),
+            server_urls=dict(self.supervision.server_urls),
         )

@@ -4,17 +4,26 @@ requests on the bus answered, the monitor kept up."""
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from pathlib import Path
 
-from fleet.bus.codec import encode
+import zenoh
+
+from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.keys import Keys
 from fleet.bus.message_checks import progress_problem, sim_status_problem
 from fleet.bus.messages import Progress, RespawnRequest, Roster, SimStatus
 from fleet.bus.session import Inbox
+from fleet.run.disk_watch import DiskWatch
 from fleet.run.log_relay import LogRelay
+from fleet.run.node_factory import NodeFactory
 from fleet.run.run_node import (
     MAX_COORDINATOR_STARTS,
     Node,
     read_report,
 )
+from fleet.run.run_options import RunOptions
+from scenes.schema import Scene
 
 SERVERS = {"monitor": "the monitor", "rosbridge": "the rosbridge server", "ros2": "the ROS 2 publisher"}
 CANNOT_START = 2  # a node's exit code for input it cannot start from (arguments, scene, snapshot): no respawn helps
@@ -22,10 +31,58 @@ ROSTER_PERIOD_S = 1.0  # the roster is said again this often (wall), for whoever
 
 
 class Supervision:
-    """Watching a run while it goes: one concern of `Launcher`, kept apart."""
+    """A run watched while it goes (`watch`): what the line says on the bus (progress, the sim's status, respawn
+    requests), its nodes restarted or the run ended, its servers' addresses said. It is handed the run's options,
+    scene, folder and disks, the launcher's list of nodes (filled as they start), its drop counter, what to call with
+    messages and progress, and `stopped`: why the launcher was told to stop ("" while it was not). What it heard is
+    the summary's where a node died (`last_progress`, `last_sim_time_s`)."""
 
-    _roster_pub = None
-    _roster_at = -1e9
+    def __init__(
+        self,
+        options: RunOptions,
+        scene: Scene,
+        run_dir: Path,
+        disk: DiskWatch,
+        nodes: list[Node],
+        drops: DropCounter,
+        on_message: Callable[[str], None],
+        on_progress: Callable[[Progress], None] | None,
+        stopped: Callable[[], str],
+    ) -> None:
+        self.options, self.scene, self.dir, self.disk, self.nodes = options, scene, run_dir, disk, nodes
+        self.drops, self.on_message, self.on_progress, self.stopped = drops, on_message, on_progress, stopped
+        self.factory: NodeFactory | None = None
+        self.server_urls: dict[str, str] = {}  # role -> where it serves
+        self.servers_gone: set[str] = set()
+        self.respawn_requests: list[dict] = []
+        self.arms_lost: tuple[str, ...] = ()
+        self.last_progress: Progress | None = None  # the line's counts as last heard: the summary's if a node died
+        self.progress_at: float | None = None  # when the running coordinator last said its progress (None: not yet)
+        self.last_sim_time_s = 0.0
+        self.respawns = 0
+        self._decoders: dict[str, Decoder] = {}
+        self._roster_pub: zenoh.Publisher | None = None
+        self._roster_at = -1e9
+
+    def watch(self, session: zenoh.Session, keys: Keys, factory: NodeFactory | None) -> str:
+        """Watch the line from `session` until it ends (its nodes forked by `factory`, if any); why it ended ("" for a
+        clean end)."""
+        self.factory = factory
+        inbox = Inbox()
+        subs = [session.declare_subscriber(k, inbox) for k in (keys.coord("progress"), keys.respawn, keys.sim_status)]
+        self._decoders = {
+            keys.coord("progress"): Decoder(Progress, self.drops),
+            keys.respawn: Decoder(RespawnRequest, self.drops),
+            keys.sim_status: Decoder(SimStatus, self.drops),
+        }
+        self._roster_pub = session.declare_publisher(keys.roster)
+        try:
+            return self._supervise(inbox)
+        finally:
+            for sub in subs:
+                sub.undeclare()
+            self._roster_pub.undeclare()
+            self._roster_pub = None
 
     def say_roster(self, now: bool = False) -> None:
         """Which start of each counted node runs (`Roster`): at once after a restart, else every second. A node's
@@ -101,7 +158,7 @@ class Supervision:
     def _supervise(self, inbox: Inbox) -> str:
         sim, coordinator = self.nodes[0], self.nodes[1]
         said = LogRelay(coordinator.log, ("allocator ",))  # a plug-in's faults, said on the user's terminal
-        while not self.interrupted:
+        while not self.stopped():
             self.say_roster()
             self._on_bus(inbox)
             self._check_servers()

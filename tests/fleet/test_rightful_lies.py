@@ -57,7 +57,7 @@ def run(lie: bool) -> dict:
                 for arm in arms:
                     for key, payload in coordinator_lies(keys, arm):
                         as_coordinator.put(key, payload)
-                poured.append(launcher.last_sim_time_s)
+                poured.append(launcher.supervision.last_sim_time_s)
 
             with SimTimeTrigger(as_arm, keys, [1.0, 3.0, 5.0, 7.0, 9.0] if lie else [], pour):
                 summary = launcher.run()

@@ -373,7 +373,7 @@ def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_
         if not steps and progress.sim_time_s > 2.0:
             steps.append("asked for a live one")
             session.put(keys.respawn, encode(RespawnRequest("arm_0", "test")))
-        elif len(steps) == 1 and launcher.respawn_requests:
+        elif len(steps) == 1 and launcher.supervision.respawn_requests:
             steps.append("killed")
             os.kill(arm_0.proc.pid, signal.SIGKILL)
             arm_0.proc.wait()
