@@ -58,3 +58,11 @@ def unpack(data: bytes, kind: type[S]) -> S:
         return msgspec.msgpack.decode(data, type=kind, dec_hook=_unpacked)
     except (msgspec.DecodeError, msgspec.ValidationError, ValueError, TypeError) as exc:
         raise SavedStateError(f"not a saved {kind.__name__}: {exc}") from None
+
+
+def unpack_version(data: bytes, kind: type[S], version: int) -> S:
+    """`unpack`, and the state's own `version` must be `version` (a host's state says which it is)."""
+    state = unpack(data, kind)
+    if state.version != version:
+        raise SavedStateError(f"a {kind.__name__} of version {state.version}; this clawfleet reads version {version}")
+    return state

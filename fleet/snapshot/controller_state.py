@@ -6,7 +6,7 @@ from __future__ import annotations
 from fleet.bus.message_checks import IncarnationsState
 from fleet.bus.messages import ArmOrder, Assignment, MotionGrant, PartsState
 from fleet.snapshot.process_state import StateError
-from robots.saved_state import SavedState, SavedStateError, unpack
+from robots.saved_state import SavedState, SavedStateError, unpack_version
 from robots.skills.interface import PartObservation
 from robots.skills.skill_state import SkillState
 
@@ -56,9 +56,6 @@ class ControllerState(SavedState, frozen=True):
 def read_controller_state(data: bytes, arm: str) -> ControllerState:
     """A state from `controller_state`; another version, or bytes that are not one, is a one-line `StateError`."""
     try:
-        state = unpack(data, ControllerState)
+        return unpack_version(data, ControllerState, VERSION)
     except SavedStateError as exc:
         raise StateError(f"cannot read back the state of {arm}: {exc}") from None
-    if state.version != VERSION:
-        raise StateError(f"{arm}'s state is of version {state.version}; this clawfleet reads version {VERSION}")
-    return state

@@ -11,7 +11,7 @@ from coordinator.dispatch_state import DispatcherState
 from fleet.bus.message_checks import IncarnationsState
 from fleet.bus.messages import LineEvent
 from fleet.snapshot.process_state import StateError
-from robots.saved_state import SavedState, SavedStateError, unpack
+from robots.saved_state import SavedState, SavedStateError, unpack_version
 
 VERSION = 1  # bumped when a field keeps its name and type but changes its meaning
 
@@ -57,9 +57,6 @@ def read_coordinator_state(data: bytes) -> CoordinatorState:
     """A coordinator's state from its bytes; another version, or bytes that are not one, is a one-line
     `StateError`."""
     try:
-        state = unpack(data, CoordinatorState)
+        return unpack_version(data, CoordinatorState, VERSION)
     except SavedStateError as exc:
         raise StateError(f"cannot read back the state of the coordinator: {exc}") from None
-    if state.version != VERSION:
-        raise StateError(f"the coordinator's state is of version {state.version}; this clawfleet reads {VERSION}")
-    return state

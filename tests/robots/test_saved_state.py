@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from robots.saved_state import SavedState, SavedStateError, pack, unpack
+from robots.saved_state import SavedState, SavedStateError, pack, unpack, unpack_version
 
 
 class Inner(SavedState, frozen=True):
@@ -66,3 +66,14 @@ def test_an_object_with_no_saved_form_is_refused():
 
     with pytest.raises(SavedStateError, match="cannot save Loose: no saved form for type"):
         pack(Loose(thing=set))  # a type object: no state
+
+
+class Versioned(SavedState, frozen=True):
+    version: int
+    count: int
+
+
+def test_a_state_of_another_version_is_refused_in_one_line():
+    assert unpack_version(pack(Versioned(version=2, count=1)), Versioned, 2).count == 1
+    with pytest.raises(SavedStateError, match=r"^a Versioned of version 1; this clawfleet reads version 2$"):
+        unpack_version(pack(Versioned(version=1, count=1)), Versioned, 2)
