@@ -275,6 +275,39 @@ SINGLE_USE_BASES_LEFT = {
 }
 
 
+# Objects handed the object that makes them (`Component(self)`), still waiting to be handed only what they use: the
+# sim server's inputs, outputs and realtime pacing reach into the server; a node's snapshot link reads the node's
+# incarnation and counters; a forked process asks its factory for its exit. The list only shrinks.
+HANDED_THEIR_HOST_LEFT = {
+    ("SimServer", "SimInputs"),
+    ("SimServer", "SimOutputs"),
+    ("SimServer", "_Pacing"),
+    ("ArmController", "SnapshotLink"),
+    ("CoordinatorNode", "SnapshotLink"),
+    ("NodeFactory", "ForkedProc"),
+}
+
+
+def test_no_object_is_handed_the_object_that_makes_it():
+    """A component handed its host (`Inputs(self)`) reads and writes whatever of the host it likes, as a mixin does:
+    hand it the collaborators it uses (`fleet/run/supervision.py`)."""
+    found = set()
+    for library in LIBRARIES:
+        for path in _sources(library):
+            for cls in (n for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.ClassDef)):
+                for call in (n for n in ast.walk(cls) if isinstance(n, ast.Call)):
+                    func = call.func.value if isinstance(call.func, ast.Attribute) else call.func  # `X.of(self)`
+                    args = [*call.args, *(k.value for k in call.keywords)]
+                    made = func.id.lstrip("_") if isinstance(func, ast.Name) else ""
+                    a_class = made[:1].isupper() and not made.isupper()  # CamelCase, not a CONSTANT's method
+                    if a_class and any(isinstance(a, ast.Name) and a.id == "self" for a in args):
+                        found.add((cls.name, func.id))
+    assert found == HANDED_THEIR_HOST_LEFT, (
+        f"new: {sorted(found - HANDED_THEIR_HOST_LEFT)}; gone (drop them from the list): "
+        f"{sorted(HANDED_THEIR_HOST_LEFT - found)}"
+    )
+
+
 def test_no_class_is_a_base_of_one_class_only():
     """A concern kept in a base class that only one class takes (a single-use mixin) shares its host's `self`: make
     it an object that owns its state and is handed its collaborators (`robots/skills/goal_outbox.py`)."""
