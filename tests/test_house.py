@@ -276,15 +276,11 @@ SINGLE_USE_BASES_LEFT = {
 
 
 # Objects handed the object that makes them (`Component(self)`), still waiting to be handed only what they use: the
-# sim server's inputs, outputs and realtime pacing reach into the server; a node's snapshot link reads the node's
-# incarnation and counters; a forked process asks its factory for its exit. The list only shrinks.
+# sim server's inputs, outputs and realtime pacing reach into the server. The list only shrinks.
 HANDED_THEIR_HOST_LEFT = {
     ("SimServer", "SimInputs"),
     ("SimServer", "SimOutputs"),
     ("SimServer", "_Pacing"),
-    ("ArmController", "SnapshotLink"),
-    ("CoordinatorNode", "SnapshotLink"),
-    ("NodeFactory", "ForkedProc"),
 }
 
 

@@ -156,7 +156,9 @@ class ArmController:
         self._step_pub = session.declare_publisher(keys.arm_step(self.arm))
         self._goal_pub = session.declare_publisher(keys.arm_goal(self.arm))
         self._status_pub = session.declare_publisher(keys.arm_status(self.arm))
-        self.snapshot_link = SnapshotLink.of(self, session, keys, self.arm, "controllers", self.wake)
+        self.snapshot_link = SnapshotLink(
+            session, keys, self.arm, "controllers", self.drops, self.wake, lambda: self.incarnation, self.hold
+        )
 
     def report(self) -> dict:
         """The controller's figures at the end of a run."""

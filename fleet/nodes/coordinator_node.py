@@ -123,23 +123,31 @@ class CoordinatorNode:
         # one queue for everything, in the order the callbacks ran: per key the order sent, across keys not (each
         # subscriber's callback has a thread of its own; a frame names the events before it, `EventGate` waits)
         self.inbox = Inbox(hold=self.hold)
+        self.assign_seq = {a: 0 for a in self.arm_names}
+        self.last_tick = {a: -1 for a in self.arm_names}
+        self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
         self._subs = [
             session.declare_subscriber(k, self.inbox)
             for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
-        ]
-        # heartbeats stamped on arrival (`self.lives` looked up then: a restore puts in another)
-        self._subs.append(session.declare_subscriber(keys.all_arms("status"), lambda s: self.lives.arrived(s)))
+        ]  # and heartbeats stamped on arrival (a restore puts the lives' state back in place)
+        self._subs.append(session.declare_subscriber(keys.all_arms("status"), self.lives.arrived))
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
         self._tick_pub = session.declare_publisher(keys.coord("tick"))
         self._progress_pub = session.declare_publisher(keys.coord("progress"))
         self._separation_pub = session.declare_publisher(keys.coord("separation"))
-        self.assign_seq = {a: 0 for a in self.arm_names}
-        self.last_tick = {a: -1 for a in self.arm_names}
-        self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
-        self.snapshot_link = SnapshotLink.of(self, session, keys, "coordinator", "coordinator", self.inbox.wake)
+        self.snapshot_link = SnapshotLink(
+            session,
+            keys,
+            "coordinator",
+            "coordinator",
+            self.drops,
+            self.inbox.wake,
+            lambda: self.incarnation,
+            self.hold,
+        )
 
     @property
     def events_seen(self) -> int:

@@ -107,6 +107,15 @@ class Launcher:
         )
 
     @property
+    def on_progress(self) -> Callable[[Progress], None] | None:
+        """Called with each progress report the line says (set it once the launcher exists, to act on the line)."""
+        return self.supervision.on_progress
+
+    @on_progress.setter
+    def on_progress(self, callback: Callable[[Progress], None] | None) -> None:
+        self.supervision.on_progress = callback
+
+    @property
     def endpoint(self) -> str:
         """Where the sim listens ("" until it says, where it picks its own port)."""
         return self.commands.endpoint

@@ -26,6 +26,7 @@ import sys
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,15 +58,16 @@ def forkable(argv: list[str]) -> tuple[str, list[str]] | None:
 
 @dataclass
 class ForkedProc:
-    """A node the factory forked, with `subprocess.Popen`'s `pid`, `poll`, `wait` and `returncode`."""
+    """A node the factory forked, with `subprocess.Popen`'s `pid`, `poll`, `wait` and `returncode`; `exit_code` asks
+    the factory for a pid's (None while it runs)."""
 
     pid: int
-    factory: NodeFactory
+    exit_code: Callable[[int], int | None]
     returncode: int | None = None
 
     def poll(self) -> int | None:
         if self.returncode is None:
-            self.returncode = self.factory.exit_code(self.pid)
+            self.returncode = self.exit_code(self.pid)
         return self.returncode
 
     def wait(self, timeout: float | None = None) -> int:
@@ -167,7 +169,7 @@ class NodeFactory:
             reply = self._replies.pop(0)
         if "error" in reply:
             raise FactoryError(f"{reply['error']}{self._see}")
-        return ForkedProc(reply["pid"], self)
+        return ForkedProc(reply["pid"], self.exit_code)
 
     @property
     def _see(self) -> str:

@@ -55,11 +55,6 @@ class SnapshotLink:
         self._sent: tuple[SnapshotAsk, bytes] | None = None  # the last part sent: asked again, it goes again
         self._expected = -1  # the tick of the snapshot this node holds for (-1: none)
 
-    @classmethod
-    def of(cls, node, session: zenoh.Session, keys: Keys, name: str, role: str, wake: threading.Event) -> SnapshotLink:
-        """The link of a node object with `drops`, `hold` and `incarnation` (its current start)."""
-        return cls(session, keys, name, role, node.drops, wake, lambda: node.incarnation, node.hold)
-
     def expect(self, snapshot_tick: int) -> None:
         """A state or frame said the run's next snapshot is at `snapshot_tick` (-1: none): from that tick on, what
         arrives is held until this node's part of it is sent. Call as the message is handled (nothing of that tick
