@@ -55,6 +55,14 @@ class DropCounter:
     def total(self) -> int:
         return sum(self.counts.values())
 
+    def state(self) -> list[tuple[str, str, int]]:
+        """The counts as a run's snapshot keeps them: (key, reason, how many)."""
+        return [(key, reason, n) for (key, reason), n in self.counts.items()]
+
+    def restore(self, state: list[tuple[str, str, int]]) -> None:
+        """The counts of `state` put back in place (decoders counting into this counter keep doing so)."""
+        self.counts = Counter({(key, reason): n for key, reason, n in state})
+
     def kinds(self) -> dict[str, int]:
         """The counts by kind: the key's leaf (`assign`, `status`, `step`, ...) and the reason with its numbers
         and quoted names blanked, so one kind of lie is one entry however often it came."""

@@ -19,7 +19,7 @@ import math
 import os
 import sys
 import threading
-from collections import Counter, deque
+from collections import deque
 
 import numpy as np
 import zenoh
@@ -334,7 +334,7 @@ def controller_state(c: ArmController) -> ControllerState:
         decisions=c.decisions,
         goals_sent=c.goals_sent,
         busy_s=c.busy_s,
-        drops=[(key, reason, n) for (key, reason), n in c.drops.counts.items()],
+        drops=c.drops.state(),
     )
 
 
@@ -351,7 +351,7 @@ def restore_controller(c: ArmController, s: ControllerState) -> None:
     c.answered.extend(s.answered)
     c.task_id, c.sim_time_s, c.seq = s.task_id, s.sim_time_s, s.seq
     c.decisions, c.goals_sent, c.busy_s = s.decisions, s.goals_sent, s.busy_s
-    c.drops.counts = Counter({(key, reason): n for key, reason, n in s.drops})
+    c.drops.restore(s.drops)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -8,7 +8,7 @@ from collections.abc import Callable, Iterator
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.message_checks import Incarnations, not_finite, seq_problem
-from fleet.bus.messages import ArmOrder, Assignment, MotionGrant, Roster
+from fleet.bus.messages import ArmOrder, Assignment, MotionGrant
 from fleet.bus.session import Inbox
 from fleet.snapshot.controller_state import OrdersState
 from robots.skills.pick_place import PickPlaceSkill
@@ -92,8 +92,8 @@ class ControllerOrders:
         """Queue what arrived; `apply` acts on it when a state says its time has come. Orders come only from the
         coordinator that holds the line (the launcher's roster names it; without one, the newest that spoke), each
         newer than the last."""
-        roster: Roster
-        for roster in believable(self.inboxes["roster"], self.decoders["roster"], self.drops, self._roster_problem):
+        rosters = believable(self.inboxes["roster"], self.decoders["roster"], self.drops, self.holders.roster_problem)
+        for roster in rosters:
             self.holders.hear_roster(roster)
         for msg in believable(self.inboxes["assign"], self.decoders["assign"], self.drops, self._problem):
             if self.assign_seq is not None and msg.seq <= self.assign_seq:
@@ -102,9 +102,6 @@ class ControllerOrders:
             self.holders.believe("coordinator", msg.holder)
             self.assign_seq = msg.seq
             self.received.append(msg)
-
-    def _roster_problem(self, roster: Roster) -> str:
-        return self.holders.roster_problem(roster)
 
     def apply(self, announced_seq: int, skill: PickPlaceSkill) -> None:
         """Act on received orders up to `announced_seq`; on all of them when the sim announces none (-1). A cancel

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections import Counter
 
 import numpy as np
 import zenoh
@@ -67,20 +66,6 @@ from scenes.schema import Scene
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
-COORDINATOR_LIVE = (
-    "lockstep",
-    "heartbeat_timeout_s",
-    "keys",
-    "_decoders",
-    "inbox",
-    "hold",
-    "_subs",
-    "_assign_pubs",
-    "_tick_pub",
-    "_progress_pub",
-    "_separation_pub",
-    "snapshot_link",
-)
 
 
 class CoordinatorNode:
@@ -366,7 +351,7 @@ def coordinator_state(node: CoordinatorNode) -> CoordinatorState:
         last_tick=dict(node.last_tick),
         replayed=set(node.replayed),
         takeover=node.takeover,
-        drops=[(key, reason, n) for (key, reason), n in node.drops.counts.items()],
+        drops=node.drops.state(),
     )
 
 
@@ -383,7 +368,7 @@ def restore_coordinator(node: CoordinatorNode, s: CoordinatorState) -> None:
     node.assign_seq.update(s.assign_seq)
     node.last_tick = dict(s.last_tick)
     node.replayed, node.takeover = set(s.replayed), s.takeover
-    node.drops.counts = Counter({(key, reason): n for key, reason, n in s.drops})
+    node.drops.restore(s.drops)
 
 
 def build_parser() -> argparse.ArgumentParser:
