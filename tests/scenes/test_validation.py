@@ -1,5 +1,6 @@
 """Scene validation: every bundled scene passes; each kind of mistake names the file, the field and the reason."""
 
+import copy
 from pathlib import Path
 
 import pytest
@@ -194,17 +195,17 @@ def numeric_leaves(node, path=()):
 def test_every_number_of_every_bundled_scene_refuses_a_non_finite_value_naming_file_and_field(tmp_path, name, value):
     """NaN and infinite numbers were accepted in places (arm bases, heights) and crashed or hung `fleet run` later:
     each number of each bundled scene, set to one, is refused by `load_scene` with the file and its field."""
-    data = yaml.safe_load((BUNDLED_DIR / f"{name}.yaml").read_text())
+    data = yaml.load((BUNDLED_DIR / f"{name}.yaml").read_text(), Loader=yaml.CSafeLoader)  # libyaml: 20x faster
     leaves = list(numeric_leaves(data))
     assert len(leaves) >= 10
     path = tmp_path / f"{name}.yaml"
     for leaf in leaves:
-        edited = yaml.safe_load((BUNDLED_DIR / f"{name}.yaml").read_text())
+        edited = copy.deepcopy(data)
         node = edited
         for key in leaf[:-1]:
             node = node[key]
         node[leaf[-1]] = value
-        path.write_text(yaml.safe_dump(edited))
+        path.write_text(yaml.dump(edited, Dumper=yaml.CSafeDumper))
         with pytest.raises(SceneError) as refused:
             load_scene(path, robots=robot_facts())
         message = str(refused.value)
