@@ -80,21 +80,25 @@ class DispatcherState(SavedState, frozen=True):
 
 
 def ledger_state(ledger: Ledger) -> LedgerState:
+    records = ledger.records
     return LedgerState(
         pipeline=ledger.pipeline,
-        parts=dict(ledger.parts),
-        tasks=dict(ledger.tasks),
-        stacks={name: list(stack) for name, stack in ledger.stacks.items()},
-        next_task_id=ledger._next_task_id,
-        open_by_part=dict(ledger._open_by_part),
-        finished_at=dict(ledger._finished_at),
+        parts=dict(records.parts),
+        tasks=dict(records.tasks),
+        stacks={name: list(stack) for name, stack in records.stacks.items()},
+        next_task_id=records.next_task_id,
+        open_by_part=dict(records.open_by_part),
+        finished_at=dict(records.finished_at),
     )
 
 
 def restore_ledger(ledger: Ledger, s: LedgerState) -> None:
-    ledger.pipeline, ledger.parts, ledger.tasks = s.pipeline, dict(s.parts), dict(s.tasks)
-    ledger.stacks = {name: list(stack) for name, stack in s.stacks.items()}
-    ledger._next_task_id, ledger._open_by_part, ledger._finished_at = (
+    """`s` put into the ledger's records in place (its components hold them)."""
+    records = ledger.records
+    ledger.turns.pipeline = s.pipeline
+    records.parts, records.tasks = dict(s.parts), dict(s.tasks)
+    records.stacks = {name: list(stack) for name, stack in s.stacks.items()}
+    records.next_task_id, records.open_by_part, records.finished_at = (
         s.next_task_id,
         dict(s.open_by_part),
         dict(s.finished_at),

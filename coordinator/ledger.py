@@ -13,10 +13,11 @@ it, and `may_enter` says when it may move in. One part (or one assembly) ahead a
 
 from __future__ import annotations
 
-from coordinator.ledger_accounts import LedgerAccounts
-from coordinator.ledger_buffers import BuffersNear, LedgerBuffers, SoonLost
-from coordinator.ledger_holds import DENIAL_HOLD_S, MAX_DENIALS, LedgerHolds, refused_by  # noqa: F401 (re-exported)
-from coordinator.ledger_stations import LedgerStations
+from coordinator import ledger_accounts
+from coordinator.ledger_buffers import Buffering, BuffersNear, SoonLost
+from coordinator.ledger_holds import DENIAL_HOLD_S, MAX_DENIALS, deny, refused_by, release_holds  # noqa: F401
+from coordinator.ledger_records import LedgerRecords
+from coordinator.ledger_stations import StationTurns, alternatives, other_stations
 from coordinator.tasks import CONVEYOR, OPEN_STATES, PartFate, PartRecord, Task, TaskState
 from robots.failures import FailureCode
 from robots.phase import HOLDING_PHASES, IDLE_PHASES, Phase
@@ -33,21 +34,42 @@ PLACED_GRACE_S = 3.0
 PIPELINE_DEFAULT = True
 
 
-class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
-    """Parts and tasks of one run; all times are sim seconds."""
+class Ledger:
+    """Parts and tasks of one run; all times are sim seconds. Its records (`LedgerRecords`) are shared by the
+    stations' turns (`StationTurns`) and the buffers (`Buffering`), each handed them."""
 
     def __init__(self, scene: Scene, first_task_id: int = 1, pipeline: bool = PIPELINE_DEFAULT) -> None:
         self.scene = scene
-        self.pipeline = pipeline
-        self.gated = {s.name for s in scene.stations if s.kind == "fixture"}  # one part or assembly at a time
-        self.parts: dict[int, PartRecord] = {}
-        self.tasks: dict[int, Task] = {}
-        self.stacks: dict[str, list[int]] = {s.name: [] for s in scene.stations if s.assembles}
-        self._next_task_id = first_task_id  # a respawned coordinator starts past its predecessors' ids
-        self._open_by_part: dict[int, int] = {}
-        self._finished_at: dict[int, float] = {}  # task id -> when its arm said the skill was done
+        self.records = LedgerRecords(scene, first_task_id)
+        self.turns = StationTurns(self.records, scene, pipeline)
+        self.buffering = Buffering(self.records, self.turns, scene)
         self._station_names = {s.name for s in scene.stations}
-        self.buffers = frozenset(scene.buffers())  # `Station.buffer`: asked about each refresh, so worked out once
+
+    @property
+    def parts(self) -> dict[int, PartRecord]:
+        return self.records.parts
+
+    @property
+    def tasks(self) -> dict[int, Task]:
+        return self.records.tasks
+
+    @property
+    def stacks(self) -> dict[str, list[int]]:
+        return self.records.stacks
+
+    @property
+    def pipeline(self) -> bool:
+        """Whether a fixture's next part may be given to an arm before the fixture is ready for it."""
+        return self.turns.pipeline
+
+    @property
+    def gated(self) -> set[str]:
+        """The fixtures: one part or assembly at a time."""
+        return self.turns.gated
+
+    @property
+    def buffers(self) -> frozenset[str]:
+        return self.buffering.buffers
 
     # --- line events ------------------------------------------------------------------
     def arrived(self, part_id: int, feeder: str, type_index: int, now_s: float) -> None:
@@ -66,11 +88,11 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         part = self.parts.get(part_id)
         if part is None or part.fate != PartFate.ON_LINE:
             return
-        self._leave_stack(part)
+        self.records.leave_stack(part)
         part.location = station
-        task = self._open_task(part_id)
+        task = self.records.open_task(part_id)
         # another bin of its colour does as well
-        if station != part.next_station and station in self._alternatives(part):
+        if station != part.next_station and station in alternatives(self.scene, part):
             part.route[part.hop] = station
             if task is not None:
                 task.retarget(station)
@@ -78,23 +100,23 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
             part.hop += 1
             if task is not None and task.target == station:
                 task.done_s = now_s
-                self._close(task, TaskState.DONE, "")
+                self.records.close(task, TaskState.DONE, "")
             if station in self.stacks and part.feeder in self.scene.station(station).assembles:
                 self.stacks[station].append(part_id)
             if part.next_station is None:
                 part.fate = PartFate.COMPLETED
         elif task is not None and task.target == station:  # set down at a buffer: its next hop is still to come
             task.done_s = now_s
-            self._close(task, TaskState.DONE, "")
+            self.records.close(task, TaskState.DONE, "")
 
     def lost(self, part_id: int, reason: str, now_s: float) -> None:
         part = self.parts.get(part_id)
         if part is None:
             return
-        self._leave_stack(part)
-        task = self._open_task(part_id)
+        self.records.leave_stack(part)
+        task = self.records.open_task(part_id)
         if task is not None:
-            self._close(task, TaskState.FAILED, f"part lost: {reason}")
+            self.records.close(task, TaskState.FAILED, f"part lost: {reason}")
         if part.fate == PartFate.ON_LINE:
             part.fate, part.reason = PartFate.MISSED, reason
 
@@ -142,14 +164,14 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         part = self.parts[task.part_id]
         if phase in HOLDING_PHASES and part.location != HELD:
             part.held_from, part.held_stack = part.location, tuple(self.stacks.get(part.location, ()))
-            self._leave_stack(part)
+            self.records.leave_stack(part)
             part.location = HELD
         if task.state == TaskState.ASSIGNED and phase not in IDLE_PHASES:
             task.state = TaskState.ACTIVE
         if phase == Phase.FAILED:
             self._fail_attempt(task, failure or "the arm's skill failed", now_s, failure_code)
         elif phase == Phase.DONE:
-            first = self._finished_at.setdefault(task.task_id, now_s)
+            first = self.records.finished_at.setdefault(task.task_id, now_s)
             if now_s - first > PLACED_GRACE_S:
                 self._fail_attempt(task, f"placed, but never seen resting at {task.target}", now_s)
 
@@ -160,16 +182,16 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
             if task.arm == arm and task.state in OPEN_STATES:
                 ids.append(task.task_id)
                 part = self.parts[task.part_id]
-                self._close(task, TaskState.FAILED, f"arm {arm} lost")
+                self.records.close(task, TaskState.FAILED, f"arm {arm} lost")
                 if part.location == HELD and part.fate == PartFate.ON_LINE:
                     part.fate, part.reason = PartFate.FAILED, f"in the claw of lost arm {arm}"
         return ids
 
     def _fail_attempt(self, task: Task, reason: str, now_s: float, code: str = "") -> None:
         part = self.parts[task.part_id]
-        self._close(task, TaskState.FAILED, reason)
+        self.records.close(task, TaskState.FAILED, reason)
         if code == FailureCode.MOTION_DENIED and task.arm is not None:
-            self._denied(part, task.arm, reason, now_s)
+            deny(part, task.arm, reason, now_s)
             return
         # its pose will not change: another arm must take it
         if code == FailureCode.UNREACHABLE and task.arm is not None:
@@ -189,14 +211,6 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         if stack is not None and not stack and part.part_id in part.held_stack:
             stack.extend(p for p in part.held_stack if self.parts[p].location == part.location or p == part.part_id)
 
-    def _close(self, task: Task, state: TaskState, reason: str) -> None:
-        task.state, task.reason = state, reason
-        self._open_by_part.pop(task.part_id, None)
-
-    def _open_task(self, part_id: int) -> Task | None:
-        tid = self._open_by_part.get(part_id)
-        return self.tasks[tid] if tid is not None else None
-
     # --- tasks ----------------------------------------------------------------------
     def refresh(self, now_s: float, soon_lost: SoonLost | None = None, near: BuffersNear | None = None) -> list[Task]:
         """Create a task for every part that is ready for its next hop; returns the pending tasks. `soon_lost`: whether
@@ -204,44 +218,35 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         a part whose next station is not ready for it is set down there instead (`Station.buffer`), and goes on from
         there.
         `near`: the buffers near a station, where a part for a taken fixture goes while more ride behind it."""
-        behind = self._waiting_on_belt() if self.buffers else []
-        for part in self._in_turn():
+        behind = self.buffering.waiting_on_belt() if self.buffers else []
+        for part in self.buffering.in_turn():
             if part.held_off:
-                self._release_holds(part, now_s)
-            self._review(part, behind, near)
-            if part.fate != PartFate.ON_LINE or part.part_id in self._open_by_part or part.location in (HELD, INCOMING):
+                release_holds(part, now_s, self.records)
+            self.buffering.review(part, behind, near)
+            waiting = part.fate == PartFate.ON_LINE and part.location not in (HELD, INCOMING)
+            if not waiting or part.part_id in self.records.open_by_part:
                 continue
             target = part.next_station
             if target is None:
                 continue
-            if self._ready(part, target):
-                self._rebuffer(self._new_task(part, now_s), part, behind, near)
-            elif buffers := self._buffer_for(part, soon_lost):
+            if self.turns.ready(part, target):
+                self.buffering.rebuffer(self._new_task(part, now_s), part, behind, near)
+            elif buffers := self.buffering.buffer_for(part, soon_lost):
                 self._new_task(part, now_s, target=buffers[0]).go_to(buffers[0], buffers[1:])
         return [t for t in self.tasks.values() if t.state == TaskState.PENDING]
 
     def _new_task(self, part: PartRecord, now_s: float, task_id: int | None = None, target: str | None = None) -> Task:
         """A task for the part's next hop, or to `target` (a buffer) on the way; `task_id`: one an arm already works
         on. Pending."""
-        task_id = self._next_task_id if task_id is None else task_id
+        task_id = self.records.next_task_id if task_id is None else task_id
         task = Task(task_id, part.part_id, part.location, target or part.next_station, now_s)
         if task.target == part.next_station:
-            task.alternatives = self._other_stations(part)
+            task.alternatives = other_stations(self.scene, part)
         task.refused_by = refused_by(part)
-        self._next_task_id = max(self._next_task_id, task_id + 1)
+        self.records.next_task_id = max(self.records.next_task_id, task_id + 1)
         self.tasks[task.task_id] = task
-        self._open_by_part[part.part_id] = task.task_id
+        self.records.open_by_part[part.part_id] = task.task_id
         return task
-
-    def _alternatives(self, part: PartRecord) -> tuple[str, ...]:
-        """Stations as good as the part's next one: on its last hop, a sorted part's bins of its colour."""
-        if part.hop != len(part.route) - 1:
-            return ()
-        return tuple(self.scene.stations_for_colour(part.feeder, part.type_index))
-
-    def _other_stations(self, part: PartRecord) -> tuple[str, ...]:
-        """The part's alternatives besides its next station (what a task to the next station carries)."""
-        return tuple(s for s in self._alternatives(part) if s != part.next_station)
 
     def adopt(self, task_id: int, part_id: int, target: str, arm: str, now_s: float) -> str:
         """A task `arm` already works on, as the arm tells it (a respawned coordinator takes over a running line):
@@ -250,20 +255,16 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         part = self.parts.get(part_id)
         if part is None or part.fate != PartFate.ON_LINE:
             return f"part {part_id} is not on the line"
-        if part_id in self._open_by_part or task_id in self.tasks:
+        if part_id in self.records.open_by_part or task_id in self.tasks:
             return f"part {part_id} has a task already"
         buffer = target in self.buffers and part.location == CONVEYOR
         if part.next_station is None or (
-            target != part.next_station and target not in self._alternatives(part) and not buffer
+            target != part.next_station and target not in alternatives(self.scene, part) and not buffer
         ):
             return f"part {part_id} does not go to {target} next"
         task = self._new_task(part, now_s, task_id, target=target if buffer else None)
         self.assign(task.task_id, arm, now_s, None if buffer else target)
         return ""
-
-    def open_tasks(self) -> list[Task]:
-        """The tasks not finished (pending, or given to an arm), without walking every task of the run."""
-        return [self.tasks[task_id] for task_id in self._open_by_part.values()]
 
     def assign(self, task_id: int, arm: str, now_s: float, target: str | None = None) -> Task:
         """Give a pending task to `arm`; `target`: which of its stations (its target or an alternative) it goes to."""
@@ -282,3 +283,28 @@ class Ledger(LedgerStations, LedgerBuffers, LedgerAccounts, LedgerHolds):
         task.state, task.arm, task.assigned_s, task.reason = TaskState.PENDING, None, None, reason
         task.reassignments += 1
         return task
+
+    # --- stations and accounts (the components' answers) --------------------------------
+    def open_tasks(self) -> list[Task]:
+        """The tasks not finished (pending, or given to an arm), without walking every task of the run."""
+        return self.records.open_tasks()
+
+    def may_enter(self, task: Task, station: str) -> bool:
+        """May the arm of `task` move into `station` now (`StationTurns.may_enter`)."""
+        return self.turns.may_enter(task, station)
+
+    def place_height_m(self, target: str, part_id: int | None = None) -> float:
+        """Where a part's bottom goes at `target` (`StationTurns.place_height_m`)."""
+        return self.turns.place_height_m(target, part_id)
+
+    def busy_stations(self) -> set[str]:
+        """Stations some assigned or running task picks from or places at (one arm at a time there)."""
+        return self.turns.busy_stations()
+
+    def totals(self) -> dict:
+        """The run's counts of parts by fate and tasks by outcome."""
+        return ledger_accounts.totals(self.records, self.buffers)
+
+    def unfinished(self) -> list[dict]:
+        """Each part not completed, with its fate and why."""
+        return ledger_accounts.unfinished(self.records)

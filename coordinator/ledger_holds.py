@@ -3,6 +3,7 @@ arms each standing in the other's way do not meet again at every decision; a par
 
 from __future__ import annotations
 
+from coordinator.ledger_records import LedgerRecords
 from coordinator.tasks import PartFate, PartRecord, TaskState
 
 # a denied approach is no attempt; the arm is not given the part again for `DENIAL_HOLD_S` (it gives way meanwhile:
@@ -16,23 +17,21 @@ def refused_by(part: PartRecord) -> tuple[str, ...]:
     return tuple(sorted(part.refused_by | {a for a, _ in part.held_off}))
 
 
-class LedgerHolds:
-    """Mixed into `coordinator.ledger.Ledger` (uses its `_open_task`)."""
+def deny(part: PartRecord, arm: str, reason: str, now_s: float) -> None:
+    """An approach the guard denied: no attempt, but the arm is held off the part a while (two arms each in the
+    other's way would otherwise meet again at the next decision, for ever)."""
+    part.denials += 1
+    part.held_off = (*[(a, t) for a, t in part.held_off if a != arm], (arm, now_s + DENIAL_HOLD_S))
+    if part.denials >= MAX_DENIALS and part.fate == PartFate.ON_LINE:
+        part.fate, part.reason = PartFate.FAILED, f"{MAX_DENIALS} approaches denied; last: {reason}"
 
-    def _denied(self, part: PartRecord, arm: str, reason: str, now_s: float) -> None:
-        """An approach the guard denied: no attempt, but the arm is held off the part a while (two arms each in the
-        other's way would otherwise meet again at the next decision, for ever)."""
-        part.denials += 1
-        part.held_off = (*[(a, t) for a, t in part.held_off if a != arm], (arm, now_s + DENIAL_HOLD_S))
-        if part.denials >= MAX_DENIALS and part.fate == PartFate.ON_LINE:
-            part.fate, part.reason = PartFate.FAILED, f"{MAX_DENIALS} approaches denied; last: {reason}"
 
-    def _release_holds(self, part: PartRecord, now_s: float) -> None:
-        """Arms whose hold on the part is over may be given it again (its pending task no longer refuses them)."""
-        held = tuple((a, t) for a, t in part.held_off if t > now_s)
-        if held == part.held_off:
-            return
-        part.held_off = held
-        task = self._open_task(part.part_id)
-        if task is not None and task.state == TaskState.PENDING:
-            task.refused_by = refused_by(part)
+def release_holds(part: PartRecord, now_s: float, records: LedgerRecords) -> None:
+    """Arms whose hold on the part is over may be given it again (its pending task no longer refuses them)."""
+    held = tuple((a, t) for a, t in part.held_off if t > now_s)
+    if held == part.held_off:
+        return
+    part.held_off = held
+    task = records.open_task(part.part_id)
+    if task is not None and task.state == TaskState.PENDING:
+        task.refused_by = refused_by(part)
