@@ -9,13 +9,10 @@ the workers share keep the tests that run against the wall clock (a realtime lin
 a plug-in's time budget: `WALL_TIME`) from turning flaky beside another test's work. A wall-time test runs beside no
 other test that runs a line or other processes (`slow`, or a file in `HEAVY`): those two kinds take the `lines` lock,
 exclusively or shared. It may run beside a light test (one process on the other core). A browser test (`ALONE`)
-runs alone on the machine: every other test shares the `machine` lock. The workers take files in the order
-`tests/file_pairing.py` gives (light files beside wall-time ones, lines beside lines), not xdist's most-tests-first.
-`CLAWFLEET_TEST_TIMELINE=FILE` writes when each test asked for its locks, got them and ended, per worker: where the
-suite's time goes."""
+runs alone on the machine: every other test shares the `machine` lock. `CLAWFLEET_TEST_TIMELINE=FILE` writes when
+each test asked for its locks, got them and ended, per worker: where the suite's time goes."""
 
 import fcntl
-import functools
 import os
 import shutil
 import tempfile
@@ -26,7 +23,6 @@ import pytest
 
 import robots.registry
 from fleet.run.node_factory import close_kept_factory, keep_factory
-from tests import file_pairing
 from tests.ray_namespace import loopback_namespace, start_head
 
 # test files (or folders) that run against the wall clock: under xdist, beside no test that runs lines
@@ -67,26 +63,6 @@ HEAVY = (
 # a browser (and a line for it to draw) runs alone on the machine
 ALONE = ("tests/fleet/monitor/test_browser.py", "tests/fleet/monitor/test_replay_browser.py")
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@functools.cache
-def file_kind(path: str) -> str:
-    """What a test file runs, for its locks and the order the workers take files in (`tests/file_pairing.py`)."""
-    if path.startswith(ALONE):
-        return file_pairing.ALONE
-    if path.startswith(WALL_TIME):
-        return file_pairing.WALL
-    if path.startswith(HEAVY) or "pytest.mark.slow" in (ROOT / path).read_text():
-        return file_pairing.LINES
-    return file_pairing.LIGHT
-
-
-@pytest.hookimpl(optionalhook=True)
-def pytest_xdist_make_scheduler(config: pytest.Config, log):
-    """The workers take files in the order `tests/file_pairing.py` gives (for `--dist loadfile`, the suite's)."""
-    if config.getvalue("dist") == "loadfile":
-        return file_pairing.PairedFileScheduling(config, log, file_kind)
-    return None
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
