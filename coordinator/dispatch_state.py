@@ -125,51 +125,59 @@ def restore_guard(guard: CollisionGuard, s: GuardState) -> None:
 
 
 def dispatcher_state(d: Dispatcher) -> DispatcherState:
-    """What `d` saves."""
+    """What `d` saves: its ledger, guard, arm book and clock, and what its components keep."""
+    arms, clock, grants = d.arms, d.clock, d.grants
     return DispatcherState(
         ledger=ledger_state(d.ledger),
         guard=guard_state(d.guard),
-        phase=dict(d.phase),  # phases as the bus says them (`robots.phase.Phase` values)
-        acts_at_tick=dict(d.acts_at_tick),
-        last_stations=dict(d.last_stations),
-        last_task=dict(d.last_task),
-        requests=dict(d.requests),
-        request_seq=dict(d.request_seq),
-        lost=dict(d.lost),
-        taken=set(d.taken),
-        cancels=list(d.cancels),
-        busy_until_s=dict(d.busy_until_s),
+        phase=dict(arms.phase),  # phases as the bus says them (`robots.phase.Phase` values)
+        acts_at_tick=dict(arms.acts_at_tick),
+        last_stations=dict(arms.last_stations),
+        last_task=dict(arms.last_task),
+        requests=dict(arms.requests),
+        request_seq=dict(arms.request_seq),
+        lost=dict(arms.lost),
+        taken=set(arms.taken),
+        cancels=list(d.drivers.cancels),
+        busy_until_s=dict(arms.busy_until_s),
         deadline_known=set(d.deadline_known),
         parts=dict(d.parts),
-        sim_time_s=d.sim_time_s,
-        last_event_s=d.last_event_s,
-        last_decision_tick=d.last_decision_tick,
+        sim_time_s=clock.sim_time_s,
+        last_event_s=clock.last_event_s,
+        last_decision_tick=clock.last_decision_tick,
         decisions=d.decisions,
-        grants_given=d.grants_given,
+        grants_given=grants.grants_given,
         reassigned=d.reassigned,
-        min_separation_m=d.min_separation_m,
-        closest_pair=d.closest_pair,
-        losses=list(d.losses),
-        unsettled=set(d.unsettled),
-        settle_by_s=d.settle_by_s,
-        adopted=list(d.adopted),
-        held_at_station_s=dict(d.held_at_station_s),
-        held_now=dict(d.held_now),
-        told_standby=set(d.told_standby),
+        min_separation_m=grants.min_separation_m,
+        closest_pair=grants.closest_pair,
+        losses=list(arms.losses),
+        unsettled=set(arms.unsettled),
+        settle_by_s=arms.settle_by_s,
+        adopted=list(d.takeover.adopted),
+        held_at_station_s=dict(grants.held_at_station_s),
+        held_now=dict(grants.held_now),
+        told_standby=set(grants.told_standby),
         candidates=dict(d._candidates),
     )
 
 
 def restore_dispatcher(d: Dispatcher, s: DispatcherState) -> None:
-    """Put `s` back into `d`, a dispatcher of the same scene's arms."""
+    """Put `s` back into `d`, a dispatcher of the same scene's arms (into its components' objects, in place)."""
     restore_ledger(d.ledger, s.ledger)
     restore_guard(d.guard, s.guard)
-    d.phase, d.acts_at_tick, d.last_stations = dict(s.phase), dict(s.acts_at_tick), dict(s.last_stations)
-    d.last_task, d.requests, d.request_seq = dict(s.last_task), dict(s.requests), dict(s.request_seq)
-    d.lost, d.taken, d.cancels, d.busy_until_s = dict(s.lost), set(s.taken), list(s.cancels), dict(s.busy_until_s)
-    d.deadline_known, d.parts, d.sim_time_s = set(s.deadline_known), dict(s.parts), s.sim_time_s
-    d.last_event_s, d.last_decision_tick, d.decisions = s.last_event_s, s.last_decision_tick, s.decisions
-    d.grants_given, d.reassigned, d.min_separation_m = s.grants_given, s.reassigned, s.min_separation_m
-    d.closest_pair, d.losses, d.unsettled = s.closest_pair, list(s.losses), set(s.unsettled)
-    d.settle_by_s, d.adopted, d.held_at_station_s = s.settle_by_s, list(s.adopted), dict(s.held_at_station_s)
-    d.held_now, d.told_standby, d._candidates = dict(s.held_now), set(s.told_standby), dict(s.candidates)
+    arms, clock, grants = d.arms, d.clock, d.grants
+    arms.phase, arms.acts_at_tick, arms.last_stations = dict(s.phase), dict(s.acts_at_tick), dict(s.last_stations)
+    arms.last_task, arms.requests, arms.request_seq = dict(s.last_task), dict(s.requests), dict(s.request_seq)
+    arms.lost, arms.taken, arms.busy_until_s = dict(s.lost), set(s.taken), dict(s.busy_until_s)
+    arms.losses, arms.unsettled, arms.settle_by_s = list(s.losses), set(s.unsettled), s.settle_by_s
+    clock.sim_time_s, clock.last_event_s, clock.last_decision_tick = s.sim_time_s, s.last_event_s, s.last_decision_tick
+    d.drivers.cancels, d.takeover.adopted = list(s.cancels), list(s.adopted)
+    d.deadline_known, d.parts = set(s.deadline_known), dict(s.parts)
+    d.decisions, d.reassigned = s.decisions, s.reassigned
+    grants.grants_given, grants.min_separation_m, grants.closest_pair = (
+        s.grants_given,
+        s.min_separation_m,
+        s.closest_pair,
+    )
+    grants.held_at_station_s, grants.held_now = dict(s.held_at_station_s), dict(s.held_now)
+    grants.told_standby, d._candidates = set(s.told_standby), dict(s.candidates)

@@ -5,21 +5,30 @@ from __future__ import annotations
 
 import math
 
+from coordinator.dispatch_book import ArmBook, DispatchClock
+from coordinator.ledger import Ledger
+from scenes.schema import Scene
+
 # after a take-over, no grant until the arms settle or this long (sim s): longer than any granted move
 SETTLE_CAP_S = 10.0
 STATION_MATCH_M = 0.01  # a place position this close (x, y) to a station's is that station
 
 
 class TakeOver:
-    """Taking over a running line: one concern of `Dispatcher`, kept apart (it shares the dispatcher's state)."""
+    """Taking over a running line: the dispatcher's `arms` held until they settle, their tasks adopted into its
+    `ledger`; it keeps what was adopted (the summary's `tasks_adopted`)."""
+
+    def __init__(self, arms: ArmBook, clock: DispatchClock, ledger: Ledger, scene: Scene) -> None:
+        self.arms, self.clock, self.ledger, self.scene = arms, clock, ledger, scene
+        self.adopted: list[dict] = []
 
     def take_over(self, time_s: float) -> None:
         """This dispatcher replaces one that crashed (events replayed with `on_event`): the grants it gave are
         unknown, so none is given until every arm was seen holding still for a grant or idle (an arm may still
         be moving under an old grant), or `SETTLE_CAP_S` passed."""
-        self.sim_time_s = max(self.sim_time_s, time_s)
-        self.unsettled = set(self.arm_names) - set(self.lost)
-        self.settle_by_s = time_s + SETTLE_CAP_S
+        self.clock.sim_time_s = max(self.clock.sim_time_s, time_s)
+        self.arms.unsettled = set(self.arms.names) - set(self.arms.lost)
+        self.arms.settle_by_s = time_s + SETTLE_CAP_S
 
     def adopt(self, arm: str, task_id: int, part_id: int, place_xyz: tuple[float, ...], time_s: float) -> str:
         """The task `arm` says it works on (its controller's heartbeat) joins the ledger as that arm's, if the
@@ -34,7 +43,7 @@ class TakeOver:
             else self.ledger.adopt(task_id, part_id, station, arm, time_s)
         )
         if not why:
-            self.last_stations[arm], self.last_task[arm] = self.ledger.tasks[task_id].stations, task_id
+            self.arms.last_stations[arm], self.arms.last_task[arm] = self.ledger.tasks[task_id].stations, task_id
         self.adopted.append(
             {
                 "arm": arm,

@@ -22,15 +22,16 @@ from coordinator.capacity import (
     capacity_bound,
 )
 from coordinator.deadlines import cannot_make_it, layout_belt_reach, task_deadline_s
+from coordinator.dispatch_book import ArmBook, DispatchClock
 from coordinator.dispatch_drivers import OutsideDrivers
 from coordinator.dispatch_grants import GrantAnswers
-from coordinator.dispatch_report import DispatchReport
+from coordinator.dispatch_report import grant_requests_open, measured_capacity, run_capacity, task_rows
 from coordinator.dispatch_takeover import TakeOver
 from coordinator.dispatch_views import AllocatorViews
 from coordinator.geometry import ArmGeometry
-from coordinator.guard import CollisionGuard, TimedPath
+from coordinator.guard import CollisionGuard, NearestPair, TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT, Ledger
-from coordinator.orders import AssignOrder, CancelOrder, Decision, Order
+from coordinator.orders import AssignOrder, CancelOrder, Decision, GrantOrder, Order
 from coordinator.tasks import CONVEYOR, Task, TaskState
 from robots.frames import yaw_transform
 from robots.phase import IDLE_PHASES, Phase
@@ -42,9 +43,12 @@ from scenes.schema import Scene
 BUFFER_LEAD_S = 8.0
 
 
-class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, OutsideDrivers):
+class Dispatcher:
     """The coordinator's decisions over one scene: tasks (`Ledger`), allocation, belt deadlines, late-task
-    reassignment, the collision guard's grants and the busy-until estimates."""
+    reassignment, the collision guard's grants and the busy-until estimates. What it knows of each arm is its
+    `ArmBook`, handed with the ledger and the guard to the components that answer grants (`GrantAnswers`), show the
+    arms to the allocator (`AllocatorViews`), let outside drivers take arms (`OutsideDrivers`) and take over a
+    running line (`TakeOver`)."""
 
     def __init__(
         self,
@@ -64,40 +68,37 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
             }
         )
         self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
-        self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.period_ticks = decision_period_ticks(scene)
-        self.phase = {a: Phase.IDLE for a in self.arm_names}
-        self.acts_at_tick = {a: 0 for a in self.arm_names}  # when an order sent now takes effect on each arm
-        self.last_stations: dict[str, tuple[str, ...]] = {a: () for a in self.arm_names}
-        self.last_task: dict[str, int] = {}  # each arm's latest task (where it is leaving from, once it is closed)
-        self.requests: dict[str, TimedPath] = {}  # motion requests waiting for a decision, by arm (the newest wins)
-        self.request_seq: dict[str, int] = {a: 0 for a in self.arm_names}
-        self.lost: dict[str, float] = {}
-        self.taken: set[str] = set()  # arms an outside client drives (`OutsideDrivers`)
-        self.cancels: list[CancelOrder] = []  # orders to drop tasks, out with the next decision
-        self.busy_until_s: dict[str, float] = {}  # when each arm's current task should end (the allocator's estimate)
+        self.arms = ArmBook(self.arm_names)
+        self.clock = DispatchClock()
+        hz = scene.control_hz
+        bases = {a.name: a.base.xyz for a in scene.arms}
+        self.views = AllocatorViews(self.arms, self.clock, self.ledger, self.guard, self.reach, bases, hz)
+        self.grants = GrantAnswers(self.arms, self.clock, self.ledger, self.guard, hz, self.period_ticks / hz)
+        self.drivers = OutsideDrivers(self.arms, self.clock, self.ledger, self.guard)
+        self.takeover = TakeOver(self.arms, self.clock, self.ledger, scene)
         self.deadline_known: set[int] = set()  # tasks whose belt deadline was worked out (once each)
         self.parts: dict[int, PartView] = {}
-        self.sim_time_s = 0.0
-        # the latest line event heard (the run's end, at its report, may be later than its parts)
-        self.last_event_s = 0.0
-        self.last_decision_tick = -(10**9)
         self.decisions = 0
-        self.grants_given = 0
         self.reassigned = 0
-        self.min_separation_m = math.inf
-        self.closest_pair: tuple[str, str] | None = None
-        self.losses: list[dict] = []
-        self.unsettled: set[str] = set()  # after a take-over: arms that may still move under a grant given before it
-        self.settle_by_s = -math.inf
-        self.adopted: list[dict] = []
-        self.held_at_station_s: dict[str, float] = {}  # pipelining: how long each arm's moves waited for a fixture
-        self.held_now: dict[str, str] = {}  # arm -> the fixture its waiting move is held for, at the last decision
-        self.told_standby: set[int] = set()  # tasks whose held transfer was told to stand by (once a task)
         # candidate id -> (task id, station), of the last `candidates`
         self._candidates: dict[int, tuple[int, str]] = {}
         # where a belt task's deadline falls
         self.belt_reach = layout_belt_reach(self.scene, self.arm_views())
+
+    @property
+    def lost(self) -> dict[str, float]:
+        """The arms out of the allocation (lost, or taken by an outside driver), and since when (sim s)."""
+        return self.arms.lost
+
+    @property
+    def losses(self) -> list[dict]:
+        """Arms lost, rejoined, taken and let go: the summary's `arm_events`."""
+        return self.arms.losses
+
+    @property
+    def sim_time_s(self) -> float:
+        return self.clock.sim_time_s
 
     @functools.cached_property
     def capacity(self) -> CapacityBound:
@@ -115,7 +116,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
     def on_event(self, kind: str, part_id: int, detail: str, type_index: int, time_s: float) -> None:
         """A line event (`arrived`, `at_station`, `lost`, `retired`) at sim time `time_s`."""
         self.ledger.on_event(kind, part_id, detail, type_index, time_s)
-        self.last_event_s = max(self.last_event_s, time_s)
+        self.clock.last_event_s = max(self.clock.last_event_s, time_s)
 
     def on_arm(
         self,
@@ -139,16 +140,17 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         controller counts from 1 again). `acts_at_tick`: when an order sent now would take effect on it.
         `lost`: the sim stopped hearing its controller; returns the tasks put back if that makes the arm lost.
         `gripper_q`: its claw's joints, so the cell's separations measure the claw as it is."""
-        self.acts_at_tick[arm] = acts_at_tick
-        self.phase[arm] = phase
+        arms = self.arms
+        arms.acts_at_tick[arm] = acts_at_tick
+        arms.phase[arm] = phase
         if request_seq > 0 or phase in IDLE_PHASES:  # holding still for a grant, or not working: no move of old
-            self.unsettled.discard(arm)
+            arms.unsettled.discard(arm)
         self.guard.set_state(arm, np.asarray(q), gripper_q)
-        if request is not None and request_seq > 0 and request_seq != self.request_seq[arm]:
-            self.request_seq[arm] = request_seq
-            self.requests[arm] = request
+        if request is not None and request_seq > 0 and request_seq != arms.request_seq[arm]:
+            arms.request_seq[arm] = request_seq
+            arms.requests[arm] = request
         returned = None
-        if lost and arm not in self.lost:
+        if lost and arm not in arms.lost:
             returned = self.arm_lost(arm, "the sim stopped hearing its controller", silent_for_s)
         self.ledger.arm_report(arm, task_id, phase, time_s, failure, failure_code)
         return returned
@@ -156,21 +158,22 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
     def on_parts(self, parts: dict[int, PartView], time_s: float) -> None:
         """The parts on the line (positions and velocities, world frame) at sim time `time_s`."""
         self.parts = parts
-        self.sim_time_s = time_s
+        self.clock.sim_time_s = time_s
 
     def arm_lost(self, arm: str, why: str, silent_for_s: float) -> list[int]:
         """An arm stopped answering: its granted path is void (it holds still), its tasks go back to the pool."""
-        self.lost[arm] = self.sim_time_s
-        self.unsettled.discard(arm)  # a lost arm holds still
-        self.requests.pop(arm, None)
+        arms, now_s = self.arms, self.clock.sim_time_s
+        arms.lost[arm] = now_s
+        arms.unsettled.discard(arm)  # a lost arm holds still
+        arms.requests.pop(arm, None)
         self.guard.release(arm)
-        returned = self.ledger.arm_lost(arm, self.sim_time_s)
-        self.losses.append(
+        returned = self.ledger.arm_lost(arm, now_s)
+        arms.losses.append(
             {
                 "arm": arm,
                 "event": "lost",
                 "why": why,
-                "sim_time_s": round(self.sim_time_s, 3),
+                "sim_time_s": round(now_s, 3),
                 "silent_for_s": round(silent_for_s, 3),
                 "tasks_returned": returned,
             }
@@ -179,21 +182,51 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
 
     def arm_rejoined(self, arm: str) -> None:
         """A lost arm's controller is heard again (an arm an outside client drives stays out until let go)."""
-        if arm not in self.taken and self.lost.pop(arm, None) is not None:
-            self.losses.append({"arm": arm, "event": "rejoined", "sim_time_s": round(self.sim_time_s, 3)})
+        if arm not in self.arms.taken and self.arms.lost.pop(arm, None) is not None:
+            self.arms.losses.append({"arm": arm, "event": "rejoined", "sim_time_s": round(self.clock.sim_time_s, 3)})
 
-    # --- taking over a running line ---------------------------------------------------
+    # --- outside drivers, taking over a running line ----------------------------------------
+    def arm_taken(self, arm: str) -> None:
+        """An outside client took `arm`: nothing is given to it until `arm_let_go` (`OutsideDrivers`)."""
+        self.drivers.arm_taken(arm)
+
+    def arm_let_go(self, arm: str) -> None:
+        """The outside client let go of `arm`: the allocator may give it tasks again."""
+        self.drivers.arm_let_go(arm)
+
+    def take_over(self, time_s: float) -> None:
+        """This dispatcher replaces one that crashed (`TakeOver.take_over`)."""
+        self.takeover.take_over(time_s)
+
+    def adopt(self, arm: str, task_id: int, part_id: int, place_xyz: tuple[float, ...], time_s: float) -> str:
+        """The task `arm` says it works on joins the ledger as that arm's (`TakeOver.adopt`); why not, or ""."""
+        return self.takeover.adopt(arm, task_id, part_id, place_xyz, time_s)
 
     # --- what the allocator sees ----------------------------------------------------
+    def arm_views(self) -> list[ArmView]:
+        return self.views.arm_views()
+
+    def busy_stations(self, for_arm: str | None = None) -> set[str]:
+        """Stations in use, as `for_arm` sees them (`AllocatorViews.busy_stations`)."""
+        return self.views.busy_stations(for_arm)
+
+    def busy_for_all(self, arms: list[str]) -> set[str]:
+        """The stations busy for every one of `arms` (`AllocatorViews.busy_for_all`)."""
+        return self.views.busy_for_all(arms)
+
+    def free_in_s(self, arm: str, now_s: float | None = None) -> float | None:
+        """About when a busy arm's task ends (`AllocatorViews.free_in_s`)."""
+        return self.views.free_in_s(arm, now_s)
 
     # --- decisions ------------------------------------------------------------------
     def decide(self, tick: int) -> Decision:
         """One decision at `tick`: answer motion requests, take late belt tasks back, refresh and allocate tasks."""
         now = tick / self.scene.control_hz
-        self.last_decision_tick = tick
+        self.clock.last_decision_tick = tick
         self.decisions += 1
-        separations = self.watch_separations() if len(self.arm_names) > 1 else []
-        orders: list[Order] = [*self.take_cancels(), *self.answer_motion_requests(now), *self.reassign_late_tasks()]
+        separations = self.grants.watch_separations() if len(self.arm_names) > 1 else []
+        answers = self.grants.answer_motion_requests(now)
+        orders: list[Order] = [*self.drivers.take_cancels(), *answers, *self.reassign_late_tasks()]
         pending = self.pending(now)
         if pending:
             views = self.arm_views()
@@ -247,7 +280,7 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         the optimal allocator plans a soon-free arm with) and return the order that starts it. Every front end
         starts tasks here (the coordinator node's decisions, the env's allocate mode)."""
         task = self.take(candidate_id, arm.name, now_s)
-        self.busy_until_s[arm.name] = now_s + cost_s(arm, task, self.parts[task.part_id])
+        self.arms.busy_until_s[arm.name] = now_s + cost_s(arm, task, self.parts[task.part_id])
         return self.assignment(task, arm.name)
 
     def pending(self, now_s: float) -> list[Task]:
@@ -269,13 +302,15 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         for task in list(self.ledger.tasks.values()):
             arm = task.arm
             not_started = task.state == TaskState.ASSIGNED or (
-                task.state == TaskState.ACTIVE and self.phase.get(arm) == Phase.APPROACH and arm in self.requests
+                task.state == TaskState.ACTIVE
+                and self.arms.phase.get(arm) == Phase.APPROACH
+                and arm in self.arms.requests
             )
             part = self.parts.get(task.part_id)
             if arm is None or part is None or not not_started or not cannot_make_it(rules, views[arm], task, part):
                 continue
             self.ledger.requeue(task.task_id, f"{arm} could no longer meet the part")
-            self.requests.pop(arm, None)
+            self.arms.requests.pop(arm, None)
             self.reassigned += 1
             out.append(CancelOrder(arm, task.part_id))
         return out
@@ -286,11 +321,46 @@ class Dispatcher(AllocatorViews, DispatchReport, GrantAnswers, TakeOver, Outside
         station = self.scene.station(task.target)
         velocity = self.belt_velocity() if task.source == CONVEYOR else (0.0, 0.0, 0.0)
         place = (station.pose.xyz[0], station.pose.xyz[1], self.ledger.place_height_m(task.target, task.part_id))
-        self.last_stations[arm], self.last_task[arm] = task.stations, task.task_id
+        self.arms.last_stations[arm], self.arms.last_task[arm] = task.stations, task.task_id
         return AssignOrder(arm, task.task_id, task.part_id, float(part.position[2] - rec.height_m / 2), place, velocity)
 
     def belt_velocity(self) -> tuple[float, float, float]:
         c = self.scene.conveyor
         return tuple(d * c.speed_m_per_s for d in c.direction) if c else (0.0, 0.0, 0.0)
 
+    # --- grants -----------------------------------------------------------------------
+    def answer(self, tick: int) -> list[GrantOrder]:
+        """Only the motion requests, at `tick`: for a front end whose tasks are chosen elsewhere (the env's allocate
+        mode, where the policy allocates)."""
+        self.clock.last_decision_tick = tick
+        return self.grants.answer_motion_requests(tick / self.scene.control_hz)
+
+    def watch_separations(self) -> list[NearestPair]:
+        """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour."""
+        return self.grants.watch_separations()
+
     # --- the summary ----------------------------------------------------------------
+    def report(self) -> dict:
+        """The run summary's coordinator part: parts and their fates, grants, the line's bound and the run's own."""
+        grants, arms, end_s = self.grants, self.arms, max(self.clock.sim_time_s, self.clock.last_event_s)
+        return self.ledger.totals() | {
+            "allocator": self.allocator.name,
+            "allocator_faults": dict(getattr(self.allocator, "faults", {})),  # a plug-in's (`GuardedAllocator`)
+            "pipeline": self.ledger.pipeline,
+            "arm_events": arms.losses,
+            "unfinished_parts": self.ledger.unfinished(),
+            "tasks": task_rows(self.ledger),
+            "decisions": self.decisions,
+            "grants_denied": self.guard.denied,
+            "grants_given": grants.grants_given,
+            "tasks_reassigned": self.reassigned,
+            "tasks_adopted": self.takeover.adopted,
+            "grant_waits": self.guard.waits,
+            "grant_requests_open": grant_requests_open(arms, self.guard, grants.held_now, self.clock.sim_time_s),
+            "held_at_station_s": {a: round(s, 2) for a, s in grants.held_at_station_s.items()},
+            "min_separation_m": round(grants.min_separation_m, 4) if math.isfinite(grants.min_separation_m) else None,
+            "closest_pair": list(grants.closest_pair) if grants.closest_pair else None,
+            "capacity": self.capacity.as_dict(),
+            "capacity_measured": measured_capacity(self.scene, self.ledger, self.reach, self.capacity),
+            "capacity_of_run": run_capacity(self.scene, self.ledger, self.reach, self.capacity, end_s),
+        }

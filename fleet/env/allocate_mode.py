@@ -74,7 +74,7 @@ class TaskChooser:
             ArmView(
                 a,
                 self.bases[a],
-                self.task_of[a] is None and self.skills[a].available and not self.dispatcher.leaving_fixture(a),
+                self.task_of[a] is None and self.skills[a].available and not self.dispatcher.views.leaving_fixture(a),
                 self.reach[a],
                 tuple(self.world.arms[a].qpos()[: self.world.arms[a].spec.arm_dof].tolist()),
                 self.dispatcher.free_in_s(a, now) if self._working(a) else None,

@@ -253,7 +253,7 @@ class CoordinatorNode:
             },
             p.sim_time_s,
         )
-        last = self.dispatcher.last_decision_tick
+        last = self.dispatcher.clock.last_decision_tick
         due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - last >= self.period_ticks
         if due and p.tick > last:  # a re-sent frame: once
             self.events.frame(p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)

@@ -52,8 +52,8 @@ def progress_message(d: Dispatcher) -> Progress:
         t["parts_spawned"],
         t["parts_completed"],
         t["parts_missed"],
-        d.busy_arms(),
+        d.views.busy_arms(),
         t.get("parts_failed", 0),
         d.guard.denied,
-        d.min_separation_m if math.isfinite(d.min_separation_m) else -1.0,
+        d.grants.min_separation_m if math.isfinite(d.grants.min_separation_m) else -1.0,
     )

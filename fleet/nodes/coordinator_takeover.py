@@ -68,7 +68,7 @@ def take_over(node: Coordinator, session: zenoh.Session, timeout_s: float = 30.0
         "sim_time_s": round(now_s, 3),
         "events_replayed": len(log.events),
         "arms_heard": sorted(beats),
-        "tasks_adopted": [a for a in node.dispatcher.adopted if a["adopted"]],
+        "tasks_adopted": [a for a in node.dispatcher.takeover.adopted if a["adopted"]],
     }
     print(
         f"coordinator: took over the line at sim {takeover['sim_time_s']} s ({len(log.events)} events, "

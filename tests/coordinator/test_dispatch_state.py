@@ -37,7 +37,7 @@ def test_a_dispatcher_restored_mid_run_decides_exactly_as_the_one_saved():
         orders = d.decide(tick).orders
         assert all(c.decide(tick).orders == orders for c in copies)
         assert all(pack(dispatcher_state(c)) == pack(dispatcher_state(d)) for c in copies)
-    assert d.decisions > 10 and d.grants_given + d.guard.denied + d.guard.waits > 0, "a request was answered"
+    assert d.decisions > 10 and d.grants.grants_given + d.guard.denied + d.guard.waits > 0, "a request was answered"
     assert d.report() == copies[0].report()
 
 

@@ -48,7 +48,7 @@ def test_a_part_on_the_belt_is_given_to_an_arm_with_the_belt_velocity_and_a_dead
     task = d.ledger.tasks[order.task_id]
     assert task.arm == order.arm and task.deadline_s is not None and task.deadline_s > 1.0
     assert order.surface_velocity == d.belt_velocity() and np.linalg.norm(order.surface_velocity) > 0
-    assert d.busy_until_s[order.arm] > 1.0, "the allocator's estimate of when the arm is free again"
+    assert d.arms.busy_until_s[order.arm] > 1.0, "the allocator's estimate of when the arm is free again"
 
 
 def test_a_motion_request_is_granted_from_when_the_arm_acts_and_a_restarted_controllers_is_heard():

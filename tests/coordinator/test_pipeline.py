@@ -142,7 +142,7 @@ def test_the_dispatcher_holds_a_transfer_to_a_fixture_that_is_not_ready_and_coun
     )
     d.on_arm("arm_1", home["arm_1"], "transfer", 3.1, task_id=top.task_id, request_seq=2, request=move)
     assert not [o for o in d.decide(310).orders if isinstance(o, GrantOrder)], "asked again: held, without a word"
-    assert d.held_now == {"arm_1": "fixture_0"} and d.held_at_station_s["arm_1"] > 0
+    assert d.grants.held_now == {"arm_1": "fixture_0"} and d.grants.held_at_station_s["arm_1"] > 0
     d.on_event("at_station", 0, "fixture_0", 0, 9.0)
     grants = [o for o in d.decide(320).orders if isinstance(o, GrantOrder)]
     assert [(g.arm, g.decision) for g in grants] == [("arm_1", "grant")]
@@ -175,9 +175,9 @@ def test_one_arm_at_a_fixture_at_a_time_whatever_the_ledger_holds():
         request=TimedPath("arm_2", tuple(home["arm_2"]), tuple(home["arm_2"] + 0.1), 4.0, 5.0),
     )
     assert d.ledger.may_enter(ship, "fixture_0"), "the ledger would let the ship in"
-    assert d.station_ahead("arm_2") == "fixture_0", "but the base arm is on its way in"
+    assert d.grants.station_ahead("arm_2") == "fixture_0", "but the base arm is on its way in"
     d.on_arm("arm_0", home["arm_0"], "home", 6.0, task_id=base.task_id)
-    assert d.station_ahead("arm_2") is None
+    assert d.grants.station_ahead("arm_2") is None
 
 
 def test_an_arm_on_its_way_home_from_a_fixture_takes_no_task_until_home():
@@ -185,8 +185,8 @@ def test_an_arm_on_its_way_home_from_a_fixture_takes_no_task_until_home():
     d = Dispatcher(scene, pipeline=True)
     q = np.asarray(get_robot("openclaw").home_q, float)
     d.on_arm("arm_0", q, "home", 5.0)
-    d.last_stations["arm_0"] = ("fixture_0",)
-    d.last_stations["arm_1"] = ("tops_bin",)
+    d.arms.last_stations["arm_0"] = ("fixture_0",)
+    d.arms.last_stations["arm_1"] = ("tops_bin",)
     d.on_arm("arm_1", q, "home", 5.0)
     free = {v.name: v.free for v in d.arm_views()}
     assert not free["arm_0"] and free["arm_1"], (
@@ -206,14 +206,15 @@ def test_an_arm_that_took_a_part_off_a_fixture_to_a_bin_goes_on_from_the_bin_but
     d.on_event("at_station", 0, "handover_pad", 0, 2.0)
     lift = only(d.ledger.refresh(2.0))
     d.ledger.assign(lift.task_id, "arm_1", 2.0)
-    d.last_stations["arm_1"], d.last_task["arm_1"] = lift.stations, lift.task_id  # as `Dispatcher.assignment` sets
+    # as `Dispatcher.assignment` sets them
+    d.arms.last_stations["arm_1"], d.arms.last_task["arm_1"] = lift.stations, lift.task_id
     d.on_event("at_station", 0, "output_bin", 0, 8.0)
     assert lift.state == TaskState.DONE
     d.on_arm("arm_1", q, "home", 8.5)
-    assert d.leaving_from("arm_1") == ("output_bin",)
+    assert d.views.leaving_from("arm_1") == ("output_bin",)
     assert {v.name: v.free for v in d.arm_views()}["arm_1"], "from the bin: the next task on the way"
     lift.state = TaskState.FAILED  # the same task, had it failed at the pad
-    assert d.leaving_from("arm_1") == ("handover_pad", "output_bin")
+    assert d.views.leaving_from("arm_1") == ("handover_pad", "output_bin")
     assert not {v.name: v.free for v in d.arm_views()}["arm_1"], "maybe at the pad: home first"
 
 

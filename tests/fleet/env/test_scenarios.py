@@ -167,7 +167,7 @@ def test_allocate_mode_a_working_arm_is_planned_for_as_the_coordinator_plans_it(
         env.step(allocator_actions(env.chooser, allocator, env._options))
         seen = [v for v in env.chooser.arm_views() if not v.free and v.free_in_s is not None]
     assert seen and 0.0 <= seen[0].free_in_s < 30.0
-    assert env.chooser.dispatcher.busy_until_s[seen[0].name] > env.world.sim_time_s - 1.0
+    assert env.chooser.dispatcher.arms.busy_until_s[seen[0].name] > env.world.sim_time_s - 1.0
 
 
 def test_allocate_mode_action_masks_let_a_random_masked_policy_pick_only_real_choices():
@@ -245,7 +245,7 @@ def test_allocate_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fle
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
         touching += sum(i["collision"] for i in infos.values())
     dispatcher = env.scenario.book.dispatcher
-    held = dispatcher.held_at_station_s
+    held = dispatcher.grants.held_at_station_s
     # the top waited for its base, the ship for its top
     assert held.get("arm_1", 0) > 0 and held.get("arm_2", 0) > 0, held
     assert touching == 0 and dispatcher.ledger.totals()["parts_completed"] >= 3
@@ -267,7 +267,7 @@ def test_allocate_mode_without_a_fixture_still_asks_the_guard_for_every_move_as_
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))
         touching += sum(i["collision"] for i in infos.values())
     dispatcher = env.scenario.book.dispatcher
-    assert dispatcher.grants_given > 0 and touching == 0
+    assert dispatcher.grants.grants_given > 0 and touching == 0
     failed = [t.reason for t in dispatcher.ledger.tasks.values() if t.state.value == "failed"]
     assert not any("aborted" in r or "closed on nothing" in r for r in failed), failed
 
