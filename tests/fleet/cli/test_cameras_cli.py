@@ -4,10 +4,13 @@ camera the scene lacks, no Vulkan device) one line naming what to do, before any
 import json
 import os
 
+import pytest
+
 from tests.fleet.cli.test_cli import fleet
 from tests.fleet.in_process import fleet_in_process
 
 
+@pytest.mark.slow  # a benchmark's renders: not in the quick set
 def test_the_camera_benchmark_times_real_frames():
     code, stdout, stderr = fleet_in_process(
         ["bench", "cameras", "--sizes", "16x16", "32x24", "--cameras", "1", "--frames", "2", "--json"]

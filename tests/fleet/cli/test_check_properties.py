@@ -22,7 +22,7 @@ def check(data: object) -> tuple[int, str, str]:
     """`fleet check` on the data written as a scene file: exit status, stdout, stderr."""
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "changed_scene.yaml"
-        path.write_text(yaml.safe_dump(data))
+        path.write_text(yaml.dump(data, Dumper=yaml.CSafeDumper))  # libyaml: the pure-Python dumper took half the time
         out, err = io.StringIO(), io.StringIO()
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             code = main(["check", str(path)])

@@ -283,6 +283,7 @@ def test_bench_decisions_times_every_built_in_allocator_on_a_long_line():
     assert all(r["decisions"] == 8 and 0 < r["p50_ms"] <= r["p99_ms"] for r in rows)
 
 
+@pytest.mark.slow  # a whole run: not in the quick set
 def test_reach_fills_a_scenes_tables_so_that_no_decision_of_a_run_waits_on_ik(tmp_path):
     tables = {**os.environ, "CLAWFLEET_CACHE_DIR": str(tmp_path)}
     first = fleet("reach", "pick_cell", "--jobs", "2", "--quiet", env=tables)

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 ROOT = Path(__file__).parents[3]
@@ -118,6 +119,7 @@ def summary_of(scene: Path) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # two whole runs: not in the quick set
 def test_a_scene_whose_arms_are_declared_in_a_file_runs_as_the_line_it_copies(tmp_path):
     """examples/robots/my_claw_line.yaml is the quick line with its arms declared in a robot file: same parts, same
     moves."""
