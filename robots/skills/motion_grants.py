@@ -55,7 +55,7 @@ class MotionGrants:
             return [], []
         qs, q = [], np.asarray(q_end, float)
         for point in points:
-            q, ok = self._ik(point, yaw, q, tilt)
+            q, ok = self.geometry.ik(point, yaw, q, tilt, self.grasp_centre)
             if not ok:
                 return [], []  # the stage's own planning will fail the task; the move alone is still checked
             qs.append(q)
@@ -105,14 +105,13 @@ class MotionGrants:
         place = np.asarray(self.job.place_xyz, float)
         above = place + rise(self._place_up, t.hover_m, self.tool_above_bottom_m)
         back = (self.top_down.base_to_world[:2, 3] - above[:2]) * t.standby_back
-        q, ok = self._ik(
-            above + [back[0], back[1], t.standby_up_m], self.place_yaw, self._transfer_to, self.place_tilt_rad
-        )
+        spot = above + [back[0], back[1], t.standby_up_m]
+        q, ok = self.geometry.ik(spot, self.place_yaw, self._transfer_to, self.place_tilt_rad, self.grasp_centre)
         if not ok:
             self._transfer_from_here(time_s)
             return
         self.standbys += 1
-        self._begin_segment(self._segment(self.q_cmd, q, time_s, t.transfer_speed), Phase.STANDBY, time_s)
+        self._begin_segment(self.geometry.segment(self.q_cmd, q, time_s, t.transfer_speed), Phase.STANDBY, time_s)
 
     def _transfer_from_here(self, time_s: float) -> None:
         """The transfer to above the place, from where the arm is (after standing by, or instead of it)."""
@@ -121,7 +120,8 @@ class MotionGrants:
 
     def _transfer(self, q_to: np.ndarray, time_s: float) -> None:
         """A transfer-phase free move from where the arm is to `q_to`, part in hand."""
-        self._begin_segment(self._segment(self.q_cmd, q_to, time_s, self.timing.transfer_speed), Phase.TRANSFER, time_s)
+        segment = self.geometry.segment(self.q_cmd, q_to, time_s, self.timing.transfer_speed)
+        self._begin_segment(segment, Phase.TRANSFER, time_s)
 
     def _should_detour(self, time_s: float) -> bool:
         """Two arms each standing in the other's way (one waiting to transfer, one to go home or transfer) would

@@ -35,7 +35,7 @@ from robots.skills.estop_wait import EStopWait
 from robots.skills.goal_outbox import GoalOutbox
 from robots.skills.interface import ArmObservation, MotionRequest, PartObservation, PickPlaceJob
 from robots.skills.motion_grants import MotionGrants
-from robots.skills.pick_geometry import PickGeometry
+from robots.skills.pick_geometry import ClawGeometry
 from robots.skills.pick_plans import PickPlans
 from robots.skills.recovery import SkillRecovery
 from robots.spec import RobotSpec
@@ -79,7 +79,7 @@ class PickPlaceTiming:
         return dataclasses.replace(cls(), **spec.pick_timing)
 
 
-class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeometry):
+class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants):
     """State machine for one pick-and-place: `start`, then `step` at the decision rate; both queue goals that `step`
     returns.
 
@@ -111,6 +111,7 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         self.denials = 0
         self.km = model or KinematicModel(spec)
         self.top_down = TopDownIK(spec, transform_base_to_world, self.km)
+        self.geometry = ClawGeometry(spec, self.top_down, self.km)
         self.phase = Phase.IDLE
         self.failure: Failure | None = None  # why the last task failed
         self.job: PickPlaceJob | None = None
@@ -186,7 +187,7 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
         self.outbox.forget()
         self._timeline = []
         self.q_cmd = np.asarray(obs.q, float).copy()
-        self.grasp_yaw = self._grasp_yaw(part)
+        self.grasp_yaw = self.geometry.grasp_yaw(part, self.missed_yaws.get(part.part_id, ()))
         self.grasp_centre = self.spec.grasp_centre_tool(part.width_m, t.fixed_jaw_gap_m)
         tip = self.spec.fingertip_below_tool_m
         self.grasp_z = max(job.surface_z_m + part.height_m / 2, job.surface_z_m + tip + 0.004)
@@ -219,6 +220,12 @@ class PickPlaceSkill(EStopWait, SkillRecovery, PickPlans, MotionGrants, PickGeom
             self._send_gripper(1.0, start_s)
         self.phase_t0 = start_s
         self.q_cmd, self.plan_end_s = seg.q_end.copy(), start_s + seg.duration_s
+
+    def _head_home(self, time_s: float) -> None:
+        """The free move home from where the arm was last sent, at the approach's speed."""
+        home = np.asarray(self.spec.home_q, float)
+        segment = self.geometry.segment(self.q_cmd, home, time_s, self.timing.approach_speed)
+        self._begin_segment(segment, Phase.HOME, time_s)
 
     # --- motion grants --------------------------------------------------------------
 

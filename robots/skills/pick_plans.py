@@ -29,7 +29,7 @@ class PickPlans:
         for _ in range(2):
             at = part.position + self.velocity * lead
             grasp = np.array([at[0], at[1], self.grasp_z])
-            found = self._least_tilt(grasp, self.grasp_yaw, t.hover_m)
+            found = self.geometry.least_tilt(grasp, self.grasp_yaw, t.hover_m, self.q_cmd, self.grasp_centre)
             if found is None:
                 hover = grasp + [0.0, 0.0, t.hover_m]
                 self._fail(
@@ -37,7 +37,7 @@ class PickPlans:
                 )
                 return
             self.pick_tilt_rad, q_hover, self._pick_up = found
-            seg = self._segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
+            seg = self.geometry.segment(self.q_cmd, q_hover, obs.time_s, t.approach_speed)
             lead = seg.duration_s + t.descend_s * 0.5
         self._grasp_world = grasp
         self._begin_segment(seg, Phase.APPROACH, obs.time_s)
@@ -83,16 +83,16 @@ class PickPlans:
             self._fail(FailureCode.GRASP_MISSED, f"grasp of part {self.job.part_id} missed: the claw closed on nothing")
             return
         place = np.asarray(self.job.place_xyz, float)
-        self.place_yaw = self._natural_yaw(place)
-        found = None
+        self.place_yaw = self.geometry.natural_yaw(place)
+        found, above = None, (place, self.place_yaw, t.hover_m, self.q_cmd, self.grasp_centre, self.tool_above_bottom_m)
         if self.spec.carry_tilted:  # the part is carried as it was picked, not turned in the jaws on the way
-            found = self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m, self.pick_tilt_rad)
-        found = found or self._least_tilt(place, self.place_yaw, t.hover_m, self.tool_above_bottom_m)
+            found = self.geometry.least_tilt(*above, self.pick_tilt_rad)
+        found = found or self.geometry.least_tilt(*above)
         if found is None:
             self._fail(FailureCode.PLACE_UNREACHABLE, f"place position {np.round(place, 3).tolist()} cannot be reached")
             return
         self.place_tilt_rad, q_above, self._place_up = found
-        self._begin_segment(self._segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)
+        self._begin_segment(self.geometry.segment(self.q_cmd, q_above, now, t.transfer_speed), Phase.TRANSFER, now)
 
     def _plan_place(self) -> None:
         """Lower, release, retreat: one goal from the transfer's end, and the claw opening at the release."""
@@ -117,6 +117,13 @@ class PickPlans:
         self._send_gripper(self.pregrasp_opening, start + at(lo))
         self.q_cmd, self.plan_end_s = qs[-1].copy(), start + at(times[-1])
         self._timeline = [(start, Phase.LOWER), (start + at(lo), Phase.RELEASE), (start + at(lo + rel), Phase.RETREAT)]
+
+    def _solve_path(self, points: list[np.ndarray], yaw: float, tilt_rad: float) -> np.ndarray:
+        """Joints through Cartesian tool positions from the joints last commanded (`ClawGeometry.solve_path`),
+        the failed solves counted."""
+        qs, failed = self.geometry.solve_path(points, yaw, tilt_rad, self.q_cmd, self.grasp_centre)
+        self.ik_failures += failed
+        return qs
 
     def _send_knots(self, start_s: float, times_s: np.ndarray, qs: np.ndarray) -> Callable[[float], float]:
         """Send a knot path, stretched where it would break a joint's velocity limit; returns the map from a

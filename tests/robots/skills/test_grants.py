@@ -87,7 +87,8 @@ def transferring(at_s: float = 1.0) -> PickPlaceSkill:
     skill = started()
     skill.on_grant(skill.request.seq, "grant", "", 0.0)
     skill.q_cmd = skill.segment.q_end.copy()  # at the hover pose, as after the grasp and lift
-    skill._begin_segment(skill._segment(skill.q_cmd, np.asarray(SPEC.home_q) + 0.4, at_s, 0.5), Phase.TRANSFER, at_s)
+    away = skill.geometry.segment(skill.q_cmd, np.asarray(SPEC.home_q) + 0.4, at_s, 0.5)
+    skill._begin_segment(away, Phase.TRANSFER, at_s)
     return skill
 
 

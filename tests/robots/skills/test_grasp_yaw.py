@@ -25,34 +25,30 @@ def axis_turn(a: float, b: float) -> float:
 
 
 def test_a_grasp_that_closed_on_nothing_is_tried_across_the_other_side_next():
-    skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
+    claw = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4)).geometry
     top = part_at((0.55, -0.65), math.radians(101))  # square: four yaws close across it
-    first = skill._grasp_yaw(top)
-    skill.missed_yaws[top.part_id] = [first]
-    second = skill._grasp_yaw(top)
+    first = claw.grasp_yaw(top)
+    second = claw.grasp_yaw(top, missed=[first])
     assert axis_turn(first, second) == math.pi / 2
-    skill.missed_yaws[top.part_id].append(second)
-    assert skill._grasp_yaw(top) == first, "both ways missed: the one nearest the natural yaw again"
+    assert claw.grasp_yaw(top, missed=[first, second]) == first, "both ways missed: the one nearest the natural yaw"
 
 
 def test_a_long_part_is_still_grasped_across_its_narrow_side_after_a_miss():
-    skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
+    claw = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4)).geometry
     bar = part_at((0.55, -0.65), 0.3, size_m=(0.03, 0.06, 0.03))
-    first = skill._grasp_yaw(bar)
-    skill.missed_yaws[bar.part_id] = [first]
-    assert axis_turn(skill._grasp_yaw(bar), first) < 1e-9, "its wide side does not fit the jaws"
+    first = claw.grasp_yaw(bar)
+    assert axis_turn(claw.grasp_yaw(bar, missed=[first]), first) < 1e-9, "its wide side does not fit the jaws"
 
 
 def test_a_round_part_is_grasped_at_the_natural_yaw_whichever_way_it_lies():
     """A cylinder lying at any yaw is closed across at the arm's own yaw (least wrist roll): turned up to 45 degrees
     with the part, a top in the assembly line's bin missed 3 grasps in 17 (seed 5, 300 s) and none at this yaw."""
-    skill = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4))
-    natural = skill._natural_yaw(np.array([0.55, -0.65, 0.02]))
+    claw = PickPlaceSkill(SPEC, yaw_transform((0.3, -0.35, 0.0), -math.pi / 4)).geometry
+    natural = claw.natural_yaw(np.array([0.55, -0.65, 0.02]))
     for lying in (0.0, 0.4, math.radians(101), 2.5):
         top = part_at((0.55, -0.65), lying, round_part=True)
-        assert abs(math.remainder(skill._grasp_yaw(top) - natural, 2 * math.pi)) < 1e-9
-        square = skill._grasp_yaw(part_at((0.55, -0.65), lying))  # a square box: square to its sides
+        assert abs(math.remainder(claw.grasp_yaw(top) - natural, 2 * math.pi)) < 1e-9
+        square = claw.grasp_yaw(part_at((0.55, -0.65), lying))  # a square box: square to its sides
         assert abs(math.remainder(square - lying, math.pi / 2)) < 1e-9
     top = part_at((0.55, -0.65), 0.4, round_part=True)
-    skill.missed_yaws[top.part_id] = [natural]
-    assert axis_turn(skill._grasp_yaw(top), natural) == math.pi / 2, "missed at its natural yaw: across the other way"
+    assert axis_turn(claw.grasp_yaw(top, missed=[natural]), natural) == math.pi / 2, "missed at its natural yaw"
