@@ -102,7 +102,6 @@ def test_a_killed_launcher_takes_the_factory_and_its_nodes_with_it(tmp_path):
     assert gone(factory_pid) and gone(node_pid)
 
 
-@pytest.mark.lockstep  # runs no clock against the wall: beside other lines, not alone
 def test_a_run_of_forked_nodes_is_the_run_of_execd_ones():
     summaries = {}
     for fork in (True, False):
