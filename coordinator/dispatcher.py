@@ -29,7 +29,7 @@ from coordinator.dispatch_report import grant_requests_open, measured_capacity, 
 from coordinator.dispatch_takeover import TakeOver
 from coordinator.dispatch_views import AllocatorViews
 from coordinator.geometry import ArmGeometry
-from coordinator.guard import CollisionGuard, NearestPair, TimedPath
+from coordinator.guard import CollisionGuard, TimedPath
 from coordinator.ledger import PIPELINE_DEFAULT, Ledger
 from coordinator.orders import AssignOrder, CancelOrder, Decision, GrantOrder, Order
 from coordinator.tasks import CONVEYOR, Task, TaskState
@@ -60,7 +60,6 @@ class Dispatcher:
         self.scene = scene
         self.ledger = Ledger(scene, first_task_id, pipeline)
         self.allocator = allocator or make_allocator("optimal", scene)
-        self.arm_names = [a.name for a in scene.arms]
         self.guard = CollisionGuard(
             {
                 a.name: ArmGeometry(a.name, get_robot(a.model), yaw_transform(a.base.xyz, a.base.yaw_rad))
@@ -69,7 +68,7 @@ class Dispatcher:
         )
         self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.period_ticks = decision_period_ticks(scene)
-        self.arms = ArmBook(self.arm_names)
+        self.arms = ArmBook([a.name for a in scene.arms])
         self.clock = DispatchClock()
         hz = scene.control_hz
         bases = {a.name: a.base.xyz for a in scene.arms}
@@ -85,6 +84,11 @@ class Dispatcher:
         self._candidates: dict[int, tuple[int, str]] = {}
         # where a belt task's deadline falls
         self.belt_reach = layout_belt_reach(self.scene, self.arm_views())
+
+    @property
+    def arm_names(self) -> list[str]:
+        """The arms, in scene order."""
+        return self.arms.names
 
     @property
     def lost(self) -> dict[str, float]:
@@ -334,10 +338,6 @@ class Dispatcher:
         mode, where the policy allocates)."""
         self.clock.last_decision_tick = tick
         return self.grants.answer_motion_requests(tick / self.scene.control_hz)
-
-    def watch_separations(self) -> list[NearestPair]:
-        """The cell's closest approach, sampled at the decision rate; each arm's nearest neighbour."""
-        return self.grants.watch_separations()
 
     # --- the summary ----------------------------------------------------------------
     def report(self) -> dict:
