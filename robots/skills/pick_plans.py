@@ -3,6 +3,7 @@ close, lift) and the place (lower, release, retreat), each one goal through Cart
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -84,10 +85,13 @@ class PickPlans:
             return
         place = np.asarray(self.job.place_xyz, float)
         self.place_yaw = self.geometry.natural_yaw(place)
-        found, above = None, (place, self.place_yaw, t.hover_m, self.q_cmd, self.grasp_centre, self.tool_above_bottom_m)
+        above_place = functools.partial(
+            self.geometry.least_tilt, place, self.place_yaw, t.hover_m, self.q_cmd, self.grasp_centre
+        )
+        found = None
         if self.spec.carry_tilted:  # the part is carried as it was picked, not turned in the jaws on the way
-            found = self.geometry.least_tilt(*above, self.pick_tilt_rad)
-        found = found or self.geometry.least_tilt(*above)
+            found = above_place(below_m=self.tool_above_bottom_m, from_rad=self.pick_tilt_rad)
+        found = found or above_place(below_m=self.tool_above_bottom_m)
         if found is None:
             self._fail(FailureCode.PLACE_UNREACHABLE, f"place position {np.round(place, 3).tolist()} cannot be reached")
             return
