@@ -33,7 +33,8 @@ class ControllerLives:
         self.controller_incarnation: dict[str, int] = {}
         self.heartbeat_at: dict[str, float] = {}  # arm -> wall time of its last heartbeat handled
         self.heard_at: dict[str, float] = {}  # arm -> wall time its last heartbeat arrived (set on arrival)
-        self.frame_at = time.monotonic()  # when the sim's last frame was read
+        self.frame_at = time.monotonic()  # when the sim's last frame believed arrived
+        self.frame_heard_at = 0.0  # when the last frame arrived (set on arrival; 0: no arrival stamped)
         self.resumed_at = self.frame_at  # when the line last came back from a stall
         self.rejoining: set[str] = set()  # arms whose new controller beat before the sim heard it
         self.sim_lost: set[str] = set()  # arms whose controller the sim says it no longer hears (their latest state)
@@ -64,6 +65,11 @@ class ControllerLives:
         except ValueError:
             pass
 
+    def frame_arrived(self, _sample: zenoh.Sample | None = None) -> None:
+        """A frame's arrival, stamped (a subscriber's callback): the line's life and the arms' heartbeats are judged
+        on one clock, when each arrived, however late a busy coordinator reads them."""
+        self.frame_heard_at = time.monotonic()
+
     def restart_clocks(self) -> None:
         """Wall-clock stamps start afresh (after a restore): a heartbeat heard before is no silence now, and no
         controller is judged before it beats again."""
@@ -71,13 +77,14 @@ class ControllerLives:
         self.heartbeat_at, self.heard_at = {}, {}
 
     def frame_read(self) -> None:
-        """The sim's frame was read now: the line is alive, so an arm's silence is the arm's. A frame after a gap is
+        """A frame of the sim was read and believed: the line was alive when it arrived (its arrival stamp, or now
+        where none was stamped), so an arm silent since well before is silent of its own. A frame after a gap is
         the line coming back from a stall (a lockstep line waits for its slowest node, and any process may be held
         off the CPU): the arms' heartbeats, held up with it, are judged from then on."""
-        now = time.monotonic()
-        if now - self.frame_at > HEARTBEAT_GAP_S:
-            self.resumed_at = now
-        self.frame_at = now
+        at = max(self.frame_heard_at, self.frame_at) if self.frame_heard_at else time.monotonic()
+        if at - self.frame_at > HEARTBEAT_GAP_S:
+            self.resumed_at = at
+        self.frame_at = at
 
     def on_roster(self, key: str, roster: Roster) -> None:
         problem = self.incarnations.roster_problem(roster)
@@ -148,16 +155,17 @@ class ControllerLives:
             self.assign_seq[s.arm] = s.assign_seq
 
     def check(self, timeout_s: float) -> None:
-        """An arm silent for `timeout_s` (wall) while the sim is heard is lost. While the sim is silent too (its
-        loop ended and the line is being stopped, or the line is stalled), and for `timeout_s` after the line
-        comes back from a stall, the silence is the line's, not the arm's."""
-        now = time.monotonic()
-        if now - self.frame_at > timeout_s or now - self.resumed_at <= timeout_s:
+        """An arm is lost when the sim was heard (a frame arrived) more than `timeout_s` (wall) after the arm's last
+        heartbeat arrived: silent that long while the line ran. A line that goes silent with its arms (its run
+        ended and its nodes are being stopped, or it stalled) loses none, however long the arms' last beats came
+        before its last frame within that time; and for `timeout_s` after the line comes back from a stall, the
+        arms' heartbeats, held up with it, are still to come."""
+        if time.monotonic() - self.resumed_at <= timeout_s:
             return
         for arm in self.heartbeat_at:
             at = self.heard_at.get(arm, self.heartbeat_at[arm])
-            if arm not in self.dispatcher.lost and now - at > timeout_s:
-                self.arm_lost(arm, f"no heartbeat for {timeout_s} s", silent_for_s=now - at)
+            if arm not in self.dispatcher.lost and self.frame_at - at > timeout_s:
+                self.arm_lost(arm, f"no heartbeat for {timeout_s} s", silent_for_s=self.frame_at - at)
 
     def arm_lost(self, arm: str, why: str, silent_for_s: float) -> None:
         tell_lost(arm, why, self.dispatcher.arm_lost(arm, why, silent_for_s))

@@ -116,6 +116,7 @@ class CoordinatorNode:
             for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
         ]  # and heartbeats stamped on arrival (a restore puts the lives' state back in place)
         self._subs.append(session.declare_subscriber(keys.all_arms("status"), self.lives.arrived))
+        self._subs.append(session.declare_subscriber(keys.frame, self.lives.frame_arrived))  # and frames, alike
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
         self._tick_pub = session.declare_publisher(keys.coord("tick"))
         self._progress_pub = session.declare_publisher(keys.coord("progress"))

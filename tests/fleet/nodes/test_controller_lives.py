@@ -67,3 +67,26 @@ def test_an_arm_that_stays_silent_after_a_stall_is_lost_a_timeout_after_the_line
     run_for(lives, 10.0, beating=("arm_1",), until=lambda: dispatcher.losses)
     assert [loss["arm"] for loss in dispatcher.losses] == ["arm_0"]
     assert dispatcher.losses[0]["silent_for_s"] > time.monotonic() - came_back > TIMEOUT_S
+
+
+def test_a_line_that_falls_silent_with_its_arms_costs_no_arm_whose_last_beat_came_a_little_before_its_last_frame():
+    lives, dispatcher = lives_of_two_arms()
+    run_for(lives, 0.2, beating=("arm_0", "arm_1"))
+    run_for(lives, 0.8 * TIMEOUT_S, beating=())  # the run ends: the arms stop, the sim's last frames still come
+    for _ in range(40):  # then nothing arrives while the coordinator checks on, until it is stopped itself
+        lives.check(TIMEOUT_S)
+        time.sleep(0.01)
+    assert dispatcher.losses == [], "silent together with the line, never for a timeout while it ran"
+
+
+def test_frames_read_late_are_judged_by_when_they_arrived():
+    lives, dispatcher = lives_of_two_arms()
+    beat(lives, "arm_0", 1), beat(lives, "arm_1", 1)
+    for _ in range(20):  # frames arrive every 10 ms; the heartbeats stop (the run ends) as the last ones do
+        lives.frame_arrived()
+        time.sleep(0.01)
+    for _ in range(60):  # a busy coordinator reads the queued frames a while later, checking as it goes
+        lives.frame_read()
+        lives.check(TIMEOUT_S)
+        time.sleep(0.01)
+    assert dispatcher.losses == [], "the frames arrived while the arms still beat"
