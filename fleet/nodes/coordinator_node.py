@@ -111,12 +111,10 @@ class CoordinatorNode:
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
         self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
-        self._subs = [
-            session.declare_subscriber(k, self.inbox)
-            for k in (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
-        ]  # and heartbeats stamped on arrival (a restore puts the lives' state back in place)
-        self._subs.append(session.declare_subscriber(keys.all_arms("status"), self.lives.arrived))
-        self._subs.append(session.declare_subscriber(keys.frame, self.lives.frame_arrived))  # and frames, alike
+        inbox_keys = (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
+        stamps = ((keys.all_arms("status"), self.lives.arrived), (keys.frame, self.lives.frame_arrived))
+        self._subs = [session.declare_subscriber(k, self.inbox) for k in inbox_keys]
+        self._subs += [session.declare_subscriber(k, stamp) for k, stamp in stamps]  # heartbeats, frames: arrivals
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
         self._tick_pub = session.declare_publisher(keys.coord("tick"))
         self._progress_pub = session.declare_publisher(keys.coord("progress"))
