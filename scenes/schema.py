@@ -390,13 +390,14 @@ class Camera(Strict):
 class Appearance(Strict):
     """How the cameras' scene looks (never the physics, nor a part's colour as stations sort by it): one directional
     light (`light_direction_xyz`, pointing from the light; `light_intensity`) over an even `ambient` light, whether
-    it casts shadows (SAPIEN draws them for every camera's frame: about twice a small frame's render time on a CPU,
-    docs/cameras.md), the belt's grey and a factor on every part's colour in images."""
+    it casts shadows, the belt's grey and a factor on every part's colour in images."""
 
     light_direction_xyz: Vec3 = (0.3, 0.4, -1.0)
     light_intensity: float = Field(0.75, ge=0.0, le=5.0)
     ambient: float = Field(0.45, ge=0.0, le=2.0)
-    shadows: bool = True
+    shadows: bool | Literal["auto"] = "auto"
+    """`auto`: shadows where a GPU renders, none on a CPU renderer (lavapipe), where SAPIEN drawing the shadow map
+    again for every camera's frame costs about twice a small frame's render (docs/cameras.md)."""
     belt_grey: float = Field(0.12, ge=0.0, le=1.0)
     part_shade: float = Field(1.0, ge=0.0, le=2.0)
 

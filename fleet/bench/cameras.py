@@ -19,6 +19,7 @@ import yaml
 
 from fleet.bench.physics import populated_sorting_world
 from fleet.sim.cameras.rig import CameraRig
+from fleet.sim.render import casts_shadows
 from scenes.schema import Camera
 
 SIZES = ((64, 64), (128, 128), (320, 240), (640, 480))
@@ -122,8 +123,8 @@ def wrist_cameras(arms: int, size_px: int) -> list[dict]:
     ]
 
 
-def scene_file(folder: Path, arms: int, cameras: list[Camera], shadows: bool) -> Path:
-    """The sorting line with `arms` arms and `cameras`, its light casting shadows or not: a scene file in `folder`."""
+def scene_file(folder: Path, arms: int, cameras: list[Camera], shadows: bool | str) -> Path:
+    """The sorting line with `arms` arms and `cameras`, its light's `shadows` as given: a scene file in `folder`."""
     from fleet.common.scene_loading import load_checked_scene
 
     scene = load_checked_scene("sorting_line", arms=arms)
@@ -135,10 +136,10 @@ def scene_file(folder: Path, arms: int, cameras: list[Camera], shadows: bool) ->
 
 
 def bench_env_cameras(
-    arms: int = 4, size_px: int = 64, steps: int = 200, seed: int = 0, shadows: bool = True
+    arms: int = 4, size_px: int = 64, steps: int = 200, seed: int = 0, shadows: bool | str = "auto"
 ) -> EnvCameraRow:
     """The env's `reach` with random actions, without cameras and with an RGB-D wrist camera on every arm (its
-    light casting shadows, or not)."""
+    light's `shadows` as given; the row says whether they were drawn)."""
     from fleet.env.cell_env import CellParallelEnv  # the env only for this row
 
     timings = []
@@ -146,7 +147,7 @@ def bench_env_cameras(
         scene = str(scene_file(Path(folder), arms, [], shadows))
         for cameras in (False, wrist_cameras(arms, size_px)):
             timings.append(_time_env(CellParallelEnv(scene, arms, "reach", max_cycles=steps, cameras=cameras), seed))
-    return EnvCameraRow(arms, size_px, steps, shadows, *timings)
+    return EnvCameraRow(arms, size_px, steps, casts_shadows(shadows), *timings)
 
 
 def _time_env(env, seed: int) -> float:
@@ -198,8 +199,8 @@ def bench_line_cameras(
     rate_hz: float = 5.0,
     arms: int = 4,
     sim_seconds: float = 30.0,
-    shadows: bool = True,
-    encoding: str = "png",
+    shadows: bool | str = "auto",
+    encoding: str = "auto",
 ) -> LineCameraRow:
     """The sorting line in lockstep (all its processes), without a camera and with one over its arms (the
     `views` overhead, `size`, `images`, `rate_hz`), one after the other with the same seed: the sim's loop wall time
@@ -221,6 +222,7 @@ def bench_line_cameras(
             loops.append(summary["loop_wall_seconds"])
             report = summary.get("cameras") or report
     return LineCameraRow(
-        arms, size[0], size[1], images, rate_hz, sim_seconds, shadows, encoding, loops[0], loops[1],
+        arms, size[0], size[1], images, rate_hz, sim_seconds, casts_shadows(shadows), options.rgb_encoding(),
+        loops[0], loops[1],
         report["render_s"], report["encode_s"], report["frames"],
     )  # fmt: skip

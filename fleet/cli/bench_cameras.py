@@ -119,16 +119,28 @@ def add_parser(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--line-rate", type=float, default=5.0, help="the line camera's rate (sim Hz)")
     b.add_argument("--line-seconds", type=float, default=30.0, help="sim seconds of each line")
     b.add_argument(
-        "--line-encoding", choices=("png", "jpeg", "raw"), default="png", help="the line's --camera-encoding"
+        "--line-encoding",
+        choices=("auto", "png", "jpeg", "raw"),
+        default="auto",
+        help="the line's --camera-encoding (auto: raw, the line's bus being on this machine)",
     )
     b.add_argument("--env-arms", type=int, default=4, choices=range(1, 13), metavar="N")
     b.add_argument("--env-size", type=int, default=64, help="the wrist cameras' width and height (px)")
     b.add_argument("--env-steps", type=int, default=200)
     b.add_argument(
+        "--shadows",
+        dest="shadows",
+        action="store_const",
+        const=True,
+        default="auto",
+        help="--env and --line: the light casts shadows even on a CPU renderer (default: appearance.shadows auto)",
+    )
+    b.add_argument(
         "--no-shadows",
         dest="shadows",
-        action="store_false",
-        help="--env and --line: the scene's light casts no shadows (appearance.shadows: false)",
+        action="store_const",
+        const=False,
+        help="--env and --line: the light casts no shadows, even on a GPU",
     )
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_cameras)

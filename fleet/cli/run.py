@@ -486,7 +486,11 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
         "the recording and to ROS (docs/cameras.md)",
     )
     p.add_argument(
-        "--camera-encoding", choices=("png", "jpeg", "raw"), default="png", help="how RGB images travel (default png)"
+        "--camera-encoding",
+        choices=("auto", "png", "jpeg", "raw"),
+        default="auto",
+        help="how RGB images travel on the bus (default auto: raw arrays where every node runs here on the run's own "
+        "bus, png where the bus may cross a network); recordings and ROS get compressed images either way",
     )
 
 

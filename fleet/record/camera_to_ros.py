@@ -1,8 +1,8 @@
 """A camera's images as ROS 2 messages, named as ROS camera drivers name them.
 
 For a camera `<camera>`: colour on `/<camera>/image_raw/compressed` (`sensor_msgs/CompressedImage`, png or jpeg)
-or `/<camera>/image_raw` (`sensor_msgs/Image` rgb8, with raw encoding); depth on `/<camera>/depth/image_raw`
-(`sensor_msgs/Image`, 16UC1 millimetres or 32FC1 metres); segmentation on `/<camera>/segmentation/image_raw`
+and, live, `/<camera>/image_raw` (`sensor_msgs/Image` rgb8); depth on `/<camera>/depth/image_raw` (`sensor_msgs/Image`,
+16UC1 millimetres, 0 where nothing is seen); segmentation on `/<camera>/segmentation/image_raw`
 (32SC1 ids, `fleet.sim.cameras.labels`); `/<camera>/camera_info` with each frame; and the optical frame
 `<camera>_optical_frame` (+z forward, +x right, +y down) on `/tf_static` under its mount (`world`, or the arm's
 link `<arm>/<link>` it rides on).
@@ -23,7 +23,7 @@ from scenes.schema import CameraPlacement, Scene
 
 WORLD = "world"
 IMAGE_ENCODINGS = {("rgb", "raw"): "rgb8", ("rgb", "png"): "rgb8", ("rgb", "jpeg"): "rgb8"}
-IMAGE_ENCODINGS |= {("depth", "raw"): "32FC1", ("depth", "png16"): "16UC1"}
+IMAGE_ENCODINGS |= {("depth", "raw"): "16UC1", ("depth", "png16"): "16UC1"}  # however it travelled
 IMAGE_ENCODINGS[("segmentation", "raw")] = IMAGE_ENCODINGS[("segmentation", "zlib")] = "32SC1"
 
 
@@ -57,8 +57,8 @@ class CameraTopics:
 
 
 def image_topic(message: CameraImage) -> str:
-    """The ROS topic a camera image goes out on in a recording."""
-    return CameraTopics(message.camera).image(message.kind, message.encoding)
+    """The ROS topic a camera image goes out on in a recording (colour compressed, however it travelled)."""
+    return CameraTopics(message.camera).image(message.kind, "png")
 
 
 def camera_topic_types(camera: str, kinds: list[str]) -> dict[str, str]:
@@ -92,8 +92,9 @@ def _header(message: CameraImage):
 
 
 def image_msg(message: CameraImage):
-    """`sensor_msgs/CompressedImage` for png or jpeg colour, else `sensor_msgs/Image` (decoded where packed)."""
-    if message.kind == "rgb" and message.encoding in ("png", "jpeg"):
+    """What a recording holds of an image, however it travelled: colour a `sensor_msgs/CompressedImage` (raw
+    arrays packed as PNG here, in the recorder's process, not the sim's loop), else a `sensor_msgs/Image`."""
+    if message.kind == "rgb":
         return compressed_image_msg(message)
     return raw_image_msg(message)
 
@@ -112,10 +113,11 @@ def compressed_image_msg(message: CameraImage):
 
 
 def raw_image_msg(message: CameraImage):
-    """`sensor_msgs/Image` of any image: rgb8, 16UC1 (png16 depth, millimetres), 32FC1 (raw depth), 32SC1 (ids)."""
+    """`sensor_msgs/Image` of any image: rgb8, 16UC1 (depth in millimetres, as depth cameras' drivers publish it,
+    whether it travelled as PNG or as metres), 32SC1 (ids)."""
     array = decode_image(message.kind, message.data, message.encoding, message.width_px, message.height_px)
-    if message.encoding == "png16":
-        array = np.rint(array * 1000.0).astype("<u2")  # the millimetres the PNG held
+    if message.kind == "depth":  # to the millimetre (the PNG's own); 0 where nothing is seen, 65.535 m at most
+        array = np.clip(np.rint(array * 1000.0), 0, 65535).astype("<u2")
     row = array.strides[0]
     return ros_type("sensor_msgs/msg/Image")(
         header=_header(message),

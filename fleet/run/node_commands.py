@@ -85,7 +85,7 @@ class NodeCommands:
         if o.record_targets:
             sim_args += ["--record-targets", o.record_targets]
         if o.cameras:
-            sim_args += ["--cameras", o.cameras, "--camera-encoding", o.camera_encoding]
+            sim_args += ["--cameras", o.cameras, "--camera-encoding", o.rgb_encoding()]
         if o.record:  # what the bus carries, as the sim hears it, for the recorder (no second copy on the wire)
             sim_args += ["--spool", str(self.spool_path)]
         if o.respawn:

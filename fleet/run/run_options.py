@@ -39,7 +39,7 @@ class RunOptions:
     ros_max_rate_hz: float = DEFAULT_MAX_RATE_HZ  # the ROS front ends' topics at most this often (wall); 0: no cap
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     cameras: str | None = None  # the scene's cameras to render: all, or names joined by commas (None: no rendering)
-    camera_encoding: str = "png"  # how RGB images travel (`fleet.bus.images`)
+    camera_encoding: str = "auto"  # how RGB images travel (`fleet.bus.images`); auto: `rgb_encoding()`
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login
     # without a bus config, listen or connect endpoints or a Zenoh config, a run makes its own secure bus on loopback
@@ -57,3 +57,16 @@ class RunOptions:
     restore_from: str | None = None  # a snapshot every node starts from (`scene` is then the one it holds)
     reseed: int | None = None  # with `restore_from`: the feeders draw their arrivals from this seed from there on
     incarnations: tuple[tuple[str, int], ...] = ()  # with `restore_from`: each node starts in this incarnation
+
+    def on_loopback_here(self) -> bool:
+        """Whether every node runs on this machine on a bus the run makes itself (no hosts file, endpoints, bus
+        directory or Zenoh config of the user's)."""
+        return not (self.hosts or self.listen or self.connect or self.bus_config or self.zenoh_config)
+
+    def rgb_encoding(self) -> str:
+        """How RGB images travel: as asked, or (auto) raw arrays where the bus stays on this machine (nothing to
+        encode in the sim's loop; the recorder and the ROS front ends pack PNG in their own processes), PNG where
+        it may cross a network."""
+        if self.camera_encoding != "auto":
+            return self.camera_encoding
+        return "raw" if self.on_loopback_here() else "png"

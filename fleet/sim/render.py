@@ -45,6 +45,17 @@ def require_render() -> None:
         raise RenderUnavailable(reason)
 
 
+def renders_on_cpu() -> bool:
+    """Whether this process's render device is a CPU renderer (Mesa's lavapipe, which Vulkan names llvmpipe)."""
+    require_render()
+    return "llvmpipe" in _KEPT[0].device.name.lower()
+
+
+def casts_shadows(shadows: bool | str) -> bool:
+    """A scene's `appearance.shadows` as drawn here: `auto` is shadows on a GPU, none on a CPU renderer."""
+    return (not renders_on_cpu()) if shadows == "auto" else bool(shadows)
+
+
 def render_system() -> sapien.render.RenderSystem:
     """A new render system (for one camera scene); `RenderUnavailable`, in one line, where none can be made."""
     require_render()

@@ -15,6 +15,7 @@ import numpy as np
 import sapien
 
 from fleet.sim.cameras import labels
+from fleet.sim.render import casts_shadows
 from fleet.sim.world import World
 
 SHADOW_MAP_PX = (128, 512)  # the shadow map's size, fitted to the largest camera within these: SAPIEN draws the
@@ -150,7 +151,7 @@ class RenderMirror:
         self.scene.add_directional_light(
             list(light.light_direction_xyz),
             [light.light_intensity] * 3,
-            shadow=light.shadows,
+            shadow=casts_shadows(light.shadows),
             shadow_scale=min(reach_m + 1.5, 30.0),
             shadow_map_size=shadow_px,
         )

@@ -143,3 +143,17 @@ def test_the_optical_frame_ros_tools_get_is_the_one_the_images_were_made_in():
     assert np.allclose(position, frame.position_m, atol=1e-6)
     w, x, y, z = frame.quaternion_wxyz
     assert abs(abs(np.dot([qx, qy, qz, qw], [x, y, z, w])) - 1.0) < 1e-6, "the same rotation"
+
+
+def test_shadows_by_default_where_a_gpu_renders_and_none_on_a_cpu_renderer():
+    from fleet.sim.render import renders_on_cpu
+
+    scene = load_checked_scene("pick_cell")
+    colours = {}
+    for shadows in ("auto", True, False):
+        looks = scene.model_copy(update={"appearance": scene.appearance.model_copy(update={"shadows": shadows})})
+        world = World(looks)
+        world.step(500)
+        colours[shadows] = CameraRig(world, [looks.camera("overhead")]).frames()["overhead"].rgb.tobytes()
+    assert colours[True] != colours[False], "the arms and parts cast shadows where asked"
+    assert colours["auto"] == colours[not renders_on_cpu()]
