@@ -120,6 +120,10 @@ class CollisionGuard:
         self.waits = 0
         self.ways_out = 0  # grants nearer than the margin, out of two arms' deadlock (`_way_out`)
         self.last_check_samples = 0
+        self._claws: dict[str, ClawSpan] = {}  # each arm's claw as last measured
+        self._watch_memo = PairMeasurements()
+        self._levers_m: dict[str, np.ndarray] = {}
+        self._denials = DeniedArms()
 
     def set_state(self, arm: str, q: np.ndarray, gripper_q: np.ndarray | None = None) -> None:
         """An arm's measured joints, and its claw's where known: the cell's separations place the claw as measured
@@ -131,8 +135,6 @@ class CollisionGuard:
 
     def claw_state(self) -> dict[str, ClawSpan]:
         """Each arm's claw as last measured (arms never measured: none)."""
-        if "_claws" not in vars(self):  # a guard read back from an older snapshot
-            self._claws: dict[str, ClawSpan] = {}
         return self._claws
 
     def release(self, arm: str) -> None:
@@ -182,8 +184,6 @@ class CollisionGuard:
     def nearest_pairs(self) -> list[NearestPair]:
         """For each arm its nearest other arm at the current states, each pair once; the cell's closest pair is among
         them. The pass of `nearest_other_m`, with the nearest points of each pair it measures."""
-        if "_watch_memo" not in vars(self):  # a guard read back from an older snapshot
-            self._watch_memo = PairMeasurements()
         nearest, measured = self._nearest_pass(closest_points_below, math.inf, TIE_M, self._watch_memo)
         out = [
             NearestPair(a, b, d, p_a, p_b)
@@ -248,8 +248,6 @@ class CollisionGuard:
 
     def levers_m(self, arm: str) -> np.ndarray:
         """How far from each of the arm's joints its shapes can be (a point moves at most lever * the turn)."""
-        if "_levers_m" not in vars(self):  # a guard read back from an older snapshot
-            self._levers_m = {}
         if arm not in self._levers_m:
             self._levers_m[arm] = self.arms[arm].joint_levers_m()
         return self._levers_m[arm]
@@ -289,8 +287,6 @@ class CollisionGuard:
 
     def denials(self) -> DeniedArms:
         """The arms whose last request was denied, and because of whom."""
-        if "_denials" not in vars(self):  # a guard read back from an older snapshot
-            self._denials = DeniedArms()
         return self._denials
 
     def _walk(self, path: TimedPath, neighbours: list[str], thresholds: dict[str, float]) -> Verdict:

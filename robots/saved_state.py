@@ -8,6 +8,7 @@ changes a state's meaning without changing its shape bumps its host's `VERSION`.
 
 from __future__ import annotations
 
+import json
 from typing import Any, TypeVar
 
 import msgspec
@@ -66,3 +67,21 @@ def unpack_version(data: bytes, kind: type[S], version: int) -> S:
     if state.version != version:
         raise SavedStateError(f"a {kind.__name__} of version {state.version}; this clawfleet reads version {version}")
     return state
+
+
+BIT_GENERATORS = ("PCG64", "PCG64DXSM", "MT19937", "Philox", "SFC64")
+
+
+def generator_state(rng: np.random.Generator) -> str:
+    """A numpy generator's exact state as JSON (its 128-bit integers are more than MessagePack holds)."""
+    return json.dumps(rng.bit_generator.state)
+
+
+def generator_of(state: str) -> np.random.Generator:
+    """A generator standing where `generator_state` saw one."""
+    fields = json.loads(state)
+    if fields.get("bit_generator") not in BIT_GENERATORS:
+        raise SavedStateError(f"not a saved random generator: {fields.get('bit_generator')!r}")
+    bit_generator = getattr(np.random, fields["bit_generator"])()
+    bit_generator.state = fields
+    return np.random.Generator(bit_generator)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydantic import ValidationError
 
+from robots.saved_state import SavedState, generator_of, generator_state
 from scenes.schema import LinkFaults, Network
 
 STREAM = 0xFA017  # the faults' own random stream beside the feeders' and the randomisation's, from the run's seed
@@ -31,6 +32,18 @@ class Passage:
 
     lost: bool
     delay_s: float
+
+
+class FaultyLinkState(SavedState, frozen=True):
+    """What a `FaultyLink` saves: its faults (a run restored keeps those of the run that took the snapshot), its counts
+    and where each direction's random stream stands."""
+
+    latency_ms: float
+    jitter_ms: float
+    loss: float
+    counts: dict[str, int]
+    delay_s_total: dict[str, float]
+    streams: dict[str, str]  # direction -> its generator's state (`generator_state`)
 
 
 @dataclass
@@ -68,6 +81,22 @@ class FaultyLink:
     def note(self, direction: str, what: str) -> None:
         """Count a message the receiver dropped: `overtaken` by a newer one, or `stale` (older than one applied)."""
         self.counts[f"{direction}_{what}"] += 1
+
+    def state(self) -> FaultyLinkState:
+        f = self.faults
+        return FaultyLinkState(
+            latency_ms=f.latency_ms,
+            jitter_ms=f.jitter_ms,
+            loss=f.loss,
+            counts=dict(self.counts),
+            delay_s_total=dict(self.delay_s_total),
+            streams={d: generator_state(rng) for d, rng in self._rngs.items()},
+        )
+
+    def restore(self, state: FaultyLinkState) -> None:
+        self.faults = LinkFaults(latency_ms=state.latency_ms, jitter_ms=state.jitter_ms, loss=state.loss)
+        self.counts, self.delay_s_total = Counter(state.counts), Counter(state.delay_s_total)
+        self._rngs = {d: generator_of(s) for d, s in state.streams.items()}
 
     def report(self) -> dict:
         """What was injected on this link and what it did."""
@@ -114,6 +143,19 @@ class DelayLine:
 
     def __len__(self) -> int:
         return len(self._heap)
+
+    def held(self) -> list[tuple[float, int, object]]:
+        """What is held, in heap order: (due wall time, arrival order, item)."""
+        return list(self._heap)
+
+    def put_back(self, held: list[tuple[float, int, object]], count: int) -> None:
+        """Hold again what `held` said, numbering on from `count`."""
+        self._heap, self._count = list(held), count
+        heapq.heapify(self._heap)
+
+    @property
+    def count(self) -> int:
+        return self._count
 
 
 def add_fault_arguments(parser: argparse.ArgumentParser) -> None:

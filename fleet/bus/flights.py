@@ -13,9 +13,13 @@ clock and leaves the answers' delays to the caller (`fleet.bus.faults.DelayLine`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from fleet.bus.faults import FaultyLink, ticks_for
+from robots.saved_state import SavedState
+
+M = TypeVar("M")  # what a link carries out (a state, a frame)
+A = TypeVar("A")  # the answer to it
 
 
 @dataclass
@@ -32,6 +36,59 @@ class Flight:
     payload: bytes = b""  # as delivered (encoded then: a delayed state carries the tick it arrived)
     answer: Any = None
     delivered_wall_s: float = 0.0
+
+
+class FlightState(SavedState, Generic[M, A], frozen=True):
+    """A `Flight` saved, with its message and answer of the link's own types."""
+
+    tick: int
+    message: M
+    deliver_tick: int
+    deliver_at_s: float
+    apply_tick: int
+    up_lost: bool
+    delivered: bool
+    payload: bytes
+    answer: A | None
+    delivered_wall_s: float
+
+
+class BookState(SavedState, Generic[M, A], frozen=True):
+    """What a `FlightBook` saves: its flights, oldest first, and the newest delivered and applied."""
+
+    flights: list[FlightState[M, A]]
+    newest_delivered: int
+    newest_applied: int
+
+
+def flight_state(f: Flight) -> FlightState:
+    return FlightState(
+        tick=f.tick,
+        message=f.message,
+        deliver_tick=f.deliver_tick,
+        deliver_at_s=f.deliver_at_s,
+        apply_tick=f.apply_tick,
+        up_lost=f.up_lost,
+        delivered=f.delivered,
+        payload=f.payload,
+        answer=f.answer,
+        delivered_wall_s=f.delivered_wall_s,
+    )
+
+
+def flight_of(s: FlightState) -> Flight:
+    return Flight(
+        s.tick,
+        s.message,
+        s.deliver_tick,
+        s.deliver_at_s,
+        s.apply_tick,
+        s.up_lost,
+        s.delivered,
+        s.payload,
+        s.answer,
+        s.delivered_wall_s,
+    )
 
 
 class FlightBook:
@@ -138,3 +195,15 @@ class FlightBook:
 
     def clear(self) -> None:
         self.flights.clear()
+
+    def state(self) -> BookState:
+        """What this book saves (its link's faults save themselves)."""
+        return BookState(
+            flights=[flight_state(f) for f in self.flights.values()],
+            newest_delivered=self.newest_delivered,
+            newest_applied=self.newest_applied,
+        )
+
+    def restore(self, state: BookState) -> None:
+        self.flights = {f.tick: flight_of(f) for f in state.flights}
+        self.newest_delivered, self.newest_applied = state.newest_delivered, state.newest_applied

@@ -10,10 +10,24 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from fleet.bus.flights import FlightBook
-from fleet.bus.messages import ArmGoalMsg, ControllerStep
+from fleet.bus.flights import BookState, FlightBook
+from fleet.bus.messages import ArmGoalMsg, ArmState, ControllerStep
+from robots.saved_state import SavedState
 
 REPUBLISH_S = 0.05  # wall seconds before a state still unanswered is sent again (a late joiner, a lost sample)
+
+
+class ArmLinkState(SavedState, frozen=True):
+    """What an `ArmLink` saves (its name and its book's faults are the link's own)."""
+
+    period_ticks: int
+    book: BookState[ArmState, ControllerStep]
+    last_step: ControllerStep | None
+    next_tick: int
+    goals: list[ArmGoalMsg]
+    discard_goals: set[int]
+    lost: bool
+    watchdog_held: bool
 
 
 @dataclass
@@ -30,6 +44,24 @@ class ArmLink:
     discard_goals: set[int] = field(default_factory=set)  # ids named by answers lost on the way back: never applied
     lost: bool = False
     watchdog_held: bool = False
+
+    def state(self) -> ArmLinkState:
+        return ArmLinkState(
+            period_ticks=self.period_ticks,
+            book=self.book.state(),
+            last_step=self.last_step,
+            next_tick=self.next_tick,
+            goals=list(self.goals),
+            discard_goals=set(self.discard_goals),
+            lost=self.lost,
+            watchdog_held=self.watchdog_held,
+        )
+
+    def restore(self, state: ArmLinkState) -> None:
+        self.period_ticks, self.last_step, self.next_tick = state.period_ticks, state.last_step, state.next_tick
+        self.book.restore(state.book)
+        self.goals, self.discard_goals = list(state.goals), set(state.discard_goals)
+        self.lost, self.watchdog_held = state.lost, state.watchdog_held
 
     def named_goals(self) -> set[int]:
         """Goal ids named by answers in and not applied yet."""

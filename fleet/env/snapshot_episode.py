@@ -9,23 +9,23 @@ controller would have at its next state).
 
 from __future__ import annotations
 
-import dataclasses
-import pickle
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
+import msgspec
 import numpy as np
 
 from coordinator.dispatch_state import restore_dispatcher
 from coordinator.dispatcher import Dispatcher
 from fleet.bus.goals import goal_from_message
 from fleet.sim.line_watch import LineWatcher
+from fleet.sim.sim_state import read_sim_state
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World, WorldState
 from fleet.snapshot.controller_state import ControllerState, read_controller_state
 from fleet.snapshot.coordinator_state import read_coordinator_state
-from fleet.snapshot.process_state import StateError, read_state
+from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SnapshotError, read_snapshot
 from robots.joint_trajectory import GoalResult
 from robots.skills.skill_state import restore_skill
@@ -72,22 +72,25 @@ def read_moment(path: str, world: World, agents: list[str]) -> LineMoment:
             f"{scene.name} with arms {', '.join(agents)}"
         )
     try:
-        sim = pickle.loads(zlib.decompress(snapshot.states["sim"]))
-        server = read_state(sim["server"], {"world": world, "server": None, "scene": scene}, "the sim")
+        sim = read_sim_state(zlib.decompress(snapshot.states["sim"]))
         coordinator = read_coordinator_state(zlib.decompress(snapshot.states["coordinator"]))
         controllers = {a: read_controller_state(zlib.decompress(snapshot.states[a]), a) for a in agents}
-    except (StateError, zlib.error, pickle.UnpicklingError, KeyError) as exc:
+    except (StateError, zlib.error, KeyError) as exc:
         raise SnapshotEpisodeError(f"{path}: {exc}") from None
     dispatcher = Dispatcher(scene)  # the env's own bookkeeping: it allocates nothing (its policy chooses)
     restore_dispatcher(dispatcher, coordinator.dispatcher)
+    watcher = LineWatcher(scene)
+    watcher.restore(sim.watcher)
+    tracked = TrackedArms(world)  # the sim's trackers, over the env's world
+    tracked.restore(sim.tracked)
     return LineMoment(
         path,
         snapshot.sim_time_s,
-        sim["world"],
-        server["watcher"],
+        sim.world,
+        watcher,
         dispatcher,
-        server["tracked"],
-        {name: list(link.goals) for name, link in server["links"].items()},
+        tracked,
+        {name: list(link.goals) for name, link in sim.links.items()},
         controllers,
     )
 
@@ -95,7 +98,7 @@ def read_moment(path: str, world: World, agents: list[str]) -> LineMoment:
 def restore_world(world: World, moment: LineMoment) -> None:
     """The world as the line had it (its clock counted in this world's ticks, where the env runs another rate)."""
     ticks = round(moment.sim_time_s * world.scene_model.control_hz)
-    world.restore_state(dataclasses.replace(moment.world, tick=ticks))
+    world.restore_state(msgspec.structs.replace(moment.world, tick=ticks))
 
 
 def apply_goals(tracked: TrackedArms, moment: LineMoment) -> None:

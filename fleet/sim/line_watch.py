@@ -17,6 +17,7 @@ import numpy as np
 
 from fleet.sim.world import PartInfo, World
 from fleet.sim.world_events import PartSpawned, WorldEvent
+from robots.saved_state import SavedState
 from scenes.schema import Scene, Station
 
 REST_SPEED_M_PER_S = 0.02
@@ -42,6 +43,19 @@ class _Watch:
     still_since_s: float | None = None
     reported_station: str | None = None
     at_sink_since_s: float | None = None
+
+
+class WatchState(SavedState, frozen=True):
+    still_since_s: float | None
+    reported_station: str | None
+    at_sink_since_s: float | None
+
+
+class WatcherState(SavedState, frozen=True):
+    """What a `LineWatcher` saves: what it has seen of each part on the line, and how many world events."""
+
+    parts: dict[int, WatchState]
+    world_events_seen: int
 
 
 def sink_stations(scene: Scene) -> set[str]:
@@ -80,6 +94,25 @@ class LineWatcher:
         self.sinks = sink_stations(scene)
         self._watch: dict[int, _Watch] = {}
         self._world_events_seen = 0
+
+    def state(self) -> WatcherState:
+        return WatcherState(
+            parts={
+                pid: WatchState(
+                    still_since_s=w.still_since_s,
+                    reported_station=w.reported_station,
+                    at_sink_since_s=w.at_sink_since_s,
+                )
+                for pid, w in self._watch.items()
+            },
+            world_events_seen=self._world_events_seen,
+        )
+
+    def restore(self, state: WatcherState) -> None:
+        self._watch = {
+            pid: _Watch(w.still_since_s, w.reported_station, w.at_sink_since_s) for pid, w in state.parts.items()
+        }
+        self._world_events_seen = state.world_events_seen
 
     def update(self, world: World, parts: list[PartInfo]) -> list[Event]:
         tick, now = world.tick, world.sim_time_s

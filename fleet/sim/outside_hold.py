@@ -15,9 +15,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from robots.saved_state import SavedState
 from robots.tracker import ArmTracker
 
 OUTSIDE_RELEASE_S = 2.0  # an outside driver lets go of an arm this long (sim s) after its last goal stops driving it
+
+
+class OutsideHoldState(SavedState, frozen=True):
+    """What `OutsideHold` saves: the outside goals of each arm taken, and when each is let go."""
+
+    goal_ids: dict[str, set[int]]
+    until_s: dict[str, float]
 
 
 @dataclass
@@ -27,6 +35,13 @@ class OutsideHold:
     release_s: float = OUTSIDE_RELEASE_S
     goal_ids: dict[str, set[int]] = field(default_factory=dict)  # arm -> outside goals accepted while it is taken
     until_s: dict[str, float] = field(default_factory=dict)  # arm -> when it is let go (inf: a goal drives it)
+
+    def state(self) -> OutsideHoldState:
+        return OutsideHoldState(goal_ids={a: set(g) for a, g in self.goal_ids.items()}, until_s=dict(self.until_s))
+
+    def restore(self, state: OutsideHoldState) -> None:
+        self.goal_ids = {a: set(g) for a, g in state.goal_ids.items()}
+        self.until_s = dict(state.until_s)
 
     def take(self, arm: str, goal_id: int) -> bool:
         """An outside goal for `arm` was accepted; whether that takes it (it was free: its own controller's goals

@@ -4,7 +4,6 @@ the physics scene to build in and the tick, and takes the events it returns."""
 
 from __future__ import annotations
 
-import copy
 import math
 
 import numpy as np
@@ -13,6 +12,7 @@ import sapien
 from fleet.sim.arm import yaw_pose
 from fleet.sim.parts import FeederClock, SimPart, build_part, park
 from fleet.sim.world_events import FeederFull, PartRetired, PartSpawned, WorldEvent
+from robots.saved_state import SavedState, generator_of, generator_state
 from scenes.schema import Feeder, Scene
 from scenes.shapes import WALL_M, station_spots
 
@@ -22,6 +22,17 @@ DROP_GAP_M = 0.01  # a feeder drops a part only this far clear of the parts alre
 def feeder_streams(seed: int, n_feeders: int) -> list[np.random.Generator]:
     """One independent random stream per feeder, all from one seed (the scene's)."""
     return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(max(1, n_feeders))][:n_feeders]
+
+
+class FeederClockState(SavedState, frozen=True):
+    """What a feeder's clock saves: where its random stream stands, its next release, what it released."""
+
+    rng: str  # `generator_state`
+    next_time_s: float
+    schedule_index: int
+    spawned: int
+    skipped_full: int
+    held_s: float
 
 
 class PartFeeders:
@@ -168,32 +179,32 @@ class PartFeeders:
         raise KeyError(f"no active part {part_id}")
 
     # --- state ------------------------------------------------------------------------
-    def clock_states(self) -> list[dict]:
+    def clock_states(self) -> list[FeederClockState]:
         """Each feeder clock as a snapshot keeps it."""
         return [
-            {
-                "rng": copy.deepcopy(c.rng.bit_generator.state),
-                "next_time_s": c.next_time_s,
-                "schedule_index": c.schedule_index,
-                "spawned": c.spawned,
-                "skipped_full": c.skipped_full,
-                "held_s": c.held_s,
-            }
+            FeederClockState(
+                rng=generator_state(c.rng),
+                next_time_s=c.next_time_s,
+                schedule_index=c.schedule_index,
+                spawned=c.spawned,
+                skipped_full=c.skipped_full,
+                held_s=c.held_s,
+            )
             for c in self.clocks
         ]
 
-    def restore(self, part_ids: list[int | None], clock_states: list[dict], next_part_id: int) -> None:
+    def restore(self, part_ids: list[int | None], clock_states: list[FeederClockState], next_part_id: int) -> None:
         """The pool's ids and the clocks as `clock_states` has them (the bodies' poses are the physics')."""
         for part, part_id in zip(self.parts, part_ids):
             part.part_id = part_id
             part.body.set_kinematic(part_id is None)
         for clock, saved in zip(self.clocks, clock_states):
-            clock.rng.bit_generator.state = copy.deepcopy(saved["rng"])
-            clock.next_time_s = saved["next_time_s"]
-            clock.schedule_index = saved["schedule_index"]
-            clock.spawned = saved["spawned"]
-            clock.skipped_full = saved["skipped_full"]
-            clock.held_s = saved.get("held_s", 0.0)
+            clock.rng.bit_generator.state = generator_of(saved.rng).bit_generator.state  # in place
+            clock.next_time_s = saved.next_time_s
+            clock.schedule_index = saved.schedule_index
+            clock.spawned = saved.spawned
+            clock.skipped_full = saved.skipped_full
+            clock.held_s = saved.held_s
         self.next_part_id = next_part_id
 
     def reseed(self, seed: int) -> None:

@@ -26,6 +26,7 @@ from coordinator.claw_sweep import ClawSpan
 from coordinator.geometry import ArmGeometry, neighbours, separation_m
 from fleet.sim.safety_speeds import GRID_DT_S, Closing, PathSpeeds, grid_steps
 from robots.joint_trajectory import Spline
+from robots.saved_state import SavedState
 from robots.tracker import ArmTracker
 
 SPEED_SLACK = 1.02  # a spline's peak between two samples may pass a sampled peak by a little
@@ -44,6 +45,15 @@ class Refusal:
 
     kind: str
     reason: str
+
+
+class SafetyState(SavedState, frozen=True):
+    """What `PlantSafety` saves: its counts and when each pair of neighbours is next measured (its paths' speed
+    bounds are worked out again from the paths)."""
+
+    refused: dict[str, int]
+    stopped: int
+    due_s: list[tuple[str, str, float]]
 
 
 @dataclass
@@ -79,6 +89,17 @@ class PlantSafety:
         self.neighbours = {name: neighbours(geometries, name, self.separation_m) for name in geometries}
         self.counts = SafetyCounts()
         self._due_s: dict[tuple[str, str], float] = {}  # when each pair of neighbours is next measured
+
+    def state(self) -> SafetyState:
+        return SafetyState(
+            refused=dict(self.counts.refused),
+            stopped=self.counts.stopped,
+            due_s=[(a, b, t) for (a, b), t in self._due_s.items()],
+        )
+
+    def restore(self, state: SafetyState) -> None:
+        self.counts = SafetyCounts(Counter(state.refused), state.stopped)
+        self._due_s = {(a, b): t for a, b, t in state.due_s}
 
     def report(self) -> dict:
         """The run summary's part: goals refused by kind, motions stopped, the separation kept."""

@@ -115,6 +115,7 @@ class SimServer(SimLockstep):
     def use_world(self, world: World) -> None:
         """Go on in `world`, a world of the same scene built afresh (after a snapshot); its state is put in after."""
         self.world = world
+        self.tracked.use_world(world)
         if self.cameras is not None:
             self.cameras.rig.use_world(world)
 

@@ -9,16 +9,40 @@ import math
 import time
 from typing import TYPE_CHECKING
 
+from fleet.bus.flights import Flight, FlightState, flight_of, flight_state
 from fleet.bus.goals import goal_from_message
 from fleet.bus.keys import Keys
 from fleet.bus.lockstep import ArmLink
 from fleet.bus.message_checks import request_problem
-from fleet.bus.messages import ArmGoalMsg, CoordTick
+from fleet.bus.messages import ArmGoalMsg, ArmState, ControllerStep, CoordTick
 from fleet.sim.sim_bus import control_problem, coord_tick_problem
 from robots.joint_trajectory import GoalResult
+from robots.saved_state import SavedState
 
 if TYPE_CHECKING:
     from fleet.sim.server import SimServer
+
+
+class DelayedState(SavedState, frozen=True):
+    """Realtime: one message on its way in (`fleet.bus.faults.DelayLine`): a coordinator's tick, a goal or an
+    answer's flight, for the arm named."""
+
+    due_s: float  # this process's wall clock
+    order: int
+    kind: str  # coord | goal | step
+    arm: str | None
+    coord: CoordTick | None = None
+    goal: ArmGoalMsg | None = None
+    flight: FlightState[ArmState, ControllerStep] | None = None
+
+
+class InputsState(SavedState, frozen=True):
+    """What `SimInputs` saves: goals that came from outside clients and are not yet submitted, and (realtime) what
+    is on its way in."""
+
+    outside_goals: set[int]
+    delayed: list[DelayedState]
+    delayed_count: int
 
 
 class SimInputs:
@@ -27,6 +51,27 @@ class SimInputs:
     def __init__(self, sim: SimServer) -> None:
         self.sim = sim
         self.outside_goals: set[int] = set()  # ids of goals that came on an arm's `drive` key, not yet submitted
+
+    def state(self) -> InputsState:
+        delayed = []
+        for due_s, order, (kind, link, item) in self.sim.delayed.held():
+            arm = None if link is None else link.name
+            fields = {"coord": item} if kind == "coord" else {"goal": item} if kind == "goal" else {}
+            if kind == "step":
+                fields = {"flight": flight_state(item)}
+            delayed.append(DelayedState(due_s=due_s, order=order, kind=kind, arm=arm, **fields))
+        return InputsState(outside_goals=set(self.outside_goals), delayed=delayed, delayed_count=self.sim.delayed.count)
+
+    def restore(self, state: InputsState) -> None:
+        self.outside_goals = set(state.outside_goals)
+        held = []
+        for d in state.delayed:
+            link = None if d.arm is None else self.sim.links[d.arm]
+            item: CoordTick | ArmGoalMsg | Flight | None = d.coord if d.kind == "coord" else d.goal
+            if d.kind == "step":
+                item = flight_of(d.flight)
+            held.append((d.due_s, d.order, (d.kind, link, item)))
+        self.sim.delayed.put_back(held, state.delayed_count)
 
     def take(self) -> None:
         bus = self.sim.bus

@@ -18,6 +18,7 @@ from fleet.sim.world import PartInfo
 from fleet.sim.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
 from robots.phase import Phase
+from robots.saved_state import SavedState, generator_of, generator_state
 
 if TYPE_CHECKING:
     from fleet.sim.server import SimServer
@@ -26,6 +27,17 @@ STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 
 
 VIEW_MAX_WALL_HZ = 60.0  # views for watchers (monitors, ROS front ends), at most this often in wall time
+
+
+class OutputsState(SavedState, frozen=True):
+    """What `SimOutputs` saves: its noise stream, the newest parts message's tick, what each node was told of the
+    next snapshot, and its wall-clock stamps (this process's clock)."""
+
+    noise: str  # the pose noise generator's state
+    status_at_s: float
+    parts_tick: int
+    told: dict[str, int]
+    view_at_s: float
 
 
 class SimOutputs:
@@ -39,6 +51,20 @@ class SimOutputs:
         self.parts_tick = -1  # of the newest parts message published
         self.told: dict[str, int] = {}  # by node: the next snapshot's tick named in the newest state or frame sent it
         self._view_at = -math.inf  # wall time of the last view built
+
+    def state(self) -> OutputsState:
+        return OutputsState(
+            noise=generator_state(self._noise_rng),
+            status_at_s=self._status_at,
+            parts_tick=self.parts_tick,
+            told=dict(self.told),
+            view_at_s=self._view_at,
+        )
+
+    def restore(self, state: OutputsState) -> None:
+        self._noise_rng = generator_of(state.noise)
+        self._status_at, self.parts_tick, self._view_at = state.status_at_s, state.parts_tick, state.view_at_s
+        self.told = dict(state.told)
 
     def results(self, arm: str, results: list[GoalResult]) -> None:
         for r in results:

@@ -11,45 +11,21 @@ continue from byte-identical states (a world put back from PhysX's pack matches 
 
 from __future__ import annotations
 
-import pickle
 import statistics
 import threading
 import time
 import zlib
-from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from fleet.bus.messages import SnapshotPart
+from fleet.sim.sim_state import VERSION, SimState, read_sim_state
 from fleet.sim.snapshot_asks import SnapshotFailed, asks_at_boundary, lockstep_asks, node_states, publish_asks
 from fleet.sim.snapshot_parts import BASELINE_WINDOWS, CostDue, NextTicks, NodeStarts, PartsDue, check_starts
 from fleet.sim.world import World
-from fleet.snapshot.process_state import StateError, capture, restore
+from fleet.snapshot.process_state import StateError
 from fleet.snapshot.snapshot_file import SUFFIX, RunSnapshot, SceneSource, write_snapshot
-
-# the sim's attributes that belong to this process alone: its bus, its physics world (packed apart), its stop flag,
-# and how it was started (clock, speed, timeouts, who it waits for: a restored run may be started otherwise)
-SIM_LIVE = (
-    "world",
-    "bus",
-    "drops",
-    "stop",
-    "spool",
-    "target_log",
-    "snapshots",
-    "snapshot_asked_by",
-    "snapshots_refused",
-    "restored_from",
-    "mode",
-    "speed",
-    "barrier",
-    "watchdog_s",
-    "lockstep_timeout_s",
-    "controllers",
-    "coordinator",
-    "count_contacts",
-    "cameras",
-)
+from robots.saved_state import SavedStateError, pack
 
 
 @dataclass
@@ -317,31 +293,61 @@ def _median_ms(values: list[float]) -> float | None:
     return None if not values else round(1e3 * statistics.median(values), 1)
 
 
-def _sim_live(sim) -> dict:
-    """What the sim's state names rather than holds: its world, itself, its scene (so a sim restored into a scene
-    with a field set otherwise reads that)."""
-    return {"world": sim.world, "server": sim, "scene": sim.world.scene_model}
-
-
-def capture_sim(sim) -> bytes:
-    """The sim server's state: its world packed, every other attribute but its live handles."""
-    blob = capture(sim, SIM_LIVE, live=_sim_live(sim))
-    return pickle.dumps(
-        {"world": sim.world.pack_state(), "server": blob, "drops": dict(sim.drops.counts)},
-        protocol=pickle.HIGHEST_PROTOCOL,
+def sim_state(sim) -> SimState:
+    """What the sim server saves: its world packed, and every component's state."""
+    return SimState(
+        version=VERSION,
+        world=sim.world.pack_state(),
+        links={name: link.state() for name, link in sim.links.items()},
+        coordinator_book=sim.coord_book.state(),
+        faults={name: link.state() for name, link in sim.faults.items()},
+        tracked=sim.tracked.state(),
+        watcher=sim.watcher.state(),
+        stats=sim.stats.state(),
+        inputs=sim.inputs.state(),
+        outputs=sim.outputs.state(),
+        event_log=list(sim.event_log),
+        assign_seqs=dict(sim.assign_seqs),
+        estop=sim.estop,
+        paused=sim.paused,
+        started=sim.started,
+        drops=sim.drops.state(),
     )
 
 
-def restore_sim(sim, part: bytes) -> None:
-    """Put a state from `capture_sim` back into a sim server of the same scene."""
+def capture_sim(sim) -> bytes:
+    """The sim server's state as bytes."""
     try:
-        saved = pickle.loads(part)
-    except Exception as exc:  # noqa: BLE001 - any fault of a foreign blob is one line
-        raise StateError(f"cannot read back the sim's state: {exc}") from exc
-    sim.world.restore_state(saved["world"])
-    restore(sim, saved["server"], live=_sim_live(sim))
-    sim.drops.counts = Counter(saved["drops"])
-    sim.bus.stats = sim.stats  # the bus counts what it sends in the sim's figures
+        return pack(sim_state(sim))
+    except SavedStateError as exc:
+        raise StateError(str(exc)) from None
+
+
+def restore_sim(sim, part: bytes) -> None:
+    """Put a state from `capture_sim` back into a sim server of the same scene (its components in place)."""
+    state = read_sim_state(part)
+    try:
+        _put_back(sim, state)
+    except (ValueError, KeyError) as exc:  # a state of other arms, or of values no run has
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise StateError(f"cannot put back the state of the sim: {first}") from None
+
+
+def _put_back(sim, state: SimState) -> None:
+    sim.world.restore_state(state.world)
+    for name, link in sim.links.items():
+        link.restore(state.links[name])
+    sim.coord_book.restore(state.coordinator_book)
+    for name, link in sim.faults.items():
+        link.restore(state.faults[name])
+    sim.tracked.restore(state.tracked)
+    sim.watcher.restore(state.watcher)
+    sim.stats.restore(state.stats)
+    sim.inputs.restore(state.inputs)
+    sim.outputs.restore(state.outputs)
+    sim.event_log, sim.assign_seqs = list(state.event_log), dict(state.assign_seqs)
+    sim.estop, sim.paused, sim.started = state.estop, state.paused, state.started
+    sim.drops.restore(state.drops)
 
 
 def forget_wall_clock_flights(sim) -> None:

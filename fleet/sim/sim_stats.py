@@ -7,7 +7,34 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robots.saved_state import SavedState
+
 RTT_EDGES_MS = np.geomspace(0.05, 2000.0, 47)  # log-spaced: sub-millisecond loopback to a lockstep timeout
+
+
+class StatsState(SavedState, frozen=True):
+    """What `SimStats` saves: every count, as it stands."""
+
+    watchdog_holds: dict[str, int]
+    lost: list[str]
+    rejoined: list[str]
+    ticks: int
+    contact_ticks: int
+    contact_pairs: list[tuple[str, str]]
+    round_trip_ms: list[float]
+    coordinator_lost: bool
+    wall_s: dict[str, float]
+    busy_ticks: dict[str, int]
+    grant_wait_ticks: dict[str, int]
+    recent_round_trip_ms: list[float]
+    last_contact_pairs: tuple[str, ...]
+    last_contact_s: float
+    results: dict[str, int]
+    messages_out: dict[str, int]
+    messages_in: dict[str, int]
+
+
+COUNTERS = ("watchdog_holds", "wall_s", "busy_ticks", "grant_wait_ticks", "results", "messages_out", "messages_in")
 
 
 @dataclass
@@ -31,6 +58,31 @@ class SimStats:
     results: Counter = field(default_factory=Counter)  # goal results by status
     messages_out: Counter = field(default_factory=Counter)  # published, by key leaf
     messages_in: Counter = field(default_factory=Counter)  # received, by key leaf
+
+    def state(self) -> StatsState:
+        return StatsState(
+            **{name: dict(getattr(self, name)) for name in COUNTERS},
+            lost=list(self.lost),
+            rejoined=list(self.rejoined),
+            ticks=self.ticks,
+            contact_ticks=self.contact_ticks,
+            contact_pairs=sorted(self.contact_pairs),
+            round_trip_ms=list(self.round_trip_ms),
+            coordinator_lost=self.coordinator_lost,
+            recent_round_trip_ms=list(self.recent_round_trip_ms),
+            last_contact_pairs=self.last_contact_pairs,
+            last_contact_s=self.last_contact_s,
+        )
+
+    def restore(self, state: StatsState) -> None:
+        for name in COUNTERS:
+            setattr(self, name, Counter(getattr(state, name)))
+        self.lost, self.rejoined = list(state.lost), list(state.rejoined)
+        self.ticks, self.contact_ticks = state.ticks, state.contact_ticks
+        self.contact_pairs = {tuple(p) for p in state.contact_pairs}
+        self.round_trip_ms, self.coordinator_lost = list(state.round_trip_ms), state.coordinator_lost
+        self.recent_round_trip_ms = deque(state.recent_round_trip_ms, maxlen=self.recent_round_trip_ms.maxlen)
+        self.last_contact_pairs, self.last_contact_s = tuple(state.last_contact_pairs), state.last_contact_s
 
     def round_trip(self, rtt_ms: float) -> None:
         """A state's answer came back `rtt_ms` after the state was delivered."""

@@ -16,14 +16,16 @@ import numpy as np
 from coordinator.claw_sweep import ClawSpan
 from coordinator.geometry import ArmGeometry
 from fleet.sim.observe import arm_observation
-from fleet.sim.outside_hold import OutsideHold
-from fleet.sim.safety import PlantSafety, Refusal
+from fleet.sim.outside_hold import OutsideHold, OutsideHoldState
+from fleet.sim.safety import PlantSafety, Refusal, SafetyState
 from fleet.sim.world import World
 from robots.frames import yaw_transform
 from robots.joint_trajectory import OUTSIDE_REASON, ArmGoal, GoalResult, GoalStatus, GripperGoal, ResultCode
+from robots.saved_state import SavedState
 from robots.skills.interface import PartObservation
 from robots.skills.pick_place import PickPlaceSkill
 from robots.tracker import ArmTracker
+from robots.tracker_state import TrackerState, restore_tracker, tracker_state
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,6 +38,19 @@ class GripperOpening:
 
     def __call__(self, gripper_q: np.ndarray) -> float:
         return float(np.mean((gripper_q - self.closed) / self.span))
+
+
+class TrackedState(SavedState, frozen=True):
+    """What `TrackedArms` saves: every tracker, the arms outside clients hold, the safety layer's counts and what
+    was last written to each arm's drives (so a restored line writes exactly what the saved one would)."""
+
+    trackers: dict[str, TrackerState]
+    outside: OutsideHoldState
+    safety: SafetyState
+    effort_n: dict[str, float]  # the gripper effort last set on each arm
+    opening: dict[str, float]  # the claw opening last turned into gripper targets
+    gripper_q: dict[str, tuple[float, ...]]  # those targets
+    holding: dict[str, bool]  # whether the arm's drives hold its tracker's hold point as last written
 
 
 class TrackedArms:
@@ -65,6 +80,31 @@ class TrackedArms:
         self.safety = plant_safety(world)
         self.outside = OutsideHold()  # the arms outside clients drive (see `submit`)
 
+    def use_world(self, world: World) -> None:
+        """Drive `world`, a world of the same scene built afresh (after a snapshot); its state is put in after."""
+        self.world = world
+
+    def state(self) -> TrackedState:
+        return TrackedState(
+            trackers={name: tracker_state(t) for name, t in self.trackers.items()},
+            outside=self.outside.state(),
+            safety=self.safety.state(),
+            effort_n=dict(self._effort),
+            opening=dict(self._opening),
+            gripper_q=dict(self._gripper_q),
+            holding={name: q is not None and q is self.trackers[name].hold_q for name, q in self._held.items()},
+        )
+
+    def restore(self, state: TrackedState) -> None:
+        """Put a saved state back (trackers of the same arms, over this world)."""
+        for name, t in state.trackers.items():
+            restore_tracker(self.trackers[name], t)
+        self.outside.restore(state.outside)
+        self.safety.restore(state.safety)
+        self._effort, self._opening = dict(state.effort_n), dict(state.opening)
+        self._gripper_q = {name: tuple(q) for name, q in state.gripper_q.items()}
+        self._held = {name: self.trackers[name].hold_q if held else None for name, held in state.holding.items()}
+
     def submit(self, arm: str, goal: ArmGoal, outside: bool = False) -> list[GoalResult]:
         """Hand `arm`'s tracker a goal now, through the plant's safety layer; the refusal or the preempted goals'
         results come back. An accepted `outside` goal (a client that is not the arm's controller: ROS) takes the
@@ -72,7 +112,7 @@ class TrackedArms:
         before are cancelled at the take."""
         tracker, now = self.trackers[arm], self.world.sim_time_s
         if not outside and self.taken(arm):
-            until = self.outside_hold().let_go_at(arm)
+            until = self.outside.let_go_at(arm)
             why = OUTSIDE_REASON + (f" until {until:.2f} s" if math.isfinite(until) else "")
             if isinstance(goal, GripperGoal):
                 return [GoalResult(goal.goal_id, "gripper", GoalStatus.REJECTED, ResultCode.INVALID_GOAL, why, now)]
@@ -81,7 +121,7 @@ class TrackedArms:
         refused = any(r.goal_id == goal.goal_id and r.status == GoalStatus.REJECTED for r in results)
         if not outside or refused:
             return results
-        if self.outside_hold().take(arm, goal.goal_id):
+        if self.outside.take(arm, goal.goal_id):
             results += self._cancel_for_outside(arm, goal)
         return [dataclasses.replace(r, reason=f"{OUTSIDE_REASON}: {r.reason}") for r in results]
 
@@ -136,12 +176,7 @@ class TrackedArms:
 
     def taken(self, arm: str) -> bool:
         """Whether an outside client drives `arm` now (its controller waits, the coordinator gives it nothing)."""
-        return self.outside_hold().taken(arm, self.trackers[arm], self.world.sim_time_s)
-
-    def outside_hold(self) -> OutsideHold:
-        if "outside" not in vars(self):  # a line read back from an older snapshot
-            self.outside = OutsideHold()
-        return self.outside
+        return self.outside.taken(arm, self.trackers[arm], self.world.sim_time_s)
 
     def decide(self, arm: str, skill: PickPlaceSkill, parts: dict[int, PartObservation]) -> None:
         """One decision of `arm`'s skill in process, as a controller makes it over the bus: it sees the arm (with its

@@ -7,16 +7,17 @@ ticks of `scene.substeps` physics steps; drive targets are set once per tick.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import sapien
 
 from fleet.sim.arm import SimArm, yaw_pose
-from fleet.sim.part_feeders import PartFeeders
+from fleet.sim.part_feeders import FeederClockState, PartFeeders
 from fleet.sim.parts import FeederClock, SimPart
 from fleet.sim.world_events import WorldEvent
 from robots.registry import get_robot
+from robots.saved_state import SavedState
 from scenes.schema import Scene, Station
 from scenes.shapes import belt_box, station_boxes
 
@@ -39,8 +40,7 @@ class PartInfo:
     round: bool = False  # round about its up axis (`PartType.round`)
 
 
-@dataclass
-class WorldState:
+class WorldState(SavedState, frozen=True):
     """Everything needed to put a world back exactly: PhysX bodies, drive targets, pool and feeder clocks."""
 
     physx: bytes
@@ -48,11 +48,11 @@ class WorldState:
     drive_targets: dict[str, np.ndarray]
     drive_velocity_targets: dict[str, np.ndarray]
     part_ids: list[int | None]
-    feeders: list[dict]
+    feeders: list[FeederClockState]
     next_part_id: int
-    events: list[WorldEvent] = field(default_factory=list)
+    events: list[WorldEvent] = []
     belt_running: bool = True  # False while the line is e-stopped
-    gripper_force_limits: dict[str, float] = field(default_factory=dict)  # arm -> its gripper drives' force limit
+    gripper_force_limits: dict[str, float] = {}  # arm -> its gripper drives' force limit
 
 
 def configure_physx(scene: Scene) -> None:

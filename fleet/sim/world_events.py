@@ -3,11 +3,10 @@ env (and kept in a world's saved state)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import msgspec
 
 
-@dataclass(frozen=True)
-class PartSpawned:
+class PartSpawned(msgspec.Struct, frozen=True, tag=True):
     """A feeder released part `part_id` (of its `type_index`-th part type) at `tick`."""
 
     part_id: int
@@ -16,16 +15,14 @@ class PartSpawned:
     tick: int
 
 
-@dataclass(frozen=True)
-class PartRetired:
+class PartRetired(msgspec.Struct, frozen=True, tag=True):
     """Part `part_id` left the world at `tick` (done with, or lost)."""
 
     part_id: int
     tick: int
 
 
-@dataclass(frozen=True)
-class FeederFull:
+class FeederFull(msgspec.Struct, frozen=True, tag=True):
     """A feeder's release at `tick` was skipped: its drop spot was taken."""
 
     feeder: str

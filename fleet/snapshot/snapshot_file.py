@@ -3,8 +3,8 @@ robot files) that run loaded, so the file alone starts the line again.
 
 On disk: `CLAWSNAP`, the format version (4 bytes), the SHA-256 of the body (32 bytes), then the body: the
 `RunSnapshot` as MessagePack, zlib-compressed. A file is checked whole (magic, version, checksum) before any byte of a
-process's state is read back: a truncated, corrupted or other-version file is refused in one line. A process's state
-is a Python pickle: open snapshots you trust, as you would a model checkpoint.
+process's state is read back: a truncated, corrupted or other-version file is refused in one line. Every process's
+state is typed (msgspec structs: `fleet/sim/sim_state.py`, `fleet/snapshot/*_state.py`): nothing in a file is unpickled.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from scenes.loader import resolve_scene_path
 from scenes.yaml_file import named_in, parse_yaml
 
 MAGIC = b"CLAWSNAP"
-FORMAT_VERSION = 4  # 3: the belt reach per station; 4: the controllers and coordinator as typed states
+FORMAT_VERSION = 5  # 3: the belt reach per station; 4: the controllers and coordinator as typed states; 5: the sim
 SUFFIX = ".clawsnap"
 _HEADER = struct.Struct("<8sI32s")
 

@@ -5,9 +5,7 @@ clock."""
 
 from __future__ import annotations
 
-import io
 import os
-import pickle
 import signal
 import zlib
 from collections import defaultdict
@@ -21,6 +19,7 @@ from fleet.monitor.replay_panel import branch_command
 from fleet.record.mcap_file import Recording
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.run.restore import restore_options, snapshot_path
+from fleet.sim.sim_state import read_sim_state
 from fleet.snapshot.controller_state import read_controller_state
 from fleet.snapshot.coordinator_state import read_coordinator_state
 from fleet.snapshot.snapshot_file import read_snapshot
@@ -35,19 +34,12 @@ pytestmark = pytest.mark.slow
 WALL_TOPICS = ("status", "sim_status", "progress", "roster", "summary")
 
 
-class _Names(pickle.Unpickler):
-    """Reads a state that names objects of its process (the sim's world) without them."""
-
-    def persistent_load(self, pid: str) -> None:
-        return None
-
-
 def moments(path: str) -> set[str]:
     """What is going on in a snapshot (read here from its states): an arm mid-grasp, a part handed over, goals not
     yet applied."""
     snapshot = read_snapshot(path)
     raw = {node: zlib.decompress(blob) for node, blob in snapshot.states.items()}
-    sim = _Names(io.BytesIO(pickle.loads(raw.pop("sim"))["server"])).load()
+    sim = read_sim_state(raw.pop("sim"))
     ledger = read_coordinator_state(raw.pop("coordinator")).dispatcher.ledger
     controllers = [read_controller_state(blob, arm) for arm, blob in raw.items()]
     found = set()
@@ -55,7 +47,7 @@ def moments(path: str) -> set[str]:
         found.add("mid-grasp")
     if any(p.location == "handover_pad" and p.part_id in ledger.open_by_part for p in ledger.parts.values()):
         found.add("mid-handover")
-    if any(link.goals for link in sim["links"].values()):
+    if any(link.goals for link in sim.links.values()):
         found.add("goal pending")
     return found
 
