@@ -278,7 +278,6 @@ SINGLE_USE_BASES_LEFT = {
 HANDED_THEIR_HOST_LEFT = {
     ("SimServer", "SimInputs"),
     ("SimServer", "SimOutputs"),
-    ("SimServer", "_Pacing"),
 }
 
 

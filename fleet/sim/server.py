@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from collections.abc import Callable
 
 import zenoh
 
@@ -245,7 +246,9 @@ class SimServer(SimLockstep):
         stop = stop or self.stop
         if speed is not None:
             self.speed = speed
-        pace = _Pacing(self)
+        pace = RealtimePacing(
+            lambda: self.world.sim_time_s, lambda: (self.speed, self.started), self.bus.inbox.wait, self.stats.wall_s
+        )
         done = 0
         while done < ticks:
             if stop is not None and stop.should_stop():
@@ -299,23 +302,31 @@ class SimServer(SimLockstep):
         )
 
 
-class _Pacing:
+class RealtimePacing:
     """Realtime: the sim's clock held to the wall clock at the speed factor, from when every process answered
-    (and again after a pause or a change of speed)."""
+    (and again after a pause or a change of speed). Handed what it reads each tick: the sim's time, the speed
+    factor and whether every process answered (`settings`), how to wait while answers may arrive, and the wall-time
+    counts it adds its waits to."""
 
-    def __init__(self, server: SimServer) -> None:
-        self.server = server
+    def __init__(
+        self,
+        sim_time_s: Callable[[], float],
+        settings: Callable[[], tuple[float, bool]],
+        wait: Callable[[float], None],
+        wall_s: Counter,
+    ) -> None:
+        self._sim_time_s, self._settings, self._wait, self._wall_s = sim_time_s, settings, wait, wall_s
         self.restart()
 
     def restart(self) -> None:
-        s = self.server
-        self.wall, self.sim, self.speed, self.started = time.monotonic(), s.world.sim_time_s, s.speed, s.started
+        self.wall, self.sim = time.monotonic(), self._sim_time_s()
+        self.speed, self.started = self._settings()
 
     def wait(self) -> None:
-        s = self.server
-        if s.started != self.started or s.speed != self.speed:  # the clock starts once every process answered
+        """Until the wall clock catches up with the sim's at the speed factor."""
+        if self._settings() != (self.speed, self.started):  # the clock starts once every process answered
             self.restart()
-        ahead = (s.world.sim_time_s - self.sim) / s.speed - (time.monotonic() - self.wall)
+        ahead = (self._sim_time_s() - self.sim) / self.speed - (time.monotonic() - self.wall)
         if ahead > 0:
-            s.bus.inbox.wait(ahead)  # answers that arrive meanwhile are applied at the next tick
-            s.stats.wall_s["pacing"] += ahead
+            self._wait(ahead)  # answers that arrive meanwhile are applied at the next tick
+            self._wall_s["pacing"] += ahead

@@ -75,8 +75,10 @@ class SimStats:
         )
 
     def restore(self, state: StatsState) -> None:
-        for name in COUNTERS:
-            setattr(self, name, Counter(getattr(state, name)))
+        for name in COUNTERS:  # in place: what counts into them (the realtime pacing) keeps doing so
+            counter = getattr(self, name)
+            counter.clear()
+            counter.update(getattr(state, name))
         self.lost, self.rejoined = list(state.lost), list(state.rejoined)
         self.ticks, self.contact_ticks = state.ticks, state.contact_ticks
         self.contact_pairs = {tuple(p) for p in state.contact_pairs}
