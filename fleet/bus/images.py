@@ -2,7 +2,7 @@
 
 | kind | encoding | data |
 |---|---|---|
-| rgb | `png` (default), `jpeg` (quality 90), `raw` | the image file, or rgb8 bytes row by row |
+| rgb | `png`, `jpeg` (quality 90), `raw` (a run on its own bus, by default) | the image file, or rgb8 bytes by row |
 | depth | `png16` (with png or jpeg RGB), `raw` | a 16-bit PNG of millimetres (0: nothing), ROS's 16UC1; or float32 m |
 | segmentation | `zlib` (with png or jpeg RGB), `raw` | int32 ids (`fleet.sim.cameras.labels`), zlib-compressed or not |
 
