@@ -8,7 +8,7 @@ import numpy as np
 from scipy.interpolate import BPoly
 
 from robots.gripper_tracking import GripperTracker, _Gripper
-from robots.joint_trajectory import CheckedGoal, GoalResult, GripperGoal, Spline, TrajectoryGoal
+from robots.joint_trajectory import CheckedGoal, GoalResult, GripperGoal, Spline
 from robots.saved_state import SavedState
 from robots.tracker import ArmTracker, _Active
 
@@ -30,13 +30,7 @@ class SplineState(SavedState, frozen=True):
 class PathState(SavedState, frozen=True):
     """A trajectory goal the tracker follows or will: the goal as checked, its spline, whether its result is out."""
 
-    goal: TrajectoryGoal
-    times_s: np.ndarray
-    positions: np.ndarray
-    velocities: np.ndarray | None
-    accelerations: np.ndarray | None
-    path_tolerance: np.ndarray
-    goal_tolerance: np.ndarray
+    checked: CheckedGoal
     spline: SplineState
     ended: bool
 
@@ -98,27 +92,13 @@ def spline_of(s: SplineState) -> Spline:
 def path_state(a: _Active | None) -> PathState | None:
     if a is None:
         return None
-    c = a.checked
-    return PathState(
-        goal=c.goal,
-        times_s=c.times_s,
-        positions=c.positions,
-        velocities=c.velocities,
-        accelerations=c.accelerations,
-        path_tolerance=c.path_tolerance,
-        goal_tolerance=c.goal_tolerance,
-        spline=spline_state(a.spline),
-        ended=a.ended,
-    )
+    return PathState(checked=a.checked, spline=spline_state(a.spline), ended=a.ended)
 
 
 def path_of(s: PathState | None) -> _Active | None:
     if s is None:
         return None
-    checked = CheckedGoal(
-        s.goal, s.times_s, s.positions, s.velocities, s.accelerations, s.path_tolerance, s.goal_tolerance
-    )
-    return _Active(checked, spline_of(s.spline), s.ended)
+    return _Active(s.checked, spline_of(s.spline), s.ended)
 
 
 def _claw_goal_state(g: _Gripper | None) -> ClawGoalState | None:

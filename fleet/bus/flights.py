@@ -12,8 +12,10 @@ clock and leaves the answers' delays to the caller (`fleet.bus.faults.DelayLine`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Generic, TypeVar
+
+import msgspec
 
 from fleet.bus.faults import FaultyLink, ticks_for
 from robots.saved_state import SavedState
@@ -62,33 +64,12 @@ class BookState(SavedState, Generic[M, A], frozen=True):
 
 
 def flight_state(f: Flight) -> FlightState:
-    return FlightState(
-        tick=f.tick,
-        message=f.message,
-        deliver_tick=f.deliver_tick,
-        deliver_at_s=f.deliver_at_s,
-        apply_tick=f.apply_tick,
-        up_lost=f.up_lost,
-        delivered=f.delivered,
-        payload=f.payload,
-        answer=f.answer,
-        delivered_wall_s=f.delivered_wall_s,
-    )
+    """A flight as saved: every field of `Flight` (one it adds that the saved form lacks fails here, not silently)."""
+    return FlightState(**{field.name: getattr(f, field.name) for field in fields(Flight)})
 
 
 def flight_of(s: FlightState) -> Flight:
-    return Flight(
-        s.tick,
-        s.message,
-        s.deliver_tick,
-        s.deliver_at_s,
-        s.apply_tick,
-        s.up_lost,
-        s.delivered,
-        s.payload,
-        s.answer,
-        s.delivered_wall_s,
-    )
+    return Flight(**msgspec.structs.asdict(s))
 
 
 class FlightBook:

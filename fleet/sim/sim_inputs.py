@@ -9,7 +9,7 @@ import math
 import time
 from typing import TYPE_CHECKING
 
-from fleet.bus.flights import Flight, FlightState, flight_of, flight_state
+from fleet.bus.flights import FlightState, flight_of, flight_state
 from fleet.bus.goals import goal_from_message
 from fleet.bus.keys import Keys
 from fleet.bus.lockstep import ArmLink
@@ -56,10 +56,8 @@ class SimInputs:
         delayed = []
         for due_s, order, (kind, link, item) in self.sim.delayed.held():
             arm = None if link is None else link.name
-            fields = {"coord": item} if kind == "coord" else {"goal": item} if kind == "goal" else {}
-            if kind == "step":
-                fields = {"flight": flight_state(item)}
-            delayed.append(DelayedState(due_s=due_s, order=order, kind=kind, arm=arm, **fields))
+            carried = {"flight": flight_state(item)} if kind == "step" else {kind: item}  # a coord tick or a goal
+            delayed.append(DelayedState(due_s=due_s, order=order, kind=kind, arm=arm, **carried))
         return InputsState(outside_goals=set(self.outside_goals), delayed=delayed, delayed_count=self.sim.delayed.count)
 
     def restore(self, state: InputsState) -> None:
@@ -67,9 +65,7 @@ class SimInputs:
         held = []
         for d in state.delayed:
             link = None if d.arm is None else self.sim.links[d.arm]
-            item: CoordTick | ArmGoalMsg | Flight | None = d.coord if d.kind == "coord" else d.goal
-            if d.kind == "step":
-                item = flight_of(d.flight)
+            item = flight_of(d.flight) if d.kind == "step" else d.coord if d.kind == "coord" else d.goal
             held.append((d.due_s, d.order, (d.kind, link, item)))
         self.sim.delayed.put_back(held, state.delayed_count)
 
