@@ -169,7 +169,7 @@ class ArmController:
             "refused_messages": self.drops.kinds(),
             "missed_assignments": self.orders.missed,
             "parts_late": self.feed.parts_late,
-            "grants_denied": self.skill.denials,
+            "grants_denied": self.skill.grants.denials,
             "decisions": self.decisions,
             "goals_sent": self.goals_sent,
             "goals_resent": self.skill.goals_resent,
@@ -211,7 +211,7 @@ class ArmController:
         obs = observation_of(state)
         self._hand_to_skill(obs)
         if self.skill.active:
-            self.busy_s += self.skill.decision_period_s
+            self.busy_s += self.skill.plan.decision_period_s
         goals = self.skill.step(obs, self.feed.parts)
         if self.skill.job is None:  # clearing the way home: no task of the coordinator's
             self.task_id = None
@@ -286,7 +286,7 @@ class ArmController:
         same on the way back, at its recent worst."""
         delay = max(state.delivered_tick - state.tick, 0) if state.delivered_tick >= 0 else 0
         self.delays.append(delay)
-        self.skill.latency_s = self.skill.decision_period_s + 2 * max(self.delays) / self.hz
+        self.skill.plan.latency_s = self.skill.plan.decision_period_s + 2 * max(self.delays) / self.hz
 
     def send_heartbeat(self, sim_time_s: float) -> None:
         """The status the coordinator watches for liveness, with what the arm is doing: its phase, and the

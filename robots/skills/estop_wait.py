@@ -12,47 +12,46 @@ from __future__ import annotations
 
 import numpy as np
 
-from robots.failures import FailureCode
 from robots.joint_trajectory import stopped_by_hold
 from robots.phase import Phase
-from robots.skills.interface import ArmObservation, PartObservation
+from robots.skills.interface import ArmObservation
+from robots.skills.skill_plan import SkillPlan
 
 CARRYING = (Phase.LIFT, Phase.STANDBY, Phase.TRANSFER, Phase.LOWER)  # the part in the claw, not yet let go
 LET_GO = (Phase.RELEASE, Phase.RETREAT)  # the part set down: the place is done
 
 
 class EStopWait:
-    """Waiting out an e-stop: one concern of `PickPlaceSkill`, kept apart."""
+    """Waiting out an e-stop: notices the skill's goals ended by one, holds the plan while the arm is held, and on
+    release says which phase was interrupted (the skill plans again from it)."""
 
-    stopped_in: Phase | None = None  # the phase an e-stop interrupted (None: not stopped)
-    estops = 0
+    def __init__(self, plan: SkillPlan) -> None:
+        self.plan = plan
+        self.stopped_in: Phase | None = None  # the phase an e-stop interrupted (None: not stopped)
+        self.estops = 0
 
-    def _estop_ended(self, obs: ArmObservation) -> bool:
+    def stopped_now(self, obs: ArmObservation) -> bool:
         """True when this decision's newest result is one of the skill's goals ended by the e-stop: the skill
         stops (the task is not failed) until its arm is released."""
-        if not self.active or not stopped_by_hold(obs.result_reason) or obs.result_goal_id not in self.sent_goals:
+        plan = self.plan
+        if not plan.active or not stopped_by_hold(obs.result_reason) or obs.result_goal_id not in plan.outbox.sent:
             return False  # a skill with no task (one cancelled meanwhile) has nothing to wait for
-        self.stopped_in = self.phase
+        self.stopped_in = plan.phase
         self.estops += 1
-        self._timeline, self.request = [], None
-        self.outbox.forget()
+        plan.request = None
+        plan.forget()
         return True
 
-    def _waiting_out_estop(self, obs: ArmObservation, parts: dict[int, PartObservation]) -> bool:
-        """While stopped: True (nothing to do) as long as the arm is held; on release, the plan is made again."""
-        if self.stopped_in is None or self.job is None:
+    def held(self, obs: ArmObservation) -> bool:
+        """Stopped, with a task, and the arm still held: nothing to do."""
+        if self.plan.job is None:
             self.stopped_in = None
-            return False
-        if obs.held:
-            return True
+        return self.stopped_in is not None and obs.held
+
+    def release(self, obs: ArmObservation) -> Phase | None:
+        """The phase the e-stop interrupted, once the arm is free again (None: not stopped); the plan starts again
+        from where the arm stands."""
         phase, self.stopped_in = self.stopped_in, None
-        self._now, self.q_cmd = obs.time_s, np.asarray(obs.q, float).copy()
-        if phase in LET_GO:  # the place is done: home, as it would have ended (the next approach starts there)
-            self._head_home(obs.time_s)
-        elif phase in CARRYING:
-            self._after_lift(obs)
-        elif (part := parts.get(self.job.part_id)) is not None:
-            self.start(self.job, obs, part)
-        else:
-            self._fail(FailureCode.PART_VANISHED, f"part {self.job.part_id} left the line during the e-stop")
-        return True
+        if phase is not None:
+            self.plan.now_s, self.plan.q_cmd = obs.time_s, np.asarray(obs.q, float).copy()
+        return phase

@@ -64,74 +64,73 @@ class SkillState(SavedState, frozen=True):
 
 def skill_state(skill: PickPlaceSkill) -> SkillState:
     """What `skill` saves."""
-    then_key, (then_after_s, then_q) = skill._then_cache
+    plan, plans, grants = skill.plan, skill.plans, skill.grants
+    then_key, (then_after_s, then_q) = grants.then_cache
     return SkillState(
-        now_s=skill._now,
-        latency_s=skill.latency_s,
-        decision_period_s=skill.decision_period_s,
-        phase=skill.phase,
-        phase_t0=skill.phase_t0,
-        failure=skill.failure,
-        job=skill.job,
-        grasp_yaw=skill.grasp_yaw,
-        grasp_z=skill.grasp_z,
-        tool_above_bottom_m=skill.tool_above_bottom_m,
-        velocity=skill.velocity,
-        pregrasp_opening=skill.pregrasp_opening,
-        part_height=skill.part_height,
-        q_cmd=skill.q_cmd,
-        segment=skill.segment,
-        moving=skill._moving,
-        timeline=list(skill._timeline),
-        plan_end_s=skill.plan_end_s,
-        request=skill.request,
-        request_seq=skill._request_seq,
+        now_s=plan.now_s,
+        latency_s=plan.latency_s,
+        decision_period_s=plan.decision_period_s,
+        phase=plan.phase,
+        phase_t0=plan.phase_t0,
+        failure=plan.failure,
+        job=plan.job,
+        grasp_yaw=plans.grasp_yaw,
+        grasp_z=plans.grasp_z,
+        tool_above_bottom_m=plans.tool_above_bottom_m,
+        velocity=plans.velocity,
+        pregrasp_opening=plans.pregrasp_opening,
+        part_height=plans.part_height,
+        q_cmd=plan.q_cmd,
+        segment=plan.segment,
+        moving=plan.moving,
+        timeline=list(plan.timeline),
+        plan_end_s=plan.plan_end_s,
+        request=plan.request,
+        request_seq=grants.request_seq,
         then_cached=then_key,
         then_after_s=list(then_after_s),
         then_q=list(then_q),
-        stopped_in=skill.stopped_in,
-        idle_since_s=skill._idle_since_s,
-        denied_since_s=skill._denied_since_s,
-        detour_to=skill._detour_to,
-        stood_by=skill._stood_by,
-        transfer_to=skill._transfer_to,
-        missed_yaws=skill.missed_yaws,
-        place_yaw=skill.place_yaw,
-        pick_tilt_rad=skill.pick_tilt_rad,
-        place_tilt_rad=skill.place_tilt_rad,
-        grasp_centre=tuple(skill.grasp_centre),
-        grasp_world=skill._grasp_world,
-        pick_up=skill._pick_up,
-        place_up=skill._place_up,
+        stopped_in=skill.estop.stopped_in,
+        idle_since_s=skill.recovery.idle_since_s,
+        denied_since_s=grants.denied_since_s,
+        detour_to=grants.detour_to,
+        stood_by=grants.stood_by,
+        transfer_to=grants.transfer_to,
+        missed_yaws=plans.missed_yaws,
+        place_yaw=plans.place_yaw,
+        pick_tilt_rad=plans.pick_tilt_rad,
+        place_tilt_rad=plans.place_tilt_rad,
+        grasp_centre=tuple(plans.grasp_centre),
+        grasp_world=plans.grasp_world,
+        pick_up=plans.pick_up,
+        place_up=plans.place_up,
         outbox=skill.outbox.state(),
-        denials=skill.denials,
-        ik_failures=skill.ik_failures,
-        standbys=skill.standbys,
-        detours=skill.detours,
-        estops=skill.estops,
+        denials=grants.denials,
+        ik_failures=plans.ik_failures,
+        standbys=grants.standbys,
+        detours=grants.detours,
+        estops=skill.estop.estops,
     )
 
 
 def restore_skill(skill: PickPlaceSkill, s: SkillState) -> None:
     """Put `s` back into `skill`, a skill built for the same arm."""
-    skill._now, skill.latency_s, skill.decision_period_s = s.now_s, s.latency_s, s.decision_period_s
-    skill.phase, skill.phase_t0, skill.failure, skill.job = s.phase, s.phase_t0, s.failure, s.job
-    skill.grasp_yaw, skill.grasp_z, skill.velocity = s.grasp_yaw, s.grasp_z, s.velocity
-    skill.tool_above_bottom_m, skill.part_height, skill.pregrasp_opening = (
-        s.tool_above_bottom_m,
-        s.part_height,
-        s.pregrasp_opening,
-    )
-    skill.q_cmd, skill.segment = s.q_cmd, s.segment
-    skill._moving, skill._timeline, skill.plan_end_s = s.moving, list(s.timeline), s.plan_end_s
-    skill.request, skill._request_seq = s.request, s.request_seq
-    skill._then_cache = (s.then_cached, (list(s.then_after_s), list(s.then_q)))
-    skill.stopped_in, skill._idle_since_s, skill._denied_since_s = s.stopped_in, s.idle_since_s, s.denied_since_s
-    skill._detour_to, skill._stood_by, skill._transfer_to = s.detour_to, s.stood_by, s.transfer_to
-    skill.missed_yaws = {k: list(v) for k, v in s.missed_yaws.items()}
-    skill.place_yaw, skill.pick_tilt_rad, skill.place_tilt_rad = s.place_yaw, s.pick_tilt_rad, s.place_tilt_rad
-    skill.grasp_centre, skill._grasp_world = s.grasp_centre, s.grasp_world
-    skill._pick_up, skill._place_up = s.pick_up, s.place_up
+    plan, plans, grants = skill.plan, skill.plans, skill.grants
+    plan.now_s, plan.latency_s, plan.decision_period_s = s.now_s, s.latency_s, s.decision_period_s
+    plan.phase, plan.phase_t0, plan.failure, plan.job = s.phase, s.phase_t0, s.failure, s.job
+    plan.q_cmd, plan.segment, plan.moving = s.q_cmd, s.segment, s.moving
+    plan.timeline, plan.plan_end_s, plan.request = list(s.timeline), s.plan_end_s, s.request
+    plans.grasp_yaw, plans.grasp_z, plans.velocity = s.grasp_yaw, s.grasp_z, s.velocity
+    plans.tool_above_bottom_m, plans.part_height = s.tool_above_bottom_m, s.part_height
+    plans.pregrasp_opening, plans.ik_failures = s.pregrasp_opening, s.ik_failures
+    plans.missed_yaws = {k: list(v) for k, v in s.missed_yaws.items()}
+    plans.place_yaw, plans.pick_tilt_rad, plans.place_tilt_rad = s.place_yaw, s.pick_tilt_rad, s.place_tilt_rad
+    plans.grasp_centre, plans.grasp_world = s.grasp_centre, s.grasp_world
+    plans.pick_up, plans.place_up = s.pick_up, s.place_up
+    grants.request_seq, grants.then_cache = s.request_seq, (s.then_cached, (list(s.then_after_s), list(s.then_q)))
+    grants.denied_since_s, grants.detour_to = s.denied_since_s, s.detour_to
+    grants.stood_by, grants.transfer_to = s.stood_by, s.transfer_to
+    grants.denials, grants.standbys, grants.detours = s.denials, s.standbys, s.detours
+    skill.estop.stopped_in, skill.estop.estops = s.stopped_in, s.estops
+    skill.recovery.idle_since_s = s.idle_since_s
     skill.outbox.restore(s.outbox)
-    skill.denials, skill.ik_failures, skill.standbys = s.denials, s.ik_failures, s.standbys
-    skill.detours, skill.estops = s.detours, s.estops

@@ -239,7 +239,7 @@ def test_allocate_mode_on_a_fixture_line_asks_for_its_moves_and_pipelines_as_fle
     env = parallel_env(scenario="line", scene="assembly_line", action_mode="allocate", max_cycles=300, control_hz=5)
     env.reset(seed=0)
     chooser, policy = env.chooser, make_allocator("optimal", env.scene)
-    assert chooser.grants and all(s.grants_required for s in chooser.skills.values())
+    assert chooser.grants and all(s.grants.required for s in chooser.skills.values())
     touching = 0
     while env.agents:
         _, _, _, _, infos = env.step(allocator_actions(chooser, policy, env._options))

@@ -59,14 +59,14 @@ def test_the_approach_waits_for_its_grant_then_moves():
 def test_a_denied_approach_gives_the_task_back_with_the_arm_in_the_way():
     skill = started()
     skill.on_grant(skill.request.seq, "deny", "arm_1", 0.1)
-    assert skill.phase == Phase.FAILED and "arm_1" in skill.failure_reason and skill.denials == 1
+    assert skill.phase == Phase.FAILED and "arm_1" in skill.failure_reason and skill.grants.denials == 1
 
 
 def test_a_denied_transfer_is_asked_for_again():
     skill = started()
     skill.on_grant(skill.request.seq, "grant", "", 0.0)
-    skill.phase = Phase.TRANSFER  # as after a lift with a part in the claw
-    skill._begin_segment(skill.segment, Phase.TRANSFER, 1.0)
+    skill.plan.phase = Phase.TRANSFER  # as after a lift with a part in the claw
+    skill.grants.begin(skill.plan.segment, Phase.TRANSFER, 1.0)
     first = skill.request.seq
     skill.on_grant(first, "deny", "arm_2", 1.1)
     assert skill.phase == Phase.TRANSFER and skill.request.seq == first + 1
@@ -86,25 +86,26 @@ def transferring(at_s: float = 1.0) -> PickPlaceSkill:
     """A skill holding a part away from home, asking for its transfer at `at_s`."""
     skill = started()
     skill.on_grant(skill.request.seq, "grant", "", 0.0)
-    skill.q_cmd = skill.segment.q_end.copy()  # at the hover pose, as after the grasp and lift
-    away = skill.geometry.segment(skill.q_cmd, np.asarray(SPEC.home_q) + 0.4, at_s, 0.5)
-    skill._begin_segment(away, Phase.TRANSFER, at_s)
+    skill.plan.q_cmd = skill.plan.segment.q_end.copy()  # at the hover pose, as after the grasp and lift
+    away = skill.geometry.segment(skill.plan.q_cmd, np.asarray(SPEC.home_q) + 0.4, at_s, 0.5)
+    skill.grants.begin(away, Phase.TRANSFER, at_s)
     return skill
 
 
 def test_a_transfer_kept_out_makes_room_by_going_home_then_asks_again_from_there():
     skill = transferring(at_s=1.0)
-    place_q = skill.segment.q_end.copy()
+    place_q = skill.plan.segment.q_end.copy()
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1)
     assert np.allclose(skill.request.q_to, place_q), "denied briefly: the same transfer asked again"
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.0 + skill.timing.detour_after_s)
-    assert skill.detours == 0, (
+    assert skill.grants.detours == 0, (
         "asked 2 s ago, but denied for less: a move held back (a fixture not ready) is no blockade"
     )
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.1 + skill.timing.detour_after_s)
-    assert skill.detours == 1 and np.allclose(skill.request.q_to, SPEC.home_q), "kept out: home first, part in hand"
+    detoured = skill.grants.detours == 1 and np.allclose(skill.request.q_to, SPEC.home_q)
+    assert detoured, "kept out: home first, part in hand"
     skill.on_grant(skill.request.seq, "grant", "", 3.1)
-    home_by = skill.plan_end_s
+    home_by = skill.plan.plan_end_s
     skill.step(obs(SPEC.home_q, home_by + 0.01), {})
     assert skill.phase == Phase.TRANSFER and np.allclose(skill.request.q_from, SPEC.home_q)
     assert np.allclose(skill.request.q_to, place_q), "then the transfer again, from home"
@@ -164,9 +165,9 @@ def test_an_arm_on_its_way_home_may_take_the_next_task_and_approaches_from_where
 
 def test_a_transfer_told_to_stand_by_waits_beside_the_place_then_asks_to_place_from_there():
     skill = transferring(at_s=1.0)
-    place_q = skill.segment.q_end.copy()
+    place_q = skill.plan.segment.q_end.copy()
     skill.on_grant(skill.request.seq, "standby", "", 1.1)
-    assert skill.phase == Phase.STANDBY and skill.standbys == 1 and skill.request is not None, (
+    assert skill.phase == Phase.STANDBY and skill.grants.standbys == 1 and skill.request is not None, (
         "the move beside the place is asked for"
     )
     standby_q = np.asarray(skill.request.q_to)
@@ -176,7 +177,7 @@ def test_a_transfer_told_to_stand_by_waits_beside_the_place_then_asks_to_place_f
         "nearer its own base, and higher"
     )
     skill.on_grant(skill.request.seq, "grant", "", 1.2)
-    there = skill.plan_end_s
+    there = skill.plan.plan_end_s
     skill.step(obs(standby_q, there + 0.01), {})
     assert (
         skill.phase == Phase.TRANSFER
@@ -185,14 +186,14 @@ def test_a_transfer_told_to_stand_by_waits_beside_the_place_then_asks_to_place_f
     )
     asked = skill.request.seq
     skill.on_grant(asked, "standby", "", there + 0.1)
-    assert skill.phase == Phase.TRANSFER and skill.standbys == 1 and skill.request.seq == asked + 1, (
+    assert skill.phase == Phase.TRANSFER and skill.grants.standbys == 1 and skill.request.seq == asked + 1, (
         "once a task: asked again"
     )
 
 
 def test_a_stand_by_move_that_is_denied_asks_for_the_transfer_from_where_the_arm_is():
     skill = transferring(at_s=1.0)
-    place_q, here = skill.segment.q_end.copy(), skill.q_cmd.copy()
+    place_q, here = skill.plan.segment.q_end.copy(), skill.plan.q_cmd.copy()
     skill.on_grant(skill.request.seq, "standby", "", 1.1)
     skill.on_grant(skill.request.seq, "deny", "arm_0", 1.2)
     assert (
@@ -210,7 +211,7 @@ def test_an_arm_released_from_an_estop_after_letting_its_part_go_goes_home_befor
     skill.on_grant(skill.request.seq, "grant", "", 0.0)
     skill.outbox.take(0.0, watched=False)  # the approach and the claw's goals went out long before
     at_bin = np.asarray(SPEC.home_q, float) + [-2.0, 0.6, -0.5, 0.0, -0.2, 0.0]
-    skill.phase, skill.stopped_in = Phase.RELEASE, Phase.RELEASE  # as after an e-stop ended the release
+    skill.plan.phase, skill.estop.stopped_in = Phase.RELEASE, Phase.RELEASE  # as after an e-stop ended the release
     held = ArmObservation(5.0, at_bin, np.zeros(6), np.array(SPEC.gripper_open), held=True)
     assert skill.step(held, {}) == [] and skill.phase == Phase.RELEASE, "held: nothing sent"
     skill.step(obs(at_bin, 5.1), {})
@@ -219,7 +220,7 @@ def test_an_arm_released_from_an_estop_after_letting_its_part_go_goes_home_befor
     skill.on_grant(skill.request.seq, "grant", "", 5.2)
     (home,) = [g for g in skill.step(obs(at_bin, 5.2), {}) if isinstance(g, TrajectoryGoal)]
     assert np.allclose(home.positions[-1], SPEC.home_q)
-    skill.step(obs(SPEC.home_q, skill.plan_end_s + 0.01), {})
+    skill.step(obs(SPEC.home_q, skill.plan.plan_end_s + 0.01), {})
     assert skill.phase == Phase.DONE
 
 
