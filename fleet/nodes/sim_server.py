@@ -206,7 +206,8 @@ def restore_from(server: SimServer, snapshot: RunSnapshot, path: str, reseed: in
         server.world.reseed_feeders(reseed)
     if server.snapshots is not None:
         server.snapshots.last_tick = snapshot.tick
-    nodes = (["coordinator"] if server.coordinator else []) + [n for n, link in server.links.items() if not link.lost]
+    arms = [name for name, link in server.links.items() if not link.lost]
+    nodes = (["coordinator"] if server.controls.coordinator else []) + arms
     missing = await_restored(server, snapshot.tick, nodes)
     server.restored_from = {"tick": snapshot.tick, "wall_s": round(time.monotonic() - started, 3)}
     return f"{', '.join(missing)} did not start from the snapshot" if missing else ""

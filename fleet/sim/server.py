@@ -14,20 +14,17 @@ from collections.abc import Callable
 
 import zenoh
 
-from coordinator.cadence import decision_period_ticks
-from fleet.bus.faults import DelayLine, faults_report, links_for
+from fleet.bus.faults import faults_report, links_for
 from fleet.bus.flights import FlightBook
 from fleet.bus.keys import Keys
 from fleet.bus.lockstep import ArmLink, Barrier
-from fleet.bus.messages import (
-    CoordTick,
-    EventLog,
-    LineEvent,
-)
+from fleet.bus.messages import EventLog, LineEvent
 from fleet.common.processes import StopFlag
 from fleet.record.spool import BusSpool
+from fleet.sim.line_controls import LineControls
 from fleet.sim.line_watch import LineWatcher
 from fleet.sim.sim_bus import SimBus
+from fleet.sim.sim_cadence import SimCadence
 from fleet.sim.sim_inputs import SimInputs
 from fleet.sim.sim_lockstep import SimLockstep
 from fleet.sim.sim_outputs import SimOutputs
@@ -35,11 +32,8 @@ from fleet.sim.sim_stats import SimStats
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
 from robots.phase import IDLE_PHASES
-from robots.skills.pick_place import DEFAULT_DECISION_HZ
 from robots.tracker import WATCHDOG_REASON
 
-MAX_CONTROLLER_PERIOD_S = 1.0  # the longest a controller may ask to wait for its next state
-VIEW_RATE_HZ = 25.0  # sim-time rate of the monitors' `LineView`
 COORDINATOR_TIMEOUT_S = 3.0  # wall seconds a lockstep frame waits for a silent coordinator: a decision may search for
 # reach near the edge of a short arm's (an SO-101's new spot: up to ~0.4 s measured; more on a loaded machine)
 LOCKSTEP_TIMEOUT_S = 3.0  # wall seconds a lockstep tick waits for a silent controller before its arm is lost: it only
@@ -47,11 +41,12 @@ LOCKSTEP_TIMEOUT_S = 3.0  # wall seconds a lockstep tick waits for a silent cont
 # of the CPU for over 1 s (two restored lines beside training examples on 2 cores) lost its arm at the 1 s this was
 
 
-class SimServer(SimLockstep):
+class SimServer:
     """Runs a world behind the bus; call `run_ticks` (or `tick` repeatedly).
 
     `controllers=False` waits for nobody: the arms take goals from whoever sends them (a user's own
-    trajectory client), with no watchdog."""
+    trajectory client), with no watchdog. It wires its parts: `controls` (the line's switches), `inputs`,
+    `outputs` and `lockstep` around the arms' `links`, the coordinator's `coord_book` and the `tracked` arms."""
 
     def __init__(
         self,
@@ -70,53 +65,59 @@ class SimServer(SimLockstep):
         stop: StopFlag | None = None,
         speed: float = 1.0,
     ) -> None:
-        if mode not in ("lockstep", "realtime"):
-            raise ValueError(f"mode {mode!r}: valid modes are lockstep, realtime")
-        self.world, self.keys, self.mode = world, keys, mode
-        self.watchdog_s, self.lockstep_timeout_s = watchdog_s, lockstep_timeout_s
-        # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
-        self.barrier = Barrier(
-            lockstep_timeout_s,
-            first_command_timeout_s,
-            max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s,
-        )
-        self.stop, self.controllers, self.coordinator = stop, controllers, coordinator
+        self.controls = LineControls(mode, controllers, coordinator, speed=speed, started=not controllers)
+        self.world, self.keys, self.stop = world, keys, stop
+        self.lockstep_timeout_s, self.count_contacts = lockstep_timeout_s, count_contacts
         scene = world.scene_model
-        hz = scene.control_hz
-        period = max(1, round(hz / DEFAULT_DECISION_HZ))  # until a controller asks for another rate
-        self.max_period_ticks = max(1, round(hz * MAX_CONTROLLER_PERIOD_S))
+        self.cadence = cadence = SimCadence.of(scene)
         self.faults = links_for(scene.network, [*world.arms, "coordinator"], scene.seed)
-        self.links = {name: ArmLink(name, period, FlightBook(self.faults[name], hz)) for name in world.arms}
+        hz = cadence.control_hz
+        self.links = {n: ArmLink(n, cadence.decision_ticks, FlightBook(self.faults[n], hz)) for n in world.arms}
         self.coord_book = FlightBook(self.faults["coordinator"], hz)
-        self.delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
         self.tracked = TrackedArms(world)
         self.stats = SimStats()
-        # every event published, in order (a respawned coordinator rebuilds from it)
-        self.event_log: list[LineEvent] = []
+        self.event_log: list[LineEvent] = []  # every event published, in order (a respawned coordinator rebuilds)
         history = lambda: EventLog(self.world.tick, tuple(self.event_log))
         self.bus = SimBus(session, keys, list(world.arms), scene.model_dump_json(), history, self.stats)
         self.drops = self.bus.drops
-        self.estop, self.paused, self.speed = False, False, speed
-        self.view_every_ticks = max(1, round(hz / VIEW_RATE_HZ))
         self.watcher = LineWatcher(scene)
-        self.watch_every_ticks = period
-        self.count_contacts = count_contacts
-        self.coord_period_ticks = decision_period_ticks(scene)
         self.assign_seqs = {name: 0 for name in world.arms}
         self.target_log: list | None = None  # with `record_targets`: every tick's drive targets, for a replay baseline
         self.spool: BusSpool | None = None  # with `--spool`: what the bus carries, appended between ticks
-        self.started = not controllers  # every controller answered once (realtime waits until then)
         self.snapshots = None  # with `--snapshot-at/--snapshot-every`: a `fleet.sim.sim_snapshot.SimSnapshots`
         self.restored_from: dict | None = None  # from a snapshot: its tick, wall s until every node was back
-        self.snapshot_asked_by = ""  # who asked for a snapshot now (`SimControl.snapshot`): taken at the next tick
         self.snapshots_refused: list[str] = []  # snapshots asked for that this run cannot take, and why
         self.cameras = None  # with `--cameras`: a `fleet.sim.cameras.line_cameras.LineCameras`
-        self.inputs, self.outputs = SimInputs(self), SimOutputs(self)
+        self._wire(watchdog_s, first_command_timeout_s, coordinator_timeout_s)
+
+    def _wire(self, watchdog_s: float, first_command_timeout_s: float, coordinator_timeout_s: float | None) -> None:
+        """The inputs, outputs and lockstep, each handed what it uses."""
+        world, bus, controls, cadence = self.world, self.bus, self.controls, self.cadence
+        links, coord_book, tracked, stats = self.links, self.coord_book, self.tracked, self.stats
+        self.outputs = SimOutputs(
+            world, bus, controls, cadence, links, coord_book, tracked, stats, self.watcher, self.event_log,
+            self.assign_seqs,
+        )  # fmt: skip
+        self.inputs = SimInputs(
+            world, bus, controls, cadence, links, coord_book, self.faults["coordinator"], tracked, self.outputs,
+            stats, self.assign_seqs, watchdog_s,
+        )  # fmt: skip
+        # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
+        timeout_s = self.lockstep_timeout_s
+        coord_timeout_s = (
+            max(timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s
+        )
+        barrier = Barrier(timeout_s, first_command_timeout_s, coord_timeout_s)
+        self.lockstep = SimLockstep(
+            barrier, bus, controls, links, coord_book, self.inputs, self.outputs, tracked, stats, self.stop
+        )
 
     def use_world(self, world: World) -> None:
         """Go on in `world`, a world of the same scene built afresh (after a snapshot); its state is put in after."""
         self.world = world
         self.tracked.use_world(world)
+        self.inputs.use_world(world)
+        self.outputs.use_world(world)
         if self.cameras is not None:
             self.cameras.rig.use_world(world)
 
@@ -125,29 +126,9 @@ class SimServer(SimLockstep):
             self.cameras.close()
         self.bus.close()
 
-    # --- inputs ---------------------------------------------------------------------
-
-    def apply_coord(self, msg: CoordTick) -> None:
-        """The coordinator's orders up to its tick are announced in the states from now on (lockstep)."""
-        if self.mode != "lockstep":
-            return  # realtime: controllers act on assignments as they arrive
-        for name, seq in zip(self.links, msg.assign_seqs):
-            self.assign_seqs[name] = max(self.assign_seqs[name], seq)
-
-    @property
-    def deferred(self) -> bool:
-        """Answers and goals wait for their arm's due tick (lockstep, or until every process is up)."""
-        return self.controllers and (self.mode == "lockstep" or not self.started)
-
-    @property
-    def deferred_coord(self) -> bool:
-        """The coordinator's ticks are awaited and take effect when due (lockstep, or until every process is up)."""
-        return self.coordinator and (self.mode == "lockstep" or not self.started)
-
-    # --- outputs --------------------------------------------------------------------
-
-    def _due(self) -> list[ArmLink]:
-        return [link for link in self.links.values() if link.next_tick <= self.world.tick]
+    def settle(self) -> None:
+        """Lockstep, after the last tick: the answers to what was delivered awaited (`SimLockstep.settle`)."""
+        self.lockstep.settle(self.lockstep_timeout_s)
 
     # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:
@@ -155,20 +136,20 @@ class SimServer(SimLockstep):
         clock = self.stats.wall_s
         t0 = time.perf_counter()
         parts = None
-        if self.world.tick % self.watch_every_ticks == 0:  # the line's events at the controllers' default rate
+        if self.world.tick % self.cadence.decision_ticks == 0:  # the line's events at the controllers' default rate
             parts = self.world.active_parts()
             if self.outputs.events(parts):
                 parts = self.world.active_parts()  # parts lost or retired just now are off the stage
-        due = self._due()
+        due = [link for link in self.links.values() if link.next_tick <= self.world.tick]
         t1 = time.perf_counter()
-        started = self.started
+        started = self.controls.started
         self._take_answers_due()
         waited = t2 = time.perf_counter()
         if self.cameras is not None:  # the world as this tick's states show it, rendered while the controllers wait
             self.cameras.tick(self.world.tick)  # for them (not while they compute their answers to them)
             t2 = time.perf_counter()
             clock["cameras"] += t2 - waited
-        self.outputs.states(due, parts)
+        self.outputs.states(due, parts, self._next_snapshot_tick())
         t3 = time.perf_counter()
         self._step_physics()
         t4 = time.perf_counter()
@@ -183,23 +164,30 @@ class SimServer(SimLockstep):
 
     def _take_answers_due(self) -> None:
         """The answers due at this tick: awaited (lockstep, or until every process is up), else whatever came in."""
-        tick = self.world.tick
+        tick, controls = self.world.tick, self.controls
         links = []
-        if self.deferred:
+        if controls.deferred:
             links = [
                 link
                 for link in self.links.values()
                 if link.next_tick <= tick or link.book.arrives(tick) or link.book.applies(tick)
             ]
         # the coordinator's answers take effect with the next states out after them (frames: its period apart)
-        frame = self.coordinator and tick % self.coord_period_ticks == 0
-        coord = self.deferred_coord and (
+        frame = controls.coordinator and tick % self.cadence.coord_period_ticks == 0
+        coord = controls.deferred_coord and (
             frame or self.coord_book.arrives(tick) or (bool(links) and self.coord_book.applies(tick))
         )
         if links or coord:
-            self._wait_for_answers(links, coord)
+            self.lockstep.wait_for_answers(links, coord, tick)
         else:
             self.inputs.take()
+
+    def _next_snapshot_tick(self) -> int:
+        """The tick of the run's next snapshot after this one, told to every node with its states and frames; -1:
+        none due, or not lockstep (a realtime line is paused for a snapshot)."""
+        if self.snapshots is None or not self.controls.lockstep:
+            return -1
+        return self.snapshots.next_due(self.world.tick)
 
     def _step_physics(self) -> None:
         """The trackers write their drive targets, the physics steps a tick, and the trackers' results go out."""
@@ -222,7 +210,7 @@ class SimServer(SimLockstep):
         """A snapshot due now (`--snapshot-at/--snapshot-every`) or asked for (`SimControl.snapshot`) is taken here,
         at the tick boundary (the parts of one taken earlier taken in); one asked of a run with nowhere to write it
         is refused, and the refusal counted."""
-        asked, self.snapshot_asked_by = self.snapshot_asked_by, ""
+        asked, self.controls.snapshot_asked_by = self.controls.snapshot_asked_by, ""
         if self.snapshots is not None:
             self.snapshots.pump()  # the parts of one taken before, and what it cost the ticks after it
         if self.snapshots is None:
@@ -244,10 +232,14 @@ class SimServer(SimLockstep):
 
         A pause (`SimControl`) stops the clock between ticks; the pacing restarts from where it stood."""
         stop = stop or self.stop
+        controls = self.controls
         if speed is not None:
-            self.speed = speed
+            controls.speed = speed
         pace = RealtimePacing(
-            lambda: self.world.sim_time_s, lambda: (self.speed, self.started), self.bus.inbox.wait, self.stats.wall_s
+            lambda: self.world.sim_time_s,
+            lambda: (controls.speed, controls.started),
+            self.bus.inbox.wait,
+            self.stats.wall_s,
         )
         done = 0
         while done < ticks:
@@ -256,7 +248,7 @@ class SimServer(SimLockstep):
             self.outputs.status()
             if self.spool is not None:
                 self.spool.pump()
-            if self.paused:
+            if controls.paused:
                 self.inputs.take()
                 self._snapshot_if_due()  # a paused line may be snapshotted: it stands still already
                 self.bus.inbox.wait(0.05)
@@ -268,9 +260,9 @@ class SimServer(SimLockstep):
             done += 1
             if stop is not None and stop.should_stop():
                 return
-            if self.stats.coordinator_lost and self.mode == "lockstep":
+            if self.stats.coordinator_lost and controls.lockstep:
                 return  # its decisions would never be announced again: end the run rather than stall it
-            if self.mode == "realtime":
+            if not controls.lockstep:
                 pace.wait()
         self.outputs.status(force=True)
 

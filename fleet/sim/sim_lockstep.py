@@ -5,57 +5,48 @@ from __future__ import annotations
 
 import time
 
-from fleet.bus.lockstep import ArmLink, unanswered
-from fleet.bus.messages import (
-    ControllerStep,
-)
+from fleet.bus.flights import FlightBook
+from fleet.bus.lockstep import ArmLink, Barrier, unanswered
+from fleet.common.processes import StopFlag
+from fleet.sim.line_controls import LineControls
+from fleet.sim.sim_bus import SimBus
+from fleet.sim.sim_inputs import SimInputs
+from fleet.sim.sim_outputs import SimOutputs
+from fleet.sim.sim_stats import SimStats
+from fleet.sim.tracking import TrackedArms
 
 
 class SimLockstep:
-    """Lockstep at the sim: one concern of `SimServer`, kept apart (the bus-level link and barrier are
-    `fleet.bus.lockstep`)."""
+    """Waits at the `barrier` for the answers of the arms' `links` and the coordinator's (`coord_book`), takes them in
+    through `inputs`, and applies those due; a controller silent past the barrier's timeout is lost (its goals
+    aborted on `tracked`, the results out through `outputs`). The bus-level link and barrier are
+    `fleet.bus.lockstep`."""
 
-    def _apply_answers(self, link: ArmLink) -> None:
-        """Lockstep: the answers due now take effect, each with the goals it names; goals no answer names
-        (a user's own client, a lost controller) go with them."""
-        batches, unnamed = link.take_due(self.world.tick)
-        for goals, answer in batches:
-            for goal in goals:
-                self.inputs.submit(link, goal)
-            self.apply_answer(link, answer)
-        for goal in unnamed:
-            self.inputs.submit(link, goal)
+    def __init__(
+        self,
+        barrier: Barrier,
+        bus: SimBus,
+        controls: LineControls,
+        links: dict[str, ArmLink],
+        coord_book: FlightBook,
+        inputs: SimInputs,
+        outputs: SimOutputs,
+        tracked: TrackedArms,
+        stats: SimStats,
+        stop: StopFlag | None,
+    ) -> None:
+        self.barrier, self.bus, self.controls = barrier, bus, controls
+        self.links, self.coord_book, self.inputs, self.outputs = links, coord_book, inputs, outputs
+        self.tracked, self.stats, self.stop = tracked, stats, stop
 
-    def apply_answer(self, link: ArmLink, msg: ControllerStep) -> None:
-        """The controller's answer takes effect (its goals are with the tracker): what it does, when it wants its
-        next state, the watchdog's next deadline."""
-        latest = msg.tick >= link.book.newest_delivered  # no later state went out: the schedule is still its to set
-        link.last_step = msg
-        period = min(max(msg.next_tick - msg.tick, 1), self.max_period_ticks)
-        link.period_ticks = period
-        if latest:
-            link.next_tick = msg.tick + period
-        hz = self.world.scene_model.control_hz
-        self.tracked.trackers[link.name].watch(
-            max(link.next_tick, self.world.tick) / hz + self.watchdog_s + self._round_trip_s(link)
-        )
-        link.watchdog_held = False
-        if link.lost:
-            link.lost = False
-            self.stats.rejoined.append(link.name)
-
-    def _round_trip_s(self, link: ArmLink) -> float:
-        """The longest a state and its answer are expected to travel on this link (latency and 3 sigma of jitter)."""
-        f = link.book.link.faults
-        return 2 * (f.latency_ms + 3 * f.jitter_ms) / 1e3
-
-    def _wait_for_answers(self, links: list[ArmLink], coord: bool) -> None:
+    def wait_for_answers(self, links: list[ArmLink], coord: bool, tick: int) -> None:
         """Until every live controller of `links` has answered each state delivered to it (with the goals it names),
-        and the coordinator each frame (`coord`), or the timeout passed; then the answers due now take effect."""
+        and the coordinator each frame (`coord`), or the timeout passed; then the answers due at `tick` take
+        effect."""
         outcome = self.barrier.wait(
             links,
             self.coord_book if coord and not self.stats.coordinator_lost else None,
-            first=not self.started,
+            first=not self.controls.started,
             take_inputs=self.inputs.take,
             pause=self.bus.inbox.wait,
             lose=self._lose,
@@ -65,7 +56,34 @@ class SimLockstep:
         if outcome == "stopped":
             return
         self.stats.coordinator_lost = self.stats.coordinator_lost or outcome == "coordinator_lost"
-        self._apply_due(links, coord)
+        self._apply_due(links, coord, tick)
+
+    def settle(self, timeout_s: float) -> None:
+        """Lockstep, after the last tick: wait (at most `timeout_s`) for the answers to the states and frames already
+        delivered, and the goals they name, so that the run ends on the bus the same way every time (a recording
+        of it too). They take no effect: the run is over."""
+        controls = self.controls
+        if not (controls.deferred or controls.deferred_coord):
+            return
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.inputs.take()
+            links = list(self.links.values()) if controls.deferred else []
+            coord = self.coord_book if controls.deferred_coord and not self.stats.coordinator_lost else None
+            if unanswered(links, coord) == ([], False):
+                return
+            self.bus.inbox.wait(0.01)
+
+    def _apply_answers(self, link: ArmLink, tick: int) -> None:
+        """The answers due now take effect, each with the goals it names; goals no answer names (a user's own
+        client, a lost controller) go with them."""
+        batches, unnamed = link.take_due(tick)
+        for goals, answer in batches:
+            for goal in goals:
+                self.inputs.submit(link, goal)
+            self.inputs.apply_answer(link, answer)
+        for goal in unnamed:
+            self.inputs.submit(link, goal)
 
     def _republish(self, link: ArmLink | None, payload: bytes) -> None:
         """A state (or, `link` None, a frame) still unanswered, sent again."""
@@ -74,15 +92,15 @@ class SimLockstep:
         else:
             self.bus.put(self.bus.state_pubs[link.name], "state", payload)
 
-    def _apply_due(self, links: list[ArmLink], coord: bool) -> None:
-        """The answers (controllers', coordinator's) due at this tick take effect."""
+    def _apply_due(self, links: list[ArmLink], coord: bool, tick: int) -> None:
+        """The answers (controllers', coordinator's) due at `tick` take effect."""
         for link in links:
-            self._apply_answers(link)
+            self._apply_answers(link, tick)
         if coord:
-            for flight in self.coord_book.due_answers(self.world.tick):
-                self.apply_coord(flight.answer)
-        if not self.started and all(link.last_step is not None or link.lost for link in self.links.values()):
-            self.started = True  # realtime: from here on answers apply when they arrive
+            for flight in self.coord_book.due_answers(tick):
+                self.inputs.apply_coord(flight.answer)
+        if not self.controls.started and all(link.last_step is not None or link.lost for link in self.links.values()):
+            self.controls.started = True  # realtime: from here on answers apply when they arrive
 
     def _lose(self, link: ArmLink) -> None:
         """A controller silent past the lockstep timeout: its arm holds, its goals are aborted."""
@@ -92,18 +110,3 @@ class SimLockstep:
         self.outputs.results(
             link.name, self.tracked.abort(link.name, "the controller was lost (silent past the lockstep timeout)")
         )
-
-    def settle(self) -> None:
-        """Lockstep, after the last tick: wait (at most the lockstep timeout) for the answers to the states and frames
-        already delivered, and the goals they name, so that the run ends on the bus the same way every time (a
-        recording of it too). They take no effect: the run is over."""
-        if not (self.deferred or self.deferred_coord):
-            return
-        deadline = time.monotonic() + self.lockstep_timeout_s
-        while time.monotonic() < deadline:
-            self.inputs.take()
-            links = list(self.links.values()) if self.deferred else []
-            coord = self.coord_book if self.deferred_coord and not self.stats.coordinator_lost else None
-            if unanswered(links, coord) == ([], False):
-                return
-            self.bus.inbox.wait(0.01)

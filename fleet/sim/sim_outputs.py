@@ -5,23 +5,26 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
 
 import msgspec
 import numpy as np
 
 from fleet.bus.codec import encode
+from fleet.bus.flights import FlightBook
 from fleet.bus.goals import result_message
 from fleet.bus.lockstep import ArmLink
 from fleet.bus.messages import ArmState, LineEvent, LineView, SimStatus
-from fleet.sim.world import PartInfo
+from fleet.sim.line_controls import LineControls
+from fleet.sim.line_watch import LineWatcher
+from fleet.sim.sim_bus import SimBus
+from fleet.sim.sim_cadence import SimCadence
+from fleet.sim.sim_stats import SimStats
+from fleet.sim.tracking import TrackedArms
+from fleet.sim.world import PartInfo, World
 from fleet.sim.world_messages import arm_state, parts_state
 from robots.joint_trajectory import GoalResult
 from robots.phase import Phase
 from robots.saved_state import SavedState, generator_of, generator_state
-
-if TYPE_CHECKING:
-    from fleet.sim.server import SimServer
 
 STATUS_PERIOD_S = 0.25  # wall seconds between `SimStatus` messages
 
@@ -41,16 +44,35 @@ class OutputsState(SavedState, frozen=True):
 
 
 class SimOutputs:
-    """What goes out of one sim server."""
+    """What goes out of one sim server: of its `world`, the arms' `links` and `tracked` trackers, the line `watcher`'s
+    events (kept in `event_log`), the orders announced (`assign_seqs`), on `bus`."""
 
-    def __init__(self, sim: SimServer) -> None:
-        self.sim = sim
+    def __init__(
+        self,
+        world: World,
+        bus: SimBus,
+        controls: LineControls,
+        cadence: SimCadence,
+        links: dict[str, ArmLink],
+        coord_book: FlightBook,
+        tracked: TrackedArms,
+        stats: SimStats,
+        watcher: LineWatcher,
+        event_log: list[LineEvent],
+        assign_seqs: dict[str, int],
+    ) -> None:
+        self.world, self.bus, self.controls, self.cadence = world, bus, controls, cadence
+        self.links, self.coord_book, self.tracked, self.stats = links, coord_book, tracked, stats
+        self.watcher, self.event_log, self.assign_seqs = watcher, event_log, assign_seqs
         # pose noise: repeats for a seed
-        self._noise_rng = np.random.default_rng([sim.world.scene_model.seed, 0x401_5E])
+        self._noise_rng = np.random.default_rng([world.scene_model.seed, 0x401_5E])
         self._status_at = 0.0
         self.parts_tick = -1  # of the newest parts message published
         self.told: dict[str, int] = {}  # by node: the next snapshot's tick named in the newest state or frame sent it
         self._view_at = -math.inf  # wall time of the last view built
+
+    def use_world(self, world: World) -> None:
+        self.world = world
 
     def state(self) -> OutputsState:
         return OutputsState(
@@ -68,35 +90,35 @@ class SimOutputs:
 
     def results(self, arm: str, results: list[GoalResult]) -> None:
         for r in results:
-            self.sim.stats.results[r.status.value] += 1
-            self.sim.bus.put(self.sim.bus.result_pubs[arm], "result", encode(result_message(arm, r)))
+            self.stats.results[r.status.value] += 1
+            self.bus.put(self.bus.result_pubs[arm], "result", encode(result_message(arm, r)))
 
     def events(self, parts: list[PartInfo]) -> bool:
         """This tick's line events (parts arrived, resting at a station, lost, retired), before the states.
         True when some part left the stage (lost or retired), so `parts` is out of date."""
         left = False
-        for e in self.sim.watcher.update(self.sim.world, parts):
+        for e in self.watcher.update(self.world, parts):
             event = LineEvent(e.kind, e.part_id, e.tick, e.detail, e.type_index)
-            self.sim.event_log.append(event)
-            self.sim.bus.put(self.sim.bus.events_pub, "events", encode(event))
+            self.event_log.append(event)
+            self.bus.put(self.bus.events_pub, "events", encode(event))
             left = left or e.kind in ("lost", "retired")
         return left
 
     def _state(self, name: str, snapshot_tick: int) -> ArmState:
-        link, tracker = self.sim.links[name], self.sim.tracked.trackers[name]
+        link, tracker = self.links[name], self.tracked.trackers[name]
         step = link.last_step
         desired_q, desired_dq = tracker.desired_now
         last = tracker.last
         return arm_state(
-            self.sim.world,
+            self.world,
             name,
-            held=self.sim.estop or link.lost or link.watchdog_held or self.sim.tracked.taken(name),
-            taken=self.sim.tracked.taken(name),
+            held=self.controls.estop or link.lost or link.watchdog_held or self.tracked.taken(name),
+            taken=self.tracked.taken(name),
             lost=link.lost,
             task_id=step.task_id if step else None,
             phase=step.phase if step else Phase.IDLE,
             progress=step.progress if step else 0.0,
-            assign_seq=self.sim.assign_seqs[name] if self.sim.coordinator and self.sim.mode == "lockstep" else -1,
+            assign_seq=self.assign_seqs[name] if self.controls.coordinator and self.controls.lockstep else -1,
             failure=step.failure if step else "",
             failure_code=step.failure_code if step else "",
             request_seq=step.request_seq if step else 0,
@@ -116,36 +138,27 @@ class SimOutputs:
             snapshot_tick=snapshot_tick,
         )
 
-    def next_snapshot_tick(self) -> int:
-        """The tick of the run's next snapshot after this one, told to every node with its states and frames so it
-        holds what comes from then on (`fleet.snapshot.snapshot_link`); -1: none due, or not lockstep (a realtime line
-        is paused for a snapshot)."""
-        snapshots = self.sim.snapshots
-        if snapshots is None or self.sim.mode != "lockstep":
-            return -1
-        return snapshots.next_due(self.sim.world.tick)
-
-    def states(self, due: list[ArmLink], parts: list[PartInfo] | None = None) -> None:
+    def states(self, due: list[ArmLink], parts: list[PartInfo] | None = None, snapshot_tick: int = -1) -> None:
         """States sampled for the controllers due now (and the parts with them), those arriving now sent; the
-        coordinator's frame likewise; the monitors' view."""
-        w, bus = self.sim.world, self.sim.bus
+        coordinator's frame likewise; the monitors' view. Each names `snapshot_tick`, the run's next snapshot
+        (-1: none due), so that its node holds what comes from then on (`fleet.snapshot.snapshot_link`)."""
+        w, bus = self.world, self.bus
         tick = w.tick
         for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
             link.next_tick = tick + link.period_ticks
-        frame = self.sim.coordinator and tick % self.sim.coord_period_ticks == 0
-        view = tick % self.sim.view_every_ticks == 0 and bus.watched() and self._view_due()  # only while watched
+        frame = self.controls.coordinator and tick % self.cadence.coord_period_ticks == 0
+        view = tick % self.cadence.view_every_ticks == 0 and bus.watched() and self._view_due()  # only while watched
         if due or frame or view:
             names = list(w.arms) if (frame or view) else [link.name for link in due]
-            snapshot_tick = self.next_snapshot_tick()
             states = {name: self._state(name, snapshot_tick) for name in names}
             now = time.monotonic()
             for link in due:
-                if self.sim.controllers:  # someone must answer it (without controllers the states are feedback only)
-                    link.book.send(tick, states[link.name], link.period_ticks, now, self.sim.deferred)
+                if self.controls.controllers:  # someone must answer it (else the states are feedback only)
+                    link.book.send(tick, states[link.name], link.period_ticks, now, self.controls.deferred)
                 else:
                     bus.put(bus.state_pubs[link.name], "state", encode(states[link.name]))
             parts = w.active_parts() if parts is None else parts
-            parts_msg = parts_state(w, parts, len(self.sim.event_log))
+            parts_msg = parts_state(w, parts, len(self.event_log))
             if due:
                 seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
                 bus.put(bus.parts_pub, "parts", encode(seen))
@@ -153,7 +166,7 @@ class SimOutputs:
             if frame or view:
                 line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg, snapshot_tick=snapshot_tick)
                 if frame:
-                    self.sim.coord_book.send(tick, line, 1, now, self.sim.deferred_coord)
+                    self.coord_book.send(tick, line, 1, now, self.controls.deferred_coord)
                 if view:
                     bus.put(bus.view_pub, "view", encode(line))
         self._deliver()
@@ -169,9 +182,9 @@ class SimOutputs:
 
     def _deliver(self) -> None:
         """Send what reaches its process now: states (a delayed one stamped with the tick it arrives), frames."""
-        tick, now, bus = self.sim.world.tick, time.monotonic(), self.sim.bus
-        for link in self.sim.links.values():
-            flight = link.book.deliver(tick, now, self.sim.deferred)
+        tick, now, bus = self.world.tick, time.monotonic(), self.bus
+        for link in self.links.values():
+            flight = link.book.deliver(tick, now, self.controls.deferred)
             if flight is not None:
                 state = flight.message
                 if flight.tick != tick:
@@ -179,23 +192,23 @@ class SimOutputs:
                 flight.payload = encode(state)
                 bus.put(bus.state_pubs[link.name], "state", flight.payload)
                 self.told[link.name] = state.snapshot_tick
-            elif not self.sim.deferred:
-                link.book.prune(tick, self.sim.max_period_ticks)
-        flight = self.sim.coord_book.deliver(tick, now, self.sim.deferred_coord)
+            elif not self.controls.deferred:
+                link.book.prune(tick, self.cadence.max_period_ticks)
+        flight = self.coord_book.deliver(tick, now, self.controls.deferred_coord)
         if flight is not None:
             line = flight.message
             if flight.tick != tick:  # the events published meanwhile come before it: the coordinator waits for them
-                parts = msgspec.structs.replace(line.parts, events_published=len(self.sim.event_log))
+                parts = msgspec.structs.replace(line.parts, events_published=len(self.event_log))
                 line = msgspec.structs.replace(line, parts=parts, delivered_tick=tick)
             flight.payload = encode(line)
             bus.put(bus.frame_pub, "frame", flight.payload)
             self.told["coordinator"] = line.snapshot_tick
-        elif not self.sim.deferred_coord:
-            self.sim.coord_book.prune(tick, self.sim.max_period_ticks)
+        elif not self.controls.deferred_coord:
+            self.coord_book.prune(tick, self.cadence.max_period_ticks)
 
     def _with_noise(self, parts):
         """The parts as controllers see them in a randomised scene: positions with seeded Gaussian noise."""
-        noise = self._noise_rng.normal(0.0, self.sim.world.scene_model.part_pose_noise_m, len(parts.positions))
+        noise = self._noise_rng.normal(0.0, self.world.scene_model.part_pose_noise_m, len(parts.positions))
         return msgspec.structs.replace(parts, positions=tuple(float(p + n) for p, n in zip(parts.positions, noise)))
 
     def status(self, force: bool = False) -> None:
@@ -204,21 +217,21 @@ class SimOutputs:
         if not force and now - self._status_at < STATUS_PERIOD_S:
             return
         self._status_at = now
-        st, ticks = self.sim.stats, max(self.sim.stats.ticks, 1)
+        st, ticks = self.stats, max(self.stats.ticks, 1)
         recent = st.recent_round_trip_ms
         status = SimStatus(
-            self.sim.world.tick,
-            self.sim.world.sim_time_s,
-            self.sim.mode,
-            self.sim.paused,
-            self.sim.estop,
-            self.sim.speed,
-            tuple(st.busy_ticks[a] / ticks for a in self.sim.links),
+            self.world.tick,
+            self.world.sim_time_s,
+            self.controls.mode,
+            self.controls.paused,
+            self.controls.estop,
+            self.controls.speed,
+            tuple(st.busy_ticks[a] / ticks for a in self.links),
             float(np.percentile(np.asarray(recent), 99)) if recent else 0.0,
             st.contact_ticks,
             st.last_contact_pairs,
             st.last_contact_s,
-            tuple(link.name for link in self.sim.links.values() if link.lost),
-            self.sim.drops.total,
+            tuple(link.name for link in self.links.values() if link.lost),
+            self.bus.drops.total,
         )
-        self.sim.bus.put(self.sim.bus.status_pub, "status", encode(status))
+        self.bus.put(self.bus.status_pub, "status", encode(status))

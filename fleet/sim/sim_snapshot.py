@@ -67,7 +67,7 @@ class SimSnapshots:
 
     def __post_init__(self) -> None:
         # enough boundaries for the runs of ticks a cost is measured against: a few of the longest a node may wait
-        longest = max(self.sim.coord_period_ticks, self.sim.max_period_ticks)
+        longest = max(self.sim.cadence.coord_period_ticks, self.sim.cadence.max_period_ticks)
         self._next_ticks = NextTicks(longest * BASELINE_WINDOWS)
 
     def due(self, tick: int) -> bool:
@@ -93,7 +93,7 @@ class SimSnapshots:
         self._complete_pending()  # the last snapshot's parts all in before another is asked for
         self.last_tick = sim.world.tick
         try:
-            if sim.mode == "lockstep":
+            if sim.controls.lockstep:
                 own, due, parts = self._take_lockstep()
             else:
                 alive = self.starts.now(self.sim.bus)
@@ -110,7 +110,7 @@ class SimSnapshots:
             self._write_file(facts, parts)
             return
         self._pending = (due, facts)
-        span = max([sim.coord_period_ticks, *(link.period_ticks for link in sim.links.values())])
+        span = max([sim.cadence.coord_period_ticks, *(link.period_ticks for link in sim.links.values())])
         self._costs.append(CostDue(sim.world.tick, span, self._next_ticks.before_s(span)))
 
     def _take_lockstep(self) -> tuple[bytes, PartsDue | None, dict[str, SnapshotPart] | None]:
@@ -190,7 +190,7 @@ class SimSnapshots:
         snapshot = RunSnapshot(
             f.scene_name,
             f.scene,
-            self.sim.mode,
+            self.sim.controls.mode,
             tick,
             sim_time_s,
             f.end_tick,
@@ -308,9 +308,9 @@ def sim_state(sim) -> SimState:
         outputs=sim.outputs.state(),
         event_log=list(sim.event_log),
         assign_seqs=dict(sim.assign_seqs),
-        estop=sim.estop,
-        paused=sim.paused,
-        started=sim.started,
+        estop=sim.controls.estop,
+        paused=sim.controls.paused,
+        started=sim.controls.started,
         drops=sim.drops.state(),
     )
 
@@ -345,8 +345,10 @@ def _put_back(sim, state: SimState) -> None:
     sim.stats.restore(state.stats)
     sim.inputs.restore(state.inputs)
     sim.outputs.restore(state.outputs)
-    sim.event_log, sim.assign_seqs = list(state.event_log), dict(state.assign_seqs)
-    sim.estop, sim.paused, sim.started = state.estop, state.paused, state.started
+    sim.event_log[:] = state.event_log  # in place: the inputs and outputs hold these
+    sim.assign_seqs.clear()
+    sim.assign_seqs.update(state.assign_seqs)
+    sim.controls.estop, sim.controls.paused, sim.controls.started = state.estop, state.paused, state.started
     sim.drops.restore(state.drops)
 
 
@@ -356,4 +358,4 @@ def forget_wall_clock_flights(sim) -> None:
     sim.coord_book.clear()
     for link in sim.links.values():
         link.book.clear()
-    sim.delayed = type(sim.delayed)()
+    sim.inputs.delayed.put_back([], 0)

@@ -90,7 +90,7 @@ def controllers_ask(sim, orders: tuple[int, ...]) -> SnapshotAsk:
 def settle(sim) -> None:
     """Until every state and frame delivered is answered (with the goals the answers name)."""
     deadline = time.monotonic() + NODE_TIMEOUT_S
-    coord_book = sim.coord_book if sim.coordinator and sim.mode == "lockstep" else None  # realtime: unanswered
+    coord_book = sim.coord_book if sim.controls.coordinator and sim.controls.lockstep else None  # realtime: unanswered
     while True:
         sim.inputs.take()
         waiting, coord = unanswered(list(sim.links.values()), coord_book)

@@ -183,7 +183,7 @@ def test_estop_aborts_every_active_goal_and_refuses_new_ones(cell):
         )
     server.run_ticks(30)
     client.session.put(client.keys.estop, encode(EStop(True, "test")))
-    client.run_until(lambda: server.estop, "the e-stop never arrived")
+    client.run_until(lambda: server.controls.estop, "the e-stop never arrived")
     for goal_id in (51, 52):
         r = client.result(goal_id)
         assert (r.status, r.code, r.reason) == ("aborted", -6, "emergency stop")

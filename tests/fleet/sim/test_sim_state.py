@@ -71,9 +71,7 @@ def test_bytes_that_are_not_a_sim_s_state_are_refused_in_one_line_naming_the_fie
 
 
 def test_messages_on_their_way_in_are_held_again_as_they_were():
-    from types import SimpleNamespace
 
-    from fleet.bus.faults import DelayLine
     from fleet.bus.flights import Flight
     from fleet.bus.lockstep import ArmLink
     from fleet.bus.messages import CoordTick, GripperGoalMsg
@@ -81,21 +79,21 @@ def test_messages_on_their_way_in_are_held_again_as_they_were():
 
     def realtime_inputs() -> SimInputs:
         link = ArmLink("arm_0", 5, FlightBook(FaultyLink("arm_0", LinkFaults(), seed=0, index=0), 100.0))
-        return SimInputs(SimpleNamespace(delayed=DelayLine(), links={"arm_0": link}))
+        return SimInputs(*(None,) * 4, {"arm_0": link}, *(None,) * 5, assign_seqs={}, watchdog_s=0.25)  # state only
 
     saved = realtime_inputs()
-    link = saved.sim.links["arm_0"]
+    link = saved.links["arm_0"]
     answer = ControllerStep("arm_0", 4, 9, (11,), 2)
-    saved.sim.delayed.push(3.5, ("coord", None, CoordTick(12, (1,))))
-    saved.sim.delayed.push(3.2, ("goal", link, GripperGoalMsg("arm_0", 11, 0.4)))
+    saved.delayed.push(3.5, ("coord", None, CoordTick(12, (1,))))
+    saved.delayed.push(3.2, ("goal", link, GripperGoalMsg("arm_0", 11, 0.4)))
     state = ArmState("arm_0", 4, 0.04, (0.0,) * 6, (0.0,) * 6, (0.0, 0.0), (0.3, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0))
-    saved.sim.delayed.push(3.9, ("step", link, Flight(4, state, 4, 3.0, 9, False, True, b"s", answer, 3.0)))
+    saved.delayed.push(3.9, ("step", link, Flight(4, state, 4, 3.0, 9, False, True, b"s", answer, 3.0)))
     saved.outside_goals.add(11)
     restored = realtime_inputs()
     restored.restore(unpack(pack(saved.state()), InputsState))
-    assert restored.outside_goals == {11} and restored.sim.delayed.count == 3
-    again = restored.sim.delayed.pop_due(10.0)
+    assert restored.outside_goals == {11} and restored.delayed.count == 3
+    again = restored.delayed.pop_due(10.0)
     assert [(kind, None if at is None else at.name, item) for kind, at, item in again] == [
-        (kind, None if at is None else at.name, item) for kind, at, item in saved.sim.delayed.pop_due(10.0)
+        (kind, None if at is None else at.name, item) for kind, at, item in saved.delayed.pop_due(10.0)
     ]
-    assert again[0][1] is restored.sim.links["arm_0"], "held for the restored sim's own link"
+    assert again[0][1] is restored.links["arm_0"], "held for the restored sim's own link"

@@ -8,7 +8,7 @@ from fleet.sim.sim_snapshot import RunFacts, SimSnapshots
 
 
 def schedule(at: set[int], every: int, end: int) -> SimSnapshots:
-    sim = SimpleNamespace(coord_period_ticks=10, max_period_ticks=100)
+    sim = SimpleNamespace(cadence=SimpleNamespace(coord_period_ticks=10, max_period_ticks=100))
     return SimSnapshots(sim, RunFacts("pick_cell", None, "optimal", end), None, at, every)
 
 
