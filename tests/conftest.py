@@ -23,6 +23,7 @@ import pytest
 
 import robots.registry
 from fleet.run.node_factory import close_kept_factory, keep_factory
+from tests.lock_scheduling import LockAwareScheduling, write_kinds
 from tests.ray_namespace import loopback_namespace, start_head
 
 # test files (or folders) that run against the wall clock: under xdist, beside no test that runs lines
@@ -65,13 +66,23 @@ ALONE = ("tests/fleet/monitor/test_browser.py", "tests/fleet/monitor/test_replay
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         path = item.path.relative_to(ROOT).as_posix()
         for marker, paths in (("wall_time", WALL_TIME), ("heavy", HEAVY), ("alone", ALONE)):
             if path.startswith(paths):
                 # a lockstep case in a wall-time file runs lines but no clock against the wall: heavy, not alone
                 item.add_marker("heavy" if marker == "wall_time" and item.get_closest_marker("lockstep") else marker)
+    if hasattr(config, "workerinput") and LOCKS in os.environ:  # for the scheduler (`tests/lock_scheduling.py`)
+        kinds = {item.nodeid: kind_of(item) for item in items}
+        write_kinds(Path(os.environ[LOCKS]), config.workerinput["workerid"], kinds)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """The next test file for a worker is one that can run beside the other worker's (`LockAwareScheduling`)."""
+    folder = Path(os.environ[LOCKS]) if LOCKS in os.environ else None
+    return LockAwareScheduling(config, log, folder)
 
 
 LOCKS = "CLAWFLEET_TEST_LOCKS"  # the folder of the workers' lock, made by the xdist controller for its workers
@@ -99,6 +110,14 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     if OWN_CACHE in os.environ:
         shutil.rmtree(os.environ.pop(OWN_CACHE), ignore_errors=True)
         os.environ.pop(CACHE, None)
+
+
+def kind_of(item: pytest.Item) -> str:
+    """What a test excludes beside it (`tests.lock_scheduling.KINDS`): as its lock modes say."""
+    machine_mode, lines_mode = lock_modes(item)
+    if machine_mode == fcntl.LOCK_EX:
+        return "alone"
+    return {fcntl.LOCK_EX: "wall", fcntl.LOCK_SH: "heavy", None: "light"}[lines_mode]
 
 
 def lock_modes(item: pytest.Item) -> tuple[int, int | None]:
