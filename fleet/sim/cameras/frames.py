@@ -5,7 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+from perception.rgbd import back_project
 
 
 @dataclass(frozen=True)
@@ -40,9 +41,4 @@ class CameraFrame:
         (default: every pixel with depth)."""
         if self.depth_m is None:
             raise ValueError(f"camera {self.camera!r} makes no depth image")
-        rows, cols = np.nonzero((self.depth_m > 0) if mask is None else (mask & (self.depth_m > 0)))
-        z = self.depth_m[rows, cols].astype(float)
-        k = self.intrinsics
-        optical = np.column_stack([(cols + 0.5 - k[0, 2]) / k[0, 0] * z, (rows + 0.5 - k[1, 2]) / k[1, 1] * z, z])
-        w, x, y, q = self.quaternion_wxyz
-        return Rotation.from_quat([x, y, q, w]).apply(optical) + self.position_m
+        return back_project(self.depth_m, self.intrinsics, self.position_m, self.quaternion_wxyz, mask)
