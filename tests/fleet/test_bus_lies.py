@@ -127,6 +127,7 @@ def test_heartbeats_of_a_dead_controller_and_reports_no_node_sends_are_refused_a
                 summary = launcher.run()
             sub.undeclare()
     assert_nothing_left(summary, launcher.endpoint)
+    assert summary["status"] == "ok" and summary["sim_seconds"] >= 15.9, (summary["error"], summary["sim_seconds"])
     assert killed and len(told) >= 3, (killed, told)
     events = [e["event"] for e in summary["arm_events"] if e["arm"] == "arm_0"]
     assert events == ["lost"], summary["arm_events"]
