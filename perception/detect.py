@@ -54,28 +54,32 @@ def detect_parts(
             if stats[blob, cv2.CC_STAT_AREA] < min_pixels:
                 continue
             pixels = labels == blob
-            detection = _blob(frame, look.kind, pixels, float(closeness[pixels].mean()))
-            if z_range_m[0] <= detection.top_centre_m[2] <= z_range_m[1]:
+            detection = _blob(frame, look, pixels, float(closeness[pixels].mean()))
+            if detection is not None and z_range_m[0] <= detection.top_centre_m[2] <= z_range_m[1]:
                 found.append(detection)
     return found
 
 
-def _blob(frame: RGBDFrame, kind: int, pixels: np.ndarray, closeness: float) -> Detection:
-    """One blob of a look's colour, back-projected: its top face's centre and its turn."""
+def _blob(frame: RGBDFrame, look: PartLook, pixels: np.ndarray, closeness: float) -> Detection | None:
+    """One blob of a look's colour, back-projected: its top face's centre and its turn; None where it is too long
+    to be one of the look's parts."""
     points = frame.points_in_world(pixels)
     top = points[points[:, 2] >= points[:, 2].max() - TOP_FACE_M]
+    yaw_rad, longer_side_m = _rectangle(points[:, :2])
+    pixel_m = float(np.median(frame.depth_m[pixels])) / float(frame.intrinsics[0, 0])
+    if not look.fits(longer_side_m, pixel_m):
+        return None
     count = int(pixels.sum())
     confidence = closeness * min(1.0, count / FULL_PIXELS)
     centre = top.mean(axis=0)
-    return Detection(
-        frame.camera, frame.sim_time_s, kind, tuple(map(float, centre)), _yaw_rad(points[:, :2]), count, confidence
-    )
+    return Detection(frame.camera, frame.sim_time_s, look.kind, tuple(map(float, centre)), yaw_rad, count, confidence)
 
 
-def _yaw_rad(xy_m: np.ndarray) -> float:
-    """The direction of the longer side of the smallest rectangle about the points (world x-y), in [-pi/2, pi/2)."""
+def _rectangle(xy_m: np.ndarray) -> tuple[float, float]:
+    """The smallest rectangle about the points (world x-y): the direction of its longer side, in [-pi/2, pi/2), and
+    that side's length (m)."""
     if len(xy_m) < 3:
-        return 0.0
+        return 0.0, 0.0
     (_, _), (width, height), angle_deg = cv2.minAreaRect((xy_m * 1000.0).astype(np.float32))
     yaw = np.deg2rad(angle_deg + (90.0 if width < height else 0.0))
-    return float((yaw + np.pi / 2) % np.pi - np.pi / 2)
+    return float((yaw + np.pi / 2) % np.pi - np.pi / 2), max(width, height) / 1000.0

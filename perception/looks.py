@@ -14,11 +14,20 @@ MIN_VALUE = 0.2  # darker than this is shadow or the belt
 
 @dataclass(frozen=True)
 class PartLook:
-    """A kind of part (`kind`, the caller's key: a type index, a colour name) by its colour, RGB in 0-1."""
+    """A kind of part (`kind`, the caller's key: a type index, a colour name) by its colour, RGB in 0-1, and its size
+    (x, y, z in metres; None: any): a blob of its colour much longer than the part (an arm's link, a station) is not
+    one of its parts."""
 
     kind: int
     rgb: tuple[float, float, float]
+    size_m: tuple[float, float, float] | None = None
     hue_tolerance_deg: float = 12.0
+
+    def fits(self, longer_side_m: float, pixel_m: float) -> bool:
+        """Whether a blob whose longer side is `longer_side_m`, seen with pixels `pixel_m` wide, can be this part."""
+        if self.size_m is None:
+            return True
+        return longer_side_m <= 1.5 * max(self.size_m[0], self.size_m[1]) + 2.0 * pixel_m
 
     @property
     def hue_deg(self) -> float:

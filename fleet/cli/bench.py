@@ -9,7 +9,7 @@ from pathlib import Path
 
 from rich.table import Table
 
-from fleet.cli import bench_cameras
+from fleet.cli import bench_cameras, bench_perception
 from fleet.cli.errors import (
     err,
     out,
@@ -387,6 +387,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     _add_lines(bench)
     _add_env(bench)
     bench_cameras.add_parser(bench)
+    bench_perception.add_parser(bench)
 
 
 def _add_physics(bench: argparse._SubParsersAction) -> None:

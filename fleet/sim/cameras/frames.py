@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from perception.rgbd import back_project
+from perception.rgbd import RGBDFrame, back_project
 
 
 @dataclass(frozen=True)
@@ -42,3 +42,11 @@ class CameraFrame:
         if self.depth_m is None:
             raise ValueError(f"camera {self.camera!r} makes no depth image")
         return back_project(self.depth_m, self.intrinsics, self.position_m, self.quaternion_wxyz, mask)
+
+    def rgbd(self) -> RGBDFrame:
+        """What perception is given of this frame: colour, depth, intrinsics and pose; never the segmentation."""
+        if self.rgb is None or self.depth_m is None:
+            raise ValueError(f"camera {self.camera!r} makes no colour and depth images: perception needs both")
+        return RGBDFrame(
+            self.camera, self.sim_time_s, self.rgb, self.depth_m, self.intrinsics, self.position_m, self.quaternion_wxyz
+        )

@@ -45,3 +45,20 @@ def test_run_with_cameras_and_no_vulkan_device_is_one_line_before_anything_start
     result = fleet("run", "pick_cell", "--duration", "1", "--cameras", env=nowhere)
     assert result.returncode == 2 and result.stderr.count("\n") == 1
     assert result.stderr.startswith("fleet: error: no Vulkan device to render cameras on"), result.stderr
+
+
+@pytest.mark.slow  # renders a scene's cameras: not in the quick set
+def test_the_perception_benchmark_scores_detections_against_the_worlds_parts():
+    code, stdout, stderr = fleet_in_process(
+        ["bench", "perception", "--scenes", "pick_cell", "--seconds", "6", "--json"]
+    )
+    assert code == 0, stderr
+    (row,) = json.loads(stdout.strip().splitlines()[-1])
+    assert (row["scene"], row["camera"], row["frames"]) == ("pick_cell", "overhead", 30)
+    assert row["parts_visible"] > 10 and row["recall"] >= 0.95 and row["precision"] >= 0.95, row
+    assert row["error_p95_mm"] <= 10.0, row
+
+
+def test_a_perception_benchmark_of_a_scene_that_does_not_exist_is_one_line():
+    code, _, stderr = fleet_in_process(["bench", "perception", "--scenes", "nowhere"])
+    assert code == 2 and stderr.startswith("fleet: error: nowhere: no such scene") and stderr.count("\n") == 1
