@@ -7,7 +7,7 @@ sim's own session (no extra process). `write_bus_configs` writes one Zenoh confi
 the sim publishes what the arms and the line report, only the coordinator gives orders, each
 controller drives only its own arm, and only the monitor stops or paces the line. Usernames are
 node names: `sim`, `coordinator`, `launcher`, `monitor`, `recorder`, `ros` (the ROS front ends), `ros_client` (an
-outside ROS 2 stack on rmw_zenoh), and each arm's id.
+outside ROS 2 stack on rmw_zenoh), `perception`, and each arm's id.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ SERVICE_NODES = (
     "recorder",
     "ros",
     "ros_client",
+    "perception",
 )  # every node but the sim and the arms' controllers
 ANY_RUN = f"{ROOT}/*"
 # what each client may publish (ingress at the router); `{arm}` is the controller's own arm
@@ -43,6 +44,7 @@ PUBLISHES = {
     "coordinator": ("arm/*/assign", "coord/**", "snapshot/coordinator"),
     "monitor": ("estop", "world/control", "launcher/respawn"),
     "recorder": ("recorder/ready",),
+    "perception": ("perception/*",),  # what it sees through each camera
     "launcher": ("launcher/roster",),
     "ros": ("arm/*/drive", "estop", "world/control"),  # the ROS front ends: outside goals, e-stop, pause
     "ros_client": (),  # a ROS 2 stack: nothing of clawfleet's own; the line's ROS services and actions (`--ros2`)

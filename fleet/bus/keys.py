@@ -137,6 +137,10 @@ class Keys:
         """One camera's images of one kind (`CameraImage`): `clawfleet/<run>/camera/<camera>/<kind>`."""
         return f"{ROOT}/{self.run}/camera/{camera}/{kind}"
 
+    def detections(self, camera: str) -> str:
+        """The parts perception sees through one camera (`PartDetections`): `clawfleet/<run>/perception/<camera>`."""
+        return f"{ROOT}/{self.run}/perception/{camera}"
+
     @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"

@@ -195,3 +195,18 @@ def heartbeat_problem(s) -> str:
     if not_finite((s.sim_time_s, s.progress, s.busy_s, *s.place_xyz)) or s.sim_time_s < -1.0 or s.seq < 0:
         return "a heartbeat with NaN, infinite or negative values"
     return ""
+
+
+def detections_problem(d, kinds: int) -> str:
+    """A `PartDetections` that cannot be perception's of a line with `kinds` kinds of part ("": it can)."""
+    n = len(d.track_ids)
+    lengths = (len(d.kinds), len(d.yaws_rad), len(d.confidences), len(d.seen_s), len(d.top_centres_m) // 3)
+    if any(length != n for length in lengths) or len(d.top_centres_m) != 3 * n:
+        return "detections whose lists differ in length"
+    if not_finite((d.sim_time_s, *d.top_centres_m, *d.yaws_rad, *d.confidences, *d.seen_s)):
+        return "detections with NaN or infinite values"
+    if d.tick < 0 or any(k < 0 or k >= kinds for k in d.kinds) or any(not 0.0 <= c <= 1.0 for c in d.confidences):
+        return "detections of an unknown kind, a negative tick or a confidence outside 0-1"
+    if any(s > d.sim_time_s + 1e-9 for s in d.seen_s) or len(set(d.track_ids)) != n:
+        return "detections seen after their frame, or a track twice"
+    return ""

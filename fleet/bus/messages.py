@@ -14,7 +14,7 @@ import msgspec
 
 from robots.phase import Phase
 
-PROTOCOL_VERSION = 10  # 10: camera images (`CameraImage`)
+PROTOCOL_VERSION = 11  # 11: part detections (`PartDetections`)
 Floats = tuple[float, ...]
 
 
@@ -457,6 +457,24 @@ class CameraImage(Message, frozen=True, array_like=True):
     version: int = PROTOCOL_VERSION
 
 
+class PartDetections(Message, frozen=True, array_like=True):
+    """Perception -> anyone, for each of a camera's frames: the parts it believes are there (`docs/perception.md`),
+    as tracks carried from frame to frame: each track's id, kind (`fleet.sim.cameras.part_looks`), top face's centre
+    (world, x y z after one another), yaw of its longer side, confidence and the sim time it was last seen (a track
+    hidden in this frame keeps the spot it was seen at). `tick` and `sim_time_s` are the frame's."""
+
+    camera: str
+    tick: int
+    sim_time_s: float
+    track_ids: tuple[int, ...]
+    kinds: tuple[int, ...]
+    top_centres_m: Floats
+    yaws_rad: Floats
+    confidences: Floats
+    seen_s: Floats
+    version: int = PROTOCOL_VERSION
+
+
 MESSAGE_TYPES = (
     ArmState,
     ControllerStep,
@@ -482,4 +500,5 @@ MESSAGE_TYPES = (
     SnapshotAsk,
     SnapshotPart,
     CameraImage,
+    PartDetections,
 )

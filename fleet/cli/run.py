@@ -162,6 +162,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         record=run_recording(args),
         cameras=args.cameras,
         camera_encoding=args.camera_encoding,
+        perception=args.perception,
         latency_ms=args.latency_ms,
         jitter_ms=args.jitter_ms,
         loss=args.loss,
@@ -197,7 +198,16 @@ def bus_line(launcher, run_id: str) -> str:
 
 def check_camera_flags(args: argparse.Namespace, scene) -> None:
     """`--cameras` names cameras the scene has, on a machine that can render them: else one line, before anything
-    starts."""
+    starts. `--perception cameras` renders the scene's fixed cameras (those `--cameras` names, else all of them)."""
+    if args.perception == "cameras":
+        fixed = [c.name for c in scene.cameras if c.arm is None]
+        if not fixed:
+            raise UsageError(f"--perception cameras: the scene {scene.name} has no fixed camera (docs/cameras.md)")
+        if not args.cameras:
+            args.cameras = ",".join(fixed)
+        elif args.cameras != "all" and not set(args.cameras.split(",")) & set(fixed):
+            names = ", ".join(fixed)
+            raise UsageError(f"--perception cameras: --cameras names no fixed camera; the scene's are {names}")
     if not args.cameras:
         return
     from fleet.sim.cameras.line_cameras import cameras_named  # the renderer only when asked
@@ -484,6 +494,13 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAMES",
         help="render the scene's cameras (all, or names joined by commas) at their rates; images go on the bus, into "
         "the recording and to ROS (docs/cameras.md)",
+    )
+    p.add_argument(
+        "--perception",
+        choices=("truth", "cameras"),
+        default="truth",
+        help="cameras: a perception node detects and tracks the parts the scene's fixed cameras show and publishes "
+        "them (rendering those cameras); the line still works from the sim's truth (docs/perception.md)",
     )
     p.add_argument(
         "--camera-encoding",

@@ -158,6 +158,8 @@ class Launcher:
             self.nodes += commands.client_nodes()
             if self.options.monitor:
                 self.nodes.append(commands.monitor_node())
+            if self.options.perception == "cameras":
+                self.nodes.append(commands.perception_node())
             if self.options.rosbridge_port is not None:
                 self.nodes.append(commands.rosbridge_node())
             if self.options.ros2_domain is not None:

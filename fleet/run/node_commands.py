@@ -151,6 +151,10 @@ class NodeCommands:
         extra = ["--host", o.monitor_host, "--port", str(o.monitor_port)]
         return self._attached_node("monitor", "fleet.nodes.monitor_node", "monitor", extra, url=True)
 
+    def perception_node(self) -> Node:
+        """The perception node, with the `perception` login: the parts the fixed cameras show, as tracks."""
+        return self._attached_node("perception", "fleet.nodes.perception_node", "perception", [])
+
     def rosbridge_node(self) -> Node:
         """The rosbridge server, with the `ros` login."""
         extra = ["--port", str(self.options.rosbridge_port), "--max-rate-hz", str(self.options.ros_max_rate_hz)]

@@ -59,6 +59,8 @@ class RunSummary:
         self.controllers = [read_report(n.report) for n in end.nodes if n.role == "controller"]
         monitors = [n for n in end.nodes if n.role == "monitor"]
         self.monitor = read_report(monitors[0].report) if monitors else None
+        seers = [n for n in end.nodes if n.role == "perception"]
+        self.perception = read_report(seers[0].report) if seers else None
 
     @staticmethod
     def _capacity(capacity: dict | None, of_run: dict | None, completed: int, sim_s: float) -> dict:
@@ -158,6 +160,7 @@ class RunSummary:
                 "coordinator_takeover": coord.get("takeover"),
                 "respawn_requests": end.respawn_requests,
                 "monitor": None if self.monitor is None else {"url": end.server_urls.get("monitor", "")} | self.monitor,
+                "perception": self.perception,
                 "unfinished_parts": coord.get("unfinished_parts", []),
                 "processes": [h for n in end.nodes for h in n.history] + [n.record() for n in end.nodes],
             }
@@ -223,6 +226,7 @@ class RunSummary:
         sim, coord, controllers, monitor = self.sim, self.coord, self.controllers, self.monitor
         dropped = sim.get("dropped_messages", 0) + coord.get("dropped_messages", 0)
         dropped += sum(c.get("dropped_messages", 0) for c in controllers) + (monitor or {}).get("dropped_messages", 0)
+        dropped += (self.perception or {}).get("dropped_messages", 0)
         dropped += self.end.drops.total
         return {
             "goal_results": sim.get("goal_results", {}),
@@ -253,6 +257,7 @@ class RunSummary:
     def _refused(self) -> dict:
         """Each node's refused messages by kind (`DropCounter.kinds`), only the nodes that refused any."""
         reports = {"sim": self.sim, "coordinator": self.coord, "monitor": self.monitor or {}}
+        reports["perception"] = self.perception or {}
         reports |= {c.get("arm", f"controller_{i}"): c for i, c in enumerate(self.controllers)}
         reports["launcher"] = {"refused_messages": self.end.drops.kinds()}
         return {node: r["refused_messages"] for node, r in reports.items() if r.get("refused_messages")}

@@ -24,6 +24,7 @@ from fleet.bus.messages import (
     LineEvent,
     LineView,
     MotionGrant,
+    PartDetections,
     PartsState,
     Progress,
     RespawnRequest,
@@ -119,6 +120,9 @@ EXAMPLES = [
     SnapshotPart("arm_0", 900, error="cannot snapshot ArmController (attributes x): no"),
     SnapshotPart("arm_0", 900, restored=True),
     MotionGrant("arm_0", 4, 3, "deny", "arm_1", 0.012),
+    PartDetections(
+        "overhead", 20, 0.2, (3, 4), (0, 1), (0.1, 0.3, 0.11, 0.2, 0.3, 0.11), (0.1, -0.3), (0.9, 0.6), (0.2, 0.0)
+    ),
     CameraImage(
         "overhead", "rgb", 20, 0.2, 2, 1, "raw", b"\x01\x02\x03\x04\x05\x06", (1.0,) * 9, (0.0, 0.0, 1.0), (0.5,) * 4
     ),

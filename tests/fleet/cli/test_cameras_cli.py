@@ -62,3 +62,18 @@ def test_the_perception_benchmark_scores_detections_against_the_worlds_parts():
 def test_a_perception_benchmark_of_a_scene_that_does_not_exist_is_one_line():
     code, _, stderr = fleet_in_process(["bench", "perception", "--scenes", "nowhere"])
     assert code == 2 and stderr.startswith("fleet: error: nowhere: no such scene") and stderr.count("\n") == 1
+
+
+def test_perception_on_a_scene_without_a_fixed_camera_is_one_line_before_anything_starts():
+    from tests.fleet.test_run import QUICK_LINE
+
+    code, _, stderr = fleet_in_process(["run", QUICK_LINE, "--duration", "1", "--perception", "cameras"])
+    assert (
+        code == 2
+        and stderr.startswith("fleet: error: --perception cameras: the scene ")
+        and "no fixed camera" in stderr
+    )
+    code, _, stderr = fleet_in_process(
+        ["run", "pick_cell", "--duration", "1", "--perception", "cameras", "--cameras", "wrist"]
+    )
+    assert code == 2 and "--cameras names no fixed camera; the scene's are overhead" in stderr, stderr
