@@ -164,6 +164,7 @@ class Keys:
             f"{root}/coord/**",
             f"{root}/launcher/**",
             f"{root}/camera/**",
+            f"{root}/perception/*",
         ]
 
     @staticmethod

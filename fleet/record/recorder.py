@@ -36,6 +36,7 @@ from fleet.bus.messages import (
     LineEvent,
     LineView,
     MotionGrant,
+    PartDetections,
     PartsState,
     Progress,
     RespawnRequest,
@@ -147,6 +148,8 @@ class Recorder:
             return ARM_LEAVES.get(rest.rsplit("/", 1)[-1])
         if rest.startswith("camera/") and rest.count("/") == 2:
             return CameraImage
+        if rest.startswith("perception/") and rest.count("/") == 1:
+            return PartDetections
         return LINE_LEAVES.get(rest)
 
     def _decode(self, key: str, message_type: type | None, payload: bytes):
@@ -160,7 +163,18 @@ class Recorder:
         """The message's own sim time where it has one, else the newest heard."""
         if isinstance(
             message,
-            (ArmState, LineView, PartsState, GoalResultMsg, ArmStatus, Progress, SimStatus, Separations, CameraImage),
+            (
+                ArmState,
+                LineView,
+                PartsState,
+                GoalResultMsg,
+                ArmStatus,
+                Progress,
+                SimStatus,
+                Separations,
+                CameraImage,
+                PartDetections,
+            ),
         ):
             return message.sim_time_s
         if isinstance(message, (LineEvent, ControllerStep, CoordTick)):

@@ -14,6 +14,7 @@ from fleet.bus.message_checks import detections_problem
 from fleet.bus.messages import CameraImage, PartDetections, PartsState
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.common.scene_loading import load_checked_scene
+from fleet.record.mcap_file import Recording
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.sim.cameras.part_looks import part_looks
 from tests.fleet.test_run import assert_nothing_left
@@ -55,8 +56,15 @@ def run_seen(options: RunOptions, meddle=None) -> tuple[dict, list[PartDetection
 
 
 @pytest.mark.lockstep
-def test_the_perception_node_publishes_tracks_where_the_sims_parts_are():
-    options = RunOptions(scene="pick_cell", duration_s=8.0, seed=0, perception="cameras", cameras="overhead")
+def test_the_perception_node_publishes_tracks_where_the_sims_parts_are_and_the_recording_keeps_them(tmp_path):
+    options = RunOptions(
+        scene="pick_cell",
+        duration_s=8.0,
+        seed=0,
+        perception="cameras",
+        cameras="overhead",
+        record=str(tmp_path / "r.mcap"),
+    )
     summary, seen, parts = run_seen(options)
     assert summary["status"] == "ok", summary["error"]
     report = summary["perception"]
@@ -64,6 +72,9 @@ def test_the_perception_node_publishes_tracks_where_the_sims_parts_are():
     assert len(seen) == report["frames"] and sum(len(d.track_ids) for d in seen) == report["tracks_published"]
     kinds = len(part_looks(load_checked_scene("pick_cell"))[0])
     assert all(detections_problem(d, kinds) == "" for d in seen)
+    recorded = [m.payload for m in Recording(tmp_path / "r.mcap").raw_messages([Keys("line").detections("overhead")])]
+    by_tick = {d.tick: d for d in (Decoder(PartDetections, DropCounter()).decode("r", p) for p in recorded)}
+    assert all(by_tick.get(d.tick) == d for d in seen), "the recording holds every frame's detections as heard"
     errors_m = []
     for d in seen:
         truth = parts.get(d.tick)
