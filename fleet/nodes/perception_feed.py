@@ -73,12 +73,20 @@ class PerceptionFeed:
             self._frame(halves.pop("rgb"), halves.pop("depth"))
 
     def _frame(self, rgb: CameraImage, depth: CameraImage) -> None:
+        where = (rgb.sim_time_s, *rgb.intrinsics, *rgb.position_m, *rgb.quaternion_wxyz)
+        if len(rgb.intrinsics) != 9 or len(rgb.position_m) != 3 or len(rgb.quaternion_wxyz) != 4:
+            self.drops.drop(f"camera/{rgb.camera}", "a frame whose intrinsics or pose has the wrong length")
+            return
+        if not np.isfinite(where).all() or abs(np.linalg.norm(rgb.quaternion_wxyz) - 1.0) > 1e-3:
+            self.drops.drop(f"camera/{rgb.camera}", "a frame with NaN or infinite values, or no rotation")
+            return
         try:
+            depth_m = decode_image("depth", depth.data, depth.encoding, depth.width_px, depth.height_px)
             frame = RGBDFrame(
                 rgb.camera,
                 rgb.sim_time_s,
                 decode_image("rgb", rgb.data, rgb.encoding, rgb.width_px, rgb.height_px),
-                decode_image("depth", depth.data, depth.encoding, depth.width_px, depth.height_px),
+                np.where(np.isfinite(depth_m), depth_m, 0.0).astype(np.float32),  # no depth where it is not a number
                 np.asarray(rgb.intrinsics, float).reshape(3, 3),
                 np.asarray(rgb.position_m, float),
                 np.asarray(rgb.quaternion_wxyz, float),
