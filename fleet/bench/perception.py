@@ -54,14 +54,25 @@ class PerceptionBenchRow:
     detect_ms: float  # wall time of one frame's detection
 
 
+def _top_face_yaw(part: PartInfo) -> tuple[float, bool]:
+    """The world direction of the longer side of the part's face that looks up (a box lying on its side shows
+    another face than its top), and whether that face is square."""
+    w, x, y, z = part.quaternion_wxyz
+    axes = Rotation.from_quat([x, y, z, w]).as_matrix().T  # rows: the body's x, y, z in the world
+    up = int(np.argmax(np.abs(axes[:, 2])))  # the body axis nearest the vertical: the face across it looks up
+    sides = [i for i in range(3) if i != up]
+    longer = max(sides, key=lambda i: part.size_m[i])
+    square = abs(part.size_m[sides[0]] - part.size_m[sides[1]]) < 1e-6
+    return float(np.arctan2(axes[longer, 1], axes[longer, 0])), square
+
+
 def _yaw_error_deg(part: PartInfo, seen: Detection) -> float | None:
     """How far the detection's turn (its longer side's direction) is from the part's longer side, in degrees, modulo
     the part's symmetry (None: round)."""
     if part.round:
         return None
-    w, x, y, z = part.quaternion_wxyz
-    yaw = Rotation.from_quat([x, y, z, w]).as_euler("xyz")[2] + (np.pi / 2 if part.size_m[1] > part.size_m[0] else 0.0)
-    period = np.pi / 2 if abs(part.size_m[0] - part.size_m[1]) < 1e-6 else np.pi
+    yaw, square = _top_face_yaw(part)
+    period = np.pi / 2 if square else np.pi
     d = (seen.yaw_rad - yaw) % period
     return float(np.degrees(min(d, period - d)))
 
