@@ -96,13 +96,14 @@ def test_heartbeats_of_a_dead_controller_and_reports_no_node_sends_are_refused_a
     keys, killed, heard, told = Keys("line"), [], [], []
     options = RunOptions(scene=QUICK_LINE, duration_s=16.0, seed=5, insecure=True)
 
-    def kill_arm_0(progress) -> None:
-        if not killed and progress.sim_time_s > 3.0:
-            node = next(n for n in launcher.nodes if n.name == "arm_0")
-            killed.append(node.proc.pid)
-            os.kill(node.proc.pid, signal.SIGKILL)
+    def kill_arm_0() -> None:
+        """At 3 s of sim time, as the arms' states say (the launcher's progress is paced by the wall clock: a lockstep
+        line on an idle machine had passed 9 s, or ended, before it said 3)."""
+        node = next(n for n in launcher.nodes if n.name == "arm_0")
+        killed.append(node.proc.pid)
+        os.kill(node.proc.pid, signal.SIGKILL)
 
-    with Launcher(options, kill_arm_0) as launcher:
+    with Launcher(options) as launcher:
         arms = [a.name for a in launcher.scene.arms]
         with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
             decoder = Decoder(ArmStatus, DropCounter())
@@ -123,7 +124,10 @@ def test_heartbeats_of_a_dead_controller_and_reports_no_node_sends_are_refused_a
                 session.put(keys.sim_status, encode(SimStatus(FAR, 3.0, "lockstep", False, False, 1.0, (), 0.0, 0)))
                 told.append(1)
 
-            with SimTimeTrigger(session, keys, [7.0, 9.0, 11.0, 13.0], lie):
+            with (
+                SimTimeTrigger(session, keys, [3.0], kill_arm_0),
+                SimTimeTrigger(session, keys, [7.0, 9.0, 11.0, 13.0], lie),
+            ):
                 summary = launcher.run()
             sub.undeclare()
     assert_nothing_left(summary, launcher.endpoint)
