@@ -7,9 +7,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from perception.detect import Detection
+from perception.matching import nearest_pairs
 
 GATE_M = 0.03  # a detection farther than this from every track's predicted spot starts a track of its own
 KEEP_S = 1.0  # a track unseen this long is dropped (its part picked, or gone)
@@ -71,17 +71,14 @@ class PartTracks:
         return [t for t in self.tracks if t.hits >= self.confirm_hits]
 
     def _pairs(self, detections: list[Detection], time_s: float) -> dict[int, Track]:
-        """Detection index -> the track it joins: the assignment of least total distance (scipy), within the gate,
-        of the same kind."""
+        """Detection index -> the track it joins (`nearest_pairs` with the tracks carried to `time_s`)."""
         if not detections or not self.tracks:
             return {}
-        far = 1e6
-        cost = np.full((len(detections), len(self.tracks)), far)
-        for j, track in enumerate(self.tracks):
-            at = self.predicted_m(track, time_s)
-            for i, d in enumerate(detections):
-                gap = float(np.linalg.norm(np.asarray(d.top_centre_m, float)[:2] - at[:2]))
-                if d.kind == track.kind and gap <= self.gate_m:
-                    cost[i, j] = gap
-        rows, cols = linear_sum_assignment(cost)
-        return {int(i): self.tracks[j] for i, j in zip(rows, cols) if cost[i, j] < far}
+        pairs = nearest_pairs(
+            np.array([d.top_centre_m for d in detections]),
+            [d.kind for d in detections],
+            np.array([self.predicted_m(t, time_s) for t in self.tracks]),
+            [t.kind for t in self.tracks],
+            self.gate_m,
+        )
+        return {i: self.tracks[j] for i, j, _ in pairs}

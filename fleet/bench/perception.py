@@ -9,7 +9,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.spatial.transform import Rotation
 
 from fleet.common.scene_loading import load_checked_scene
@@ -19,6 +18,7 @@ from fleet.sim.cameras.part_looks import part_looks
 from fleet.sim.cameras.rig import CameraRig
 from fleet.sim.world import PartInfo, World
 from perception.detect import Detection, detect_parts
+from perception.matching import nearest_pairs
 from scenes.randomise import draw
 from scenes.schema import Randomisation, Scene
 
@@ -81,19 +81,18 @@ def _score(frame: CameraFrame, world: World, detections: list[Detection], kinds:
     """(position errors in mm, yaw errors in degrees, parts visible) of one frame; the detections matched to the
     parts with a pixel in it, the pairs chosen together."""
     visible = [p for p in world.active_parts() if (frame.segmentation == labels.part_label(p.part_id)).any()]
-    cost = np.full((len(visible), len(detections)), 1e6)
-    for i, part in enumerate(visible):
-        for j, d in enumerate(detections):
-            gap = float(np.linalg.norm(np.subtract(d.top_centre_m[:2], part.position[:2])))
-            if d.kind == kinds[part.feeder, part.type_index] and gap <= GATE_M:
-                cost[i, j] = gap
+    pairs = nearest_pairs(
+        np.array([p.position for p in visible]).reshape(-1, 3),
+        [kinds[p.feeder, p.type_index] for p in visible],
+        np.array([d.top_centre_m for d in detections]).reshape(-1, 3),
+        [d.kind for d in detections],
+        GATE_M,
+    )
     errors, yaws = [], []
-    if visible and detections:
-        for i, j in zip(*linear_sum_assignment(cost)):
-            if cost[i, j] < 1e6:
-                errors.append(cost[i, j] * 1000.0)
-                if (yaw := _yaw_error_deg(visible[i], detections[j])) is not None:
-                    yaws.append(yaw)
+    for i, j, gap_m in pairs:
+        errors.append(gap_m * 1000.0)
+        if (yaw := _yaw_error_deg(visible[i], detections[j])) is not None:
+            yaws.append(yaw)
     return errors, yaws, len(visible)
 
 
