@@ -67,7 +67,7 @@ class SimServer:
     ) -> None:
         self.controls = LineControls(mode, controllers, coordinator, speed=speed, started=not controllers)
         self.world, self.keys, self.stop = world, keys, stop
-        self.lockstep_timeout_s, self.count_contacts = lockstep_timeout_s, count_contacts
+        self.count_contacts = count_contacts
         scene = world.scene_model
         self.cadence = cadence = SimCadence.of(scene)
         self.faults = links_for(scene.network, [*world.arms, "coordinator"], scene.seed)
@@ -88,9 +88,15 @@ class SimServer:
         self.restored_from: dict | None = None  # from a snapshot: its tick, wall s until every node was back
         self.snapshots_refused: list[str] = []  # snapshots asked for that this run cannot take, and why
         self.cameras = None  # with `--cameras`: a `fleet.sim.cameras.line_cameras.LineCameras`
-        self._wire(watchdog_s, first_command_timeout_s, coordinator_timeout_s)
+        self._wire(watchdog_s, lockstep_timeout_s, first_command_timeout_s, coordinator_timeout_s)
 
-    def _wire(self, watchdog_s: float, first_command_timeout_s: float, coordinator_timeout_s: float | None) -> None:
+    def _wire(
+        self,
+        watchdog_s: float,
+        lockstep_timeout_s: float,
+        first_command_timeout_s: float,
+        coordinator_timeout_s: float | None,
+    ) -> None:
         """The inputs, outputs and lockstep, each handed what it uses."""
         world, bus, controls, cadence = self.world, self.bus, self.controls, self.cadence
         links, coord_book, tracked, stats = self.links, self.coord_book, self.tracked, self.stats
@@ -99,15 +105,13 @@ class SimServer:
             self.assign_seqs,
         )  # fmt: skip
         self.inputs = SimInputs(
-            world, bus, controls, cadence, links, coord_book, self.faults["coordinator"], tracked, self.outputs,
-            stats, self.assign_seqs, watchdog_s,
+            world, bus, controls, cadence, links, coord_book, tracked, self.outputs, stats, self.assign_seqs,
+            watchdog_s,
         )  # fmt: skip
         # how long a lockstep frame waits for the coordinator (longer when a crashed one is respawned: the line holds)
-        timeout_s = self.lockstep_timeout_s
-        coord_timeout_s = (
-            max(timeout_s, COORDINATOR_TIMEOUT_S) if coordinator_timeout_s is None else coordinator_timeout_s
-        )
-        barrier = Barrier(timeout_s, first_command_timeout_s, coord_timeout_s)
+        if coordinator_timeout_s is None:
+            coordinator_timeout_s = max(lockstep_timeout_s, COORDINATOR_TIMEOUT_S)
+        barrier = Barrier(lockstep_timeout_s, first_command_timeout_s, coordinator_timeout_s)
         self.lockstep = SimLockstep(
             barrier, bus, controls, links, coord_book, self.inputs, self.outputs, tracked, stats, self.stop
         )
@@ -128,7 +132,7 @@ class SimServer:
 
     def settle(self) -> None:
         """Lockstep, after the last tick: the answers to what was delivered awaited (`SimLockstep.settle`)."""
-        self.lockstep.settle(self.lockstep_timeout_s)
+        self.lockstep.settle()
 
     # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:

@@ -8,7 +8,7 @@ import dataclasses
 import math
 import time
 
-from fleet.bus.faults import DelayLine, FaultyLink
+from fleet.bus.faults import DelayLine
 from fleet.bus.flights import FlightBook, FlightState, flight_of, flight_state
 from fleet.bus.goals import goal_from_message
 from fleet.bus.keys import Keys
@@ -51,7 +51,7 @@ class InputsState(SavedState, frozen=True):
 class SimInputs:
     """What comes in to one sim server, taken between ticks (`take`): the switches it sets in `controls`, the
     answers and goals it hands the arms' `links` and `tracked` trackers (their results out through `outputs`), the
-    coordinator's ticks its `coord_book` awaits, and (realtime) what `coordinator_link` and the links delay."""
+    coordinator's ticks its `coord_book` awaits, and (realtime) what the links delay."""
 
     def __init__(
         self,
@@ -61,7 +61,6 @@ class SimInputs:
         cadence: SimCadence,
         links: dict[str, ArmLink],
         coord_book: FlightBook,
-        coordinator_link: FaultyLink,
         tracked: TrackedArms,
         outputs: SimOutputs,
         stats: SimStats,
@@ -69,7 +68,7 @@ class SimInputs:
         watchdog_s: float,
     ) -> None:
         self.world, self.bus, self.controls, self.cadence = world, bus, controls, cadence
-        self.links, self.coord_book, self.coordinator_link = links, coord_book, coordinator_link
+        self.links, self.coord_book = links, coord_book
         self.tracked, self.outputs, self.stats = tracked, outputs, stats
         self.assign_seqs, self.watchdog_s = assign_seqs, watchdog_s
         self.delayed = DelayLine()  # realtime: answers, goals and coordinator ticks on their way in
@@ -159,7 +158,7 @@ class SimInputs:
         if self.controls.deferred_coord:
             self.coord_book.answer(msg.tick, msg)  # one lost on the way back is dropped by the book
             return
-        passage = self.coordinator_link.passage("up")
+        passage = self.coord_book.link.passage("up")  # as an arm's answer: `link.book.link`
         if not passage.lost:
             self._arrive_later("coord", None, msg, passage.delay_s)
 

@@ -58,14 +58,14 @@ class SimLockstep:
         self.stats.coordinator_lost = self.stats.coordinator_lost or outcome == "coordinator_lost"
         self._apply_due(links, coord, tick)
 
-    def settle(self, timeout_s: float) -> None:
-        """Lockstep, after the last tick: wait (at most `timeout_s`) for the answers to the states and frames already
-        delivered, and the goals they name, so that the run ends on the bus the same way every time (a recording
-        of it too). They take no effect: the run is over."""
+    def settle(self) -> None:
+        """Lockstep, after the last tick: wait (at most the barrier's lockstep timeout) for the answers to the states
+        and frames already delivered, and the goals they name, so that the run ends on the bus the same way every
+        time (a recording of it too). They take no effect: the run is over."""
         controls = self.controls
         if not (controls.deferred or controls.deferred_coord):
             return
-        deadline = time.monotonic() + timeout_s
+        deadline = time.monotonic() + self.barrier.lockstep_timeout_s
         while time.monotonic() < deadline:
             self.inputs.take()
             links = list(self.links.values()) if controls.deferred else []

@@ -79,7 +79,7 @@ def test_messages_on_their_way_in_are_held_again_as_they_were():
 
     def realtime_inputs() -> SimInputs:
         link = ArmLink("arm_0", 5, FlightBook(FaultyLink("arm_0", LinkFaults(), seed=0, index=0), 100.0))
-        return SimInputs(*(None,) * 4, {"arm_0": link}, *(None,) * 5, assign_seqs={}, watchdog_s=0.25)  # state only
+        return SimInputs(*(None,) * 4, {"arm_0": link}, *(None,) * 4, assign_seqs={}, watchdog_s=0.25)  # state only
 
     saved = realtime_inputs()
     link = saved.links["arm_0"]
