@@ -35,6 +35,7 @@ def task_rows(ledger: Ledger) -> list[dict]:
             "done_s": t.done_s,
             "reassignments": t.reassignments,
             "reason": t.reason,
+            "failure_code": t.failure_code,
         }
         for t in ledger.tasks.values()
     ]

@@ -189,7 +189,7 @@ class Ledger:
 
     def _fail_attempt(self, task: Task, reason: str, now_s: float, code: str = "") -> None:
         part = self.parts[task.part_id]
-        self.records.close(task, TaskState.FAILED, reason)
+        self.records.close(task, TaskState.FAILED, reason, getattr(code, "value", code))
         if code == FailureCode.MOTION_DENIED and task.arm is not None:
             deny(part, task.arm, reason, now_s)
             return

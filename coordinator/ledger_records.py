@@ -28,9 +28,10 @@ class LedgerRecords:
         """The tasks not finished (pending, or given to an arm), without walking every task of the run."""
         return [self.tasks[task_id] for task_id in self.open_by_part.values()]
 
-    def close(self, task: Task, state: TaskState, reason: str) -> None:
-        """A task finished (done or failed): it stays on record, no longer open."""
-        task.state, task.reason = state, reason
+    def close(self, task: Task, state: TaskState, reason: str, code: str = "") -> None:
+        """A task finished (done or failed, with the skill's failure `code` if it gave one): it stays on record, no
+        longer open."""
+        task.state, task.reason, task.failure_code = state, reason, code
         self.open_by_part.pop(task.part_id, None)
 
     def drop(self, task: Task) -> None:

@@ -74,6 +74,7 @@ class Task:
     # other stations that would do as the target (a sorted part: any bin of its colour)
     alternatives: tuple[str, ...] = ()
     refused_by: tuple[str, ...] = ()  # arms not given it: out of their reach as it lies, or held off by a denial
+    failure_code: str = ""  # a failed task: the skill's `FailureCode` ("": none given, or not failed)
 
     @property
     def all_targets(self) -> tuple[str, ...]:

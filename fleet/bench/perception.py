@@ -9,14 +9,14 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from fleet.common.scene_loading import load_checked_scene
 from fleet.sim.cameras import labels
 from fleet.sim.cameras.frames import CameraFrame
 from fleet.sim.cameras.part_looks import part_looks
 from fleet.sim.cameras.rig import CameraRig
-from fleet.sim.world import PartInfo, World
+from fleet.sim.cameras.seen_score import yaw_error_deg
+from fleet.sim.world import World
 from perception.detect import Detection, detect_parts
 from perception.matching import nearest_pairs
 from scenes.randomise import draw
@@ -54,29 +54,6 @@ class PerceptionBenchRow:
     detect_ms: float  # wall time of one frame's detection
 
 
-def _top_face_yaw(part: PartInfo) -> tuple[float, bool]:
-    """The world direction of the longer side of the part's face that looks up (a box lying on its side shows
-    another face than its top), and whether that face is square."""
-    w, x, y, z = part.quaternion_wxyz
-    axes = Rotation.from_quat([x, y, z, w]).as_matrix().T  # rows: the body's x, y, z in the world
-    up = int(np.argmax(np.abs(axes[:, 2])))  # the body axis nearest the vertical: the face across it looks up
-    sides = [i for i in range(3) if i != up]
-    longer = max(sides, key=lambda i: part.size_m[i])
-    square = abs(part.size_m[sides[0]] - part.size_m[sides[1]]) < 1e-6
-    return float(np.arctan2(axes[longer, 1], axes[longer, 0])), square
-
-
-def _yaw_error_deg(part: PartInfo, seen: Detection) -> float | None:
-    """How far the detection's turn (its longer side's direction) is from the part's longer side, in degrees, modulo
-    the part's symmetry (None: round)."""
-    if part.round:
-        return None
-    yaw, square = _top_face_yaw(part)
-    period = np.pi / 2 if square else np.pi
-    d = (seen.yaw_rad - yaw) % period
-    return float(np.degrees(min(d, period - d)))
-
-
 def _score(frame: CameraFrame, world: World, detections: list[Detection], kinds: dict) -> tuple[list, list, int]:
     """(position errors in mm, yaw errors in degrees, parts visible) of one frame; the detections matched to the
     parts with a pixel in it, the pairs chosen together."""
@@ -91,7 +68,7 @@ def _score(frame: CameraFrame, world: World, detections: list[Detection], kinds:
     errors, yaws = [], []
     for i, j, gap_m in pairs:
         errors.append(gap_m * 1000.0)
-        if (yaw := _yaw_error_deg(visible[i], detections[j])) is not None:
+        if (yaw := yaw_error_deg(visible[i], detections[j].yaw_rad)) is not None:
             yaws.append(yaw)
     return errors, yaws, len(visible)
 

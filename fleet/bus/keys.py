@@ -142,6 +142,12 @@ class Keys:
         return f"{ROOT}/{self.run}/perception/{camera}"
 
     @property
+    def seen_parts(self) -> str:
+        """The line's parts as its cameras show them (`PartsState`, perception's, one a frame, `docs/perception.md`):
+        `clawfleet/<run>/seen/parts`."""
+        return f"{ROOT}/{self.run}/seen/parts"
+
+    @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"
 
@@ -165,6 +171,7 @@ class Keys:
             f"{root}/launcher/**",
             f"{root}/camera/**",
             f"{root}/perception/*",
+            self.seen_parts,
         ]
 
     @staticmethod

@@ -14,7 +14,7 @@ import msgspec
 
 from robots.phase import Phase
 
-PROTOCOL_VERSION = 11  # 11: part detections (`PartDetections`)
+PROTOCOL_VERSION = 12  # 11: part detections (`PartDetections`); 12: images name the events before them
 Floats = tuple[float, ...]
 
 
@@ -454,6 +454,7 @@ class CameraImage(Message, frozen=True, array_like=True):
     intrinsics: Floats
     position_m: Floats
     quaternion_wxyz: Floats
+    events_published: int = 0  # line events the sim had published by this frame (perception waits for them)
     version: int = PROTOCOL_VERSION
 
 

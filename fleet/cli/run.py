@@ -198,16 +198,14 @@ def bus_line(launcher, run_id: str) -> str:
 
 def check_camera_flags(args: argparse.Namespace, scene) -> None:
     """`--cameras` names cameras the scene has, on a machine that can render them: else one line, before anything
-    starts. `--perception cameras` renders the scene's fixed cameras (those `--cameras` names, else all of them)."""
+    starts. `--perception cameras` renders every fixed camera of the scene (the line sees through all of them),
+    besides those `--cameras` names."""
     if args.perception == "cameras":
         fixed = [c.name for c in scene.cameras if c.arm is None]
         if not fixed:
             raise UsageError(f"--perception cameras: the scene {scene.name} has no fixed camera (docs/cameras.md)")
         if not args.cameras:
-            args.cameras = ",".join(fixed)
-        elif args.cameras != "all" and not set(args.cameras.split(",")) & set(fixed):
-            names = ", ".join(fixed)
-            raise UsageError(f"--perception cameras: --cameras names no fixed camera; the scene's are {names}")
+            args.cameras = ",".join(fixed)  # checked below: a machine that cannot render is refused in one line
     if not args.cameras:
         return
     from fleet.sim.cameras.line_cameras import cameras_named  # the renderer only when asked
@@ -499,8 +497,9 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
         "--perception",
         choices=("truth", "cameras"),
         default="truth",
-        help="cameras: a perception node detects and tracks the parts the scene's fixed cameras show and publishes "
-        "them (rendering those cameras); the line still works from the sim's truth (docs/perception.md)",
+        help="cameras: the line works from what its fixed cameras show (all rendered): a perception node detects "
+        "and tracks the parts, and the coordinator and the controllers see only its parts; the sim's truth only "
+        "scores it (docs/perception.md)",
     )
     p.add_argument(
         "--camera-encoding",

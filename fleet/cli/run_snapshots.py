@@ -76,6 +76,8 @@ def check_snapshot_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--snapshot-every {args.snapshot_every:g}: give a positive number of sim seconds")
     if wanted and not args.out:
         raise UsageError("--snapshot-at/--snapshot-every write into --out DIR: give it")
+    if getattr(args, "perception", "truth") != "truth" and (wanted or getattr(args, "from_snapshot", None)):
+        raise UsageError("--perception cameras: a line working from its cameras cannot be snapshotted or restored yet")
 
 
 def restore_refused_flags(args: argparse.Namespace) -> list[tuple[str, bool]]:

@@ -91,6 +91,12 @@ def add_scene_arguments(parser: argparse.ArgumentParser, run_required: bool = Tr
     parser.add_argument(
         "--seed", type=int, default=None, help="the run's seed (the scene's by default): arrivals and randomised values"
     )
+    parser.add_argument(
+        "--perception",
+        choices=("truth", "cameras"),
+        default="truth",
+        help="where the line's parts come from: the sim's truth, or what perception sees through the cameras",
+    )
 
 
 def load_node_scene(args: argparse.Namespace, prog: str) -> Scene | None:

@@ -38,6 +38,7 @@ from fleet.bus.messages import (
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
 from fleet.nodes.arm_orders import ControllerOrders
+from fleet.nodes.line_sight import seen_ticks_of
 from fleet.nodes.sim_feed import SimFeed
 from fleet.snapshot.controller_state import VERSION, ControllerState, read_controller_state
 from fleet.snapshot.cut import controller_after_cut
@@ -99,8 +100,10 @@ class ArmController:
         rate_hz: float = DEFAULT_DECISION_HZ,
         incarnation: int | None = None,
         roster: bool = False,
+        perception: str = "truth",
     ) -> None:
         decl = arm_declaration(scene, arm, rate_hz)
+        self.seen = seen_ticks_of(scene) if perception == "cameras" else None  # the parts: perception's
         self.arm, self.keys, self.session = arm, keys, session
         self.arm_index = [a.name for a in scene.arms].index(arm)  # its place in the coordinator's order counts
         self.spec = get_robot(decl.model)
@@ -125,6 +128,7 @@ class ArmController:
             self._decoders,
             self.drops,
             self.orders,
+            self.seen,
         )
         self.delays = deque(maxlen=40)  # ticks each recent state spent on the bus on its way here
         self.task_id: int | None = None
@@ -149,7 +153,7 @@ class ArmController:
         self._inboxes = {name: Inbox(wake=self.wake, hold=self.hold) for name in ("state", "parts", "assign", "roster")}
         self._subs = [
             session.declare_subscriber(keys.arm_state(self.arm), self._inboxes["state"]),
-            session.declare_subscriber(keys.parts, self._inboxes["parts"]),
+            session.declare_subscriber(keys.parts if self.seen is None else keys.seen_parts, self._inboxes["parts"]),
             session.declare_subscriber(keys.arm_assign(self.arm), self._inboxes["assign"]),
             session.declare_subscriber(keys.roster, self._inboxes["roster"]),
         ]
@@ -230,7 +234,7 @@ class ArmController:
             orders.await_order(state.assign_seq)
         orders.apply(state.assign_seq, self.skill)
         if self.skill.active or orders.pending is not None:  # only a task needs the parts: skip decoding otherwise
-            self.feed.parts_for_tick(state.tick)
+            self.feed.parts_for_tick(self.feed.parts_tick_for(state.tick))
         else:
             self.feed.skip_parts()
         self._expect_latency(state)
@@ -404,6 +408,7 @@ def main(argv: list[str] | None = None) -> int:
             rate_hz=args.rate_hz,
             incarnation=args.incarnation,
             roster=args.roster,
+            perception=args.perception,
         )
         if args.from_snapshot:
             try:

@@ -54,6 +54,8 @@ from fleet.nodes.controller_lives import ControllerLives, tell_lost
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
+from fleet.nodes.line_sight import seen_ticks_of
+from fleet.nodes.seen_parts import SeenParts
 from fleet.snapshot.coordinator_state import VERSION, CoordinatorState, read_coordinator_state
 from fleet.snapshot.cut import coordinator_after_cut
 from fleet.snapshot.process_state import StateError
@@ -85,8 +87,11 @@ class CoordinatorNode:
         incarnation: int = 1,
         pipeline: bool = PIPELINE_DEFAULT,
         roster: bool = False,
+        perception: str = "truth",
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
+        # `cameras`: the parts are perception's (`seen/parts`), not the frames' (`docs/perception.md`)
+        self.seen = SeenParts(seen_ticks_of(scene)) if perception == "cameras" else None
         self.incarnation = incarnation
         first_task_id = (incarnation - 1) * TASK_ID_SPAN + 1
         self.dispatcher = Dispatcher(scene, allocator or make_allocator("optimal", scene), first_task_id, pipeline)
@@ -101,6 +106,7 @@ class CoordinatorNode:
             "frame": Decoder(LineView, self.drops),
             "status": Decoder(ArmStatus, self.drops),
             "roster": Decoder(Roster, self.drops),
+            "parts": Decoder(PartsState, self.drops),
         }
         self.sim_clock = TickClock(scene.control_hz)  # frames and events are the sim's: none may run far ahead of it
         self._dof = {a.name: get_robot(a.model).arm_dof for a in scene.arms}
@@ -111,10 +117,7 @@ class CoordinatorNode:
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
         self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
-        inbox_keys = (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
-        stamps = ((keys.all_arms("status"), self.lives.arrived), (keys.frame, self.lives.frame_arrived))
-        self._subs = [session.declare_subscriber(k, self.inbox) for k in inbox_keys]
-        self._subs += [session.declare_subscriber(k, stamp) for k, stamp in stamps]  # heartbeats, frames: arrivals
+        self._subs = self._subscribe(session, keys)
         self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
         self._tick_pub = session.declare_publisher(keys.coord("tick"))
         self._progress_pub = session.declare_publisher(keys.coord("progress"))
@@ -132,6 +135,15 @@ class CoordinatorNode:
             lambda: self.incarnation,
             self.hold,
         )
+
+    def _subscribe(self, session: zenoh.Session, keys: Keys) -> list:
+        """Everything into the one inbox (perception's parts too, when the line works from its cameras); heartbeats
+        and frames also stamped on arrival."""
+        inbox_keys = (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
+        inbox_keys += (keys.seen_parts,) if self.seen is not None else ()
+        stamps = ((keys.all_arms("status"), self.lives.arrived), (keys.frame, self.lives.frame_arrived))
+        subs = [session.declare_subscriber(k, self.inbox) for k in inbox_keys]
+        return subs + [session.declare_subscriber(k, stamp) for k, stamp in stamps]  # heartbeats, frames: arrivals
 
     @property
     def events_seen(self) -> int:
@@ -187,6 +199,8 @@ class CoordinatorNode:
                 self._on_frame(msg)
             elif leaf == "roster":
                 self.lives.on_roster(key, msg)
+            elif leaf == "parts":
+                self.seen.take(msg)
             else:
                 self.lives.on_status(key, msg)
         self.lives.check(self.heartbeat_timeout_s)
@@ -207,6 +221,8 @@ class CoordinatorNode:
             return problem
         if leaf == "roster":
             return ""  # checked against the roster believed when it is heard (`_on_roster`)
+        if leaf == "parts":
+            return self.sim_clock.problem(msg.tick) or self.seen.problem(msg)
         return self.lives.status_problem(key, msg)
 
     def _on_frame(self, f: LineView) -> None:
@@ -245,6 +261,14 @@ class CoordinatorNode:
             tell_lost(s.arm, "the sim stopped hearing its controller", returned)
 
     def _on_parts(self, p: PartsState) -> None:
+        if self.seen is None:  # else the frame's parts are empty: perception's come at each decision
+            self._truth_parts(p)
+        last = self.dispatcher.clock.last_decision_tick
+        due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - last >= self.period_ticks
+        if due and p.tick > last:  # a re-sent frame: once
+            self.events.frame(p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
+
+    def _truth_parts(self, p: PartsState) -> None:
         self.dispatcher.on_parts(
             {
                 pid: PartView(np.array(p.positions[3 * i : 3 * i + 3]), np.array(p.velocities[3 * i : 3 * i + 3]))
@@ -252,16 +276,19 @@ class CoordinatorNode:
             },
             p.sim_time_s,
         )
-        last = self.dispatcher.clock.last_decision_tick
-        due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - last >= self.period_ticks
-        if due and p.tick > last:  # a re-sent frame: once
-            self.events.frame(p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
 
     def _decide_when_complete(self) -> None:
-        """Decide for the due frame's tick once every event published before it is in (`EventGate`)."""
-        tick = self.events.due_now(time.monotonic())
+        """Decide for the due frame's tick once every event published before it is in (`EventGate`), and with
+        perception, the parts of the newest frame usable then (`SeenParts`)."""
+        now = time.monotonic()
+        due = self.events.due
+        if self.seen is not None and due is not None and not self.seen.ready(due[0]) and now <= due[2]:
+            return
+        tick = self.events.due_now(now)
         if tick is None:
             return
+        if self.seen is not None:
+            self.dispatcher.on_parts(*self.seen.views(tick))
         started = time.perf_counter()
         decision = self.dispatcher.decide(tick)
         self.decision_times.took(1e3 * (time.perf_counter() - started), tick)
@@ -288,13 +315,21 @@ class CoordinatorNode:
 
     def report(self) -> dict:
         self.events.apply(2**62)  # the run is over: every event counts
-        return self.dispatcher.report() | {
-            "dropped_messages": self.drops.total,
-            "refused_messages": self.drops.kinds(),
-            "takeover": self.takeover,
-            "decisions_on_deadline": self.events.decided_on_deadline,
-            "decision_wall_ms": self.decision_times.summary() | self._reach_work(),
-        }
+        return (
+            self.dispatcher.report()
+            | {
+                "dropped_messages": self.drops.total,
+                "refused_messages": self.drops.kinds(),
+                "takeover": self.takeover,
+                "decisions_on_deadline": self.events.decided_on_deadline,
+                "decision_wall_ms": self.decision_times.summary() | self._reach_work(),
+            }
+            | ({"seen_parts": self._seen_report()} if self.seen is not None else {})
+        )
+
+    def _seen_report(self) -> dict:
+        frame_s = 1.0 / max(self.seen.ticks.rates_hz)
+        return self.seen.report(self.scene.control_hz, frame_s)
 
     def _reach_work(self) -> dict:
         """The wall time spent working out reach cells the tables lacked, and how many (start-up included)."""
@@ -434,6 +469,7 @@ def main(argv: list[str] | None = None) -> int:
             incarnation=args.incarnation,
             pipeline=args.pipeline,
             roster=args.roster,
+            perception=args.perception,
         )
         _ = node.dispatcher.capacity  # worked out before the line starts: at the end it must not hold up the report
         try:

@@ -1,6 +1,7 @@
 """The perception process: the parts a running line's fixed cameras show, as tracks, published for each frame
-(`PartDetections` on `clawfleet/<run>/perception/<camera>`, `docs/perception.md`). It attaches to the line over
-the bus, asks the sim for the scene, and sees only the cameras' colour and depth images.
+(`PartDetections` on `clawfleet/<run>/perception/<camera>`), and the line's parts as seen (`PartsState` on
+`clawfleet/<run>/seen/parts`, `docs/perception.md`). It attaches to the line over the bus, asks the sim for the
+scene, and sees only the cameras' colour and depth images and the line's events.
 
     python -m fleet.nodes.perception_node --run line --connect tcp/127.0.0.1:7447
 """
@@ -23,6 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run", default="line", help="run id of the line to see")
     parser.add_argument("--scene-timeout", type=float, default=15.0, help="seconds to wait for the sim's scene")
     parser.add_argument("--report", help="write the node's figures to this JSON file at exit")
+    parser.add_argument("--cameras", default="", help="the fixed cameras the sim renders, by name (default: all)")
     add_bus_arguments(parser)
     args = parser.parse_args(argv)
     stop = StopFlag()
@@ -32,20 +34,30 @@ def main(argv: list[str] | None = None) -> int:
         if scene is None:
             return 1
         cameras = [c.name for c in scene.cameras if c.arm is None]
+        if args.cameras and args.cameras != "all":
+            cameras = [name for name in cameras if name in args.cameras.split(",")]
         if not cameras:
             print(f"fleet perception: the scene {scene.name} has no fixed camera to see the line with", file=sys.stderr)
             return 1
         publishers = {name: session.declare_publisher(keys.detections(name)) for name in cameras}
-        feed = PerceptionFeed(scene, cameras, lambda camera, msg: publishers[camera].put(encode(msg)))
+        seen_pub = session.declare_publisher(keys.seen_parts)
+        feed = PerceptionFeed(
+            scene,
+            cameras,
+            lambda camera, msg: publishers[camera].put(encode(msg)),
+            lambda msg: seen_pub.put(encode(msg)),
+        )
         inbox = Inbox()
         subscribers = [
             session.declare_subscriber(keys.camera(name, kind), inbox) for name in cameras for kind in ("rgb", "depth")
         ]
+        subscribers.append(session.declare_subscriber(keys.events, inbox))
         try:
             while not stop.should_stop():
-                inbox.wait(0.1)
+                inbox.wait(0.05)
                 for key, payload in inbox.drain():
                     feed.take(key, payload)
+                feed.see()
         finally:
             for subscriber in subscribers:
                 subscriber.undeclare()

@@ -14,6 +14,7 @@ from fleet.bus.messages import ArmState, PartsState
 from fleet.bus.session import Inbox
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders, believable
 from fleet.snapshot.controller_state import FeedState
+from perception.seen_ticks import SeenTicks
 from robots.skills.interface import PartObservation
 
 NEWEST_PARTS = 64  # parts messages kept (a state delayed on the bus is matched with the parts of its own time)
@@ -43,7 +44,8 @@ def parts_from_message(
 class SimFeed:
     """The states of `arm` (with `arm_dof` joints) and the parts, from the controller's inboxes: none may run far
     ahead of the sim's clock (`TickClock` at `control_hz`), and a state may announce only orders `orders` can
-    still receive. `parts` are the line's parts as of the last state decided on."""
+    still receive. `parts` are the line's parts as of the last state decided on: the sim's, or with `seen` (the
+    line's cameras' frame ticks) perception's, of the newest frame usable at the state's tick."""
 
     def __init__(
         self,
@@ -55,8 +57,9 @@ class SimFeed:
         decoders: dict[str, Decoder],
         drops: DropCounter,
         orders: ControllerOrders,
+        seen: SeenTicks | None = None,
     ) -> None:
-        self.arm, self.arm_dof, self.round_types = arm, arm_dof, round_types
+        self.arm, self.arm_dof, self.round_types, self.seen = arm, arm_dof, round_types, seen
         self.inboxes, self.decoders, self.drops, self.orders = inboxes, decoders, drops, orders
         self.sim_clock = TickClock(control_hz)
         self.parts: dict[int, PartObservation] = {}
@@ -89,6 +92,8 @@ class SimFeed:
         if problem:
             return problem
         if isinstance(msg, PartsState):
+            if self.seen is not None and not self.seen.due(msg.tick):
+                return f"seen parts of tick {msg.tick}, when no camera takes a frame"
             return parts_problem(msg)
         # -1: orders act on arrival
         announced = seq_problem(msg.assign_seq, self.orders.assign_seq) if msg.assign_seq != -1 else ""
@@ -104,6 +109,10 @@ class SimFeed:
     def take_parts(self) -> None:
         """The parts messages queued, believed and kept."""
         self.parts_seen.extend(self._believed("parts"))
+
+    def parts_tick_for(self, tick: int) -> int:
+        """The tick of the parts a decision at `tick` works from: its own, or the newest frame usable then."""
+        return tick if self.seen is None else self.seen.usable_at(tick)
 
     def parts_in(self, tick: int) -> bool:
         """Whether the parts of `tick` (or later) are in (a tick below 0: none awaited)."""

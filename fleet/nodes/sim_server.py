@@ -225,7 +225,7 @@ def attach_cameras(server: SimServer, args: argparse.Namespace, session: zenoh.S
         rig = CameraRig(server.world, cameras_named(server.world.scene_model.cameras, args.cameras))
     except (ValueError, CameraMountError, RenderUnavailable) as exc:
         return str(exc)
-    server.cameras = LineCameras(rig, session, keys, args.camera_encoding)
+    server.cameras = LineCameras(rig, session, keys, args.camera_encoding, scored=args.perception == "cameras")
     server.cameras.warm_up()  # the renderer's set-up (seconds on a CPU) before the line's first tick, not in it
     return ""
 
@@ -304,6 +304,7 @@ def main(argv: list[str] | None = None) -> int:
             speed=args.speed,
         )
         server.spool = spool
+        server.outputs.blind = args.perception == "cameras"  # the line's parts are perception's: no poses go out
         why = attach_cameras(server, args, session, keys)
         if why:
             server.close()

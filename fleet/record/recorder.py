@@ -69,6 +69,7 @@ ARM_LEAVES = {
 }
 LINE_LEAVES = {
     "world/parts": PartsState,
+    "seen/parts": PartsState,  # perception's (`fleet run --perception cameras`)
     "world/events": LineEvent,
     "world/control": SimControl,
     "world/status": SimStatus,

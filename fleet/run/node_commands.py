@@ -70,6 +70,8 @@ class NodeCommands:
             *self._bus_args(listen, node),
             *extra,
         ]
+        if o.perception == "cameras":  # the line works from what its cameras show (`docs/perception.md`)
+            argv += ["--perception", "cameras"]
         if o.arms is not None:
             argv += ["--arms", str(o.arms)]
         report, log = self.dir / f"{name}.json", self.dir / f"{name}.log"
@@ -84,8 +86,8 @@ class NodeCommands:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
         if o.record_targets:
             sim_args += ["--record-targets", o.record_targets]
-        if o.cameras:
-            sim_args += ["--cameras", o.cameras, "--camera-encoding", o.rgb_encoding()]
+        if cameras := self.cameras():
+            sim_args += ["--cameras", cameras, "--camera-encoding", o.rgb_encoding()]
         if o.record:  # what the bus carries, as the sim hears it, for the recorder (no second copy on the wire)
             sim_args += ["--spool", str(self.spool_path)]
         if o.respawn:
@@ -99,6 +101,15 @@ class NodeCommands:
         if o.reseed is not None:
             sim_args += ["--reseed", str(o.reseed)]
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
+
+    def cameras(self) -> str | None:
+        """The cameras the sim renders: those asked for, and with `--perception cameras` every fixed one (the line
+        sees through all of them)."""
+        named = self.options.cameras
+        if self.options.perception != "cameras" or named == "all":
+            return named
+        fixed = [c.name for c in self.scene.cameras if c.arm is None]
+        return ",".join(dict.fromkeys([*(n.strip() for n in (named or "").split(",") if n.strip()), *fixed]))
 
     def _snapshot_args(self) -> list[str]:
         """The sim's snapshot flags: when (sim seconds) and where."""
@@ -153,7 +164,8 @@ class NodeCommands:
 
     def perception_node(self) -> Node:
         """The perception node, with the `perception` login: the parts the fixed cameras show, as tracks."""
-        return self._attached_node("perception", "fleet.nodes.perception_node", "perception", [])
+        extra = ["--cameras", self.cameras() or "all"]
+        return self._attached_node("perception", "fleet.nodes.perception_node", "perception", extra)
 
     def rosbridge_node(self) -> Node:
         """The rosbridge server, with the `ros` login."""

@@ -40,8 +40,8 @@ class RunOptions:
     record_targets: str | None = None  # the sim saves every tick's drive targets here (benchmarks replay them)
     cameras: str | None = None  # the scene's cameras to render: all, or names joined by commas (None: no rendering)
     camera_encoding: str = "auto"  # how RGB images travel (`fleet.bus.images`); auto: `rgb_encoding()`
-    # cameras: a perception node detects and tracks the parts the fixed cameras show (`docs/perception.md`); the
-    # line itself still works from the sim's truth (truth: no perception node)
+    # cameras: the line works from what its fixed cameras show: a perception node detects and tracks the parts, the
+    # coordinator and the controllers get only its parts (`docs/perception.md`); truth: the sim's, no perception node
     perception: str = "truth"
     record: str | None = None  # an MCAP file: the sim spools the bus from before its first client, a recorder writes it
     bus_config: str | None = None  # a `fleet bus-config` directory: the sim a router, each node its own login

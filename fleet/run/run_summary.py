@@ -49,6 +49,21 @@ def _report_of(nodes: list[Node], role: str) -> dict:
     return read_report(node.report) if node is not None else {}
 
 
+def picks(tasks: list[dict]) -> dict:
+    """The grasps the line tried and how they ended: a task done was picked; a task failed with `grasp_missed`
+    closed the claw on nothing (a pose seen wrong, a part knocked away)."""
+    done = sum(t["state"] == "done" for t in tasks)
+    missed = sum(t.get("failure_code") == "grasp_missed" for t in tasks)
+    vanished = sum(t.get("failure_code") == "part_vanished" for t in tasks)
+    tried = done + missed
+    return {
+        "done": done,
+        "grasp_missed": missed,
+        "part_vanished": vanished,
+        "success": round(done / tried, 3) if tried else None,
+    }
+
+
 class RunSummary:
     """The run summary of a run that ended: its nodes' reports (read once, each by its role) merged with what the
     launcher knows (`RunEnd`)."""
@@ -61,6 +76,17 @@ class RunSummary:
         self.monitor = read_report(monitors[0].report) if monitors else None
         seers = [n for n in end.nodes if n.role == "perception"]
         self.perception = read_report(seers[0].report) if seers else None
+
+    def _perception(self) -> dict | None:
+        """What seeing cost (`--perception cameras`): the perception node's figures, its parts scored against the
+        truth (the sim's `seen`), and how old the parts the coordinator decided on were."""
+        if self.perception is None:
+            return None
+        return self.perception | {
+            "scored": (self.sim or {}).get("seen"),
+            "coordinator": (self.coord or {}).get("seen_parts"),
+            "picks": picks((self.coord or {}).get("tasks", [])),
+        }
 
     @staticmethod
     def _capacity(capacity: dict | None, of_run: dict | None, completed: int, sim_s: float) -> dict:
@@ -160,7 +186,7 @@ class RunSummary:
                 "coordinator_takeover": coord.get("takeover"),
                 "respawn_requests": end.respawn_requests,
                 "monitor": None if self.monitor is None else {"url": end.server_urls.get("monitor", "")} | self.monitor,
-                "perception": self.perception,
+                "perception": self._perception(),
                 "unfinished_parts": coord.get("unfinished_parts", []),
                 "processes": [h for n in end.nodes for h in n.history] + [n.record() for n in end.nodes],
             }

@@ -150,7 +150,7 @@ class SimServer:
         self._take_answers_due()
         waited = t2 = time.perf_counter()
         if self.cameras is not None:  # the world as this tick's states show it, rendered while the controllers wait
-            self.cameras.tick(self.world.tick)  # for them (not while they compute their answers to them)
+            self.cameras.tick(self.world.tick, len(self.event_log))  # for them (not while they compute their answers)
             t2 = time.perf_counter()
             clock["cameras"] += t2 - waited
         self.outputs.states(due, parts, self._next_snapshot_tick())
@@ -295,6 +295,7 @@ class SimServer:
             | (self.snapshots.report() if self.snapshots is not None else {})
             | {"restored_from": self.restored_from, "snapshots_refused": list(self.snapshots_refused)}
             | ({"cameras": self.cameras.counts.report()} if self.cameras is not None else {})
+            | ({"seen": self.cameras.score.report()} if self.cameras is not None and self.cameras.score else {})
         )
 
 

@@ -70,6 +70,9 @@ class SimOutputs:
         self.parts_tick = -1  # of the newest parts message published
         self.told: dict[str, int] = {}  # by node: the next snapshot's tick named in the newest state or frame sent it
         self._view_at = -math.inf  # wall time of the last view built
+        # `--perception cameras`: the controllers and the coordinator get no part poses (perception's instead); the
+        # monitors' view still shows the truth
+        self.blind = False
 
     def use_world(self, world: World) -> None:
         self.world = world
@@ -159,16 +162,18 @@ class SimOutputs:
                     bus.put(bus.state_pubs[link.name], "state", encode(states[link.name]))
             parts = w.active_parts() if parts is None else parts
             parts_msg = parts_state(w, parts, len(self.event_log))
+            told = parts_state(w, [], len(self.event_log)) if self.blind else parts_msg
             if due:
-                seen = self._with_noise(parts_msg) if w.scene_model.part_pose_noise_m > 0 else parts_msg
+                seen = self._with_noise(told) if w.scene_model.part_pose_noise_m > 0 else told
                 bus.put(bus.parts_pub, "parts", encode(seen))
                 self.parts_tick = tick
             if frame or view:
-                line = LineView(tick, w.sim_time_s, tuple(states.values()), parts_msg, snapshot_tick=snapshot_tick)
+                arms = tuple(states.values())
                 if frame:
+                    line = LineView(tick, w.sim_time_s, arms, told, snapshot_tick=snapshot_tick)
                     self.coord_book.send(tick, line, 1, now, self.controls.deferred_coord)
                 if view:
-                    bus.put(bus.view_pub, "view", encode(line))
+                    bus.put(bus.view_pub, "view", encode(LineView(tick, w.sim_time_s, arms, parts_msg)))
         self._deliver()
 
     def _view_due(self) -> bool:

@@ -12,8 +12,10 @@ from fleet.bus.codec import encode
 from fleet.bus.images import encode_image, encodings_for
 from fleet.bus.keys import Keys
 from fleet.bus.messages import CameraImage
+from fleet.bus.session import Inbox
 from fleet.sim.cameras.frames import CameraFrame
 from fleet.sim.cameras.rig import CameraRig
+from fleet.sim.cameras.seen_score import SeenScore
 from scenes.schema import Camera
 
 
@@ -56,8 +58,11 @@ def cameras_named(cameras: list[Camera], names: str) -> list[Camera]:
     return [by_name[n] for n in dict.fromkeys(chosen)]
 
 
-def image_messages(frame: CameraFrame, tick: int, encodings: dict[str, str]) -> list[CameraImage]:
-    """A frame's images as bus messages, each packed as `encodings` says for its kind."""
+def image_messages(
+    frame: CameraFrame, tick: int, encodings: dict[str, str], events_published: int = 0
+) -> list[CameraImage]:
+    """A frame's images as bus messages, each packed as `encodings` says for its kind; `events_published`: the line
+    events the sim had published by then."""
     width, height = frame.size_px
     intrinsics = tuple(float(v) for v in frame.intrinsics.ravel())
     position_m = tuple(float(v) for v in frame.position_m)
@@ -75,6 +80,7 @@ def image_messages(frame: CameraFrame, tick: int, encodings: dict[str, str]) -> 
             intrinsics=intrinsics,
             position_m=position_m,
             quaternion_wxyz=quaternion_wxyz,
+            events_published=events_published,
         )
         for kind, image in frame.images().items()
     ]
@@ -83,7 +89,10 @@ def image_messages(frame: CameraFrame, tick: int, encodings: dict[str, str]) -> 
 class LineCameras:
     """Renders the cameras due at a tick and puts their images on the bus, counting what it costs."""
 
-    def __init__(self, rig: CameraRig, session: zenoh.Session, keys: Keys, rgb_encoding: str = "png") -> None:
+    def __init__(
+        self, rig: CameraRig, session: zenoh.Session, keys: Keys, rgb_encoding: str = "png", scored: bool = False
+    ) -> None:
+        """`scored`: the line works from what perception sees; its parts are scored against the truth here."""
         self.rig = rig
         self.encodings = encodings_for(rgb_encoding)
         self.counts = CameraCounts()
@@ -92,6 +101,12 @@ class LineCameras:
             for name, camera in rig.cameras.items()
             for kind in camera.model.images
         }
+        self.score: SeenScore | None = None
+        self._seen_sub = None
+        if scored:
+            inbox = Inbox()
+            self._seen_sub = session.declare_subscriber(keys.seen_parts, inbox)
+            self.score = SeenScore(inbox)
 
     def warm_up(self) -> None:
         """Render every camera once, unsent: the renderer's set-up is paid here (counted as the first frame's)."""
@@ -99,19 +114,24 @@ class LineCameras:
         self.rig.frames()
         self.counts.first_frame_s = time.perf_counter() - start
 
-    def tick(self, tick: int) -> None:
-        """The frames due at `tick` (the world standing at it), rendered and put."""
+    def tick(self, tick: int, events_published: int = 0) -> None:
+        """The frames due at `tick` (the world standing at it), rendered and put; `events_published`: the line
+        events the sim had published by then."""
+        if self.score is not None:
+            self.score.take()
         due = self.rig.due(tick)
         if not due:
             return
         start = time.perf_counter()
         frames = self.rig.frames(due)
         rendered = time.perf_counter()
+        if self.score is not None:
+            self.score.frame(tick, self.rig.world, frames)
         self.counts.render_s += rendered - start
         for name, frame in frames.items():
             self.counts.frames += 1
             self.counts.by_camera[name] = self.counts.by_camera.get(name, 0) + 1
-            for message in image_messages(frame, tick, self.encodings):
+            for message in image_messages(frame, tick, self.encodings, events_published):
                 data = encode(message)
                 self._pubs[(name, message.kind)].put(data)
                 self.counts.images += 1
@@ -121,3 +141,5 @@ class LineCameras:
     def close(self) -> None:
         for pub in self._pubs.values():
             pub.undeclare()
+        if self._seen_sub is not None:
+            self._seen_sub.undeclare()

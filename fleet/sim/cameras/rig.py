@@ -12,6 +12,7 @@ from fleet.sim.cameras.mirror import RenderMirror
 from fleet.sim.cameras.placement import body_pose, optical_pose
 from fleet.sim.render import render_system
 from fleet.sim.world import World
+from perception.seen_ticks import frame_due
 from scenes.schema import Camera
 
 
@@ -51,12 +52,8 @@ class MountedCamera:
         return pose
 
     def due(self, tick: int, control_hz: float) -> bool:
-        """Whether a frame falls on this control tick: the first tick at or after each multiple of 1 / rate_hz."""
-
-        def frame_index(t: int) -> int:
-            return math.floor(t * self.model.rate_hz / control_hz + 1e-9)
-
-        return tick == 0 or frame_index(tick) != frame_index(tick - 1)
+        """Whether a frame falls on this control tick (`perception.seen_ticks.frame_due`)."""
+        return frame_due(tick, self.model.rate_hz, control_hz)
 
 
 class CameraRig:

@@ -73,7 +73,3 @@ def test_perception_on_a_scene_without_a_fixed_camera_is_one_line_before_anythin
         and stderr.startswith("fleet: error: --perception cameras: the scene ")
         and "no fixed camera" in stderr
     )
-    code, _, stderr = fleet_in_process(
-        ["run", "pick_cell", "--duration", "1", "--perception", "cameras", "--cameras", "wrist"]
-    )
-    assert code == 2 and "--cameras names no fixed camera; the scene's are overhead" in stderr, stderr

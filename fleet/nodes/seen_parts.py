@@ -1,0 +1,65 @@
+"""The coordinator's parts when the line works from its cameras (`--perception cameras`): perception's `PartsState`
+messages, one a frame tick, and for each decision the newest frame usable at its tick; how old those parts were."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from coordinator.allocation import PartView
+from fleet.bus.message_checks import parts_problem
+from fleet.bus.messages import PartsState
+from perception.seen_ticks import SeenTicks
+
+NEWEST_SEEN = 64  # frames' parts kept (a decision works from the newest usable at its tick)
+
+
+class SeenParts:
+    """Perception's parts (`take`), believed only at a frame tick of `ticks`; `ready(tick)` says whether a decision
+    at `tick` has its frame in, `views(tick)` gives its parts."""
+
+    def __init__(self, ticks: SeenTicks) -> None:
+        self.ticks = ticks
+        self.frames: deque[PartsState] = deque(maxlen=NEWEST_SEEN)
+        self.ages_ticks: list[int] = []  # per decision: its tick less its frame's
+        self.late = 0  # decisions made without their frame (perception silent or slow)
+
+    def problem(self, msg: PartsState) -> str:
+        """Why a decoded parts message cannot be perception's ("" if it can)."""
+        if not self.ticks.due(msg.tick):
+            return f"seen parts of tick {msg.tick}, when no camera takes a frame"
+        return parts_problem(msg)
+
+    def take(self, msg: PartsState) -> None:
+        if not self.frames or msg.tick > self.frames[-1].tick:
+            self.frames.append(msg)
+
+    def ready(self, tick: int) -> bool:
+        needed = self.ticks.usable_at(tick)
+        return needed < 0 or (bool(self.frames) and self.frames[-1].tick >= needed)
+
+    def views(self, tick: int) -> tuple[dict[int, PartView], float]:
+        """The parts of the newest frame usable at `tick` (none before the first), and that frame's sim time."""
+        needed = self.ticks.usable_at(tick)
+        usable = [m for m in self.frames if m.tick <= needed]
+        if not usable:
+            self.late += needed >= 0
+            return {}, 0.0
+        frame = usable[-1]
+        self.late += frame.tick != needed
+        self.ages_ticks.append(tick - frame.tick)
+        return {
+            pid: PartView(np.array(frame.positions[3 * i : 3 * i + 3]), np.array(frame.velocities[3 * i : 3 * i + 3]))
+            for i, pid in enumerate(frame.part_ids)
+        }, frame.sim_time_s
+
+    def report(self, control_hz: float, frame_s: float) -> dict:
+        """How old the parts decisions worked from were (p50, p95: ms and frames), and how many went without."""
+        ages_s = np.asarray(self.ages_ticks, float) / control_hz
+        out = {"decisions": len(self.ages_ticks), "decisions_without_their_frame": self.late}
+        for q in (50, 95):
+            age = float(np.percentile(ages_s, q)) if len(ages_s) else float("nan")
+            out[f"latency_p{q}_ms"] = round(1000.0 * age, 1)
+            out[f"latency_p{q}_frames"] = round(age / frame_s, 2)
+        return out
