@@ -25,6 +25,7 @@ from fleet.cli.errors import (
     output_folder,
     positive_numbers,
 )
+from fleet.cli.run import check_camera_flags
 from fleet.common.scene_loading import load_checked_scene
 
 
@@ -112,12 +113,18 @@ def sweep_cells(args: argparse.Namespace) -> tuple[list, dict[str, str], Path]:
     try:
         seeds = parse_seeds(args.seeds)
         overrides = sweep_overrides(args)
-        cells = grid(scene, seeds, args.allocator, args.duration, args.arms, overrides, args.from_snapshot)
+        perceptions = list(dict.fromkeys(args.perception))
+        grid_args = (args.duration, args.arms, overrides, args.from_snapshot, perceptions)
+        cells = grid(scene, seeds, args.allocator, *grid_args)
     except GridError as exc:
         raise UsageError(str(exc)) from None
     if args.from_snapshot:  # a branch runs the snapshot's scene
+        if "cameras" in perceptions:
+            raise UsageError("--perception cameras: a line working from its cameras cannot be restored yet")
         return cells, {c.run_id: args.from_snapshot for c in cells}, output_folder("--out", args.out)
-    load_checked_scene(scene, arms=args.arms)
+    checked = load_checked_scene(scene, arms=args.arms)
+    if "cameras" in perceptions:
+        check_camera_flags(argparse.Namespace(perception="cameras", cameras=None), checked)
     out_dir = output_folder("--out", args.out)
     return cells, scenes_for(cells, out_dir / "scenes"), out_dir
 
@@ -181,6 +188,10 @@ def cells_table(cells_rows: list[dict]) -> Table:
         "of the run's arrivals",
         "contacts",
     )
+    seeing = any(c.get("perception") == "cameras" for c in cells_rows)
+    if seeing:  # what seeing cost: the p95 error of the parts seen and the grasps that held
+        table.add_column("seen p95 mm")
+        table.add_column("picks held")
 
     def ci(c, figure, digits=2):
         mean, half = c[f"{figure}_mean"], c[f"{figure}_ci95"]
@@ -196,6 +207,7 @@ def cells_table(cells_rows: list[dict]) -> Table:
             ci(c, "bound_fraction"),
             ci(c, "run_bound_fraction"),
             ci(c, "inter_arm_contacts", 1),
+            *((ci(c, "seen_error_p95_mm", 1), ci(c, "pick_success")) if seeing else ()),
         )
     return table
 
@@ -216,6 +228,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     _add_grid_arguments(p)
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
+    p.add_argument(
+        "--perception",
+        nargs="+",
+        choices=("truth", "cameras"),
+        default=["truth"],
+        help="where the line's parts come from (`fleet run --perception`); both: each seed run either way, compared",
+    )
     p.add_argument(
         "--duration",
         type=float,

@@ -66,6 +66,7 @@ class RunCell:
     arms: int | None = None
     overrides: dict = field(default_factory=dict)
     restore_from: str | None = None  # a snapshot every run branches from (the seed then draws its later arrivals)
+    perception: str = "truth"  # where the line's parts come from (`fleet run --perception`)
 
     @property
     def group(self) -> dict:
@@ -76,13 +77,18 @@ class RunCell:
             "allocator": self.allocator,
             "duration_s": self.duration_s,
             **({"from": Path(self.restore_from).name} if self.restore_from else {}),
+            **({"perception": self.perception} if self.perception != "truth" else {}),
             **self.overrides,
         }
 
     @property
     def run_id(self) -> str:
-        """Stable across sweeps: a finished run is found again by it."""
-        text = json.dumps(asdict(self), sort_keys=True, default=str)
+        """Stable across sweeps: a finished run is found again by it (a run on the truth as before perception was
+        a choice)."""
+        fields = asdict(self)
+        if fields["perception"] == "truth":
+            del fields["perception"]
+        text = json.dumps(fields, sort_keys=True, default=str)
         return "r" + hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
@@ -103,21 +109,23 @@ def grid(
     arms: int | None = None,
     overrides: list[Override] = (),
     restore_from: str | None = None,
+    perceptions: list[str] = ("truth",),
 ) -> list[RunCell]:
     """Every combination, seeds innermost (so the first runs already cover every group); refused in one line when
     there would be more than `MAX_RUNS` (counted before any is made)."""
-    count = len(seeds) * len(allocators) * math.prod(len(o.values) for o in overrides)
+    count = len(seeds) * len(allocators) * len(perceptions) * math.prod(len(o.values) for o in overrides)
     if count > MAX_RUNS:
         raise GridError(
             f"{count:,} runs ({len(seeds):,} seeds x {len(allocators)} allocators x the --set values): "
             f"a sweep takes at most {MAX_RUNS:,}"
         )
     paths = [o.path for o in overrides]
-    combos = itertools.product(allocators, *(o.values for o in overrides))
+    combos = itertools.product(allocators, perceptions, *(o.values for o in overrides))
     cells = []
-    for allocator, *values in combos:
+    for allocator, seeing, *values in combos:
         for seed in seeds:
-            cells.append(RunCell(scene, seed, allocator, duration_s, arms, dict(zip(paths, values)), restore_from))
+            cell = RunCell(scene, seed, allocator, duration_s, arms, dict(zip(paths, values)), restore_from, seeing)
+            cells.append(cell)
     return sorted(cells, key=lambda c: (c.seed, json.dumps(c.group, sort_keys=True, default=str)))
 
 

@@ -28,6 +28,9 @@ FIGURES = (
     "min_separation_m",
     "grants_denied",
     "wall_seconds",
+    "seen_error_p95_mm",
+    "seen_recall",
+    "pick_success",
 )
 
 
@@ -50,12 +53,26 @@ def run_rows(results: list[dict]) -> list[dict]:
         }
         if cell.get("restore_from"):
             row["from"] = Path(cell["restore_from"]).name  # a branch: every run from this snapshot
+        if cell.get("perception", "truth") != "truth":
+            row["perception"] = cell["perception"]
+            row |= seen_figures(summary.get("perception") or {})
         row |= {f"set:{k}": v for k, v in sorted(cell["overrides"].items())}
         row |= {k: v for k, v in sorted(summary.items()) if _scalar(v) and k not in row}
         busy = [float(v) for v in (summary.get("utilisation") or {}).values() if isinstance(v, (int, float))]
         row["utilisation_mean"] = round(float(np.mean(busy)), 4) if busy else None  # the arms' mean busy share
         rows.append(row)
     return rows
+
+
+def seen_figures(perception: dict) -> dict:
+    """What seeing cost a run that worked from its cameras, as scalars: the p95 position error, the recall and the
+    share of grasps that held."""
+    scored = perception.get("scored") or {}
+    return {
+        "seen_error_p95_mm": scored.get("position_error_p95_mm"),
+        "seen_recall": scored.get("recall"),
+        "pick_success": (perception.get("picks") or {}).get("success"),
+    }
 
 
 def _run_id(cell: dict) -> str:
@@ -68,7 +85,7 @@ def group_key(row: dict) -> tuple:
     return tuple(
         (k, json.dumps(row[k]))
         for k in sorted(row)
-        if k in ("scene", "arms", "allocator", "duration_s", "from") or k.startswith("set:")
+        if k in ("scene", "arms", "allocator", "duration_s", "from", "perception") or k.startswith("set:")
     )
 
 
@@ -149,7 +166,8 @@ def write_csv(path: Path, rows: list[dict]) -> Path:
 
 def label(cell: dict) -> str:
     sets = ", ".join(f"{k[4:]}={cell[k]}" for k in sorted(cell) if k.startswith("set:"))
-    return f"{cell['allocator']}" + (f" ({sets})" if sets else "")
+    seeing = " seen by cameras" if cell.get("perception") == "cameras" else ""
+    return f"{cell['allocator']}{seeing}" + (f" ({sets})" if sets else "")
 
 
 def plot_throughput(cells: list[dict], path: Path) -> Path:

@@ -87,6 +87,7 @@ def _run_cell(cell: RunCell, scene: str, run_id: str, scene_text: str | None) ->
                 seed=cell.seed,
                 allocator=cell.allocator,
                 run_id=run_id,
+                perception=cell.perception,
             )
         keep_factory()  # a worker's runs fork their nodes from one factory, kept from run to run
         with Launcher(options, on_message=lambda _text: None) as launcher:

@@ -113,6 +113,23 @@ def test_the_grid_covers_every_combination_seeds_innermost():
     )
 
 
+def test_perception_is_a_dimension_of_the_grid_and_a_run_on_the_truth_keeps_its_id():
+    truth = grid("pick_cell", [0, 1], ["optimal"], 10.0)
+    both = grid("pick_cell", [0, 1], ["optimal"], 10.0, perceptions=["truth", "cameras"])
+    assert len(both) == 4 and {c.perception for c in both} == {"truth", "cameras"}
+    assert {c.run_id for c in truth} < {c.run_id for c in both}, "a sweep on the truth resumes as before"
+    assert [c.group.get("perception") for c in both[:2]] == ["cameras", None]
+
+
+def test_a_sweep_that_would_see_a_scene_without_a_fixed_camera_is_one_line(tmp_path):
+    from tests.fleet.test_run import QUICK_LINE
+
+    code, _, stderr = fleet_in_process(
+        ["sweep", QUICK_LINE, "--seeds", "0", "--perception", "cameras", "--out", str(tmp_path / "s")]
+    )
+    assert code == 2 and stderr.startswith("fleet: error: --perception cameras: the scene ") and stderr.count("\n") == 1
+
+
 def test_an_override_is_checked_like_a_scene_file(tmp_path):
     path = scene_with(
         "assembly_line", {"conveyor.speed_m_per_s": 0.07, "feeders.0.arrival.rate_per_min": 2.0}, tmp_path
