@@ -234,7 +234,10 @@ class ArmController:
             orders.await_order(state.assign_seq)
         orders.apply(state.assign_seq, self.skill)
         if self.skill.active or orders.pending is not None:  # only a task needs the parts: skip decoding otherwise
-            self.feed.parts_for_tick(self.feed.parts_tick_for(state.tick))
+            if self.seen is None:
+                self.feed.parts_for_tick(state.tick)
+            else:  # perception's newest usable frame, carried to this state's tick
+                self.feed.parts_for_tick(self.seen.usable_at(state.tick), state.tick)
         else:
             self.feed.skip_parts()
         self._expect_latency(state)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import numpy as np
 
 from fleet.bus.codec import DropCounter
@@ -137,3 +138,11 @@ def seen_ticks_of(scene: Scene) -> SeenTicks:
     if not rates:
         raise ValueError(f"the scene {scene.name} has no fixed camera to see the line with")
     return SeenTicks(rates, scene.control_hz)
+
+
+def carried_to(msg: PartsState, tick: int, control_hz: float) -> PartsState:
+    """Perception's parts of a frame, carried to control tick `tick` by the motion it gives each (a belt part rides
+    on): what a node acting at `tick` takes them to be, not where they were when the frame was taken."""
+    ahead_s = (tick - msg.tick) / control_hz
+    positions = tuple(p + v * ahead_s for p, v in zip(msg.positions, msg.velocities))
+    return msgspec.structs.replace(msg, tick=tick, sim_time_s=tick / control_hz, positions=positions)

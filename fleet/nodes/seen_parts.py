@@ -10,6 +10,7 @@ import numpy as np
 from coordinator.allocation import PartView
 from fleet.bus.message_checks import parts_problem
 from fleet.bus.messages import PartsState
+from fleet.nodes.line_sight import carried_to
 from perception.seen_ticks import SeenTicks
 
 NEWEST_SEEN = 64  # frames' parts kept (a decision works from the newest usable at its tick)
@@ -20,7 +21,7 @@ class SeenParts:
     at `tick` has its frame in, `views(tick)` gives its parts."""
 
     def __init__(self, ticks: SeenTicks) -> None:
-        self.ticks = ticks
+        self.ticks, self.control_hz = ticks, ticks.control_hz
         self.frames: deque[PartsState] = deque(maxlen=NEWEST_SEEN)
         self.ages_ticks: list[int] = []  # per decision: its tick less its frame's
         self.late = 0  # decisions made without their frame (perception silent or slow)
@@ -40,15 +41,16 @@ class SeenParts:
         return needed < 0 or (bool(self.frames) and self.frames[-1].tick >= needed)
 
     def views(self, tick: int) -> tuple[dict[int, PartView], float]:
-        """The parts of the newest frame usable at `tick` (none before the first), and that frame's sim time."""
+        """The parts of the newest frame usable at `tick` (none before the first), carried to `tick` by their motion,
+        and the sim time of `tick`."""
         needed = self.ticks.usable_at(tick)
         usable = [m for m in self.frames if m.tick <= needed]
         if not usable:
             self.late += needed >= 0
-            return {}, 0.0
-        frame = usable[-1]
-        self.late += frame.tick != needed
-        self.ages_ticks.append(tick - frame.tick)
+            return {}, tick / self.control_hz
+        self.late += usable[-1].tick != needed
+        self.ages_ticks.append(tick - usable[-1].tick)
+        frame = carried_to(usable[-1], tick, self.control_hz)
         return {
             pid: PartView(np.array(frame.positions[3 * i : 3 * i + 3]), np.array(frame.velocities[3 * i : 3 * i + 3]))
             for i, pid in enumerate(frame.part_ids)

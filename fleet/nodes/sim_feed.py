@@ -13,6 +13,7 @@ from fleet.bus.message_checks import TickClock, arm_state_problem, parts_problem
 from fleet.bus.messages import ArmState, PartsState
 from fleet.bus.session import Inbox
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders, believable
+from fleet.nodes.line_sight import carried_to
 from fleet.snapshot.controller_state import FeedState
 from perception.seen_ticks import SeenTicks
 from robots.skills.interface import PartObservation
@@ -61,7 +62,7 @@ class SimFeed:
     ) -> None:
         self.arm, self.arm_dof, self.round_types, self.seen = arm, arm_dof, round_types, seen
         self.inboxes, self.decoders, self.drops, self.orders = inboxes, decoders, drops, orders
-        self.sim_clock = TickClock(control_hz)
+        self.sim_clock, self.control_hz = TickClock(control_hz), control_hz
         self.parts: dict[int, PartObservation] = {}
         self.parts_tick = -1
         self.parts_seen: deque[PartsState] = deque(maxlen=NEWEST_PARTS)
@@ -110,23 +111,20 @@ class SimFeed:
         """The parts messages queued, believed and kept."""
         self.parts_seen.extend(self._believed("parts"))
 
-    def parts_tick_for(self, tick: int) -> int:
-        """The tick of the parts a decision at `tick` works from: its own, or the newest frame usable then."""
-        return tick if self.seen is None else self.seen.usable_at(tick)
-
     def parts_in(self, tick: int) -> bool:
         """Whether the parts of `tick` (or later) are in (a tick below 0: none awaited)."""
         return tick < 0 or (bool(self.parts_seen) and self.parts_seen[-1].tick >= tick)
 
-    def parts_for_tick(self, tick: int) -> None:
+    def parts_for_tick(self, tick: int, now_tick: int | None = None) -> None:
         """The parts as of `tick` (the newest sampled no later). They travel apart from the arm's state, so wait
-        (briefly) for that tick's message."""
+        (briefly) for that tick's message. With `now_tick` (perception's parts, of an older frame), carried to it."""
         deadline = time.monotonic() + ASSIGNMENT_WAIT_S
         while True:
             self.take_parts()
             seen = [m for m in self.parts_seen if m.tick <= tick]
-            if seen and seen[-1].tick != self.parts_tick:
-                self.parts, self.parts_tick = parts_from_message(seen[-1], self.round_types), seen[-1].tick
+            if seen and (seen[-1].tick != self.parts_tick or now_tick is not None):
+                msg = seen[-1] if now_tick is None else carried_to(seen[-1], now_tick, self.control_hz)
+                self.parts, self.parts_tick = parts_from_message(msg, self.round_types), seen[-1].tick
             if self.parts_in(tick):
                 return
             if time.monotonic() > deadline:
