@@ -6,16 +6,11 @@ import numpy as np
 from perception.detect import Detection
 from perception.line_parts import LineParts
 from perception.tracks import PartTracks
-
-BELT_M_PER_S = np.array([0.1, 0.0, 0.0])
-FRAME_S = 0.2  # 5 Hz
-
-
-def belt_under(point: np.ndarray) -> np.ndarray:
-    return BELT_M_PER_S if abs(point[1]) < 0.1 else np.zeros(3)
+from tests.perception.test_tracks import FRAME_S, belt_under
 
 
 def seen(x: float, y: float, t: float, kind: int = 0) -> Detection:
+    """A part of `kind` seen whole at (x, y), turned 0.3 rad."""
     return Detection("overhead", t, kind, (x, y, 0.1), 0.3, 12, 0.9)
 
 
