@@ -21,6 +21,7 @@ from coordinator.policy_file import PolicyFileError, load_policy
 from scenes.schema import Scene
 
 ENTRY_POINT_GROUP = "clawfleet.allocators"
+FRAMES_HZ = (1.0, 5.0)  # the rates an allocator may look at the cameras (`frames_hz`): a brain's, not a controller's
 
 
 class AllocatorError(ValueError):
@@ -98,6 +99,30 @@ def allocator_factory(spec: str) -> Callable[[Scene], Allocator]:
     )
 
 
+def frames_wanted(made: object, spec: str) -> float | None:
+    """The rate (Hz) at which an allocator, or the class that makes it, asks to see the cameras' frames (its
+    `frames_hz`; None: it does not look); AllocatorError for a rate it may not have."""
+    hz = getattr(made, "frames_hz", None)
+    if hz is None:
+        return None
+    if not isinstance(hz, (int, float)) or not FRAMES_HZ[0] <= hz <= FRAMES_HZ[1]:
+        raise AllocatorError(f"allocator {spec!r} asks for frames at {hz!r} Hz: it may look at 1-5 Hz")
+    if not callable(getattr(made, "see", None)):
+        raise AllocatorError(f"allocator {spec!r} asks for frames but has no see(frames) to be handed them")
+    return float(hz)
+
+
+def sees(spec: str | None) -> bool:
+    """Whether the allocator `spec` names asks to see the cameras' frames (False also when it does not load: where
+    it is made, that is said)."""
+    if not spec:
+        return False
+    try:
+        return frames_wanted(allocator_factory(spec), spec) is not None
+    except AllocatorError:
+        return False
+
+
 def describe(source: AllocatorSource) -> str:
     """What an allocator does (its docstring's first sentence), or why it does not load."""
     if source.summary:
@@ -111,7 +136,7 @@ def describe(source: AllocatorSource) -> str:
 def check_allocator(spec: str) -> str:
     """`spec` if it names an allocator that loads (a policy file's path made absolute: the line's processes may
     start elsewhere); AllocatorError otherwise (a CLI checks before it starts a line)."""
-    allocator_factory(spec)
+    frames_wanted(allocator_factory(spec), spec)
     if spec.startswith(POLICY_PREFIX):
         return POLICY_PREFIX + str(Path(spec.removeprefix(POLICY_PREFIX)).resolve())
     return spec
@@ -129,4 +154,5 @@ def make_any_allocator(spec: str, scene: Scene) -> Allocator:
         raise AllocatorError(f"allocator {spec!r} could not be made: {exc.__class__.__name__}: {exc}") from None
     if not callable(getattr(inner, "allocate", None)):
         raise AllocatorError(f"allocator {spec!r}: what it made has no allocate(tasks, arms, parts, busy_stations)")
+    frames_wanted(inner, spec)
     return GuardedAllocator(inner, scene)

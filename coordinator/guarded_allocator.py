@@ -38,6 +38,17 @@ class GuardedAllocator:
         self.fallback = GreedyNearest(scene)
         self.faults: Counter[str] = Counter()
         self.decisions = 0
+        if getattr(inner, "frames_hz", None) is not None:  # it looks at the cameras (`see`)
+            self.frames_hz = float(inner.frames_hz)
+
+    def see(self, frames: list) -> None:
+        """Hand the plug-in the cameras' frames; a fault in looking costs that look only (counted)."""
+        try:
+            self.inner.see(list(frames))
+        except Exception as exc:  # a plug-in's own fault: it decides on what it saw before
+            if not self.faults["see_raised"]:
+                self.say(f"allocator {self.name}: see raised {exc.__class__.__name__}: {str(exc)[:200]} (said once)")
+            self.faults["see_raised"] += 1
 
     def allocate(
         self, tasks: list[Task], arms: list[ArmView], parts: dict[int, PartView], busy_stations: set[str]

@@ -200,10 +200,14 @@ def check_camera_flags(args: argparse.Namespace, scene) -> None:
     """`--cameras` names cameras the scene has, on a machine that can render them: else one line, before anything
     starts. `--perception cameras` renders every fixed camera of the scene (the line sees through all of them),
     besides those `--cameras` names."""
-    if args.perception == "cameras":
+    from coordinator.allocator_plugins import sees
+
+    allocator = getattr(args, "allocator", None)
+    if args.perception == "cameras" or sees(allocator):
         fixed = [c.name for c in scene.cameras if c.arm is None]
+        what = "--perception cameras" if args.perception == "cameras" else f"--allocator {allocator} (it sees)"
         if not fixed:
-            raise UsageError(f"--perception cameras: the scene {scene.name} has no fixed camera (docs/cameras.md)")
+            raise UsageError(f"{what}: the scene {scene.name} has no fixed camera (docs/cameras.md)")
         if not args.cameras:
             args.cameras = ",".join(fixed)  # checked below: a machine that cannot render is refused in one line
     if not args.cameras:

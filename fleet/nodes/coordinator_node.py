@@ -50,6 +50,7 @@ from fleet.bus.messages import (
 )
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
+from fleet.nodes.allocator_eyes import AllocatorEyes
 from fleet.nodes.controller_lives import ControllerLives, tell_lost
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
@@ -90,8 +91,6 @@ class CoordinatorNode:
         perception: str = "truth",
     ) -> None:
         self.scene, self.keys, self.lockstep = scene, keys, lockstep
-        # `cameras`: the parts are perception's (`seen/parts`), not the frames' (`docs/perception.md`)
-        self.seen = SeenParts(seen_ticks_of(scene)) if perception == "cameras" else None
         self.incarnation = incarnation
         first_task_id = (incarnation - 1) * TASK_ID_SPAN + 1
         self.dispatcher = Dispatcher(scene, allocator or make_allocator("optimal", scene), first_task_id, pipeline)
@@ -99,6 +98,7 @@ class CoordinatorNode:
         self.arm_names = [a.name for a in scene.arms]
         self.period_ticks = self.dispatcher.period_ticks
         self.drops = DropCounter()
+        self.seen, self.eyes = self._senses(perception)
         self.events = EventGate(self.dispatcher, self.drops, scene.control_hz)
         self.decision_times = DecisionTimes()
         self._decoders = {
@@ -136,11 +136,20 @@ class CoordinatorNode:
             self.hold,
         )
 
+    def _senses(self, perception: str) -> tuple[SeenParts | None, AllocatorEyes | None]:
+        """What this coordinator sees: with `cameras`, perception's parts (`seen/parts`) instead of the frames'
+        (`docs/perception.md`); the cameras' frames, for an allocator that asks to see them (`frames_hz`)."""
+        seen = SeenParts(seen_ticks_of(self.scene)) if perception == "cameras" else None
+        frames_hz = getattr(self.dispatcher.allocator, "frames_hz", None)
+        return seen, (AllocatorEyes(self.scene, frames_hz, self.drops) if frames_hz is not None else None)
+
     def _subscribe(self, session: zenoh.Session, keys: Keys) -> list:
         """Everything into the one inbox (perception's parts too, when the line works from its cameras); heartbeats
         and frames also stamped on arrival."""
         inbox_keys = (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
         inbox_keys += (keys.seen_parts,) if self.seen is not None else ()
+        if self.eyes is not None:
+            inbox_keys += tuple(keys.camera(c.name, kind) for c in self.eyes.cameras for kind in ("rgb", "depth"))
         stamps = ((keys.all_arms("status"), self.lives.arrived), (keys.frame, self.lives.frame_arrived))
         subs = [session.declare_subscriber(k, self.inbox) for k in inbox_keys]
         return subs + [session.declare_subscriber(k, stamp) for k, stamp in stamps]  # heartbeats, frames: arrivals
@@ -186,6 +195,9 @@ class CoordinatorNode:
         """Handle everything queued, in order. True if anything was."""
         items = self.inbox.drain()
         for key, payload in items:
+            if self.eyes is not None and "/camera/" in key:
+                self.eyes.take(key, payload)
+                continue
             leaf = key.rsplit("/", 1)[-1]
             msg = self._decoders[leaf].decode(key, payload) if leaf in self._decoders else None
             if msg is None or (leaf == "events" and (msg.kind, msg.part_id, msg.tick, msg.detail) in self.replayed):
@@ -279,16 +291,23 @@ class CoordinatorNode:
 
     def _decide_when_complete(self) -> None:
         """Decide for the due frame's tick once every event published before it is in (`EventGate`), and with
-        perception, the parts of the newest frame usable then (`SeenParts`)."""
+        perception, the parts of the newest frame usable then (`SeenParts`); an allocator that sees is handed the
+        cameras' frames of its look first (`AllocatorEyes`)."""
         now = time.monotonic()
         due = self.events.due
-        if self.seen is not None and due is not None and not self.seen.ready(due[0]) and now <= due[2]:
+        if due is None:
             return
+        shown = self.eyes.look_due(due[0]) if self.eyes is not None else None
+        seen_waits = self.seen is not None and not self.seen.ready(due[0])
+        if (seen_waits or (shown is not None and not self.eyes.ready(shown))) and now <= due[2]:
+            return  # the frame's parts or the allocator's frames are still on their way
         tick = self.events.due_now(now)
         if tick is None:
             return
         if self.seen is not None:
             self.dispatcher.on_parts(*self.seen.views(tick))
+        if shown is not None:  # an allocator that sees: the frames of its look, before it decides
+            self.eyes.hand(self.dispatcher.allocator.see, shown)
         started = time.perf_counter()
         decision = self.dispatcher.decide(tick)
         self.decision_times.took(1e3 * (time.perf_counter() - started), tick)

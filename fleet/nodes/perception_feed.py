@@ -14,9 +14,9 @@ from collections.abc import Callable
 import numpy as np
 
 from fleet.bus.codec import Decoder, DropCounter
-from fleet.bus.images import decode_image
 from fleet.bus.messages import CameraImage, LineEvent, PartDetections, PartsState
 from fleet.nodes.line_sight import LineSight
+from fleet.nodes.rgbd_pairs import RGBDPairs
 from fleet.sim.cameras.part_looks import part_looks
 from perception.detect import detect_parts
 from perception.rgbd import RGBDFrame
@@ -80,10 +80,9 @@ class PerceptionFeed:
         self.tracks = {name: PartTracks(belt_velocity_at(scene), rests_at=rests_at(scene)) for name in cameras}
         self.sight = LineSight(scene, self.looks, kinds, belt_velocity_at(scene))
         self.drops = DropCounter()
-        self._decoder = Decoder(CameraImage, self.drops)
+        self.pairs = RGBDPairs(cameras, self.drops)
         self._event_decoder = Decoder(LineEvent, self.drops)
-        self._halves: dict[str, dict[str, CameraImage]] = {name: {} for name in cameras}
-        self._waiting: dict[int, dict[str, tuple[CameraImage, CameraImage]]] = {}  # by tick: frames not yet seen
+        self._waiting: dict[int, dict[str, tuple[CameraImage, RGBDFrame | None]]] = {}  # by tick: frames not seen
         self._since: dict[int, float] = {}  # by tick: when its first frame came in (wall)
         self.frames = self.detections = 0
         self.frames_on_deadline = 0
@@ -95,23 +94,10 @@ class PerceptionFeed:
             if event is not None:
                 self.sight.event(key, event, self.drops)
             return
-        msg = self._decoder.decode(key, payload)
-        if msg is None:
-            return
-        if (
-            msg.camera not in self._halves
-            or msg.kind not in ("rgb", "depth")
-            or not key.endswith(f"/camera/{msg.camera}/{msg.kind}")
-        ):
-            self.drops.drop(key, "an image of another camera or kind than its key's, or of a camera not perceived")
-            return
-        halves = self._halves[msg.camera]
-        if any(h.tick != msg.tick for h in halves.values()):
-            halves.clear()  # a half whose other half never came: that frame is lost
-        halves[msg.kind] = msg
-        if len(halves) == 2:
-            rgb, depth = halves.pop("rgb"), halves.pop("depth")
-            self._waiting.setdefault(rgb.tick, {})[rgb.camera] = (rgb, depth)
+        paired = self.pairs.take(key, payload)
+        if paired is not None:
+            rgb, frame = paired
+            self._waiting.setdefault(rgb.tick, {})[rgb.camera] = (rgb, frame)
             self._since.setdefault(rgb.tick, time.monotonic())
 
     def see(self, now_s: float | None = None) -> int:
@@ -131,35 +117,15 @@ class PerceptionFeed:
             self.sight.apply_events(tick)
             time_s = 0.0
             for camera in sorted(frames):
-                rgb, depth = frames[camera]
-                self._frame(rgb, depth)
+                rgb, frame = frames[camera]
+                if frame is not None:  # a pair that could not be a frame was dropped and counted
+                    self._frame(rgb, frame)
                 time_s = rgb.sim_time_s
             self.publish_parts(self.sight.message(tick, time_s))
             seen += 1
         return seen
 
-    def _frame(self, rgb: CameraImage, depth: CameraImage) -> None:
-        where = (rgb.sim_time_s, *rgb.intrinsics, *rgb.position_m, *rgb.quaternion_wxyz)
-        if len(rgb.intrinsics) != 9 or len(rgb.position_m) != 3 or len(rgb.quaternion_wxyz) != 4:
-            self.drops.drop(f"camera/{rgb.camera}", "a frame whose intrinsics or pose has the wrong length")
-            return
-        if not np.isfinite(where).all() or abs(np.linalg.norm(rgb.quaternion_wxyz) - 1.0) > 1e-3:
-            self.drops.drop(f"camera/{rgb.camera}", "a frame with NaN or infinite values, or no rotation")
-            return
-        try:
-            depth_m = decode_image("depth", depth.data, depth.encoding, depth.width_px, depth.height_px)
-            frame = RGBDFrame(
-                rgb.camera,
-                rgb.sim_time_s,
-                decode_image("rgb", rgb.data, rgb.encoding, rgb.width_px, rgb.height_px),
-                np.where(np.isfinite(depth_m), depth_m, 0.0).astype(np.float32),  # no depth where it is not a number
-                np.asarray(rgb.intrinsics, float).reshape(3, 3),
-                np.asarray(rgb.position_m, float),
-                np.asarray(rgb.quaternion_wxyz, float),
-            )
-        except ValueError as exc:
-            self.drops.drop(f"camera/{rgb.camera}", f"an image that does not decode: {str(exc)[:80]}")
-            return
+    def _frame(self, rgb: CameraImage, frame: RGBDFrame) -> None:
         start = time.perf_counter()
         believed = self.tracks[rgb.camera].update(detect_parts(frame, self.looks), rgb.sim_time_s)
         self.sight.update(rgb.camera, believed, rgb.sim_time_s)

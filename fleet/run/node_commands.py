@@ -103,10 +103,12 @@ class NodeCommands:
         return self._node("sim", "sim_server", "fleet.nodes.sim_server", sim_args, listen=bool(o.listen))
 
     def cameras(self) -> str | None:
-        """The cameras the sim renders: those asked for, and with `--perception cameras` every fixed one (the line
-        sees through all of them)."""
+        """The cameras the sim renders: those asked for, and with `--perception cameras` or an allocator that sees
+        every fixed one (the line, or its brain, sees through all of them)."""
+        from coordinator.allocator_plugins import sees
+
         named = self.options.cameras
-        if self.options.perception != "cameras" or named == "all":
+        if named == "all" or not (self.options.perception == "cameras" or sees(self.options.allocator)):
             return named
         fixed = [c.name for c in self.scene.cameras if c.arm is None]
         return ",".join(dict.fromkeys([*(n.strip() for n in (named or "").split(",") if n.strip()), *fixed]))

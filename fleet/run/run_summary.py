@@ -166,6 +166,7 @@ class RunSummary:
                 "randomised": dict(end.scene.randomised),
                 "allocator": coord.get("allocator"),
                 "allocator_faults": coord.get("allocator_faults", {}),  # a plug-in's decisions greedy took instead
+                "allocator_eyes": coord.get("allocator_eyes"),  # an allocator that sees: its looks at the cameras
                 "pipeline": coord.get("pipeline"),
                 "bus": "secure" if end.secure_bus else "insecure",
                 "status": status,

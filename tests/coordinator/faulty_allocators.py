@@ -81,3 +81,30 @@ class SearchesNewSpots:
             for k in range(2):  # reaches none of these, each a full search of every tilt (~85 ms)
                 arm.reach((arm.base_xyz[0] + out, arm.base_xyz[1] + 0.01 * (2 * self.calls + k), 0.3))
         return self.greedy.allocate(tasks, arms, parts, busy_stations)
+
+
+class SeesTooFast(GreedyNearest):
+    """Asks to look at the cameras 30 times a sim second: a controller's rate, not a brain's."""
+
+    name = "sees_too_fast"
+    frames_hz = 30.0
+
+    def see(self, frames) -> None:
+        pass
+
+
+class SeesWithoutEyes(GreedyNearest):
+    """Asks for frames but has nothing to take them with."""
+
+    name = "sees_without_eyes"
+    frames_hz = 2.0
+
+
+class RaisesOnSight(GreedyNearest):
+    """Looks at the cameras and raises on every look."""
+
+    name = "raises_on_sight"
+    frames_hz = 2.0
+
+    def see(self, frames) -> None:
+        raise ValueError("cannot stand the sight")

@@ -90,3 +90,23 @@ def test_allocators_are_found_by_name_and_a_bad_one_is_one_line():
         allocator_factory("tests.coordinator.nowhere:X")
     with pytest.raises(AllocatorError, match="has no allocate"):
         make_any_allocator(f"{FAULTY}:not_an_allocator", load_scene("sorting_line", arms=2))
+
+
+def test_an_allocator_that_sees_asks_at_a_brains_rate_and_has_eyes_or_is_one_line():
+    from coordinator.allocator_plugins import check_allocator, sees
+
+    with pytest.raises(AllocatorError, match="asks for frames at 30.0 Hz: it may look at 1-5 Hz"):
+        check_allocator(f"{FAULTY}:SeesTooFast")
+    with pytest.raises(AllocatorError, match="has no see"):
+        check_allocator(f"{FAULTY}:SeesWithoutEyes")
+    assert sees(f"{FAULTY}:RaisesOnSight") and not sees("optimal") and not sees(None) and not sees("nowhere:X")
+
+
+def test_a_look_that_raises_costs_that_look_only_said_once_counted_always(decision):
+    said: list[str] = []
+    guarded = GuardedAllocator(allocator_factory(f"{FAULTY}:RaisesOnSight")(decision[0]), decision[0], say=said.append)
+    assert guarded.frames_hz == 2.0
+    guarded.see([])
+    guarded.see([])
+    assert guarded.faults["see_raised"] == 2 and len(said) == 1 and "cannot stand the sight" in said[0]
+    assert guarded.allocate(*decision[1:], set()), "it decides on, on what it saw before"

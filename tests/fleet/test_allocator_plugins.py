@@ -65,3 +65,29 @@ def test_a_plug_in_that_raises_on_some_decisions_costs_only_those():
     assert summary["allocator_faults"]["raised"] > 0, "every faulty decision counted"
     assert summary["parts_completed"] > 0, "greedy decided those, the line went on"
     assert_nothing_left(summary, launcher.endpoint)
+
+
+@pytest.mark.lockstep
+def test_an_allocator_that_sees_gets_the_overhead_frames_at_its_rate_and_its_line_repeats(installed, tmp_path):
+    def run(name: str) -> dict:
+        summary_file = tmp_path / f"{name}.json"
+        line = ["fleet", "run", "pick_cell", "--duration", "12", "--seed", "1", "--allocator", "overhead_eyes"]
+        done = subprocess.run(
+            [sys.executable, "-m", *line, "--summary", str(summary_file)],
+            env=installed,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert done.returncode == 0, done.stderr[-2000:]
+        return json.loads(summary_file.read_text())
+
+    first, second = run("first"), run("second")
+    eyes = first["allocator_eyes"]
+    # 2 looks a sim second, the first once a frame is 50 ms old: 24 in 12 s, each of the overhead's one frame
+    assert eyes == {"looks": 24, "frames_handed": 24, "looks_without_all_frames": 0}, eyes
+    assert first["allocator"] == "overhead_eyes" and "see_raised" not in first["allocator_faults"]
+    assert first["parts_completed"] > 0 and first["inter_arm_contacts"] == 0
+    same = ("parts_completed", "parts_missed", "throughput_per_min", "arm_time", "goal_results", "allocator_faults")
+    assert {k: first[k] for k in same} == {k: second[k] for k in same}
+    assert second["allocator_eyes"] == eyes
