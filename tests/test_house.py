@@ -23,6 +23,7 @@ FLEET_LAYERS: dict[str, int] = {
     "fleet.monitor": 4,
     "fleet.ros": 4,
     "fleet.robot_tools": 5,
+    "fleet.sight": 5,
     "fleet.nodes": 6,
     "fleet.env": 6,
     "fleet.run": 7,

@@ -38,8 +38,8 @@ from fleet.bus.messages import (
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
 from fleet.nodes.arm_orders import ControllerOrders
-from fleet.nodes.line_sight import seen_ticks_of
 from fleet.nodes.sim_feed import SimFeed
+from fleet.sight.line_sight import seen_ticks_of
 from fleet.snapshot.controller_state import VERSION, ControllerState, read_controller_state
 from fleet.snapshot.cut import controller_after_cut
 from fleet.snapshot.process_state import StateError

@@ -26,7 +26,7 @@ import time
 import numpy as np
 import zenoh
 
-from coordinator.allocation import Allocator, PartView, make_allocator
+from coordinator.allocation import Allocator, make_allocator
 from coordinator.allocator_plugins import AllocatorError, make_any_allocator
 from coordinator.dispatch_state import dispatcher_state, restore_dispatcher
 from coordinator.dispatcher import Dispatcher
@@ -55,8 +55,9 @@ from fleet.nodes.controller_lives import ControllerLives, tell_lost
 from fleet.nodes.coordinator_events import DecisionTimes, EventGate
 from fleet.nodes.coordinator_orders import order_message, progress_message
 from fleet.nodes.coordinator_takeover import take_over
-from fleet.nodes.line_sight import seen_ticks_of
 from fleet.nodes.seen_parts import SeenParts
+from fleet.sight.line_sight import seen_ticks_of
+from fleet.sight.part_views import part_views
 from fleet.snapshot.coordinator_state import VERSION, CoordinatorState, read_coordinator_state
 from fleet.snapshot.cut import coordinator_after_cut
 from fleet.snapshot.process_state import StateError
@@ -274,20 +275,11 @@ class CoordinatorNode:
 
     def _on_parts(self, p: PartsState) -> None:
         if self.seen is None:  # else the frame's parts are empty: perception's come at each decision
-            self._truth_parts(p)
+            self.dispatcher.on_parts(part_views(p), p.sim_time_s)
         last = self.dispatcher.clock.last_decision_tick
         due = p.tick % self.period_ticks == 0 if self.lockstep else p.tick - last >= self.period_ticks
         if due and p.tick > last:  # a re-sent frame: once
             self.events.frame(p.tick, p.events_published, time.monotonic() + DECISION_WAIT_S)
-
-    def _truth_parts(self, p: PartsState) -> None:
-        self.dispatcher.on_parts(
-            {
-                pid: PartView(np.array(p.positions[3 * i : 3 * i + 3]), np.array(p.velocities[3 * i : 3 * i + 3]))
-                for i, pid in enumerate(p.part_ids)
-            },
-            p.sim_time_s,
-        )
 
     def _decide_when_complete(self) -> None:
         """Decide for the due frame's tick once every event published before it is in (`EventGate`), and with

@@ -1,13 +1,12 @@
 """The perception node's work, apart from its process: camera images off the bus paired into RGB-D frames, parts
 detected and tracked (`perception/`), one `PartDetections` message a frame; with the line's events, the line's parts
-as seen (`LineSight`), one `PartsState` a frame tick; what it took, refused and cost.
+as seen (`fleet.sight`), one `PartsState` a frame tick; what it took, refused and cost.
 
 A frame waits until every camera due at its tick is in and the line events published before it have come (they
 travel on another key), so that a lockstep line sees the same parts every run."""
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 
@@ -15,48 +14,13 @@ import numpy as np
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.messages import CameraImage, LineEvent, PartDetections, PartsState
-from fleet.nodes.line_sight import LineSight
 from fleet.nodes.rgbd_pairs import RGBDPairs
-from fleet.sim.cameras.part_looks import part_looks
-from perception.detect import detect_parts
+from fleet.sight.seer import Seer
 from perception.rgbd import RGBDFrame
 from perception.seen_ticks import frame_due
-from perception.tracks import PartTracks
 from scenes.schema import Scene
 
-TOP_BAND_SPARE_M = 0.02  # a part on the belt has its top face at most its height and this above the belt's surface
 FRAME_WAIT_S = 0.5  # a frame waits at most this long (wall) for its other cameras and its events
-
-
-def belt_velocity_at(scene: Scene) -> Callable[[np.ndarray], np.ndarray]:
-    """The surface velocity under a world point: the conveyor's over its belt (a part lying on it rides it; one
-    lifted above it, in a claw, does not), else 0."""
-    belt = scene.conveyor
-    if belt is None or belt.speed_m_per_s == 0.0:
-        return lambda point: np.zeros(3)
-    c, s = math.cos(belt.pose.yaw_rad), math.sin(belt.pose.yaw_rad)
-    x0, y0, z0 = belt.pose.xyz
-    velocity = np.asarray(belt.direction) * belt.speed_m_per_s
-    band_m = max((p.size_m[2] for f in scene.feeders for p in f.parts), default=0.0) + TOP_BAND_SPARE_M
-
-    def at(point: np.ndarray) -> np.ndarray:
-        dx, dy = point[0] - x0, point[1] - y0
-        along, across = c * dx + s * dy, -s * dx + c * dy
-        on = 0.0 <= along <= belt.length_m and abs(across) <= belt.width_m / 2 and point[2] <= z0 + band_m
-        return velocity if on else np.zeros(3)
-
-    return at
-
-
-def rests_at(scene: Scene) -> Callable[[np.ndarray], bool]:
-    """Whether a part whose top face is at a world point can be lying on something: at most two part heights above
-    the highest surface of the line (the belt, a station's top); higher, it is in the air, in a claw."""
-    tallest_m = max((p.size_m[2] for f in scene.feeders for p in f.parts), default=0.0)
-    tops = [s.pose.xyz[2] + s.size_m[2] for s in scene.stations]
-    if scene.conveyor is not None:
-        tops.append(scene.conveyor.pose.xyz[2])
-    ceiling_m = max(tops, default=0.0) + 2 * tallest_m + TOP_BAND_SPARE_M
-    return lambda point: point[2] <= ceiling_m
 
 
 class PerceptionFeed:
@@ -74,11 +38,10 @@ class PerceptionFeed:
         publish_parts: Callable[[PartsState], None] = lambda msg: None,
     ) -> None:
         self.scene = scene
-        self.looks, kinds = part_looks(scene)
         self.cameras, self.publish, self.publish_parts = cameras, publish, publish_parts
         self.rates_hz = {c.name: c.rate_hz for c in scene.cameras if c.name in cameras}
-        self.tracks = {name: PartTracks(belt_velocity_at(scene), rests_at=rests_at(scene)) for name in cameras}
-        self.sight = LineSight(scene, self.looks, kinds, belt_velocity_at(scene))
+        self.seer = Seer(scene, cameras)
+        self.sight = self.seer.sight
         self.drops = DropCounter()
         self.pairs = RGBDPairs(cameras, self.drops)
         self._event_decoder = Decoder(LineEvent, self.drops)
@@ -86,7 +49,6 @@ class PerceptionFeed:
         self._since: dict[int, float] = {}  # by tick: when its first frame came in (wall)
         self.frames = self.detections = 0
         self.frames_on_deadline = 0
-        self.detect_s: list[float] = []
 
     def take(self, key: str, payload: bytes) -> None:
         if key.endswith("/world/events"):
@@ -126,10 +88,7 @@ class PerceptionFeed:
         return seen
 
     def _frame(self, rgb: CameraImage, frame: RGBDFrame) -> None:
-        start = time.perf_counter()
-        believed = self.tracks[rgb.camera].update(detect_parts(frame, self.looks), rgb.sim_time_s)
-        self.sight.update(rgb.camera, believed, rgb.sim_time_s)
-        self.detect_s.append(time.perf_counter() - start)
+        believed = self.seer.frame(rgb.camera, frame)
         self.frames += 1
         self.detections += len(believed)
         self.publish(
@@ -149,7 +108,7 @@ class PerceptionFeed:
 
     def report(self) -> dict:
         """The node's figures for the run summary."""
-        ms = np.asarray(self.detect_s) * 1000.0
+        ms = np.asarray(self.seer.detect_s) * 1000.0
         return {
             "cameras": list(self.cameras),
             "frames": self.frames,

@@ -10,7 +10,8 @@ import numpy as np
 from coordinator.allocation import PartView
 from fleet.bus.message_checks import parts_problem
 from fleet.bus.messages import PartsState
-from fleet.nodes.line_sight import carried_to
+from fleet.sight.line_sight import carried_to
+from fleet.sight.part_views import part_views
 from perception.seen_ticks import SeenTicks
 
 NEWEST_SEEN = 64  # frames' parts kept (a decision works from the newest usable at its tick)
@@ -51,10 +52,7 @@ class SeenParts:
         self.late += usable[-1].tick != needed
         self.ages_ticks.append(tick - usable[-1].tick)
         frame = carried_to(usable[-1], tick, self.control_hz)
-        return {
-            pid: PartView(np.array(frame.positions[3 * i : 3 * i + 3]), np.array(frame.velocities[3 * i : 3 * i + 3]))
-            for i, pid in enumerate(frame.part_ids)
-        }, frame.sim_time_s
+        return part_views(frame), frame.sim_time_s
 
     def report(self, control_hz: float, frame_s: float) -> dict:
         """How old the parts decisions worked from were (p50, p95: ms and frames), and how many went without."""

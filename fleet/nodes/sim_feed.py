@@ -6,40 +6,18 @@ from __future__ import annotations
 import time
 from collections import deque
 
-import numpy as np
-
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.message_checks import TickClock, arm_state_problem, parts_problem, seq_problem
 from fleet.bus.messages import ArmState, PartsState
 from fleet.bus.session import Inbox
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders, believable
-from fleet.nodes.line_sight import carried_to
+from fleet.sight.line_sight import carried_to
+from fleet.sight.part_views import parts_from_message
 from fleet.snapshot.controller_state import FeedState
 from perception.seen_ticks import SeenTicks
 from robots.skills.interface import PartObservation
 
 NEWEST_PARTS = 64  # parts messages kept (a state delayed on the bus is matched with the parts of its own time)
-
-
-def parts_from_message(
-    msg: PartsState, round_types: frozenset[tuple[str, int]] = frozenset()
-) -> dict[int, PartObservation]:
-    """Part observations from the flattened parts message; `round_types`: the scene's round part types
-    (`Scene.round_part_types`)."""
-    out = {}
-    for i, pid in enumerate(msg.part_ids):
-        size = tuple(msg.sizes_m[3 * i : 3 * i + 3])
-        out[pid] = PartObservation(
-            pid,
-            np.array(msg.positions[3 * i : 3 * i + 3]),
-            np.array(msg.quaternions_wxyz[4 * i : 4 * i + 4]),
-            np.array(msg.velocities[3 * i : 3 * i + 3]),
-            float(min(size[0], size[1])),
-            float(size[2]),
-            size,
-            (msg.feeders[i], msg.type_indices[i]) in round_types,
-        )
-    return out
 
 
 class SimFeed:

@@ -215,7 +215,7 @@ class Recorder:
         if message is None:
             self.stats.undecodable += 1
         else:
-            heard.derived = self._derived(message)
+            heard.derived = self._derived(message, heard.key)
         return heard
 
     def _write(self, heard: Heard, built: list[tuple[str, bytes]]) -> None:
@@ -230,14 +230,17 @@ class Recorder:
         self._last_tick[stream] = tick
         return True
 
-    def _derived(self, message: object) -> list[tuple[str, Callable[[], object]]]:
-        """(topic, what makes its ROS message) for each ROS topic this bus message feeds."""
+    def _derived(self, message: object, key: str = "") -> list[tuple[str, Callable[[], object]]]:
+        """(topic, what makes its ROS message) for each ROS topic this bus message feeds (`key`: where it was
+        heard)."""
         out: list[tuple[str, Callable[[], object]]] = []
         if isinstance(message, ArmState) and message.arm in self.ros.arms and self._is_new(message.arm, message.tick):
             out.append((f"/{message.arm}/joint_states", partial(self.ros.joint_state, message)))
         elif isinstance(message, LineView) and self._is_new("", message.tick):
             out.append(("/tf", partial(self.ros.tf, [a for a in message.arms if a.arm in self.ros.arms])))
             out.append(("/parts", partial(self.ros.parts_markers, message.parts)))
+        elif isinstance(message, PartsState) and key.endswith("/seen/parts") and self._is_new("seen", message.tick):
+            out.append(("/seen/parts", partial(self.ros.parts_markers, message)))  # the parts as the line saw them
         elif isinstance(message, CameraImage) and message.camera in self.cameras:
             out += camera_topics(message, self._is_new(f"camera/{message.camera}", message.tick))
         topic = SEMANTIC_TOPICS.get(type(message))

@@ -12,7 +12,8 @@ from fleet.bus.codec import encode
 from fleet.bus.images import encode_image
 from fleet.bus.messages import CameraImage, LineEvent, PartDetections, PartsState
 from fleet.common.scene_loading import load_checked_scene
-from fleet.nodes.perception_feed import PerceptionFeed, belt_velocity_at
+from fleet.nodes.perception_feed import PerceptionFeed
+from fleet.sight.surfaces import belt_velocity_at
 
 SCENE = load_checked_scene("pick_cell")
 KEY = "clawfleet/line/camera/overhead/{}"

@@ -6,6 +6,7 @@ import threading
 import time
 
 import pytest
+from rosbags.highlevel import AnyReader
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
@@ -74,6 +75,10 @@ def test_the_line_works_from_what_it_sees_and_the_recording_keeps_the_detections
     recorded = [m.payload for m in Recording(tmp_path / "r.mcap").raw_messages([Keys("line").detections("overhead")])]
     by_tick = {d.tick: d for d in (Decoder(PartDetections, DropCounter()).decode("r", p) for p in recorded)}
     assert all(by_tick.get(d.tick) == d for d in seen), "the recording holds every frame's detections as heard"
+    with AnyReader([tmp_path / "r.mcap"]) as reader:  # rosbags reads the seen parts as ROS tools would
+        seen_topic = [c for c in reader.connections if c.topic == "/seen/parts"]
+        marked = [reader.deserialize(data, c.msgtype) for c, _, data in reader.messages(connections=seen_topic)]
+    assert len(marked) >= 55 and any(len(m.markers) > 1 for m in marked), "a frame's parts, after the DELETEALL"
     # the parts were picked from where the camera saw them: the picks and their figures, scored against the truth
     assert summary["parts_completed"] >= 2 and report["picks"]["grasp_missed"] == 0, report["picks"]
     scored = report["scored"]

@@ -4,8 +4,8 @@ that tick by the parts' motion; what cannot be perception's is refused with a re
 import numpy as np
 
 from fleet.bus.messages import PartsState
-from fleet.nodes.line_sight import carried_to
 from fleet.nodes.seen_parts import SeenParts
+from fleet.sight.line_sight import carried_to
 from perception.seen_ticks import SeenTicks
 
 HZ = 100.0

@@ -1,7 +1,7 @@
 """A round part (a cylinder) is seen round by every arm, in process and over the bus, so the pick skill closes across it
 at the arm's own yaw; a box is not."""
 
-from fleet.nodes.sim_feed import parts_from_message
+from fleet.sight.part_views import parts_from_message
 from fleet.sim.observe import part_observations
 from fleet.sim.world import World
 from fleet.sim.world_messages import parts_state
