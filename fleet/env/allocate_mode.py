@@ -20,6 +20,7 @@ from coordinator.deadlines import time_left_s
 from coordinator.dispatcher import Dispatcher
 from coordinator.guard import TimedPath
 from coordinator.tasks import OPEN_STATES, Task, TaskState
+from fleet.env.env_sight import EnvSight
 from fleet.sim.observe import arm_observation, base_transform, part_observations
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
@@ -31,8 +32,9 @@ from scenes.schema import Scene
 class TaskChooser:
     """Runs the skills of the arms and turns each free arm's choice into an assignment on the ledger."""
 
-    def __init__(self, scene: Scene, world: World, agents: list[str]) -> None:
-        self.scene, self.agents = scene, agents
+    def __init__(self, scene: Scene, world: World, agents: list[str], sight: EnvSight | None = None) -> None:
+        """`sight`: the parts come from the cameras (`perception="cameras"`), not the world's truth."""
+        self.scene, self.agents, self.sight = scene, agents, sight
         self.reach = {a.name: CachedReach.of(a) for a in scene.arms}
         self.bases = {a.name: a.base.xyz for a in scene.arms}
         self.world = world
@@ -64,7 +66,13 @@ class TaskChooser:
 
     # --- what each arm sees ---------------------------------------------------------
     def parts(self) -> dict[int, PartView]:
+        if self.sight is not None:
+            return self.sight.views(self.world.tick)
         return {p.part_id: PartView(p.position, p.velocity) for p in self.world.active_parts()}
+
+    def part_observations(self) -> dict:
+        """The parts as the skills see them: the world's, or the cameras'."""
+        return self.sight.observations(self.world.tick) if self.sight is not None else part_observations(self.world)
 
     def arm_views(self) -> list[ArmView]:
         """Each arm as the allocators see it: free or not, where it stands, and a busy arm's estimated time to free
@@ -154,7 +162,7 @@ class TaskChooser:
         task = self.ledger.tasks[order.task_id]
         self.dispatcher.on_parts(self.parts(), self.world.sim_time_s)
         job = PickPlaceJob(order.part_id, order.surface_z_m, order.place_xyz, order.surface_velocity)
-        parts = part_observations(self.world)
+        parts = self.part_observations()
         self.skills[agent].start(
             job, arm_observation(self.world, agent, self.tracked.trackers[agent]), parts[task.part_id]
         )
@@ -170,7 +178,7 @@ class TaskChooser:
                     self.skills[order.arm].on_grant(
                         order.request_seq, order.decision, order.conflict_arm, self.world.sim_time_s, order.start_s
                     )
-            parts = part_observations(self.world)
+            parts = self.part_observations()
             for agent in [a for a, order in self.unstarted.items() if order is not None and self.skills[a].available]:
                 self._start_assigned(agent, self.unstarted.pop(agent), parts)
             for agent in self.agents:

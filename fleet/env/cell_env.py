@@ -25,6 +25,7 @@ from fleet.env.actions import JointActions, choice_rewards
 from fleet.env.allocate_mode import TaskChooser
 from fleet.env.camera_views import EnvCameras, chosen_cameras
 from fleet.env.choice_steps import run_on_to_a_choice
+from fleet.env.env_sight import EnvSight
 from fleet.env.limits import (
     CONTACT_PENALTY,
     LIMIT_PENALTY,
@@ -69,6 +70,7 @@ class CellParallelEnv(ParallelEnv):
         choice_steps: bool = False,
         observe: str = "cell",
         cameras: bool | list = False,
+        perception: str = "truth",
     ) -> None:
         self._init_kwargs = dict(
             scene=scene,
@@ -84,11 +86,13 @@ class CellParallelEnv(ParallelEnv):
             choice_steps=choice_steps,
             observe=observe,
             cameras=cameras,
+            perception=perception,
         )
+        check_perception(perception, action_mode)
         check_options(scenario, action_mode, render_mode, max_cycles, control_hz, distributed)
         check_allocate_options(action_mode, mask_in_observation, choice_steps, observe)
         self.mask_in_observation, self.choice_steps, self.observe = mask_in_observation, choice_steps, observe
-        if render_mode == "rgb_array" or cameras:
+        if render_mode == "rgb_array" or cameras or perception == "cameras":
             require_render()  # a clear RenderUnavailable, naming what to install, where no rendering device exists
         scene = scene or DEFAULT_SCENE.get(scenario, "sorting_line")
         base = load_checked_scene(scene, arms=n_arms)  # None: the scene's own count; a fixed-arm scene refuses another
@@ -105,7 +109,7 @@ class CellParallelEnv(ParallelEnv):
             physics_hz = control_hz * max(1, round(max(self.scenario.physics_hz, control_hz) / control_hz))
             self.scene = prepared.model_copy(update={"control_hz": control_hz, "physics_hz": physics_hz})
             self.ticks_per_step = 1
-        self._build_cell(action_mode, distributed, scene, n_arms, monitor_port)
+        self._build_cell(action_mode, distributed, scene, n_arms, monitor_port, perception)
         self._build_views(cameras, observe, mask_in_observation)
 
     def _build_views(self, cameras: bool | list, observe: str, mask_in_observation: bool) -> None:
@@ -125,9 +129,11 @@ class CellParallelEnv(ParallelEnv):
                 part.world = world
         if self.cameras is not None:  # its render mirror copies this world's bodies
             self.cameras = self.observer.cameras = EnvCameras(world, self._shown_cameras, self.possible_agents)
+        if self.sight is not None:
+            self.sight.use_world(world)
 
     def _build_cell(
-        self, action_mode: str, distributed: bool, scene: str, n_arms: int | None, monitor_port: int
+        self, action_mode: str, distributed: bool, scene: str, n_arms: int | None, monitor_port: int, perception: str
     ) -> None:
         """The world, the guard over its arms, the action translators, the allocate mode's chooser and the actuators."""
         self.world = World(self.scene)
@@ -137,7 +143,11 @@ class CellParallelEnv(ParallelEnv):
         self.guard = CollisionGuard(
             {a: ArmGeometry(a, self.world.arms[a].spec, placements[a]) for a in self.possible_agents}
         )
-        self.chooser = TaskChooser(self.scene, self.world, self.possible_agents) if action_mode == "allocate" else None
+        # `perception="cameras"`: the allocate mode's parts are those the fixed cameras show (`fleet.env.env_sight`)
+        self.sight = EnvSight(self.world, self.scene) if perception == "cameras" else None
+        self.chooser = (
+            TaskChooser(self.scene, self.world, self.possible_agents, self.sight) if action_mode == "allocate" else None
+        )
         self.actuator = None
         if distributed:
             from fleet.env.distributed import RemoteActuators  # the bus only when asked for
@@ -193,6 +203,11 @@ class CellParallelEnv(ParallelEnv):
         self.scenario.home_tool = self.observer.tools()
         self.scenario.reset(self.world, self.np_random)
         snapshot = (options or {}).get("snapshot")
+        if snapshot is not None and self.sight is not None:
+            raise ValueError('perception="cameras" cannot start an episode from a snapshot yet (docs/perception.md)')
+        if self.sight is not None:  # the first frame, of the episode's first tick
+            self.sight.reset()
+            self.sight.after_tick(self.world, self.scenario.book.log)
         moment = start_from_snapshot(self, snapshot, feeder_seed) if snapshot is not None else None
         start_q = {a: self.world.arms[a].qpos()[: self.observer.dof[a]] for a in self.possible_agents}
         if self.joint_actions is not None:
@@ -248,6 +263,8 @@ class CellParallelEnv(ParallelEnv):
                 self.chooser.command()
             self.world.step()
             self.scenario.on_tick(self.world)
+            if self.sight is not None:
+                self.sight.after_tick(self.world, self.scenario.book.log)
             if self.chooser is not None:
                 self.chooser.report()
         self.cycles += 1
@@ -300,6 +317,17 @@ class CellParallelEnv(ParallelEnv):
 
 def _rebuild(kwargs: dict) -> CellParallelEnv:
     return CellParallelEnv(**kwargs)
+
+
+def check_perception(perception: str, action_mode: str) -> None:
+    """Where the allocate mode's parts come from: the truth, or the fixed cameras (only the allocate mode has parts to
+    see: its skills and dispatcher); anything else refused with what is valid."""
+    if perception not in ("truth", "cameras"):
+        raise ValueError(f"perception {perception!r} is not available; valid: truth, cameras")
+    if perception == "cameras" and action_mode != "allocate":
+        raise ValueError(
+            f"perception='cameras' applies to action_mode 'allocate' (parts to see); {action_mode!r} has none"
+        )
 
 
 def check_allocate_options(action_mode: str, mask_in_observation: bool, choice_steps: bool, observe: str) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from coordinator.dispatcher import Dispatcher
 from coordinator.ledger import Ledger
-from fleet.sim.line_watch import LineWatcher
+from fleet.sim.line_watch import Event, LineWatcher
 from fleet.sim.world import World
 from scenes.schema import Scene
 
@@ -16,6 +16,7 @@ class LineBookkeeping:
     def __init__(self, scene: Scene) -> None:
         self.watcher = LineWatcher(scene)
         self.dispatcher = Dispatcher(scene)
+        self.log: list[Event] = []  # the episode's events, in order (the env's sight hears them)
         self._counted = 0
 
     @property
@@ -24,6 +25,7 @@ class LineBookkeeping:
 
     def update(self, world: World) -> None:
         for e in self.watcher.update(world, world.active_parts()):
+            self.log.append(e)
             self.dispatcher.on_event(e.kind, e.part_id, e.detail, e.type_index, world.sim_time_s)
 
     @property
