@@ -239,8 +239,9 @@ def write_results(results: list[dict], out: Path) -> tuple[list[dict], list[Path
     if cells:
         written.append(plot_throughput(cells, out / "throughput.png"))
         for key in sorted({k for c in cells for k in c if k.startswith("set:")}):
-            values = {c[key] for c in cells}
-            if len(values) > 1 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            values = [c[key] for c in cells]  # a value may be a list or a mapping (`--set randomise.x={uniform: ...}`)
+            numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+            if numbers and len(set(values)) > 1:
                 field = key[4:]
                 written.append(plot_against(cells, field, out / f"throughput_vs_{field.replace('.', '_')}.png"))
                 if field == "load":

@@ -82,11 +82,12 @@ def test_no_process_without_the_runs_credentials_or_role_can_change_the_line():
 
 
 def forbidden_to(arm: str, keys: Keys, arms: list[str]) -> list[str]:
-    """Every key of the run an arm's own login may not put on: the line's, the other nodes', every arm's but its own
-    four (step, goal, status, its snapshot part)."""
+    """Every key of the run an arm's own login may not put on: the line's, the other nodes' (perception's too),
+    every arm's but its own four (step, goal, status, its snapshot part)."""
     line = [keys.estop, keys.control, keys.events, keys.parts, keys.sim_status, keys.frame, keys.view, keys.history]
     line += [keys.respawn, keys.roster, keys.snapshot_ask, keys.recorder_ready, keys.coord("progress")]
     line += [keys.snapshot_part("sim"), keys.snapshot_part("coordinator")]
+    line += [keys.seen_parts, keys.detections("overhead")]  # perception's: the line's parts as seen are its alone
     for other in arms:
         line += [keys.arm_state(other), keys.arm_drive(other), keys.arm_result(other), keys.arm_assign(other)]
         if other != arm:

@@ -144,6 +144,17 @@ def test_an_override_is_checked_like_a_scene_file(tmp_path):
         scene_with("assembly_line", {"feeders.7.capacity": 3}, tmp_path)
 
 
+def test_results_of_a_sweep_that_sets_a_mapping_are_written(tmp_path):
+    cell = {"scene": "pick_cell", "seed": 0, "allocator": "optimal", "duration_s": 1.0, "arms": None}
+    light = {"randomise.light_yaw_deg": {"uniform": [-60, 60]}}
+    results = [
+        {"cell": cell | {"overrides": light, "seed": s}, "summary": {"throughput_per_min": 1.0 + s}} for s in (0, 1)
+    ]
+    cells, written = write_results(results, tmp_path)
+    assert len(cells) == 1 and cells[0]["set:randomise.light_yaw_deg"] == {"uniform": [-60, 60]}
+    assert [p.name for p in written] == ["runs.csv", "cells.csv", "throughput.png"]
+
+
 def test_mean_and_interval():
     mean, half = mean_ci([1.0, 2.0, 3.0])
     assert mean == 2.0 and half == pytest.approx(4.303 * 1.0 / 3**0.5, rel=1e-3)
