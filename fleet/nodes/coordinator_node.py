@@ -336,6 +336,7 @@ class CoordinatorNode:
                 "decision_wall_ms": self.decision_times.summary() | self._reach_work(),
             }
             | ({"seen_parts": self._seen_report()} if self.seen is not None else {})
+            | ({"allocator_eyes": self.eyes.report()} if self.eyes is not None else {})
         )
 
     def _seen_report(self) -> dict:
