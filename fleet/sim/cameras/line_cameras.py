@@ -106,7 +106,7 @@ class LineCameras:
         if scored:
             inbox = Inbox()
             self._seen_sub = session.declare_subscriber(keys.seen_parts, inbox)
-            self.score = SeenScore(inbox)
+            self.score = SeenScore(inbox, rig.world.scene_model.stations)
 
     def warm_up(self) -> None:
         """Render every camera once, unsent: the renderer's set-up is paid here (counted as the first frame's)."""

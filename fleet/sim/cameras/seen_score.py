@@ -11,7 +11,9 @@ from fleet.bus.messages import PartsState
 from fleet.bus.session import Inbox
 from fleet.sim.cameras import labels
 from fleet.sim.cameras.frames import CameraFrame
+from fleet.sim.line_watch import station_containing
 from fleet.sim.world import PartInfo, World
+from scenes.schema import Station
 
 RIGHT_M = 0.03  # a seen part within this of its part's true centre is seen right
 KEEP_FRAMES = 64  # frames' truth kept for perception's answers still on their way
@@ -44,12 +46,14 @@ class SeenScore:
     """Truth taken at each frame (`frame`), perception's parts taken off `inbox` (`take`) and scored against the
     truth of their frame: position and yaw error, recall of the parts visible in the frame, precision."""
 
-    def __init__(self, inbox: Inbox) -> None:
-        self.inbox = inbox
+    def __init__(self, inbox: Inbox, stations: list[Station] = ()) -> None:
+        """`stations`: the line's, so that errors of parts at rest in them are told from those on their way."""
+        self.inbox, self.stations = inbox, list(stations)
         self.drops = DropCounter()
         self._decoder = Decoder(PartsState, self.drops)
         self.truth: dict[int, tuple[dict[int, PartInfo], set[int]]] = {}  # by frame tick: parts, ids visible
         self.errors_mm: list[float] = []
+        self.errors_at_stations_mm: list[float] = []  # of parts lying in a station (bins, trays, fixtures)
         self.yaw_errors_deg: list[float] = []
         self.visible = self.visible_seen = self.seen = self.seen_right = self.frames_scored = 0
         self.ever_seen: set[int] = set()
@@ -83,6 +87,8 @@ class SeenScore:
                 continue
             gap_m = float(np.linalg.norm(np.asarray(msg.positions[3 * i : 3 * i + 3]) - part.position))
             self.errors_mm.append(1000.0 * gap_m)
+            if station_containing(self.stations, part.position) is not None:
+                self.errors_at_stations_mm.append(1000.0 * gap_m)
             w, _, _, z = msg.quaternions_wxyz[4 * i : 4 * i + 4]
             body_yaw = 2.0 * np.arctan2(z, w)
             seen_yaw = body_yaw if part.size_m[0] >= part.size_m[1] else body_yaw + np.pi / 2
@@ -101,10 +107,16 @@ class SeenScore:
         def pct(values: list[float], q: float) -> float | None:
             return round(float(np.percentile(values, q)), 1) if values else None
 
+        elsewhere = sorted(self.errors_mm)  # on the belt or in the air: all but those at stations
+        for e in self.errors_at_stations_mm:
+            elsewhere.remove(e)
+
         return {
             "frames_scored": self.frames_scored,
             "position_error_p50_mm": pct(self.errors_mm, 50),
             "position_error_p95_mm": pct(self.errors_mm, 95),
+            "position_error_at_stations_p95_mm": pct(self.errors_at_stations_mm, 95),
+            "position_error_elsewhere_p95_mm": pct(elsewhere, 95),
             "yaw_error_p50_deg": pct(self.yaw_errors_deg, 50),
             "yaw_error_p95_deg": pct(self.yaw_errors_deg, 95),
             "recall": round(self.visible_seen / self.visible, 3) if self.visible else None,
