@@ -10,7 +10,6 @@ caller's to judge (it owns the clock): it calls `arm_lost` and `arm_rejoined`.
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -84,6 +83,7 @@ class Dispatcher:
         self._candidates: dict[int, tuple[int, str]] = {}
         # where a belt task's deadline falls
         self.belt_reach = layout_belt_reach(self.scene, self.arm_views())
+        self._capacity: tuple[str, CapacityBound] | None = None  # (the scene it was worked out of, the bound)
 
     @property
     def arm_names(self) -> list[str]:
@@ -104,17 +104,18 @@ class Dispatcher:
     def sim_time_s(self) -> float:
         return self.clock.sim_time_s
 
-    @functools.cached_property
+    @property
     def capacity(self) -> CapacityBound:
         """What the line could do at best (worked out when first asked: an env resets often)."""
-        self._capacity_of = self.scene.model_dump_json()
-        return capacity_bound(self.scene, reach=self.reach)
+        if self._capacity is None:
+            self._capacity = (self.scene.model_dump_json(), capacity_bound(self.scene, reach=self.reach))
+        return self._capacity[1]
 
     def scene_changed(self) -> None:
         """After a restore into a scene with a field set otherwise (`fleet run --from SNAPSHOT --set`): what was
         worked out from the old one is worked out again when next asked."""
-        if "capacity" in vars(self) and getattr(self, "_capacity_of", None) != self.scene.model_dump_json():
-            del self.capacity
+        if self._capacity is not None and self._capacity[0] != self.scene.model_dump_json():
+            self._capacity = None
 
     # --- inputs ---------------------------------------------------------------------
     def on_event(self, kind: str, part_id: int, detail: str, type_index: int, time_s: float) -> None:
