@@ -44,7 +44,7 @@ PUBLISHES = {
     "coordinator": ("arm/*/assign", "coord/**", "snapshot/coordinator"),
     "monitor": ("estop", "world/control", "launcher/respawn"),
     "recorder": ("recorder/ready",),
-    "perception": ("perception/*", "seen/parts"),  # what it sees through each camera; the line's parts it sees
+    "perception": ("perception/*", "seen/parts", "seen/ready"),  # each camera's tracks; the line's parts it sees
     "launcher": ("launcher/roster",),
     "ros": ("arm/*/drive", "estop", "world/control"),  # the ROS front ends: outside goals, e-stop, pause
     "ros_client": (),  # a ROS 2 stack: nothing of clawfleet's own; the line's ROS services and actions (`--ros2`)

@@ -148,6 +148,11 @@ class Keys:
         return f"{ROOT}/{self.run}/seen/parts"
 
     @property
+    def seen_ready(self) -> str:
+        """Perception says it listens, until it hears the line's first image (a sim told to await it starts then)."""
+        return f"{ROOT}/{self.run}/seen/ready"
+
+    @property
     def estop(self) -> str:
         return f"{ROOT}/{self.run}/estop"
 

@@ -52,13 +52,17 @@ def main(argv: list[str] | None = None) -> int:
             session.declare_subscriber(keys.camera(name, kind), inbox) for name in cameras for kind in ("rgb", "depth")
         ]
         subscribers.append(session.declare_subscriber(keys.events, inbox))
+        ready = session.declare_publisher(keys.seen_ready)  # said until the line's first image: the sim starts then
         try:
             while not stop.should_stop():
+                if not feed.pairs.heard:
+                    ready.put(b"")
                 inbox.wait(0.05)
                 for key, payload in inbox.drain():
                     feed.take(key, payload)
                 feed.see()
         finally:
+            ready.undeclare()
             for subscriber in subscribers:
                 subscriber.undeclare()
             write_node_report(args.report, feed.report() | {"stopped_by": stop.reason})

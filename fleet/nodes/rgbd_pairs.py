@@ -20,10 +20,12 @@ class RGBDPairs:
         self.drops = drops
         self._decoder = Decoder(CameraImage, drops)
         self._halves: dict[str, dict[str, CameraImage]] = {name: {} for name in cameras}
+        self.heard = 0  # images taken (whatever became of them)
 
     def take(self, key: str, payload: bytes) -> tuple[CameraImage, RGBDFrame | None] | None:
         """A payload on a camera key: None until a frame's both halves are in, then its colour image's message
         and the frame (None: the pair cannot be a frame, dropped and counted)."""
+        self.heard += 1
         msg = self._decoder.decode(key, payload)
         if msg is None:
             return None

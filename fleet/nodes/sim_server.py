@@ -65,10 +65,11 @@ def save_target_log(path: str, log: list) -> None:
     np.savez(path, **arrays)
 
 
-def await_recorder(session: zenoh.Session, keys: Keys, timeout_s: float) -> bool:
-    """Wait until a recorder says it listens (its subscribers are declared before it says so)."""
+def await_ready(session: zenoh.Session, key: str, timeout_s: float) -> bool:
+    """Wait until a node says on `key` that it listens (a recorder, perception: their subscribers are declared before
+    they say so)."""
     heard = threading.Event()
-    sub = session.declare_subscriber(keys.recorder_ready, lambda _sample: heard.set())
+    sub = session.declare_subscriber(key, lambda _sample: heard.set())
     try:
         return heard.wait(timeout_s)
     finally:
@@ -136,6 +137,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         default=0.0,
         help="start the clock only once a recorder listens (wait at most S wall seconds)",
+    )
+    parser.add_argument(
+        "--await-perception",
+        type=float,
+        metavar="S",
+        default=0.0,
+        help="start the clock only once a perception process listens (wait at most S wall seconds)",
     )
     parser.add_argument(
         "--no-controllers",
@@ -242,14 +250,18 @@ def open_sim_session(args: argparse.Namespace) -> tuple[zenoh.Session, str]:
 def serve(
     server: SimServer, args: argparse.Namespace, stop: StopFlag, ticks: int, audit: RouterAudit | None = None
 ) -> int:
-    """Run the line for `ticks` (once a recorder listens, when asked), then write the report (with what the router
-    refused all run long, from `audit`); closes the server."""
+    """Run the line for `ticks` (once a recorder and a perception process listen, when asked), then write the report
+    (with what the router refused all run long, from `audit`); closes the server."""
     if args.record_targets:
         server.target_log = []
-    if args.await_recorder and not await_recorder(server.bus.session, server.keys, args.await_recorder):
-        server.close()
-        print(f"sim_server: no recorder said it listens within {args.await_recorder:.0f} s", file=sys.stderr)
-        return 1
+    for who, key, timeout_s in (
+        ("recorder", server.keys.recorder_ready, args.await_recorder),
+        ("perception process", server.keys.seen_ready, args.await_perception),
+    ):
+        if timeout_s and not await_ready(server.bus.session, key, timeout_s):
+            server.close()
+            print(f"sim_server: no {who} said it listens within {timeout_s:.0f} s", file=sys.stderr)
+            return 1
     try:
         server.run_ticks(ticks - server.world.tick)
         if not stop.should_stop() and server.world.tick >= ticks:

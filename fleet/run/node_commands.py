@@ -23,6 +23,8 @@ from fleet.run.run_node import (
 from fleet.run.run_options import RunOptions
 from scenes.schema import Scene
 
+PERCEPTION_START_S = 60.0  # wall seconds a line that works from its cameras waits for its perception process
+
 
 class NodeCommands:
     """The processes a run starts and their arguments, in the run's folder `dir`; `endpoint` is where the sim
@@ -88,6 +90,8 @@ class NodeCommands:
             sim_args += ["--record-targets", o.record_targets]
         if cameras := self.cameras():
             sim_args += ["--cameras", cameras, "--camera-encoding", o.rgb_encoding()]
+        if o.perception == "cameras":  # the line's first frame is seen: the clock starts once perception listens
+            sim_args += ["--await-perception", repr(PERCEPTION_START_S)]
         if o.record:  # what the bus carries, as the sim hears it, for the recorder (no second copy on the wire)
             sim_args += ["--spool", str(self.spool_path)]
         if o.respawn:
