@@ -8,11 +8,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
-from perception.matching import nearest_pairs
 from perception.tracks import Track
 
 BIND_GATE_M = 0.12  # a new track this close to where the line expects an unseen part of its kind is that part
+RANK_TIE_M = 0.001  # between tracks as near an unseen part's expected spot, the oldest track goes to the oldest part
+FAR = 1e6
 
 
 @dataclass
@@ -26,6 +28,7 @@ class LinePart:
     expected_m: np.ndarray
     expected_s: float
     gate_m: float = BIND_GATE_M  # how far from its expected spot a new track may be and still be this part
+    spread_m: float = 0.0  # within this of its expected spot it is as likely anywhere (a bin: any of its spots)
     track: tuple[str, int] | None = None
     top_centre_m: np.ndarray | None = None
     yaw_rad: float = 0.0
@@ -46,15 +49,20 @@ class LineParts:
         """A part the line released at `time_s`, expected with its top face's centre at `spot_m`, give or take
         `spread_m` (a feeder's jitter, a bin's size)."""
         gate = max(self.gate_m, spread_m + 0.02)
-        self.parts[part_id] = LinePart(part_id, kind, np.asarray(spot_m, float), time_s, gate)
+        self.parts[part_id] = LinePart(part_id, kind, np.asarray(spot_m, float), time_s, gate, spread_m)
 
     def moved(self, part_id: int, spot_m: np.ndarray, time_s: float, spread_m: float = 0.0) -> None:
         """The line put a part at `spot_m` (a station, give or take `spread_m`): expected there, seen again only by
-        a track found there."""
+        a track found there (a part whose track already shows it there keeps it)."""
         part = self.parts.get(part_id)
-        if part is not None:
-            part.track, part.expected_m, part.expected_s = None, np.asarray(spot_m, float), time_s
-            part.gate_m = max(self.gate_m, spread_m + 0.02)
+        if part is None:
+            return
+        spot = np.asarray(spot_m, float)
+        there = part.top_centre_m is not None and np.hypot(*(part.top_centre_m - spot)[:2]) <= spread_m + 0.02
+        if part.track is not None and there:
+            return
+        part.track, part.expected_m, part.expected_s = None, spot, time_s
+        part.gate_m, part.spread_m = max(self.gate_m, spread_m + 0.02), spread_m
 
     def gone(self, part_id: int) -> None:
         """A part that left the line (lost, retired)."""
@@ -67,8 +75,8 @@ class LineParts:
 
     def update(self, camera: str, tracks: list[Track], time_s: float) -> None:
         """One frame's believed tracks of `camera` (at `time_s`): bound parts follow their tracks, a part whose
-        track ended is unseen (expected where it was last seen), and new tracks seen in this frame bind to the
-        unseen parts of their kind expected nearest them, the pairs chosen together."""
+        track ended is unseen (expected where it was last seen), and the tracks no part follows bind to the unseen
+        parts of their kind expected nearest them, the pairs chosen together (`_bind`)."""
         live = {t.track_id: t for t in tracks}
         bound = set()
         for part in self.parts.values():
@@ -77,25 +85,31 @@ class LineParts:
             track = live.get(part.track[1])
             if track is None:
                 part.track, part.expected_m, part.expected_s = None, part.top_centre_m, part.seen_s
+                part.spread_m = 0.0  # it was seen just there
             else:
                 self._follow(part, camera, track)
                 bound.add(track.track_id)
-        fresh = [t for t in tracks if t.track_id not in bound and t.seen_s == time_s]
-        unseen = [p for p in self.parts.values() if p.track is None]
-        if not fresh or not unseen:
+        self._bind(camera, [t for t in tracks if t.track_id not in bound], time_s)
+
+    def _bind(self, camera: str, free: list[Track], time_s: float) -> None:
+        """Pair the tracks no part follows with the unseen parts: of one kind, within the part's gate, the least
+        total distance beyond each part's spread; where that ties (look-alike parts in one bin), the oldest track
+        with the part the line released or put there first (`RANK_TIE_M`)."""
+        unseen = sorted((p for p in self.parts.values() if p.track is None), key=lambda p: (p.expected_s, p.part_id))
+        free = sorted(free, key=lambda t: (t.first_s, t.track_id))
+        if not free or not unseen:
             return
-        pairs = nearest_pairs(
-            np.array([t.top_centre_m for t in fresh]),
-            [t.kind for t in fresh],
-            np.array([self.expected_at(p, time_s) for p in unseen]),
-            [p.kind for p in unseen],
-            max(p.gate_m for p in unseen),
-        )
-        for i, j, gap_m in pairs:
-            if gap_m > unseen[j].gate_m:
-                continue
-            self._follow(unseen[j], camera, fresh[i])
-            self.first_seen_s.setdefault(unseen[j].part_id, time_s)
+        cost = np.full((len(free), len(unseen)), FAR)
+        for i, track in enumerate(free):
+            at = track.top_centre_m + np.asarray(self.velocity_at(track.top_centre_m)) * (time_s - track.seen_s)
+            for j, part in enumerate(unseen):
+                gap_m = float(np.hypot(*(at - self.expected_at(part, time_s))[:2]))
+                if track.kind == part.kind and gap_m <= part.gate_m:
+                    cost[i, j] = max(0.0, gap_m - part.spread_m) + RANK_TIE_M * abs(i - j)
+        for i, j in zip(*linear_sum_assignment(cost)):
+            if cost[i, j] < FAR:
+                self._follow(unseen[j], camera, free[i])
+                self.first_seen_s.setdefault(unseen[j].part_id, time_s)
 
     def _follow(self, part: LinePart, camera: str, track: Track) -> None:
         part.track, part.top_centre_m, part.yaw_rad = (camera, track.track_id), track.top_centre_m, track.yaw_rad

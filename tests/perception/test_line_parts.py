@@ -5,7 +5,7 @@ import numpy as np
 
 from perception.detect import Detection
 from perception.line_parts import LineParts
-from perception.tracks import PartTracks
+from perception.tracks import PartTracks, Track
 from tests.perception.test_tracks import FRAME_S, belt_under
 
 
@@ -66,3 +66,23 @@ def test_a_part_gone_from_the_line_is_forgotten():
     frames(line, tracks, lambda t: [seen(0.1 * t, 0.0, t)], 0, 3)
     line.gone(7)
     assert line.seen(0.6) == [] and 7 not in line.parts
+
+
+def test_look_alike_parts_in_one_bin_are_bound_in_the_order_the_line_put_them_there():
+    line = LineParts(belt_under)
+    bin_centre = np.array([0.5, 0.5, 0.1])
+    line.arrived(2, kind=0, spot_m=bin_centre, time_s=0.0, spread_m=0.08)
+    line.arrived(3, kind=0, spot_m=bin_centre, time_s=0.4, spread_m=0.08)
+    older = Track(11, 0, np.array([0.52, 0.46, 0.1]), 0.0, seen_s=0.8, first_s=0.2, hits=4, confidence=0.9)
+    newer = Track(12, 0, np.array([0.49, 0.53, 0.1]), 0.0, seen_s=1.0, first_s=0.6, hits=3, confidence=0.9)
+    line.update("overhead", [older, newer], 1.0)  # the older track hidden in this frame: both are free to bind
+    assert line.parts[2].track == ("overhead", 11) and line.parts[3].track == ("overhead", 12)
+
+
+def test_a_part_the_line_puts_where_its_track_already_shows_it_keeps_its_track():
+    line, tracks = LineParts(belt_under), PartTracks(belt_under)
+    line.arrived(7, kind=0, spot_m=np.array([0.5, 0.5, 0.1]), time_s=0.0, spread_m=0.08)
+    frames(line, tracks, lambda t: [seen(0.52, 0.48, t)], 0, 3)
+    track = line.parts[7].track
+    line.moved(7, np.array([0.5, 0.5, 0.1]), 0.6, spread_m=0.08)  # the line says it rests in that bin
+    assert line.parts[7].track == track
