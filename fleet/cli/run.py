@@ -319,6 +319,17 @@ def _camera_row(c: dict) -> str:
     )
 
 
+def _seen_row(p: dict) -> str:
+    """What seeing cost (`--perception cameras`): the seen parts' error against the truth, recall, the grasps that
+    held, and how old the frames decisions worked from were."""
+    scored, picks, coord = p.get("scored") or {}, p.get("picks") or {}, p.get("coordinator") or {}
+    held = f"{picks.get('done', 0)}/{picks.get('done', 0) + picks.get('grasp_missed', 0)}"
+    return (
+        f"{scored.get('position_error_p50_mm')} / {scored.get('position_error_p95_mm')}, "
+        f"{scored.get('recall')}, {held} (decisions on frames {coord.get('latency_p95_frames')} frames old at p95)"
+    )
+
+
 def print_run_summary(s: dict) -> None:
     table = Table(
         "figure", "value", title=f"{s['scene']}: {s['arms']} arms, {s['mode']}, seed {s['seed']} ({s['status']})"
@@ -373,6 +384,8 @@ def print_run_summary(s: dict) -> None:
         rows.append(("snapshots (written / failed / refused)", _snapshot_row(s)))
     if s.get("cameras"):
         rows.append(("cameras: frames / on the bus / rendering", _camera_row(s["cameras"])))
+    if s.get("perception"):
+        rows.append(("seen: error p50 / p95 (mm), recall, grasps held", _seen_row(s["perception"])))
     for row in rows:
         table.add_row(*row)
     out.print(table)
