@@ -32,22 +32,26 @@ def installed(tmp_path_factory):
     return {**os.environ, "PYTHONPATH": os.pathsep.join([str(target), os.environ.get("PYTHONPATH", "")])}
 
 
-def test_an_installed_plug_in_is_listed_and_runs_a_line(installed, tmp_path):
-    listed = subprocess.run(
-        [sys.executable, "-m", "fleet", "allocators"], env=installed, capture_output=True, text=True, timeout=60
-    )
-    assert listed.returncode == 0 and "deadline_first" in listed.stdout and "clawfleet-deadline-first" in listed.stdout
-    summary_file = tmp_path / "summary.json"
-    run = ["fleet", "run", "sorting_line", "--arms", "2", "--duration", "30", "--allocator", "deadline_first"]
+def fleet_run(env: dict, line: list[str], summary_file: Path) -> dict:
+    """`fleet run LINE...` where the plug-ins are installed; its summary."""
     done = subprocess.run(
-        [sys.executable, "-m", *run, "--summary", str(summary_file)],
-        env=installed,
+        [sys.executable, "-m", "fleet", "run", *line, "--summary", str(summary_file)],
+        env=env,
         capture_output=True,
         text=True,
         timeout=300,
     )
     assert done.returncode == 0, done.stderr[-2000:]
-    summary = json.loads(summary_file.read_text())
+    return json.loads(summary_file.read_text())
+
+
+def test_an_installed_plug_in_is_listed_and_runs_a_line(installed, tmp_path):
+    listed = subprocess.run(
+        [sys.executable, "-m", "fleet", "allocators"], env=installed, capture_output=True, text=True, timeout=60
+    )
+    assert listed.returncode == 0 and "deadline_first" in listed.stdout and "clawfleet-deadline-first" in listed.stdout
+    line = ["sorting_line", "--arms", "2", "--duration", "30", "--allocator", "deadline_first"]
+    summary = fleet_run(installed, line, tmp_path / "summary.json")
     assert summary["allocator"] == "deadline_first" and summary["allocator_faults"] == {}
     assert summary["parts_completed"] > 0 and summary["inter_arm_contacts"] == 0
 
@@ -69,20 +73,8 @@ def test_a_plug_in_that_raises_on_some_decisions_costs_only_those():
 
 @pytest.mark.lockstep
 def test_an_allocator_that_sees_gets_the_overhead_frames_at_its_rate_and_its_line_repeats(installed, tmp_path):
-    def run(name: str) -> dict:
-        summary_file = tmp_path / f"{name}.json"
-        line = ["fleet", "run", "pick_cell", "--duration", "12", "--seed", "1", "--allocator", "overhead_eyes"]
-        done = subprocess.run(
-            [sys.executable, "-m", *line, "--summary", str(summary_file)],
-            env=installed,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        assert done.returncode == 0, done.stderr[-2000:]
-        return json.loads(summary_file.read_text())
-
-    first, second = run("first"), run("second")
+    line = ["pick_cell", "--duration", "12", "--seed", "1", "--allocator", "overhead_eyes"]
+    first, second = (fleet_run(installed, line, tmp_path / f"{name}.json") for name in ("first", "second"))
     eyes = first["allocator_eyes"]
     # 2 looks a sim second, the first once a frame is 50 ms old: 24 in 12 s, each of the overhead's one frame
     assert eyes == {"looks": 24, "frames_handed": 24, "looks_without_all_frames": 0}, eyes
