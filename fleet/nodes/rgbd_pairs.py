@@ -11,15 +11,17 @@ from fleet.bus.images import decode_image
 from fleet.bus.messages import CameraImage
 from perception.rgbd import RGBDFrame
 
+HALF_TICKS_KEPT = 4  # a camera's ticks whose other half may still come (colour and depth travel on two keys)
+
 
 class RGBDPairs:
-    """Pairs `cameras`' colour and depth images by tick (`take`); a half whose other half never came is forgotten
-    once a half of another tick arrives."""
+    """Pairs `cameras`' colour and depth images by tick (`take`). The halves travel on two keys, so one of a later
+    frame may come first: a half waits until its camera has `HALF_TICKS_KEPT` newer ticks, then is forgotten."""
 
     def __init__(self, cameras: list[str], drops: DropCounter) -> None:
         self.drops = drops
         self._decoder = Decoder(CameraImage, drops)
-        self._halves: dict[str, dict[str, CameraImage]] = {name: {} for name in cameras}
+        self._halves: dict[str, dict[int, dict[str, CameraImage]]] = {name: {} for name in cameras}
         self.heard = 0  # images taken (whatever became of them)
 
     def take(self, key: str, payload: bytes) -> tuple[CameraImage, RGBDFrame | None] | None:
@@ -36,13 +38,15 @@ class RGBDPairs:
         ):
             self.drops.drop(key, "an image of another camera or kind than its key's, or of a camera not perceived")
             return None
-        halves = self._halves[msg.camera]
-        if any(h.tick != msg.tick for h in halves.values()):
-            halves.clear()  # a half whose other half never came: that frame is lost
+        by_tick = self._halves[msg.camera]
+        halves = by_tick.setdefault(msg.tick, {})
         halves[msg.kind] = msg
+        for old in sorted(by_tick)[:-HALF_TICKS_KEPT]:
+            del by_tick[old]  # a half whose other half never came: that frame is lost
         if len(halves) < 2:
             return None
-        rgb, depth = halves.pop("rgb"), halves.pop("depth")
+        del by_tick[msg.tick]
+        rgb, depth = halves["rgb"], halves["depth"]
         return rgb, self._frame(rgb, depth)
 
     def _frame(self, rgb: CameraImage, depth: CameraImage) -> RGBDFrame | None:

@@ -79,6 +79,14 @@ def test_halves_of_two_different_frames_are_never_paired():
     assert out == []
 
 
+def test_a_frame_whose_depth_comes_after_the_next_frames_colour_is_still_seen():
+    perceived, out = feed()
+    (rgb_20, depth_20), (rgb_40, depth_40) = drawn_frame(20), drawn_frame(40)
+    for key, image in (("rgb", rgb_20), ("rgb", rgb_40), ("depth", depth_20), ("depth", depth_40)):
+        give(perceived, KEY.format(key), encode(image))  # two keys, two callbacks: no order between them
+    assert [m.tick for m in out] == [20, 40]
+
+
 def test_the_belt_carries_only_what_lies_on_it():
     velocity_at = belt_velocity_at(load_checked_scene("sorting_line"))
     belt = load_checked_scene("sorting_line").conveyor
