@@ -119,10 +119,7 @@ class CoordinatorNode:
         self.last_tick = {a: -1 for a in self.arm_names}
         self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
         self._subs = self._subscribe(session, keys)
-        self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
-        self._tick_pub = session.declare_publisher(keys.coord("tick"))
-        self._progress_pub = session.declare_publisher(keys.coord("progress"))
-        self._separation_pub = session.declare_publisher(keys.coord("separation"))
+        self._declare_publishers(session, keys)
         self._progress_at = 0.0
         self.replayed: set[tuple] = set()  # events taken from the sim's log at a take-over (a live copy is not new)
         self.takeover: dict | None = None
@@ -144,13 +141,23 @@ class CoordinatorNode:
         frames_hz = getattr(self.dispatcher.allocator, "frames_hz", None)
         return seen, (AllocatorEyes(self.scene, frames_hz, self.drops) if frames_hz is not None else None)
 
+    def _declare_publishers(self, session: zenoh.Session, keys: Keys) -> None:
+        """Orders on each arm's `assign` key, the lockstep answer, progress, separations; and for an allocator that
+        sees, `coord/eyes`, said until the first image comes (the sim starts then: its first frame is not lost)."""
+        self._assign_pubs = {a: session.declare_publisher(keys.arm_assign(a)) for a in self.arm_names}
+        self._tick_pub = session.declare_publisher(keys.coord("tick"))
+        self._progress_pub = session.declare_publisher(keys.coord("progress"))
+        self._separation_pub = session.declare_publisher(keys.coord("separation"))
+        self._eyes_pub = session.declare_publisher(keys.coord("eyes")) if self.eyes is not None else None
+
     def _subscribe(self, session: zenoh.Session, keys: Keys) -> list:
         """Everything into the one inbox (perception's parts too, when the line works from its cameras); heartbeats
         and frames also stamped on arrival."""
-        inbox_keys = (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
-        inbox_keys += (keys.seen_parts,) if self.seen is not None else ()
+        inbox_keys: tuple[str, ...] = ()  # what the line sees first: subscribed before the frames it comes with
         if self.eyes is not None:
             inbox_keys += tuple(keys.camera(c.name, kind) for c in self.eyes.cameras for kind in ("rgb", "depth"))
+        inbox_keys += (keys.seen_parts,) if self.seen is not None else ()
+        inbox_keys += (keys.events, keys.frame, keys.all_arms("status"), keys.roster)
         stamps = ((keys.all_arms("status"), self.lives.arrived), (keys.frame, self.lives.frame_arrived))
         subs = [session.declare_subscriber(k, self.inbox) for k in inbox_keys]
         return subs + [session.declare_subscriber(k, stamp) for k, stamp in stamps]  # heartbeats, frames: arrivals
@@ -164,6 +171,8 @@ class CoordinatorNode:
             sub.undeclare()
         for pub in [*self._assign_pubs.values(), self._tick_pub, self._progress_pub, self._separation_pub]:
             pub.undeclare()
+        if self._eyes_pub is not None:
+            self._eyes_pub.undeclare()
         self.snapshot_link.close()
 
     # --- snapshots ------------------------------------------------------------------
@@ -194,6 +203,8 @@ class CoordinatorNode:
     # --- inputs ---------------------------------------------------------------------
     def poll(self) -> bool:
         """Handle everything queued, in order. True if anything was."""
+        if self._eyes_pub is not None and not self.eyes.pairs.heard:
+            self._eyes_pub.put(b"")
         items = self.inbox.drain()
         for key, payload in items:
             if self.eyes is not None and "/camera/" in key:

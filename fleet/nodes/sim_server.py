@@ -76,6 +76,31 @@ def await_ready(session: zenoh.Session, key: str, timeout_s: float) -> bool:
         sub.undeclare()
 
 
+def add_await_arguments(parser: argparse.ArgumentParser) -> None:
+    """What the sim waits for before its clock starts: nodes that must not miss the line's first tick."""
+    parser.add_argument(
+        "--await-recorder",
+        type=float,
+        metavar="S",
+        default=0.0,
+        help="start the clock only once a recorder listens (wait at most S wall seconds)",
+    )
+    parser.add_argument(
+        "--await-perception",
+        type=float,
+        metavar="S",
+        default=0.0,
+        help="start the clock only once a perception process listens (wait at most S wall seconds)",
+    )
+    parser.add_argument(
+        "--await-eyes",
+        type=float,
+        metavar="S",
+        default=0.0,
+        help="start the clock only once the coordinator's allocator that sees listens to the cameras (at most S s)",
+    )
+
+
 def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     """What the sim writes besides the line: its report, the drive targets, the bus spool, the router's audit."""
     parser.add_argument("--report", help="write the end-of-run figures to this JSON file")
@@ -131,20 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
         "is respawned)",
     )
     add_output_arguments(parser)
-    parser.add_argument(
-        "--await-recorder",
-        type=float,
-        metavar="S",
-        default=0.0,
-        help="start the clock only once a recorder listens (wait at most S wall seconds)",
-    )
-    parser.add_argument(
-        "--await-perception",
-        type=float,
-        metavar="S",
-        default=0.0,
-        help="start the clock only once a perception process listens (wait at most S wall seconds)",
-    )
+    add_await_arguments(parser)
     parser.add_argument(
         "--no-controllers",
         action="store_true",
@@ -257,6 +269,7 @@ def serve(
     for who, key, timeout_s in (
         ("recorder", server.keys.recorder_ready, args.await_recorder),
         ("perception process", server.keys.seen_ready, args.await_perception),
+        ("coordinator's allocator that sees", server.keys.coord("eyes"), args.await_eyes),
     ):
         if timeout_s and not await_ready(server.bus.session, key, timeout_s):
             server.close()

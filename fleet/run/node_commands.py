@@ -92,6 +92,8 @@ class NodeCommands:
             sim_args += ["--cameras", cameras, "--camera-encoding", o.rgb_encoding()]
         if o.perception == "cameras":  # the line's first frame is seen: the clock starts once perception listens
             sim_args += ["--await-perception", repr(PERCEPTION_START_S)]
+        if self._allocator_sees():  # and once the allocator that sees does
+            sim_args += ["--await-eyes", repr(PERCEPTION_START_S)]
         if o.record:  # what the bus carries, as the sim hears it, for the recorder (no second copy on the wire)
             sim_args += ["--spool", str(self.spool_path)]
         if o.respawn:
@@ -109,13 +111,17 @@ class NodeCommands:
     def cameras(self) -> str | None:
         """The cameras the sim renders: those asked for, and with `--perception cameras` or an allocator that sees
         every fixed one (the line, or its brain, sees through all of them)."""
-        from coordinator.allocator_plugins import sees
-
         named = self.options.cameras
-        if named == "all" or not (self.options.perception == "cameras" or sees(self.options.allocator)):
+        if named == "all" or not (self.options.perception == "cameras" or self._allocator_sees()):
             return named
         fixed = [c.name for c in self.scene.cameras if c.arm is None]
         return ",".join(dict.fromkeys([*(n.strip() for n in (named or "").split(",") if n.strip()), *fixed]))
+
+    def _allocator_sees(self) -> bool:
+        """Whether the run's allocator asks to see the cameras (a plug-in is loaded only for this question)."""
+        from coordinator.allocator_plugins import sees
+
+        return sees(self.options.allocator)
 
     def _snapshot_args(self) -> list[str]:
         """The sim's snapshot flags: when (sim seconds) and where."""
