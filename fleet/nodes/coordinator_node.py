@@ -70,6 +70,7 @@ from scenes.schema import Scene
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
+SIGHT_WAIT_S = 5.0  # lockstep: how long a decision waits for what it sees (perception's parts, an allocator's frames)
 
 
 class CoordinatorNode:
@@ -302,7 +303,8 @@ class CoordinatorNode:
             return
         shown = self.eyes.look_due(due[0]) if self.eyes is not None else None
         seen_waits = self.seen is not None and not self.seen.ready(due[0])
-        if (seen_waits or (shown is not None and not self.eyes.ready(shown))) and now <= due[2]:
+        longer_s = SIGHT_WAIT_S - DECISION_WAIT_S if self.lockstep else 0.0  # a lockstep sim waits for us anyway
+        if (seen_waits or (shown is not None and not self.eyes.ready(shown))) and now <= due[2] + longer_s:
             return  # the frame's parts or the allocator's frames are still on their way
         tick = self.events.due_now(now)
         if tick is None:
