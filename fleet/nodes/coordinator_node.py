@@ -70,7 +70,7 @@ from scenes.schema import Scene
 PROGRESS_PERIOD_S = 0.5
 TASK_ID_SPAN = 1 << 20  # task ids of each incarnation: a respawned coordinator never reuses one its predecessor gave
 DECISION_WAIT_S = 0.5  # a reach check must not miss a reachable spot for an unlucky start
-SIGHT_WAIT_S = 5.0  # lockstep: how long a decision waits for what it sees (perception's parts, an allocator's frames)
+SIGHT_WAIT_S = 2.0  # lockstep: how long a decision waits for what it sees; under the sim's 3 s wait for us
 
 
 class CoordinatorNode:
