@@ -7,8 +7,9 @@ from __future__ import annotations
 
 from fleet.bus.codec import DropCounter
 from fleet.nodes.rgbd_pairs import RGBDPairs
+from fleet.sight.line_sight import seen_ticks_of
 from perception.rgbd import RGBDFrame
-from perception.seen_ticks import SeenTicks, frame_due, frame_index
+from perception.seen_ticks import frame_due, frame_index
 from scenes.schema import Scene
 
 KEEP_TICKS = 8  # camera ticks' frames kept for a look still to come
@@ -24,7 +25,7 @@ class AllocatorEyes:
         self.cameras = [c for c in scene.cameras if c.arm is None]
         if not self.cameras:
             raise ValueError(f"the scene {scene.name} has no fixed camera for an allocator that asks for frames")
-        self.ticks = SeenTicks([c.rate_hz for c in self.cameras], scene.control_hz)
+        self.ticks = seen_ticks_of(scene)
         self.pairs = RGBDPairs([c.name for c in self.cameras], drops)
         self.frames: dict[int, dict[str, RGBDFrame]] = {}
         self.last_look = -1  # the frame number (at `frames_hz`) of the last look

@@ -8,9 +8,8 @@ from collections import deque
 import numpy as np
 
 from coordinator.allocation import PartView
-from fleet.bus.message_checks import parts_problem
 from fleet.bus.messages import PartsState
-from fleet.sight.line_sight import carried_to
+from fleet.sight.line_sight import carried_to, seen_parts_problem
 from fleet.sight.part_views import part_views
 from perception.seen_ticks import SeenTicks
 
@@ -29,9 +28,7 @@ class SeenParts:
 
     def problem(self, msg: PartsState) -> str:
         """Why a decoded parts message cannot be perception's ("" if it can)."""
-        if not self.ticks.due(msg.tick):
-            return f"seen parts of tick {msg.tick}, when no camera takes a frame"
-        return parts_problem(msg)
+        return seen_parts_problem(msg, self.ticks)
 
     def take(self, msg: PartsState) -> None:
         if not self.frames or msg.tick > self.frames[-1].tick:

@@ -11,7 +11,7 @@ from fleet.bus.message_checks import TickClock, arm_state_problem, parts_problem
 from fleet.bus.messages import ArmState, PartsState
 from fleet.bus.session import Inbox
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders, believable
-from fleet.sight.line_sight import carried_to
+from fleet.sight.line_sight import carried_to, seen_parts_problem
 from fleet.sight.part_views import parts_from_message
 from fleet.snapshot.controller_state import FeedState
 from perception.seen_ticks import SeenTicks
@@ -71,9 +71,7 @@ class SimFeed:
         if problem:
             return problem
         if isinstance(msg, PartsState):
-            if self.seen is not None and not self.seen.due(msg.tick):
-                return f"seen parts of tick {msg.tick}, when no camera takes a frame"
-            return parts_problem(msg)
+            return parts_problem(msg) if self.seen is None else seen_parts_problem(msg, self.seen)
         # -1: orders act on arrival
         announced = seq_problem(msg.assign_seq, self.orders.assign_seq) if msg.assign_seq != -1 else ""
         return arm_state_problem(msg, self.arm, self.arm_dof) or announced

@@ -9,15 +9,15 @@ import math
 import msgspec
 import numpy as np
 
+from coordinator.ledger import EVENT_KINDS
 from fleet.bus.codec import DropCounter
+from fleet.bus.message_checks import parts_problem
 from fleet.bus.messages import LineEvent, PartsState
 from perception.line_parts import LineParts
 from perception.looks import PartLook
 from perception.seen_ticks import SeenTicks
 from perception.tracks import Track
 from scenes.schema import Scene
-
-EVENT_KINDS = ("arrived", "at_station", "lost", "retired")
 
 
 def station_spread_m(scene: Scene, name: str) -> float:
@@ -146,3 +146,11 @@ def carried_to(msg: PartsState, tick: int, control_hz: float) -> PartsState:
     ahead_s = (tick - msg.tick) / control_hz
     positions = tuple(p + v * ahead_s for p, v in zip(msg.positions, msg.velocities))
     return msgspec.structs.replace(msg, tick=tick, sim_time_s=tick / control_hz, positions=positions)
+
+
+def seen_parts_problem(msg: PartsState, ticks: SeenTicks) -> str:
+    """Why a decoded parts message on `seen/parts` cannot be perception's ("" if it can): of a tick no camera takes
+    a frame at, or arrays that do not fit its ids."""
+    if not ticks.due(msg.tick):
+        return f"seen parts of tick {msg.tick}, when no camera takes a frame"
+    return parts_problem(msg)
