@@ -131,8 +131,11 @@ class SimServer:
         self.bus.close()
 
     def settle(self) -> None:
-        """Lockstep, after the last tick: the answers to what was delivered awaited (`SimLockstep.settle`)."""
+        """After the last tick: the answers to what was delivered awaited (`SimLockstep.settle`, in lockstep) and
+        perception's to the last frames."""
         self.lockstep.settle()
+        if self.cameras is not None:
+            self.cameras.settle()
 
     # --- one tick -------------------------------------------------------------------
     def tick(self) -> None:

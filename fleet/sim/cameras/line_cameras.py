@@ -138,6 +138,11 @@ class LineCameras:
                 self.counts.bytes_out += len(data)
         self.counts.encode_s += time.perf_counter() - rendered
 
+    def settle(self) -> None:
+        """After the last tick: perception's answers to the last frames scored (awaited a little: see `SeenScore`)."""
+        if self.score is not None:
+            self.score.settle()
+
     def close(self) -> None:
         for pub in self._pubs.values():
             pub.undeclare()

@@ -3,6 +3,8 @@ world's truth at each frame they were seen in. The truth never leaves the sim: i
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -17,6 +19,7 @@ from scenes.schema import Station
 
 RIGHT_M = 0.03  # a seen part within this of its part's true centre is seen right
 KEEP_FRAMES = 64  # frames' truth kept for perception's answers still on their way
+SETTLE_S = 2.0  # after the last tick, how long perception's answer to the last frame is awaited
 
 
 def top_face_yaw(part: PartInfo) -> tuple[float, bool]:
@@ -58,6 +61,7 @@ class SeenScore:
         self.visible = self.visible_seen = self.seen = self.seen_right = self.frames_scored = 0
         self.ever_seen: set[int] = set()
         self.ever_visible: set[int] = set()
+        self.newest_answered = -1  # the newest frame tick perception answered
 
     def frame(self, tick: int, world: World, frames: dict[str, CameraFrame]) -> None:
         """The truth at a frame tick: every active part, and the ids some camera shows a pixel of."""
@@ -74,8 +78,21 @@ class SeenScore:
     def take(self) -> None:
         for key, payload in self.inbox.drain():
             msg = self._decoder.decode(key, payload)
+            if msg is not None:
+                self.newest_answered = max(self.newest_answered, msg.tick)
             if msg is not None and msg.tick in self.truth:
                 self._score(msg, *self.truth.pop(msg.tick))
+
+    def settle(self, timeout_s: float = SETTLE_S) -> bool:
+        """After the last tick: perception's answers up to the last frame taken, awaited up to `timeout_s` (they
+        are on their way when the line stops; scoring whichever arrived in time would not repeat). Whether they came."""
+        last = max(self.truth, default=-1)
+        deadline = time.monotonic() + timeout_s
+        self.take()
+        while self.newest_answered < last and time.monotonic() < deadline:
+            self.inbox.wait(0.02)
+            self.take()
+        return self.newest_answered >= last
 
     def _score(self, msg: PartsState, parts: dict[int, PartInfo], visible: set[int]) -> None:
         self.frames_scored += 1
