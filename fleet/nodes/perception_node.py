@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import zenoh
+
 from fleet.bus.codec import encode
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, Inbox, add_bus_arguments, open_session
@@ -39,8 +41,11 @@ def main(argv: list[str] | None = None) -> int:
         if not cameras:
             print(f"fleet perception: the scene {scene.name} has no fixed camera to see the line with", file=sys.stderr)
             return 1
-        publishers = {name: session.declare_publisher(keys.detections(name)) for name in cameras}
-        seen_pub = session.declare_publisher(keys.seen_parts)
+        block = zenoh.CongestionControl.BLOCK  # never dropped on a busy link: a lockstep line awaits every frame's parts
+        publishers = {
+            name: session.declare_publisher(keys.detections(name), congestion_control=block) for name in cameras
+        }
+        seen_pub = session.declare_publisher(keys.seen_parts, congestion_control=block)
         feed = PerceptionFeed(
             scene,
             cameras,

@@ -245,7 +245,14 @@ def attach_cameras(server: SimServer, args: argparse.Namespace, session: zenoh.S
         rig = CameraRig(server.world, cameras_named(server.world.scene_model.cameras, args.cameras))
     except (ValueError, CameraMountError, RenderUnavailable) as exc:
         return str(exc)
-    server.cameras = LineCameras(rig, session, keys, args.camera_encoding, scored=args.perception == "cameras")
+    server.cameras = LineCameras(
+        rig,
+        session,
+        keys,
+        args.camera_encoding,
+        scored=args.perception == "cameras",
+        every_frame=args.mode == "lockstep",
+    )
     server.cameras.warm_up()  # the renderer's set-up (seconds on a CPU) before the line's first tick, not in it
     return ""
 

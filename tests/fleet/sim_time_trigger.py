@@ -16,10 +16,12 @@ from fleet.bus.session import Inbox
 
 class SimTimeTrigger:
     """Calls `act()` once the line's sim time (its arms' states, heard on `session`) passes each of `at_s`, from a
-    thread of its own that wakes on every state; `times` counts the calls. Use in a `with` block around the run."""
+    thread of its own that wakes on every state; `times` counts the calls. Use in a `with` block around the run: an
+    exception `act` raised is raised again when the block ends (a thread's own would go unseen)."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, at_s: list[float], act) -> None:
         self.at_s, self.act, self.times = sorted(at_s), act, 0
+        self.raised: BaseException | None = None
         self.inbox, self.decoder = Inbox(), Decoder(ArmState, DropCounter())
         self.sub = session.declare_subscriber(keys.all_arms("state"), self.inbox)
         self.stop = threading.Event()
@@ -33,8 +35,16 @@ class SimTimeTrigger:
         self.stop.set()
         self.thread.join(5)
         self.sub.undeclare()
+        if self.raised is not None and exc[0] is None:
+            raise AssertionError(f"act raised at a moment of sim time: {self.raised!r}") from self.raised
 
     def _watch(self) -> None:
+        try:
+            self._watch_states()
+        except Exception as exc:  # noqa: BLE001 - handed to the test when its block ends
+            self.raised = exc
+
+    def _watch_states(self) -> None:
         pending = list(self.at_s)
         while pending and not self.stop.is_set():
             for key, payload in self.inbox.drain():

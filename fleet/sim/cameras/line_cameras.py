@@ -90,14 +90,24 @@ class LineCameras:
     """Renders the cameras due at a tick and puts their images on the bus, counting what it costs."""
 
     def __init__(
-        self, rig: CameraRig, session: zenoh.Session, keys: Keys, rgb_encoding: str = "png", scored: bool = False
+        self,
+        rig: CameraRig,
+        session: zenoh.Session,
+        keys: Keys,
+        rgb_encoding: str = "png",
+        scored: bool = False,
+        every_frame: bool = False,
     ) -> None:
-        """`scored`: the line works from what perception sees; its parts are scored against the truth here."""
+        """`scored`: the line works from what perception sees; its parts are scored against the truth here.
+        `every_frame` (lockstep): an image waits for room on a full link rather than being dropped (Zenoh's default
+        drops a large message when the link's queue stays full a moment, as it does on a busy machine); otherwise
+        the first waits and those after it are dropped until it is out (a live line sends fresh frames)."""
         self.rig = rig
         self.encodings = encodings_for(rgb_encoding)
         self.counts = CameraCounts()
+        congestion = zenoh.CongestionControl.BLOCK if every_frame else zenoh.CongestionControl.BLOCK_FIRST
         self._pubs = {
-            (name, kind): session.declare_publisher(keys.camera(name, kind))
+            (name, kind): session.declare_publisher(keys.camera(name, kind), congestion_control=congestion)
             for name, camera in rig.cameras.items()
             for kind in camera.model.images
         }
