@@ -61,9 +61,10 @@ class SimBus:
         self.state_pubs = {name: session.declare_publisher(keys.arm_state(name)) for name in arms}
         self.result_pubs = {name: session.declare_publisher(keys.arm_result(name)) for name in arms}
         self.parts_pub = session.declare_publisher(keys.parts)
-        self.events_pub = session.declare_publisher(keys.events)
-        # never dropped for a full queue: in lockstep a node told of a snapshot holds the line's messages until asked
+        # never dropped for a full queue: every reader counts the line's events (perception waits for those a frame
+        # names), and in lockstep a node told of a snapshot holds the line's messages until asked
         block = zenoh.CongestionControl.BLOCK
+        self.events_pub = session.declare_publisher(keys.events, congestion_control=block)
         self.snapshot_pub = session.declare_publisher(keys.snapshot_ask, congestion_control=block)
 
     def put(self, pub: zenoh.Publisher, leaf: str, payload: bytes) -> None:

@@ -101,13 +101,17 @@ class LineCameras:
         """`scored`: the line works from what perception sees; its parts are scored against the truth here.
         `every_frame` (lockstep): an image waits for room on a full link rather than being dropped (Zenoh's default
         drops a large message when the link's queue stays full a moment, as it does on a busy machine); otherwise
-        the first waits and those after it are dropped until it is out (a live line sends fresh frames)."""
+        the first waits and those after it are dropped until it is out (a live line sends fresh frames). Images go
+        at a lower priority than the line's messages, in a queue of their own."""
         self.rig = rig
         self.encodings = encodings_for(rgb_encoding)
         self.counts = CameraCounts()
         congestion = zenoh.CongestionControl.BLOCK if every_frame else zenoh.CongestionControl.BLOCK_FIRST
+        below_the_line = zenoh.Priority.DATA_LOW  # queued apart: a large image never holds up the line's messages
         self._pubs = {
-            (name, kind): session.declare_publisher(keys.camera(name, kind), congestion_control=congestion)
+            (name, kind): session.declare_publisher(
+                keys.camera(name, kind), congestion_control=congestion, priority=below_the_line
+            )
             for name, camera in rig.cameras.items()
             for kind in camera.model.images
         }

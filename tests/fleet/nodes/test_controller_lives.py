@@ -45,7 +45,7 @@ def test_an_arm_silent_while_the_line_runs_is_lost_and_its_silence_said():
     run_for(lives, 10.0, beating=("arm_1",), until=lambda: dispatcher.losses)  # a busy machine may stall the loop
     assert set(dispatcher.lost) == {"arm_0"}, "lost, and no heartbeat brought it back"
     (loss,) = dispatcher.losses
-    assert loss["why"] == f"no heartbeat for {TIMEOUT_S} s" and loss["silent_for_s"] > TIMEOUT_S
+    assert loss["why"] == f"no heartbeat for {TIMEOUT_S} s" and loss["silent_for_s"] >= TIMEOUT_S  # to the ms
 
 
 def test_a_stalled_line_costs_no_arm_whose_heartbeats_come_back_with_it():

@@ -102,6 +102,8 @@ def test_a_lockstep_line_that_works_from_its_cameras_repeats_exactly():
     options = RunOptions(scene="pick_cell", duration_s=8.0, seed=3, perception="cameras")
     (first, first_seen), (second, second_seen) = heard(options), heard(options)
     assert first["status"] == second["status"] == "ok"
+    late = [seen_of(run)["frames_on_deadline"] for run in (first, second)]
+    assert late == [0, 0], "every frame was seen with all its images and the events before it"
     ticks = Decoder(PartsState, DropCounter())
     first_by, second_by = ({ticks.decode("s", p).tick: p for p in heard} for heard in (first_seen, second_seen))
     both = sorted(first_by.keys() & second_by.keys())  # this test's listener may join a frame after the line starts
