@@ -10,7 +10,7 @@ from collections import deque
 from coordinator.allocation import PartView
 from fleet.bus.codec import DropCounter
 from fleet.bus.messages import LineEvent, PartsState
-from fleet.sight.line_sight import carried_to, seen_ticks_of
+from fleet.sight.line_sight import carried_to, newest_up_to, seen_ticks_of
 from fleet.sight.part_views import part_views, parts_from_message
 from fleet.sight.seer import Seer
 from fleet.sim.cameras.rig import CameraRig
@@ -59,9 +59,8 @@ class EnvSight:
         self.frames.append(self.seer.sight.message(world.tick, world.sim_time_s))
 
     def _usable(self, tick: int) -> PartsState | None:
-        needed = self.ticks.usable_at(tick)
-        usable = [m for m in self.frames if m.tick <= needed]
-        return carried_to(usable[-1], tick, self.scene.control_hz) if usable else None
+        newest = newest_up_to(self.frames, self.ticks.usable_at(tick))
+        return carried_to(newest, tick, self.scene.control_hz) if newest is not None else None
 
     def views(self, tick: int) -> dict[int, PartView]:
         """The allocators' view of the parts seen, as of `tick`."""

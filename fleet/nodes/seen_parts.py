@@ -9,7 +9,7 @@ import numpy as np
 
 from coordinator.allocation import PartView
 from fleet.bus.messages import PartsState
-from fleet.sight.line_sight import carried_to, seen_parts_problem
+from fleet.sight.line_sight import carried_to, newest_up_to, seen_parts_problem
 from fleet.sight.part_views import part_views
 from perception.seen_ticks import SeenTicks
 
@@ -42,13 +42,13 @@ class SeenParts:
         """The parts of the newest frame usable at `tick` (none before the first), carried to `tick` by their motion,
         and the sim time of `tick`."""
         needed = self.ticks.usable_at(tick)
-        usable = [m for m in self.frames if m.tick <= needed]
-        if not usable:
+        newest = newest_up_to(self.frames, needed)
+        if newest is None:
             self.late += needed >= 0
             return {}, tick / self.control_hz
-        self.late += usable[-1].tick != needed
-        self.ages_ticks.append(tick - usable[-1].tick)
-        frame = carried_to(usable[-1], tick, self.control_hz)
+        self.late += newest.tick != needed
+        self.ages_ticks.append(tick - newest.tick)
+        frame = carried_to(newest, tick, self.control_hz)
         return part_views(frame), frame.sim_time_s
 
     def report(self, control_hz: float, frame_s: float) -> dict:

@@ -11,7 +11,7 @@ from fleet.bus.message_checks import TickClock, arm_state_problem, parts_problem
 from fleet.bus.messages import ArmState, PartsState
 from fleet.bus.session import Inbox
 from fleet.nodes.arm_orders import ASSIGNMENT_WAIT_S, ControllerOrders, believable
-from fleet.sight.line_sight import carried_to, seen_parts_problem
+from fleet.sight.line_sight import carried_to, newest_up_to, seen_parts_problem
 from fleet.sight.part_views import parts_from_message
 from fleet.snapshot.controller_state import FeedState
 from perception.seen_ticks import SeenTicks
@@ -97,10 +97,10 @@ class SimFeed:
         deadline = time.monotonic() + ASSIGNMENT_WAIT_S
         while True:
             self.take_parts()
-            seen = [m for m in self.parts_seen if m.tick <= tick]
-            if seen and (seen[-1].tick != self.parts_tick or now_tick is not None):
-                msg = seen[-1] if now_tick is None else carried_to(seen[-1], now_tick, self.control_hz)
-                self.parts, self.parts_tick = parts_from_message(msg, self.round_types), seen[-1].tick
+            newest = newest_up_to(self.parts_seen, tick)
+            if newest is not None and (newest.tick != self.parts_tick or now_tick is not None):
+                msg = newest if now_tick is None else carried_to(newest, now_tick, self.control_hz)
+                self.parts, self.parts_tick = parts_from_message(msg, self.round_types), newest.tick
             if self.parts_in(tick):
                 return
             if time.monotonic() > deadline:

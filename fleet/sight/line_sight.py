@@ -5,6 +5,7 @@ the line put them (`perception.line_parts` binds each to a camera's track), the 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import msgspec
 import numpy as np
@@ -138,6 +139,12 @@ def seen_ticks_of(scene: Scene) -> SeenTicks:
     if not rates:
         raise ValueError(f"the scene {scene.name} has no fixed camera to see the line with")
     return SeenTicks(rates, scene.control_hz)
+
+
+def newest_up_to(frames: Iterable[PartsState], tick: int) -> PartsState | None:
+    """The newest of perception's parts messages (oldest first) taken no later than `tick` (None: none was)."""
+    usable = [m for m in frames if m.tick <= tick]
+    return usable[-1] if usable else None
 
 
 def carried_to(msg: PartsState, tick: int, control_hz: float) -> PartsState:
