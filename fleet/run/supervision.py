@@ -84,6 +84,10 @@ class Supervision:
             self._roster_pub.undeclare()
             self._roster_pub = None
 
+    def node_of(self, role: str) -> Node:
+        """The run's node of `role` (the sim or the coordinator: one each), found by its role, not its place."""
+        return next(n for n in self.nodes if n.role == role)
+
     def say_roster(self, now: bool = False) -> None:
         """Which start of each counted node runs (`Roster`): at once after a restart, else every second. A node's
         incarnation changes only through this, so nobody else's heartbeat or order can claim a new one."""
@@ -156,7 +160,7 @@ class Supervision:
                 self.on_message(f"{SERVERS[node.role]} exited (exit {node.exit_code}): {tail}; the line goes on")
 
     def _supervise(self, inbox: Inbox) -> str:
-        sim, coordinator = self.nodes[0], self.nodes[1]
+        sim, coordinator = self.node_of("sim"), self.node_of("coordinator")
         said = LogRelay(coordinator.log, ("allocator ",))  # a plug-in's faults, said on the user's terminal
         while not self.stopped():
             self.say_roster()
@@ -169,7 +173,7 @@ class Supervision:
             # every node's state read before the factory's: nodes it forked die with it, and a death seen first must
             # not be blamed on the node
             code, coordinator_code = sim.poll(), coordinator.poll()
-            gone = [n for n in self.nodes[2:] if n.role == "controller" and n.poll() is not None]
+            gone = [n for n in self.nodes if n.role == "controller" and n.poll() is not None]
             if self.factory is not None and (died := self.factory.died):
                 return f"{died}; logs in {self.dir}"
             if code is not None:
@@ -197,7 +201,7 @@ class Supervision:
 
     def unreachable(self, why: str) -> str:
         """Why the launcher could not reach the line's bus: the sim's own line where it ended (waited for briefly)."""
-        sim = self.nodes[0]
+        sim = self.node_of("sim")
         deadline = time.monotonic() + 3.0
         while sim.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)

@@ -80,6 +80,7 @@ def clean_line_30s_seed_5() -> dict:
     return summary
 
 
+@pytest.mark.lockstep  # a lockstep line: no clock against the wall
 def test_two_lockstep_runs_with_one_seed_complete_parts_identically():
     (first, launcher), (second, second_launcher) = run_lines_together(*[{"duration_s": 18.0, "seed": 5}] * 2)
     assert_nothing_left(first, launcher.endpoint)
@@ -415,6 +416,7 @@ def test_a_controller_killed_for_good_makes_exactly_its_arm_lost_and_the_line_go
     assert summary["parts_completed"] >= 3, "the other arms went on completing parts"
 
 
+@pytest.mark.lockstep  # a lockstep line: no clock against the wall
 def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_path):
     import yaml
 
@@ -443,6 +445,7 @@ def test_a_randomised_line_repeats_for_its_seed_and_lists_what_was_drawn(tmp_pat
     assert strip(first) == strip(second), "every process drew the same values from the seed, and the noise repeats"
 
 
+@pytest.mark.lockstep  # a lockstep line: no clock against the wall
 def test_a_line_with_bus_faults_repeats_for_its_seed_and_says_what_was_injected():
     faults = {"latency_ms": 50.0, "jitter_ms": 10.0, "loss": 0.05}
     (first, launcher), (second, _) = run_lines_together(*[{"duration_s": 15.0, "seed": 5, **faults}] * 2)

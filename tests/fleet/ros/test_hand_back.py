@@ -86,24 +86,29 @@ def line_with_an_outside_goal(
 
 
 @pytest.mark.parametrize(
-    ("arms", "mode", "seconds", "parts_lost"),
-    [
-        pytest.param(2, "lockstep", 90.0, 0.1, marks=pytest.mark.lockstep),
-        pytest.param(4, "lockstep", 90.0, 0.1, marks=pytest.mark.lockstep),
-        (4, "realtime", 60.0, 0.2),
-    ],
+    ("arms", "seconds"),
+    [pytest.param(2, 90.0, marks=pytest.mark.lockstep), pytest.param(4, 90.0, marks=pytest.mark.lockstep)],
 )
-def test_an_arm_driven_into_its_neighbour_s_space_and_let_go_leaves_the_line_working(arms, mode, seconds, parts_lost):
-    """`parts_lost`: the share of the parts done that the outside goal may cost (the realtime run is kept short
-    for the suite, at twice real time: 60 s do about 8 parts, so 10% would be no part at all). Two arms in
-    realtime gave nothing the four do not (120 wall s of the suite); lockstep covers both counts."""
+def test_an_arm_driven_into_its_neighbour_s_space_and_let_go_leaves_the_line_working(arms, seconds):
+    """The same line with the goal taken away from the neighbour: the goal into its space costs at most 10% of the
+    parts (lockstep: the two runs differ by the goal alone)."""
     home = np.asarray(get_robot("openclaw").home_q, float)
-    speed = 2.0 if mode == "realtime" else 1.0
-    away = line_with_an_outside_goal(arms, mode, seconds, [home + np.r_[0.0, -0.2, 0.0, 0.0, 0.0, 0.0]], speed)
-    into = line_with_an_outside_goal(arms, mode, seconds, poses_beside_arm_1(arms), speed)
+    away = line_with_an_outside_goal(arms, "lockstep", seconds, [home + np.r_[0.0, -0.2, 0.0, 0.0, 0.0, 0.0]])
+    into = line_with_an_outside_goal(arms, "lockstep", seconds, poses_beside_arm_1(arms))
     for run in (away, into):
         assert run["status"] == "ok", run["error"]
         assert run["inter_arm_contacts"] == 0 and run["safety_stops"] == 0, run["contact_pairs"]
     done = into["parts_completed"], away["parts_completed"], into["grants_denied"]
-    assert into["parts_completed"] >= (1 - parts_lost) * away["parts_completed"], done
+    assert into["parts_completed"] >= 0.9 * away["parts_completed"], done
+    assert into["grant_requests_open"] == {} or max(into["grant_requests_open"].values()) < 5.0, "none stood denied"
+
+
+def test_in_realtime_an_arm_driven_into_its_neighbour_s_space_and_let_go_leaves_the_line_working():
+    """The same on the wall clock (at twice real time, kept short for the suite): no contact, nothing left standing
+    denied, and at least half the parts its own arrivals allowed done (8 of 10 on an idle machine; the lockstep
+    cases compare with the goal away, which a realtime run would only repeat at twice the wall time)."""
+    into = line_with_an_outside_goal(4, "realtime", 60.0, poses_beside_arm_1(4), speed=2.0)
+    assert into["status"] == "ok", into["error"]
+    assert into["inter_arm_contacts"] == 0 and into["safety_stops"] == 0, into["contact_pairs"]
+    assert into["parts_completed"] >= 0.5 * into["parts_completable"], (into["parts_completed"], into["grants_denied"])
     assert into["grant_requests_open"] == {} or max(into["grant_requests_open"].values()) < 5.0, "none stood denied"
