@@ -25,6 +25,7 @@ FLEET_LAYERS: dict[str, int] = {
     "fleet.robot_tools": 5,
     "fleet.sight": 5,
     "fleet.nodes": 6,
+    "fleet.twin": 6,
     "fleet.env": 6,
     "fleet.run": 7,
     "fleet.sweep": 8,

@@ -1,0 +1,63 @@
+"""An STS servo line on a pseudo-terminal: a driver opens `PtyServoBus.port` as it would a USB serial adapter
+(`/dev/ttyACM0`) and the servos of a `ServoLine` answer its packets. The terminal is raw (no echo, no line
+discipline), so every byte goes through as on the wire; the baud rate a driver sets is taken and ignored."""
+
+from __future__ import annotations
+
+import os
+import select
+import threading
+import tty
+
+from robots.feetech.packets import PacketReader
+from robots.feetech.servos import ServoLine
+
+
+class PtyServoBus:
+    """Serves `line` on a pseudo-terminal from a thread of its own, from `with` on; `port` is the path a driver
+    opens. What came that was not a packet is counted (`reader.corrupt`, `reader.skipped_bytes`)."""
+
+    def __init__(self, line: ServoLine) -> None:
+        self.line = line
+        self.reader = PacketReader()
+        self.packets = 0
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.port = os.ttyname(self._slave)
+        self._stop_r, self._stop_w = os.pipe()
+        self._thread = threading.Thread(target=self._serve, name="servo-bus", daemon=True)
+        self._lock = threading.Lock()  # held while the servos answer: their owner may read them from its thread
+
+    def __enter__(self) -> PtyServoBus:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self._thread.is_alive():
+            os.write(self._stop_w, b"x")
+            self._thread.join(5.0)
+        for fd in (self._master, self._slave, self._stop_r, self._stop_w):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def _serve(self) -> None:
+        while True:
+            ready, _, _ = select.select([self._master, self._stop_r], [], [])
+            if self._stop_r in ready:
+                return
+            try:
+                data = os.read(self._master, 4096)
+            except OSError:  # the driver's side closed and nothing holds it open: nothing more to read
+                return
+            with self._lock:
+                answers = b""
+                for p in self.reader.feed(data):
+                    self.packets += 1
+                    answers += self.line.answer(p)
+            if answers:
+                os.write(self._master, answers)
