@@ -15,7 +15,7 @@ from typing import NoReturn
 
 from fleet.run.node_factory import close_kept_factory, keep_factory, kept_factory
 
-GROUPS = ("run", "record", "sweep", "allocators", "monitor", "ros", "scenes", "robots", "bench")
+GROUPS = ("run", "record", "sweep", "allocators", "monitor", "ros", "twin", "scenes", "robots", "bench")
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -8,6 +8,7 @@ import os
 import select
 import threading
 import tty
+from collections.abc import Callable
 
 from robots.feetech.packets import PacketReader
 from robots.feetech.servos import ServoLine
@@ -15,10 +16,12 @@ from robots.feetech.servos import ServoLine
 
 class PtyServoBus:
     """Serves `line` on a pseudo-terminal from a thread of its own, from `with` on; `port` is the path a driver
-    opens. What came that was not a packet is counted (`reader.corrupt`, `reader.skipped_bytes`)."""
+    opens. `after_packets` is called once the packets that came together were answered (a sync write of every
+    goal: its joints sent on together). What came that was not a packet is counted (`reader.corrupt`,
+    `reader.skipped_bytes`)."""
 
-    def __init__(self, line: ServoLine) -> None:
-        self.line = line
+    def __init__(self, line: ServoLine, after_packets: Callable[[], None] = lambda: None) -> None:
+        self.line, self.after_packets = line, after_packets
         self.reader = PacketReader()
         self.packets = 0
         self._master, self._slave = os.openpty()
@@ -59,5 +62,6 @@ class PtyServoBus:
                 for p in self.reader.feed(data):
                     self.packets += 1
                     answers += self.line.answer(p)
+                self.after_packets()
             if answers:
                 os.write(self._master, answers)

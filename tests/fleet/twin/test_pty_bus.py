@@ -107,3 +107,17 @@ def test_a_packet_with_a_wrong_checksum_gets_no_answer_and_is_counted(line):
     _, result = sdk.rxPacket(port)
     assert result == COMM_RX_TIMEOUT and bus.reader.corrupt == 1
     assert sdk.ping(port, 2)[1] == COMM_SUCCESS, "the line goes on"
+
+
+def test_serve_bus_without_a_line_to_join_is_one_line():
+    import subprocess
+    import sys
+
+    for extra in ([], ["--connect", "tcp/127.0.0.1:1", "--wait", "0.5"]):
+        done = subprocess.run(
+            [sys.executable, "-m", "fleet", "twin", "serve-bus", "--arm", "arm_1", *extra],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert done.returncode == 2 and done.stdout == "" and len(done.stderr.splitlines()) == 1, done.stderr

@@ -1,0 +1,53 @@
+"""`fleet twin`: a running line's arms behind the interfaces real arms have (`docs/twin.md`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from fleet.bus.keys import Keys
+from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
+from fleet.cli.bus_flags import check_bus_flags
+from fleet.cli.errors import UsageError
+
+
+def cmd_serve_bus(args: argparse.Namespace) -> int:
+    from fleet.common.processes import StopFlag
+    from fleet.nodes.attached import line_scene
+    from fleet.twin.serve_bus import served_arm
+
+    if not (args.connect or args.zenoh_config):
+        raise UsageError("fleet twin serve-bus needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+    check_bus_flags(args, wait_s=args.wait)
+    stop, keys = StopFlag(watch_parent=False), Keys(args.run_id)
+    with open_session(BusEndpoints.from_args(args)) as session:
+        scene = line_scene(session, keys, args.wait, "fleet twin serve-bus")
+        if scene is None:
+            return 1
+        if args.arm not in (names := [a.name for a in scene.arms]):
+            raise UsageError(f"--arm {args.arm}: the line's arms are {', '.join(names)}")
+        with served_arm(session, keys, scene, args.arm) as (bus, arm):
+            print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
+            while not stop.should_stop():
+                time.sleep(0.1)
+        print(
+            f"fleet twin: {bus.packets} packets answered, {bus.reader.corrupt} with a wrong checksum, "
+            f"{arm.sent} goals sent",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:
+    """This group's sub-commands."""
+    p = sub.add_parser("twin", help="a running line's arms behind a real arm's interfaces (a servo bus)")
+    twin = p.add_subparsers(dest="twin", required=True)
+    b = twin.add_parser(
+        "serve-bus", help="an arm of a running line as STS3215 servos on a pseudo-terminal (LeRobot's SO-101 driver)"
+    )
+    b.add_argument("--arm", required=True, help="the arm to serve (its id in the scene, e.g. arm_1)")
+    b.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    b.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_bus_arguments(b)
+    b.set_defaults(func=cmd_serve_bus)

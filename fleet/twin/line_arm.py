@@ -1,0 +1,114 @@
+"""One arm of a running line behind servo joints (`LineArm.joints`): each joint's shaft is where the arm's
+newest state puts it, and the goals servos are given go to the sim as an outside driver's (on the arm's `drive`
+key: the plant's safety layer checks them, and the coordinator lets go of the arm while they come).
+
+A servo tick is 1/4096 of a turn, tick 2048 the joint's zero; the gripper's servo turns the gripper joint, and
+its goal is sent as the claw's opening between the robot's closed and open gripper positions."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+
+import numpy as np
+import zenoh
+
+from fleet.bus.codec import Decoder, DropCounter, encode
+from fleet.bus.keys import Keys
+from fleet.bus.messages import ArmState, GripperGoalMsg, TrajectoryGoalMsg
+from fleet.bus.session import Inbox
+from robots.feetech.control_table import TICKS_PER_TURN
+from robots.spec import RobotSpec
+
+ZERO_TICKS = TICKS_PER_TURN // 2
+JOINT_SPEED_RAD_S = 1.5  # a servo goal is reached at this speed (the STS3215 turns ~5 rad/s unloaded)
+MIN_MOVE_S = 0.1  # the shortest trajectory a goal becomes
+
+
+def ticks_of(q_rad: float) -> int:
+    return int(round(ZERO_TICKS + q_rad * TICKS_PER_TURN / (2.0 * math.pi))) % TICKS_PER_TURN
+
+
+def rad_of(ticks: int) -> float:
+    return (ticks - ZERO_TICKS) * 2.0 * math.pi / TICKS_PER_TURN
+
+
+class LineArmJoint:
+    """One servo's joint of a `LineArm` (index into the arm's joints, the gripper last)."""
+
+    def __init__(self, arm: LineArm, index: int) -> None:
+        self.arm, self.index = arm, index
+
+    def position_ticks(self) -> int:
+        return ticks_of(self.arm.q_rad()[self.index])
+
+    def velocity_ticks_per_s(self) -> int:
+        return int(round(self.arm.dq_rad_s()[self.index] * TICKS_PER_TURN / (2.0 * math.pi)))
+
+    def drive(self, goal_ticks: int | None) -> None:
+        self.arm.goals[self.index] = None if goal_ticks is None else rad_of(goal_ticks)
+
+
+class LineArm:
+    """Arm `arm` of the line on `session`: its states taken as they come (`take`), its servo goals sent together
+    once a packet's worth was written (`send`), as one trajectory from where the arm stands and a claw goal."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, spec: RobotSpec) -> None:
+        self.arm, self.spec = arm, spec
+        self.drops = DropCounter()
+        self._decoder = Decoder(ArmState, self.drops)
+        self._inbox = Inbox()
+        self._sub = session.declare_subscriber(keys.arm_state(arm), self._inbox)
+        self._pub = session.declare_publisher(keys.arm_drive(arm))
+        self.state: ArmState | None = None
+        n = len(spec.arm_joints) + 1
+        self.goals: list[float | None] = [None] * n  # rad, by joint; the gripper last
+        self._sent: list[float | None] = [None] * n
+        self._ids = itertools.count((1 << 53) + (int.from_bytes(os.urandom(2), "little") << 32))
+        self.sent = 0
+
+    def joints(self) -> list[LineArmJoint]:
+        return [LineArmJoint(self, i) for i in range(len(self.goals))]
+
+    def take(self) -> ArmState | None:
+        """The newest state heard (None before the first)."""
+        for key, payload in self._inbox.drain():
+            state = self._decoder.decode(key, payload)
+            if state is not None and (self.state is None or state.tick >= self.state.tick):
+                self.state = state
+        return self.state
+
+    def q_rad(self) -> list[float]:
+        state = self.take()
+        if state is None:
+            return [0.0] * len(self.goals)
+        return [*state.q, state.gripper_q[0] if state.gripper_q else 0.0]
+
+    def dq_rad_s(self) -> list[float]:
+        state = self.take()
+        return [*state.dq, 0.0] if state is not None else [0.0] * len(self.goals)
+
+    def send(self) -> None:
+        """The goals written since the last send, to the sim: one trajectory for the arm's joints (from where the
+        arm stands, at `JOINT_SPEED_RAD_S`), one goal for the claw."""
+        if self.goals == self._sent or self.take() is None:
+            return
+        q = np.asarray(self.q_rad())
+        arm = len(self.spec.arm_joints)
+        if self.goals[:arm] != self._sent[:arm] and any(g is not None for g in self.goals[:arm]):
+            target = np.array([g if g is not None else q[i] for i, g in enumerate(self.goals[:arm])])
+            move_s = max(MIN_MOVE_S, float(np.max(np.abs(target - q[:arm]))) / JOINT_SPEED_RAD_S)
+            msg = TrajectoryGoalMsg(self.arm, next(self._ids), self.spec.arm_joints, (move_s,), tuple(target))
+            self._pub.put(encode(msg))
+            self.sent += 1
+        if self.goals[arm] != self._sent[arm] and self.goals[arm] is not None:
+            closed, opened = self.spec.gripper_closed[0], self.spec.gripper_open[0]
+            opening = float(np.clip((self.goals[arm] - closed) / (opened - closed), 0.0, 1.0))
+            self._pub.put(encode(GripperGoalMsg(self.arm, next(self._ids), opening)))
+            self.sent += 1
+        self._sent = list(self.goals)
+
+    def close(self) -> None:
+        self._sub.undeclare()
+        self._pub.undeclare()

@@ -1,0 +1,90 @@
+"""`fleet twin serve-bus`: the SO-101 of a running mixed_fleet line as six STS3215 servos on a pseudo-terminal.
+Feetech's own SDK reads its joints where the line's states put them, and a sync write of goals moves the sim arm
+there as an outside driver: the plant takes it (and lets it go after), nothing touches."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from scservo_sdk import COMM_SUCCESS, GroupSyncRead, GroupSyncWrite, PacketHandler, PortHandler
+
+from fleet.bus.keys import Keys
+from fleet.bus.session import BusEndpoints, open_session
+from fleet.nodes.attached import line_scene
+from fleet.run.launcher import Launcher, RunOptions
+from fleet.twin.line_arm import rad_of, ticks_of
+from fleet.twin.serve_bus import served_arm
+from robots.feetech.control_table import BY_NAME
+from tests.fleet.test_run import assert_nothing_left
+
+pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
+
+IDS = (1, 2, 3, 4, 5, 6)
+PRESENT, GOAL, TORQUE = (BY_NAME[n].address for n in ("Present_Position", "Goal_Position", "Torque_Enable"))
+
+
+def sync_read(port: PortHandler, sdk: PacketHandler) -> dict[int, int]:
+    read = GroupSyncRead(port, sdk, PRESENT, 2)
+    for servo_id in IDS:
+        read.addParam(servo_id)
+    assert read.txRxPacket() == COMM_SUCCESS
+    return {i: read.getData(i, PRESENT, 2) for i in IDS}
+
+
+def sync_write(port: PortHandler, sdk: PacketHandler, address: int, size: int, values: dict[int, int]) -> None:
+    write = GroupSyncWrite(port, sdk, address, size)
+    for servo_id, value in values.items():
+        write.addParam(servo_id, list(value.to_bytes(size, "little")))
+    assert write.txPacket() == COMM_SUCCESS
+
+
+def drive_arm_1(launcher: Launcher, seen: dict) -> None:
+    """Once the line runs: the servos read, then the shoulder pan and elbow sent 0.3 rad on (the rest held)."""
+    deadline = time.monotonic() + 60.0
+    try:
+        keys = Keys(launcher.options.run_id)
+        with open_session(BusEndpoints(config_file=launcher.bus.config_for("ros"))) as session:
+            scene = line_scene(session, keys, 30.0, "test")
+            with served_arm(session, keys, scene, "arm_1") as (bus, arm):
+                port, sdk = PortHandler(bus.port), PacketHandler(0)
+                assert port.openPort()
+                while (state := arm.take()) is None or state.sim_time_s < 2.0:
+                    assert time.monotonic() < deadline, "no state of arm_1 past 2 s"
+                    time.sleep(0.01)
+                seen["before"], seen["state_q"] = sync_read(port, sdk), [*state.q, state.gripper_q[0]]
+                seen["goals"] = dict(seen["before"]) | {1: seen["before"][1] + 196, 3: seen["before"][3] - 196}
+                sync_write(port, sdk, TORQUE, 1, {i: 1 for i in IDS})
+                sync_write(port, sdk, GOAL, 2, seen["goals"])
+                sent_at = arm.take().sim_time_s
+                while arm.take().sim_time_s < sent_at + 2.0:
+                    assert time.monotonic() < deadline, f"the line stopped before {sent_at + 2.0:.1f} s"
+                    time.sleep(0.01)
+                seen["after"], seen["sent"] = sync_read(port, sdk), arm.sent
+                port.closePort()
+                seen["corrupt"] = bus.reader.corrupt
+    except Exception as exc:  # the test reports it
+        seen["error"] = repr(exc)
+
+
+def test_feetechs_sdk_reads_and_moves_a_line_s_so_101_through_its_servo_bus():
+    options = RunOptions(scene="mixed_fleet", duration_s=20.0, seed=0)
+    seen: dict = {}
+    with Launcher(options) as launcher:
+        driver = threading.Thread(target=drive_arm_1, args=(launcher, seen), daemon=True)
+        driver.start()
+        summary = launcher.run()
+        driver.join(30)
+    assert_nothing_left(summary, launcher.endpoint)
+    assert "error" not in seen, seen["error"]
+    assert summary["status"] == "ok" and summary["inter_arm_contacts"] == 0, summary["error"]
+    # the servos read where the state put the joints (a tick or two of motion between them)
+    read_rad = np.array([rad_of(seen["before"][i]) for i in IDS])
+    assert np.allclose(read_rad, seen["state_q"], atol=0.02), (read_rad, seen["state_q"])
+    # the goals reached within a degree (11 ticks) 2 s of sim time after the sync write
+    err = {i: abs(seen["after"][i] - seen["goals"][i]) for i in (1, 2, 3, 4, 5)}
+    assert max(err.values()) <= 11, (err, seen["before"], seen["goals"], seen["after"])
+    assert seen["sent"] >= 1 and seen["corrupt"] == 0
+    events = [(e["arm"], e["event"]) for e in summary["arm_events"]]
+    assert ("arm_1", "taken") in events, events
+    assert ticks_of(0.0) == 2048
