@@ -34,42 +34,17 @@ def rad_of(ticks: int) -> float:
     return (ticks - ZERO_TICKS) * 2.0 * math.pi / TICKS_PER_TURN
 
 
-class LineArmJoint:
-    """One servo's joint of a `LineArm` (index into the arm's joints, the gripper last)."""
+class ArmFeed:
+    """The newest state of one arm of the line (`take`), its joints as the servos count them: the arm's, then the
+    gripper's."""
 
-    def __init__(self, arm: LineArm, index: int) -> None:
-        self.arm, self.index = arm, index
-
-    def position_ticks(self) -> int:
-        return ticks_of(self.arm.q_rad()[self.index])
-
-    def velocity_ticks_per_s(self) -> int:
-        return int(round(self.arm.dq_rad_s()[self.index] * TICKS_PER_TURN / (2.0 * math.pi)))
-
-    def drive(self, goal_ticks: int | None) -> None:
-        self.arm.goals[self.index] = None if goal_ticks is None else rad_of(goal_ticks)
-
-
-class LineArm:
-    """Arm `arm` of the line on `session`: its states taken as they come (`take`), its servo goals sent together
-    once a packet's worth was written (`send`), as one trajectory from where the arm stands and a claw goal."""
-
-    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, spec: RobotSpec) -> None:
-        self.arm, self.spec = arm, spec
+    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, joints: int) -> None:
+        self.joints = joints
         self.drops = DropCounter()
         self._decoder = Decoder(ArmState, self.drops)
         self._inbox = Inbox()
         self._sub = session.declare_subscriber(keys.arm_state(arm), self._inbox)
-        self._pub = session.declare_publisher(keys.arm_drive(arm))
         self.state: ArmState | None = None
-        n = len(spec.arm_joints) + 1
-        self.goals: list[float | None] = [None] * n  # rad, by joint; the gripper last
-        self._sent: list[float | None] = [None] * n
-        self._ids = itertools.count((1 << 53) + (int.from_bytes(os.urandom(2), "little") << 32))
-        self.sent = 0
-
-    def joints(self) -> list[LineArmJoint]:
-        return [LineArmJoint(self, i) for i in range(len(self.goals))]
 
     def take(self) -> ArmState | None:
         """The newest state heard (None before the first)."""
@@ -82,19 +57,60 @@ class LineArm:
     def q_rad(self) -> list[float]:
         state = self.take()
         if state is None:
-            return [0.0] * len(self.goals)
+            return [0.0] * self.joints
         return [*state.q, state.gripper_q[0] if state.gripper_q else 0.0]
 
     def dq_rad_s(self) -> list[float]:
         state = self.take()
-        return [*state.dq, 0.0] if state is not None else [0.0] * len(self.goals)
+        return [*state.dq, 0.0] if state is not None else [0.0] * self.joints
+
+    def close(self) -> None:
+        self._sub.undeclare()
+
+
+class LineArmJoint:
+    """One servo's joint (`index` into the arm's joints, the gripper last): read off `feed`, its goal (rad) put
+    in `goals` for the arm to send."""
+
+    def __init__(self, feed: ArmFeed, goals: list[float | None], index: int) -> None:
+        self.feed, self.goals, self.index = feed, goals, index
+
+    def position_ticks(self) -> int:
+        return ticks_of(self.feed.q_rad()[self.index])
+
+    def velocity_ticks_per_s(self) -> int:
+        return int(round(self.feed.dq_rad_s()[self.index] * TICKS_PER_TURN / (2.0 * math.pi)))
+
+    def drive(self, goal_ticks: int | None) -> None:
+        self.goals[self.index] = None if goal_ticks is None else rad_of(goal_ticks)
+
+
+class LineArm:
+    """Arm `arm` of the line on `session`: its states taken as they come (`feed`), its servo goals sent together
+    once a packet's worth was written (`send`), as one trajectory from where the arm stands and a claw goal."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, arm: str, spec: RobotSpec) -> None:
+        self.arm, self.spec = arm, spec
+        n = len(spec.arm_joints) + 1
+        self.feed = ArmFeed(session, keys, arm, n)
+        self._pub = session.declare_publisher(keys.arm_drive(arm))
+        self.goals: list[float | None] = [None] * n  # rad, by joint; the gripper last
+        self._sent: list[float | None] = [None] * n
+        self._ids = itertools.count((1 << 53) + (int.from_bytes(os.urandom(2), "little") << 32))
+        self.sent = 0
+
+    def joints(self) -> list[LineArmJoint]:
+        return [LineArmJoint(self.feed, self.goals, i) for i in range(len(self.goals))]
+
+    def take(self) -> ArmState | None:
+        return self.feed.take()
 
     def send(self) -> None:
         """The goals written since the last send, to the sim: one trajectory for the arm's joints (from where the
         arm stands, at `JOINT_SPEED_RAD_S`), one goal for the claw."""
-        if self.goals == self._sent or self.take() is None:
+        if self.goals == self._sent or self.feed.take() is None:
             return
-        q = np.asarray(self.q_rad())
+        q = np.asarray(self.feed.q_rad())
         arm = len(self.spec.arm_joints)
         if self.goals[:arm] != self._sent[:arm] and any(g is not None for g in self.goals[:arm]):
             target = np.array([g if g is not None else q[i] for i, g in enumerate(self.goals[:arm])])
@@ -110,5 +126,5 @@ class LineArm:
         self._sent = list(self.goals)
 
     def close(self) -> None:
-        self._sub.undeclare()
+        self.feed.close()
         self._pub.undeclare()

@@ -73,6 +73,14 @@ STS3215_REGISTERS: tuple[Register, ...] = (
     Register("Status", 65, 1, writable=False),
     Register("Moving", 66, 1, writable=False),
     Register("Present_Current", 69, 2, writable=False),
+    # factory settings LeRobot's driver writes (its `configure_motors`)
+    Register("Moving_Velocity_Threshold", 80, 1),
+    Register("DTs", 81, 1),
+    Register("Velocity_Unit_factor", 82, 1),
+    Register("Hts", 83, 1),
+    Register("Maximum_Velocity_Limit", 84, 1),
+    Register("Maximum_Acceleration", 85, 1),
+    Register("Acceleration_Multiplier", 86, 1),
 )
 BY_NAME: dict[str, Register] = {r.name: r for r in STS3215_REGISTERS}
 

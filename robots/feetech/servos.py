@@ -1,6 +1,6 @@
 """Servos that answer packets as STS3215s do, on one line (`ServoLine`), each backed by a joint it reads and
 drives (`ServoJoint`): ping, read, write, registered write and action, sync read and sync write. A servo answers
-only packets for its id (never a broadcast, but for its slot in a sync read), as its status-return level allows."""
+only packets for its id, a broadcast ping and its slot in a sync read, as its status-return level allows."""
 
 from __future__ import annotations
 
@@ -106,9 +106,13 @@ class ServoLine:
             return self._sync_read(p.params)
         if p.code == Instruction.SYNC_WRITE and p.servo_id == BROADCAST_ID:
             return self._sync_write(p.params)
-        targets = list(self.servos.values()) if p.servo_id == BROADCAST_ID else [self.servos.get(p.servo_id)]
-        answers = [self._one(servo, p) for servo in targets if servo is not None]
-        return b"" if p.servo_id == BROADCAST_ID else b"".join(answers)  # a broadcast is never answered
+        if p.servo_id != BROADCAST_ID:
+            servo = self.servos.get(p.servo_id)
+            return self._one(servo, p) if servo is not None else b""
+        answers = [self._one(self.servos[i], p) for i in sorted(self.servos)]
+        # a broadcast ping is answered by every servo in turn (how a driver finds them: LeRobot's broadcast_ping);
+        # any other broadcast by none
+        return b"".join(answers) if p.code == Instruction.PING else b""
 
     def _refuse(self, why: str) -> bytes:
         self.refused[why] = self.refused.get(why, 0) + 1

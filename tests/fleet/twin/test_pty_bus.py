@@ -53,6 +53,19 @@ def test_each_servo_answers_a_ping_with_its_model_and_an_absent_one_does_not(lin
     assert result == COMM_RX_TIMEOUT
 
 
+def test_a_broadcast_ping_is_answered_by_every_servo_in_turn_and_no_other_broadcast_is(line):
+    """How LeRobot's driver finds the servos on a line (its own `broadcast_ping`, over the SDK's port)."""
+    _, port, sdk, _ = line
+    port.writePort(packet(0xFE, Instruction.PING))
+    port.setPacketTimeoutMillis(200)
+    answers = [sdk.rxPacket(port) for _ in IDS]
+    assert [(result, rx[2], rx[4]) for rx, result in answers] == [(COMM_SUCCESS, i, 0) for i in IDS]
+    port.writePort(packet(0xFE, Instruction.WRITE, bytes([ADDRESS["Torque_Enable"], 1])))
+    port.setPacketTimeoutMillis(50)
+    assert sdk.rxPacket(port)[1] == COMM_RX_TIMEOUT, "a broadcast write is taken by all and answered by none"
+    assert sdk.read1ByteTxRx(port, 4, ADDRESS["Torque_Enable"])[0] == 1
+
+
 def test_a_goal_written_with_torque_on_moves_the_joint_and_reads_back_less_the_homing_offset(line):
     _, port, sdk, joints = line
     assert sdk.read2ByteTxRx(port, 3, ADDRESS["Present_Position"]) == (2030, COMM_SUCCESS, 0)
