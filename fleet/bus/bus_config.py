@@ -37,6 +37,7 @@ SERVICE_NODES = (
     "ros",
     "ros_client",
     "perception",
+    "twin",
 )  # every node but the sim and the arms' controllers
 ANY_RUN = f"{ROOT}/*"
 # what each client may publish (ingress at the router); `{arm}` is the controller's own arm
@@ -47,6 +48,7 @@ PUBLISHES = {
     "perception": ("perception/*", "seen/parts", "seen/ready"),  # each camera's tracks; the line's parts it sees
     "launcher": ("launcher/roster",),
     "ros": ("arm/*/drive", "estop", "world/control"),  # the ROS front ends: outside goals, e-stop, pause
+    "twin": ("arm/*/drive",),  # `fleet twin serve-bus`: an outside driver's goals to the arm its servos stand for
     "ros_client": (),  # a ROS 2 stack: nothing of clawfleet's own; the line's ROS services and actions (`--ros2`)
     "controller": ("arm/{arm}/step", "arm/{arm}/goal", "arm/{arm}/status", "snapshot/{arm}"),
 }

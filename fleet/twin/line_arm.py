@@ -47,11 +47,14 @@ class ArmFeed:
         self.state: ArmState | None = None
 
     def take(self) -> ArmState | None:
-        """The newest state heard (None before the first)."""
-        for key, payload in self._inbox.drain():
+        """The newest state heard (None before the first). Only the newest of those queued is decoded (each is
+        the whole arm): a servo answers within the driver's timeout, a few ms a packet, however fast the line runs."""
+        for key, payload in reversed(self._inbox.drain()):
             state = self._decoder.decode(key, payload)
-            if state is not None and (self.state is None or state.tick >= self.state.tick):
-                self.state = state
+            if state is not None:
+                if self.state is None or state.tick >= self.state.tick:
+                    self.state = state
+                break
         return self.state
 
     def q_rad(self) -> list[float]:

@@ -17,7 +17,7 @@ def test_each_node_gets_its_own_login_and_only_its_owner_reads_keys_and_password
     made = write_bus_configs(tmp_path, "127.0.0.1", 17461, ["arm_0", "arm_1"])
     assert made.endpoint == "tls/127.0.0.1:17461" and BusConfigSet.load(tmp_path) == made
     users = dict(line.split(":", 1) for line in (tmp_path / "users.txt").read_text().split())
-    services = ["coordinator", "launcher", "monitor", "perception", "recorder", "ros", "ros_client"]
+    services = ["coordinator", "launcher", "monitor", "perception", "recorder", "ros", "ros_client", "twin"]
     assert sorted(users) == ["arm_0", "arm_1", *services]
     assert len(set(users.values())) == len(users), "a password per node"
     for private in ("sim.key", "users.txt", "sim.json5", "arm_0.json5"):

@@ -24,11 +24,17 @@ IDS = (1, 2, 3, 4, 5, 6)
 PRESENT, GOAL, TORQUE = (BY_NAME[n].address for n in ("Present_Position", "Goal_Position", "Torque_Enable"))
 
 
-def sync_read(port: PortHandler, sdk: PacketHandler) -> dict[int, int]:
+def sync_read(port: PortHandler, sdk: PacketHandler, tries: int = 3) -> dict[int, int]:
+    """Every servo's Present Position. The SDK gives six answers about 34 ms in all; on a loaded machine a Python
+    servo line may miss that, so the read is tried again, as LeRobot's driver does (`num_retry`)."""
     read = GroupSyncRead(port, sdk, PRESENT, 2)
     for servo_id in IDS:
         read.addParam(servo_id)
-    assert read.txRxPacket() == COMM_SUCCESS
+    results = []
+    while len(results) < tries and COMM_SUCCESS not in results:
+        port.ser.reset_input_buffer()  # a late answer to a try that timed out is not the next one's
+        results.append(read.txRxPacket())
+    assert results[-1] == COMM_SUCCESS, results
     return {i: read.getData(i, PRESENT, 2) for i in IDS}
 
 
@@ -44,7 +50,7 @@ def drive_arm_1(launcher: Launcher, seen: dict) -> None:
     deadline = time.monotonic() + 60.0
     try:
         keys = Keys(launcher.options.run_id)
-        with open_session(BusEndpoints(config_file=launcher.bus.config_for("ros"))) as session:
+        with open_session(BusEndpoints(config_file=launcher.bus.config_for("twin"))) as session:
             scene = line_scene(session, keys, 30.0, "test")
             with served_arm(session, keys, scene, "arm_1") as (bus, arm):
                 port, sdk = PortHandler(bus.port), PacketHandler(0)
