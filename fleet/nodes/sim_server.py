@@ -251,7 +251,9 @@ def attach_cameras(server: SimServer, args: argparse.Namespace, session: zenoh.S
         keys,
         args.camera_encoding,
         scored=args.perception == "cameras",
-        every_frame=args.mode == "lockstep",
+        # in lockstep a node that works from the frames waits for each: none may be dropped (a monitor's or a
+        # recorder's alone may be, rather than hold the line for a slow viewer)
+        every_frame=args.mode == "lockstep" and (args.perception == "cameras" or bool(args.await_eyes)),
     )
     server.cameras.warm_up()  # the renderer's set-up (seconds on a CPU) before the line's first tick, not in it
     return ""

@@ -99,10 +99,11 @@ class LineCameras:
         every_frame: bool = False,
     ) -> None:
         """`scored`: the line works from what perception sees; its parts are scored against the truth here.
-        `every_frame` (lockstep): an image waits for room on a full link rather than being dropped (Zenoh's default
-        drops a large message when the link's queue stays full a moment, as it does on a busy machine); otherwise
-        the first waits and those after it are dropped until it is out (a live line sends fresh frames). Images go
-        at a lower priority than the line's messages, in a queue of their own."""
+        `every_frame` (lockstep, a node working from the frames): an image waits for room on a full link rather
+        than being dropped (Zenoh's default drops a large message when the link's queue stays full a moment, as it
+        does on a busy machine); otherwise the first waits and those after it are dropped until it is out (a live
+        line sends fresh frames; a slow viewer holds no line). Images go at a lower priority than the line's
+        messages, in a queue of their own."""
         self.rig = rig
         self.encodings = encodings_for(rgb_encoding)
         self.counts = CameraCounts()
