@@ -20,7 +20,12 @@ class DeclarationError(ValueError):
 
     def __init__(self, file: str, field: str, reason: str) -> None:
         self.file, self.field, self.reason = file, field, reason
-        super().__init__(f"{file}: {field}: {reason}" if field else f"{file}: {reason}")
+        super().__init__(one_line(f"{file}: {field}: {reason}" if field else f"{file}: {reason}"))
+
+
+def one_line(text: str) -> str:
+    """`text` with its control characters written as escapes (a value holding a newline stays one line)."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def regular_file(path: Path, what: str, error: type[DeclarationError] = DeclarationError) -> Path:

@@ -179,3 +179,14 @@ def test_any_field_set_to_anything_gives_a_robot_or_one_line_naming_the_file(tmp
         load_robot_file(file)
     except RobotFileError as exc:
         assert str(exc).startswith(f"{file.resolve()}: ") and "\n" not in str(exc), (path, value, str(exc))
+
+
+@pytest.mark.parametrize("urdf", ["\n", "arm\n.urdf", "\t\x00"])
+def test_a_file_name_with_control_characters_is_said_on_one_line(tmp_path, urdf):
+    """What hypothesis found once: a URDF named "\\n" made a two-line error. Control characters are escaped."""
+    example = yaml.safe_load(EXAMPLE.read_text()) | {"urdf": urdf}
+    file = tmp_path / "arm.yaml"
+    file.write_text(yaml.safe_dump(example))
+    with pytest.raises(RobotFileError) as raised:
+        load_robot_file(file)
+    assert "\n" not in str(raised.value) and str(raised.value).startswith(f"{file.resolve()}: urdf: "), raised.value
