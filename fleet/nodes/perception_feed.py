@@ -76,7 +76,7 @@ class PerceptionFeed:
                 break  # later ticks wait behind it: frames are seen in order
             self.frames_on_deadline += not complete
             del self._waiting[tick], self._since[tick]
-            self.sight.apply_events(tick)
+            self.sight.apply_events(tick, events)
             time_s = 0.0
             for camera in sorted(frames):
                 rgb, frame = frames[camera]

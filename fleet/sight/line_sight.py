@@ -35,18 +35,19 @@ class LineSight:
         self.scene, self.looks, self.kinds = scene, looks, kinds
         self.line_parts = LineParts(velocity_at)
         self.types: dict[int, tuple[str, int]] = {}  # by part: (feeder, type index), as the events name it
-        self.held: list[tuple[str, LineEvent]] = []
+        self.held: list[tuple[int, str, LineEvent]] = []  # (its number in the line's order, key, event)
         self.events_seen = 0
         self.released = 0
 
     def event(self, key: str, e: LineEvent, drops: DropCounter) -> None:
-        """An event of the line: counted now, applied at the first frame of its tick or later."""
+        """An event of the line: counted now, applied at the first frame taken after the sim published it."""
+        number = self.events_seen
         self.events_seen += 1
         problem = self._problem(e)
         if problem:
             drops.drop(key, problem)
         else:
-            self.held.append((key, e))
+            self.held.append((number, key, e))
 
     def _problem(self, e: LineEvent) -> str:
         if e.kind not in EVENT_KINDS:
@@ -59,12 +60,14 @@ class LineSight:
             return f"{e.kind} at no station of this line ({e.detail!r})"
         return ""
 
-    def apply_events(self, up_to_tick: int) -> None:
-        """The held events of ticks up to `up_to_tick`, in the order they came."""
+    def apply_events(self, up_to_tick: int, published: int | None = None) -> None:
+        """The held events of ticks up to `up_to_tick`, in the order they came; with `published` (the events the
+        sim had published when the frame was taken), only those: an event of the frame's own tick published after
+        it waits for the next frame, however soon it arrives, so every run binds the same."""
         later = []
-        for key, e in self.held:
-            if e.tick > up_to_tick:
-                later.append((key, e))
+        for number, key, e in self.held:
+            if e.tick > up_to_tick or (published is not None and number >= published):
+                later.append((number, key, e))
                 continue
             time_s = e.tick / self.scene.control_hz
             if e.kind == "arrived":

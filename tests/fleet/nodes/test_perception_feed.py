@@ -140,6 +140,25 @@ def test_a_frame_waits_for_the_events_before_it_and_the_part_released_then_is_se
     assert np.allclose(seen[1].positions, (x, y, -height / 2), atol=1e-6), "its centre, half its height down"
 
 
+def test_an_event_the_sim_published_after_a_frame_waits_for_the_next_frame_however_soon_it_arrives():
+    """Events travel above the images (`Priority.DATA_LOW`): one of the frame's own tick, published after the frame
+    was taken, may come first. Applied then, runs of one seed would bind their parts differently."""
+    seen: list[PartsState] = []
+    perceived, _ = feed(seen)
+    feeder = SCENE.feeders[0]
+    x, y, _ = SCENE.conveyor.point_at(SCENE.drop_along_m(feeder))
+    perceived.take("clawfleet/line/world/events", encode(LineEvent("arrived", 5, 20, feeder.name, 0)))
+    for tick, published in ((20, 0), (40, 1)):
+        rgb, depth = drawn_frame(tick, (x - 0.01, y + 0.01))
+        perceived.take(KEY.format("rgb"), encode(msgspec.structs.replace(rgb, events_published=published)))
+        perceived.take(KEY.format("depth"), encode(msgspec.structs.replace(depth, events_published=published)))
+        perceived.see()
+        if tick == 20:
+            assert [e.part_id for _, _, e in perceived.sight.held] == [5], "held past the frame it came after"
+    assert [(m.tick, m.part_ids) for m in seen] == [(20, ()), (40, (5,))] and perceived.sight.held == []
+    assert perceived.report()["frames_on_deadline"] == 0
+
+
 def test_a_frame_whose_events_never_come_is_seen_once_its_wait_is_over():
     seen: list[PartsState] = []
     perceived, _ = feed(seen)
