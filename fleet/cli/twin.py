@@ -25,9 +25,11 @@ def cmd_serve_bus(args: argparse.Namespace) -> int:
         scene = line_scene(session, keys, args.wait, "fleet twin serve-bus")
         if scene is None:
             return 1
-        if args.arm not in (names := [a.name for a in scene.arms]):
-            raise UsageError(f"--arm {args.arm}: the line's arms are {', '.join(names)}")
-        with served_arm(session, keys, scene, args.arm) as (bus, arm):
+        try:
+            served = scene.arm(args.arm)
+        except KeyError as exc:
+            raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
+        with served_arm(session, keys, served) as (bus, arm):
             print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
             while not stop.should_stop():
                 time.sleep(0.1)

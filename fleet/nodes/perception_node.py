@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
         if not cameras:
             print(f"fleet perception: the scene {scene.name} has no fixed camera to see the line with", file=sys.stderr)
             return 1
-        block = zenoh.CongestionControl.BLOCK  # never dropped on a busy link: a lockstep line awaits each frame's
+        block = zenoh.CongestionControl.BLOCK  # never dropped on a busy link: a lockstep line waits for each
         publishers = {
             name: session.declare_publisher(keys.detections(name), congestion_control=block) for name in cameras
         }

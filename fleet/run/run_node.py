@@ -27,6 +27,12 @@ def read_report(path: Path) -> dict:
         return {}
 
 
+def node_of(nodes: list[Node], role: str) -> Node | None:
+    """The first node of `role` among `nodes` (the run's only sim, coordinator, monitor...), found by its role, not
+    its place in the list; None where the run has none."""
+    return next((n for n in nodes if n.role == role), None)
+
+
 @dataclass
 class Node:
     """One child process of the run, with its role, report file and earlier incarnations."""

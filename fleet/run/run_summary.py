@@ -8,6 +8,7 @@ from fleet.bus.codec import DropCounter
 from fleet.bus.messages import Progress
 from fleet.run.run_node import (
     Node,
+    node_of,
     read_report,
 )
 from scenes.schema import Scene
@@ -45,7 +46,7 @@ class RunEnd:
 
 def _report_of(nodes: list[Node], role: str) -> dict:
     """The report of the node of `role` (empty where it wrote none, or there is none)."""
-    node = next((n for n in nodes if n.role == role), None)
+    node = node_of(nodes, role)
     return read_report(node.report) if node is not None else {}
 
 
@@ -72,10 +73,9 @@ class RunSummary:
         self.end = end
         self.sim, self.coord = _report_of(end.nodes, "sim"), _report_of(end.nodes, "coordinator")
         self.controllers = [read_report(n.report) for n in end.nodes if n.role == "controller"]
-        monitors = [n for n in end.nodes if n.role == "monitor"]
-        self.monitor = read_report(monitors[0].report) if monitors else None
-        seers = [n for n in end.nodes if n.role == "perception"]
-        self.perception = read_report(seers[0].report) if seers else None
+        monitor, seer = node_of(end.nodes, "monitor"), node_of(end.nodes, "perception")
+        self.monitor = read_report(monitor.report) if monitor is not None else None
+        self.perception = read_report(seer.report) if seer is not None else None
 
     def _perception(self) -> dict | None:
         """What seeing cost (`--perception cameras`): the perception node's figures, its parts scored against the

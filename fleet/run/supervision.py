@@ -20,6 +20,7 @@ from fleet.run.node_factory import NodeFactory
 from fleet.run.run_node import (
     MAX_COORDINATOR_STARTS,
     Node,
+    node_of,
     read_report,
 )
 from fleet.run.run_options import RunOptions
@@ -83,10 +84,6 @@ class Supervision:
                 sub.undeclare()
             self._roster_pub.undeclare()
             self._roster_pub = None
-
-    def node_of(self, role: str) -> Node:
-        """The run's node of `role` (the sim or the coordinator: one each), found by its role, not its place."""
-        return next(n for n in self.nodes if n.role == role)
 
     def say_roster(self, now: bool = False) -> None:
         """Which start of each counted node runs (`Roster`): at once after a restart, else every second. A node's
@@ -160,7 +157,7 @@ class Supervision:
                 self.on_message(f"{SERVERS[node.role]} exited (exit {node.exit_code}): {tail}; the line goes on")
 
     def _supervise(self, inbox: Inbox) -> str:
-        sim, coordinator = self.node_of("sim"), self.node_of("coordinator")
+        sim, coordinator = node_of(self.nodes, "sim"), node_of(self.nodes, "coordinator")
         said = LogRelay(coordinator.log, ("allocator ",))  # a plug-in's faults, said on the user's terminal
         while not self.stopped():
             self.say_roster()
@@ -201,7 +198,7 @@ class Supervision:
 
     def unreachable(self, why: str) -> str:
         """Why the launcher could not reach the line's bus: the sim's own line where it ended (waited for briefly)."""
-        sim = self.node_of("sim")
+        sim = node_of(self.nodes, "sim")
         deadline = time.monotonic() + 3.0
         while sim.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)

@@ -22,16 +22,17 @@ from robots.feetech.control_table import TICKS_PER_TURN
 from robots.spec import RobotSpec
 
 ZERO_TICKS = TICKS_PER_TURN // 2
+TICKS_PER_RAD = TICKS_PER_TURN / (2.0 * math.pi)
 JOINT_SPEED_RAD_S = 1.5  # a servo goal is reached at this speed (the STS3215 turns ~5 rad/s unloaded)
 MIN_MOVE_S = 0.1  # the shortest trajectory a goal becomes
 
 
 def ticks_of(q_rad: float) -> int:
-    return int(round(ZERO_TICKS + q_rad * TICKS_PER_TURN / (2.0 * math.pi))) % TICKS_PER_TURN
+    return int(round(ZERO_TICKS + q_rad * TICKS_PER_RAD)) % TICKS_PER_TURN
 
 
 def rad_of(ticks: int) -> float:
-    return (ticks - ZERO_TICKS) * 2.0 * math.pi / TICKS_PER_TURN
+    return (ticks - ZERO_TICKS) / TICKS_PER_RAD
 
 
 class ArmFeed:
@@ -82,7 +83,7 @@ class LineArmJoint:
         return ticks_of(self.feed.q_rad()[self.index])
 
     def velocity_ticks_per_s(self) -> int:
-        return int(round(self.feed.dq_rad_s()[self.index] * TICKS_PER_TURN / (2.0 * math.pi)))
+        return int(round(self.feed.dq_rad_s()[self.index] * TICKS_PER_RAD))
 
     def drive(self, goal_ticks: int | None) -> None:
         self.goals[self.index] = None if goal_ticks is None else rad_of(goal_ticks)

@@ -29,7 +29,6 @@ class PtyServoBus:
         self.port = os.ttyname(self._slave)
         self._stop_r, self._stop_w = os.pipe()
         self._thread = threading.Thread(target=self._serve, name="servo-bus", daemon=True)
-        self._lock = threading.Lock()  # held while the servos answer: their owner may read them from its thread
 
     def __enter__(self) -> PtyServoBus:
         self._thread.start()
@@ -57,11 +56,10 @@ class PtyServoBus:
                 data = os.read(self._master, 4096)
             except OSError:  # the driver's side closed and nothing holds it open: nothing more to read
                 return
-            with self._lock:
-                answers = b""
-                for p in self.reader.feed(data):
-                    self.packets += 1
-                    answers += self.line.answer(p)
-                self.after_packets()
+            answers = b""
+            for p in self.reader.feed(data):
+                self.packets += 1
+                answers += self.line.answer(p)
+            self.after_packets()
             if answers:
                 os.write(self._master, answers)

@@ -14,16 +14,13 @@ from fleet.twin.line_arm import LineArm
 from fleet.twin.pty_bus import PtyServoBus
 from robots.feetech.servos import Servo, ServoLine
 from robots.registry import get_robot
-from scenes.schema import Scene
+from scenes.schema import Arm
 
 
 @contextlib.contextmanager
-def served_arm(session: zenoh.Session, keys: Keys, scene: Scene, arm: str) -> Iterator[tuple[PtyServoBus, LineArm]]:
-    """Arm `arm` of `scene`'s running line served as servos on a pseudo-terminal while the block runs."""
-    spec = next((a for a in scene.arms if a.name == arm), None)
-    if spec is None:
-        raise ValueError(f"the scene {scene.name} has no arm {arm} (its arms: {', '.join(a.name for a in scene.arms)})")
-    line_arm = LineArm(session, keys, arm, get_robot(spec.model))
+def served_arm(session: zenoh.Session, keys: Keys, arm: Arm) -> Iterator[tuple[PtyServoBus, LineArm]]:
+    """`arm` of the running line (`Scene.arm(name)`) served as servos on a pseudo-terminal while the block runs."""
+    line_arm = LineArm(session, keys, arm.name, get_robot(arm.model))
     servos = ServoLine(Servo(i + 1, joint) for i, joint in enumerate(line_arm.joints()))
     try:
         with PtyServoBus(servos, after_packets=line_arm.send) as bus:

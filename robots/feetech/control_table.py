@@ -13,44 +13,45 @@ MEMORY_BYTES = 256  # one instruction's address and length are one byte each
 
 @dataclass(frozen=True)
 class Register:
-    """One register: its name as LeRobot spells it, address and width in bytes, whether writes reach it, and the
-    bit that holds its sign (None: unsigned)."""
+    """One register: its name as LeRobot spells it, address and width in bytes, whether writes reach it, the bit
+    that holds its sign (None: unsigned), and what a servo holds there when it leaves the factory."""
 
     name: str
     address: int
     size_bytes: int
     writable: bool = True
     sign_bit: int | None = None
+    factory: int = 0
 
 
 STS3215_REGISTERS: tuple[Register, ...] = (
     # EEPROM: kept across power cycles on the real servo
-    Register("Firmware_Major_Version", 0, 1, writable=False),
-    Register("Firmware_Minor_Version", 1, 1, writable=False),
-    Register("Model_Number", 3, 2, writable=False),
-    Register("ID", 5, 1),
-    Register("Baud_Rate", 6, 1),
+    Register("Firmware_Major_Version", 0, 1, writable=False, factory=3),
+    Register("Firmware_Minor_Version", 1, 1, writable=False, factory=10),
+    Register("Model_Number", 3, 2, writable=False, factory=STS3215_MODEL_NUMBER),
+    Register("ID", 5, 1, factory=1),
+    Register("Baud_Rate", 6, 1),  # 0: 1 Mbaud
     Register("Return_Delay_Time", 7, 1),
-    Register("Response_Status_Level", 8, 1),
+    Register("Response_Status_Level", 8, 1, factory=1),  # every instruction answered
     Register("Min_Position_Limit", 9, 2),
-    Register("Max_Position_Limit", 11, 2),
-    Register("Max_Temperature_Limit", 13, 1),
-    Register("Max_Voltage_Limit", 14, 1),
-    Register("Min_Voltage_Limit", 15, 1),
-    Register("Max_Torque_Limit", 16, 2),
+    Register("Max_Position_Limit", 11, 2, factory=TICKS_PER_TURN - 1),
+    Register("Max_Temperature_Limit", 13, 1, factory=70),
+    Register("Max_Voltage_Limit", 14, 1, factory=140),
+    Register("Min_Voltage_Limit", 15, 1, factory=40),
+    Register("Max_Torque_Limit", 16, 2, factory=1000),
     Register("Phase", 18, 1),
     Register("Unloading_Condition", 19, 1),
     Register("LED_Alarm_Condition", 20, 1),
-    Register("P_Coefficient", 21, 1),
-    Register("D_Coefficient", 22, 1),
+    Register("P_Coefficient", 21, 1, factory=32),
+    Register("D_Coefficient", 22, 1, factory=32),
     Register("I_Coefficient", 23, 1),
     Register("Minimum_Startup_Force", 24, 2),
     Register("CW_Dead_Zone", 26, 1),
     Register("CCW_Dead_Zone", 27, 1),
     Register("Protection_Current", 28, 2),
-    Register("Angular_Resolution", 30, 1),
+    Register("Angular_Resolution", 30, 1, factory=1),
     Register("Homing_Offset", 31, 2, sign_bit=11),
-    Register("Operating_Mode", 33, 1),
+    Register("Operating_Mode", 33, 1),  # 0: position control
     Register("Protective_Torque", 34, 1),
     Register("Protection_Time", 35, 1),
     Register("Overload_Torque", 36, 1),
@@ -63,13 +64,13 @@ STS3215_REGISTERS: tuple[Register, ...] = (
     Register("Goal_Position", 42, 2),
     Register("Goal_Time", 44, 2),
     Register("Goal_Velocity", 46, 2, sign_bit=15),
-    Register("Torque_Limit", 48, 2),
-    Register("Lock", 55, 1),
+    Register("Torque_Limit", 48, 2, factory=1000),
+    Register("Lock", 55, 1, factory=1),
     Register("Present_Position", 56, 2, writable=False),
     Register("Present_Velocity", 58, 2, writable=False, sign_bit=15),
     Register("Present_Load", 60, 2, writable=False),
-    Register("Present_Voltage", 62, 1, writable=False),
-    Register("Present_Temperature", 63, 1, writable=False),
+    Register("Present_Voltage", 62, 1, writable=False, factory=120),  # 12.0 V
+    Register("Present_Temperature", 63, 1, writable=False, factory=30),
     Register("Status", 65, 1, writable=False),
     Register("Moving", 66, 1, writable=False),
     Register("Present_Current", 69, 2, writable=False),
@@ -83,35 +84,6 @@ STS3215_REGISTERS: tuple[Register, ...] = (
     Register("Acceleration_Multiplier", 86, 1),
 )
 BY_NAME: dict[str, Register] = {r.name: r for r in STS3215_REGISTERS}
-
-# what a servo holds when it leaves the factory (the values a fresh STS3215 reads back)
-FACTORY_VALUES: dict[str, int] = {
-    "Firmware_Major_Version": 3,
-    "Firmware_Minor_Version": 10,
-    "Model_Number": STS3215_MODEL_NUMBER,
-    "ID": 1,
-    "Baud_Rate": 0,  # 1 Mbaud
-    "Return_Delay_Time": 0,
-    "Response_Status_Level": 1,  # every instruction answered
-    "Min_Position_Limit": 0,
-    "Max_Position_Limit": TICKS_PER_TURN - 1,
-    "Max_Temperature_Limit": 70,
-    "Max_Voltage_Limit": 140,
-    "Min_Voltage_Limit": 40,
-    "Max_Torque_Limit": 1000,
-    "P_Coefficient": 32,
-    "D_Coefficient": 32,
-    "I_Coefficient": 0,
-    "Angular_Resolution": 1,
-    "Homing_Offset": 0,
-    "Operating_Mode": 0,  # position control
-    "Torque_Enable": 0,
-    "Acceleration": 0,
-    "Torque_Limit": 1000,
-    "Lock": 1,
-    "Present_Voltage": 120,  # 12.0 V
-    "Present_Temperature": 30,
-}
 
 
 def to_register(value: int, register: Register) -> int:

@@ -9,7 +9,6 @@ from typing import Protocol
 
 from robots.feetech.control_table import (
     BY_NAME,
-    FACTORY_VALUES,
     MEMORY_BYTES,
     STS3215_REGISTERS,
     TICKS_PER_TURN,
@@ -45,8 +44,8 @@ class Servo:
     def __init__(self, servo_id: int, joint: ServoJoint) -> None:
         self.memory = bytearray(MEMORY_BYTES)
         self.joint = joint
-        for name, value in FACTORY_VALUES.items():
-            self.set(BY_NAME[name], value)
+        for register in STS3215_REGISTERS:
+            self.set(register, register.factory)
         self.set(BY_NAME["ID"], servo_id)
         self.registered: tuple[int, bytes] | None = None  # a REG_WRITE waiting for ACTION
 
@@ -66,8 +65,9 @@ class Servo:
         """`length` bytes from `address`, the present registers read off the joint first."""
         offset = self.get(BY_NAME["Homing_Offset"])
         self.set(PRESENT, (self.joint.position_ticks() - offset) % TICKS_PER_TURN)
-        self.set(BY_NAME["Present_Velocity"], self.joint.velocity_ticks_per_s())
-        self.set(BY_NAME["Moving"], int(self.joint.velocity_ticks_per_s() != 0))
+        velocity = self.joint.velocity_ticks_per_s()
+        self.set(BY_NAME["Present_Velocity"], velocity)
+        self.set(BY_NAME["Moving"], int(velocity != 0))
         end = min(address + length, MEMORY_BYTES)
         return bytes(self.memory[address:end]) + bytes(address + length - end)
 

@@ -52,7 +52,7 @@ def drive_arm_1(launcher: Launcher, seen: dict) -> None:
         keys = Keys(launcher.options.run_id)
         with open_session(BusEndpoints(config_file=launcher.bus.config_for("twin"))) as session:
             scene = line_scene(session, keys, 30.0, "test")
-            with served_arm(session, keys, scene, "arm_1") as (bus, arm):
+            with served_arm(session, keys, scene.arm("arm_1")) as (bus, arm):
                 port, sdk = PortHandler(bus.port), PacketHandler(0)
                 assert port.openPort()
                 while (state := arm.take()) is None or state.sim_time_s < 2.0:
