@@ -108,7 +108,15 @@ def test_a_lockstep_line_that_works_from_its_cameras_repeats_exactly():
     first_by, second_by = ({ticks.decode("s", p).tick: p for p in heard} for heard in (first_seen, second_seen))
     both = sorted(first_by.keys() & second_by.keys())  # this test's listener may join a frame after the line starts
     assert len(both) >= 35 and both[-1] == max(first_by) == max(second_by)
-    assert all(first_by[t] == second_by[t] for t in both), "the same parts seen at every frame, to the bit"
+    differ = [t for t in both if first_by[t] != second_by[t]]
+    if differ:  # say where and what else differed: a lockstep wait that ran out, or a line that went apart
+        at = differ[0]
+        waits = [(run["lockstep_timeouts"], seen_of(run).get("coordinator")) for run in (first, second)]
+        first_at, second_at = (ticks.decode("s", by[at]) for by in (first_by, second_by))
+        pytest.fail(
+            f"the parts seen differ from tick {at} on ({len(differ)} of {len(both)} frames); lockstep waits that "
+            f"ran out and the coordinator's sight: {waits}; first run {first_at}; second run {second_at}"
+        )
     same = ("parts_completed", "parts_missed", "throughput_per_min", "arm_time", "goal_results")
     assert {k: first[k] for k in same} == {k: second[k] for k in same}
     assert seen_of(first)["scored"] == seen_of(second)["scored"]
