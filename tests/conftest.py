@@ -47,6 +47,7 @@ WALL_TIME = (
     "tests/fleet/test_rightful_lies.py",
     "tests/fleet/test_bus_fuzz.py",
     "tests/fleet/snapshot/test_snapshot_now.py",  # realtime lines
+    "tests/fleet/twin/test_lerobot_so101.py",  # LeRobot's driver waits about 34 ms for each servo's answer
 )
 # tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
 HEAVY = (

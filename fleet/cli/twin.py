@@ -5,11 +5,38 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from fleet.bus.keys import Keys
 from fleet.bus.session import BusEndpoints, add_bus_arguments, open_session
 from fleet.cli.bus_flags import check_bus_flags
 from fleet.cli.errors import UsageError
+
+
+def served_calibration(path: Path | None, model: str) -> dict | None:
+    """The calibration `--calibration` names: read from the file, or the sim arm's own written there when there is
+    none yet (a LeRobot driver then connects without asking); None without the flag (the sim arm's own)."""
+    from fleet.twin.calibration import CalibrationError, read_calibration, write_calibration
+    from fleet.twin.serve_bus import arm_calibration
+    from robots.registry import get_robot
+
+    if path is None:
+        return None
+    spec = get_robot(model)
+    if path.exists():
+        try:
+            calibration = read_calibration(path, spec)
+        except CalibrationError as exc:
+            raise UsageError(f"--calibration: {exc}") from None
+        print(f"fleet twin: the servos hold the calibration in {path}", flush=True)
+        return calibration
+    calibration = arm_calibration(spec)
+    try:
+        write_calibration(path, calibration)
+    except OSError as exc:
+        raise UsageError(f"--calibration {path}: cannot write it ({exc.strerror})") from None
+    print(f"fleet twin: wrote the sim {model}'s calibration to {path}", flush=True)
+    return calibration
 
 
 def cmd_serve_bus(args: argparse.Namespace) -> int:
@@ -29,13 +56,17 @@ def cmd_serve_bus(args: argparse.Namespace) -> int:
             served = scene.arm(args.arm)
         except KeyError as exc:
             raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
-        with served_arm(session, keys, served) as (bus, arm):
+        calibration = served_calibration(args.calibration, served.model)
+        with served_arm(session, keys, served, calibration) as (bus, arm):
             print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
             while not stop.should_stop():
                 time.sleep(0.1)
+                for result in arm.results():
+                    if result.status in ("rejected", "aborted"):
+                        print(f"fleet twin: goal {result.status} by the line: {result.reason}", file=sys.stderr)
         print(
             f"fleet twin: {bus.packets} packets answered, {bus.reader.corrupt} with a wrong checksum, "
-            f"{arm.sent} goals sent",
+            f"{arm.sent} goals sent, {len(arm.refused)} refused or aborted by the line",
             file=sys.stderr,
         )
     return 0
@@ -50,6 +81,12 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     )
     b.add_argument("--arm", required=True, help="the arm to serve (its id in the scene, e.g. arm_1)")
     b.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    b.add_argument(
+        "--calibration",
+        type=Path,
+        help="a LeRobot calibration file (CALIBRATION_DIR/ROBOT_ID.json): the servos hold it; where the file does not "
+        "exist yet, the sim arm's own calibration is written there first",
+    )
     b.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(b)
     b.set_defaults(func=cmd_serve_bus)

@@ -16,7 +16,7 @@ import zenoh
 
 from fleet.bus.codec import Decoder, DropCounter, encode
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, GripperGoalMsg, TrajectoryGoalMsg
+from fleet.bus.messages import ArmState, GoalResultMsg, GripperGoalMsg, TrajectoryGoalMsg
 from fleet.bus.session import Inbox
 from robots.feetech.control_table import TICKS_PER_TURN
 from robots.spec import RobotSpec
@@ -25,6 +25,8 @@ ZERO_TICKS = TICKS_PER_TURN // 2
 TICKS_PER_RAD = TICKS_PER_TURN / (2.0 * math.pi)
 JOINT_SPEED_RAD_S = 1.5  # a servo goal is reached at this speed (the STS3215 turns ~5 rad/s unloaded)
 MIN_MOVE_S = 0.1  # the shortest trajectory a goal becomes
+SERVO_HOLD_S = 5.0  # a goal's trajectory holds it this long (sim s), renewed while the servos' torque is on
+RENEW_BEFORE_S = 2.0  # ... this long before its hold ends (the plant checks a goal over its whole length)
 
 
 def ticks_of(q_rad: float) -> int:
@@ -91,7 +93,9 @@ class LineArmJoint:
 
 class LineArm:
     """Arm `arm` of the line on `session`: its states taken as they come (`feed`), its servo goals sent together
-    once a packet's worth was written (`send`), as one trajectory from where the arm stands and a claw goal."""
+    once a packet's worth was written (`send`), as one trajectory from where the arm stands and a claw goal. The
+    trajectory then holds the goal, as a servo does while its torque is on, so the arm stays the driver's (the
+    plant lets an outside driver's arm go 2 s after its last goal); torque off on every joint hands it back."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, arm: str, spec: RobotSpec) -> None:
         self.arm, self.spec = arm, spec
@@ -102,6 +106,13 @@ class LineArm:
         self._sent: list[float | None] = [None] * n
         self._ids = itertools.count((1 << 53) + (int.from_bytes(os.urandom(2), "little") << 32))
         self.sent = 0
+        self._target: np.ndarray | None = None  # the arm's joints' goal while the servos hold one (rad)
+        self._renew_at_s = 0.0  # when (sim s) that goal's hold is renewed
+        self._mine: set[int] = set()  # the goals this arm sent, whose results are its own
+        self._results = Inbox()
+        self._result_sub = session.declare_subscriber(keys.arm_result(arm), self._results)
+        self._result_decoder = Decoder(GoalResultMsg, self.feed.drops)
+        self.refused: list[GoalResultMsg] = []  # its goals the plant refused or aborted, with their reasons
 
     def joints(self) -> list[LineArmJoint]:
         return [LineArmJoint(self.feed, self.goals, i) for i in range(len(self.goals))]
@@ -111,24 +122,59 @@ class LineArm:
 
     def send(self) -> None:
         """The goals written since the last send, to the sim: one trajectory for the arm's joints (from where the
-        arm stands, at `JOINT_SPEED_RAD_S`), one goal for the claw."""
+        arm stands, at `JOINT_SPEED_RAD_S`), one goal for the claw; else the held goal renewed when due."""
         if self.goals == self._sent or self.feed.take() is None:
+            self.renew()
             return
         q = np.asarray(self.feed.q_rad())
         arm = len(self.spec.arm_joints)
-        if self.goals[:arm] != self._sent[:arm] and any(g is not None for g in self.goals[:arm]):
-            target = np.array([g if g is not None else q[i] for i, g in enumerate(self.goals[:arm])])
-            move_s = max(MIN_MOVE_S, float(np.max(np.abs(target - q[:arm]))) / JOINT_SPEED_RAD_S)
-            msg = TrajectoryGoalMsg(self.arm, next(self._ids), self.spec.arm_joints, (move_s,), tuple(target))
-            self._pub.put(encode(msg))
-            self.sent += 1
+        if self.goals[:arm] != self._sent[:arm]:
+            if any(g is not None for g in self.goals[:arm]):
+                self._target = np.array([g if g is not None else q[i] for i, g in enumerate(self.goals[:arm])])
+                self._hold(q[:arm])
+            else:  # torque off everywhere: a short hold where the arm stands, and the line has it back after
+                self._target = None
+                self._put(
+                    TrajectoryGoalMsg(self.arm, next(self._ids), self.spec.arm_joints, (MIN_MOVE_S,), tuple(q[:arm]))
+                )
         if self.goals[arm] != self._sent[arm] and self.goals[arm] is not None:
             closed, opened = self.spec.gripper_closed[0], self.spec.gripper_open[0]
             opening = float(np.clip((self.goals[arm] - closed) / (opened - closed), 0.0, 1.0))
-            self._pub.put(encode(GripperGoalMsg(self.arm, next(self._ids), opening)))
-            self.sent += 1
+            self._put(GripperGoalMsg(self.arm, next(self._ids), opening))
         self._sent = list(self.goals)
+
+    def renew(self) -> None:
+        """While the servos hold a goal, a fresh hold of it before the last one ends: a servo with its torque on
+        holds its goal however long, so the arm stays the driver's."""
+        state = self.feed.take()
+        if self._target is not None and state is not None and state.sim_time_s >= self._renew_at_s:
+            self._hold(np.asarray(state.q))
+
+    def _hold(self, q: np.ndarray) -> None:
+        """The arm's goal (`_target`) from `q`: there at `JOINT_SPEED_RAD_S`, then held for `SERVO_HOLD_S`."""
+        move_s = max(MIN_MOVE_S, float(np.max(np.abs(self._target - q))) / JOINT_SPEED_RAD_S)
+        times, points = (move_s, move_s + SERVO_HOLD_S), tuple(self._target) * 2
+        self._put(TrajectoryGoalMsg(self.arm, next(self._ids), self.spec.arm_joints, times, points))
+        self._renew_at_s = self.feed.state.sim_time_s + move_s + SERVO_HOLD_S - RENEW_BEFORE_S
+
+    def results(self) -> list[GoalResultMsg]:
+        """The results of this arm's own goals heard since the last call; those refused or aborted are also kept
+        (`refused`)."""
+        out = []
+        for key, payload in self._results.drain():
+            result = self._result_decoder.decode(key, payload)
+            if result is not None and result.goal_id in self._mine:
+                out.append(result)
+                if result.status in ("rejected", "aborted"):
+                    self.refused.append(result)
+        return out
+
+    def _put(self, msg: TrajectoryGoalMsg | GripperGoalMsg) -> None:
+        self._mine.add(msg.goal_id)
+        self._pub.put(encode(msg))
+        self.sent += 1
 
     def close(self) -> None:
         self.feed.close()
+        self._result_sub.undeclare()
         self._pub.undeclare()

@@ -13,6 +13,8 @@ from collections.abc import Callable
 from robots.feetech.packets import PacketReader
 from robots.feetech.servos import ServoLine
 
+IDLE_S = 0.05  # no byte for this long: the bus is idle (`on_idle`)
+
 
 class PtyServoBus:
     """Serves `line` on a pseudo-terminal from a thread of its own, from `with` on; `port` is the path a driver
@@ -20,8 +22,13 @@ class PtyServoBus:
     goal: its joints sent on together). What came that was not a packet is counted (`reader.corrupt`,
     `reader.skipped_bytes`)."""
 
-    def __init__(self, line: ServoLine, after_packets: Callable[[], None] = lambda: None) -> None:
-        self.line, self.after_packets = line, after_packets
+    def __init__(
+        self,
+        line: ServoLine,
+        after_packets: Callable[[], None] = lambda: None,
+        on_idle: Callable[[], None] = lambda: None,
+    ) -> None:
+        self.line, self.after_packets, self.on_idle = line, after_packets, on_idle
         self.reader = PacketReader()
         self.packets = 0
         self._master, self._slave = os.openpty()
@@ -49,9 +56,12 @@ class PtyServoBus:
 
     def _serve(self) -> None:
         while True:
-            ready, _, _ = select.select([self._master, self._stop_r], [], [])
+            ready, _, _ = select.select([self._master, self._stop_r], [], [], IDLE_S)
             if self._stop_r in ready:
                 return
+            if not ready:
+                self.on_idle()
+                continue
             try:
                 data = os.read(self._master, 4096)
             except OSError:  # the driver's side closed and nothing holds it open: nothing more to read
@@ -60,6 +70,6 @@ class PtyServoBus:
             for p in self.reader.feed(data):
                 self.packets += 1
                 answers += self.line.answer(p)
-            self.after_packets()
-            if answers:
+            if answers:  # first: a driver waits for them (tens of ms), the line for nothing
                 os.write(self._master, answers)
+            self.after_packets()

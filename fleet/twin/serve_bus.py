@@ -10,20 +10,35 @@ from collections.abc import Iterator
 import zenoh
 
 from fleet.bus.keys import Keys
+from fleet.twin.calibration import MotorCalibration, load_into, sim_calibration
 from fleet.twin.line_arm import LineArm
 from fleet.twin.pty_bus import PtyServoBus
 from robots.feetech.servos import Servo, ServoLine
+from robots.kinematics import KinematicModel
 from robots.registry import get_robot
+from robots.spec import RobotSpec
 from scenes.schema import Arm
 
 
+def arm_calibration(spec: RobotSpec) -> dict[str, MotorCalibration]:
+    """The sim arm's own servo calibration, from its model's joint limits (`fleet.twin.calibration`)."""
+    kinematics = KinematicModel(spec)
+    index = [*kinematics.arm_q_index, kinematics.gripper_q_index[0]]
+    return sim_calibration(spec, kinematics.lower[index], kinematics.upper[index])
+
+
 @contextlib.contextmanager
-def served_arm(session: zenoh.Session, keys: Keys, arm: Arm) -> Iterator[tuple[PtyServoBus, LineArm]]:
-    """`arm` of the running line (`Scene.arm(name)`) served as servos on a pseudo-terminal while the block runs."""
-    line_arm = LineArm(session, keys, arm.name, get_robot(arm.model))
+def served_arm(
+    session: zenoh.Session, keys: Keys, arm: Arm, calibration: dict[str, MotorCalibration] | None = None
+) -> Iterator[tuple[PtyServoBus, LineArm]]:
+    """`arm` of the running line (`Scene.arm(name)`) served as servos on a pseudo-terminal while the block runs,
+    holding `calibration` (default: the sim arm's own)."""
+    spec = get_robot(arm.model)
+    line_arm = LineArm(session, keys, arm.name, spec)
     servos = ServoLine(Servo(i + 1, joint) for i, joint in enumerate(line_arm.joints()))
+    load_into(servos, calibration if calibration is not None else arm_calibration(spec))
     try:
-        with PtyServoBus(servos, after_packets=line_arm.send) as bus:
+        with PtyServoBus(servos, after_packets=line_arm.send, on_idle=line_arm.renew) as bus:
             yield bus, line_arm
     finally:
         line_arm.close()

@@ -20,6 +20,7 @@ from robots.feetech.packets import BROADCAST_ID, ErrorBit, Instruction, Packet, 
 
 GOAL = BY_NAME["Goal_Position"]
 PRESENT = BY_NAME["Present_Position"]
+TORQUE = BY_NAME["Torque_Enable"]
 READ_ONLY = frozenset(
     a for r in STS3215_REGISTERS if not r.writable for a in range(r.address, r.address + r.size_bytes)
 )  # byte addresses a write leaves alone
@@ -63,8 +64,7 @@ class Servo:
 
     def read(self, address: int, length: int) -> bytes:
         """`length` bytes from `address`, the present registers read off the joint first."""
-        offset = self.get(BY_NAME["Homing_Offset"])
-        self.set(PRESENT, (self.joint.position_ticks() - offset) % TICKS_PER_TURN)
+        self.set(PRESENT, self._present())
         velocity = self.joint.velocity_ticks_per_s()
         self.set(BY_NAME["Present_Velocity"], velocity)
         self.set(BY_NAME["Moving"], int(velocity != 0))
@@ -72,15 +72,22 @@ class Servo:
         return bytes(self.memory[address:end]) + bytes(address + length - end)
 
     def write(self, address: int, data: bytes) -> int:
-        """Write `data` at `address` (read-only bytes keep their value), then drive the joint; the error byte."""
+        """Write `data` at `address` (read-only bytes keep their value), then drive the joint; the error byte. Torque
+        turned on holds the shaft where it stands: the goal becomes the present position, as on the servo."""
+        torque_was = self.get(TORQUE)
         for i, byte in enumerate(data):
             if address + i < MEMORY_BYTES and address + i not in READ_ONLY:
                 self.memory[address + i] = byte
+        if self.get(TORQUE) and not torque_was:
+            self.set(GOAL, self._present())
         return self._drive()
+
+    def _present(self) -> int:
+        return (self.joint.position_ticks() - self.get(BY_NAME["Homing_Offset"])) % TICKS_PER_TURN
 
     def _drive(self) -> int:
         """The joint driven to the goal (within the limits) while torque is on; ANGLE where the goal was outside."""
-        if not self.get(BY_NAME["Torque_Enable"]):
+        if not self.get(TORQUE):
             self.joint.drive(None)
             return 0
         goal = self.get(GOAL)
