@@ -96,23 +96,24 @@ def test_heartbeats_of_a_dead_controller_and_reports_no_node_sends_are_refused_a
     keys, killed, heard, told = Keys("line"), [], [], []
     options = RunOptions(scene=QUICK_LINE, duration_s=16.0, seed=5, insecure=True)
 
-    def kill_arm_0() -> None:
-        """At 3 s of sim time, as the arms' states say (the launcher's progress is paced by the wall clock: a lockstep
-        line on an idle machine had passed 9 s, or ended, before it said 3), once a heartbeat of arm_0 was heard (the
-        liar beats on from it); else at the next half second."""
-        if killed or not heard:
-            return
-        node = next(n for n in launcher.nodes if n.name == "arm_0")
-        killed.append(node.proc.pid)
-        os.kill(node.proc.pid, signal.SIGKILL)
-
     with Launcher(options) as launcher:
         arms = [a.name for a in launcher.scene.arms]
         with open_session(BusEndpoints(connect=(launcher.endpoint,))) as session:
             decoder = Decoder(ArmStatus, DropCounter())
-            sub = session.declare_subscriber(
-                keys.arm_status("arm_0"), lambda s: heard.append(decoder.decode(str(s.key_expr), s.payload.to_bytes()))
-            )
+
+            def kill_arm_0(sample) -> None:
+                """On the first heartbeat of arm_0 heard from 3 s of sim time on (its own sim time: heartbeats come
+                every 0.2 s of wall time, and a lockstep line on an idle machine passes seconds of sim between two;
+                on a loaded one, a trigger on the line's sim time had fired before any was heard), the liar beats
+                on from it."""
+                beat = decoder.decode(str(sample.key_expr), sample.payload.to_bytes())
+                heard.append(beat)
+                if not killed and beat is not None and beat.sim_time_s >= 3.0:
+                    node = next(n for n in launcher.nodes if n.name == "arm_0")
+                    killed.append(node.proc.pid)
+                    os.kill(node.proc.pid, signal.SIGKILL)
+
+            sub = session.declare_subscriber(keys.arm_status("arm_0"), kill_arm_0)
 
             def lie() -> None:
                 if not killed or not heard:
@@ -127,10 +128,7 @@ def test_heartbeats_of_a_dead_controller_and_reports_no_node_sends_are_refused_a
                 session.put(keys.sim_status, encode(SimStatus(FAR, 3.0, "lockstep", False, False, 1.0, (), 0.0, 0)))
                 told.append(1)
 
-            with (
-                SimTimeTrigger(session, keys, [3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0], kill_arm_0),
-                SimTimeTrigger(session, keys, [7.0, 9.0, 11.0, 13.0], lie),
-            ):
+            with SimTimeTrigger(session, keys, [7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0], lie):
                 summary = launcher.run()
             sub.undeclare()
     assert_nothing_left(summary, launcher.endpoint)
