@@ -13,10 +13,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import Enum, IntEnum
+from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import BPoly
 
+# a goal moves for at most this long (s): its spline is sampled at every servo tick while it moves, and checked by
+# the plant's safety layer over that time, so the cost of a goal grows with it. Holding its last point costs
+# nothing, and may last as long as the goal says.
+MAX_MOVING_S = 600.0
 LIMIT_SLACK_RAD = 1e-5  # limits pass through float32 in the simulator: a point exactly at a limit must not be refused
 
 
@@ -167,12 +172,8 @@ def check_goal(
     if arrays["accelerations"] is not None and arrays["velocities"] is None:
         return reject(ResultCode.INVALID_GOAL, "accelerations need velocities too")
     times = np.asarray(goal.times_from_start_s, float)
-    if not np.all(np.isfinite(times)) or times[0] < 0 or np.any(np.diff(times) <= 0):
-        return reject(ResultCode.INVALID_GOAL, "times_from_start must be finite, not negative and strictly increasing")
-    if times[-1] <= 0:
-        return reject(ResultCode.INVALID_GOAL, "the last point's time_from_start must be after the start")
-    if goal.start_time_s is not None and not math.isfinite(goal.start_time_s):
-        return reject(ResultCode.INVALID_GOAL, "start time is not finite")
+    if why := _times_problem(goal, times, arrays):
+        return reject(ResultCode.INVALID_GOAL, why)
     pos = arrays["positions"]
     beyond = np.nonzero(np.any((pos < lower - LIMIT_SLACK_RAD) | (pos > upper + LIMIT_SLACK_RAD), axis=0))[0]
     if beyond.size:
@@ -188,6 +189,34 @@ def check_goal(
     if not (math.isfinite(goal.goal_time_tolerance_s) and goal.goal_time_tolerance_s >= 0):
         return reject(ResultCode.INVALID_GOAL, "goal time tolerance must be finite and not negative")
     return CheckedGoal(goal, times, pos, arrays["velocities"], arrays["accelerations"], path, end)
+
+
+def _times_problem(goal: TrajectoryGoal, times: np.ndarray, arrays: dict[str, np.ndarray | None]) -> str:
+    """What is wrong with a goal's times ("" if nothing): their order, its start, how long it moves."""
+    if not np.all(np.isfinite(times)) or times[0] < 0 or np.any(np.diff(times) <= 0):
+        return "times_from_start must be finite, not negative and strictly increasing"
+    if times[-1] <= 0:
+        return "the last point's time_from_start must be after the start"
+    if goal.start_time_s is not None and not math.isfinite(goal.start_time_s):
+        return "start time is not finite"
+    if (moving_s := moving_until_s(times, arrays)) > MAX_MOVING_S:
+        return (
+            f"the trajectory moves for {moving_s:.6g} s; a goal may move for at most {MAX_MOVING_S:.0f} s "
+            "(its last point may be held as long as it says)"
+        )
+    return ""
+
+
+def moving_until_s(times_s: np.ndarray, arrays: dict[str, np.ndarray | None]) -> float:
+    """When a goal's points stop moving (after its start): the time of its last point that differs from the one
+    before it or has a velocity or acceleration; the first point's when none does (the way there moves)."""
+    pos = arrays["positions"]
+    moving = np.flatnonzero(np.any(pos[1:] != pos[:-1], axis=1)) + 1
+    last = int(moving[-1]) if moving.size else 0
+    for what in ("velocities", "accelerations"):
+        if arrays.get(what) is not None and (nonzero := np.flatnonzero(np.any(arrays[what] != 0.0, axis=1))).size:
+            last = max(last, int(nonzero[-1]))
+    return float(times_s[last])
 
 
 @dataclass
@@ -234,23 +263,31 @@ class Spline:
         spline = cls(
             float(knots[0]), float(knots[-1]), poly, dpoly, dpoly.derivative(), checked.positions[-1].copy(), period_s
         )
-        if period_s:
-            k0, k1 = math.ceil(spline.t0_s / period_s - 1e-6), math.floor(spline.t_end_s / period_s + 1e-6)
+        if period_s:  # while it moves: a held tail reads its end (`state`)
+            k0, k1 = math.ceil(spline.t0_s / period_s - 1e-6), math.floor(spline.moves_until_s / period_s + 1e-6)
             if k1 >= k0:
                 times = np.clip(np.arange(k0, k1 + 1) * period_s, spline.t0_s, spline.t_end_s)
                 spline.first_k, spline.grid_q, spline.grid_dq = k0, poly(times), dpoly(times)
         return spline
 
+    @cached_property
+    def moves_until_s(self) -> float:
+        """When the spline last moves: the end of its last piece whose coefficients are not all one value (a goal
+        that holds its last point rests from there on; `t0_s` when it never moves)."""
+        c = self.poly.c  # (order + 1, pieces, joints): Bernstein coefficients, all equal on a piece that holds
+        varying = np.flatnonzero(np.any(c.max(axis=0) != c.min(axis=0), axis=-1))
+        return float(self.poly.x[varying[-1] + 1]) if varying.size else self.t0_s
+
     def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at `t_s` (the first point before the start, the last after the end)."""
-        if t_s >= self.t_end_s:
+        if t_s >= self.moves_until_s:
             return self.q_end.copy(), np.zeros_like(self.q_end), np.zeros_like(self.q_end)
         t = max(t_s, self.t0_s)
         return self.poly(t), self.dpoly(t), self.ddpoly(t)
 
     def q_at(self, t_s: float) -> np.ndarray:
         """Position alone at `t_s` (the first point before the start, the last after the end)."""
-        if t_s >= self.t_end_s:
+        if t_s >= self.moves_until_s:
             return self.q_end
         return self.poly(max(t_s, self.t0_s))
 
@@ -260,7 +297,7 @@ class Spline:
             k = round(t_s / self.period_s)
             i = k - self.first_k
             if 0 <= i < len(self.grid_q) and abs(k * self.period_s - t_s) < 1e-9:
-                if t_s >= self.t_end_s:
+                if t_s >= self.moves_until_s:
                     return self.q_end, np.zeros_like(self.q_end)
                 return self.grid_q[i], self.grid_dq[i]
         q, dq, _ = self.sample(t_s)

@@ -135,8 +135,9 @@ class ArmTracker:
         return self._note(out)
 
     def committed_end_s(self) -> float:
-        """When the arm's committed path comes to rest (-inf when it holds already)."""
-        ends = [a.spline.t_end_s for a in (self.active, self.next) if a is not None]
+        """When the arm's committed path comes to rest (-inf when it holds already): a goal that holds its last
+        point rests from there, although it runs on."""
+        ends = [a.spline.moves_until_s for a in (self.active, self.next) if a is not None]
         return max(ends, default=-math.inf)
 
     def path_q(self, t_s: float) -> np.ndarray:

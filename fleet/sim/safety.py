@@ -68,7 +68,7 @@ def _peak_speeds(spline: Spline, samples: int = 64) -> np.ndarray:
     """Each joint's largest |velocity| along the spline (its servo grid when it has one)."""
     if spline.grid_dq is not None and len(spline.grid_dq):
         return np.abs(spline.grid_dq).max(axis=0)
-    times = np.linspace(spline.t0_s, spline.t_end_s, samples)
+    times = np.linspace(spline.t0_s, spline.moves_until_s, samples)  # over its motion: a held tail does not move
     return np.abs(spline.dpoly(times)).max(axis=0)
 
 
@@ -162,7 +162,7 @@ class PlantSafety:
 
     def _point_speed_m_per_s(self, arm: str, spline: Spline | None) -> float:
         """An upper bound on how fast any point of `arm` moves along `spline` (0 for an arm that holds)."""
-        if spline is None or spline.t_end_s <= spline.t0_s:
+        if spline is None or spline.moves_until_s <= spline.t0_s:
             return 0.0
         return float(_peak_speeds(spline) @ self.levers_m[arm])
 
@@ -172,7 +172,7 @@ class PlantSafety:
             (
                 self._point_speed_m_per_s(arm, a.spline)
                 for a in (tracker.active, tracker.next)
-                if a is not None and a.spline.t_end_s > t_s
+                if a is not None and a.spline.moves_until_s > t_s
             ),
             default=0.0,
         )
@@ -196,7 +196,8 @@ class PlantSafety:
         if not others:
             return None
         me = self.geometries[arm]
-        t_end = max([t0] + [s.t_end_s for s in my_splines] + [trackers[o].committed_end_s() for o in others])
+        # until everything rests: a goal holding its last point for an hour is walked no further than its motion
+        t_end = max([t0] + [s.moves_until_s for s in my_splines] + [trackers[o].committed_end_s() for o in others])
         ka, kb = grid_steps(t0, t_end)
         kb = max(kb, ka + 1)
         grid = np.arange(ka, kb + 1) * GRID_DT_S

@@ -37,8 +37,8 @@ class PathSpeeds:
         kept = self._kept.get(id(spline))
         if kept is not None and kept[0] is spline:
             return kept
-        k0, k1 = grid_steps(spline.t0_s, spline.t_end_s)
-        times = np.clip(np.arange(k0, k1 + 1) * GRID_DT_S, spline.t0_s, spline.t_end_s)
+        k0, k1 = grid_steps(spline.t0_s, spline.moves_until_s)  # a held tail rests: no bound, its end's joints
+        times = np.clip(np.arange(k0, k1 + 1) * GRID_DT_S, spline.t0_s, spline.moves_until_s)
         speeds = np.abs(np.asarray(spline.dpoly(times), float)) @ self.levers_m[arm]
         positions = np.asarray(spline.poly(times), float)
         kept = self._kept[id(spline)] = (spline, k0, speeds, positions)

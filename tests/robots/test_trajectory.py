@@ -44,3 +44,24 @@ def test_a_move_no_stretch_keeps_within_the_limits_is_left_to_start_at_rest():
     start_s, hover = 10.5, np.array([-0.9, 0.9, 1.2])  # on past home and back: overshoots more the longer it takes
     at_rest = JointSegment.timed(home.sample(start_s)[0], hover, start_s, limit, 1.0).duration_s
     assert spliced_duration_s(home, start_s, hover, at_rest, limit) is None
+
+
+def test_a_goal_may_move_for_600_s_and_hold_its_end_as_long_as_it_says():
+    from robots.joint_trajectory import MAX_MOVING_S, CheckedGoal, GoalStatus, TrajectoryGoal, check_goal
+
+    names, low, high = ("a", "b"), np.full(2, -3.0), np.full(2, 3.0)
+
+    def checked(times, positions, velocities=()):
+        return check_goal(TrajectoryGoal(1, names, times, positions, velocities), names, low, high)
+
+    assert isinstance(checked((1.0, 1e9), ((0.1, 0.1), (0.1, 0.1))), CheckedGoal), "a hold of any length"
+    assert isinstance(checked((MAX_MOVING_S,), ((0.1, 0.1),)), CheckedGoal)
+    too_long = checked((1.0, MAX_MOVING_S + 1.0), ((0.1, 0.1), (0.2, 0.1)))
+    assert too_long.status == GoalStatus.REJECTED
+    assert too_long.reason == (
+        "the trajectory moves for 601 s; a goal may move for at most 600 s (its last point may be held as long as "
+        "it says)"
+    )
+    # a point the same as the one before, but still moving through it, moves
+    moving = checked((1.0, 700.0), ((0.1, 0.1), (0.1, 0.1)), ((0.0, 0.0), (0.5, 0.0)))
+    assert moving.status == GoalStatus.REJECTED and "moves for 700 s" in moving.reason

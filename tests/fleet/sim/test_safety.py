@@ -2,13 +2,15 @@
 a storm of them leaves no contact, joint speeds above a robot's limits are refused, and a motion that finds another
 arm too close is stopped."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from coordinator.geometry import separation_m
 from fleet.sim.tracking import TrackedArms
 from fleet.sim.world import World
-from robots.joint_trajectory import GoalStatus, ResultCode, rest_to_rest
+from robots.joint_trajectory import GoalStatus, ResultCode, TrajectoryGoal, rest_to_rest
 from scenes import load_scene
 
 
@@ -126,3 +128,45 @@ def _far_pose(tracked: TrackedArms, arm: str, other: str, other_q: np.ndarray) -
             best, best_q = gap, q
     assert best > 0.1
     return best_q
+
+
+HOUR_S = 3600.0
+
+
+def held_for_an_hour(goal_id: int, names: tuple[str, ...], q: np.ndarray, duration_s: float) -> TrajectoryGoal:
+    """A rest-to-rest move in `duration_s`, then its end held for an hour (a second point, the same)."""
+    move = rest_to_rest(goal_id, names, q, duration_s, None)
+    return dataclasses.replace(
+        move,
+        times_from_start_s=(duration_s, duration_s + HOUR_S),
+        positions=move.positions * 2,
+        velocities=move.velocities * 2,
+        accelerations=move.accelerations * 2,
+    )
+
+
+def test_a_goal_that_holds_its_end_for_an_hour_is_checked_over_its_motion_and_costs_no_more(cell):
+    """The hold does not hide a collision at its end, nor a joint too fast on the way; a goal that is fine runs,
+    sampled while it moves only (an hour's samples stalled the sim for 73 ms a goal, ten hours' for 0.9 s and 288
+    MB: the plant's cost grew with a goal's length, not its motion)."""
+    world = World(cell)
+    tracked = TrackedArms(world)
+    names = tuple(world.arms["arm_0"].spec.arm_joints)
+    (into,) = _poses_into(tracked, "arm_0", "arm_1", 1)
+    (refused,) = tracked.submit("arm_0", held_for_an_hour(7, names, into, 3.0))
+    assert refused.status == GoalStatus.REJECTED and "safety: its path comes within" in refused.reason
+    fast = tracked.trackers["arm_0"].hold_q.copy()
+    fast[0] += 0.5
+    (refused,) = tracked.submit("arm_0", held_for_an_hour(8, names, fast, 0.05))
+    assert refused.status == GoalStatus.REJECTED and "would turn at" in refused.reason
+    slow = tracked.trackers["arm_0"].hold_q.copy()
+    slow[0] += 0.1
+    assert tracked.submit("arm_0", held_for_an_hour(9, names, slow, 1.0)) == []
+    spline = tracked.trackers["arm_0"].active.spline
+    assert spline.t_end_s - spline.t0_s == pytest.approx(1.0 + HOUR_S)
+    assert spline.moves_until_s - spline.t0_s == pytest.approx(1.0)
+    assert len(spline.grid_q) <= 1.0 / world.control_dt_s + 2, "sampled while it moves, not for the hour"
+    assert _run(world, tracked, 1.5) == 0
+    desired_q, desired_dq = tracked.trackers["arm_0"].desired(world.sim_time_s)
+    assert np.array_equal(desired_q, slow) and not desired_dq.any(), "the hold drives its end, at rest"
+    assert tracked.trackers["arm_0"].goal_id == 9, "the goal runs on through its hold"
