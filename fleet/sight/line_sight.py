@@ -37,6 +37,7 @@ class LineSight:
         self.types: dict[int, tuple[str, int]] = {}  # by part: (feeder, type index), as the events name it
         self.held: list[tuple[int, str, LineEvent]] = []  # (its number in the line's order, key, event)
         self.events_seen = 0
+        self.events_applied = 0  # the line's events applied so far (in its order): what a frame's parts reflect
         self.released = 0
 
     def event(self, key: str, e: LineEvent, drops: DropCounter) -> None:
@@ -69,6 +70,7 @@ class LineSight:
             if e.tick > up_to_tick or (published is not None and number >= published):
                 later.append((number, key, e))
                 continue
+            self.events_applied = max(self.events_applied, number + 1)
             time_s = e.tick / self.scene.control_hz
             if e.kind == "arrived":
                 self._arrived(e, time_s)
@@ -128,7 +130,7 @@ class LineSight:
             tuple(quaternions),
             tuple(velocities),
             tuple(sizes),
-            self.events_seen,
+            self.events_applied,  # not those heard: an event that came early must not change the frame's bits
         )
 
     def report(self) -> dict:

@@ -156,6 +156,8 @@ def test_an_event_the_sim_published_after_a_frame_waits_for_the_next_frame_howev
         if tick == 20:
             assert [e.part_id for _, _, e in perceived.sight.held] == [5], "held past the frame it came after"
     assert [(m.tick, m.part_ids) for m in seen] == [(20, ()), (40, (5,))] and perceived.sight.held == []
+    # and each frame's message counts the events applied to it, not those heard by then (CI once had 0 and 1)
+    assert [m.events_published for m in seen] == [0, 1]
     assert perceived.report()["frames_on_deadline"] == 0
 
 

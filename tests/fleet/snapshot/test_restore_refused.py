@@ -69,7 +69,7 @@ def test_a_node_that_cannot_read_its_state_back_ends_the_restore_with_its_own_li
 
 
 def test_a_node_restarted_in_a_restored_run_takes_over_and_never_restores_again(taken, tmp_path):
-    options, snapshot = restore_options(taken, tmp_path / "restore", duration_s=1.5, respawn=True)
+    options, snapshot = restore_options(taken, tmp_path / "restore", duration_s=4.0, respawn=True)
     with Launcher(options) as launcher:
         arm = next(n for n in launcher.nodes if n.name == "arm_0")
         first = list(arm.child.argv)
