@@ -6,6 +6,7 @@ the plant's safety layer checks them; the coordinator lets the arm go while they
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -24,6 +25,7 @@ from robots.kinematics import KinematicModel
 from robots.registry import get_robot
 from scenes.schema import Scene
 
+LOG = logging.getLogger(__name__)
 GRIPPER_SPAN = (0.0, 100.0)  # LeRobot's RANGE_0_100: closed .. open
 
 
@@ -115,7 +117,15 @@ class LineRobot:
             if self.line_arm.goals[i] is None:
                 self.line_arm.goals[i] = q[i]
         self.line_arm.send()
+        self._tell_refusals()
         return sent
+
+    def _tell_refusals(self) -> None:
+        """The plant's answers come later than the action: a goal it refused or aborted since the last action is
+        logged with the plant's reason (and counted in `line_arm.refused`); the arm holds its last goal meanwhile."""
+        for result in self.line_arm.results():
+            if result.status in ("rejected", "aborted"):
+                LOG.warning("%s: the line %s a goal: %s", self.line_arm.arm, result.status, result.reason)
 
     def let_go(self) -> None:
         """Hand the arm back to the line: every goal dropped, as servos whose torque is turned off."""
