@@ -19,7 +19,6 @@ from fleet.record.mcap_file import Recording
 from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import get_robot
 from tests.fleet.test_run import assert_nothing_left
-from tests.fleet.twin.test_lerobot_so101 import lerobot_python
 
 pytestmark = [pytest.mark.slow, pytest.mark.heavy]  # a lockstep line that renders a camera
 
@@ -28,10 +27,10 @@ SECONDS = 4.0
 TOLERANCE_DEG = 1e-3  # the dataset keeps float32: a degree value to about 1e-5
 
 
-def record(launcher: Launcher, root: Path, seen: dict) -> None:
+def record(launcher: Launcher, lerobot: Path, root: Path, seen: dict) -> None:
     try:
         driver = subprocess.run(
-            [str(lerobot_python()), str(DRIVER), str(launcher.bus.config_for("twin")), str(root), str(SECONDS)],
+            [str(lerobot), str(DRIVER), str(launcher.bus.config_for("twin")), str(root), str(SECONDS)],
             stdin=subprocess.DEVNULL,
             capture_output=True,
             text=True,
@@ -66,14 +65,13 @@ def line_said(path: Path, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return np.array(q), np.array(targets), np.array(openings)
 
 
-@pytest.mark.skipif(lerobot_python() is None, reason="needs LeRobot's virtualenv: bash scripts/install-lerobot")
-def test_lerobots_record_loop_writes_a_dataset_of_the_line_s_own_states_and_goals(tmp_path):
+def test_lerobots_record_loop_writes_a_dataset_of_the_line_s_own_states_and_goals(lerobot, tmp_path):
     options = RunOptions(
         scene="mixed_fleet", duration_s=600.0, seed=0, cameras="overhead", record=str(tmp_path / "line.mcap")
     )
     seen: dict = {}
     with Launcher(options) as launcher:
-        recorder = threading.Thread(target=record, args=(launcher, tmp_path, seen), daemon=True)
+        recorder = threading.Thread(target=record, args=(launcher, lerobot, tmp_path, seen), daemon=True)
         recorder.start()
         summary = launcher.run()
         recorder.join(60)

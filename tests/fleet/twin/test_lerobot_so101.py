@@ -4,7 +4,6 @@ calibration file and the servos hold it), reads the joints in its degrees, and i
 
 import json
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -25,20 +24,11 @@ from tests.fleet.test_run import assert_nothing_left
 # takes both cores, and a servo answer may then wait longer)
 pytestmark = pytest.mark.slow
 
-REPO = Path(__file__).resolve().parents[3]
 DRIVER = Path(__file__).with_name("lerobot_so101_driver.py")
 JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 
 
-def lerobot_python() -> Path | None:
-    """LeRobot's virtualenv's Python (`bash scripts/install-lerobot` makes it; `CLAWFLEET_LEROBOT_PYTHON` names
-    another), None where there is none."""
-    named = os.environ.get("CLAWFLEET_LEROBOT_PYTHON")
-    python = Path(named) if named else REPO / ".venv-lerobot" / "bin" / "python"
-    return python if python.exists() else None
-
-
-def serve_and_drive(launcher: Launcher, calibration_dir: Path, seen: dict) -> None:
+def serve_and_drive(launcher: Launcher, lerobot: Path, calibration_dir: Path, seen: dict) -> None:
     """`fleet twin serve-bus --calibration` on arm_1, then LeRobot's driver on its port; the line stopped after."""
     serve = None
     try:
@@ -61,7 +51,7 @@ def serve_and_drive(launcher: Launcher, calibration_dir: Path, seen: dict) -> No
                 lambda sample: states.append(decoder.decode("state", sample.payload.to_bytes())),
             )
             driver = subprocess.run(
-                [str(lerobot_python()), str(DRIVER), port, str(calibration_dir), "arm_1"],
+                [str(lerobot), str(DRIVER), port, str(calibration_dir), "arm_1"],
                 stdin=subprocess.DEVNULL,
                 capture_output=True,
                 text=True,
@@ -86,12 +76,11 @@ def serve_and_drive(launcher: Launcher, calibration_dir: Path, seen: dict) -> No
         launcher.interrupted = "the driver is done"
 
 
-@pytest.mark.skipif(lerobot_python() is None, reason="needs LeRobot's virtualenv: bash scripts/install-lerobot")
-def test_lerobots_so101_follower_drives_a_line_s_so_101_through_its_servo_bus(tmp_path):
+def test_lerobots_so101_follower_drives_a_line_s_so_101_through_its_servo_bus(lerobot, tmp_path):
     options = RunOptions(scene="mixed_fleet", duration_s=120.0, seed=0, mode="realtime")
     seen: dict = {}
     with Launcher(options) as launcher:
-        driver = threading.Thread(target=serve_and_drive, args=(launcher, tmp_path, seen), daemon=True)
+        driver = threading.Thread(target=serve_and_drive, args=(launcher, lerobot, tmp_path, seen), daemon=True)
         driver.start()
         summary = launcher.run()
         driver.join(60)
