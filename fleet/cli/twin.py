@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -42,10 +43,13 @@ def served_calibration(path: Path | None, model: str) -> dict | None:
 def cmd_serve_bus(args: argparse.Namespace) -> int:
     from fleet.common.processes import StopFlag
     from fleet.nodes.attached import line_scene
-    from fleet.twin.serve_bus import served_arm
+    from fleet.twin.serve_bus import Wear, served_arm
 
     if not (args.connect or args.zenoh_config):
         raise UsageError("fleet twin serve-bus needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+    for flag, value in (("--backlash-deg", args.backlash_deg), ("--noise-deg", args.noise_deg)):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise UsageError(f"{flag} {value}: give a finite number of degrees, 0 or more")
     check_bus_flags(args, wait_s=args.wait)
     stop, keys = StopFlag(watch_parent=False), Keys(args.run_id)
     with open_session(BusEndpoints.from_args(args)) as session:
@@ -57,7 +61,8 @@ def cmd_serve_bus(args: argparse.Namespace) -> int:
         except KeyError as exc:
             raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
         calibration = served_calibration(args.calibration, served.model)
-        with served_arm(session, keys, served, calibration) as (bus, arm):
+        wear = Wear(args.backlash_deg, args.noise_deg, args.seed)
+        with served_arm(session, keys, served, calibration, wear) as (bus, arm):
             print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
             while not stop.should_stop():
                 time.sleep(0.1)
@@ -87,6 +92,11 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         help="a LeRobot calibration file (CALIBRATION_DIR/ROBOT_ID.json): the servos hold it; where the file does not "
         "exist yet, the sim arm's own calibration is written there first",
     )
+    b.add_argument("--backlash-deg", type=float, default=0.0, help="play in each servo's gears, read back (default 0)")
+    b.add_argument(
+        "--noise-deg", type=float, default=0.0, help="encoder noise per read, its standard deviation (default 0)"
+    )
+    b.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
     b.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(b)
     b.set_defaults(func=cmd_serve_bus)

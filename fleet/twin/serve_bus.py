@@ -6,14 +6,17 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
+from dataclasses import dataclass
 
+import numpy as np
 import zenoh
 
 from fleet.bus.keys import Keys
 from fleet.twin.calibration import MotorCalibration, load_into, sim_calibration
 from fleet.twin.line_arm import LineArm
 from fleet.twin.pty_bus import PtyServoBus
-from robots.feetech.servos import Servo, ServoLine
+from robots.feetech.imperfect_joint import ImperfectJoint
+from robots.feetech.servos import Servo, ServoJoint, ServoLine
 from robots.kinematics import KinematicModel
 from robots.registry import get_robot
 from robots.spec import RobotSpec
@@ -27,15 +30,33 @@ def arm_calibration(spec: RobotSpec) -> dict[str, MotorCalibration]:
     return sim_calibration(spec, kinematics.lower[index], kinematics.upper[index])
 
 
+@dataclass(frozen=True)
+class Wear:
+    """How worn the served servos read: backlash and encoder noise (degrees), drawn from `seed`
+    (`robots.feetech.imperfect_joint`)."""
+
+    backlash_deg: float = 0.0
+    noise_deg: float = 0.0
+    seed: int = 0
+
+
 @contextlib.contextmanager
 def served_arm(
-    session: zenoh.Session, keys: Keys, arm: Arm, calibration: dict[str, MotorCalibration] | None = None
+    session: zenoh.Session,
+    keys: Keys,
+    arm: Arm,
+    calibration: dict[str, MotorCalibration] | None = None,
+    wear: Wear = Wear(),
 ) -> Iterator[tuple[PtyServoBus, LineArm]]:
     """`arm` of the running line (`Scene.arm(name)`) served as servos on a pseudo-terminal while the block runs,
-    holding `calibration` (default: the sim arm's own)."""
+    holding `calibration` (default: the sim arm's own), read as `wear` says."""
     spec = get_robot(arm.model)
     line_arm = LineArm(session, keys, arm.name, spec)
-    servos = ServoLine(Servo(i + 1, joint) for i, joint in enumerate(line_arm.joints()))
+    joints: list[ServoJoint] = list(line_arm.joints())
+    if wear.backlash_deg or wear.noise_deg:
+        rng = np.random.default_rng(wear.seed)
+        joints = [ImperfectJoint(j, wear.backlash_deg, wear.noise_deg, rng) for j in joints]
+    servos = ServoLine(Servo(i + 1, joint) for i, joint in enumerate(joints))
     load_into(servos, calibration if calibration is not None else arm_calibration(spec))
     try:
         with PtyServoBus(servos, after_packets=line_arm.send, on_idle=line_arm.renew) as bus:

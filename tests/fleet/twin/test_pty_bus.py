@@ -126,7 +126,12 @@ def test_serve_bus_without_a_line_to_join_is_one_line():
     import subprocess
     import sys
 
-    for extra in ([], ["--connect", "tcp/127.0.0.1:1", "--wait", "0.5"]):
+    for extra in (
+        [],
+        ["--connect", "tcp/127.0.0.1:1", "--wait", "0.5"],
+        ["--connect", "tcp/127.0.0.1:1", "--noise-deg", "nan"],
+        ["--connect", "tcp/127.0.0.1:1", "--backlash-deg", "-1"],
+    ):
         done = subprocess.run(
             [sys.executable, "-m", "fleet", "twin", "serve-bus", "--arm", "arm_1", *extra],
             capture_output=True,

@@ -14,7 +14,7 @@ from fleet.bus.session import BusEndpoints, open_session
 from fleet.nodes.attached import line_scene
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.twin.line_arm import rad_of, ticks_of
-from fleet.twin.serve_bus import served_arm
+from fleet.twin.serve_bus import Wear, served_arm
 from robots.feetech.control_table import BY_NAME
 from tests.fleet.test_run import assert_nothing_left
 
@@ -68,6 +68,12 @@ def drive_arm_1(launcher: Launcher, seen: dict) -> None:
                     assert time.monotonic() < deadline, f"the line stopped before {sent_at + HELD_S:.1f} s"
                     time.sleep(0.01)
                 seen["after"], seen["sent"] = sync_read(port, sdk), arm.sent
+                # the same arm, held still, served again as a worn arm reads: 2 degrees of encoder noise
+                with served_arm(session, keys, scene.arm("arm_1"), wear=Wear(noise_deg=2.0, seed=3)) as (worn, _):
+                    worn_port = PortHandler(worn.port)
+                    assert worn_port.openPort()
+                    seen["worn"] = [sync_read(worn_port, sdk) for _ in range(40)]
+                    worn_port.closePort()
                 port.closePort()
                 seen["corrupt"] = bus.reader.corrupt
     except Exception as exc:  # the test reports it
@@ -93,6 +99,11 @@ def test_feetechs_sdk_reads_and_moves_a_line_s_so_101_through_its_servo_bus():
     err = {i: abs(seen["after"][i] - seen["goals"][i]) for i in (1, 2, 3, 4, 5)}
     assert max(err.values()) <= 11, (err, seen["before"], seen["goals"], seen["after"])
     assert seen["sent"] >= 1 and seen["corrupt"] == 0
+    # the worn servos read the held arm with the noise asked for (2 degrees: 22.8 ticks), about the true reading
+    worn = np.array([[r[i] for i in (1, 2, 3, 4, 5)] for r in seen["worn"]], float)
+    spread_deg = worn.std(axis=0).mean() * 360 / 4096
+    assert 1.4 < spread_deg < 2.6, spread_deg
+    assert np.abs(worn.mean(axis=0) - [seen["after"][i] for i in (1, 2, 3, 4, 5)]).max() < 15, worn.mean(axis=0)
     events = [(e["arm"], e["event"]) for e in summary["arm_events"]]
     assert ("arm_1", "taken") in events, events
     assert ticks_of(0.0) == 2048
