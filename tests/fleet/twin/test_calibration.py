@@ -20,24 +20,9 @@ from fleet.twin.serve_bus import arm_calibration
 from robots.feetech.control_table import BY_NAME
 from robots.feetech.servos import Servo, ServoLine
 from robots.registry import get_robot
+from tests.robots.feetech.joints import StiffJoint
 
 SO101 = get_robot("so101")
-
-
-class Shaft:
-    """A joint standing still at `ticks`."""
-
-    def __init__(self, ticks: int) -> None:
-        self.ticks, self.goal = ticks, None
-
-    def position_ticks(self) -> int:
-        return self.ticks
-
-    def velocity_ticks_per_s(self) -> int:
-        return 0
-
-    def drive(self, goal_ticks: int | None) -> None:
-        self.goal = goal_ticks
 
 
 def lerobot_degrees(ticks: int, range_min: int, range_max: int) -> float:
@@ -68,7 +53,7 @@ def test_a_calibration_written_reads_back_and_its_servos_hold_it(tmp_path):
     calibration = arm_calibration(SO101)
     write_calibration(path, calibration)
     assert read_calibration(path, SO101) == calibration
-    shafts = [Shaft(2048 + 100) for _ in range(6)]
+    shafts = [StiffJoint(2048 + 100) for _ in range(6)]
     line = ServoLine(Servo(i + 1, shaft) for i, shaft in enumerate(shafts))
     real = calibration | {"shoulder_pan": calibration["shoulder_pan"].model_copy(update={"homing_offset": -30})}
     load_into(line, real)

@@ -6,7 +6,6 @@ state one the line's recording of the same run holds, every action a goal the re
 import json
 import math
 import subprocess
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ from fleet.bus.messages import ArmGoalMsg, ArmState, GripperGoalMsg, TrajectoryG
 from fleet.record.mcap_file import Recording
 from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import get_robot
-from tests.fleet.test_run import assert_nothing_left
+from tests.fleet.twin.line_beside import run_beside
 
 pytestmark = [pytest.mark.slow, pytest.mark.heavy]  # a lockstep line that renders a camera
 
@@ -28,21 +27,17 @@ TOLERANCE_DEG = 1e-3  # the dataset keeps float32: a degree value to about 1e-5
 
 
 def record(launcher: Launcher, lerobot: Path, root: Path, seen: dict) -> None:
-    try:
-        driver = subprocess.run(
-            [str(lerobot), str(DRIVER), str(launcher.bus.config_for("twin")), str(root), str(SECONDS)],
-            stdin=subprocess.DEVNULL,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        seen["rc"], seen["err"] = driver.returncode, driver.stderr[-4000:]
-        if driver.returncode == 0:
-            seen["dataset"] = json.loads(driver.stdout.strip().splitlines()[-1])
-    except Exception as exc:  # the test reports it
-        seen["error"] = repr(exc)
-    finally:
-        launcher.interrupted = "the recording is done"
+    driver = subprocess.run(
+        [str(lerobot), str(DRIVER), str(launcher.bus.config_for("twin")), str(root), str(SECONDS)],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    seen["rc"], seen["err"] = driver.returncode, driver.stderr[-4000:]
+    if driver.returncode == 0:
+        seen["dataset"] = json.loads(driver.stdout.strip().splitlines()[-1])
+    seen["overhead"] = next(c for c in launcher.scene.cameras if c.name == "overhead")
 
 
 def line_said(path: Path, arm: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -69,16 +64,10 @@ def test_lerobots_record_loop_writes_a_dataset_of_the_line_s_own_states_and_goal
     options = RunOptions(
         scene="mixed_fleet", duration_s=600.0, seed=0, cameras="overhead", record=str(tmp_path / "line.mcap")
     )
-    seen: dict = {}
-    with Launcher(options) as launcher:
-        recorder = threading.Thread(target=record, args=(launcher, lerobot, tmp_path, seen), daemon=True)
-        recorder.start()
-        summary = launcher.run()
-        recorder.join(60)
-        overhead = next(c for c in launcher.scene.cameras if c.name == "overhead")
-    assert_nothing_left(summary, launcher.endpoint)
+    summary, seen, _ = run_beside(options, record, lerobot, tmp_path)
     assert "error" not in seen, seen["error"]
     assert seen["rc"] == 0, seen["err"]
+    overhead = seen["overhead"]
     assert summary["inter_arm_contacts"] == 0
     dataset = seen["dataset"]
     motors = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]

@@ -7,7 +7,6 @@ import math
 import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
-from tests.fleet.test_run import assert_nothing_left
+from tests.fleet.twin.line_beside import run_beside
 
 # a realtime line: LeRobot's driver gives each servo about 34 ms to answer, as a real bus would (a lockstep line
 # takes both cores, and a servo answer may then wait longer)
@@ -62,8 +61,6 @@ def serve_and_drive(launcher: Launcher, lerobot: Path, calibration_dir: Path, se
         seen["driver_rc"], seen["driver_err"] = driver.returncode, driver.stderr[-3000:]
         seen["driver"] = json.loads(driver.stdout.strip().splitlines()[-1]) if driver.returncode == 0 else {}
         seen["calibration"] = json.loads(calibration.read_text())
-    except Exception as exc:  # the test reports it
-        seen["error"] = repr(exc)
     finally:
         if serve is not None:
             serve.send_signal(signal.SIGINT)
@@ -73,18 +70,11 @@ def serve_and_drive(launcher: Launcher, lerobot: Path, calibration_dir: Path, se
                 serve.kill()
                 _, seen["serve_err"] = serve.communicate()
             seen["serve_rc"] = serve.returncode
-        launcher.interrupted = "the driver is done"
 
 
 def test_lerobots_so101_follower_drives_a_line_s_so_101_through_its_servo_bus(lerobot, tmp_path):
     options = RunOptions(scene="mixed_fleet", duration_s=120.0, seed=0, mode="realtime")
-    seen: dict = {}
-    with Launcher(options) as launcher:
-        driver = threading.Thread(target=serve_and_drive, args=(launcher, lerobot, tmp_path, seen), daemon=True)
-        driver.start()
-        summary = launcher.run()
-        driver.join(60)
-    assert_nothing_left(summary, launcher.endpoint)
+    summary, seen, _ = run_beside(options, serve_and_drive, lerobot, tmp_path)
     assert "error" not in seen, (seen["error"], seen.get("serve_lines"), seen.get("serve_err"))
     assert seen["driver_rc"] == 0, seen["driver_err"]
     assert seen["serve_rc"] == 0, seen["serve_err"]

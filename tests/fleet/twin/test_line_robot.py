@@ -3,7 +3,6 @@ SO-101 reads in degrees with its gripper 0-100 and the overhead camera's images;
 joints' limits; a wrong action is refused whole; let go, the line has the arm back."""
 
 import math
-import threading
 import time
 
 import numpy as np
@@ -14,7 +13,7 @@ from fleet.bus.scene_query import fetch_scene
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.twin.line_robot import LineRobot, LineRobotError, robot_features
-from tests.fleet.test_run import assert_nothing_left
+from tests.fleet.twin.line_beside import run_beside
 
 pytestmark = [pytest.mark.slow, pytest.mark.heavy]  # a lockstep line that renders a camera
 
@@ -22,51 +21,40 @@ GOAL = {"shoulder_pan.pos": 15.0, "shoulder_lift.pos": -28.6, "elbow_flex.pos": 
 
 
 def drive(launcher: Launcher, seen: dict) -> None:
-    try:
-        keys = Keys(launcher.options.run_id)
-        with open_session(BusEndpoints(config_file=launcher.bus.config_for("twin"))) as session:
-            scene = fetch_scene(session, keys, 30.0)
-            seen["features"] = robot_features(scene, "arm_1", ["overhead"])
-            with pytest.raises(LineRobotError, match="camera 'wrist'"):
-                robot_features(scene, "arm_1", ["wrist"])
-            robot = LineRobot(session, keys, scene, "arm_1", ["overhead"])
-            try:
-                robot.connect(60.0)
-                seen["first"] = robot.observation()
-                state = robot.line_arm.take()
-                seen["state_deg"] = [math.degrees(q) for q in state.q]
-                with pytest.raises(ValueError, match="'elbow.pos'"):
-                    robot.act({"elbow.pos": 1.0})
-                with pytest.raises(ValueError, match="not a finite number"):
-                    robot.act({"elbow_flex.pos": float("nan")})
-                assert robot.line_arm.sent == 0, "a refused action sends nothing"
-                seen["sent"] = robot.act(GOAL | {"wrist_roll.pos": 400.0, "gripper.pos": 50.0})
-                sent_at = robot.line_arm.take().sim_time_s
-                while robot.line_arm.take().sim_time_s < sent_at + 10.0:  # past a hold and a release: renewed
-                    seen["last"] = robot.observation()
-                    time.sleep(0.01)
-                robot.let_go()
-                let_go_at = robot.line_arm.take().sim_time_s
-                while robot.line_arm.take().sim_time_s < let_go_at + 12.0:
-                    time.sleep(0.01)
-                seen["back"] = robot.observation()
-            finally:
-                robot.close()
-    except BaseException as exc:  # the test reports it
-        seen["error"] = repr(exc)
-    finally:
-        launcher.interrupted = "the robot is done"
+    keys = Keys(launcher.options.run_id)
+    with open_session(BusEndpoints(config_file=launcher.bus.config_for("twin"))) as session:
+        scene = fetch_scene(session, keys, 30.0)
+        seen["features"] = robot_features(scene, "arm_1", ["overhead"])
+        with pytest.raises(LineRobotError, match="camera 'wrist'"):
+            robot_features(scene, "arm_1", ["wrist"])
+        robot = LineRobot(session, keys, scene, "arm_1", ["overhead"])
+        try:
+            robot.connect(60.0)
+            seen["first"] = robot.observation()
+            state = robot.line_arm.take()
+            seen["state_deg"] = [math.degrees(q) for q in state.q]
+            with pytest.raises(ValueError, match="'elbow.pos'"):
+                robot.act({"elbow.pos": 1.0})
+            with pytest.raises(ValueError, match="not a finite number"):
+                robot.act({"elbow_flex.pos": float("nan")})
+            assert robot.line_arm.sent == 0, "a refused action sends nothing"
+            seen["sent"] = robot.act(GOAL | {"wrist_roll.pos": 400.0, "gripper.pos": 50.0})
+            sent_at = robot.line_arm.take().sim_time_s
+            while robot.line_arm.take().sim_time_s < sent_at + 10.0:  # past a hold and a release: renewed
+                seen["last"] = robot.observation()
+                time.sleep(0.01)
+            robot.let_go()
+            let_go_at = robot.line_arm.take().sim_time_s
+            while robot.line_arm.take().sim_time_s < let_go_at + 12.0:
+                time.sleep(0.01)
+            seen["back"] = robot.observation()
+        finally:
+            robot.close()
 
 
 def test_a_line_s_so101_reads_and_moves_in_lerobot_units():
     options = RunOptions(scene="mixed_fleet", duration_s=120.0, seed=0, cameras="overhead")
-    seen: dict = {}
-    with Launcher(options) as launcher:
-        driver = threading.Thread(target=drive, args=(launcher, seen), daemon=True)
-        driver.start()
-        summary = launcher.run()
-        driver.join(60)
-    assert_nothing_left(summary, launcher.endpoint)
+    summary, seen, _ = run_beside(options, drive)
     assert "error" not in seen, seen["error"]
     assert summary["inter_arm_contacts"] == 0
     motors = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]

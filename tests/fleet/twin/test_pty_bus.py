@@ -11,27 +11,10 @@ from fleet.twin.pty_bus import PtyServoBus
 from robots.feetech.control_table import BY_NAME, STS3215_MODEL_NUMBER
 from robots.feetech.packets import ErrorBit, Instruction, packet
 from robots.feetech.servos import Servo, ServoLine
+from tests.robots.feetech.joints import StiffJoint
 
 IDS = (1, 2, 3, 4, 5, 6)  # an SO-101's servos: shoulder pan to gripper
 ADDRESS = {name: r.address for name, r in BY_NAME.items()}
-
-
-class StiffJoint:
-    """A joint that stands wherever it was last driven (a servo with infinite stiffness), free when not driven."""
-
-    def __init__(self, ticks: int) -> None:
-        self.ticks, self.goal = ticks, None
-
-    def position_ticks(self) -> int:
-        return self.ticks
-
-    def velocity_ticks_per_s(self) -> int:
-        return 0
-
-    def drive(self, goal_ticks: int | None) -> None:
-        self.goal = goal_ticks
-        if goal_ticks is not None:
-            self.ticks = goal_ticks
 
 
 @pytest.fixture

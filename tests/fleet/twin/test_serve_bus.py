@@ -2,7 +2,6 @@
 Feetech's own SDK reads its joints where the line's states put them, and a sync write of goals moves the sim arm
 there as an outside driver: the plant takes it (and lets it go after), nothing touches."""
 
-import threading
 import time
 
 import numpy as np
@@ -16,7 +15,7 @@ from fleet.run.launcher import Launcher, RunOptions
 from fleet.twin.line_arm import rad_of, ticks_of
 from fleet.twin.serve_bus import Wear, served_arm
 from robots.feetech.control_table import BY_NAME
-from tests.fleet.test_run import assert_nothing_left
+from tests.fleet.twin.line_beside import run_beside
 
 pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
 
@@ -49,48 +48,40 @@ def sync_write(port: PortHandler, sdk: PacketHandler, address: int, size: int, v
 def drive_arm_1(launcher: Launcher, seen: dict) -> None:
     """Once the line runs: the servos read, then the shoulder pan and elbow sent 0.3 rad on (the rest held)."""
     deadline = time.monotonic() + 60.0
-    try:
-        keys = Keys(launcher.options.run_id)
-        with open_session(BusEndpoints(config_file=launcher.bus.config_for("twin"))) as session:
-            scene = line_scene(session, keys, 30.0, "test")
-            with served_arm(session, keys, scene.arm("arm_1")) as (bus, arm):
-                port, sdk = PortHandler(bus.port), PacketHandler(0)
-                assert port.openPort()
-                while (state := arm.take()) is None or state.sim_time_s < 2.0:
-                    assert time.monotonic() < deadline, "no state of arm_1 past 2 s"
-                    time.sleep(0.01)
-                seen["before"], seen["state_q"] = sync_read(port, sdk), [*state.q, state.gripper_q[0]]
-                seen["goals"] = dict(seen["before"]) | {1: seen["before"][1] + 196, 3: seen["before"][3] - 196}
-                sync_write(port, sdk, TORQUE, 1, {i: 1 for i in IDS})
-                sync_write(port, sdk, GOAL, 2, seen["goals"])
-                sent_at = arm.take().sim_time_s
-                while arm.take().sim_time_s < sent_at + HELD_S:
-                    assert time.monotonic() < deadline, f"the line stopped before {sent_at + HELD_S:.1f} s"
-                    time.sleep(0.01)
-                seen["after"], seen["sent"] = sync_read(port, sdk), arm.sent
-                # the same arm, held still, served again as a worn arm reads: 2 degrees of encoder noise
-                with served_arm(session, keys, scene.arm("arm_1"), wear=Wear(noise_deg=2.0, seed=3)) as (worn, _):
-                    worn_port = PortHandler(worn.port)
-                    assert worn_port.openPort()
-                    seen["worn"] = [sync_read(worn_port, sdk) for _ in range(40)]
-                    worn_port.closePort()
-                port.closePort()
-                seen["corrupt"] = bus.reader.corrupt
-    except Exception as exc:  # the test reports it
-        seen["error"] = repr(exc)
+    keys = Keys(launcher.options.run_id)
+    with open_session(BusEndpoints(config_file=launcher.bus.config_for("twin"))) as session:
+        scene = line_scene(session, keys, 30.0, "test")
+        with served_arm(session, keys, scene.arm("arm_1")) as (bus, arm):
+            port, sdk = PortHandler(bus.port), PacketHandler(0)
+            assert port.openPort()
+            while (state := arm.take()) is None or state.sim_time_s < 2.0:
+                assert time.monotonic() < deadline, "no state of arm_1 past 2 s"
+                time.sleep(0.01)
+            seen["before"], seen["state_q"] = sync_read(port, sdk), [*state.q, state.gripper_q[0]]
+            seen["goals"] = dict(seen["before"]) | {1: seen["before"][1] + 196, 3: seen["before"][3] - 196}
+            sync_write(port, sdk, TORQUE, 1, {i: 1 for i in IDS})
+            sync_write(port, sdk, GOAL, 2, seen["goals"])
+            sent_at = arm.take().sim_time_s
+            while arm.take().sim_time_s < sent_at + HELD_S:
+                assert time.monotonic() < deadline, f"the line stopped before {sent_at + HELD_S:.1f} s"
+                time.sleep(0.01)
+            seen["after"], seen["sent"] = sync_read(port, sdk), arm.sent
+            # the same arm, held still, served again as a worn arm reads: 2 degrees of encoder noise
+            with served_arm(session, keys, scene.arm("arm_1"), wear=Wear(noise_deg=2.0, seed=3)) as (worn, _):
+                worn_port = PortHandler(worn.port)
+                assert worn_port.openPort()
+                seen["worn"] = [sync_read(worn_port, sdk) for _ in range(40)]
+                worn_port.closePort()
+            port.closePort()
+            seen["corrupt"] = bus.reader.corrupt
 
 
 def test_feetechs_sdk_reads_and_moves_a_line_s_so_101_through_its_servo_bus():
     options = RunOptions(scene="mixed_fleet", duration_s=30.0, seed=0)
-    seen: dict = {}
-    with Launcher(options) as launcher:
-        driver = threading.Thread(target=drive_arm_1, args=(launcher, seen), daemon=True)
-        driver.start()
-        summary = launcher.run()
-        driver.join(30)
-    assert_nothing_left(summary, launcher.endpoint)
+    summary, seen, _ = run_beside(options, drive_arm_1)
     assert "error" not in seen, seen["error"]
-    assert summary["status"] == "ok" and summary["inter_arm_contacts"] == 0, summary["error"]
+    # the driver ended the line once it was done (`run_beside`)
+    assert summary["status"] == "interrupted" and summary["inter_arm_contacts"] == 0, summary["error"]
     # the servos read where the state put the joints (a tick or two of motion between them)
     read_rad = np.array([rad_of(seen["before"][i]) for i in IDS])
     assert np.allclose(read_rad, seen["state_q"], atol=0.02), (read_rad, seen["state_q"])

@@ -5,26 +5,11 @@ import numpy as np
 import pytest
 
 from robots.feetech.imperfect_joint import TICKS_PER_DEG, ImperfectJoint
-
-
-class Shaft:
-    """A joint standing at `ticks` until moved."""
-
-    def __init__(self, ticks: int) -> None:
-        self.ticks, self.goal = ticks, None
-
-    def position_ticks(self) -> int:
-        return self.ticks
-
-    def velocity_ticks_per_s(self) -> int:
-        return 0
-
-    def drive(self, goal_ticks: int | None) -> None:
-        self.goal = goal_ticks
+from tests.robots.feetech.joints import StiffJoint
 
 
 def test_a_perfect_joint_reads_its_shaft_and_passes_goals_on():
-    shaft = Shaft(2048)
+    shaft = StiffJoint(2048)
     joint = ImperfectJoint(shaft, 0.0, 0.0, np.random.default_rng(0))
     for ticks in (2048, 2100, 1900, 4095, 3):
         shaft.ticks = ticks
@@ -34,7 +19,7 @@ def test_a_perfect_joint_reads_its_shaft_and_passes_goals_on():
 
 
 def test_backlash_shows_the_play_when_the_joint_turns_back():
-    shaft = Shaft(2000)
+    shaft = StiffJoint(2000)
     joint = ImperfectJoint(shaft, 2.0, 0.0, np.random.default_rng(0))  # 2 degrees of play: 22.8 ticks
     half = 1.0 * TICKS_PER_DEG
     joint.position_ticks()
@@ -51,7 +36,7 @@ def test_backlash_shows_the_play_when_the_joint_turns_back():
 
 
 def test_noise_has_the_spread_asked_for():
-    shaft = Shaft(2048)
+    shaft = StiffJoint(2048)
     joint = ImperfectJoint(shaft, 0.0, 0.5, np.random.default_rng(1))
     reads = np.array([joint.position_ticks() for _ in range(4000)], float)
     assert abs(reads.mean() - 2048) < 0.2
@@ -61,4 +46,4 @@ def test_noise_has_the_spread_asked_for():
 @pytest.mark.parametrize(("backlash", "noise"), [(-1.0, 0.0), (0.0, float("nan")), (float("inf"), 0.0)])
 def test_an_impossible_backlash_or_noise_is_refused(backlash, noise):
     with pytest.raises(ValueError, match="give a finite number, 0 or more"):
-        ImperfectJoint(Shaft(0), backlash, noise, np.random.default_rng(0))
+        ImperfectJoint(StiffJoint(0), backlash, noise, np.random.default_rng(0))
