@@ -47,7 +47,9 @@ WALL_TIME = (
     "tests/fleet/test_rightful_lies.py",
     "tests/fleet/test_bus_fuzz.py",
     "tests/fleet/snapshot/test_snapshot_now.py",  # realtime lines
-    "tests/fleet/twin/test_lerobot_so101.py",  # LeRobot's driver waits about 34 ms for each servo's answer
+    # drivers wait about 34 ms for each servo's answer (LeRobot's, Feetech's SDK): a realtime line, nothing beside it
+    "tests/fleet/twin/test_lerobot_so101.py",
+    "tests/fleet/twin/test_serve_bus.py",
 )
 # tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
 HEAVY = (

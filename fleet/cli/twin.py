@@ -43,7 +43,7 @@ def served_calibration(path: Path | None, model: str) -> dict | None:
 def cmd_serve_bus(args: argparse.Namespace) -> int:
     from fleet.common.processes import StopFlag
     from fleet.nodes.attached import line_scene
-    from fleet.twin.serve_bus import Wear, served_arm
+    from fleet.twin.serve_bus import NoArmState, Wear, served_arm
 
     if not (args.connect or args.zenoh_config):
         raise UsageError("fleet twin serve-bus needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
@@ -62,13 +62,16 @@ def cmd_serve_bus(args: argparse.Namespace) -> int:
             raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
         calibration = served_calibration(args.calibration, served.model)
         wear = Wear(args.backlash_deg, args.noise_deg, args.seed)
-        with served_arm(session, keys, served, calibration, wear) as (bus, arm):
-            print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
-            while not stop.should_stop():
-                time.sleep(0.1)
-                for result in arm.results():
-                    if result.status in ("rejected", "aborted"):
-                        print(f"fleet twin: goal {result.status} by the line: {result.reason}", file=sys.stderr)
+        try:
+            with served_arm(session, keys, served, calibration, wear, state_wait_s=args.wait) as (bus, arm):
+                print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
+                while not stop.should_stop():
+                    time.sleep(0.1)
+                    for result in arm.results():
+                        if result.status in ("rejected", "aborted"):
+                            print(f"fleet twin: goal {result.status} by the line: {result.reason}", file=sys.stderr)
+        except NoArmState as exc:
+            raise UsageError(str(exc)) from None
         print(
             f"fleet twin: {bus.packets} packets answered, {bus.reader.corrupt} with a wrong checksum, "
             f"{arm.sent} goals sent, {len(arm.refused)} refused or aborted by the line",

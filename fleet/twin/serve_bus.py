@@ -5,6 +5,7 @@ terminal as its `port`, or Feetech's SDK) reads the arm's joints and moves it, a
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -47,9 +48,11 @@ def served_arm(
     arm: Arm,
     calibration: dict[str, MotorCalibration] | None = None,
     wear: Wear = Wear(),
+    state_wait_s: float = 15.0,
 ) -> Iterator[tuple[PtyServoBus, LineArm]]:
     """`arm` of the running line (`Scene.arm(name)`) served as servos on a pseudo-terminal while the block runs,
-    holding `calibration` (default: the sim arm's own), read as `wear` says."""
+    holding `calibration` (default: the sim arm's own), read as `wear` says; served once its first state came
+    (`NoArmState` after `state_wait_s`)."""
     spec = get_robot(arm.model)
     line_arm = LineArm(session, keys, arm.name, spec)
     joints: list[ServoJoint] = list(line_arm.joints())
@@ -59,7 +62,22 @@ def served_arm(
     servos = ServoLine(Servo(i + 1, joint) for i, joint in enumerate(joints))
     load_into(servos, calibration if calibration is not None else arm_calibration(spec))
     try:
+        first_state(line_arm, state_wait_s)
         with PtyServoBus(servos, after_packets=line_arm.send, on_idle=line_arm.renew) as bus:
             yield bus, line_arm
     finally:
         line_arm.close()
+
+
+class NoArmState(RuntimeError):
+    """The served arm's state never came: the line is not running, or has no such arm."""
+
+
+def first_state(line_arm: LineArm, wait_s: float) -> None:
+    """Wait for the arm's first state: a servo reads where its shaft stands, never a made-up zero before it is known
+    (`NoArmState` after `wait_s`)."""
+    deadline = time.monotonic() + wait_s
+    while line_arm.take() is None:
+        if time.monotonic() > deadline:
+            raise NoArmState(f"no state of {line_arm.arm} within {wait_s:.0f} s: is its line running?")
+        time.sleep(0.01)

@@ -17,7 +17,9 @@ from fleet.twin.serve_bus import Wear, served_arm
 from robots.feetech.control_table import BY_NAME
 from tests.fleet.twin.line_beside import run_beside
 
-pytestmark = [pytest.mark.slow, pytest.mark.lockstep]
+# a realtime line, nothing heavy beside it: the SDK gives each answer about 34 ms, and in clean-clone CI a lockstep
+# line beside another test starved the servo line past that three reads running ([-6, -6, -6]: no answer in time)
+pytestmark = pytest.mark.slow
 
 IDS = (1, 2, 3, 4, 5, 6)
 HELD_S = 12.0  # sim seconds the servos hold their goals before they are read: past SERVO_HOLD_S and the release
@@ -77,7 +79,7 @@ def drive_arm_1(launcher: Launcher, seen: dict) -> None:
 
 
 def test_feetechs_sdk_reads_and_moves_a_line_s_so_101_through_its_servo_bus():
-    options = RunOptions(scene="mixed_fleet", duration_s=30.0, seed=0)
+    options = RunOptions(scene="mixed_fleet", duration_s=60.0, seed=0, mode="realtime")
     summary, seen, _ = run_beside(options, drive_arm_1)
     assert "error" not in seen, seen["error"]
     # the driver ended the line once it was done (`run_beside`)
