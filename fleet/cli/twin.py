@@ -67,9 +67,8 @@ def cmd_serve_bus(args: argparse.Namespace) -> int:
                 print(f"fleet twin: {args.arm}'s servos (ids 1-{len(arm.goals)}) on {bus.port}", flush=True)
                 while not stop.should_stop():
                     time.sleep(0.1)
-                    for result in arm.results():
-                        if result.status in ("rejected", "aborted"):
-                            print(f"fleet twin: goal {result.status} by the line: {result.reason}", file=sys.stderr)
+                    for result in arm.refusals():
+                        print(f"fleet twin: goal {result.status} by the line: {result.reason}", file=sys.stderr)
         except NoArmState as exc:
             raise UsageError(str(exc)) from None
         print(

@@ -37,6 +37,18 @@ def rad_of(ticks: int) -> float:
     return (ticks - ZERO_TICKS) / TICKS_PER_RAD
 
 
+def gripper_opening(spec: RobotSpec, q_rad: float) -> float:
+    """The claw's opening (0 closed, 1 open) its gripper joint at `q_rad` stands for, bounded there."""
+    closed, opened = spec.gripper_closed[0], spec.gripper_open[0]
+    return float(np.clip((q_rad - closed) / (opened - closed), 0.0, 1.0))
+
+
+def gripper_rad(spec: RobotSpec, opening: float) -> float:
+    """The gripper joint's position (rad) for the claw's `opening` (0 closed, 1 open)."""
+    closed, opened = spec.gripper_closed[0], spec.gripper_open[0]
+    return closed + (opened - closed) * opening
+
+
 class ArmFeed:
     """The newest state of one arm of the line (`take`), its joints as the servos count them: the arm's, then the
     gripper's."""
@@ -138,9 +150,7 @@ class LineArm:
                     TrajectoryGoalMsg(self.arm, next(self._ids), self.spec.arm_joints, (MIN_MOVE_S,), tuple(q[:arm]))
                 )
         if self.goals[arm] != self._sent[arm] and self.goals[arm] is not None:
-            closed, opened = self.spec.gripper_closed[0], self.spec.gripper_open[0]
-            opening = float(np.clip((self.goals[arm] - closed) / (opened - closed), 0.0, 1.0))
-            self._put(GripperGoalMsg(self.arm, next(self._ids), opening))
+            self._put(GripperGoalMsg(self.arm, next(self._ids), gripper_opening(self.spec, self.goals[arm])))
         self._sent = list(self.goals)
 
     def renew(self) -> None:
@@ -157,16 +167,15 @@ class LineArm:
         self._put(TrajectoryGoalMsg(self.arm, next(self._ids), self.spec.arm_joints, times, points))
         self._renew_at_s = self.feed.state.sim_time_s + move_s + SERVO_HOLD_S - RENEW_BEFORE_S
 
-    def results(self) -> list[GoalResultMsg]:
-        """The results of this arm's own goals heard since the last call; those refused or aborted are also kept
-        (`refused`)."""
+    def refusals(self) -> list[GoalResultMsg]:
+        """This arm's own goals the plant refused or aborted, heard since the last call (all of them are kept in
+        `refused`); the other results are let pass."""
         out = []
         for key, payload in self._results.drain():
             result = self._result_decoder.decode(key, payload)
-            if result is not None and result.goal_id in self._mine:
+            if result is not None and result.goal_id in self._mine and result.status in ("rejected", "aborted"):
                 out.append(result)
-                if result.status in ("rejected", "aborted"):
-                    self.refused.append(result)
+        self.refused += out
         return out
 
     def _put(self, msg: TrajectoryGoalMsg | GripperGoalMsg) -> None:

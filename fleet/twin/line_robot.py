@@ -20,7 +20,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import CameraImage
 from fleet.bus.session import Inbox
 from fleet.twin.calibration import motor_names
-from fleet.twin.line_arm import LineArm
+from fleet.twin.line_arm import LineArm, gripper_opening, gripper_rad
 from robots.kinematics import KinematicModel
 from robots.registry import get_robot
 from scenes.schema import Scene
@@ -82,9 +82,8 @@ class LineRobot:
         self.line_arm.renew()
         q = self.line_arm.feed.q_rad()
         out: dict[str, float | np.ndarray] = {f"{m}.pos": math.degrees(v) for m, v in zip(self.motors, q[:-1])}
-        closed, opened = self.spec.gripper_closed[0], self.spec.gripper_open[0]
         # bounded, as LeRobot bounds a servo's reading to its calibrated range (RANGE_0_100)
-        out[f"{self.motors[-1]}.pos"] = float(np.clip(100.0 * (q[-1] - closed) / (opened - closed), *GRIPPER_SPAN))
+        out[f"{self.motors[-1]}.pos"] = GRIPPER_SPAN[1] * gripper_opening(self.spec, q[-1])
         for name in self.cameras:
             out[name] = self._image(name)
         return out
@@ -103,7 +102,6 @@ class LineRobot:
             values[key] = float(value)
         sent = {}
         arm = len(self.motors) - 1
-        closed, opened = self.spec.gripper_closed[0], self.spec.gripper_open[0]
         for key, value in values.items():
             i = keys[key]
             if i < arm:
@@ -111,7 +109,7 @@ class LineRobot:
                 self.line_arm.goals[i] = math.radians(sent[key])
             else:
                 sent[key] = float(np.clip(value, *GRIPPER_SPAN))
-                self.line_arm.goals[i] = closed + (opened - closed) * sent[key] / 100.0
+                self.line_arm.goals[i] = gripper_rad(self.spec, sent[key] / GRIPPER_SPAN[1])
         q = self.line_arm.feed.q_rad()
         for i in range(arm):  # a joint never given a goal holds where it stands
             if self.line_arm.goals[i] is None:
@@ -123,9 +121,8 @@ class LineRobot:
     def _tell_refusals(self) -> None:
         """The plant's answers come later than the action: a goal it refused or aborted since the last action is
         logged with the plant's reason (and counted in `line_arm.refused`); the arm holds its last goal meanwhile."""
-        for result in self.line_arm.results():
-            if result.status in ("rejected", "aborted"):
-                LOG.warning("%s: the line %s a goal: %s", self.line_arm.arm, result.status, result.reason)
+        for result in self.line_arm.refusals():
+            LOG.warning("%s: the line %s a goal: %s", self.line_arm.arm, result.status, result.reason)
 
     def let_go(self) -> None:
         """Hand the arm back to the line: every goal dropped, as servos whose torque is turned off."""
