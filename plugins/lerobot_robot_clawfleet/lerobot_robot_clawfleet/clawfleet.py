@@ -44,8 +44,6 @@ class Clawfleet(Robot):
     def _line_scene(self) -> Scene:
         """The line's scene, asked of its sim once (the features need it before `connect`)."""
         if self._scene is None:
-            if self._robot is not None:
-                raise RuntimeError("unreachable: connected without a scene")
             with open_session(self._endpoints()) as session:
                 self._scene = fetch_scene(session, self._keys, self.config.wait_s)
         return self._scene
@@ -70,7 +68,8 @@ class Clawfleet(Robot):
         self._session_cm = open_session(self._endpoints())
         session = self._session_cm.__enter__()
         try:
-            self._scene = fetch_scene(session, self._keys, self.config.wait_s)
+            if self._scene is None:  # else asked already, for the features
+                self._scene = fetch_scene(session, self._keys, self.config.wait_s)
             self._robot = LineRobot(session, self._keys, self._scene, self.config.arm, self.config.line_cameras)
             self._robot.connect(self.config.wait_s)
         except BaseException:
