@@ -22,11 +22,20 @@ HEARTBEAT_GAP_S = 0.2  # wall seconds without a frame that make the line's silen
 class ControllerLives:
     """Heartbeats and incarnations of the controllers of `arms`. It is handed the dispatcher (told of arms lost and
     rejoined), the coordinator's drop counter and its order counts by arm (`assign_seq`, moved past an order an arm
-    took that was never given). Wall-clock stamps are this process's: `restart_clocks` after a restore."""
+    took that was never given). Wall-clock stamps are this process's: `restart_clocks` after a restore.
+    `silence_loses` False (lockstep): no arm is lost for a silent heartbeat, only when the sim says it no longer
+    hears its controller or a new incarnation beats; a run that repeats has no wall-clock decision in it."""
 
     def __init__(
-        self, arms: list[str], dispatcher: Dispatcher, drops: DropCounter, assign_seq: dict[str, int], roster: bool
+        self,
+        arms: list[str],
+        dispatcher: Dispatcher,
+        drops: DropCounter,
+        assign_seq: dict[str, int],
+        roster: bool,
+        silence_loses: bool = True,
     ) -> None:
+        self.silence_loses = silence_loses
         self.arms = frozenset(arms)
         self.dispatcher, self.drops, self.assign_seq = dispatcher, drops, assign_seq
         self.incarnations = Incarnations(from_roster=roster)  # which start of each controller to believe
@@ -159,8 +168,8 @@ class ControllerLives:
         heartbeat arrived: silent that long while the line ran. A line that goes silent with its arms (its run
         ended and its nodes are being stopped, or it stalled) loses none, however long the arms' last beats came
         before its last frame within that time; and for `timeout_s` after the line comes back from a stall, the
-        arms' heartbeats, held up with it, are still to come."""
-        if time.monotonic() - self.resumed_at <= timeout_s:
+        arms' heartbeats, held up with it, are still to come. Never on a lockstep line (`silence_loses`)."""
+        if not self.silence_loses or time.monotonic() - self.resumed_at <= timeout_s:
             return
         for arm in self.heartbeat_at:
             at = self.heard_at.get(arm, self.heartbeat_at[arm])

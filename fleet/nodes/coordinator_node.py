@@ -5,9 +5,11 @@ echo says what each arm does in step with the sim clock, and the parts, in one
 message every `1 / COORD_RATE_HZ` of sim time, `coordinator/cadence.py`) and to the controllers' heartbeats;
 at each frame it refreshes the tasks, allocates them, answers motion requests and
 publishes assignments. In lockstep it then answers the sim
-with a `CoordTick`, so its decisions land on the same tick in every run. An arm
+with a `CoordTick`, so its decisions land on the same tick in every run. In realtime an arm
 whose heartbeats stop for `heartbeat_timeout_s` (wall clock) is lost: its tasks
-go back to the pool. It never imports the simulator.
+go back to the pool. In lockstep the sim's barrier judges instead (a controller that answers every
+state is alive, however late a starved CPU runs its heartbeat thread): the wall clock decides nothing
+in a run that repeats. It never imports the simulator.
 
 A coordinator started with `--incarnation N` (N > 1: the launcher respawned it after a crash) takes
 over the running line: it rebuilds its ledger from the sim's event log (`Keys.history`), adopts
@@ -118,7 +120,9 @@ class CoordinatorNode:
         self.inbox = Inbox(hold=self.hold)
         self.assign_seq = {a: 0 for a in self.arm_names}
         self.last_tick = {a: -1 for a in self.arm_names}
-        self.lives = ControllerLives(self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster)
+        self.lives = ControllerLives(
+            self.arm_names, self.dispatcher, self.drops, self.assign_seq, roster, silence_loses=not lockstep
+        )
         self._subs = self._subscribe(session, keys)
         self._declare_publishers(session, keys)
         self._progress_at = 0.0

@@ -14,15 +14,16 @@ TIMEOUT_S = 0.3
 KEYS = Keys("lives")
 
 
-def lives_of_two_arms() -> tuple[ControllerLives, Dispatcher]:
+def lives_of_two_arms(silence_loses: bool = True) -> tuple[ControllerLives, Dispatcher]:
     scene = load_scene("handover")
     dispatcher = Dispatcher(scene)
     arms = [a.name for a in scene.arms]
-    return ControllerLives(arms, dispatcher, DropCounter(), {a: 0 for a in arms}, roster=False), dispatcher
+    drops, seqs = DropCounter(), {a: 0 for a in arms}
+    return ControllerLives(arms, dispatcher, drops, seqs, roster=False, silence_loses=silence_loses), dispatcher
 
 
-def beat(lives: ControllerLives, arm: str, seq: int) -> None:
-    lives.on_status(KEYS.arm_status(arm), ArmStatus(arm, seq, 0.0, "idle", None, 0.0))
+def beat(lives: ControllerLives, arm: str, seq: int, incarnation: int = 1) -> None:
+    lives.on_status(KEYS.arm_status(arm), ArmStatus(arm, seq, 0.0, "idle", None, 0.0, incarnation=incarnation))
 
 
 def run_for(lives: ControllerLives, seconds: float, beating: tuple[str, ...], until=lambda: False) -> None:
@@ -90,3 +91,16 @@ def test_frames_read_late_are_judged_by_when_they_arrived():
         lives.check(TIMEOUT_S)
         time.sleep(0.01)
     assert dispatcher.losses == [], "the frames arrived while the arms still beat"
+
+
+def test_on_a_lockstep_line_a_late_heartbeat_costs_no_arm_the_sim_and_a_restart_still_do():
+    """A lockstep run repeats: a heartbeat thread a starved CPU runs late (its controller still answering every
+    state, or the sim would wait) must not lose the arm. Only the sim's barrier or a new incarnation says it."""
+    lives, dispatcher = lives_of_two_arms(silence_loses=False)
+    beat(lives, "arm_0", 1), beat(lives, "arm_1", 1)
+    run_for(lives, 3 * TIMEOUT_S, beating=("arm_1",))
+    assert dispatcher.losses == [], "silent for three timeouts while the line ran, and not lost"
+    assert lives.on_sim_state("arm_0", lost=True), "the sim no longer hears it: lost"
+    beat(lives, "arm_1", 2, incarnation=2)
+    lost = [(e["arm"], e["why"]) for e in dispatcher.losses if e["event"] == "lost"]
+    assert lost == [("arm_1", "its controller restarted")], "and its new controller rejoins at once"
