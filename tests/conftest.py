@@ -50,6 +50,7 @@ WALL_TIME = (
     # drivers wait about 34 ms for each servo's answer (LeRobot's, Feetech's SDK): a realtime line, nothing beside it
     "tests/fleet/twin/test_lerobot_so101.py",
     "tests/fleet/twin/test_serve_bus.py",
+    "tests/fleet/twin/test_mirror.py",
 )
 # tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
 HEAVY = (

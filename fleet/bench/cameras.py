@@ -17,13 +17,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from fleet.bench.camera_choices import IMAGES
 from fleet.bench.physics import populated_sorting_world
 from fleet.sim.cameras.rig import CameraRig
 from fleet.sim.render import casts_shadows
 from scenes.schema import Camera
-
-SIZES = ((64, 64), (128, 128), (320, 240), (640, 480))
-IMAGES = {"rgb": ["rgb"], "rgbd": ["rgb", "depth"], "all": ["rgb", "depth", "segmentation"]}
 
 
 @dataclass(frozen=True)

@@ -100,7 +100,7 @@ def print_env_row(row, as_json: bool) -> int:
 
 
 def add_parser(bench: argparse._SubParsersAction) -> None:
-    from fleet.bench.cameras import IMAGES, SIZES
+    from fleet.bench.camera_choices import IMAGES, SIZES
 
     b = bench.add_parser("cameras", help="camera frames/s by size and number of cameras (rendering on CPU or GPU)")
     b.add_argument("--sizes", type=size_px, nargs="+", default=list(SIZES), help="WIDTHxHEIGHT each")

@@ -79,6 +79,117 @@ def cmd_serve_bus(args: argparse.Namespace) -> int:
     return 0
 
 
+def robot_settings(pairs: list[str]) -> dict[str, str]:
+    """`--robot KEY=VALUE` flags as LeRobot's `--robot.KEY=VALUE`."""
+    settings = {}
+    for pair in pairs:
+        key, eq, value = pair.partition("=")
+        if not eq or not key.strip():
+            raise UsageError(f"--robot {pair!r}: give KEY=VALUE, e.g. --robot port=/dev/ttyACM0")
+        settings[key.strip()] = value
+    return settings
+
+
+def connected_robot(args: argparse.Namespace):
+    """The LeRobot robot `--robot-type`/`--robot` name, connected (a calibration prompt would fail: no stdin)."""
+    try:
+        from fleet.twin.lerobot_robots import RobotTypeError, make_robot
+    except ImportError:
+        raise UsageError(
+            "fleet twin mirror drives a LeRobot robot: run it with LeRobot's Python "
+            "(bash scripts/install-lerobot; .venv-lerobot/bin/python -m fleet twin mirror ...)"
+        ) from None
+    try:
+        robot = make_robot(args.robot_type, robot_settings(args.robot))
+    except RobotTypeError as exc:
+        raise UsageError(str(exc)) from None
+    try:
+        robot.connect()
+    except Exception as exc:  # LeRobot's drivers raise what their bus raises: said in one line
+        said = " ".join(str(exc).split())  # one line, whatever the driver wrote
+        raise UsageError(f"{args.robot_type} robot: cannot connect ({type(exc).__name__}: {said})") from None
+    return robot
+
+
+def mirror_until(args: argparse.Namespace, stop) -> callable:
+    """When the mirror ends: `--duration` sim seconds after its first sample, or Ctrl-C."""
+    started: list[float] = []
+
+    def done(sample) -> bool:
+        if sample is not None and not started:
+            started.append(sample.sim_time_s)
+        return stop.should_stop() or (sample is not None and sample.sim_time_s - started[0] >= args.duration)
+
+    return done
+
+
+def cmd_mirror(args: argparse.Namespace) -> int:
+    from fleet.common.processes import StopFlag
+    from fleet.nodes.attached import line_scene
+    from fleet.twin.line_arm import ArmFeed
+    from fleet.twin.mirror import Mirror
+    from fleet.twin.mirror_report import mirror_figures, table, write_mirror_files
+    from robots.registry import get_robot
+
+    if not (args.connect or args.zenoh_config):
+        raise UsageError("fleet twin mirror needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+    if not (math.isfinite(args.duration) and args.duration > 0 and math.isfinite(args.rate_hz) and args.rate_hz > 0):
+        raise UsageError("--duration and --rate-hz must be positive numbers")
+    check_bus_flags(args, wait_s=args.wait)
+    stop, keys = StopFlag(watch_parent=False), Keys(args.run_id)
+    with open_session(BusEndpoints.from_args(args)) as session:
+        scene = line_scene(session, keys, args.wait, "fleet twin mirror")
+        if scene is None:
+            return 1
+        try:
+            spec = get_robot(scene.arm(args.arm).model)
+        except KeyError as exc:
+            raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
+        robot = connected_robot(args)
+        feed = ArmFeed(session, keys, args.arm, len(spec.arm_joints) + 1)
+        mirror = Mirror(feed, robot, spec)
+        print(f"fleet twin: mirroring {args.arm} onto the {args.robot_type} robot", flush=True)
+        try:
+            mirror.run(args.rate_hz, mirror_until(args, stop))
+        except KeyError as exc:
+            raise UsageError(f"the {args.robot_type} robot reads no {exc.args[0]}: not a {spec.uid}") from None
+        finally:
+            robot.disconnect()
+            feed.close()
+    if len(mirror.samples) < 2:
+        raise UsageError(f"no state of {args.arm} came: is its line running?")
+    figures = mirror_figures(mirror.samples, spec.arm_joints)
+    print(table(figures), flush=True)
+    if args.out is not None:
+        written = write_mirror_files(args.out, mirror.samples, spec.arm_joints, figures)
+        print(f"wrote {', '.join(p.name for p in written)} in {args.out}", flush=True)
+    print(f"fleet twin: {mirror.sent} goals sent to the robot, {mirror.holds} holds", file=sys.stderr)
+    return 0
+
+
+def add_mirror_parser(twin: argparse._SubParsersAction) -> None:
+    m = twin.add_parser(
+        "mirror",
+        help="a LeRobot robot runs an arm's goals beside the line; the deviation per goal and joint (LeRobot's Python)",
+    )
+    m.add_argument("--arm", required=True, help="the line's arm to mirror (its id in the scene, e.g. arm_1)")
+    m.add_argument("--robot-type", required=True, help="LeRobot's robot type, e.g. so101_follower")
+    m.add_argument(
+        "--robot",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a setting of the robot's config, as LeRobot's --robot.KEY=VALUE (repeatable), e.g. port=/dev/ttyACM0",
+    )
+    m.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    m.add_argument("--duration", type=float, default=30.0, help="sim seconds to mirror (default 30; Ctrl-C ends too)")
+    m.add_argument("--rate-hz", type=float, default=30.0, help="reads and goals a second at most (default 30)")
+    m.add_argument("--out", type=Path, help="a folder for deviation.json and samples.csv")
+    m.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_bus_arguments(m)
+    m.set_defaults(func=cmd_mirror)
+
+
 def add_parsers(sub: argparse._SubParsersAction) -> None:
     """This group's sub-commands."""
     p = sub.add_parser("twin", help="a running line's arms behind a real arm's interfaces (a servo bus)")
@@ -102,3 +213,4 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
     add_bus_arguments(b)
     b.set_defaults(func=cmd_serve_bus)
+    add_mirror_parser(twin)

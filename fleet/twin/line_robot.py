@@ -20,13 +20,13 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import CameraImage
 from fleet.bus.session import Inbox
 from fleet.twin.calibration import motor_names
-from fleet.twin.line_arm import LineArm, gripper_opening, gripper_rad
+from fleet.twin.lerobot_units import GRIPPER_SPAN, positions
+from fleet.twin.line_arm import LineArm, gripper_rad
 from robots.kinematics import KinematicModel
 from robots.registry import get_robot
 from scenes.schema import Scene
 
 LOG = logging.getLogger(__name__)
-GRIPPER_SPAN = (0.0, 100.0)  # LeRobot's RANGE_0_100: closed .. open
 
 
 class LineRobotError(RuntimeError):
@@ -81,9 +81,7 @@ class LineRobot:
         """The arm's newest state in LeRobot's units, and each camera's newest image."""
         self.line_arm.renew()
         q = self.line_arm.feed.q_rad()
-        out: dict[str, float | np.ndarray] = {f"{m}.pos": math.degrees(v) for m, v in zip(self.motors, q[:-1])}
-        # bounded, as LeRobot bounds a servo's reading to its calibrated range (RANGE_0_100)
-        out[f"{self.motors[-1]}.pos"] = GRIPPER_SPAN[1] * gripper_opening(self.spec, q[-1])
+        out: dict[str, float | np.ndarray] = dict(positions(self.spec, q[:-1], q[-1]))
         for name in self.cameras:
             out[name] = self._image(name)
         return out

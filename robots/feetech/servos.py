@@ -73,13 +73,15 @@ class Servo:
 
     def write(self, address: int, data: bytes) -> int:
         """Write `data` at `address` (read-only bytes keep their value), then drive the joint; the error byte. Torque
-        turned on holds the shaft where it stands: the goal becomes the present position, as on the servo."""
+        turned on holds the shaft where it stands: the goal becomes the present position, as on the servo (within
+        the limits: a worn encoder may read a shaft at its limit a tick past it, and no goal was written)."""
         torque_was = self.get(TORQUE)
         for i, byte in enumerate(data):
             if address + i < MEMORY_BYTES and address + i not in READ_ONLY:
                 self.memory[address + i] = byte
         if self.get(TORQUE) and not torque_was:
-            self.set(GOAL, self._present())
+            low, high = self.get(BY_NAME["Min_Position_Limit"]), self.get(BY_NAME["Max_Position_Limit"])
+            self.set(GOAL, min(max(self._present(), low), high))
         return self._drive()
 
     def _present(self) -> int:

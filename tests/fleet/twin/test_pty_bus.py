@@ -76,6 +76,15 @@ def test_read_only_registers_keep_their_values_and_a_goal_beyond_the_limits_is_h
     assert result == COMM_SUCCESS and error == ErrorBit.ANGLE and joints[1].ticks == 3000
 
 
+def test_torque_on_holds_a_shaft_read_a_tick_past_its_limit_at_the_limit_with_no_error(line):
+    """A worn encoder reads a shaft resting at its limit a little past it: torque on holds it there, and no goal was
+    written, so no angle error (LeRobot's connect writes torque on and fails on any error bit)."""
+    _, port, sdk, joints = line
+    sdk.write2ByteTxRx(port, 2, ADDRESS["Min_Position_Limit"], 2030)  # the joint reads 2020
+    assert sdk.write1ByteTxRx(port, 2, ADDRESS["Torque_Enable"], 1) == (COMM_SUCCESS, 0)
+    assert joints[2].goal == 2030 and sdk.read2ByteTxRx(port, 2, ADDRESS["Goal_Position"])[0] == 2030
+
+
 def test_sync_read_and_sync_write_cover_the_whole_line(line):
     _, port, sdk, joints = line
     write = GroupSyncWrite(port, sdk, ADDRESS["Torque_Enable"], 1)
