@@ -65,6 +65,7 @@ HEAVY = (
     "tests/fleet/cli/test_cameras_cli.py",
     "tests/fleet/test_render.py",
     "tests/perception/test_detect.py",
+    "tests/fleet/twin/test_mirror_cli.py",  # LeRobot's Python, started five times
 )
 # a browser (and a line for it to draw) runs alone on the machine
 ALONE = ("tests/fleet/monitor/test_browser.py", "tests/fleet/monitor/test_replay_browser.py")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import sys
 import time
@@ -90,25 +91,29 @@ def robot_settings(pairs: list[str]) -> dict[str, str]:
     return settings
 
 
-def connected_robot(args: argparse.Namespace):
-    """The LeRobot robot `--robot-type`/`--robot` name, connected (a calibration prompt would fail: no stdin)."""
-    try:
-        from fleet.twin.lerobot_robots import RobotTypeError, make_robot
-    except ImportError:
+def made_robot(args: argparse.Namespace):
+    """The LeRobot robot `--robot-type`/`--robot` name, made (not connected): a wrong type or setting is said before
+    anything waits on the line."""
+    from fleet.twin.lerobot_robots import RobotTypeError, make_robot
+
+    if importlib.util.find_spec("lerobot") is None:
         raise UsageError(
             "fleet twin mirror drives a LeRobot robot: run it with LeRobot's Python "
             "(bash scripts/install-lerobot; .venv-lerobot/bin/python -m fleet twin mirror ...)"
-        ) from None
+        )
     try:
-        robot = make_robot(args.robot_type, robot_settings(args.robot))
+        return make_robot(args.robot_type, robot_settings(args.robot))
     except RobotTypeError as exc:
         raise UsageError(str(exc)) from None
+
+
+def connect(robot, robot_type: str) -> None:
+    """Connect `robot` (a calibration prompt would fail: stdin may be closed); a failure said in one line."""
     try:
         robot.connect()
-    except Exception as exc:  # LeRobot's drivers raise what their bus raises: said in one line
+    except Exception as exc:  # LeRobot's drivers raise what their bus raises
         said = " ".join(str(exc).split())  # one line, whatever the driver wrote
-        raise UsageError(f"{args.robot_type} robot: cannot connect ({type(exc).__name__}: {said})") from None
-    return robot
+        raise UsageError(f"{robot_type} robot: cannot connect ({type(exc).__name__}: {said})") from None
 
 
 def mirror_until(args: argparse.Namespace, stop) -> callable:
@@ -135,6 +140,7 @@ def cmd_mirror(args: argparse.Namespace) -> int:
         raise UsageError("fleet twin mirror needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
     if not (math.isfinite(args.duration) and args.duration > 0 and math.isfinite(args.rate_hz) and args.rate_hz > 0):
         raise UsageError("--duration and --rate-hz must be positive numbers")
+    robot = made_robot(args)
     check_bus_flags(args, wait_s=args.wait)
     stop, keys = StopFlag(watch_parent=False), Keys(args.run_id)
     with open_session(BusEndpoints.from_args(args)) as session:
@@ -145,7 +151,7 @@ def cmd_mirror(args: argparse.Namespace) -> int:
             spec = get_robot(scene.arm(args.arm).model)
         except KeyError as exc:
             raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
-        robot = connected_robot(args)
+        connect(robot, args.robot_type)
         feed = ArmFeed(session, keys, args.arm, len(spec.arm_joints) + 1)
         mirror = Mirror(feed, robot, spec)
         print(f"fleet twin: mirroring {args.arm} onto the {args.robot_type} robot", flush=True)

@@ -45,9 +45,9 @@ def robot_config(robot_type: str, settings: Mapping[str, str]):
     try:
         with contextlib.redirect_stderr(said):
             return draccus.parse(config_class=cls, args=[f"--{k}={v}" for k, v in settings.items()])
-    except SystemExit:
-        last = [line for line in said.getvalue().splitlines() if line.strip()][-1:]
-        raise RobotTypeError(f"robot settings of {robot_type}: {last[0] if last else 'refused'}") from None
+    except (SystemExit, draccus.utils.DecodingError) as exc:
+        why = str(exc) if isinstance(exc, draccus.utils.DecodingError) else said.getvalue()
+        raise RobotTypeError(f"robot settings of {robot_type}: {' '.join(why.split()) or 'refused'}") from None
 
 
 def make_robot(robot_type: str, settings: Mapping[str, str]):
