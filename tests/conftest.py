@@ -51,6 +51,7 @@ WALL_TIME = (
     "tests/fleet/twin/test_lerobot_so101.py",
     "tests/fleet/twin/test_serve_bus.py",
     "tests/fleet/twin/test_mirror.py",
+    "tests/fleet/sim/test_realtime_clock.py",  # the pacing's sleeps, measured
 )
 # tests that run lines or other processes without the `slow` mark (beside them, both cores are busy)
 HEAVY = (

@@ -377,6 +377,18 @@ def print_run_summary(s: dict) -> None:
         ("refused by the router", _router_row(s.get("bus_refused"))),
         ("arms lost / respawns", f"{', '.join(s['arms_lost']) or 'none'} / {s['respawns']}"),
     ]
+    for row in rows + _rows_when_present(s):
+        table.add_row(*row)
+    out.print(table)
+
+
+def _rows_when_present(s: dict) -> list[tuple[str, str]]:
+    """The summary's rows of what only some runs have: a realtime clock, a restore, snapshots, cameras, perception."""
+    rows = []
+    if s.get("realtime_clock"):
+        rows.append(
+            ("realtime clock: sim s per wall s / ticks late p50, p99, worst (ms)", _clock_row(s["realtime_clock"]))
+        )
     if s.get("restored_from"):
         r = s["restored_from"]
         rows.append(("restored from a snapshot", f"tick {r['tick']}, every process back in {r['wall_s']:.2f} s"))
@@ -386,9 +398,16 @@ def print_run_summary(s: dict) -> None:
         rows.append(("cameras: frames / on the bus / rendering", _camera_row(s["cameras"])))
     if s.get("perception"):
         rows.append(("seen: error p50 / p95 (mm), recall, grasps held", _seen_row(s["perception"])))
-    for row in rows:
-        table.add_row(*row)
-    out.print(table)
+    return rows
+
+
+def _clock_row(clock: dict) -> str:
+    """The realtime clock kept: the factor against the speed asked, and how late the sim's ticks started."""
+    if clock.get("rtf") is None:
+        return "-"
+    late = clock.get("sim_tick_late_ms") or {}
+    spread = " / ".join(f"{late[k]:.1f}" for k in ("p50", "p99", "worst")) if late else "-"
+    return f"{clock['rtf']:.3f} of {clock['speed']:g} asked ({clock['rtf_error']:+.1%}) / {spread}"
 
 
 def _snapshot_row(s: dict) -> str:
@@ -472,7 +491,12 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
             "held at the edge)"
         ),
     )
-    p.add_argument("--rt", action="store_true", help="controllers ask for real-time scheduling")
+    p.add_argument(
+        "--rt",
+        action="store_true",
+        help="real-time scheduling (SCHED_FIFO) for the controllers and, in realtime, the sim's loop; a warning where "
+        "the OS refuses it",
+    )
     p.add_argument("--run-id", default="line", help="keeps several lines on one Zenoh network apart")
     p.add_argument("--summary", metavar="FILE", help="also write the summary JSON here")
     p.add_argument("--keep-logs", action="store_true", help="keep each process's log and report (the path is printed)")

@@ -37,6 +37,7 @@ from fleet.bus.messages import (
 )
 from fleet.bus.session import BusEndpoints, Hold, Inbox, add_bus_arguments, open_session
 from fleet.common.processes import add_scene_arguments, node_arguments, write_node_report
+from fleet.common.realtime_priority import request_realtime_priority
 from fleet.nodes.arm_orders import ControllerOrders
 from fleet.nodes.sim_feed import SimFeed
 from fleet.sight.line_sight import seen_ticks_of
@@ -400,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     args, stop, scene = opened
     if args.rt:
-        request_realtime_priority()
+        request_realtime_priority("arm_controller")
     with open_session(BusEndpoints.from_args(args)) as session:
         controller = ArmController(
             session,
@@ -454,17 +455,6 @@ class Heartbeat:
     def stop(self) -> None:
         self._stopped.set()
         self._thread.join(timeout=1.0)
-
-
-def request_realtime_priority() -> None:
-    """SCHED_FIFO at a middle priority where the OS allows it; one warning where it does not."""
-    try:
-        priority = (os.sched_get_priority_min(os.SCHED_FIFO) + os.sched_get_priority_max(os.SCHED_FIFO)) // 2
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (AttributeError, PermissionError, OSError) as exc:
-        print(
-            f"arm_controller: warning: real-time priority refused ({exc}); running at normal priority", file=sys.stderr
-        )
 
 
 if __name__ == "__main__":

@@ -48,6 +48,7 @@ from fleet.common.processes import (
     write_node_report,
     write_text_atomically,
 )
+from fleet.common.realtime_priority import request_realtime_priority
 from fleet.record.spool import BusSpool
 from fleet.sim.server import COORDINATOR_TIMEOUT_S, LOCKSTEP_TIMEOUT_S, SimServer
 from fleet.sim.sim_snapshot import RunFacts, SimSnapshots, forget_wall_clock_flights, restore_sim
@@ -137,6 +138,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=float, default=120.0, help="sim seconds")
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument(
+        "--rt", action="store_true", help="realtime: the sim's loop asks for real-time scheduling (SCHED_FIFO)"
+    )
     parser.add_argument(
         "--coordinator",
         action="store_true",
@@ -302,6 +306,28 @@ def serve(
     return 0
 
 
+def sim_server_of(
+    args: argparse.Namespace, world: World, session: zenoh.Session, keys: Keys, stop: StopFlag
+) -> SimServer:
+    """The server the flags ask for (its mode, its waits, its scheduling, whether poses go out)."""
+    server = SimServer(
+        world,
+        session,
+        keys,
+        mode=args.mode,
+        coordinator=args.coordinator,
+        controllers=not args.no_controllers,
+        lockstep_timeout_s=args.lockstep_timeout,
+        coordinator_timeout_s=args.coordinator_timeout,
+        stop=stop,
+        speed=args.speed,
+    )
+    if args.rt:
+        server.scheduling = request_realtime_priority("sim_server")
+    server.outputs.blind = args.perception == "cameras"  # the line's parts are perception's: no poses go out
+    return server
+
+
 def main(argv: list[str] | None = None) -> int:
     opened = node_arguments(build_parser(), argv, "sim_server")
     if opened is None:
@@ -325,20 +351,8 @@ def main(argv: list[str] | None = None) -> int:
         write_text_atomically(args.endpoint_file, endpoint)
     world = World(scene)  # after: the other nodes start and connect while the physics scene is built
     with contextlib.closing(session), contextlib.closing(spool) if spool else contextlib.nullcontext():
-        server = SimServer(
-            world,
-            session,
-            keys,
-            mode=args.mode,
-            coordinator=args.coordinator,
-            controllers=not args.no_controllers,
-            lockstep_timeout_s=args.lockstep_timeout,
-            coordinator_timeout_s=args.coordinator_timeout,
-            stop=stop,
-            speed=args.speed,
-        )
+        server = sim_server_of(args, world, session, keys, stop)
         server.spool = spool
-        server.outputs.blind = args.perception == "cameras"  # the line's parts are perception's: no poses go out
         why = attach_cameras(server, args, session, keys)
         if why:
             server.close()

@@ -84,6 +84,7 @@ class NodeCommands:
     def sim_node(self) -> Node:
         o = self.options
         sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--coordinator"]
+        sim_args += ["--rt"] if o.realtime_priority and o.mode == "realtime" else []
         if not o.listen:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
         if o.record_targets:

@@ -150,6 +150,16 @@ class RunSummary:
             return {}
         return {"links": links, "goals_resent": {c["arm"]: c.get("goals_resent", 0) for c in controllers if "arm" in c}}
 
+    def _realtime_clock(self) -> dict | None:
+        """Realtime: the sim's clock against the wall (`fleet.sim.realtime_clock`), the controllers' answers and the
+        coordinator's decisions; None in lockstep."""
+        clock = self.sim.get("realtime_clock")
+        if clock is None:
+            return None
+        decisions = self.coord.get("decision_wall_ms") or {}
+        timed = {k: decisions[k] for k in ("p50", "p99") if k in decisions}
+        return clock | {"coordinator_decision_ms": timed | {"worst": decisions["max"]} if timed else None}
+
     def summary(self, wall_s: float, error: str) -> dict:
         """The run summary: the nodes' reports merged (a dead node's figures from what was last heard of it)."""
         end, sim, coord = self.end, self.sim, self.coord
@@ -176,6 +186,7 @@ class RunSummary:
                 "wall_seconds": round(wall_s, 3),
                 "loop_wall_seconds": sim.get("loop_wall_seconds"),
                 "wall_s_by_stage": sim.get("wall_s_by_stage", {}),
+                "realtime_clock": self._realtime_clock(),
             }
             | self._parts(sim_s)
             | self._coordination()

@@ -23,6 +23,7 @@ from fleet.common.processes import StopFlag
 from fleet.record.spool import BusSpool
 from fleet.sim.line_controls import LineControls
 from fleet.sim.line_watch import LineWatcher
+from fleet.sim.realtime_clock import ClockFigures, RealtimePacing, spread_ms
 from fleet.sim.sim_bus import SimBus
 from fleet.sim.sim_cadence import SimCadence
 from fleet.sim.sim_inputs import SimInputs
@@ -88,6 +89,8 @@ class SimServer:
         self.restored_from: dict | None = None  # from a snapshot: its tick, wall s until every node was back
         self.snapshots_refused: list[str] = []  # snapshots asked for that this run cannot take, and why
         self.cameras = None  # with `--cameras`: a `fleet.sim.cameras.line_cameras.LineCameras`
+        self.clock = ClockFigures()  # realtime: how well the wall clock was kept
+        self.scheduling = "normal"  # the sim process's scheduling (`--rt`: SCHED_FIFO where allowed)
         self._wire(watchdog_s, lockstep_timeout_s, first_command_timeout_s, coordinator_timeout_s)
 
     def _wire(
@@ -213,10 +216,10 @@ class SimServer:
                 if link.last_step.request_seq > 0:
                     self.stats.grant_wait_ticks[name] += 1
 
-    def _snapshot_if_due(self) -> bool:
+    def _snapshot_if_due(self, before_take: Callable[[], None] = lambda: None) -> bool:
         """A snapshot due now (`--snapshot-at/--snapshot-every`) or asked for (`SimControl.snapshot`) is taken here,
         at the tick boundary (the parts of one taken earlier taken in); one asked of a run with nowhere to write it
-        is refused, and the refusal counted."""
+        is refused, and the refusal counted. `before_take` is called just before one is taken."""
         asked, self.controls.snapshot_asked_by = self.controls.snapshot_asked_by, ""
         if self.snapshots is not None:
             self.snapshots.pump()  # the parts of one taken before, and what it cost the ticks after it
@@ -225,6 +228,7 @@ class SimServer:
                 self.snapshots_refused.append(f"{asked}: this run writes no snapshots (fleet run --out DIR)")
             return False
         if asked or self.snapshots.due(self.world.tick):
+            before_take()
             self.snapshots.take()
             return True
         return False
@@ -247,7 +251,15 @@ class SimServer:
             lambda: (controls.speed, controls.started),
             self.bus.inbox.wait,
             self.stats.wall_s,
+            self.clock,
         )
+        try:
+            self._run_paced(ticks, stop, pace)
+        finally:
+            pace.close()
+
+    def _run_paced(self, ticks: int, stop: StopFlag | None, pace: RealtimePacing) -> None:
+        controls = self.controls
         done = 0
         while done < ticks:
             if stop is not None and stop.should_stop():
@@ -261,8 +273,8 @@ class SimServer:
                 self.bus.inbox.wait(0.05)
                 pace.restart()
                 continue
-            if self._snapshot_if_due():
-                pace.restart()  # realtime: the line was paused for it; the clock goes on from here
+            if self._snapshot_if_due(before_take=pace.restart):
+                pace.restart(measure=False)  # realtime: the line stood still for it; the clock goes on from here
             self.tick()
             done += 1
             if stop is not None and stop.should_stop():
@@ -297,36 +309,18 @@ class SimServer:
             | self.stats.wall_clock()
             | (self.snapshots.report() if self.snapshots is not None else {})
             | {"restored_from": self.restored_from, "snapshots_refused": list(self.snapshots_refused)}
+            | {"realtime_clock": self._clock_report()}
             | ({"cameras": self.cameras.counts.report()} if self.cameras is not None else {})
             | ({"seen": self.cameras.score.report()} if self.cameras is not None and self.cameras.score else {})
         )
 
-
-class RealtimePacing:
-    """Realtime: the sim's clock held to the wall clock at the speed factor, from when every process answered
-    (and again after a pause or a change of speed). Handed what it reads each tick: the sim's time, the speed
-    factor and whether every process answered (`settings`), how to wait while answers may arrive, and the wall-time
-    counts it adds its waits to."""
-
-    def __init__(
-        self,
-        sim_time_s: Callable[[], float],
-        settings: Callable[[], tuple[float, bool]],
-        wait: Callable[[float], None],
-        wall_s: Counter,
-    ) -> None:
-        self._sim_time_s, self._settings, self._wait, self._wall_s = sim_time_s, settings, wait, wall_s
-        self.restart()
-
-    def restart(self) -> None:
-        self.wall, self.sim = time.monotonic(), self._sim_time_s()
-        self.speed, self.started = self._settings()
-
-    def wait(self) -> None:
-        """Until the wall clock catches up with the sim's at the speed factor."""
-        if self._settings() != (self.speed, self.started):  # the clock starts once every process answered
-            self.restart()
-        ahead = (self._sim_time_s() - self.sim) / self.speed - (time.monotonic() - self.wall)
-        if ahead > 0:
-            self._wait(ahead)  # answers that arrive meanwhile are applied at the next tick
-            self._wall_s["pacing"] += ahead
+    def _clock_report(self) -> dict | None:
+        """Realtime: how well the wall clock was kept (`ClockFigures`), how long the controllers took to answer each
+        state, and the scheduling the sim ran at; None in lockstep (its clock is the barrier's)."""
+        if self.controls.lockstep:
+            return None
+        answers = spread_ms(self.stats.round_trip_ms)
+        return self.clock.report(self.controls.speed) | {
+            "controller_answer_ms": answers,
+            "sim_scheduling": self.scheduling,
+        }

@@ -358,6 +358,13 @@ def test_realtime_mode_paces_the_sim_on_the_wall_clock():
     assert summary["status"] == "ok" and summary["mode"] == "realtime"
     assert 2.7 < summary["loop_wall_seconds"] < 4.5  # 6 sim s at 2x real time: 3 s of wall clock
     assert summary["inter_arm_contacts"] == 0
+    # the clock, measured: 2 sim seconds a wall second within 5% (a slow moment of a busy machine), every tick's
+    # lateness, each controller's answers and the coordinator's decisions timed
+    clock = summary["realtime_clock"]
+    assert clock["speed"] == 2.0 and abs(clock["rtf_error"]) < 0.05 and clock["rtf"] == pytest.approx(2.0, rel=0.05)
+    assert clock["paced_sim_s"] > 5.0 and clock["sim_scheduling"] == "normal"
+    for figure in ("sim_tick_late_ms", "controller_answer_ms", "coordinator_decision_ms"):
+        assert 0 <= clock[figure]["p50"] <= clock[figure]["p99"] <= clock[figure]["worst"], (figure, clock)
 
 
 def test_a_respawn_request_on_the_bus_restarts_a_dead_controller_and_is_refused_for_a_live_one():
