@@ -89,16 +89,17 @@ def estop_while_it_moves(launcher: Launcher, seen: dict, hold_s: float = 1.5) ->
 def mirror_clean_then_worn(launcher: Launcher, lerobot: Path, tmp_path: Path, seen: dict) -> None:
     calibration_dir = tmp_path / "calibration"
     for name, wear, seconds in (
-        ("clean", (), 22.0),
-        ("worn", ("--noise-deg", str(NOISE_DEG), "--backlash-deg", str(BACKLASH_DEG)), 8.0),
+        ("clean", (), 14.0),
+        ("worn", ("--noise-deg", str(NOISE_DEG), "--backlash-deg", str(BACKLASH_DEG)), 6.0),
     ):
         served, port = serve(launcher, calibration_dir / "real_so101.json", *wear)
         try:
             run = mirror(lerobot, launcher, port, calibration_dir, seconds, tmp_path / name)
-            if name == "clean":
+            started = run.stdout.readline()  # "mirroring ...": the robot is connected, the mirror on
+            if name == "clean" and "mirroring" in started:
                 estop_while_it_moves(launcher, seen)
             out, err = run.communicate(timeout=120)
-            seen[name] = {"rc": run.returncode, "out": out, "err": err[-3000:]}
+            seen[name] = {"rc": run.returncode, "out": started + out, "err": err[-3000:]}
         finally:
             seen[name + "_serve_err"] = stop(served)
 
