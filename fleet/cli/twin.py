@@ -116,6 +116,24 @@ def connect(robot, robot_type: str) -> None:
         raise UsageError(f"{robot_type} robot: cannot connect ({type(exc).__name__}: {said})") from None
 
 
+def joint_offsets(pairs: list[str], spec) -> dict[str, float]:
+    """`--offset-deg JOINT=DEG` flags: what the robot's degrees read more than each joint's own."""
+    offsets = {}
+    for pair in pairs:
+        joint, eq, value = pair.partition("=")
+        if not eq:
+            raise UsageError(f"--offset-deg {pair!r}: give JOINT=DEGREES, e.g. --offset-deg shoulder_pan=-3.5")
+        if joint not in spec.arm_joints:
+            raise UsageError(f"--offset-deg {pair!r}: a {spec.uid}'s arm joints are {', '.join(spec.arm_joints)}")
+        try:
+            offsets[joint] = float(value)
+        except ValueError:
+            raise UsageError(f"--offset-deg {pair!r}: {value!r} is not a number of degrees") from None
+        if not math.isfinite(offsets[joint]):
+            raise UsageError(f"--offset-deg {pair!r}: give a finite number of degrees")
+    return offsets
+
+
 def mirror_until(args: argparse.Namespace, stop) -> callable:
     """When the mirror ends: `--duration` sim seconds after its first sample, or Ctrl-C."""
     started: list[float] = []
@@ -151,9 +169,10 @@ def cmd_mirror(args: argparse.Namespace) -> int:
             spec = get_robot(scene.arm(args.arm).model)
         except KeyError as exc:
             raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
+        offsets = joint_offsets(args.offset_deg, spec)
         connect(robot, args.robot_type)
         feed = ArmFeed(session, keys, args.arm, len(spec.arm_joints) + 1)
-        mirror = Mirror(feed, robot, spec)
+        mirror = Mirror(feed, robot, spec, offsets)
         print(f"fleet twin: mirroring {args.arm} onto the {args.robot_type} robot", flush=True)
         try:
             mirror.run(args.rate_hz, mirror_until(args, stop))
@@ -186,6 +205,14 @@ def add_mirror_parser(twin: argparse._SubParsersAction) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="a setting of the robot's config, as LeRobot's --robot.KEY=VALUE (repeatable), e.g. port=/dev/ttyACM0",
+    )
+    m.add_argument(
+        "--offset-deg",
+        action="append",
+        default=[],
+        metavar="JOINT=DEG",
+        help="what the robot's degrees read more than the joint's own (repeatable): a calibration whose ranges are "
+        "not centred on the URDF's zero; the at-rest figure shows it",
     )
     m.add_argument("--run-id", default="line", help="run id of the line (default line)")
     m.add_argument("--duration", type=float, default=30.0, help="sim seconds to mirror (default 30; Ctrl-C ends too)")

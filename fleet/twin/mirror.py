@@ -26,19 +26,23 @@ class LeRobotRobot(Protocol):
     def send_action(self, action: dict) -> dict: ...
 
 
-def command(spec: RobotSpec, state: ArmState) -> dict[str, float]:
+def command(spec: RobotSpec, state: ArmState, offsets_deg: Mapping[str, float] | None = None) -> dict[str, float]:
     """Where the robot goes for the line arm's `state`: its tracker's desired joints while a goal drives it, where
-    it stands otherwise; the gripper as the sim claw stands."""
+    it stands otherwise; the gripper as the sim claw stands (in the robot's degrees: `offsets_deg` added)."""
     driven = state.goal_id != 0 and len(state.desired_q) == len(state.q)
     q = state.desired_q if driven else state.q
-    return positions(spec, q, state.gripper_q[0] if state.gripper_q else 0.0)
+    return positions(spec, q, state.gripper_q[0] if state.gripper_q else 0.0, offsets_deg)
 
 
 class Mirror:
-    """The line arm read off `feed` mirrored onto `robot`; `samples` gathered as it goes (`step`)."""
+    """The line arm read off `feed` mirrored onto `robot`, whose degrees read `offsets_deg` more than the joints'
+    own (by joint; none: the same); `samples` gathered as it goes (`step`), in the joints' own radians."""
 
-    def __init__(self, feed: ArmFeed, robot: LeRobotRobot, spec: RobotSpec) -> None:
+    def __init__(
+        self, feed: ArmFeed, robot: LeRobotRobot, spec: RobotSpec, offsets_deg: Mapping[str, float] | None = None
+    ) -> None:
         self.feed, self.robot, self.spec = feed, robot, spec
+        self.offsets_deg = dict(offsets_deg or {})
         self.samples: list[MirrorSample] = []
         self.hold: dict[str, float] | None = None  # the robot's joints when the line's hold began
         self.holds = 0  # holds begun
@@ -54,8 +58,8 @@ class Mirror:
         self._tick = state.tick
         present = self.robot.get_observation()
         action = self._action(state, present)
-        commanded = arm_q_rad(self.spec, action)
-        real = arm_q_rad(self.spec, present)
+        commanded = arm_q_rad(self.spec, action, self.offsets_deg)
+        real = arm_q_rad(self.spec, present, self.offsets_deg)
         sample = MirrorSample(state.sim_time_s, state.goal_id, tuple(state.q), real, commanded, state.held)
         self.samples.append(sample)
         self.robot.send_action(action)
@@ -65,7 +69,7 @@ class Mirror:
     def _action(self, state: ArmState, present: Mapping[str, object]) -> dict[str, float]:
         if not state.held:
             self.hold = None
-            return command(self.spec, state)
+            return command(self.spec, state, self.offsets_deg)
         if self.hold is None:  # the line holds its arm: the robot holds where it stands now
             self.hold = {k: float(v) for k, v in present.items() if k.endswith(".pos")}
             self.holds += 1

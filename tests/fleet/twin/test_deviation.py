@@ -11,6 +11,7 @@ import pytest
 
 from fleet.bus.messages import ArmState
 from fleet.twin.deviation import MirrorSample, deviation, deviation_by_goal
+from fleet.twin.lerobot_units import arm_q_rad
 from fleet.twin.mirror import command
 from fleet.twin.mirror_report import mirror_figures, resting_samples, table, write_mirror_files
 from robots.registry import get_robot
@@ -109,3 +110,14 @@ def test_a_hold_is_left_out_of_the_figures_and_how_far_the_real_arm_crept_in_it_
     assert figures.whole.joints[0].rmse_deg == 0.0, "what the real arm did while held is no deviation"
     assert figures.held_drift_deg == pytest.approx(0.4 * (0.95 - 0.25), abs=1e-6), "from 0.25 s into the hold"
     assert "moved at most 0.28 deg while held" in table(figures)
+
+
+def test_a_robot_calibrated_off_is_sent_and_read_in_its_own_degrees():
+    spec = get_robot("so101")
+    q = (0.1, -0.5, 0.8, 1.2, 0.0)
+    state = ArmState("arm_1", 10, 0.5, q, (0.0,) * 5, spec.gripper_open, (0.0,) * 3, (1.0, 0.0, 0.0, 0.0))
+    offsets = {"shoulder_pan": 5.0}  # this robot's pan reads 5 degrees more than the joint's own
+    sent = command(spec, state, offsets)
+    assert sent["shoulder_pan.pos"] == pytest.approx(math.degrees(0.1) + 5.0)
+    assert sent["elbow_flex.pos"] == pytest.approx(math.degrees(0.8)), "the other joints as they are"
+    assert arm_q_rad(spec, sent, offsets) == pytest.approx(q), "read back through the same offsets: the joints"

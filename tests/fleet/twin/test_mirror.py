@@ -1,8 +1,8 @@
 """Mirror mode end to end, in LeRobot's own Python: LeRobot's `SO101Follower` on the servo bus `fleet twin serve-bus`
 makes of a second SO-101 (the "real" arm, out of everyone's reach) runs the goals of the line's working SO-101
 beside it. Served clean, the real arm follows its goals within a degree or two, a fixed lag behind, and stands on
-the sim arm's joints at rest; an e-stop holds it where it stands. Served worn, the deviation at rest is the noise
-and backlash that were set."""
+the sim arm's joints at rest; an e-stop holds it where it stands. Served worn (and calibrated off on one joint, which
+the mirror is told), the deviation at rest is the noise and backlash that were set."""
 
 import json
 import signal
@@ -25,6 +25,8 @@ pytestmark = pytest.mark.slow  # a realtime line: LeRobot's driver gives each se
 
 SCENE = Path(__file__).with_name("twin_cell.yaml")
 NOISE_DEG, BACKLASH_DEG = 2.0, 1.0
+# a homing offset of -57 ticks: the servo reads 57 ticks more, LeRobot 57 * 360 / 4095 degrees more than the joint
+PAN_OFFSET_TICKS, PAN_OFFSET_DEG = 57, 5.011
 
 
 def serve(launcher: Launcher, calibration: Path, *wear: str) -> tuple[subprocess.Popen, str]:
@@ -51,13 +53,13 @@ def stop(served: subprocess.Popen) -> str:
         return served.communicate()[1]
 
 
-def mirror(lerobot: Path, launcher: Launcher, port: str, calibration_dir: Path, seconds: float, out: Path):
+def mirror(lerobot: Path, launcher: Launcher, port: str, calibration_dir: Path, seconds: float, out: Path, *more: str):
     """`fleet twin mirror` of arm_1 onto LeRobot's SO-101 follower on `port`, started (stdin closed: a calibration
     prompt would fail it)."""
     return subprocess.Popen(
         [str(lerobot), "-m", "fleet", "twin", "mirror", "--arm", "arm_1", "--robot-type", "so101_follower"]
         + ["--robot", f"port={port}", "--robot", "id=real_so101", "--robot", f"calibration_dir={calibration_dir}"]
-        + ["--zenoh-config", launcher.bus.config_for("twin"), "--duration", str(seconds), "--out", str(out)],
+        + ["--zenoh-config", launcher.bus.config_for("twin"), "--duration", str(seconds), "--out", str(out), *more],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -86,15 +88,26 @@ def estop_while_it_moves(launcher: Launcher, seen: dict, hold_s: float = 1.5) ->
         sub.undeclare()
 
 
+def calibrated_off(calibration: Path, joint: str, homing_offset: int) -> None:
+    """The real arm's calibration file, `joint`'s homing offset set: LeRobot's degrees then read off the joint's."""
+    entries = json.loads(calibration.read_text())
+    entries[joint]["homing_offset"] = homing_offset
+    calibration.write_text(json.dumps(entries))
+
+
 def mirror_clean_then_worn(launcher: Launcher, lerobot: Path, tmp_path: Path, seen: dict) -> None:
     calibration_dir = tmp_path / "calibration"
-    for name, wear, seconds in (
-        ("clean", (), 14.0),
-        ("worn", ("--noise-deg", str(NOISE_DEG), "--backlash-deg", str(BACKLASH_DEG)), 6.0),
+    calibration = calibration_dir / "real_so101.json"
+    wear = ("--noise-deg", str(NOISE_DEG), "--backlash-deg", str(BACKLASH_DEG))
+    for name, serve_flags, seconds, mirror_flags in (
+        ("clean", (), 14.0, ()),
+        ("worn", wear, 6.0, ("--offset-deg", f"shoulder_pan={PAN_OFFSET_DEG}")),
     ):
-        served, port = serve(launcher, calibration_dir / "real_so101.json", *wear)
+        if name == "worn":  # the worn arm is calibrated off too, and the mirror told by how much
+            calibrated_off(calibration, "shoulder_pan", -PAN_OFFSET_TICKS)
+        served, port = serve(launcher, calibration, *serve_flags)
         try:
-            run = mirror(lerobot, launcher, port, calibration_dir, seconds, tmp_path / name)
+            run = mirror(lerobot, launcher, port, calibration_dir, seconds, tmp_path / name, *mirror_flags)
             started = run.stdout.readline()  # "mirroring ...": the robot is connected, the mirror on
             if name == "clean" and "mirroring" in started:
                 estop_while_it_moves(launcher, seen)
@@ -124,6 +137,7 @@ def test_a_lerobot_so101_mirrors_a_line_arm_and_its_deviation_is_what_its_servos
     # the e-stop: the line held its arm, and the robot stood where it was when the hold began
     assert seen.get("estop") and "1 holds" in seen["clean"]["err"], seen["clean"]["err"]
     assert clean["held_samples"] >= 20 and clean["held_drift_deg"] <= 0.5, clean["held_drift_deg"]
-    # worn: at rest, what noise (a standard deviation of NOISE_DEG) and backlash (up to half of it either way) make
+    # worn and calibrated 5 degrees off on the pan, told so: at rest, what noise (a standard deviation of NOISE_DEG)
+    # and backlash (up to half of it either way) make, and no more on the pan
     for joint in worn["at_rest"]["joints"]:
         assert 0.7 * NOISE_DEG <= joint["aligned_rmse_deg"] <= NOISE_DEG + BACKLASH_DEG / 2 + 0.3, joint
