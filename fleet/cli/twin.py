@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import math
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from fleet.bus.keys import Keys
@@ -41,26 +43,40 @@ def served_calibration(path: Path | None, model: str) -> dict | None:
     return calibration
 
 
-def cmd_serve_bus(args: argparse.Namespace) -> int:
-    from fleet.common.processes import StopFlag
+@contextlib.contextmanager
+def line_arm_session(args: argparse.Namespace, prog: str) -> Iterator[tuple | None]:
+    """The bus session to the line `--connect`/`--zenoh-config` name, its keys and `--arm` of its scene; None where
+    no sim answered (said on stderr)."""
     from fleet.nodes.attached import line_scene
-    from fleet.twin.serve_bus import NoArmState, Wear, served_arm
 
     if not (args.connect or args.zenoh_config):
-        raise UsageError("fleet twin serve-bus needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+        raise UsageError(f"{prog} needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+    check_bus_flags(args, wait_s=args.wait)
+    keys = Keys(args.run_id)
+    with open_session(BusEndpoints.from_args(args)) as session:
+        scene = line_scene(session, keys, args.wait, prog)
+        if scene is None:
+            yield None
+            return
+        try:
+            arm = scene.arm(args.arm)
+        except KeyError as exc:
+            raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
+        yield session, keys, arm
+
+
+def cmd_serve_bus(args: argparse.Namespace) -> int:
+    from fleet.common.processes import StopFlag
+    from fleet.twin.serve_bus import NoArmState, Wear, served_arm
+
     for flag, value in (("--backlash-deg", args.backlash_deg), ("--noise-deg", args.noise_deg)):
         if not (math.isfinite(value) and value >= 0.0):
             raise UsageError(f"{flag} {value}: give a finite number of degrees, 0 or more")
-    check_bus_flags(args, wait_s=args.wait)
-    stop, keys = StopFlag(watch_parent=False), Keys(args.run_id)
-    with open_session(BusEndpoints.from_args(args)) as session:
-        scene = line_scene(session, keys, args.wait, "fleet twin serve-bus")
-        if scene is None:
+    stop = StopFlag(watch_parent=False)
+    with line_arm_session(args, "fleet twin serve-bus") as attached:
+        if attached is None:
             return 1
-        try:
-            served = scene.arm(args.arm)
-        except KeyError as exc:
-            raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
+        session, keys, served = attached
         calibration = served_calibration(args.calibration, served.model)
         wear = Wear(args.backlash_deg, args.noise_deg, args.seed)
         try:
@@ -148,7 +164,6 @@ def mirror_until(args: argparse.Namespace, stop) -> callable:
 
 def cmd_mirror(args: argparse.Namespace) -> int:
     from fleet.common.processes import StopFlag
-    from fleet.nodes.attached import line_scene
     from fleet.twin.line_arm import ArmFeed
     from fleet.twin.mirror import Mirror
     from fleet.twin.mirror_report import mirror_figures, table, write_mirror_files
@@ -159,16 +174,12 @@ def cmd_mirror(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0 and math.isfinite(args.rate_hz) and args.rate_hz > 0):
         raise UsageError("--duration and --rate-hz must be positive numbers")
     robot = made_robot(args)
-    check_bus_flags(args, wait_s=args.wait)
-    stop, keys = StopFlag(watch_parent=False), Keys(args.run_id)
-    with open_session(BusEndpoints.from_args(args)) as session:
-        scene = line_scene(session, keys, args.wait, "fleet twin mirror")
-        if scene is None:
+    stop = StopFlag(watch_parent=False)
+    with line_arm_session(args, "fleet twin mirror") as attached:
+        if attached is None:
             return 1
-        try:
-            spec = get_robot(scene.arm(args.arm).model)
-        except KeyError as exc:
-            raise UsageError(f"--arm {args.arm}: {exc.args[0]}") from None
+        session, keys, arm = attached
+        spec = get_robot(arm.model)
         offsets = joint_offsets(args.offset_deg, spec)
         connect(robot, args.robot_type)
         feed = ArmFeed(session, keys, args.arm, len(spec.arm_joints) + 1)
