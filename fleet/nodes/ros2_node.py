@@ -100,7 +100,7 @@ class NativeLine:
                 out = self.topics.from_state(msg, wanted)
             elif isinstance(msg, GoalResultMsg):
                 self.actions.on_result(msg)
-                continue
+                out = self.topics.from_result(msg, wanted)
             elif isinstance(msg, LineView):
                 out = self.topics.from_view(msg, wanted)
             elif isinstance(msg, CameraImage):

@@ -15,11 +15,12 @@ import time
 import numpy as np
 
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, CameraImage, LineView
+from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView
 from fleet.record.camera_to_ros import camera_topic_types, live_messages
 from fleet.record.line_to_ros import LineToRos
 from fleet.record.ros_types import ros_type, time_msg
 from fleet.ros import names
+from fleet.ros.line_log import LineLog
 from scenes.schema import Scene
 
 VIEW_TOPICS = frozenset({names.JOINT_STATES, names.TF, names.PARTS, names.CLOCK})
@@ -54,6 +55,7 @@ class LineTopics:
             self.types |= camera_topic_types(camera, kinds)
         self._camera_ticks: dict[str, int] = {}
         self.clock_s = -1.0
+        self.log = LineLog()  # `/rosout`
         self.latched = {names.TF_STATIC: self.ros.tf_static(), names.CELL: self.ros.cell_markers()}
         self.cap = RateCap(max_rate_hz)
 
@@ -69,7 +71,8 @@ class LineTopics:
         drive (`driven`) or whose own joint states are `wanted`, the line's view while a topic it feeds is, a
         camera's images while one of its topics is."""
         arms = driven | {a for a in self.arms if names.arm_joint_states(a) in wanted}
-        needed = {keys.arm_state(a) for a in arms} | ({keys.view} if wanted & VIEW_TOPICS else set())
+        viewed = wanted & (VIEW_TOPICS | {names.ROSOUT})  # the log follows every arm's state in the view
+        needed = {keys.arm_state(a) for a in arms} | ({keys.view} if viewed else set())
         for camera, kinds in self.cameras.items():
             if wanted & set(camera_topic_types(camera, kinds)):
                 needed |= {keys.camera(camera, kind) for kind in kinds}
@@ -90,13 +93,19 @@ class LineTopics:
         except ValueError:  # an image that is not what it says: nothing to show
             return []
 
+    def from_result(self, result: GoalResultMsg, wanted: set[str]) -> list[tuple[str, object]]:
+        """The log entry of a goal result (one the plant refused or aborted), if `/rosout` is `wanted`."""
+        entry = self.log.from_result(result, self.clock_s) if names.ROSOUT in wanted else None
+        return [(names.ROSOUT, entry)] if entry is not None else []
+
     def from_view(self, view: LineView, wanted: set[str]) -> list[tuple[str, object]]:
         """The topics the line's view feeds (every arm's joints and links, the parts, the clock), among those
-        `wanted`."""
+        `wanted`; the log's entries of every view, however many the rate cap lets through."""
+        logged = self.log.from_states(list(view.arms), view.sim_time_s) if names.ROSOUT in wanted else []
+        out: list[tuple[str, object]] = [(names.ROSOUT, entry) for entry in logged]
         if not self.cap.admits("view"):
-            return []
+            return out
         arms = [s for s in view.arms if s.arm in self.ros.arms]
-        out = []
         if view.sim_time_s > self.clock_s:
             self.clock_s = view.sim_time_s
             if names.CLOCK in wanted:

@@ -9,6 +9,7 @@ from __future__ import annotations
 JOINT_STATES = "/joint_states"  # every arm's joints, names prefixed `<arm>/`
 TF, TF_STATIC, CLOCK = "/tf", "/tf_static", "/clock"
 CELL, PARTS = "/cell", "/parts"  # markers: the belt and stations once, the parts as they go
+ROSOUT = "/rosout"  # the line's log: arms lost, held, taken; goals refused (`fleet.ros.line_log`)
 
 TOPIC_TYPES = {
     JOINT_STATES: "sensor_msgs/msg/JointState",
@@ -17,6 +18,7 @@ TOPIC_TYPES = {
     CLOCK: "rosgraph_msgs/msg/Clock",
     CELL: "visualization_msgs/msg/MarkerArray",
     PARTS: "visualization_msgs/msg/MarkerArray",
+    ROSOUT: "rcl_interfaces/msg/Log",
 }
 LATCHED = (TF_STATIC, CELL)  # TRANSIENT_LOCAL: a late subscriber gets the last message at once
 

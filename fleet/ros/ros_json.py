@@ -48,8 +48,9 @@ def _byte_sequences(kind: type) -> frozenset[str]:
     return _BYTES[kind]
 
 
-def to_json(message: object) -> object:
-    """A rosbags typestore message (or any value inside one) as JSON-able Python values."""
+def to_json(message: object, raw_bytes: bool = False) -> object:
+    """A rosbags typestore message (or any value inside one) as JSON-able Python values; `raw_bytes`: byte sequences
+    as bytes, as rosbridge's CBOR carries them, not base64."""
     kind = type(message)
     if kind in _PLAIN:
         return message
@@ -59,23 +60,27 @@ def to_json(message: object) -> object:
     if names is not None:
         packed = _byte_sequences(kind)
         return {
-            name: base64.b64encode(getattr(message, name).tobytes()).decode("ascii")
+            name: _packed(getattr(message, name), raw_bytes)
             if name in packed
-            else to_json(getattr(message, name))
+            else to_json(getattr(message, name), raw_bytes)
             for name in names
         }
     if kind is np.ndarray:
         values = message.tolist()
         if message.dtype.kind == "f" and not np.isfinite(message).all():
             return [v if math.isfinite(v) else None for v in values]
-        return values if message.dtype.kind in "fiub" else [to_json(v) for v in values]
+        return values if message.dtype.kind in "fiub" else [to_json(v, raw_bytes) for v in values]
     if isinstance(message, (list, tuple)):
-        return [to_json(v) for v in message]
+        return [to_json(v, raw_bytes) for v in message]
     if isinstance(message, dict):
-        return {k: to_json(v) for k, v in message.items()}
+        return {k: to_json(v, raw_bytes) for k, v in message.items()}
     if isinstance(message, np.generic):
         return to_json(message.item())
     return message
+
+
+def _packed(values: np.ndarray, raw_bytes: bool) -> str | bytes:
+    return values.tobytes() if raw_bytes else base64.b64encode(values.tobytes()).decode("ascii")
 
 
 def time_json(sim_time_s: float) -> dict:

@@ -49,9 +49,22 @@ class Rosapi:
             return {"action_servers": list(self.actions)}
         if name == "nodes":
             return {"nodes": [NODE]}
+        if name == "node_details":
+            return self._node_details(str(args.get("node", "")))
         if name == "get_time":
             return {"time": time_json(self.now_s())}
         raise KeyError(service)
+
+    def _node_details(self, node: str) -> dict:
+        """What the one node serving the line publishes, subscribes to and serves (`ServiceError` for another)."""
+        if node != NODE:
+            raise ServiceError(f"node_details: no node {node!r} (nodes: {NODE})")
+        taken = [t for t, kind in self.topics.items() if kind == "trajectory_msgs/msg/JointTrajectory"]
+        return {
+            "publishing": [t for t in self.topics if t not in taken],
+            "subscribing": taken,
+            "services": list(self.services),
+        }
 
 
 SERVICES = {
@@ -64,5 +77,6 @@ SERVICES = {
     "/rosapi/service_type": "ServiceType",
     "/rosapi/action_servers": "GetActionServers",
     "/rosapi/nodes": "Nodes",
+    "/rosapi/node_details": "NodeDetails",
     "/rosapi/get_time": "GetTime",
 }

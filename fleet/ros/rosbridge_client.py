@@ -7,9 +7,13 @@ from __future__ import annotations
 import asyncio
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 MAX_QUEUED = 1000  # messages waiting for a slow client before its oldest are dropped
+
+
+COMPRESSIONS = ("none", "cbor", "cbor-raw")  # rosbridge's, less png: JSON text, CBOR, CBOR around the CDR bytes
 
 
 @dataclass
@@ -18,6 +22,7 @@ class Subscription:
     throttle_s: float = 0.0
     queue_length: int = 0
     last_sent: float = -1e9
+    compression: str = "none"  # one of `COMPRESSIONS`: how its messages are sent
 
 
 class Client:
@@ -26,7 +31,7 @@ class Client:
     def __init__(self, websocket, number: int) -> None:
         self.websocket, self.number = websocket, number
         self.subscriptions: dict[str, Subscription] = {}
-        self.queue: asyncio.Queue[str] = asyncio.Queue()
+        self.queue: asyncio.Queue[str | bytes] = asyncio.Queue()
         self.dropped = 0
         self.sent = 0
         self.authenticated = False
@@ -36,7 +41,7 @@ class Client:
     def send(self, message: dict) -> None:
         self.send_text(json.dumps(message, allow_nan=False))
 
-    def send_text(self, text: str) -> None:
+    def send_text(self, text: str | bytes) -> None:
         if self.queue.qsize() >= MAX_QUEUED:
             self.queue.get_nowait()
             self.dropped += 1
@@ -49,8 +54,9 @@ class Client:
             out["id"] = op_id
         self.send(out)
 
-    def offer(self, topic: str, text: str) -> None:
-        """A published message of `topic`, already as rosbridge's `publish` JSON; sent unless throttled."""
+    def offer(self, topic: str, encoded: Callable[[str], str | bytes]) -> None:
+        """A published message of `topic`, as rosbridge's `publish` in the compression its subscription asked for
+        (`encoded(compression)`: JSON text, or CBOR bytes sent as a binary frame); sent unless throttled."""
         sub = self.subscriptions.get(topic)
         if sub is None:
             return
@@ -58,7 +64,7 @@ class Client:
         if sub.throttle_s and now - sub.last_sent < sub.throttle_s:
             return
         sub.last_sent = now
-        self.send_text(text)
+        self.send_text(encoded(sub.compression))
 
     async def pump(self) -> None:
         """Write the queue to the socket until the connection ends."""

@@ -15,11 +15,13 @@ import math
 import sys
 from collections.abc import Callable
 
+import cbor2
 import websockets
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView
+from fleet.record.ros_types import TYPESTORE
 from fleet.ros import names
 from fleet.ros.line_actions import GoalReplies, LineActions
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
@@ -27,7 +29,7 @@ from fleet.ros.line_topics import LineTopics
 from fleet.ros.ros_json import to_json
 from fleet.ros.rosapi import Rosapi
 from fleet.ros.rosauth import auth_problem, auth_request
-from fleet.ros.rosbridge_client import Client, Subscription
+from fleet.ros.rosbridge_client import COMPRESSIONS, Client, Subscription
 from robots.registry import get_robot
 from scenes.schema import IMAGE_KINDS, Scene
 
@@ -69,6 +71,32 @@ def echoable_id(value: object) -> object:
     return str(value)
 
 
+class PublishEncodings:
+    """One published message of `topic` (a typestore message of `typename`) as rosbridge sends it, in each
+    compression a subscriber asked for, each made once: JSON text (none), CBOR of the same `publish` (byte sequences
+    as bytes), or CBOR around the message's CDR bytes and the time it was heard (cbor-raw: `msg` is
+    `{secs, nsecs, bytes}`, the line's sim time)."""
+
+    def __init__(self, topic: str, msg: object, typename: str, clock_s: float) -> None:
+        self.topic, self.msg, self.typename, self.clock_s = topic, msg, typename, clock_s
+        self._made: dict[str, str | bytes] = {}
+
+    def __call__(self, compression: str) -> str | bytes:
+        if compression not in self._made:
+            self._made[compression] = self._encode(compression)
+        return self._made[compression]
+
+    def _encode(self, compression: str) -> str | bytes:
+        if compression == "cbor":
+            return cbor2.dumps({"op": "publish", "topic": self.topic, "msg": to_json(self.msg, raw_bytes=True)})
+        if compression == "cbor-raw":
+            ns = max(0, round(self.clock_s * 1e9))
+            cdr = bytes(TYPESTORE.serialize_cdr(self.msg, self.typename))
+            raw = {"secs": ns // 1_000_000_000, "nsecs": ns % 1_000_000_000, "bytes": cdr}
+            return cbor2.dumps({"op": "publish", "topic": self.topic, "msg": raw})
+        return json.dumps({"op": "publish", "topic": self.topic, "msg": to_json(self.msg)}, allow_nan=False)
+
+
 class RosbridgeServer:
     """The line's rosbridge: `serve(host, port, stop)` until `stop()` says so."""
 
@@ -106,6 +134,7 @@ class RosbridgeServer:
             self._publish(self.topics.from_state(msg, wanted))
         elif isinstance(msg, GoalResultMsg):
             self.actions.on_result(msg)
+            self._publish(self.topics.from_result(msg, wanted))
         elif isinstance(msg, CameraImage):
             self._publish(self.topics.from_camera(msg, wanted))
         else:
@@ -119,9 +148,9 @@ class RosbridgeServer:
 
     def _publish(self, messages: list[tuple[str, object]]) -> None:
         for topic, msg in messages:
-            text = json.dumps({"op": "publish", "topic": topic, "msg": to_json(msg)}, allow_nan=False)
+            encoded = PublishEncodings(topic, msg, self.topics.types[topic], self.topics.clock_s)
             for client in self.clients:
-                client.offer(topic, text)
+                client.offer(topic, encoded)
 
     # --- clients ------------------------------------------------------------------
     async def serve(self, host: str, port: int, stop: Callable[[], bool], on_listening: Callable[[int], None]) -> None:
@@ -208,8 +237,15 @@ class RosbridgeServer:
         sub.ids.add(str(m.get("id")))
         sub.throttle_s = float(_field(m, "throttle_rate", int, 0)) / 1000.0
         sub.queue_length = int(_field(m, "queue_length", int, 0))
+        compression = _field(m, "compression", str, "none") or "none"
+        if compression not in COMPRESSIONS:
+            raise RequestError(
+                f"compression {compression!r} is not served (this server sends {', '.join(COMPRESSIONS)})"
+            )
+        sub.compression = compression
         if topic in self.topics.latched:
-            client.send({"op": "publish", "topic": topic, "msg": to_json(self.topics.latched[topic])})
+            latched = PublishEncodings(topic, self.topics.latched[topic], known, self.topics.clock_s)
+            client.send_text(latched(compression))
 
     def _unsubscribe(self, client: Client, m: dict) -> None:
         topic = _field(m, "topic", str)

@@ -9,6 +9,7 @@ import threading
 import time
 from pathlib import Path
 
+import cbor2
 import numpy as np
 import roslibpy
 from websockets.sync.client import connect
@@ -91,7 +92,10 @@ def drive(launcher: Launcher, seen: dict) -> None:
         spec = get_robot("openclaw")
         joints, home = list(spec.arm_joints), np.asarray(spec.home_q, float)
         seen["topics"] = d.ros.get_topics()
+        seen["rosout"] = []
+        roslibpy.Topic(d.ros, "/rosout", "rcl_interfaces/msg/Log").subscribe(seen["rosout"].append)
         seen["crowd"] = crowd(seen["ws_port"], 20)
+        foxglove_contract(d, seen["ws_port"], seen)
         seen["details"] = d.ros.get_message_details("sensor_msgs/JointState")
         raw = roslibpy.Service(d.ros, "/rosapi/topics_and_raw_types", "rosapi_msgs/srv/TopicsAndRawTypes")
         seen["raw_types"] = raw.call(roslibpy.ServiceRequest({}), timeout=10)
@@ -132,6 +136,7 @@ def drive(launcher: Launcher, seen: dict) -> None:
             seen["estop_answer"] = call.call(roslibpy.ServiceRequest({"data": True}), timeout=10)
 
         seen["estopped"] = d.goal(trajectory(joints, (target, 4.0)), then=estop)
+        time.sleep(0.5)  # held a while: the line's views (10 a sim second) show it, and /rosout says so
         roslibpy.Service(d.ros, "/estop", "std_srvs/srv/SetBool").call(roslibpy.ServiceRequest({"data": False}))
         seen["raw"] = d.raw(
             [
@@ -165,6 +170,32 @@ def drive(launcher: Launcher, seen: dict) -> None:
         d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
     except Exception as exc:  # the test reports it
         seen["error"] = repr(exc)
+
+
+def binary_publishes(port: int, subscribe: dict, count: int, timeout_s: float = 10.0) -> list[dict]:
+    """Subscribe on a connection of its own as `subscribe` says (a `compression` that makes binary frames); the
+    first `count` publishes, decoded with cbor2."""
+    out = []
+    with connect(f"ws://127.0.0.1:{port}") as ws:
+        ws.send(json.dumps({"op": "subscribe", **subscribe}))
+        deadline = time.monotonic() + timeout_s
+        while len(out) < count and time.monotonic() < deadline:
+            try:
+                frame = ws.recv(timeout=0.5)
+            except TimeoutError:
+                continue
+            out.append(cbor2.loads(frame) if isinstance(frame, bytes) else {"text": frame})
+    return out
+
+
+def foxglove_contract(d: Driver, port: int, seen: dict) -> None:
+    """What Foxglove's rosbridge connection asks of a server besides the topics: a node's details, and topics in
+    CBOR, whole (`cbor`) or as the message's CDR bytes (`cbor-raw`)."""
+    details = roslibpy.Service(d.ros, "/rosapi/node_details", "rosapi_msgs/srv/NodeDetails")
+    seen["node_details"] = details.call(roslibpy.ServiceRequest({"node": "/clawfleet_rosbridge"}), timeout=10)
+    seen["cbor_raw"] = binary_publishes(port, {"topic": "/joint_states", "compression": "cbor-raw"}, 3)
+    seen["cbor"] = binary_publishes(port, {"topic": "/tf_static", "compression": "cbor"}, 1)
+    seen["png"] = d.raw([json.dumps({"op": "subscribe", "topic": "/clock", "compression": "png", "id": "p"})])
 
 
 def crowd(port: int, clients: int) -> list[int]:

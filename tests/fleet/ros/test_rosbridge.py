@@ -10,6 +10,7 @@ import socket
 
 import numpy as np
 import pytest
+from rosbags.typesys import Stores, get_typestore
 
 from fleet.ros.rmw_zenoh import topic_key
 from tests.fleet.ros.rmw_zenoh_session import DOMAIN, TOPICS, Ros2Listener
@@ -42,6 +43,36 @@ def test_a_ros_client_sees_the_lines_topics_actions_and_frames(session):
     assert raw["/tf"].startswith("geometry_msgs/TransformStamped[] transforms"), "definitions Foxglove decodes by"
     frames = {t["child_frame_id"] for t in seen["tf_static"][0]["transforms"]}
     assert any(f.startswith("arm_0/") for f in frames), "the arms' roots on /tf_static, latched"
+
+
+def test_foxglove_s_rosbridge_asks_are_answered_node_details_cbor_and_cdr_bytes_rosbags_decodes(session):
+    _, seen = session
+    details = seen["node_details"]
+    assert "/joint_states" in details["publishing"] and "/arm_0/joint_trajectory" in details["subscribing"]
+    assert "/rosapi/node_details" in details["services"]
+    store = get_typestore(Stores.ROS2_HUMBLE)  # rosbags' own definitions, not the line's
+    raws = seen["cbor_raw"]
+    assert len(raws) == 3 and all(r["op"] == "publish" and r["topic"] == "/joint_states" for r in raws), raws[:1]
+    states = [store.deserialize_cdr(r["msg"]["bytes"], "sensor_msgs/msg/JointState") for r in raws]
+    assert "arm_0/elbow" in states[-1].name and len(states[-1].position) == len(states[-1].name)
+    stamps = [r["msg"]["secs"] + r["msg"]["nsecs"] * 1e-9 for r in raws]
+    assert stamps == sorted(stamps) and stamps[-1] > 0, "stamped with the line's clock"
+    (tf_static,) = seen["cbor"]
+    frames = {t["child_frame_id"] for t in tf_static["msg"]["transforms"]}
+    assert any(f.startswith("arm_0/") for f in frames), "the latched message, as CBOR"
+    (refused,) = seen["png"]
+    assert refused["level"] == "error" and "compression 'png' is not served" in refused["msg"], refused
+
+
+def test_rosout_says_at_its_levels_what_the_user_did_to_the_arms_and_what_the_plant_refused(session):
+    _, seen = session
+    said = [(m["level"], m["name"], m["msg"]) for m in seen["rosout"]]
+    assert (20, "clawfleet.arm_0", "arm_0: taken by an outside driver") in said, said
+    assert (30, "clawfleet.arm_1", "arm_1: held by the line (e-stop or watchdog)") in said, "the e-stop holds all"
+    assert (20, "clawfleet.arm_1", "arm_1: no longer held") in said, "and lets go"
+    refused = [m for level, name, m in said if level == 30 and "rejected: safety" in m and name == "clawfleet.arm_0"]
+    assert any("of arm_1" in m for m in refused), "the goal into arm_1's space, with the plant's reason"
+    assert all(m["stamp"]["sec"] >= 0 for m in seen["rosout"]) and "/rosout" in seen["topics"]
 
 
 def test_twenty_clients_subscribed_at_once_each_get_the_joint_states(session):

@@ -37,6 +37,7 @@ requests = st.fixed_dictionaries(
         "msg": json_values,
         "throttle_rate": json_values,
         "queue_length": json_values,
+        "compression": st.sampled_from(["none", "cbor", "cbor-raw", "png"]) | json_values,
     },
 )
 
