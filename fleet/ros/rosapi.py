@@ -11,6 +11,12 @@ from fleet.ros.ros_json import time_json
 from fleet.ros.rosapi_types import full_text, message_details
 
 NODE = "/clawfleet_rosbridge"
+LINE = "/clawfleet"  # the line's own processes, named under it: they speak the line's bus, not ROS
+
+
+def line_nodes(arms: list[str]) -> list[str]:
+    """The line's processes as ROS names: the sim, the coordinator and each arm's controller."""
+    return [f"{LINE}/sim_server", f"{LINE}/coordinator", *(f"{LINE}/{a}" for a in arms)]
 
 
 class Rosapi:
@@ -22,6 +28,7 @@ class Rosapi:
         self.actions = names.line_actions(arms)
         self.services = {**names.SERVICE_TYPES, **{s: f"rosapi_msgs/srv/{t}" for s, t in SERVICES.items()}}
         self.now_s = now_s
+        self.nodes = [NODE, *line_nodes(arms)]
 
     def answer(self, service: str, args: dict) -> dict:
         """The response's values; KeyError for a service this is not."""
@@ -48,7 +55,7 @@ class Rosapi:
         if name == "action_servers":
             return {"action_servers": list(self.actions)}
         if name == "nodes":
-            return {"nodes": [NODE]}
+            return {"nodes": list(self.nodes)}
         if name == "node_details":
             return self._node_details(str(args.get("node", "")))
         if name == "get_time":
@@ -56,9 +63,12 @@ class Rosapi:
         raise KeyError(service)
 
     def _node_details(self, node: str) -> dict:
-        """What the one node serving the line publishes, subscribes to and serves (`ServiceError` for another)."""
+        """What a node publishes, subscribes to and serves: the node serving ROS all of the line's topics and
+        services, the line's own processes none (`ServiceError` for a node the line has not)."""
+        if node not in self.nodes:
+            raise ServiceError(f"node_details: no node {node!r} (nodes: {', '.join(self.nodes)})")
         if node != NODE:
-            raise ServiceError(f"node_details: no node {node!r} (nodes: {NODE})")
+            return {"publishing": [], "subscribing": [], "services": []}
         taken = [t for t, kind in self.topics.items() if kind == "trajectory_msgs/msg/JointTrajectory"]
         return {
             "publishing": [t for t in self.topics if t not in taken],

@@ -193,6 +193,7 @@ def foxglove_contract(d: Driver, port: int, seen: dict) -> None:
     CBOR, whole (`cbor`) or as the message's CDR bytes (`cbor-raw`)."""
     details = roslibpy.Service(d.ros, "/rosapi/node_details", "rosapi_msgs/srv/NodeDetails")
     seen["node_details"] = details.call(roslibpy.ServiceRequest({"node": "/clawfleet_rosbridge"}), timeout=10)
+    seen["nodes"] = d.ros.get_nodes()
     seen["cbor_raw"] = binary_publishes(port, {"topic": "/joint_states", "compression": "cbor-raw"}, 3)
     seen["cbor"] = binary_publishes(port, {"topic": "/tf_static", "compression": "cbor"}, 1)
     seen["png"] = d.raw([json.dumps({"op": "subscribe", "topic": "/clock", "compression": "png", "id": "p"})])

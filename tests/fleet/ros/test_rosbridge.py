@@ -50,6 +50,8 @@ def test_foxglove_s_rosbridge_asks_are_answered_node_details_cbor_and_cdr_bytes_
     details = seen["node_details"]
     assert "/joint_states" in details["publishing"] and "/arm_0/joint_trajectory" in details["subscribing"]
     assert "/rosapi/node_details" in details["services"]
+    line = ["/clawfleet/sim_server", "/clawfleet/coordinator", "/clawfleet/arm_0", "/clawfleet/arm_1"]
+    assert seen["nodes"] == ["/clawfleet_rosbridge", *line], "the node serving ROS, then the line's own processes"
     store = get_typestore(Stores.ROS2_HUMBLE)  # rosbags' own definitions, not the line's
     raws = seen["cbor_raw"]
     assert len(raws) == 3 and all(r["op"] == "publish" and r["topic"] == "/joint_states" for r in raws), raws[:1]
