@@ -8,7 +8,7 @@ import importlib.util
 import math
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from fleet.bus.keys import Keys
@@ -43,14 +43,19 @@ def served_calibration(path: Path | None, model: str) -> dict | None:
     return calibration
 
 
+def need_line_endpoint(args: argparse.Namespace, prog: str) -> None:
+    """`--connect` or `--zenoh-config` is given, or `prog` says it needs one."""
+    if not (args.connect or args.zenoh_config):
+        raise UsageError(f"{prog} needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+
+
 @contextlib.contextmanager
 def line_arm_session(args: argparse.Namespace, prog: str) -> Iterator[tuple | None]:
     """The bus session to the line `--connect`/`--zenoh-config` name, its keys and `--arm` of its scene; None where
     no sim answered (said on stderr)."""
     from fleet.nodes.attached import line_scene
 
-    if not (args.connect or args.zenoh_config):
-        raise UsageError(f"{prog} needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+    need_line_endpoint(args, prog)
     check_bus_flags(args, wait_s=args.wait)
     keys = Keys(args.run_id)
     with open_session(BusEndpoints.from_args(args)) as session:
@@ -150,7 +155,7 @@ def joint_offsets(pairs: list[str], spec) -> dict[str, float]:
     return offsets
 
 
-def mirror_until(args: argparse.Namespace, stop) -> callable:
+def mirror_until(args: argparse.Namespace, stop) -> Callable[[object], bool]:
     """When the mirror ends: `--duration` sim seconds after its first sample, or Ctrl-C."""
     started: list[float] = []
 
@@ -169,8 +174,7 @@ def cmd_mirror(args: argparse.Namespace) -> int:
     from fleet.twin.mirror_report import mirror_figures, table, write_mirror_files
     from robots.registry import get_robot
 
-    if not (args.connect or args.zenoh_config):
-        raise UsageError("fleet twin mirror needs --connect ENDPOINT (fleet run prints it) or --zenoh-config FILE")
+    need_line_endpoint(args, "fleet twin mirror")  # said before LeRobot's imports take their seconds
     if not (math.isfinite(args.duration) and args.duration > 0 and math.isfinite(args.rate_hz) and args.rate_hz > 0):
         raise UsageError("--duration and --rate-hz must be positive numbers")
     robot = made_robot(args)

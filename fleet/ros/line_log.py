@@ -8,10 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from fleet.bus.messages import ArmState, GoalResultMsg
-from fleet.record.ros_types import TYPESTORE
-from fleet.ros.ros_json import time_json
+from fleet.record.ros_types import ros_type, time_msg
 
-DEBUG, INFO, WARN, ERROR = 10, 20, 30, 40
+INFO, WARN, ERROR = 20, 30, 40  # rcl_interfaces/msg/Log's levels
 LOGGER = "clawfleet"
 
 
@@ -62,10 +61,8 @@ def changes(before: ArmFlags, now: ArmFlags) -> list[tuple[int, str]]:
 
 def log(level: int, arm: str, text: str, sim_time_s: float) -> object:
     """One `rcl_interfaces/msg/Log` of `arm`, stamped with the line's time."""
-    stamp = time_json(max(sim_time_s, 0.0))
-    time_type = TYPESTORE.types["builtin_interfaces/msg/Time"]
-    return TYPESTORE.types["rcl_interfaces/msg/Log"](
-        stamp=time_type(sec=stamp["sec"], nanosec=stamp["nanosec"]),
+    return ros_type("rcl_interfaces/msg/Log")(
+        stamp=time_msg(sim_time_s),
         level=level,
         name=f"{LOGGER}.{arm}",
         msg=f"{arm}: {text}",

@@ -21,7 +21,7 @@ import websockets
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView
-from fleet.record.ros_types import TYPESTORE
+from fleet.record.ros_types import TYPESTORE, sim_ns
 from fleet.ros import names
 from fleet.ros.line_actions import GoalReplies, LineActions
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
@@ -90,7 +90,7 @@ class PublishEncodings:
         if compression == "cbor":
             return cbor2.dumps({"op": "publish", "topic": self.topic, "msg": to_json(self.msg, raw_bytes=True)})
         if compression == "cbor-raw":
-            ns = max(0, round(self.clock_s * 1e9))
+            ns = sim_ns(self.clock_s)
             cdr = bytes(TYPESTORE.serialize_cdr(self.msg, self.typename))
             raw = {"secs": ns // 1_000_000_000, "nsecs": ns % 1_000_000_000, "bytes": cdr}
             return cbor2.dumps({"op": "publish", "topic": self.topic, "msg": raw})

@@ -73,20 +73,49 @@ def best_lag_s(t: np.ndarray, ref: np.ndarray, real: np.ndarray, pick: np.ndarra
     return float(lags[int(np.argmin(errors))])
 
 
+@dataclass(frozen=True)
+class MirrorSeries:
+    """Samples as arrays, built once for all the figures judged on them: sim times, the sim arm's, the real arm's
+    and the commanded joints (rad, one row a sample), each sample's goal and whether the line held its arm."""
+
+    t: np.ndarray
+    sim: np.ndarray
+    real: np.ndarray
+    sent: np.ndarray
+    goal_ids: np.ndarray
+    held: np.ndarray
+
+    @classmethod
+    def of(cls, samples: Sequence[MirrorSample]) -> MirrorSeries:
+        if not samples:
+            raise ValueError("no samples to judge")
+        rows = lambda field: np.array([getattr(s, field) for s in samples], float)  # noqa: E731
+        return cls(
+            t=rows("sim_time_s"),
+            sim=rows("sim_q_rad"),
+            real=rows("real_q_rad"),
+            sent=rows("commanded_q_rad"),
+            goal_ids=np.array([s.goal_id for s in samples]),
+            held=np.array([s.held for s in samples], bool),
+        )
+
+
 def deviation(
     samples: Sequence[MirrorSample], joints: Sequence[str], pick: np.ndarray | None = None, goal_id: int = 0
 ) -> Deviation:
     """The figures of the samples `pick` (indices; default all), the lag looked for against the whole series."""
-    if not samples:
-        raise ValueError("no samples to judge")
-    t = np.array([s.sim_time_s for s in samples], float)
-    sim, real, sent = (
-        np.array([getattr(s, f) for s in samples], float) for f in ("sim_q_rad", "real_q_rad", "commanded_q_rad")
-    )
-    pick = np.arange(len(samples)) if pick is None else np.asarray(pick)
+    return series_deviation(MirrorSeries.of(samples), joints, pick, goal_id)
+
+
+def series_deviation(
+    series: MirrorSeries, joints: Sequence[str], pick: np.ndarray | None = None, goal_id: int = 0
+) -> Deviation:
+    """`deviation` of samples already as arrays."""
+    t, sim, real, sent = series.t, series.sim, series.real, series.sent
+    pick = np.arange(len(t)) if pick is None else np.asarray(pick)
     if len(pick) == 0:
         raise ValueError("no samples to judge")
-    lag = best_lag_s(t, sim, real, pick, MAX_LAG_S) if len(samples) > 1 else 0.0
+    lag = best_lag_s(t, sim, real, pick, MAX_LAG_S) if len(t) > 1 else 0.0
     aligned = np.degrees(_rmse_behind(t, sim, real, pick, lag))
     real_off = np.degrees(_rmse_behind(t, sent, real, pick, lag))
     sim_off = np.degrees(np.sqrt(np.mean((sim[pick] - sent[pick]) ** 2, axis=0)))
@@ -109,7 +138,12 @@ def deviation(
 
 def deviation_by_goal(samples: Sequence[MirrorSample], joints: Sequence[str], min_samples: int = 3) -> list[Deviation]:
     """One `Deviation` for each goal that drove the sim arm over at least `min_samples` samples, in order."""
-    goals = np.array([s.goal_id for s in samples])
+    return series_deviation_by_goal(MirrorSeries.of(samples), joints, min_samples)
+
+
+def series_deviation_by_goal(series: MirrorSeries, joints: Sequence[str], min_samples: int = 3) -> list[Deviation]:
+    """`deviation_by_goal` of samples already as arrays."""
+    goals = series.goal_ids
     ordered = list(dict.fromkeys(int(g) for g in goals if g != 0))
     picks = [(g, np.flatnonzero(goals == g)) for g in ordered]
-    return [deviation(samples, joints, pick, g) for g, pick in picks if len(pick) >= min_samples]
+    return [series_deviation(series, joints, pick, g) for g, pick in picks if len(pick) >= min_samples]

@@ -12,7 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from fleet.twin.deviation import MAX_LAG_S, Deviation, MirrorSample, deviation, deviation_by_goal
+from fleet.twin.deviation import (
+    MAX_LAG_S,
+    Deviation,
+    MirrorSample,
+    MirrorSeries,
+    series_deviation,
+    series_deviation_by_goal,
+)
 
 REST_STILL_DEG = 0.2  # a sim arm that moved less than this over the lag looked for stands at rest
 HOLD_SETTLE_S = 0.25  # a real arm stopped mid-move by a hold comes to rest within this (s)
@@ -62,24 +69,30 @@ def held_drift_deg(samples: Sequence[MirrorSample]) -> float:
 def resting_samples(samples: Sequence[MirrorSample], still_deg: float = REST_STILL_DEG) -> np.ndarray:
     """The samples at rest (indices): over the `MAX_LAG_S` before each (the real arm had time to get there) no goal
     drove the sim arm, the line did not hold it, and none of its joints moved more than `still_deg`."""
-    t = np.array([s.sim_time_s for s in samples])
-    sim = np.degrees(np.array([s.sim_q_rad for s in samples]))
-    free = np.array([s.goal_id == 0 and not s.held for s in samples])
-    out = []
-    for i in range(len(samples)):
-        window = (t >= t[i] - MAX_LAG_S) & (t <= t[i])
-        if t[i] - t[0] >= MAX_LAG_S and free[window].all() and np.abs(sim[window] - sim[i]).max() <= still_deg:
-            out.append(i)
+    return _resting(MirrorSeries.of(samples), still_deg)
+
+
+def _resting(series: MirrorSeries, still_deg: float) -> np.ndarray:
+    t, sim = series.t, np.degrees(series.sim)
+    free = (series.goal_ids == 0) & ~series.held
+    starts = np.searchsorted(t, t - MAX_LAG_S)  # each sample's window: the samples of the lag before it
+    out = [
+        i
+        for i, lo in enumerate(starts)
+        if t[i] - t[0] >= MAX_LAG_S and free[lo : i + 1].all() and np.abs(sim[lo : i + 1] - sim[i]).max() <= still_deg
+    ]
     return np.array(out, int)
 
 
 def mirror_figures(samples: Sequence[MirrorSample], joints: Sequence[str]) -> MirrorFigures:
-    resting = resting_samples(samples)
-    rest = deviation(samples, joints, resting) if len(resting) else None
-    free = np.flatnonzero([not s.held for s in samples])
-    whole = deviation(samples, joints, free if len(free) else None)
+    """Every figure of the report, from the samples made into arrays once."""
+    series = MirrorSeries.of(samples)
+    resting = _resting(series, REST_STILL_DEG)
+    rest = series_deviation(series, joints, resting) if len(resting) else None
+    free = np.flatnonzero(~series.held)
+    whole = series_deviation(series, joints, free if len(free) else None)
     held = len(samples) - len(free)
-    return MirrorFigures(whole, rest, deviation_by_goal(samples, joints), held, held_drift_deg(samples))
+    return MirrorFigures(whole, rest, series_deviation_by_goal(series, joints), held, held_drift_deg(samples))
 
 
 def table(figures: MirrorFigures) -> str:
