@@ -29,7 +29,13 @@ from fleet.cli.errors import (
     writable_file,
 )
 from fleet.cli.ros import checked_rate
-from fleet.cli.run_snapshots import add_snapshot_arguments, check_snapshot_flags, open_snapshot, snapshot_options
+from fleet.cli.run_snapshots import (
+    add_snapshot_arguments,
+    check_snapshot_flags,
+    open_snapshot,
+    sim_seconds_list,
+    snapshot_options,
+)
 from fleet.common.scene_loading import load_checked_scene
 from fleet.monitor.options import add_monitor_arguments, exposure_warning
 from fleet.nodes.attached import add_rate_argument
@@ -142,6 +148,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         duration_s=args.duration,
         mode=args.mode,
         speed=args.speed,
+        pause_at=args.pause_at,
         seed=args.seed,
         respawn=args.respawn,
         realtime_priority=args.rt,
@@ -471,6 +478,15 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, default=None, help="sim seconds to run (default 120)")
     p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
+    p.add_argument(
+        "--pause-at",
+        type=sim_seconds_list,
+        metavar="S,S,...",
+        default=(),
+        help="pause the line once its tick at these sim seconds has run (its views out: ROS's /clock reads S), "
+        "until resumed (the monitor, ROS's /resume): in lockstep, what a user sends meanwhile lands at one tick in "
+        "every run",
+    )
     p.add_argument("--seed", type=seed_number, default=None, help="overrides the scene's seed")
     p.add_argument(
         "--respawn",

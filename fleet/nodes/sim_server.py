@@ -139,6 +139,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     parser.add_argument("--speed", type=float, default=1.0)
     parser.add_argument(
+        "--pause-at",
+        metavar="S,S,...",
+        default="",
+        help="pause the line once its tick at these sim seconds has run, until resumed",
+    )
+    parser.add_argument(
         "--rt", action="store_true", help="realtime: the sim's loop asks for real-time scheduling (SCHED_FIFO)"
     )
     parser.add_argument(
@@ -324,6 +330,8 @@ def sim_server_of(
     )
     if args.rt:
         server.scheduling = request_realtime_priority("sim_server")
+    hz = world.scene_model.control_hz
+    server.controls.pause_at_ticks = {round(float(v) * hz) for v in args.pause_at.split(",") if v.strip()}
     server.outputs.blind = args.perception == "cameras"  # the line's parts are perception's: no poses go out
     return server
 

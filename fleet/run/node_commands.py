@@ -85,6 +85,8 @@ class NodeCommands:
         o = self.options
         sim_args = ["--duration", str(o.duration_s), "--mode", o.mode, "--speed", str(o.speed), "--coordinator"]
         sim_args += ["--rt"] if o.realtime_priority and o.mode == "realtime" else []
+        if o.pause_at:
+            sim_args += ["--pause-at", ",".join(repr(t) for t in o.pause_at)]
         if not o.listen:
             sim_args += ["--endpoint-file", str(self.dir / "endpoint")]
         if o.record_targets:

@@ -54,6 +54,7 @@ class RunOptions:
     latency_ms: float | None = None  # network faults on every link (None: the scene's)
     jitter_ms: float | None = None
     loss: float | None = None
+    pause_at: tuple[float, ...] = ()  # sim seconds at which the line pauses until a user resumes it
     snapshot_at: tuple[float, ...] = ()  # sim seconds at which the sim takes a snapshot of the run (lockstep)
     snapshot_every_s: float | None = None
     snapshot_dir: str | None = None  # where snapshots are written

@@ -4,7 +4,7 @@ whether answers wait for their due tick."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass
@@ -19,10 +19,19 @@ class LineControls:
     paused: bool = False
     started: bool = False  # every controller answered once (realtime paces from then on)
     snapshot_asked_by: str = ""  # who asked for a snapshot now (`SimControl.snapshot`): taken at the next tick
+    pause_at_ticks: set[int] = field(default_factory=set)  # `--pause-at`: the line pauses once one of these has run
 
     def __post_init__(self) -> None:
         if self.mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode {self.mode!r}: valid modes are lockstep, realtime")
+
+    def pause_if_due(self, tick: int) -> bool:
+        """Pause the line if `tick`, just run, is one it was told to pause after (once each: a resume goes on)."""
+        if tick not in self.pause_at_ticks:
+            return False
+        self.pause_at_ticks.discard(tick)
+        self.paused = True
+        return True
 
     @property
     def lockstep(self) -> bool:

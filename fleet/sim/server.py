@@ -277,6 +277,8 @@ class SimServer:
                 pace.restart(measure=False)  # realtime: the line stood still for it; the clock goes on from here
             self.tick()
             done += 1
+            if controls.pause_if_due(self.world.tick - 1):  # that tick's views are out: /clock reads its second
+                self.outputs.status(force=True)  # the line says it paused; it goes on from the next tick
             if stop is not None and stop.should_stop():
                 return
             if self.stats.coordinator_lost and controls.lockstep:

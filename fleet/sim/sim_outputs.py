@@ -150,7 +150,8 @@ class SimOutputs:
         for link in due:  # a lost controller keeps getting states at its rate, so it can answer and rejoin
             link.next_tick = tick + link.period_ticks
         frame = self.controls.coordinator and tick % self.cadence.coord_period_ticks == 0
-        view = tick % self.cadence.view_every_ticks == 0 and bus.watched() and self._view_due()  # only while watched
+        pausing = tick in self.controls.pause_at_ticks  # the line stands after this tick: its watchers see it
+        view = bus.watched() and (pausing or (tick % self.cadence.view_every_ticks == 0 and self._view_due()))
         if due or frame or view:
             names = list(w.arms) if (frame or view) else [link.name for link in due]
             states = {name: self._state(name, snapshot_tick) for name in names}

@@ -46,9 +46,10 @@ class Driver:
 
     def goal(self, goal: dict, then=None, timeout_s: float = 30.0, action=None) -> dict:
         """Send a goal (to arm_0's trajectory action, or `action`) and wait for its end: {"status", "values",
-        "accepted", "feedback"}; `then(goal_id)` runs once it is sent."""
+        "accepted", "feedback"}; `then(goal_id)` runs once it is sent (`self.answer`: that dict, filled at its end)."""
         action = action or self.action
         out: dict = {"feedback": []}
+        self.answer = out
         done = threading.Event()
 
         def result(r) -> None:

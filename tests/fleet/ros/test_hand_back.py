@@ -4,19 +4,25 @@ left inside each other's margin move apart), and the same throughput within 10%.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
 import roslibpy
 
 from coordinator.geometry import ArmGeometry, separation_m
+from fleet.bus.codec import Decoder, DropCounter
+from fleet.bus.keys import Keys
+from fleet.bus.messages import SimStatus
+from fleet.bus.session import BusEndpoints, open_session
 from fleet.common.scene_loading import load_checked_scene
 from fleet.run.launcher import Launcher, RunOptions
 from robots.frames import yaw_transform
 from robots.registry import get_robot
-from tests.fleet.ros.rosbridge_session import Driver, rosbridge_port, trajectory
+from tests.fleet.ros.rosbridge_session import Driver, rosbridge_port, trajectory, wait_for
 from tests.fleet.test_run import assert_nothing_left
 
 pytestmark = pytest.mark.slow
@@ -47,17 +53,48 @@ def poses_beside_arm_1(arms: int, count: int = 8) -> list[np.ndarray]:
     return found
 
 
-def drive_then_let_go(launcher: Launcher, targets: list[np.ndarray], seen: dict) -> None:
-    """At `GOAL_AT_S` of sim time, the first of `targets` the plant accepts, in 2.5 s; then the client leaves."""
+@contextlib.contextmanager
+def paused_line(launcher: Launcher) -> Iterator[Callable[[], bool]]:
+    """Whether the line stands paused, as its status says (heard with the monitor's login)."""
+    keys = Keys(launcher.options.run_id)
+    with open_session(BusEndpoints(config_file=launcher.bus.config_for("monitor"))) as session:
+        decoder, paused = Decoder(SimStatus, DropCounter()), threading.Event()
+
+        def heard(sample) -> None:
+            status = decoder.decode("status", sample.payload.to_bytes())
+            if status is not None and status.paused:
+                paused.set()
+
+        sub = session.declare_subscriber(keys.sim_status, heard)
+        try:
+            yield paused.is_set
+        finally:
+            sub.undeclare()
+
+
+def drive_then_let_go(launcher: Launcher, targets: list[np.ndarray], seen: dict, paused: bool) -> None:
+    """At `GOAL_AT_S` of sim time, the first of `targets` the plant accepts, in 2.5 s; then the client leaves.
+    `paused`: the line stands paused there (`pause_at`) and the goal is sent into it, so that it is taken at one
+    tick in every run; the client resumes the line once the plant has not refused it within 1 s."""
     try:
         d = Driver(rosbridge_port(launcher))
         clock: list[dict] = []
         roslibpy.Topic(d.ros, "/clock", "rosgraph_msgs/msg/Clock").subscribe(clock.append)
-        while not clock or clock[-1]["clock"]["sec"] < GOAL_AT_S:
-            time.sleep(0.02)
+        with paused_line(launcher) as standing:
+            if paused:
+                wait_for(standing, 120.0)
+            else:
+                wait_for(lambda: clock and clock[-1]["clock"]["sec"] >= GOAL_AT_S, 120.0)
+        resume = roslibpy.Service(d.ros, "/resume", "std_srvs/srv/Trigger")
+
+        def resume_once_taken(_goal_id) -> None:
+            time.sleep(1.0)  # a refusal comes back within milliseconds
+            if paused and "accepted" not in d.answer:
+                resume.call(roslibpy.ServiceRequest({}), timeout=10)
+
         joints = list(get_robot("openclaw").arm_joints)
         for q in targets:
-            seen["goal"] = d.goal(trajectory(joints, (q, 2.5)), timeout_s=60)
+            seen["goal"] = d.goal(trajectory(joints, (q, 2.5)), then=resume_once_taken, timeout_s=60)
             if seen["goal"]["accepted"]:
                 break
         d.ros.close()  # not terminate(): that stops the Twisted reactor, which cannot be started again
@@ -68,12 +105,20 @@ def drive_then_let_go(launcher: Launcher, targets: list[np.ndarray], seen: dict)
 def line_with_an_outside_goal(
     arms: int, mode: str, seconds: float, targets: list[np.ndarray], speed: float = 1.0
 ) -> dict:
+    pause_at = (GOAL_AT_S,) if mode == "lockstep" else ()
     options = RunOptions(
-        scene="sorting_line", arms=arms, seed=0, duration_s=seconds, mode=mode, speed=speed, rosbridge_port=0
+        scene="sorting_line",
+        arms=arms,
+        seed=0,
+        duration_s=seconds,
+        mode=mode,
+        speed=speed,
+        rosbridge_port=0,
+        pause_at=pause_at,
     )
     seen: dict = {}
     with Launcher(options) as launcher:
-        user = threading.Thread(target=drive_then_let_go, args=(launcher, targets, seen), daemon=True)
+        user = threading.Thread(target=drive_then_let_go, args=(launcher, targets, seen, bool(pause_at)), daemon=True)
         user.start()
         summary = launcher.run()
         user.join(30)
