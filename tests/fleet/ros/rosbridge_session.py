@@ -233,7 +233,7 @@ def rosbridge_session(ros2_listener=None) -> tuple[dict, dict]:
     """The summary of a realtime ros_cell line with rosbridge (and, given `ros2_listener(launcher, heard, after)`,
     a native ROS 2 user, who drives once the rosbridge user is done: `seen["ros2"]`), and what the ROS user saw.
     The line stops once both are done."""
-    options = RunOptions(scene=ROS_CELL, duration_s=180.0, mode="realtime", rosbridge_port=0)
+    options = RunOptions(scene=ROS_CELL, duration_s=360.0, mode="realtime", speed=2.0, rosbridge_port=0)
     if ros2_listener is not None:
         options = dataclasses.replace(options, ros2_domain=ros2_listener.domain, ros2_arms=ros2_listener.arms)
     seen: dict = {"ros2": {}}
