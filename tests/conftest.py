@@ -30,6 +30,7 @@ from tests.ray_namespace import loopback_namespace, start_head
 WALL_TIME = (
     "tests/fleet/monitor/",  # browsers, a realtime line, the monitor's pacing
     "tests/fleet/ros/",  # realtime lines served to ROS clients
+    "tests/fleet/foxglove/",  # a realtime line served to Foxglove's client
     "tests/fleet/hosts_apart/",
     "tests/fleet/record/",  # a recorder tapping a running line, Ctrl-C
     "tests/fleet/nodes/",  # watchdogs, faults in wall time, processes killed mid-run

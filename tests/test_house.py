@@ -24,6 +24,7 @@ FLEET_LAYERS: dict[str, int] = {
     "fleet.ros": 4,
     "fleet.robot_tools": 5,
     "fleet.sight": 5,
+    "fleet.foxglove": 5,
     "fleet.nodes": 6,
     "fleet.twin": 6,
     "fleet.env": 6,

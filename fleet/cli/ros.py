@@ -1,4 +1,5 @@
-"""`fleet rosbridge` and `fleet ros2`: serve a running line to ROS tools (rosbridge's WebSocket, rmw_zenoh)."""
+"""`fleet rosbridge`, `fleet foxglove` and `fleet ros2`: serve a running line to robotics tools (rosbridge's
+WebSocket, Foxglove's, rmw_zenoh)."""
 
 from __future__ import annotations
 
@@ -36,6 +37,22 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
     if args.secret_file:
         argv += ["--secret-file", args.secret_file]
     return rosbridge_node.main(argv)
+
+
+def cmd_foxglove(args: argparse.Namespace) -> int:
+    from fleet.nodes import foxglove_node
+
+    if not (args.connect or args.zenoh_config):
+        raise UsageError(
+            "fleet foxglove needs --connect ENDPOINT or --zenoh-config FILE (fleet run prints both; on a run's secure "
+            "bus use its bus/ros.json5)"
+        )
+    if not 0 <= args.port <= 65535:
+        raise UsageError(f"--port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
+    check_bus_flags(args, wait_s=args.wait)
+    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
+    argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
+    return foxglove_node.main(argv)
 
 
 def cmd_ros2(args: argparse.Namespace) -> int:
@@ -85,6 +102,16 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     add_rate_argument(p)
     add_bus_arguments(p)
     p.set_defaults(func=cmd_rosbridge)
+    p = sub.add_parser(
+        "foxglove", help="serve a running line to the Foxglove app (its own WebSocket protocol, attaches over the bus)"
+    )
+    p.add_argument("--run-id", default="line", help="run id of the line (default line)")
+    p.add_argument("--host", default="127.0.0.1", help="loopback address to listen on (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=8765, help="WebSocket port (default 8765, the app's)")
+    p.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the line's sim to answer (default 15)")
+    add_rate_argument(p)
+    add_bus_arguments(p)
+    p.set_defaults(func=cmd_foxglove)
     ros2 = sub.add_parser("ros2", help="ROS 2: native topics on a line's router, MoveIt's controllers file")
     group = ros2.add_subparsers(dest="ros2_command", required=True)
     c = group.add_parser(

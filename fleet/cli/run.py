@@ -55,7 +55,8 @@ def check_run_flags(args: argparse.Namespace) -> None:
         raise UsageError(f"--duration {args.duration:g}: give a positive number of sim seconds (at most a week)")
     if not (math.isfinite(args.speed) and 0.01 <= args.speed <= 100):
         raise UsageError(f"--speed {args.speed:g}: give a factor from 0.01 to 100")
-    for flag, port in (("--port", args.port), ("--rosbridge-port", args.rosbridge_port)):
+    ports = (("--port", args.port), ("--rosbridge-port", args.rosbridge_port), ("--foxglove-port", args.foxglove_port))
+    for flag, port in ports:
         if not 0 <= port <= 65535:
             raise UsageError(f"{flag} {port}: a TCP port is 0 to 65535 (0: any free port)")
     try:
@@ -163,6 +164,7 @@ def run_options(args: argparse.Namespace) -> RunOptions:
         monitor_host=args.host,
         monitor_port=args.port,
         rosbridge_port=args.rosbridge_port if args.rosbridge else None,
+        foxglove_port=args.foxglove_port if args.foxglove else None,
         ros2_domain=args.ros_domain_id if args.ros2 else None,
         ros2_arms=args.ros_arms,
         ros_max_rate_hz=checked_rate(args.ros_max_rate_hz, "--ros-max-rate-hz"),
@@ -476,17 +478,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scene", nargs="?", help="bundled scene name or scene file (default assembly_line)")
     p.add_argument("--arms", type=int, default=None, help="arm count for scenes with an arm row")
     p.add_argument("--duration", type=float, default=None, help="sim seconds to run (default 120)")
-    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
-    p.add_argument(
-        "--pause-at",
-        type=sim_seconds_list,
-        metavar="S,S,...",
-        default=(),
-        help="pause the line once its tick at these sim seconds has run (its views out: ROS's /clock reads S), "
-        "until resumed (the monitor, ROS's /resume): in lockstep, what a user sends meanwhile lands at one tick in "
-        "every run",
-    )
+    _add_clock_arguments(p)
     p.add_argument("--seed", type=seed_number, default=None, help="overrides the scene's seed")
     p.add_argument(
         "--respawn",
@@ -540,6 +532,21 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_run)
 
 
+def _add_clock_arguments(p: argparse.ArgumentParser) -> None:
+    """The line's clock: `--mode`, `--speed`, `--pause-at`."""
+    p.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    p.add_argument("--speed", type=float, default=1.0, help="realtime: speed factor against the wall clock")
+    p.add_argument(
+        "--pause-at",
+        type=sim_seconds_list,
+        metavar="S,S,...",
+        default=(),
+        help="pause the line once its tick at these sim seconds has run (its views out: ROS's /clock reads S), "
+        "until resumed (the monitor, ROS's /resume): in lockstep, what a user sends meanwhile lands at one tick in "
+        "every run",
+    )
+
+
 def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
     """Rendering the scene's cameras into the line: `--cameras`, `--camera-encoding`."""
     p.add_argument(
@@ -576,6 +583,14 @@ def _add_rosbridge_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--rosbridge-port", type=int, default=9090, metavar="PORT", help="the rosbridge server's port (default 9090)"
+    )
+    p.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="serve the line to the Foxglove app over its own WebSocket protocol (loopback); docs/ros2.md",
+    )
+    p.add_argument(
+        "--foxglove-port", type=int, default=8765, metavar="PORT", help="the Foxglove server's port (default 8765)"
     )
     _add_ros2_arguments(p)
     add_rate_argument(p, "--ros-max-rate-hz")

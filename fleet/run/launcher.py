@@ -162,6 +162,8 @@ class Launcher:
                 self.nodes.append(commands.perception_node())
             if self.options.rosbridge_port is not None:
                 self.nodes.append(commands.rosbridge_node())
+            if self.options.foxglove_port is not None:
+                self.nodes.append(commands.foxglove_node())
             if self.options.ros2_domain is not None:
                 self.nodes.append(commands.ros2_node())
             for node in self.nodes[1:]:

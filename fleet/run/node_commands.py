@@ -187,6 +187,11 @@ class NodeCommands:
         extra = ["--port", str(self.options.rosbridge_port), "--max-rate-hz", str(self.options.ros_max_rate_hz)]
         return self._attached_node("rosbridge", "fleet.nodes.rosbridge_node", "ros", extra, url=True)
 
+    def foxglove_node(self) -> Node:
+        """The Foxglove server, with the `ros` login (a front end for robotics tools: e-stop, pause, resume)."""
+        extra = ["--port", str(self.options.foxglove_port), "--max-rate-hz", str(self.options.ros_max_rate_hz)]
+        return self._attached_node("foxglove", "fleet.nodes.foxglove_node", "ros", extra, url=True)
+
     def ros2_node(self) -> Node:
         """The native ROS 2 node (rmw_zenoh's layout on the run's router), with the `ros` login."""
         extra = ["--domain-id", str(self.options.ros2_domain), "--max-rate-hz", str(self.options.ros_max_rate_hz)]

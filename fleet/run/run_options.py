@@ -33,6 +33,7 @@ class RunOptions:
     monitor: bool = False
     monitor_host: str = "127.0.0.1"
     monitor_port: int = 8080
+    foxglove_port: int | None = None  # serve the line to the Foxglove app on this port (0: any free one)
     rosbridge_port: int | None = None  # serve the line over rosbridge's WebSocket on this port (0: any free one)
     ros2_domain: int | None = None  # publish the line's ROS 2 topics natively (rmw_zenoh) in this ROS domain
     ros2_arms: tuple[str, ...] | None = None  # the arms an outside ROS 2 stack (login `ros_client`) may drive; all

@@ -26,7 +26,12 @@ from fleet.run.run_node import (
 from fleet.run.run_options import RunOptions
 from scenes.schema import Scene
 
-SERVERS = {"monitor": "the monitor", "rosbridge": "the rosbridge server", "ros2": "the ROS 2 publisher"}
+SERVERS = {
+    "monitor": "the monitor",
+    "rosbridge": "the rosbridge server",
+    "ros2": "the ROS 2 publisher",
+    "foxglove": "the Foxglove server",
+}
 CANNOT_START = 2  # a node's exit code for input it cannot start from (arguments, scene, snapshot): no respawn helps
 ROSTER_PERIOD_S = 1.0  # the roster is said again this often (wall), for whoever joined since
 

@@ -1,0 +1,121 @@
+"""The line's Foxglove server, checked with Foxglove's own reference client (`@foxglove/ws-protocol`, run with node
+from tests/clients): the line's topics advertised as ROS 2 messages with their definitions, the messages that
+arrive decoded by `rosbags` (a reader clawfleet did not write) and logged at sim time, the server's time the line's,
+the status as JSON, and a pause asked for as a service reaching the line."""
+
+import base64
+import json
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.test_run import assert_nothing_left
+
+CLIENTS = Path(__file__).resolve().parents[2] / "clients"
+TOPICS = "/joint_states:3,/tf:2,/tf_static:1,/cell:1,/parts:1,/clock:2,/line/status:2"
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+def foxglove_url(launcher: Launcher, timeout_s: float = 60.0) -> str:
+    """Where the line's Foxglove server listens, once it says (`foxglove_url` in the run's folder)."""
+    url, deadline = launcher.dir / "foxglove_url", time.monotonic() + timeout_s
+    while not url.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return url.read_text()
+
+
+def reference_client(url: str, topics: str, *service: str) -> subprocess.CompletedProcess:
+    if not (CLIENTS / "node_modules" / "@foxglove" / "ws-protocol").is_dir():
+        pytest.fail("Foxglove's client is missing: npm ci --prefix tests/clients (scripts/install-system-packages)")
+    script = str(CLIENTS / "foxglove_client.js")
+    return subprocess.run(["node", script, url, topics, *service], capture_output=True, text=True, timeout=60)
+
+
+@pytest.fixture(scope="module")
+def watched() -> tuple[dict, dict]:
+    """A realtime pick_cell line served to Foxglove; what the reference client saw (it pauses the line at the
+    end), and the run's summary."""
+    seen: dict = {}
+    with Launcher(RunOptions(scene="pick_cell", duration_s=120.0, mode="realtime", foxglove_port=0)) as launcher:
+
+        def user() -> None:
+            try:
+                done = reference_client(foxglove_url(launcher), TOPICS, "/pause", "{}")
+                seen.update(rc=done.returncode, stderr=done.stderr[-2000:], **json.loads(done.stdout or "{}"))
+            except Exception as exc:  # the test reports it
+                seen["error"] = repr(exc)
+            launcher.interrupted = "the Foxglove client is done"
+
+        thread = threading.Thread(target=user, daemon=True)
+        thread.start()
+        summary = launcher.run()
+        thread.join(30)
+    assert_nothing_left(summary, launcher.endpoint)
+    assert "error" not in seen and seen["rc"] == 0, seen
+    return seen, summary
+
+
+pytestmark = pytest.mark.slow  # a whole realtime line and a node process
+
+
+def messages(seen: dict, topic: str, typename: str) -> list:
+    return [TYPESTORE.deserialize_cdr(base64.b64decode(m["data"]), typename) for m in seen["messages"][topic]]
+
+
+def test_the_reference_client_is_offered_the_line_s_topics_as_ros2_messages_with_their_definitions(watched):
+    seen, _ = watched
+    assert seen["serverInfo"]["name"] == "clawfleet" and set(seen["serverInfo"]["capabilities"]) >= {"time", "services"}
+    channels = {c["topic"]: c for c in seen["channels"]}
+    for topic, typename in (("/joint_states", "sensor_msgs/msg/JointState"), ("/tf", "tf2_msgs/msg/TFMessage")):
+        assert channels[topic]["encoding"] == "cdr" and channels[topic]["schemaName"] == typename
+        assert channels[topic]["schemaEncoding"] == "ros2msg"
+    assert "MSG: geometry_msgs/Transform" in channels["/tf"]["schema"], "every type inside it, as Foxglove decodes by"
+    assert {"/overhead/image_raw/compressed", "/overhead/camera_info", "/rosout"} <= set(channels)
+    assert channels["/line/status"]["encoding"] == "json"
+
+
+def test_its_messages_decode_with_rosbags_and_are_logged_at_sim_time(watched):
+    seen, _ = watched
+    joints = messages(seen, "/joint_states", "sensor_msgs/msg/JointState")
+    assert all(n.startswith("arm_0/") for n in joints[-1].name) and len(joints[-1].position) == len(joints[-1].name)
+    frames = {t.child_frame_id for m in messages(seen, "/tf", "tf2_msgs/msg/TFMessage") for t in m.transforms}
+    assert any(f.startswith("arm_0/") for f in frames)
+    static = messages(seen, "/tf_static", "tf2_msgs/msg/TFMessage")[0]
+    assert any(t.header.frame_id == "world" for t in static.transforms), "the arms' roots on the world"
+    clock = messages(seen, "/clock", "rosgraph_msgs/msg/Clock")
+    stamps = [c.clock.sec * 10**9 + c.clock.nanosec for c in clock]
+    assert stamps == sorted(stamps) and [int(m["logTime"]) for m in seen["messages"]["/clock"]] == stamps
+    times = [int(t) for t in seen["times"]]
+    assert times == sorted(times) and 0 < times[-1] < 120 * 10**9, "the server's time is the line's sim time"
+
+
+def test_the_status_plots_and_a_pause_from_the_app_reaches_the_line(watched):
+    seen, _ = watched
+    status = [json.loads(base64.b64decode(m["data"])) for m in seen["messages"]["/line/status"]]
+    assert status[-1]["mode"] == "realtime" and status[-1]["sim_time_s"] > 0 and len(status[-1]["utilisation"]) == 1
+    assert set(seen["services"]) == {"/estop", "/pause", "/resume"}
+    assert seen["serviceAnswer"] == {"success": True, "message": "paused"}
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["foxglove"], "needs --connect ENDPOINT or --zenoh-config FILE"),
+        (["foxglove", "--connect", "tcp/127.0.0.1:1", "--port", "70000"], "--port 70000"),
+    ],
+)
+def test_fleet_foxglove_refuses_what_cannot_work_in_one_line(argv, said):
+    done = subprocess.run([sys.executable, "-m", "fleet", *argv], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and said in done.stderr and done.stderr.strip().count("\n") == 0, done.stderr
+
+
+def test_the_server_refuses_to_listen_beyond_loopback():
+    from fleet.nodes import foxglove_node
+
+    assert foxglove_node.main(["--host", "0.0.0.0", "--connect", "tcp/127.0.0.1:1"]) == 2
