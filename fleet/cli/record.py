@@ -69,6 +69,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
             markup=False,
             highlight=False,
         )
+        if args.foxglove:
+            return _replay_to_foxglove(player, session, keys, args, stop)
         if not args.monitor:
             player.run(stop, until_end=True)
             out.print(
@@ -89,6 +91,20 @@ def cmd_replay(args: argparse.Namespace) -> int:
             playing.start()
             monitor.run(stop)
             playing.join(timeout=5)
+    return 130 if stop.reason == "SIGINT" else 0
+
+
+def _replay_to_foxglove(player, session, keys, args: argparse.Namespace, stop) -> int:
+    """The replay served to the Foxglove app, its timeline driving the playback (Ctrl-C ends)."""
+    from fleet.bus.session import is_loopback_host
+    from fleet.nodes.foxglove_node import serve_recording
+
+    if not is_loopback_host(args.host):
+        raise UsageError(f"--host {args.host}: Foxglove's protocol has no login; serve on loopback (an SSH tunnel)")
+    player.control(playing=False)  # the app starts it
+    why = serve_recording(player, session, keys, args.host, args.foxglove_port, stop)
+    if why:
+        raise UsageError(why)
     return 130 if stop.reason == "SIGINT" else 0
 
 
@@ -125,6 +141,14 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
         "--monitor",
         action="store_true",
         help="serve the browser monitor with play, pause, scrub and speed (Ctrl-C ends)",
+    )
+    p.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="serve it to the Foxglove app, whose timeline plays, pauses, seeks and speeds it (Ctrl-C ends)",
+    )
+    p.add_argument(
+        "--foxglove-port", type=int, default=8765, metavar="PORT", help="the Foxglove server's port (default 8765)"
     )
     p.add_argument("--speed", type=float, default=1.0, help="sim seconds per wall second (default 1)")
     p.add_argument("--from", dest="from_s", type=float, default=None, metavar="S", help="start at this sim time")

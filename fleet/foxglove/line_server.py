@@ -10,9 +10,17 @@ import json
 import threading
 
 import foxglove
-from foxglove.websocket import Capability, ChannelView, Client, ServiceRequest
+from foxglove.websocket import (
+    Capability,
+    ChannelView,
+    Client,
+    PlaybackControlRequest,
+    PlaybackState,
+    ServiceRequest,
+)
 
-from fleet.bus.messages import SimStatus
+from fleet.bus.messages import LineView, SimStatus
+from fleet.foxglove.playback import RecordingPlayback
 from fleet.record.ros_types import serialize, sim_ns
 from fleet.ros import names
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
@@ -30,13 +38,18 @@ ANSWER_SCHEMA = {"type": "object", "properties": {"success": {"type": "boolean"}
 
 
 class Subscribed:
-    """The topics some Foxglove client subscribes to now, and those a client just subscribed to (a latched topic
-    is logged again for it). The server calls it on its own threads: it only counts, under a lock."""
+    """The server's listener: the topics some Foxglove client subscribes to now, and those a client just subscribed
+    to (a latched topic is logged again for it); a playback request goes to `playback`, if any. The server calls it
+    on its own threads: it only counts, under a lock."""
 
-    def __init__(self) -> None:
+    def __init__(self, playback: RecordingPlayback | None = None) -> None:
         self._lock = threading.Lock()
         self._clients: dict[str, set[int]] = {}
         self._new: set[str] = set()
+        self.playback = playback
+
+    def on_playback_control_request(self, request: PlaybackControlRequest) -> PlaybackState | None:
+        return self.playback.on_request(request) if self.playback is not None else None
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         with self._lock:
@@ -66,13 +79,20 @@ def _json_schema(schema: dict) -> foxglove.MessageSchema:
 class FoxgloveLine:
     """One scene's line on a Foxglove server of its own (`start` it on `host:port`; port 0: a free one)."""
 
-    def __init__(self, scene: Scene, bus: LineBus, max_rate_hz: float = names.DEFAULT_MAX_RATE_HZ) -> None:
+    def __init__(
+        self,
+        scene: Scene,
+        bus: LineBus,
+        max_rate_hz: float = names.DEFAULT_MAX_RATE_HZ,
+        playback: RecordingPlayback | None = None,
+    ) -> None:
         self.topics = LineTopics(scene, max_rate_hz)
+        self.playback = playback
         self.bus = bus
         self.context = foxglove.Context()
         self.channels = {topic: self._ros_channel(topic, typename) for topic, typename in self.topics.types.items()}
         self.status = foxglove.Channel(STATUS, schema=_status_schema(), context=self.context)
-        self.subscribed = Subscribed()
+        self.subscribed = Subscribed(playback)
         self.server: foxglove.WebSocketServer | None = None
         self.sent = self.refused = 0
 
@@ -92,11 +112,13 @@ class FoxgloveLine:
             )
             for name, schema in SERVICE_SCHEMAS.items()
         ]
+        playback = self.playback
         self.server = foxglove.start_server(
             name="clawfleet",
             host=host,
             port=port,
-            capabilities=[Capability.Time, Capability.Services],
+            capabilities=[Capability.Time, Capability.Services, *([Capability.PlaybackControl] if playback else [])],
+            playback_time_range=playback.time_range_ns if playback else None,
             supported_encodings=["json"],
             services=services,
             server_listener=self.subscribed,
@@ -115,9 +137,22 @@ class FoxgloveLine:
             self.sent += 1
 
     def tick_clock(self) -> None:
-        """The server's time: the line's sim time, as far as its views have said."""
-        if self.server is not None and self.topics.clock_s >= 0:
+        """The server's time: the line's sim time, as far as its views have said; in playback, the app is told
+        once when the recording's end is reached."""
+        if self.server is None:
+            return
+        if self.topics.clock_s >= 0:
             self.server.broadcast_time(sim_ns(self.topics.clock_s))
+        if self.playback is not None and self.playback.ended_now():
+            self.server.broadcast_playback_state(self.playback.state())
+
+    def on_view(self, view: LineView) -> None:
+        """A view of the line: its topics, and the server's time. In playback the clock follows the recording
+        wherever the app seeks it (back, too)."""
+        if self.playback is not None:
+            self.topics.clock_s = -1.0
+        self.publish(self.topics.from_view(view, self.wanted()))
+        self.tick_clock()
 
     def publish_latched(self) -> None:
         """The static transforms and the cell's markers, again for the clients that just subscribed to them."""

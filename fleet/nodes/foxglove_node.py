@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
@@ -17,7 +18,9 @@ from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView, S
 from fleet.bus.session import BusEndpoints, Inbox, is_loopback_host, open_session
 from fleet.common.processes import StopFlag, write_node_report, write_text_atomically
 from fleet.foxglove.line_server import FoxgloveLine
+from fleet.foxglove.playback import RecordingPlayback
 from fleet.nodes.attached import OnDemandSubscriptions, add_ros_node_arguments, line_scene, ros_line_bus
+from fleet.record.replay import Player
 from scenes.schema import IMAGE_KINDS
 
 SOURCE = "foxglove"
@@ -52,8 +55,7 @@ class FoxgloveFeed:
         msg = decoder.decode(key, payload) if decoder else None
         wanted, topics = self.line.wanted(), self.line.topics
         if isinstance(msg, LineView):
-            self.line.publish(topics.from_view(msg, wanted))
-            self.line.tick_clock()
+            self.line.on_view(msg)
         elif isinstance(msg, ArmState):
             self.line.publish(topics.from_state(msg, wanted))
         elif isinstance(msg, GoalResultMsg):
@@ -75,6 +77,7 @@ def serve(line: FoxgloveLine, session, keys: Keys, stop: StopFlag) -> FoxgloveFe
             for key, payload in inbox.drain():
                 feed.take(key, payload)
             line.publish_latched()
+            line.tick_clock()
             listened.want(line.topics.keys_needed(keys, line.wanted(), set()))
             inbox.wait(0.05)
     finally:
@@ -82,6 +85,27 @@ def serve(line: FoxgloveLine, session, keys: Keys, stop: StopFlag) -> FoxgloveFe
         for sub in fixed:
             sub.undeclare()
     return feed
+
+
+def serve_recording(player: Player, session, keys: Keys, host: str, port: int, stop: StopFlag) -> str:
+    """`fleet replay FILE --foxglove`: the recording played onto the bus (`player`) and served to Foxglove with
+    the app's playback controls, until stopped; why it could not listen ("" when it served)."""
+    playback = RecordingPlayback(player)
+    bus = ros_line_bus(session, keys, [a.name for a in player.recording.scene.arms], SOURCE)
+    line = FoxgloveLine(player.recording.scene, bus, playback=playback)
+    try:
+        served = line.start(host, port)
+    except RuntimeError as exc:
+        return f"cannot listen on {host}:{port}: {exc}"
+    print(f"foxglove: ws://{host}:{served}", file=sys.stderr, flush=True)
+    playing = threading.Thread(target=player.run, args=(stop, False), daemon=True)
+    playing.start()
+    try:
+        serve(line, session, keys, stop)
+    finally:
+        line.stop()
+        playing.join(timeout=5)
+    return ""
 
 
 def main(argv: list[str] | None = None) -> int:

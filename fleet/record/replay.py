@@ -118,6 +118,17 @@ class Player:
                 self._publish(message)
             self.clock.position_s, self.next_index = t_s, end
 
+    def control(self, playing: bool | None = None, speed: float | None = None) -> None:
+        """Play or pause (at the end, playing starts again from the start), and the speed (0.01 to 100)."""
+        with self._lock:
+            if speed is not None and 0.01 <= speed <= 100:
+                self.clock.speed = speed
+        if playing and self.clock.position_s >= self.clock.end_s:
+            self.seek(self.clock.start_s)
+        if playing is not None:
+            with self._lock:
+                self.clock.playing = playing
+
     def _take_controls(self) -> None:
         for key, payload in self._control_inbox.drain():
             msg = self._control_decoder.decode(key, payload)

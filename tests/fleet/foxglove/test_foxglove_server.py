@@ -119,3 +119,43 @@ def test_the_server_refuses_to_listen_beyond_loopback():
     from fleet.nodes import foxglove_node
 
     assert foxglove_node.main(["--host", "0.0.0.0", "--connect", "tcp/127.0.0.1:1"]) == 2
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory) -> dict:
+    """A 12 s lockstep pick_cell recording, replayed to Foxglove (`fleet replay --foxglove`); what the reference
+    client saw as it played at twice real time for 3 s of the line, then sought back to 1.5 s."""
+    path = tmp_path_factory.mktemp("replay") / "line.mcap"
+    with Launcher(RunOptions(scene="pick_cell", duration_s=12.0, seed=0, record=str(path))) as launcher:
+        assert launcher.run()["status"] == "ok"
+    argv = [sys.executable, "-m", "fleet", "replay", str(path), "--foxglove", "--foxglove-port", "0"]
+    replay = subprocess.Popen(argv + ["--run-id", "replayed"], stderr=subprocess.PIPE, text=True)
+    try:
+        said = ""
+        while "foxglove: ws://" not in said and replay.poll() is None:
+            said = replay.stderr.readline()
+        assert "foxglove: ws://" in said, said
+        script = str(CLIENTS / "foxglove_playback.js")
+        url = said.split("foxglove: ", 1)[1].strip()
+        play = ["node", script, url, "2.0", "25", "1.5", "5"]  # at 2x; 25 clocks, back to 1.5 s, 5 more
+        done = subprocess.run(play, capture_output=True, text=True, timeout=60)
+    finally:
+        replay.send_signal(2)  # Ctrl-C ends a replay
+        replay.wait(30)
+    assert done.returncode == 0, (done.stdout, done.stderr)
+    return json.loads(done.stdout) | {"replay_exit": replay.returncode}
+
+
+def clock_ns(encoded: str) -> int:
+    clock = TYPESTORE.deserialize_cdr(base64.b64decode(encoded), "rosgraph_msgs/msg/Clock").clock
+    return clock.sec * 10**9 + clock.nanosec
+
+
+def test_a_replay_plays_from_foxglove_s_timeline_and_a_seek_back_lands_where_it_was_asked(replayed):
+    assert "playbackControl" in replayed["serverInfo"]["capabilities"] and replayed["errors"] == []
+    before, after = [clock_ns(c) for c in replayed["before"]], [clock_ns(c) for c in replayed["after"]]
+    assert before == sorted(before) and before[-1] >= 2.4e9, "it played forward"
+    seek = next(s for s in replayed["states"] if s["requestId"] == "seek-back")
+    assert seek["didSeek"] and int(seek["currentTime"]) == 1_500_000_000 and seek["status"] == 0  # playing
+    assert 1.5e9 <= after[0] < 2.5e9 and after == sorted(after), "the line as it was from 1.5 s on"
+    assert replayed["replay_exit"] == 130, "Ctrl-C ended the replay"
