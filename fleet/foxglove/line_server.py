@@ -1,8 +1,8 @@
 """The line on a Foxglove WebSocket server: the same topics as every ROS front end (`LineTopics`: joint states,
 `/tf` and `/tf_static`, the cell and the parts as markers, the cameras, `/rosout`, `/clock`), each a channel of
-ROS 2 messages in CDR with their full definitions (`ros2msg`), which the Foxglove app decodes natively; the line's
-status as a JSON channel that plots; the server's time is the line's sim time; `/estop`, `/pause` and `/resume` as
-services (JSON requests, as the ROS services take them)."""
+ROS 2 messages in CDR with their full definitions (`ros2msg`), which the Foxglove app decodes natively; the cell
+and the parts as Foxglove scene entities too; the line's status as a JSON channel that plots; the server's time is
+the line's sim time; `/estop`, `/pause` and `/resume` as services (JSON requests, as the ROS services take them)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import json
 import threading
 
 import foxglove
+from foxglove.channels import SceneUpdateChannel
 from foxglove.websocket import (
     Capability,
     ChannelView,
@@ -21,6 +22,7 @@ from foxglove.websocket import (
 
 from fleet.bus.messages import LineView, SimStatus
 from fleet.foxglove.playback import RecordingPlayback
+from fleet.foxglove.scene_entities import CELL, PARTS, scene_update
 from fleet.record.ros_types import serialize, sim_ns
 from fleet.ros import names
 from fleet.ros.line_services import LineBus, ServiceError, answer_line_service
@@ -92,6 +94,7 @@ class FoxgloveLine:
         self.context = foxglove.Context()
         self.channels = {topic: self._ros_channel(topic, typename) for topic, typename in self.topics.types.items()}
         self.status = foxglove.Channel(STATUS, schema=_status_schema(), context=self.context)
+        self.scene = {topic: SceneUpdateChannel(topic, context=self.context) for topic in (CELL, PARTS)}
         self.subscribed = Subscribed(playback)
         self.server: foxglove.WebSocketServer | None = None
         self.sent = self.refused = 0
@@ -127,14 +130,27 @@ class FoxgloveLine:
         return self.server.port
 
     def wanted(self) -> set[str]:
-        """The line's topics some client subscribes to now (only those are built)."""
-        return self.subscribed.topics() & set(self.channels)
+        """The line's ROS topics to build now: those some client subscribes to, and the parts' markers while the
+        parts' scene entities are (only those are built)."""
+        subscribed = self.subscribed.topics()
+        return (subscribed & set(self.channels)) | ({names.PARTS} if PARTS in subscribed else set())
 
     def publish(self, out: list[tuple[str, object]]) -> None:
-        """ROS messages of the line's topics (`LineTopics`), each logged at the line's sim time."""
+        """ROS messages of the line's topics (`LineTopics`), each logged at the line's sim time; the parts'
+        markers as scene entities too."""
+        subscribed = self.subscribed.topics()
         for topic, message in out:
-            self.channels[topic].log(serialize(message), log_time=sim_ns(self.topics.clock_s))
-            self.sent += 1
+            if topic == names.PARTS and PARTS in subscribed:
+                self._log_scene(PARTS, message)
+            if topic in subscribed:
+                self.channels[topic].log(serialize(message), log_time=sim_ns(self.topics.clock_s))
+                self.sent += 1
+
+    def _log_scene(self, topic: str, markers: object) -> None:
+        ros = self.topics.ros
+        update = scene_update(markers, ros.DELETEALL, ros.CYLINDER)
+        self.scene[topic].log(update, log_time=sim_ns(max(self.topics.clock_s, 0.0)))
+        self.sent += 1
 
     def tick_clock(self) -> None:
         """The server's time: the line's sim time, as far as its views have said; in playback, the app is told
@@ -156,8 +172,11 @@ class FoxgloveLine:
 
     def publish_latched(self) -> None:
         """The static transforms and the cell's markers, again for the clients that just subscribed to them."""
-        for topic in self.subscribed.take_new() & set(self.topics.latched):
+        new = self.subscribed.take_new()
+        for topic in new & set(self.topics.latched):
             self.publish([(topic, self.topics.latched[topic])])
+        if CELL in new:
+            self._log_scene(CELL, self.topics.latched[names.CELL])
 
     def on_status(self, status: SimStatus) -> None:
         fields = {f: getattr(status, f) for f in SimStatus.__struct_fields__ if f != "version"}

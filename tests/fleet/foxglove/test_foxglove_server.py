@@ -12,13 +12,15 @@ import time
 from pathlib import Path
 
 import pytest
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from rosbags.typesys import Stores, get_typestore
 
 from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.in_process import fleet_in_process
 from tests.fleet.test_run import assert_nothing_left
 
 CLIENTS = Path(__file__).resolve().parents[2] / "clients"
-TOPICS = "/joint_states:3,/tf:2,/tf_static:1,/cell:1,/parts:1,/clock:2,/line/status:2"
+TOPICS = "/joint_states:3,/tf:2,/tf_static:1,/cell:1,/parts:1,/clock:2,/line/status:2,/scene/cell:1,/scene/parts:2"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -95,6 +97,30 @@ def test_its_messages_decode_with_rosbags_and_are_logged_at_sim_time(watched):
     assert times == sorted(times) and 0 < times[-1] < 120 * 10**9, "the server's time is the line's sim time"
 
 
+def protobuf_messages(seen: dict, topic: str) -> list:
+    """A protobuf channel's messages, decoded by Google's protobuf runtime from the schema the server advertised
+    (a FileDescriptorSet), as the app decodes them."""
+    channel = next(c for c in seen["channels"] if c["topic"] == topic)
+    assert channel["encoding"] == "protobuf" and channel["schemaEncoding"] == "protobuf"
+    pool = descriptor_pool.DescriptorPool()
+    for file in descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"])).file:
+        pool.Add(file)
+    kind = message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
+    return [kind.FromString(base64.b64decode(m["data"])) for m in seen["messages"][topic]]
+
+
+def test_the_cell_and_the_parts_are_scene_entities_of_foxglove_s_own_schema(watched):
+    seen, _ = watched
+    cell = protobuf_messages(seen, "/scene/cell")[0]
+    ids = {e.id for e in cell.entities}
+    assert "belt/0" in ids and any(i.startswith("stations/") for i in ids), ids
+    assert all(e.frame_id == "world" and len(e.cubes) == 1 and e.cubes[0].size.x > 0 for e in cell.entities)
+    parts = protobuf_messages(seen, "/scene/parts")
+    assert all(len(u.deletions) == 1 for u in parts), "each update replaces the last"
+    shown = [e for u in parts for e in u.entities]
+    assert all(e.id.startswith("parts/") and (e.cubes or e.cylinders) for e in shown)
+
+
 def test_the_status_plots_and_a_pause_from_the_app_reaches_the_line(watched):
     seen, _ = watched
     status = [json.loads(base64.b64decode(m["data"])) for m in seen["messages"]["/line/status"]]
@@ -111,8 +137,8 @@ def test_the_status_plots_and_a_pause_from_the_app_reaches_the_line(watched):
     ],
 )
 def test_fleet_foxglove_refuses_what_cannot_work_in_one_line(argv, said):
-    done = subprocess.run([sys.executable, "-m", "fleet", *argv], capture_output=True, text=True, timeout=60)
-    assert done.returncode == 2 and said in done.stderr and done.stderr.strip().count("\n") == 0, done.stderr
+    code, _, stderr = fleet_in_process(argv)
+    assert code == 2 and said in stderr and stderr.strip().count("\n") == 0, stderr
 
 
 def test_the_server_refuses_to_listen_beyond_loopback():
