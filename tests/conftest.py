@@ -70,7 +70,11 @@ HEAVY = (
     "tests/fleet/twin/test_mirror_cli.py",  # LeRobot's Python, started five times
 )
 # a browser (and a line for it to draw) runs alone on the machine
-ALONE = ("tests/fleet/monitor/test_browser.py", "tests/fleet/monitor/test_replay_browser.py")
+ALONE = (
+    "tests/fleet/monitor/test_browser.py",
+    "tests/fleet/monitor/test_replay_browser.py",
+    "tests/fleet/ros/test_roslibjs_browser.py",
+)
 ROOT = Path(__file__).resolve().parents[1]
 
 
