@@ -77,6 +77,7 @@ def serve(line: FoxgloveLine, session, keys: Keys, stop: StopFlag) -> FoxgloveFe
             for key, payload in inbox.drain():
                 feed.take(key, payload)
             line.publish_latched()
+            line.publish(line.topics.held_back(line.wanted()))
             line.tick_clock()
             listened.want(line.topics.keys_needed(keys, line.wanted(), set()))
             inbox.wait(0.05)

@@ -84,6 +84,7 @@ class NativeLine:
         while not stop.should_stop():
             heard = {t for t, pub in self.pubs.items() if pub.heard}  # only the topics someone subscribes to are built
             self._from_bus(heard)
+            self._put(self.topics.held_back(heard))
             self._answer_services()
             self._take_commands()
             for action in self.native:
@@ -107,9 +108,12 @@ class NativeLine:
                 out = self.topics.from_camera(msg, wanted)
             else:
                 continue
-            for topic, ros_msg in out:
-                self.pubs[topic].put(ros_msg)
-                self.sent += 1
+            self._put(out)
+
+    def _put(self, out: list[tuple[str, object]]) -> None:
+        for topic, ros_msg in out:
+            self.pubs[topic].put(ros_msg)
+            self.sent += 1
 
     def _answer_services(self) -> None:
         for name, service in self.services.items():

@@ -32,6 +32,7 @@ async def serve(
         while not stop.should_stop():
             for key, payload in inbox.drain():
                 server.on_bus(key, payload)
+            server.flush_held()
             listened.want(server.needed(keys))
             await asyncio.sleep(DRAIN_S)
 

@@ -35,11 +35,14 @@ class RateCap:
         self._last: dict[str, float] = {}
 
     def admits(self, stream: str) -> bool:
-        now = time.monotonic()
-        if now - self._last.get(stream, -math.inf) < self.period_s:
+        if not self.ready(stream):
             return False
-        self._last[stream] = now
+        self._last[stream] = time.monotonic()
         return True
+
+    def ready(self, stream: str) -> bool:
+        """Whether `stream` may have its next message now (nothing recorded)."""
+        return time.monotonic() - self._last.get(stream, -math.inf) >= self.period_s
 
 
 class LineTopics:
@@ -58,6 +61,7 @@ class LineTopics:
         self.log = LineLog()  # `/rosout`
         self.latched = {names.TF_STATIC: self.ros.tf_static(), names.CELL: self.ros.cell_markers()}
         self.cap = RateCap(max_rate_hz)
+        self._held_view: LineView | None = None  # the newest view the cap held back (`held_back`)
 
     def from_state(self, state: ArmState, wanted: set[str]) -> list[tuple[str, object]]:
         """The topic one arm state feeds (its own joint states), if `wanted`."""
@@ -104,7 +108,9 @@ class LineTopics:
         logged = self.log.from_states(list(view.arms), view.sim_time_s) if names.ROSOUT in wanted else []
         out: list[tuple[str, object]] = [(names.ROSOUT, entry) for entry in logged]
         if not self.cap.admits("view"):
+            self._held_view = view
             return out
+        self._held_view = None
         arms = [s for s in view.arms if s.arm in self.ros.arms]
         if view.sim_time_s > self.clock_s:
             self.clock_s = view.sim_time_s
@@ -117,6 +123,13 @@ class LineTopics:
         if names.PARTS in wanted:
             out.append((names.PARTS, self.ros.parts_markers(view.parts)))
         return out
+
+    def held_back(self, wanted: set[str]) -> list[tuple[str, object]]:
+        """The topics of the newest view the rate cap held back, once the cap lets it through: when the line stops
+        or pauses, its watchers see where it stands, not a moment up to a period before (its log is already out)."""
+        if self._held_view is None or not self.cap.ready("view"):
+            return []
+        return self.from_view(self._held_view, wanted - {names.ROSOUT})
 
     def _all_joints(self, states: list[ArmState]):
         """One `JointState` of every arm's joints, named `<arm>/<joint>`, stamped with the view's time."""

@@ -140,6 +140,10 @@ class RosbridgeServer:
         else:
             self._publish(self.topics.from_view(msg, wanted))
 
+    def flush_held(self) -> None:
+        """The newest view the rate cap held back, once it may go (`LineTopics.held_back`)."""
+        self._publish(self.topics.held_back({t for c in self.clients for t in c.subscriptions}))
+
     def needed(self, keys: Keys) -> set[str]:
         """The bus keys this server needs now: the states of arms its clients' goals drive or whose own joint states
         they watch, the line's view while they watch a topic it feeds (`OnDemandSubscriptions`)."""
