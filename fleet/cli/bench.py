@@ -231,6 +231,16 @@ def cmd_bench_snapshot(args: argparse.Namespace) -> int:
     return print_bench(table, rows, args.json)
 
 
+def cmd_bench_foxglove(args: argparse.Namespace) -> int:
+    from fleet.bench.foxglove import bench_foxglove_cost
+
+    rows = bench_foxglove_cost(args.arms, args.seconds, args.repeats, args.cameras)
+    table = Table("variant", "sim loop wall s (median)", "ratio to plain", "frames the client got")
+    for r in rows:
+        table.add_row(r.variant, f"{r.loop_wall_seconds:.2f}", f"{r.ratio_to_plain:.3f}", f"{r.messages:.0f}")
+    return print_bench(table, rows, args.json)
+
+
 def cmd_bench_ros(args: argparse.Namespace) -> int:
     from fleet.bench.ros import bench_ros_cost, bench_ros_latency
 
@@ -383,6 +393,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:
     _add_safety(bench)
     _add_snapshot(bench)
     _add_ros(bench)
+    _add_foxglove(bench)
     _add_allocation(bench)
     _add_lines(bench)
     _add_env(bench)
@@ -444,6 +455,16 @@ def _add_collision(bench: argparse._SubParsersAction) -> None:
     b.add_argument("--arms", type=int, nargs="+", default=[2, 4, 8])
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench_collision)
+
+
+def _add_foxglove(bench: argparse._SubParsersAction) -> None:
+    b = bench.add_parser("foxglove", help="what one Foxglove app subscribed to everything costs a lockstep line")
+    b.add_argument("--arms", type=int, default=4)
+    b.add_argument("--seconds", type=float, default=60.0, help="sim seconds per lockstep run")
+    b.add_argument("--repeats", type=int, default=3, help="pairs of runs (plain, served)")
+    b.add_argument("--cameras", action="store_true", help="both runs render every camera of the scene")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench_foxglove)
 
 
 def _add_ros(bench: argparse._SubParsersAction) -> None:

@@ -14,7 +14,7 @@ import threading
 
 from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import ArmState, CameraImage, GoalResultMsg, LineView, SimStatus
+from fleet.bus.messages import CameraImage, GoalResultMsg, LineView, SimStatus
 from fleet.bus.session import BusEndpoints, Inbox, is_loopback_host, open_session
 from fleet.common.processes import StopFlag, write_node_report, write_text_atomically
 from fleet.foxglove.line_server import FoxgloveLine
@@ -45,7 +45,6 @@ class FoxgloveFeed:
         self.drops = DropCounter()
         self.decoders = {
             "view": Decoder(LineView, self.drops),
-            "state": Decoder(ArmState, self.drops),
             "result": Decoder(GoalResultMsg, self.drops),
             "status": Decoder(SimStatus, self.drops),
         } | {kind: Decoder(CameraImage, self.drops) for kind in IMAGE_KINDS}
@@ -56,8 +55,6 @@ class FoxgloveFeed:
         wanted, topics = self.line.wanted(), self.line.topics
         if isinstance(msg, LineView):
             self.line.on_view(msg)
-        elif isinstance(msg, ArmState):
-            self.line.publish(topics.from_state(msg, wanted))
         elif isinstance(msg, GoalResultMsg):
             self.line.publish(topics.from_result(msg, wanted))
         elif isinstance(msg, CameraImage):

@@ -98,8 +98,8 @@ class NativeLine:
             msg = decoder.decode(key, payload) if decoder else None
             if isinstance(msg, ArmState):
                 self.actions.on_state(msg)
-                out = self.topics.from_state(msg, wanted)
-            elif isinstance(msg, GoalResultMsg):
+                continue
+            if isinstance(msg, GoalResultMsg):
                 self.actions.on_result(msg)
                 out = self.topics.from_result(msg, wanted)
             elif isinstance(msg, LineView):

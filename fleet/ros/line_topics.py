@@ -1,7 +1,7 @@
 """The line's ROS topics from what the bus carries: the line's view (`world/view`: every arm and the parts in one
 message, 25 Hz of sim time, as the monitors get it) gives `/joint_states` and `/tf` for every arm at once, as
-joint_state_broadcaster and robot_state_publisher publish them, the parts' markers and the clock; an arm's own
-state gives its own joint states (at its control rate; a front end listens to it only while needed). Built only
+joint_state_broadcaster and robot_state_publisher publish them, each arm's own joint states, the parts' markers
+and the clock. Built only
 for topics someone listens to (`wanted`), each message once for all its listeners, as rosbags typestore messages
 (rosbridge sends them as JSON, rmw_zenoh as CDR), with `fleet.record.line_to_ros` (the recordings' own converter,
 so a live line and its recording show the same frames and names)."""
@@ -63,20 +63,14 @@ class LineTopics:
         self.cap = RateCap(max_rate_hz)
         self._held_view: LineView | None = None  # the newest view the cap held back (`held_back`)
 
-    def from_state(self, state: ArmState, wanted: set[str]) -> list[tuple[str, object]]:
-        """The topic one arm state feeds (its own joint states), if `wanted`."""
-        own = names.arm_joint_states(state.arm)
-        if own not in wanted or state.arm not in self.ros.arms or not self.cap.admits(own):
-            return []
-        return [(own, self.ros.joint_state(state))]
-
     def keys_needed(self, keys: Keys, wanted: set[str], driven: set[str]) -> set[str]:
         """The bus keys a front end needs now (`OnDemandSubscriptions`): the states of the arms its clients' goals
-        drive (`driven`) or whose own joint states are `wanted`, the line's view while a topic it feeds is, a
-        camera's images while one of its topics is."""
-        arms = driven | {a for a in self.arms if names.arm_joint_states(a) in wanted}
-        viewed = wanted & (VIEW_TOPICS | {names.ROSOUT})  # the log follows every arm's state in the view
-        needed = {keys.arm_state(a) for a in arms} | ({keys.view} if viewed else set())
+        drive (`driven`: their actions follow them), the line's view while a topic it feeds is (an arm's own joint
+        states too: the view carries every arm's state, and hearing each arm's own key as well cost a lockstep
+        line about a fifth of its speed), a camera's images while one of its topics is."""
+        own = {names.arm_joint_states(a) for a in self.arms}
+        viewed = wanted & (VIEW_TOPICS | own | {names.ROSOUT})  # the log follows every arm's state in the view
+        needed = {keys.arm_state(a) for a in driven} | ({keys.view} if viewed else set())
         for camera, kinds in self.cameras.items():
             if wanted & set(camera_topic_types(camera, kinds)):
                 needed |= {keys.camera(camera, kind) for kind in kinds}
@@ -118,6 +112,7 @@ class LineTopics:
                 out.append((names.CLOCK, ros_type("rosgraph_msgs/msg/Clock")(clock=time_msg(view.sim_time_s))))
         if names.JOINT_STATES in wanted and arms:
             out.append((names.JOINT_STATES, self._all_joints(arms)))
+        out += [(t, self.ros.joint_state(s)) for s in arms if (t := names.arm_joint_states(s.arm)) in wanted]
         if names.TF in wanted and arms:
             out.append((names.TF, self.ros.tf(arms)))
         if names.PARTS in wanted:

@@ -131,7 +131,6 @@ class RosbridgeServer:
         wanted = {t for c in self.clients for t in c.subscriptions}
         if isinstance(msg, ArmState):
             self.actions.on_state(msg)
-            self._publish(self.topics.from_state(msg, wanted))
         elif isinstance(msg, GoalResultMsg):
             self.actions.on_result(msg)
             self._publish(self.topics.from_result(msg, wanted))
