@@ -202,6 +202,11 @@ def add_sim_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def ticks_at(seconds: str, hz: float) -> set[int]:
+    """The ticks of comma-separated sim seconds (`--snapshot-at`, `--pause-at`)."""
+    return {round(float(v) * hz) for v in seconds.split(",") if v.strip()}
+
+
 def attach_snapshots(
     server: SimServer, args: argparse.Namespace, total_ticks: int, original: RunSnapshot | None = None
 ) -> None:
@@ -209,7 +214,7 @@ def attach_snapshots(
     the line runs, into `--snapshot-dir`; started from a snapshot (`original`) without either, the snapshots its run
     took later, taken again (written only into a folder given)."""
     hz = server.world.scene_model.control_hz
-    at = {round(float(v) * hz) for v in args.snapshot_at.split(",") if v.strip()}
+    at = ticks_at(args.snapshot_at, hz)
     every = round(args.snapshot_every * hz) if args.snapshot_every else 0
     directory = Path(args.snapshot_dir) if args.snapshot_dir else None
     if not (at or every) and original is not None:
@@ -330,8 +335,7 @@ def sim_server_of(
     )
     if args.rt:
         server.scheduling = request_realtime_priority("sim_server")
-    hz = world.scene_model.control_hz
-    server.controls.pause_at_ticks = {round(float(v) * hz) for v in args.pause_at.split(",") if v.strip()}
+    server.controls.pause_at_ticks = ticks_at(args.pause_at, world.scene_model.control_hz)
     server.outputs.blind = args.perception == "cameras"  # the line's parts are perception's: no poses go out
     return server
 

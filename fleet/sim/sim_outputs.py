@@ -151,7 +151,8 @@ class SimOutputs:
             link.next_tick = tick + link.period_ticks
         frame = self.controls.coordinator and tick % self.cadence.coord_period_ticks == 0
         pausing = tick in self.controls.pause_at_ticks  # the line stands after this tick: its watchers see it
-        view = bus.watched() and (pausing or (tick % self.cadence.view_every_ticks == 0 and self._view_due()))
+        view_tick = pausing or tick % self.cadence.view_every_ticks == 0
+        view = view_tick and bus.watched() and (pausing or self._view_due())  # only while watched
         if due or frame or view:
             names = list(w.arms) if (frame or view) else [link.name for link in due]
             states = {name: self._state(name, snapshot_tick) for name in names}
