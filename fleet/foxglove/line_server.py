@@ -10,6 +10,7 @@ import json
 import threading
 
 import foxglove
+import msgspec
 from foxglove.channels import SceneUpdateChannel
 from foxglove.websocket import (
     Capability,
@@ -179,8 +180,8 @@ class FoxgloveLine:
             self._log_scene(CELL, self.topics.latched[names.CELL])
 
     def on_status(self, status: SimStatus) -> None:
-        fields = {f: getattr(status, f) for f in SimStatus.__struct_fields__ if f != "version"}
-        fields["utilisation"] = list(fields["utilisation"])
+        fields = msgspec.structs.asdict(status)
+        del fields["version"]
         self.status.log(fields, log_time=sim_ns(status.sim_time_s))
 
     def _answer(self, request: ServiceRequest) -> bytes:

@@ -15,7 +15,6 @@ class RecordingPlayback:
 
     def __init__(self, player: Player) -> None:
         self.player = player
-        self.seeks = 0
         self._ended = False
 
     @property
@@ -25,7 +24,6 @@ class RecordingPlayback:
     def on_request(self, request: PlaybackControlRequest) -> PlaybackState:
         """Seek first (the newest message of each topic up to then goes out), then play or pause at the speed."""
         if request.seek_time is not None:
-            self.seeks += 1
             self.player.seek(request.seek_time / 1e9)
         self.player.control(request.playback_command == PlaybackCommand.Play, float(request.playback_speed))
         self._ended = False

@@ -47,10 +47,7 @@ class ReplayPanel:
         self.player.seek(float(self.time.value))
 
     def _toggle(self) -> None:
-        clock = self.player.clock
-        if not clock.playing and clock.position_s >= clock.end_s:
-            self.player.seek(clock.start_s)  # play again from the start
-        clock.playing = not clock.playing
+        self.player.control(playing=not self.player.clock.playing)  # at the end, play again from the start
 
     def _offer_branch(self) -> None:
         """The command that starts a line from the newest snapshot the recording carries at or before where the
@@ -59,7 +56,7 @@ class ReplayPanel:
 
     def _on_speed(self, event: viser.GuiEvent) -> None:
         if event.client is not None:
-            self.player.clock.speed = float(self.speed.value)
+            self.player.control(speed=float(self.speed.value))
 
     def show(self) -> None:
         clock = self.player.clock

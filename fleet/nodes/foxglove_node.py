@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 class FoxgloveFeed:
-    """What the bus carries, as the Foxglove server's messages: views, states, results, camera images and the sim's
+    """What the bus carries, as the Foxglove server's messages: views, goal results, camera images and the sim's
     status, decoded (a malformed one dropped and counted) and handed to `FoxgloveLine`."""
 
     def __init__(self, line: FoxgloveLine) -> None:
@@ -52,21 +52,21 @@ class FoxgloveFeed:
     def take(self, key: str, payload: bytes) -> None:
         decoder = self.decoders.get(key.rsplit("/", 1)[-1])
         msg = decoder.decode(key, payload) if decoder else None
-        wanted, topics = self.line.wanted(), self.line.topics
+        line = self.line
         if isinstance(msg, LineView):
-            self.line.on_view(msg)
+            line.on_view(msg)
         elif isinstance(msg, GoalResultMsg):
-            self.line.publish(topics.from_result(msg, wanted))
+            line.publish(line.topics.from_result(msg, line.wanted()))
         elif isinstance(msg, CameraImage):
-            self.line.publish(topics.from_camera(msg, wanted))
+            line.publish(line.topics.from_camera(msg, line.wanted()))
         elif isinstance(msg, SimStatus):
-            self.line.on_status(msg)
+            line.on_status(msg)
 
 
-def serve(line: FoxgloveLine, session, keys: Keys, stop: StopFlag) -> FoxgloveFeed:
+def serve(feed: FoxgloveFeed, session, keys: Keys, stop: StopFlag) -> None:
     """Until stopped: the bus's messages onto the server (zenoh's callbacks only queue), the keys listened to
     following what the app subscribes to."""
-    inbox, feed = Inbox(), FoxgloveFeed(line)
+    line, inbox = feed.line, Inbox()
     fixed = [session.declare_subscriber(k, inbox) for k in (keys.all_arms("result"), keys.sim_status)]
     listened = OnDemandSubscriptions(session, inbox)
     try:
@@ -74,15 +74,15 @@ def serve(line: FoxgloveLine, session, keys: Keys, stop: StopFlag) -> FoxgloveFe
             for key, payload in inbox.drain():
                 feed.take(key, payload)
             line.publish_latched()
-            line.publish(line.topics.held_back(line.wanted()))
+            wanted = line.wanted()
+            line.publish(line.topics.held_back(wanted))
             line.tick_clock()
-            listened.want(line.topics.keys_needed(keys, line.wanted(), set()))
+            listened.want(line.topics.keys_needed(keys, wanted, set()))
             inbox.wait(0.05)
     finally:
         listened.close()
         for sub in fixed:
             sub.undeclare()
-    return feed
 
 
 def serve_recording(player: Player, session, keys: Keys, host: str, port: int, stop: StopFlag) -> str:
@@ -99,7 +99,7 @@ def serve_recording(player: Player, session, keys: Keys, host: str, port: int, s
     playing = threading.Thread(target=player.run, args=(stop, False), daemon=True)
     playing.start()
     try:
-        serve(line, session, keys, stop)
+        serve(FoxgloveFeed(line), session, keys, stop)
     finally:
         line.stop()
         playing.join(timeout=5)
@@ -132,9 +132,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"foxglove: ws://{args.host}:{port}", file=sys.stderr, flush=True)
         if args.url_file:
             write_text_atomically(args.url_file, f"ws://{args.host}:{port}")
-        feed = None
+        feed = FoxgloveFeed(line)
         try:
-            feed = serve(line, session, keys, stop)
+            serve(feed, session, keys, stop)
         finally:
             line.stop()
             write_node_report(
@@ -142,8 +142,8 @@ def main(argv: list[str] | None = None) -> int:
                 {
                     "messages_sent": line.sent,
                     "requests_refused": line.refused,
-                    "dropped_messages": feed.drops.total if feed else 0,
-                    "refused_messages": feed.drops.kinds() if feed else {},
+                    "dropped_messages": feed.drops.total,
+                    "refused_messages": feed.drops.kinds(),
                     "stopped_by": stop.reason,
                 },
             )
