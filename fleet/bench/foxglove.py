@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,19 +28,10 @@ class FoxgloveCostRow:
     messages: float  # what the client got (binary frames: messages and the server's time)
 
 
-def _url(launcher: Launcher, timeout_s: float = 60.0) -> str:
-    path, deadline = launcher.dir / "foxglove_url", time.monotonic() + timeout_s
-    while not path.exists():
-        if time.monotonic() > deadline:
-            raise RuntimeError("the Foxglove server did not say its URL")
-        time.sleep(0.05)
-    return path.read_text().strip()
-
-
 def _client(launcher: Launcher, got: list[int], stop: threading.Event) -> None:
     """Subscribe to every channel advertised, then read until stopped."""
     try:
-        with connect(_url(launcher), subprotocols=SUBPROTOCOLS) as ws:
+        with connect(launcher.server_url("foxglove"), subprotocols=SUBPROTOCOLS) as ws:
             subscribed = 0
             while not stop.is_set():
                 try:

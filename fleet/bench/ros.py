@@ -46,17 +46,8 @@ class RosLatencyRow:
     result_after_motion_p90_ms: float
 
 
-def _url(launcher: Launcher, timeout_s: float = 60.0) -> str:
-    path, deadline = launcher.dir / "rosbridge_url", time.monotonic() + timeout_s
-    while not path.exists():
-        if time.monotonic() > deadline:
-            raise RuntimeError("the rosbridge server did not say its URL")
-        time.sleep(0.05)
-    return path.read_text().strip()
-
-
 def _subscriber(launcher: Launcher, counts: list[int], i: int, stop: threading.Event) -> None:
-    with connect(_url(launcher)) as ws:
+    with connect(launcher.server_url("rosbridge")) as ws:
         for topic in ("/joint_states", "/tf"):
             ws.send(json.dumps({"op": "subscribe", "topic": topic, "id": f"{topic}{i}"}))
         while not stop.is_set():
@@ -128,7 +119,7 @@ def _drive(launcher: Launcher, goals: int, out: dict) -> None:
         poses = [home + np.array([0.3, -0.2, 0.25, 0.0, 0.2, 0.0])[: home.size], home]
         starts, ends = [], []
         rng = np.random.default_rng(0)
-        with connect(_url(launcher)) as ws:
+        with connect(launcher.server_url("rosbridge")) as ws:
             ws.send(json.dumps({"op": "subscribe", "topic": "/arm_0/joint_states", "id": "js"}))
             for k in range(goals):
                 time.sleep(

@@ -36,6 +36,7 @@ from fleet.run.run_node import (
     RECORDER_GRACE_S,
     STOP_GRACE_S,
     Node,
+    server_url_file,
 )
 from fleet.run.run_options import RunOptions
 from fleet.run.run_summary import RunEnd, RunSummary, count_problems
@@ -114,6 +115,14 @@ class Launcher:
     @on_progress.setter
     def on_progress(self, callback: Callable[[Progress], None] | None) -> None:
         self.supervision.on_progress = callback
+
+    def server_url(self, role: str, timeout_s: float = 60.0) -> str:
+        """Where this run's serving node `role` (`monitor`, `rosbridge`, `foxglove`) serves, once it says;
+        RuntimeError if it does not within `timeout_s`."""
+        url = read_when_written(server_url_file(self.dir, role), timeout_s)
+        if url is None:
+            raise RuntimeError(f"the {role} server did not say where it serves within {timeout_s:g} s")
+        return url
 
     @property
     def endpoint(self) -> str:

@@ -19,6 +19,7 @@ from fleet.run.run_node import (
     RECORDER_START_S,
     Node,
     read_report,
+    server_url_file,
 )
 from fleet.run.run_options import RunOptions
 from scenes.schema import Scene
@@ -168,7 +169,7 @@ class NodeCommands:
         report, log = self.dir / f"{role}.json", self.dir / f"{role}.log"
         argv = [*self._here(role), module, "--run", self.options.run_id, *self._bus_args(False, login), *extra]
         if url:
-            argv += ["--url-file", str(self.dir / f"{role}_url")]
+            argv += ["--url-file", str(server_url_file(self.dir, role))]
         return Node(role, role, [*argv, "--report", str(report)], report, log)
 
     def monitor_node(self) -> Node:

@@ -27,6 +27,11 @@ def read_report(path: Path) -> dict:
         return {}
 
 
+def server_url_file(folder: Path, role: str) -> Path:
+    """Where a serving node (`monitor`, `rosbridge`, `foxglove`) writes its URL in the run's folder once it serves."""
+    return folder / f"{role}_url"
+
+
 def node_of(nodes: list[Node], role: str) -> Node | None:
     """The first node of `role` among `nodes` (the run's only sim, coordinator, monitor...), found by its role, not
     its place in the list; None where the run has none."""

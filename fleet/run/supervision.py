@@ -22,6 +22,7 @@ from fleet.run.run_node import (
     Node,
     node_of,
     read_report,
+    server_url_file,
 )
 from fleet.run.run_options import RunOptions
 from scenes.schema import Scene
@@ -152,7 +153,7 @@ class Supervision:
         for node in self.nodes:
             if node.role not in SERVERS:
                 continue
-            url = self.dir / f"{node.role}_url"
+            url = server_url_file(self.dir, node.role)
             if node.role not in self.server_urls and url.exists():
                 self.server_urls[node.role] = url.read_text().strip()
                 self.on_message(f"{node.role}: {self.server_urls[node.role]}")

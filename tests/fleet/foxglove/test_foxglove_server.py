@@ -7,8 +7,6 @@ import base64
 import json
 import subprocess
 import sys
-import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -17,19 +15,11 @@ from rosbags.typesys import Stores, get_typestore
 
 from fleet.run.launcher import Launcher, RunOptions
 from tests.fleet.in_process import fleet_in_process
-from tests.fleet.test_run import assert_nothing_left
+from tests.fleet.line_beside import run_beside
 
 CLIENTS = Path(__file__).resolve().parents[2] / "clients"
 TOPICS = "/joint_states:3,/tf:2,/tf_static:1,/cell:1,/parts:1,/clock:2,/line/status:2,/scene/cell:1,/scene/parts:2"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-
-
-def foxglove_url(launcher: Launcher, timeout_s: float = 60.0) -> str:
-    """Where the line's Foxglove server listens, once it says (`foxglove_url` in the run's folder)."""
-    url, deadline = launcher.dir / "foxglove_url", time.monotonic() + timeout_s
-    while not url.exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    return url.read_text()
 
 
 def reference_client(url: str, topics: str, *service: str) -> subprocess.CompletedProcess:
@@ -43,22 +33,13 @@ def reference_client(url: str, topics: str, *service: str) -> subprocess.Complet
 def watched() -> tuple[dict, dict]:
     """A realtime pick_cell line served to Foxglove; what the reference client saw (it pauses the line at the
     end), and the run's summary."""
-    seen: dict = {}
-    with Launcher(RunOptions(scene="pick_cell", duration_s=120.0, mode="realtime", foxglove_port=0)) as launcher:
 
-        def user() -> None:
-            try:
-                done = reference_client(foxglove_url(launcher), TOPICS, "/pause", "{}")
-                seen.update(rc=done.returncode, stderr=done.stderr[-2000:], **json.loads(done.stdout or "{}"))
-            except Exception as exc:  # the test reports it
-                seen["error"] = repr(exc)
-            launcher.interrupted = "the Foxglove client is done"
+    def user(launcher: Launcher, seen: dict) -> None:
+        done = reference_client(launcher.server_url("foxglove"), TOPICS, "/pause", "{}")
+        seen.update(rc=done.returncode, stderr=done.stderr[-2000:], **json.loads(done.stdout or "{}"))
 
-        thread = threading.Thread(target=user, daemon=True)
-        thread.start()
-        summary = launcher.run()
-        thread.join(30)
-    assert_nothing_left(summary, launcher.endpoint)
+    options = RunOptions(scene="pick_cell", duration_s=120.0, mode="realtime", foxglove_port=0)
+    summary, seen, _ = run_beside(options, user)
     assert "error" not in seen and seen["rc"] == 0, seen
     return seen, summary
 

@@ -77,12 +77,8 @@ class Driver:
 
 
 def rosbridge_port(launcher: Launcher, timeout_s: float = 60.0) -> int:
-    """The port the line's rosbridge serves on, once it says (`rosbridge_url` in the run's folder)."""
-    url = launcher.dir / "rosbridge_url"
-    deadline = time.monotonic() + timeout_s
-    while not url.exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    return int(url.read_text().rsplit(":", 1)[1])
+    """The port the line's rosbridge serves on, once it says."""
+    return int(launcher.server_url("rosbridge", timeout_s).rsplit(":", 1)[1])
 
 
 def drive(launcher: Launcher, seen: dict) -> None:

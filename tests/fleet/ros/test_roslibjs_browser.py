@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from fleet.run.launcher import Launcher, RunOptions
+from tests.fleet.line_beside import run_beside
 from tests.fleet.monitor.test_browser import BROWSER_ARGS, CHROMIUM
 from tests.fleet.ros.rosbridge_session import rosbridge_port
-from tests.fleet.test_run import assert_nothing_left
 
 pytestmark = pytest.mark.slow  # a realtime line and a browser
 
@@ -48,21 +48,11 @@ def shown_in_browser(ws_url: str, messages: int = 5) -> dict:
 
 
 def test_a_page_using_roslibjs_shows_the_line_s_joint_states_as_they_move():
-    seen: dict = {}
-    with Launcher(RunOptions(scene="pick_cell", duration_s=120.0, mode="realtime", rosbridge_port=0)) as launcher:
+    def user(launcher: Launcher, seen: dict) -> None:
+        seen.update(shown_in_browser(f"ws://127.0.0.1:{rosbridge_port(launcher)}"))
 
-        def user() -> None:
-            try:
-                seen.update(shown_in_browser(f"ws://127.0.0.1:{rosbridge_port(launcher)}"))
-            except BaseException as exc:  # the test reports it (pytest.fail included)
-                seen["error"] = repr(exc)
-            launcher.interrupted = "the page has shown the joints"
-
-        thread = threading.Thread(target=user, daemon=True)
-        thread.start()
-        summary = launcher.run()
-        thread.join(30)
-    assert_nothing_left(summary, launcher.endpoint)
+    options = RunOptions(scene="pick_cell", duration_s=120.0, mode="realtime", rosbridge_port=0)
+    _, seen, _ = run_beside(options, user)
     assert "error" not in seen, seen["error"]
     assert seen["status"] == "connected" and seen["count"] >= 5
     assert seen["name"] and all(n.startswith("arm_0/") for n in seen["name"]), seen["name"]

@@ -17,7 +17,7 @@ from fleet.bus.messages import ArmGoalMsg, ArmState, GripperGoalMsg, TrajectoryG
 from fleet.record.mcap_file import Recording
 from fleet.run.launcher import Launcher, RunOptions
 from robots.registry import get_robot
-from tests.fleet.twin.line_beside import run_beside
+from tests.fleet.line_beside import run_beside
 
 pytestmark = [pytest.mark.slow, pytest.mark.heavy]  # a lockstep line that renders a camera
 

@@ -17,7 +17,7 @@ from fleet.bus.keys import Keys
 from fleet.bus.messages import ArmState
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
-from tests.fleet.twin.line_beside import run_beside
+from tests.fleet.line_beside import run_beside
 
 # a realtime line: LeRobot's driver gives each servo about 34 ms to answer, as a real bus would (a lockstep line
 # takes both cores, and a servo answer may then wait longer)

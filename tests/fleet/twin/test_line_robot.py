@@ -13,7 +13,7 @@ from fleet.bus.scene_query import fetch_scene
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.run.launcher import Launcher, RunOptions
 from fleet.twin.line_robot import LineRobot, LineRobotError, robot_features
-from tests.fleet.twin.line_beside import run_beside
+from tests.fleet.line_beside import run_beside
 
 pytestmark = [pytest.mark.slow, pytest.mark.heavy]  # a lockstep line that renders a camera
 

@@ -15,7 +15,7 @@ from fleet.run.launcher import Launcher, RunOptions
 from fleet.twin.line_arm import rad_of, ticks_of
 from fleet.twin.serve_bus import Wear, served_arm
 from robots.feetech.control_table import BY_NAME
-from tests.fleet.twin.line_beside import run_beside
+from tests.fleet.line_beside import run_beside
 
 # a realtime line, nothing heavy beside it: the SDK gives each answer about 34 ms, and in clean-clone CI a lockstep
 # line beside another test starved the servo line past that three reads running ([-6, -6, -6]: no answer in time)

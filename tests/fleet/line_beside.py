@@ -1,5 +1,5 @@
-"""A line run with a driver beside it, as the twin's tests run one: the driver works from a thread of its own with
-the launcher (its logins, its scene) and a dict to say what it saw, and ends the line when it is done (or the
+"""A line run with a driver beside it (a twin, a ROS or Foxglove client): the driver works from a thread of its own
+with the launcher (its logins, its scene) and a dict to say what it saw, and ends the line when it is done (or the
 line's duration does)."""
 
 import threading
