@@ -19,6 +19,15 @@ def checked_rate(hz: float, flag: str = "--max-rate-hz") -> float:
     return hz
 
 
+def _attached_argv(args: argparse.Namespace) -> list[str]:
+    """What every front end attached to a running line is given: the run, how long to wait for its sim, the
+    topics' rate cap and the bus (checked first)."""
+    check_bus_flags(args, wait_s=args.wait)
+    rate = checked_rate(args.max_rate_hz)
+    argv = ["--run", args.run_id, "--scene-timeout", str(args.wait), "--max-rate-hz", str(rate)]
+    return [*argv, *BusEndpoints.from_args(args).client_argv()]
+
+
 def cmd_rosbridge(args: argparse.Namespace) -> int:
     from fleet.nodes import rosbridge_node
 
@@ -31,9 +40,7 @@ def cmd_rosbridge(args: argparse.Namespace) -> int:
         raise SystemExit(f"fleet: error: --port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
     if refusal := rosbridge_node.exposure_refusal(args.host, args.secret_file):
         raise UsageError(refusal)
-    check_bus_flags(args, wait_s=args.wait)
-    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
-    argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
+    argv = [*_attached_argv(args), "--host", args.host, "--port", str(args.port)]
     if args.secret_file:
         argv += ["--secret-file", args.secret_file]
     return rosbridge_node.main(argv)
@@ -49,10 +56,7 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
         )
     if not 0 <= args.port <= 65535:
         raise UsageError(f"--port {args.port}: a TCP port is 0 to 65535 (0: any free port)")
-    check_bus_flags(args, wait_s=args.wait)
-    argv = ["--run", args.run_id, "--host", args.host, "--port", str(args.port), "--scene-timeout", str(args.wait)]
-    argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
-    return foxglove_node.main(argv)
+    return foxglove_node.main([*_attached_argv(args), "--host", args.host, "--port", str(args.port)])
 
 
 def cmd_ros2(args: argparse.Namespace) -> int:
@@ -63,10 +67,7 @@ def cmd_ros2(args: argparse.Namespace) -> int:
             "fleet: error: fleet ros2 serve needs --connect ENDPOINT or --zenoh-config FILE (on a run's secure bus, "
             "its bus/ros.json5; that run must have been started with --ros2 for its router to let the topics through)"
         )
-    check_bus_flags(args, wait_s=args.wait)
-    argv = ["--run", args.run_id, "--domain-id", str(args.domain_id), "--scene-timeout", str(args.wait)]
-    argv += ["--max-rate-hz", str(checked_rate(args.max_rate_hz)), *BusEndpoints.from_args(args).client_argv()]
-    return ros2_node.main(argv)
+    return ros2_node.main([*_attached_argv(args), "--domain-id", str(args.domain_id)])
 
 
 def cmd_ros2_controllers(args: argparse.Namespace) -> int:
