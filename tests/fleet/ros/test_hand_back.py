@@ -14,11 +14,10 @@ import pytest
 import roslibpy
 
 from coordinator.geometry import ArmGeometry, separation_m
-from fleet.bus.codec import Decoder, DropCounter
 from fleet.bus.keys import Keys
-from fleet.bus.messages import SimStatus
 from fleet.bus.session import BusEndpoints, open_session
 from fleet.common.scene_loading import load_checked_scene
+from fleet.monitor.feed import LiveFeed
 from fleet.run.launcher import Launcher, RunOptions
 from robots.frames import yaw_transform
 from robots.registry import get_robot
@@ -55,21 +54,13 @@ def poses_beside_arm_1(arms: int, count: int = 8) -> list[np.ndarray]:
 
 @contextlib.contextmanager
 def paused_line(launcher: Launcher) -> Iterator[Callable[[], bool]]:
-    """Whether the line stands paused, as its status says (heard with the monitor's login)."""
-    keys = Keys(launcher.options.run_id)
-    with open_session(BusEndpoints(config_file=launcher.bus.config_for("monitor"))) as session:
-        decoder, paused = Decoder(SimStatus, DropCounter()), threading.Event()
-
-        def heard(sample) -> None:
-            status = decoder.decode("status", sample.payload.to_bytes())
-            if status is not None and status.paused:
-                paused.set()
-
-        sub = session.declare_subscriber(keys.sim_status, heard)
-        try:
-            yield paused.is_set
-        finally:
-            sub.undeclare()
+    """Whether the line stands paused, as its status says (heard as the monitor hears it, with its login)."""
+    keys, arms = Keys(launcher.options.run_id), [a.name for a in launcher.scene.arms]
+    with (
+        open_session(BusEndpoints(config_file=launcher.bus.config_for("monitor"))) as session,
+        LiveFeed(session, keys, arms) as feed,
+    ):
+        yield lambda: (status := feed.take().status) is not None and status.paused
 
 
 def drive_then_let_go(launcher: Launcher, targets: list[np.ndarray], seen: dict, paused: bool) -> None:
